@@ -1,0 +1,163 @@
+#include "app/commands.h"
+
+#include "app/output_dir.h"
+#include "app/scene_setup.h"
+#include "image/image_io.h"
+#include "image/image_metrics.h"
+#include "render/device_scene.h"
+#include "render/preview_renderer.h"
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+
+namespace px {
+namespace {
+
+namespace fs = std::filesystem;
+using clock_type = std::chrono::steady_clock;
+
+double ms_since(clock_type::time_point t0) {
+  return std::chrono::duration<double, std::milli>(clock_type::now() - t0).count();
+}
+
+void print_device_set(const DeviceSet& set) {
+  std::fprintf(stderr, "[devices] %d on '%s' (%s):\n", set.size(), set.platform_name().c_str(), to_string(set.mode()));
+  for (const auto& d : set.devices()) std::fprintf(stderr, "  %d: %s\n", d.index, d.description.c_str());
+}
+
+std::string frame_name(unsigned frame, const char* what) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "frame_%04u_%s", frame, what);
+  return buf;
+}
+
+// Writes left/right EXR + PNG and the side-by-side stereo PNG under `dir` with `prefix`.
+void write_stereo(const std::string& dir, const std::string& prefix, const std::array<ImageRGB, 2>& eyes,
+                  float exposure) {
+  std::array<std::vector<std::uint8_t>, 2> png;
+  for (int e = 0; e < 2; ++e) {
+    const std::string name = prefix + (e == 0 ? "left" : "right");
+    write_exr((fs::path(dir) / (name + ".exr")).string(), eyes[e]);
+    png[e] = to_srgb8(eyes[e], exposure);
+    write_png((fs::path(dir) / (name + ".png")).string(), eyes[e].width, eyes[e].height, png[e]);
+  }
+  write_png((fs::path(dir) / (prefix + "stereo.png")).string(), 2 * eyes[0].width, eyes[0].height,
+            side_by_side(png[0], png[1], eyes[0].width, eyes[0].height));
+}
+
+}  // namespace
+
+DeviceSet DeviceChoice::create() const { return DeviceSet::create({count, parse_device_mode(mode), platform}); }
+
+int run_devices(const DeviceChoice& choice) {
+  std::printf("%s", describe_platforms().c_str());
+  auto set = choice.create();
+  std::printf("--devices %d gives (%s mode):\n", set.size(), to_string(set.mode()));
+  for (const auto& d : set.devices()) std::printf("  %d: %s\n", d.index, d.description.c_str());
+  return 0;
+}
+
+int run_preview(const PreviewCommand& cmd) {
+  prepare_output_dir(cmd.out, cmd.overwrite);
+  auto loaded = load_and_build(cmd.scene);
+  auto devices = cmd.devices.create();
+  print_device_set(devices);
+  DeviceScene device_scene(devices, loaded.scene, loaded.bvh);
+  PreviewRenderer renderer(devices, device_scene);
+  std::fprintf(stderr, "[preview] %ux%u per eye, t = %.2f s ...\n", cmd.width, cmd.height, cmd.time_s);
+  auto t0 = clock_type::now();
+  auto eyes = renderer.render(loaded.scene, cmd.time_s, cmd.width, cmd.height);
+  std::fprintf(stderr, "[preview] done in %.0f ms (first run includes kernel compilation)\n", ms_since(t0));
+  write_stereo(cmd.out, "", eyes, 1.0f);
+  std::printf("wrote %s/{left,right}.{exr,png} and %s/stereo.png\n", cmd.out.c_str(), cmd.out.c_str());
+  return 0;
+}
+
+int run_render(const RenderCommand& cmd) {
+  if (cmd.pipeline != "mono")
+    throw std::invalid_argument("--pipeline " + cmd.pipeline +
+                                " is not available yet: only 'mono' (both eyes fully path traced) is implemented");
+  if (cmd.trace.spp == 0) throw std::invalid_argument("--spp must be at least 1");
+  if (cmd.frames == 0) throw std::invalid_argument("--frames must be at least 1");
+  if (!(cmd.fps > 0.0f)) throw std::invalid_argument("--fps must be positive");
+  prepare_output_dir(cmd.out, cmd.overwrite);
+  auto loaded = load_and_build(cmd.scene);
+  auto devices = cmd.devices.create();
+  print_device_set(devices);
+  DeviceScene device_scene(devices, loaded.scene, loaded.bvh);
+  PathTracer tracer(devices, device_scene, loaded.scene);
+  PathTracer::Options opt = cmd.trace;
+  opt.light_sampling = parse_light_sampling(cmd.light_sampling);
+  std::fprintf(stderr, "[render] %u frame(s), %ux%u per eye, %u spp, %u bounces, pipeline %s\n", cmd.frames, cmd.width,
+               cmd.height, opt.spp, opt.bounces, cmd.pipeline.c_str());
+  for (unsigned f = 0; f < cmd.frames; ++f) {
+    auto t0 = clock_type::now();
+    auto eyes = tracer.render_stereo(static_cast<float>(f) / cmd.fps, f, cmd.width, cmd.height, opt);
+    const double wall = ms_since(t0);
+    std::string per_device;
+    for (double ms : tracer.last_device_ms()) per_device += " " + std::to_string(static_cast<int>(ms + 0.5));
+    std::fprintf(stderr, "[render] frame %u/%u: %.0f ms wall, device ms:%s\n", f + 1, cmd.frames, wall,
+                 per_device.c_str());
+    write_stereo(cmd.out, frame_name(f, ""), eyes, cmd.exposure);
+  }
+  if (tracer.nonfinite_paths() > 0)
+    std::fprintf(stderr, "[render] warning: %llu paths had non-finite radiance and were dropped\n",
+                 static_cast<unsigned long long>(tracer.nonfinite_paths()));
+  std::printf("wrote %u frame(s) to %s (frame_NNNN_{left,right}.{exr,png}, frame_NNNN_stereo.png)\n", cmd.frames,
+              cmd.out.c_str());
+  return 0;
+}
+
+int run_reference(const ReferenceCommand& cmd) {
+  if (cmd.spp == 0 || cmd.pass_spp == 0) throw std::invalid_argument("--spp and --pass-spp must be at least 1");
+  prepare_output_dir(cmd.out, cmd.overwrite);
+  auto loaded = load_and_build(cmd.scene);
+  auto devices = cmd.devices.create();
+  print_device_set(devices);
+  DeviceScene device_scene(devices, loaded.scene, loaded.bvh);
+  PathTracer tracer(devices, device_scene, loaded.scene);
+  PathTracer::Options opt;
+  opt.bounces = cmd.bounces;
+  std::array<std::vector<double>, 2> sum;
+  for (auto& s : sum) s.assign(static_cast<std::size_t>(cmd.width) * cmd.height * 3, 0.0);
+  const auto start = clock_type::now();
+  unsigned done = 0;
+  const float time_s = static_cast<float>(cmd.frame) / cmd.fps;
+  // Progressive: passes of pass_spp new samples each (sample_offset advances), summed in double
+  // so 4096 spp do not lose precision.
+  while (done < cmd.spp) {
+    opt.spp = std::min(cmd.pass_spp, cmd.spp - done);
+    auto eyes = tracer.render_stereo(time_s, cmd.frame, cmd.width, cmd.height, opt, done);
+    for (int e = 0; e < 2; ++e)
+      for (std::size_t i = 0; i < sum[e].size(); ++i) sum[e][i] += static_cast<double>(eyes[e].rgb[i]) * opt.spp;
+    done += opt.spp;
+    const double elapsed = ms_since(start) / 1000.0;
+    const double eta = elapsed / done * (cmd.spp - done);
+    std::fprintf(stderr, "\r[reference] %u/%u spp, %.0f s elapsed, about %.0f s left   ", done, cmd.spp, elapsed, eta);
+  }
+  std::fprintf(stderr, "\n");
+  std::array<ImageRGB, 2> eyes;
+  for (int e = 0; e < 2; ++e) {
+    eyes[e].width = static_cast<int>(cmd.width);
+    eyes[e].height = static_cast<int>(cmd.height);
+    eyes[e].rgb.resize(sum[e].size());
+    for (std::size_t i = 0; i < sum[e].size(); ++i) eyes[e].rgb[i] = static_cast<float>(sum[e][i] / done);
+  }
+  write_stereo(cmd.out, "reference_", eyes, cmd.exposure);
+  if (tracer.nonfinite_paths() > 0)
+    std::fprintf(stderr, "[reference] warning: %llu paths had non-finite radiance and were dropped\n",
+                 static_cast<unsigned long long>(tracer.nonfinite_paths()));
+  std::printf("wrote %s/reference_{left,right}.exr (%u spp) and PNG previews\n", cmd.out.c_str(), done);
+  return 0;
+}
+
+int run_compare(const CompareCommand& cmd) {
+  const auto a = read_image_rgb(cmd.image);
+  const auto r = read_image_rgb(cmd.reference);
+  const auto d = compare_images(a, r);
+  std::printf("psnr_db %.3f\nrel_mse %.6g\nmse %.6g\n", d.psnr_db, d.rel_mse, d.mse);
+  return 0;
+}
+
+}  // namespace px

@@ -1,0 +1,67 @@
+// The subcommands of the parallax binary. main.cpp parses flags into these option structs;
+// each run_* function does the work, prints progress on stderr and results on stdout, and
+// throws on failure (main turns that into a message and exit code 1).
+#pragma once
+
+#include "cl/device_set.h"
+#include "render/path_tracer.h"
+
+#include <string>
+
+namespace px {
+
+struct DeviceChoice {
+  int count = 1;
+  std::string mode = "auto";
+  std::string platform;
+  DeviceSet create() const;
+};
+
+struct PreviewCommand {
+  std::string scene = "cornell";
+  unsigned width = 640, height = 360;
+  float time_s = 0.0f;
+  std::string out = "out/preview";
+  bool overwrite = false;
+  DeviceChoice devices;
+};
+
+struct RenderCommand {
+  std::string scene = "cornell";
+  std::string pipeline = "mono";
+  unsigned width = 640, height = 360;
+  unsigned frames = 1;
+  float fps = 30.0f;           // camera-path time of frame f is f / fps
+  float exposure = 1.0f;       // PNG preview scale
+  PathTracer::Options trace;
+  std::string light_sampling = "mis";
+  std::string out = "out/render";
+  bool overwrite = false;
+  DeviceChoice devices;
+};
+
+struct ReferenceCommand {
+  std::string scene = "cornell";
+  unsigned width = 640, height = 360;
+  unsigned spp = 4096;
+  unsigned pass_spp = 16;      // samples per progressive pass
+  unsigned frame = 0;
+  float fps = 30.0f;
+  unsigned bounces = 6;
+  float exposure = 1.0f;
+  std::string out = "out/reference";
+  bool overwrite = false;
+  DeviceChoice devices;
+};
+
+struct CompareCommand {
+  std::string image, reference;
+};
+
+int run_devices(const DeviceChoice& choice);
+int run_preview(const PreviewCommand& cmd);
+int run_render(const RenderCommand& cmd);
+int run_reference(const ReferenceCommand& cmd);
+int run_compare(const CompareCommand& cmd);
+
+}  // namespace px

@@ -1,0 +1,130 @@
+// parallax command line: parses flags into the command structs of app/commands.h and runs
+// one. No rendering logic lives here.
+#include "app/commands.h"
+#include "cl/cl_error.h"
+
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+
+namespace {
+
+void add_device_flags(CLI::App* cmd, px::DeviceChoice& d) {
+  cmd->add_option("--devices", d.count, "number of OpenCL devices the frame is split across")
+      ->check(CLI::Range(1, 64))
+      ->capture_default_str();
+  cmd->add_option("--device-mode", d.mode,
+                  "how N devices are made: auto (sub-devices of one CPU/GPU while it has enough compute "
+                  "units, else the platform's devices, else N queues on one device), subdevices, platform, queues")
+      ->check(CLI::IsMember({"auto", "subdevices", "platform", "queues"}))
+      ->capture_default_str();
+  cmd->add_option("--platform", d.platform,
+                  "substring of the OpenCL platform name (default: $PARALLAX_PLATFORM, else the first platform "
+                  "with a GPU, else the first)");
+}
+
+void add_size_flags(CLI::App* cmd, unsigned& width, unsigned& height) {
+  cmd->add_option("--width", width, "width of each eye in pixels")->check(CLI::Range(1u, 16384u))->capture_default_str();
+  cmd->add_option("--height", height, "height of each eye in pixels")->check(CLI::Range(1u, 16384u))->capture_default_str();
+}
+
+const char* kSceneHelp = "scene: a JSON scene file (scenes/*.json), an OBJ file, or a built-in name "
+                         "(cornell, cornell-glossy, atrium)";
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"parallax: stereo path tracing split across OpenCL devices.\n"
+               "Output files are never silently mixed: a non-empty --out directory needs --overwrite."};
+  app.require_subcommand(1);
+
+  px::DeviceChoice devices_choice;
+  auto* devices_cmd = app.add_subcommand("devices", "list OpenCL platforms and devices, and the set --devices N makes");
+  add_device_flags(devices_cmd, devices_choice);
+
+  px::PreviewCommand preview;
+  auto* preview_cmd = app.add_subcommand("preview", "shaded primary hits of both eyes (a quick geometry/framing check)");
+  preview_cmd->add_option("--scene", preview.scene, kSceneHelp)->capture_default_str();
+  add_size_flags(preview_cmd, preview.width, preview.height);
+  preview_cmd->add_option("--time", preview.time_s, "time on the camera path, seconds")->capture_default_str();
+  preview_cmd->add_option("--out", preview.out, "output directory")->capture_default_str();
+  preview_cmd->add_flag("--overwrite", preview.overwrite, "allow writing into a non-empty output directory");
+  add_device_flags(preview_cmd, preview.devices);
+
+  px::RenderCommand render;
+  auto* render_cmd = app.add_subcommand(
+      "render", "path trace a stereo animation; writes per frame and eye a linear EXR and an sRGB PNG, plus a "
+                "side-by-side stereo PNG (frame_NNNN_{left,right}.{exr,png}, frame_NNNN_stereo.png)");
+  render_cmd->add_option("--scene", render.scene, kSceneHelp)->capture_default_str();
+  render_cmd->add_option("--pipeline", render.pipeline, "mono: both eyes fully path traced")
+      ->check(CLI::IsMember({"mono", "proposed", "baseline"}))
+      ->capture_default_str();
+  add_size_flags(render_cmd, render.width, render.height);
+  render_cmd->add_option("--frames", render.frames, "frames to render along the camera path")->check(CLI::Range(1u, 100000u))->capture_default_str();
+  render_cmd->add_option("--fps", render.fps, "frame rate: frame f is at time f / fps on the camera path")->capture_default_str();
+  render_cmd->add_option("--spp", render.trace.spp, "samples per pixel")->check(CLI::Range(1u, 1u << 20))->capture_default_str();
+  render_cmd->add_option("--bounces", render.trace.bounces, "maximum path length in bounces")->check(CLI::Range(0u, 256u))->capture_default_str();
+  render_cmd->add_option("--rr-start", render.trace.rr_start_bounce, "Russian roulette from this bounce on")->capture_default_str();
+  render_cmd->add_option("--light-sampling", render.light_sampling,
+                         "mis (NEE + BSDF sampling, power heuristic), nee (next-event only), bsdf (BSDF sampling only)")
+      ->check(CLI::IsMember({"mis", "nee", "bsdf"}))
+      ->capture_default_str();
+  render_cmd->add_option("--seed", render.trace.seed, "seed of the sample streams")->capture_default_str();
+  render_cmd->add_option("--exposure", render.exposure, "scale applied before the sRGB PNG encoding")->capture_default_str();
+  render_cmd->add_option("--out", render.out, "output directory")->capture_default_str();
+  render_cmd->add_flag("--overwrite", render.overwrite, "allow writing into a non-empty output directory");
+  add_device_flags(render_cmd, render.devices);
+
+  px::ReferenceCommand reference;
+  auto* reference_cmd = app.add_subcommand(
+      "reference", "progressive converged render of both eyes (ground truth for error figures): "
+                   "reference_{left,right}.exr");
+  reference_cmd->add_option("--scene", reference.scene, kSceneHelp)->capture_default_str();
+  add_size_flags(reference_cmd, reference.width, reference.height);
+  reference_cmd->add_option("--spp", reference.spp, "total samples per pixel")->check(CLI::Range(1u, 1u << 24))->capture_default_str();
+  reference_cmd->add_option("--pass-spp", reference.pass_spp, "samples per progressive pass")->check(CLI::Range(1u, 4096u))->capture_default_str();
+  reference_cmd->add_option("--frame", reference.frame, "frame number on the camera path (time = frame / fps)")->capture_default_str();
+  reference_cmd->add_option("--fps", reference.fps, "frame rate of the animation the reference belongs to")->capture_default_str();
+  reference_cmd->add_option("--bounces", reference.bounces, "maximum path length")->check(CLI::Range(0u, 256u))->capture_default_str();
+  reference_cmd->add_option("--exposure", reference.exposure, "PNG preview scale")->capture_default_str();
+  reference_cmd->add_option("--out", reference.out, "output directory")->capture_default_str();
+  reference_cmd->add_flag("--overwrite", reference.overwrite, "allow writing into a non-empty output directory");
+  add_device_flags(reference_cmd, reference.devices);
+
+  px::CompareCommand compare;
+  auto* compare_cmd = app.add_subcommand("compare", "PSNR and relative MSE of an image against a reference");
+  compare_cmd->add_option("image", compare.image, "image (EXR)")->required()->check(CLI::ExistingFile);
+  compare_cmd->add_option("reference", compare.reference, "reference (EXR)")->required()->check(CLI::ExistingFile);
+
+  auto* demo_cmd = app.add_subcommand("demo", "render the default scene as a first look (what scripts/demo runs)");
+  std::string demo_out = "out/demo";
+  demo_cmd->add_option("--out", demo_out, "output directory (existing demo files are replaced, and said so)")
+      ->capture_default_str();
+
+  try {
+    CLI11_PARSE(app, argc, argv);
+    if (devices_cmd->parsed()) return px::run_devices(devices_choice);
+    if (preview_cmd->parsed()) return px::run_preview(preview);
+    if (render_cmd->parsed()) return px::run_render(render);
+    if (reference_cmd->parsed()) return px::run_reference(reference);
+    if (compare_cmd->parsed()) return px::run_compare(compare);
+    if (demo_cmd->parsed()) {
+      px::RenderCommand demo;
+      demo.scene = "cornell";
+      demo.width = 480;
+      demo.height = 270;
+      demo.trace.spp = 32;
+      demo.out = demo_out;
+      demo.overwrite = true;
+      demo.devices.count = 2;
+      return px::run_render(demo);
+    }
+  } catch (const cl::Error& e) {
+    std::fprintf(stderr, "error: OpenCL: %s\n", px::describe(e).c_str());
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

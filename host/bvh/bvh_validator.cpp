@@ -1,0 +1,306 @@
+// validate_bvh(): checks a flattened BVH against its scene without trusting the builder. Used by
+// tests after every build and by the CLI before uploading a tree the kernels will walk without
+// bounds checks.
+#include "bvh/flat_bvh.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <sstream>
+
+namespace px {
+
+namespace {
+
+constexpr std::size_t kMaxReported = 10;
+
+// Collects the first few problems and counts the rest.
+class Report {
+ public:
+  template <typename... Parts>
+  void error(const Parts&... parts) {
+    ++count_;
+    if (result_.errors.size() >= kMaxReported) return;
+    std::ostringstream message;
+    (message << ... << parts);
+    result_.errors.push_back(message.str());
+  }
+  BvhValidation finish() {
+    result_.ok = count_ == 0;
+    if (count_ > result_.errors.size())
+      result_.errors.push_back("... and " + std::to_string(count_ - result_.errors.size()) +
+                               " more");
+    return result_;
+  }
+
+ private:
+  BvhValidation result_;
+  std::size_t count_ = 0;
+};
+
+struct Box {
+  double lo[3];
+  double hi[3];
+};
+
+struct Vec3d {
+  double x, y, z;
+  double operator[](int k) const { return k == 0 ? x : (k == 1 ? y : z); }
+};
+Vec3d operator-(const Vec3d& a, const Vec3d& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+Vec3d cross(const Vec3d& a, const Vec3d& b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+double dot(const Vec3d& a, const Vec3d& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+
+Vec3d vertex(const SceneTriangle& t, int i) { return {t.p[i].x, t.p[i].y, t.p[i].z}; }
+
+// Float tolerance for "contains" and "overlaps": a few float ulps of the largest magnitude
+// involved, so exact builder output passes at any scale and real errors do not.
+double tolerance(const Box& box, const SceneTriangle* tri) {
+  double scale = 0.0;
+  for (int k = 0; k < 3; ++k) scale = std::max({scale, std::abs(box.lo[k]), std::abs(box.hi[k])});
+  if (tri)
+    for (const auto& p : tri->p)
+      scale = std::max({scale, double(std::abs(p.x)), double(std::abs(p.y)), double(std::abs(p.z))});
+  return 1e-6 * scale + 1e-30;
+}
+
+bool contains(const Box& outer, const Box& inner, double tol) {
+  for (int k = 0; k < 3; ++k)
+    if (inner.lo[k] < outer.lo[k] - tol || inner.hi[k] > outer.hi[k] + tol) return false;
+  return true;
+}
+
+bool contains_point(const Box& box, const Vec3d& p, double tol) {
+  for (int k = 0; k < 3; ++k)
+    if (p[k] < box.lo[k] - tol || p[k] > box.hi[k] + tol) return false;
+  return true;
+}
+
+Box triangle_box(const SceneTriangle& t) {
+  Box b;
+  for (int k = 0; k < 3; ++k) {
+    b.lo[k] = std::min({t.p[0][k], t.p[1][k], t.p[2][k]});
+    b.hi[k] = std::max({t.p[0][k], t.p[1][k], t.p[2][k]});
+  }
+  return b;
+}
+
+// Triangle/box overlap by the separating axis theorem (Akenine-Möller 2001): the two convex sets
+// are disjoint iff their projections are disjoint on one of 13 axes (3 box normals, the triangle
+// normal, 9 edge cross products). Deliberately a different method from the builder's polygon
+// clipping, so the two check each other. The box is grown by `tol`.
+bool triangle_overlaps_box(const SceneTriangle& tri, const Box& box, double tol) {
+  const Vec3d center = {0.5 * (box.lo[0] + box.hi[0]), 0.5 * (box.lo[1] + box.hi[1]),
+                        0.5 * (box.lo[2] + box.hi[2])};
+  const double half[3] = {0.5 * (box.hi[0] - box.lo[0]) + tol, 0.5 * (box.hi[1] - box.lo[1]) + tol,
+                          0.5 * (box.hi[2] - box.lo[2]) + tol};
+  const Vec3d v[3] = {vertex(tri, 0) - center, vertex(tri, 1) - center, vertex(tri, 2) - center};
+  const Vec3d edge[3] = {v[1] - v[0], v[2] - v[1], v[0] - v[2]};
+
+  auto separated = [&](const Vec3d& axis) {
+    const double p0 = dot(axis, v[0]), p1 = dot(axis, v[1]), p2 = dot(axis, v[2]);
+    const double r = half[0] * std::abs(axis.x) + half[1] * std::abs(axis.y) +
+                     half[2] * std::abs(axis.z);
+    // A relative slack keeps rounding of the projections from separating touching sets.
+    const double slack = 1e-12 * (std::abs(p0) + std::abs(p1) + std::abs(p2) + r);
+    return std::min({p0, p1, p2}) > r + slack || std::max({p0, p1, p2}) < -r - slack;
+  };
+
+  const Vec3d unit[3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  for (const Vec3d& axis : unit)
+    if (separated(axis)) return false;
+  if (separated(cross(edge[0], edge[1]))) return false;
+  for (const Vec3d& e : edge)
+    for (const Vec3d& u : unit)
+      if (separated(cross(u, e))) return false;
+  return true;
+}
+
+bool has_nan(const float* lo, const float* hi) {
+  for (int k = 0; k < 3; ++k)
+    if (std::isnan(lo[k]) || std::isnan(hi[k])) return true;
+  return false;
+}
+
+// An absent child: inverted on every axis (types.h: min = +FLT_MAX, max = -FLT_MAX).
+bool is_absent(const float* lo, const float* hi) {
+  return lo[0] > hi[0] && lo[1] > hi[1] && lo[2] > hi[2];
+}
+
+// Points every triangle must have inside the union of the leaf boxes that reference it:
+// vertices, edge midpoints, centroid and three interior points.
+constexpr double kSamples[][3] = {{1, 0, 0},         {0, 1, 0},         {0, 0, 1},
+                                  {0.5, 0.5, 0},     {0, 0.5, 0.5},     {0.5, 0, 0.5},
+                                  {1. / 3, 1. / 3, 1. / 3}, {0.6, 0.2, 0.2}, {0.2, 0.6, 0.2},
+                                  {0.2, 0.2, 0.6}};
+
+}  // namespace
+
+BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles) {
+  Report report;
+  if (bvh.nodes.empty()) {
+    report.error("the BVH has no nodes");
+    return report.finish();
+  }
+
+  const std::size_t node_count = bvh.nodes.size();
+  const std::size_t tri_count = bvh.triangles.size();
+  std::vector<std::uint8_t> node_seen(node_count, 0);
+  std::vector<std::uint32_t> entry_refs(tri_count, 0);  // leaves covering each triangle entry
+
+  // (scene triangle, leaf box) for every leaf reference, checked per triangle afterwards.
+  std::vector<Box> leaf_boxes;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> references;  // (prim, leaf box index)
+  references.reserve(tri_count);
+
+  struct Entry {
+    std::uint32_t node;
+    int depth;  // root = 1, as BvhBuildStats::depth counts
+    Box box;    // the box the parent stores for this node
+    bool has_box;
+  };
+  std::vector<Entry> stack;
+  stack.push_back({0, 1, {}, false});
+  while (!stack.empty()) {
+    const Entry e = stack.back();
+    stack.pop_back();
+    if (node_seen[e.node]) {
+      report.error("node ", e.node, " is reached more than once (cycle or shared subtree)");
+      continue;
+    }
+    node_seen[e.node] = 1;
+    const BvhNode& node = bvh.nodes[e.node];
+    const float* lo[2] = {node.lmin, node.rmin};
+    const float* hi[2] = {node.lmax, node.rmax};
+    const std::uint32_t index[2] = {node.left, node.right};
+    const std::uint32_t count[2] = {node.left_count, node.right_count};
+    const char* side_name[2] = {"left", "right"};
+    int present = 0;
+
+    for (int side = 0; side < 2; ++side) {
+      if (has_nan(lo[side], hi[side])) {
+        report.error("node ", e.node, " ", side_name[side], " box has NaN");
+        continue;
+      }
+      if (is_absent(lo[side], hi[side])) {
+        // Only the root of a one-leaf scene may have an absent child, and only with count 0.
+        if (e.node != 0 || count[side] != 0)
+          report.error("node ", e.node, " ", side_name[side],
+                       " child is absent (inverted box); only the root's may be");
+        continue;
+      }
+      ++present;
+      Box box;
+      for (int k = 0; k < 3; ++k) box.lo[k] = lo[side][k], box.hi[k] = hi[side][k];
+      bool inverted = false;
+      for (int k = 0; k < 3; ++k) inverted |= box.lo[k] > box.hi[k];
+      if (inverted) {
+        report.error("node ", e.node, " ", side_name[side], " box is inverted on some axis");
+        continue;
+      }
+      if (e.has_box && !contains(e.box, box, tolerance(e.box, nullptr)))
+        report.error("node ", e.node, " ", side_name[side],
+                     " box is not inside the box its parent stores for it");
+
+      const int child_depth = e.depth + 1;
+      if (count[side] > 0) {
+        if (child_depth > PX_BVH_MAX_DEPTH)
+          report.error("leaf under node ", e.node, " at depth ", child_depth,
+                       " exceeds PX_BVH_MAX_DEPTH ", PX_BVH_MAX_DEPTH);
+        if (count[side] > PX_BVH_MAX_LEAF_SIZE)
+          report.error("leaf under node ", e.node, " holds ", count[side],
+                       " triangles, more than PX_BVH_MAX_LEAF_SIZE");
+        const std::uint64_t first = index[side];
+        if (first + count[side] > tri_count) {
+          report.error("leaf under node ", e.node, " references triangles ", first, "..",
+                       first + count[side] - 1, " but there are ", tri_count);
+          continue;
+        }
+        const auto box_index = static_cast<std::uint32_t>(leaf_boxes.size());
+        leaf_boxes.push_back(box);
+        for (std::uint64_t i = first; i < first + count[side]; ++i) {
+          ++entry_refs[i];
+          const BvhTriangle& t = bvh.triangles[i];
+          if (t.prim >= triangles.size()) {
+            report.error("triangle entry ", i, " has prim ", t.prim, " but the scene has ",
+                         triangles.size());
+            continue;
+          }
+          const SceneTriangle& s = triangles[t.prim];
+          bool same = t.material == s.material;
+          for (int k = 0; k < 3; ++k)
+            same = same && t.v0[k] == s.p[0][k] && t.v1[k] == s.p[1][k] && t.v2[k] == s.p[2][k];
+          if (!same)
+            report.error("triangle entry ", i, " does not match scene triangle ", t.prim,
+                         " (vertices or material)");
+          references.emplace_back(t.prim, box_index);
+        }
+      } else {
+        if (index[side] == 0 || index[side] >= node_count) {
+          report.error("node ", e.node, " ", side_name[side], " child index ", index[side],
+                       index[side] == 0 ? " points at the root" : " is out of range");
+          continue;
+        }
+        stack.push_back({index[side], child_depth, box, true});
+      }
+    }
+    if (present == 0) report.error("node ", e.node, " has no children");
+  }
+
+  std::size_t unreached = 0, first_unreached = 0;
+  for (std::size_t i = node_count; i-- > 0;)
+    if (!node_seen[i]) ++unreached, first_unreached = i;
+  if (unreached > 0)
+    report.error(unreached, " nodes are not reachable from the root (first: ", first_unreached,
+                 ")");
+  for (std::size_t i = 0; i < tri_count; ++i)
+    if (entry_refs[i] != 1)
+      report.error("triangle entry ", i, " is in ", entry_refs[i], " leaves (expected 1)");
+
+  // Per scene triangle: referenced at all; a single leaf box must contain the whole triangle;
+  // with several (spatial splits), each must overlap it and together they must cover it.
+  std::sort(references.begin(), references.end());
+  std::size_t r = 0;
+  for (std::uint32_t prim = 0; prim < triangles.size(); ++prim) {
+    const std::size_t begin = r;
+    while (r < references.size() && references[r].first == prim) ++r;
+    const SceneTriangle& tri = triangles[prim];
+    if (r == begin) {
+      report.error("scene triangle ", prim, " is not referenced by any leaf");
+      continue;
+    }
+    if (r - begin == 1) {
+      const Box& box = leaf_boxes[references[begin].second];
+      if (!contains(box, triangle_box(tri), tolerance(box, &tri)))
+        report.error("scene triangle ", prim, " is not inside the box of its leaf");
+      continue;
+    }
+    for (std::size_t j = begin; j < r; ++j) {
+      const Box& box = leaf_boxes[references[j].second];
+      if (!triangle_overlaps_box(tri, box, tolerance(box, &tri)))
+        report.error("scene triangle ", prim, " does not overlap the box of a leaf holding it");
+    }
+    for (const auto& w : kSamples) {
+      const Vec3d p = {w[0] * tri.p[0].x + w[1] * tri.p[1].x + w[2] * tri.p[2].x,
+                       w[0] * tri.p[0].y + w[1] * tri.p[1].y + w[2] * tri.p[2].y,
+                       w[0] * tri.p[0].z + w[1] * tri.p[1].z + w[2] * tri.p[2].z};
+      bool covered = false;
+      for (std::size_t j = begin; j < r && !covered; ++j) {
+        const Box& box = leaf_boxes[references[j].second];
+        covered = contains_point(box, p, tolerance(box, &tri));
+      }
+      if (!covered) {
+        report.error("scene triangle ", prim, ": point (", p.x, ", ", p.y, ", ", p.z,
+                     ") lies in none of its ", r - begin, " leaf boxes");
+        break;
+      }
+    }
+  }
+  // References to prims >= triangles.size() were reported above and never enter this list.
+  return report.finish();
+}
+
+}  // namespace px

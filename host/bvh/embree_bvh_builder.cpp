@@ -1,0 +1,676 @@
+// build_bvh(): Embree's rtcBuildBVH (binned SAH, optionally with spatial splits) builds a
+// binary tree through our callbacks; we then flatten it into the 64-byte node layout the kernels
+// read (kernels/shared/types.h).
+#include "bvh/embree_reference.h"  // embree_device(), take_embree_error()
+#include "bvh/flat_bvh.h"
+
+#include <embree3/rtcore_builder.h>
+
+#include <algorithm>
+#include <array>
+#include <cstdio>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <new>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace px {
+
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+// ---------------------------------------------------------------------------------------------
+// The tree as Embree's callbacks build it. Nodes live in Embree's thread-local allocator (the
+// callbacks run concurrently on TBB threads) and die with the RTCBVH, so the tree is flattened
+// before rtcReleaseBVH.
+
+struct TempNode {
+  bool is_leaf;
+};
+
+struct TempInner : TempNode {
+  TempNode* child[2];
+  RTCBounds bounds[2];
+  // Filled by a single-threaded pass after the build, for the depth limit (see Flattener).
+  int height;             // levels below this node: 1 when both children are leaves
+  std::size_t leaf_count;  // leaves in this subtree
+};
+
+struct TempLeaf : TempNode {
+  std::uint32_t count;
+  std::uint32_t prims[PX_BVH_MAX_LEAF_SIZE];
+};
+
+struct BuildContext {
+  // Positions only, 36 bytes a triangle instead of SceneTriangle's 100: the split callback
+  // fetches a random triangle per call, so a compact array saves cache misses.
+  std::vector<std::array<float, 9>> positions;
+  // Set by a callback that saw something the flat layout cannot hold; checked after the build
+  // (throwing through Embree's C API from a TBB thread is not an option).
+  std::atomic<bool> unexpected_arity{false};
+  std::atomic<bool> oversized_leaf{false};
+  std::atomic<bool> out_of_memory{false};
+};
+
+void* create_node(RTCThreadLocalAllocator allocator, unsigned int child_count, void* user) {
+  auto* context = static_cast<BuildContext*>(user);
+  if (child_count != 2) context->unexpected_arity = true;
+  void* memory = rtcThreadLocalAlloc(allocator, sizeof(TempInner), alignof(TempInner));
+  if (!memory) {
+    context->out_of_memory = true;
+    return nullptr;
+  }
+  auto* node = new (memory) TempInner;
+  node->is_leaf = false;
+  node->child[0] = node->child[1] = nullptr;
+  node->height = 0;
+  node->leaf_count = 0;
+  return node;
+}
+
+void set_node_children(void* node_ptr, void** children, unsigned int child_count, void*) {
+  auto* node = static_cast<TempInner*>(node_ptr);
+  if (!node) return;
+  for (unsigned int i = 0; i < std::min(child_count, 2u); ++i)
+    node->child[i] = static_cast<TempNode*>(children[i]);
+}
+
+void set_node_bounds(void* node_ptr, const RTCBounds** bounds, unsigned int child_count, void*) {
+  auto* node = static_cast<TempInner*>(node_ptr);
+  if (!node) return;
+  for (unsigned int i = 0; i < std::min(child_count, 2u); ++i) node->bounds[i] = *bounds[i];
+}
+
+void* create_leaf(RTCThreadLocalAllocator allocator, const RTCBuildPrimitive* primitives,
+                  size_t primitive_count, void* user) {
+  auto* context = static_cast<BuildContext*>(user);
+  void* memory = rtcThreadLocalAlloc(allocator, sizeof(TempLeaf), alignof(TempLeaf));
+  if (!memory) {
+    context->out_of_memory = true;
+    return nullptr;
+  }
+  auto* leaf = new (memory) TempLeaf;
+  leaf->is_leaf = true;
+  leaf->count = 0;
+  for (size_t i = 0; i < primitive_count; ++i) {
+    // With spatial splits two fragments of one triangle can land in the same leaf; the leaf
+    // box already covers both, so one reference is enough and saves an intersection.
+    const std::uint32_t prim = primitives[i].primID;
+    if (std::find(leaf->prims, leaf->prims + leaf->count, prim) != leaf->prims + leaf->count)
+      continue;
+    if (leaf->count == PX_BVH_MAX_LEAF_SIZE) {
+      context->oversized_leaf = true;
+      break;
+    }
+    leaf->prims[leaf->count++] = prim;
+  }
+  return leaf;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Spatial splits. Embree asks: the part of primitive `prim` inside its current box (a fragment
+// of one triangle, possibly already split several times), cut by the plane x[dim] = pos — what
+// are the boxes of the two pieces? We answer exactly: clip the triangle to the fragment's box
+// (a convex polygon), cut the polygon at the plane and take each side's bounds. Embree's own
+// triangle splitter cuts the unclipped triangle and intersects with the box, which can leave a
+// box larger than the fragment; exact boxes are tighter and so give lower SAH.
+
+struct Point3d {
+  double x[3];
+};
+
+constexpr int kMaxPolygon = 12;  // a triangle clipped by 6 box planes has at most 9 vertices
+
+// Keeps the part of the convex polygon `in` on one side of the plane x[axis] = plane: below it
+// (x <= plane) when keep_below, above it otherwise. Vertices on the plane are kept.
+int clip_polygon(const Point3d* in, int n, int axis, double plane, bool keep_below, Point3d* out) {
+  int m = 0;
+  const double sign = keep_below ? 1.0 : -1.0;
+  // Signed distance to the plane, negative inside the kept half-space.
+  double da = sign * (in[n - 1].x[axis] - plane);
+  for (int i = 0, prev = n - 1; i < n; prev = i++) {
+    const Point3d& a = in[prev];
+    const Point3d& b = in[i];
+    const double db = sign * (b.x[axis] - plane);
+    if ((da < 0.0 && db > 0.0) || (da > 0.0 && db < 0.0)) {
+      const double t = da / (da - db);
+      Point3d& p = out[m++];
+      for (int k = 0; k < 3; ++k) p.x[k] = a.x[k] + t * (b.x[k] - a.x[k]);
+      p.x[axis] = plane;  // exactly on the plane, whatever the rounding above did
+    }
+    if (db <= 0.0) out[m++] = b;
+    da = db;
+  }
+  return m;
+}
+
+// Float bounds that never shrink the double value they round: round to nearest, and where that
+// went the wrong way step outwards by at least one ulp (|f| 2^-23 >= ulp(f); denorm_min covers
+// zero). Selects rather than branches: which way rounding goes is a coin flip, and this runs
+// ~10^8 times in a large spatial-split build. At most 2 ulps looser than exact.
+float round_down(double value) {
+  const float f = static_cast<float>(value);
+  const float below = f - (std::abs(f) * 0x1p-23f + std::numeric_limits<float>::denorm_min());
+  return static_cast<double>(f) > value ? below : f;
+}
+float round_up(double value) {
+  const float f = static_cast<float>(value);
+  const float above = f + (std::abs(f) * 0x1p-23f + std::numeric_limits<float>::denorm_min());
+  return static_cast<double>(f) < value ? above : f;
+}
+
+void set_empty(RTCBounds* bounds) {
+  bounds->lower_x = bounds->lower_y = bounds->lower_z = kInf;
+  bounds->upper_x = bounds->upper_y = bounds->upper_z = -kInf;
+}
+
+struct BoundsD {
+  double lo[3] = {kInf, kInf, kInf};
+  double hi[3] = {-kInf, -kInf, -kInf};
+  void extend(const double* p) {
+    for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], p[k]), hi[k] = std::max(hi[k], p[k]);
+  }
+  bool empty() const { return lo[0] > hi[0]; }
+};
+
+// `bounds` rounded outwards to float and clipped to the box [lo, hi].
+void to_rtc_bounds(const BoundsD& bounds, const float lo[3], const float hi[3], RTCBounds* out) {
+  if (bounds.empty()) {
+    set_empty(out);
+    return;
+  }
+  float bmin[3], bmax[3];
+  for (int k = 0; k < 3; ++k) {
+    // The exact polygon lies inside the box; clamping only removes rounding noise.
+    bmin[k] = std::max(round_down(bounds.lo[k]), lo[k]);
+    bmax[k] = std::min(round_up(bounds.hi[k]), hi[k]);
+  }
+  if (bmin[0] > bmax[0] || bmin[1] > bmax[1] || bmin[2] > bmax[2]) {
+    set_empty(out);
+    return;
+  }
+  out->lower_x = bmin[0];
+  out->lower_y = bmin[1];
+  out->lower_z = bmin[2];
+  out->upper_x = bmax[0];
+  out->upper_y = bmax[1];
+  out->upper_z = bmax[2];
+}
+
+void split_primitive(const RTCBuildPrimitive* primitive, unsigned int dim, float pos,
+                     RTCBounds* left, RTCBounds* right, void* user) {
+  const auto* context = static_cast<const BuildContext*>(user);
+  const std::array<float, 9>& p = context->positions[primitive->primID];
+  const float lo[3] = {primitive->lower_x, primitive->lower_y, primitive->lower_z};
+  const float hi[3] = {primitive->upper_x, primitive->upper_y, primitive->upper_z};
+
+  Point3d buffer[2][kMaxPolygon];
+  int current = 0;
+  int n = 3;
+  for (int v = 0; v < 3; ++v)
+    for (int k = 0; k < 3; ++k) buffer[0][v].x[k] = p[3 * v + k];
+
+  // Clip to the fragment's box; only planes the triangle actually crosses cost anything.
+  for (int k = 0; k < 3 && n > 0; ++k) {
+    const float tmin = std::min({p[k], p[3 + k], p[6 + k]});
+    const float tmax = std::max({p[k], p[3 + k], p[6 + k]});
+    if (tmin < lo[k]) {
+      n = clip_polygon(buffer[current], n, k, lo[k], false, buffer[1 - current]);
+      current = 1 - current;
+    }
+    if (n > 0 && tmax > hi[k]) {
+      n = clip_polygon(buffer[current], n, k, hi[k], true, buffer[1 - current]);
+      current = 1 - current;
+    }
+  }
+
+  float left_hi[3] = {hi[0], hi[1], hi[2]};
+  float right_lo[3] = {lo[0], lo[1], lo[2]};
+  left_hi[dim] = std::min(pos, hi[dim]);
+  right_lo[dim] = std::max(pos, lo[dim]);
+
+  if (n == 0) {
+    // The box only grazes the triangle and rounding lost the sliver. Stay conservative: the
+    // halves of the box itself certainly bound whatever part of the triangle is there.
+    left->lower_x = lo[0], left->lower_y = lo[1], left->lower_z = lo[2];
+    left->upper_x = left_hi[0], left->upper_y = left_hi[1], left->upper_z = left_hi[2];
+    right->lower_x = right_lo[0], right->lower_y = right_lo[1], right->lower_z = right_lo[2];
+    right->upper_x = hi[0], right->upper_y = hi[1], right->upper_z = hi[2];
+    return;
+  }
+
+  // Cut the clipped polygon at the plane in one pass over its edges: each vertex extends the
+  // side(s) it lies on, each edge crossing the plane extends both sides with the crossing.
+  const Point3d* poly = buffer[current];
+  BoundsD lbounds, rbounds;
+  for (int i = 0, prev = n - 1; i < n; prev = i++) {
+    const double* a = poly[prev].x;
+    const double* b = poly[i].x;
+    if (b[dim] <= pos) lbounds.extend(b);
+    if (b[dim] >= pos) rbounds.extend(b);
+    if ((a[dim] < pos && pos < b[dim]) || (b[dim] < pos && pos < a[dim])) {
+      const double t = (pos - a[dim]) / (b[dim] - a[dim]);
+      double c[3];
+      for (int k = 0; k < 3; ++k) c[k] = a[k] + t * (b[k] - a[k]);
+      c[dim] = pos;
+      lbounds.extend(c);
+      rbounds.extend(c);
+    }
+  }
+  to_rtc_bounds(lbounds, lo, left_hi, left);
+  to_rtc_bounds(rbounds, right_lo, hi, right);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Flattening, with a depth guarantee.
+//
+// Embree honours maxDepth by switching to median splits 8 levels above it; if more than
+// 2^8 * maxLeafSize primitives are still together there, it fails ("depth limit reached").
+// build_bvh then builds again with a generous maxDepth, and the flattener rebuilds any subtree
+// that would end below PX_BVH_MAX_DEPTH as a balanced tree over that subtree's leaves (leaves
+// are kept whole, so their boxes and sizes stay valid). It rebuilds as deep in the tree as
+// possible, so the SAH tree above is untouched.
+
+int ceil_log2(std::size_t n) {
+  int bits = 0;
+  while ((std::size_t{1} << bits) < n) ++bits;
+  return bits;
+}
+
+// Heights and leaf counts of every inner node (single-threaded, after the build).
+void annotate(TempNode* node) {
+  if (node->is_leaf) return;
+  auto* inner = static_cast<TempInner*>(node);
+  inner->height = 1;
+  inner->leaf_count = 0;
+  for (TempNode* child : inner->child) {
+    if (child->is_leaf) {
+      inner->leaf_count += 1;
+    } else {
+      annotate(child);
+      const auto* c = static_cast<const TempInner*>(child);
+      inner->height = std::max(inner->height, c->height + 1);
+      inner->leaf_count += c->leaf_count;
+    }
+  }
+}
+
+class Flattener {
+ public:
+  Flattener(const std::vector<SceneTriangle>& scene, FlatBvh& out, int max_depth)
+      : scene_(scene), out_(out), max_depth_(max_depth) {}
+
+  void flatten(TempNode* root) {
+    if (root->is_leaf) {
+      // The whole scene fits one leaf: the root node's left child is that leaf and its right
+      // child is absent (inverted box, never entered).
+      const auto* leaf = static_cast<const TempLeaf*>(root);
+      RTCBounds box;
+      set_empty(&box);
+      for (std::uint32_t i = 0; i < leaf->count; ++i) extend(box, scene_[leaf->prims[i]]);
+      out_.nodes.emplace_back();
+      set_child(0, 0, box, emit_leaf(leaf), leaf->count);
+      constexpr float kMax = std::numeric_limits<float>::max();
+      const RTCBounds absent = {kMax, kMax, kMax, 0.0f, -kMax, -kMax, -kMax, 0.0f};
+      set_child(0, 1, absent, 0, 0);
+      return;
+    }
+    auto* inner = static_cast<TempInner*>(root);
+    annotate(inner);
+    if (1 + ceil_log2(inner->leaf_count) > max_depth_)
+      throw std::runtime_error("BVH: too many leaves for the depth limit");
+    emit(inner, 1);
+  }
+
+ private:
+  struct LeafItem {
+    const TempLeaf* leaf;
+    RTCBounds box;
+    float centroid[3];
+  };
+
+  static void extend(RTCBounds& box, const SceneTriangle& tri) {
+    for (const auto& p : tri.p) {
+      box.lower_x = std::min(box.lower_x, p.x), box.upper_x = std::max(box.upper_x, p.x);
+      box.lower_y = std::min(box.lower_y, p.y), box.upper_y = std::max(box.upper_y, p.y);
+      box.lower_z = std::min(box.lower_z, p.z), box.upper_z = std::max(box.upper_z, p.z);
+    }
+  }
+
+  void set_child(std::uint32_t node_index, int side, const RTCBounds& box, std::uint32_t index,
+                 std::uint32_t count) {
+    BvhNode& node = out_.nodes[node_index];
+    float* lo = side == 0 ? node.lmin : node.rmin;
+    float* hi = side == 0 ? node.lmax : node.rmax;
+    lo[0] = box.lower_x, lo[1] = box.lower_y, lo[2] = box.lower_z;
+    hi[0] = box.upper_x, hi[1] = box.upper_y, hi[2] = box.upper_z;
+    (side == 0 ? node.left : node.right) = index;
+    (side == 0 ? node.left_count : node.right_count) = count;
+  }
+
+  // Appends the leaf's triangles; returns the index of the first.
+  std::uint32_t emit_leaf(const TempLeaf* leaf) {
+    const auto first = static_cast<std::uint32_t>(out_.triangles.size());
+    for (std::uint32_t i = 0; i < leaf->count; ++i) {
+      const std::uint32_t prim = leaf->prims[i];
+      const SceneTriangle& tri = scene_[prim];
+      BvhTriangle t;
+      for (int k = 0; k < 3; ++k) {
+        t.v0[k] = tri.p[0][k];
+        t.v1[k] = tri.p[1][k];
+        t.v2[k] = tri.p[2][k];
+      }
+      t.prim = prim;
+      t.flags = 0;  // filled from materials by set_triangle_flags()
+      t.material = tri.material;
+      out_.triangles.push_back(t);
+    }
+    return first;
+  }
+
+  // Writes `node` placed at `depth` (root = 1). Precondition: a balanced tree over its leaves
+  // fits, depth + ceil_log2(leaf_count) <= max_depth_.
+  std::uint32_t emit(const TempInner* node, int depth) {
+    bool keep = depth + node->height <= max_depth_;
+    if (!keep) {
+      // Descend if both children can still be made to fit one level down; otherwise this is
+      // the deepest place where a balanced rebuild fits.
+      keep = true;
+      for (const TempNode* child : node->child)
+        if (!child->is_leaf &&
+            depth + 1 + ceil_log2(static_cast<const TempInner*>(child)->leaf_count) > max_depth_)
+          keep = false;
+      if (!keep) {
+        std::vector<LeafItem> items;
+        items.reserve(node->leaf_count);
+        collect_leaves(node, items);
+        return emit_balanced(items.data(), items.size(), depth);
+      }
+    }
+    const auto index = static_cast<std::uint32_t>(out_.nodes.size());
+    out_.nodes.emplace_back();
+    for (int side = 0; side < 2; ++side) {
+      const TempNode* child = node->child[side];
+      if (child->is_leaf) {
+        const auto* leaf = static_cast<const TempLeaf*>(child);
+        set_child(index, side, node->bounds[side], emit_leaf(leaf), leaf->count);
+      } else {
+        // Depth-first: the left child's subtree follows its parent directly in memory.
+        const std::uint32_t child_index = emit(static_cast<const TempInner*>(child), depth + 1);
+        set_child(index, side, node->bounds[side], child_index, 0);
+      }
+    }
+    return index;
+  }
+
+  void collect_leaves(const TempInner* node, std::vector<LeafItem>& items) {
+    for (int side = 0; side < 2; ++side) {
+      const TempNode* child = node->child[side];
+      if (!child->is_leaf) {
+        collect_leaves(static_cast<const TempInner*>(child), items);
+        continue;
+      }
+      LeafItem item;
+      item.leaf = static_cast<const TempLeaf*>(child);
+      item.box = node->bounds[side];
+      item.centroid[0] = 0.5f * (item.box.lower_x + item.box.upper_x);
+      item.centroid[1] = 0.5f * (item.box.lower_y + item.box.upper_y);
+      item.centroid[2] = 0.5f * (item.box.lower_z + item.box.upper_z);
+      items.push_back(item);
+    }
+  }
+
+  static RTCBounds merged(const LeafItem* items, std::size_t n) {
+    RTCBounds box;
+    set_empty(&box);
+    for (std::size_t i = 0; i < n; ++i) {
+      const RTCBounds& b = items[i].box;
+      box.lower_x = std::min(box.lower_x, b.lower_x), box.upper_x = std::max(box.upper_x, b.upper_x);
+      box.lower_y = std::min(box.lower_y, b.lower_y), box.upper_y = std::max(box.upper_y, b.upper_y);
+      box.lower_z = std::min(box.lower_z, b.lower_z), box.upper_z = std::max(box.upper_z, b.upper_z);
+    }
+    return box;
+  }
+
+  // Balanced binary tree over n >= 2 leaves, split at the median centroid along the widest
+  // centroid axis: leaves end at depth + ceil_log2(n).
+  std::uint32_t emit_balanced(LeafItem* items, std::size_t n, int depth) {
+    float cmin[3] = {kInf, kInf, kInf}, cmax[3] = {-kInf, -kInf, -kInf};
+    for (std::size_t i = 0; i < n; ++i)
+      for (int k = 0; k < 3; ++k) {
+        cmin[k] = std::min(cmin[k], items[i].centroid[k]);
+        cmax[k] = std::max(cmax[k], items[i].centroid[k]);
+      }
+    int axis = 0;
+    for (int k = 1; k < 3; ++k)
+      if (cmax[k] - cmin[k] > cmax[axis] - cmin[axis]) axis = k;
+    const std::size_t half = (n + 1) / 2;
+    std::nth_element(items, items + half, items + n, [axis](const LeafItem& a, const LeafItem& b) {
+      return a.centroid[axis] < b.centroid[axis];
+    });
+
+    const auto index = static_cast<std::uint32_t>(out_.nodes.size());
+    out_.nodes.emplace_back();
+    const std::size_t begin[2] = {0, half};
+    const std::size_t count[2] = {half, n - half};
+    for (int side = 0; side < 2; ++side) {
+      LeafItem* part = items + begin[side];
+      if (count[side] == 1) {
+        set_child(index, side, part->box, emit_leaf(part->leaf), part->leaf->count);
+      } else {
+        const std::uint32_t child = emit_balanced(part, count[side], depth + 1);
+        set_child(index, side, merged(part, count[side]), child, 0);
+      }
+    }
+    return index;
+  }
+
+  const std::vector<SceneTriangle>& scene_;
+  FlatBvh& out_;
+  int max_depth_;
+};
+
+double half_area(const float lo[3], const float hi[3]) {
+  const double dx = double(hi[0]) - lo[0], dy = double(hi[1]) - lo[1], dz = double(hi[2]) - lo[2];
+  if (dx < 0.0 || dy < 0.0 || dz < 0.0) return 0.0;  // absent child
+  return dx * dy + dy * dz + dz * dx;
+}
+
+// Depth and SAH cost of the flattened tree (traversal cost 1 per node visit, intersection
+// cost 1 per triangle), measured on what the kernels will actually traverse.
+void compute_stats(FlatBvh& bvh) {
+  BvhBuildStats& s = bvh.stats;
+  s.nodes = bvh.nodes.size();
+  s.leaf_triangles = bvh.triangles.size();
+  const BvhNode& root = bvh.nodes[0];
+  float rlo[3], rhi[3];
+  for (int k = 0; k < 3; ++k) {
+    rlo[k] = root.lmin[k], rhi[k] = root.lmax[k];
+    if (root.rmin[k] <= root.rmax[k]) {
+      rlo[k] = std::min(rlo[k], root.rmin[k]);
+      rhi[k] = std::max(rhi[k], root.rmax[k]);
+    }
+  }
+  const double root_area = half_area(rlo, rhi);
+  // A scene flat along two axes has zero area everywhere; count every box as always hit.
+  auto ratio = [root_area](double area) { return root_area > 0.0 ? area / root_area : 1.0; };
+
+  double cost = 1.0;  // the root is always visited
+  int depth = 0;
+  struct Entry {
+    std::uint32_t node;
+    int depth;
+  };
+  std::vector<Entry> stack{{0, 1}};
+  while (!stack.empty()) {
+    const Entry e = stack.back();
+    stack.pop_back();
+    const BvhNode& n = bvh.nodes[e.node];
+    const std::uint32_t child[2] = {n.left, n.right};
+    const std::uint32_t count[2] = {n.left_count, n.right_count};
+    const float* lo[2] = {n.lmin, n.rmin};
+    const float* hi[2] = {n.lmax, n.rmax};
+    for (int side = 0; side < 2; ++side) {
+      if (lo[side][0] > hi[side][0]) continue;  // absent
+      const double area = ratio(half_area(lo[side], hi[side]));
+      if (count[side] > 0) {
+        cost += area * count[side];
+        depth = std::max(depth, e.depth + 1);
+      } else {
+        cost += area;
+        stack.push_back({child[side], e.depth + 1});
+      }
+    }
+  }
+  s.depth = depth;
+  s.sah_cost = cost;
+}
+
+// One rtcBuildBVH run. Returns false if Embree failed (message in `error`); throws for
+// failures a retry cannot fix.
+bool build_once(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options,
+                unsigned int max_depth, FlatBvh& out, std::string& error) {
+  RTCDevice device = embree_device();
+  take_embree_error();
+  rtcGetDeviceError(device);
+
+  const std::size_t count = triangles.size();
+  // Spatial splits write the extra fragments behind the input in this same array, so it must
+  // be allocated at full capacity. Embree falls back to plain binned SAH when the capacity is
+  // not larger than the count.
+  const std::size_t capacity = options.spatial_splits ? 2 * count : count;
+  std::vector<RTCBuildPrimitive> primitives(capacity);
+  for (std::size_t i = 0; i < count; ++i) {
+    const SceneTriangle& t = triangles[i];
+    RTCBuildPrimitive& p = primitives[i];
+    p.lower_x = std::min({t.p[0].x, t.p[1].x, t.p[2].x});
+    p.lower_y = std::min({t.p[0].y, t.p[1].y, t.p[2].y});
+    p.lower_z = std::min({t.p[0].z, t.p[1].z, t.p[2].z});
+    p.upper_x = std::max({t.p[0].x, t.p[1].x, t.p[2].x});
+    p.upper_y = std::max({t.p[0].y, t.p[1].y, t.p[2].y});
+    p.upper_z = std::max({t.p[0].z, t.p[1].z, t.p[2].z});
+    p.geomID = 0;  // Embree keeps per-primitive split budgets in geomID's top bits
+    p.primID = static_cast<unsigned int>(i);
+  }
+
+  BuildContext context;
+  if (options.spatial_splits) {
+    context.positions.resize(count);
+    for (std::size_t i = 0; i < count; ++i)
+      for (int v = 0; v < 3; ++v)
+        for (int k = 0; k < 3; ++k) context.positions[i][3 * v + k] = triangles[i].p[v][k];
+  }
+
+  RTCBVH bvh = rtcNewBVH(device);
+  if (!bvh) {
+    error = take_embree_error();
+    throw std::runtime_error("Embree: rtcNewBVH failed: " + error);
+  }
+
+  RTCBuildArguments args = rtcDefaultBuildArguments();
+  args.buildQuality = options.spatial_splits ? RTC_BUILD_QUALITY_HIGH : RTC_BUILD_QUALITY_MEDIUM;
+  args.buildFlags = RTC_BUILD_FLAG_NONE;
+  args.maxBranchingFactor = 2;
+  args.maxDepth = max_depth;
+  args.sahBlockSize = 1;
+  args.minLeafSize = 1;
+  args.maxLeafSize = static_cast<unsigned int>(options.max_leaf_size);
+  // The same unit costs as BvhBuildStats::sah_cost, so the builder minimises what we report.
+  args.traversalCost = 1.0f;
+  args.intersectionCost = 1.0f;
+  args.bvh = bvh;
+  args.primitives = primitives.data();
+  args.primitiveCount = count;
+  args.primitiveArrayCapacity = capacity;
+  args.createNode = create_node;
+  args.setNodeChildren = set_node_children;
+  args.setNodeBounds = set_node_bounds;
+  args.createLeaf = create_leaf;
+  args.splitPrimitive = options.spatial_splits ? split_primitive : nullptr;
+  args.buildProgress = nullptr;
+  args.userPtr = &context;
+
+  void* root = rtcBuildBVH(&args);
+  error = take_embree_error();
+  const RTCError code = rtcGetDeviceError(device);
+  if (error.empty() && code != RTC_ERROR_NONE) error = "RTCError " + std::to_string(int(code));
+  if (error.empty() && !root) error = "rtcBuildBVH returned no root";
+  if (!error.empty()) {
+    rtcReleaseBVH(bvh);
+    return false;
+  }
+
+  try {
+    if (context.out_of_memory) throw std::runtime_error("BVH: Embree allocator out of memory");
+    if (context.unexpected_arity)
+      throw std::runtime_error("BVH: Embree produced a node without exactly two children");
+    if (context.oversized_leaf)
+      throw std::runtime_error("BVH: Embree produced a leaf larger than PX_BVH_MAX_LEAF_SIZE");
+    out.nodes.clear();
+    out.triangles.clear();
+    out.nodes.reserve(count);  // about count / 2 nodes for leaves of ~2 triangles
+    out.triangles.reserve(count);
+    Flattener(triangles, out, PX_BVH_MAX_DEPTH).flatten(static_cast<TempNode*>(root));
+  } catch (...) {
+    rtcReleaseBVH(bvh);
+    throw;
+  }
+  rtcReleaseBVH(bvh);  // node memory goes with it; the flat copy is complete
+  return true;
+}
+
+}  // namespace
+
+FlatBvh build_bvh(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  if (triangles.empty()) throw std::runtime_error("BVH: cannot build over an empty scene");
+  if (triangles.size() >= PX_NO_HIT)
+    throw std::runtime_error("BVH: too many triangles for 32-bit indices");
+  if (options.max_leaf_size < 1 || options.max_leaf_size > PX_BVH_MAX_LEAF_SIZE)
+    throw std::invalid_argument("BVH: max_leaf_size must be in 1.." +
+                                std::to_string(PX_BVH_MAX_LEAF_SIZE));
+  for (std::size_t i = 0; i < triangles.size(); ++i)
+    for (const auto& p : triangles[i].p)
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+        throw std::runtime_error("BVH: triangle " + std::to_string(i) +
+                                 " has a non-finite vertex");
+
+  FlatBvh bvh;
+  std::string first_error;
+  if (!build_once(triangles, options, PX_BVH_MAX_DEPTH, bvh, first_error)) {
+    fprintf(stderr, "DEBUGRETRY %s\n", first_error.c_str());
+    // Almost always "depth limit reached": more primitives than median splits can separate in
+    // the last levels. Build without the tight limit; the flattener restores it.
+    constexpr unsigned int kRelaxedDepth = 256;  // Embree recurses: keep its stack bounded
+    std::string second_error;
+    if (!build_once(triangles, options, kRelaxedDepth, bvh, second_error))
+      throw std::runtime_error("Embree: rtcBuildBVH failed: " + first_error + "; retry with " +
+                               "maxDepth " + std::to_string(kRelaxedDepth) + ": " + second_error);
+  }
+
+  compute_stats(bvh);
+  bvh.stats.scene_triangles = triangles.size();
+  bvh.stats.build_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return bvh;
+}
+
+// Hook for the renderer: BvhTriangle::flags (PX_TRI_* bits) from one value per scene triangle,
+// e.g. derived from its material. build_bvh leaves flags at 0. flat_bvh.h does not declare this
+// yet (not this module's file); the declaration to add there is
+//   void set_triangle_flags(FlatBvh& bvh, const std::vector<std::uint32_t>& flags_per_scene_triangle);
+void set_triangle_flags(FlatBvh& bvh, const std::vector<std::uint32_t>& flags_per_scene_triangle) {
+  for (BvhTriangle& t : bvh.triangles) {
+    if (t.prim >= flags_per_scene_triangle.size())
+      throw std::out_of_range("set_triangle_flags: fewer flags than scene triangles");
+    t.flags = flags_per_scene_triangle[t.prim];
+  }
+}
+
+}  // namespace px

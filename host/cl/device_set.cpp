@@ -1,0 +1,227 @@
+#include "cl/device_set.h"
+
+#include "cl/kernel_sources.h"
+
+#include <algorithm>
+#include <cstdlib>
+#include <sstream>
+#include <stdexcept>
+
+namespace px {
+
+const char* to_string(DeviceMode mode) {
+  switch (mode) {
+    case DeviceMode::Auto: return "auto";
+    case DeviceMode::SubDevices: return "subdevices";
+    case DeviceMode::PlatformDevices: return "platform";
+    case DeviceMode::SharedQueues: return "queues";
+  }
+  return "?";
+}
+
+DeviceMode parse_device_mode(const std::string& text) {
+  if (text == "auto") return DeviceMode::Auto;
+  if (text == "subdevices") return DeviceMode::SubDevices;
+  if (text == "platform") return DeviceMode::PlatformDevices;
+  if (text == "queues") return DeviceMode::SharedQueues;
+  throw std::invalid_argument("unknown device mode '" + text +
+                              "' (expected auto, subdevices, platform or queues)");
+}
+
+namespace {
+
+std::vector<cl::Platform> all_platforms() {
+  std::vector<cl::Platform> platforms;
+  try {
+    cl::Platform::get(&platforms);
+  } catch (const cl::Error& e) {
+    // The ICD loader reports "no platform" as CL_PLATFORM_NOT_FOUND_KHR (-1001).
+    if (e.err() == -1001) return {};
+    throw;
+  }
+  return platforms;
+}
+
+std::vector<cl::Device> platform_devices(const cl::Platform& p) {
+  std::vector<cl::Device> devices;
+  try {
+    p.getDevices(CL_DEVICE_TYPE_ALL, &devices);
+  } catch (const cl::Error& e) {
+    if (e.err() == CL_DEVICE_NOT_FOUND) return {};
+    throw;
+  }
+  return devices;
+}
+
+bool supports_equal_partition(const cl::Device& d) {
+  auto props = d.getInfo<CL_DEVICE_PARTITION_PROPERTIES>();
+  return std::find(props.begin(), props.end(), CL_DEVICE_PARTITION_BY_COUNTS) != props.end();
+}
+
+cl::Platform choose_platform(const std::string& wanted) {
+  auto platforms = all_platforms();
+  if (platforms.empty())
+    throw ClFailure(
+        "no OpenCL platform found: install an OpenCL driver (Debian: pocl-opencl-icd for the "
+        "CPU) — scripts/install-deps does this");
+  if (!wanted.empty()) {
+    for (auto& p : platforms)
+      if (p.getInfo<CL_PLATFORM_NAME>().find(wanted) != std::string::npos) return p;
+    std::string names;
+    for (auto& p : platforms) names += "\n  " + p.getInfo<CL_PLATFORM_NAME>();
+    throw ClFailure("no OpenCL platform matches '" + wanted + "'; available:" + names);
+  }
+  for (auto& p : platforms)
+    for (auto& d : platform_devices(p))
+      if (d.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) return p;
+  for (auto& p : platforms)
+    if (!platform_devices(p).empty()) return p;
+  throw ClFailure("OpenCL platforms exist but none has a device");
+}
+
+}  // namespace
+
+DeviceSet DeviceSet::create(const DeviceOptions& options) {
+  if (options.count < 1) throw std::invalid_argument("device count must be at least 1");
+  std::string wanted = options.platform;
+  if (wanted.empty())
+    if (const char* env = std::getenv("PARALLAX_PLATFORM")) wanted = env;
+
+  DeviceSet set;
+  set.platform_ = choose_platform(wanted);
+  set.platform_name_ = set.platform_.getInfo<CL_PLATFORM_NAME>();
+  auto devices = platform_devices(set.platform_);
+  // GPUs first: a platform that mixes types should put the work where it is fastest.
+  std::stable_sort(devices.begin(), devices.end(), [](const cl::Device& a, const cl::Device& b) {
+    return (a.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) >
+           (b.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU);
+  });
+  const int n = options.count;
+  cl::Device first = devices.front();
+  const int first_cus = static_cast<int>(first.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>());
+
+  DeviceMode mode = options.mode;
+  if (mode == DeviceMode::Auto) {
+    if (n == 1)
+      mode = DeviceMode::PlatformDevices;
+    else if (supports_equal_partition(first) && first_cus >= n)
+      mode = DeviceMode::SubDevices;
+    else if (static_cast<int>(devices.size()) >= n)
+      mode = DeviceMode::PlatformDevices;
+    else
+      mode = DeviceMode::SharedQueues;
+  }
+
+  std::vector<cl::Device> chosen;  // one per ComputeDevice
+  std::vector<std::string> notes;
+  switch (mode) {
+    case DeviceMode::SubDevices: {
+      if (!supports_equal_partition(first))
+        throw ClFailure(first.getInfo<CL_DEVICE_NAME>() + " cannot be partitioned into sub-devices");
+      if (first_cus < n)
+        throw ClFailure("cannot make " + std::to_string(n) + " sub-devices from " +
+                        std::to_string(first_cus) + " compute units");
+      // BY_COUNTS so that any n works: the first (cus % n) sub-devices get one extra unit.
+      std::vector<cl_device_partition_property> props{CL_DEVICE_PARTITION_BY_COUNTS};
+      for (int i = 0; i < n; ++i) props.push_back(first_cus / n + (i < first_cus % n ? 1 : 0));
+      props.push_back(CL_DEVICE_PARTITION_BY_COUNTS_LIST_END);
+      props.push_back(0);
+      std::vector<cl::Device> subs;
+      first.createSubDevices(props.data(), &subs);
+      if (static_cast<int>(subs.size()) != n)
+        throw ClFailure("clCreateSubDevices returned " + std::to_string(subs.size()) +
+                        " sub-devices, asked for " + std::to_string(n));
+      chosen = subs;
+      for (int i = 0; i < n; ++i) notes.push_back("sub-device " + std::to_string(i + 1) + " of " + std::to_string(n));
+      set.unique_devices_ = subs;
+      break;
+    }
+    case DeviceMode::PlatformDevices: {
+      if (static_cast<int>(devices.size()) < n)
+        throw ClFailure("platform '" + set.platform_name_ + "' has " + std::to_string(devices.size()) +
+                        " devices, asked for " + std::to_string(n) +
+                        " (on PoCL, POCL_DEVICES=\"pthread pthread\" lists more)");
+      chosen.assign(devices.begin(), devices.begin() + n);
+      for (int i = 0; i < n; ++i) notes.push_back("platform device " + std::to_string(i));
+      set.unique_devices_ = chosen;
+      break;
+    }
+    case DeviceMode::SharedQueues: {
+      chosen.assign(n, first);
+      for (int i = 0; i < n; ++i) notes.push_back("queue " + std::to_string(i + 1) + " of " + std::to_string(n) + " on one device");
+      set.unique_devices_ = {first};
+      break;
+    }
+    case DeviceMode::Auto: break;
+  }
+  set.mode_ = mode;
+  set.context_ = cl::Context(set.unique_devices_);
+  for (int i = 0; i < n; ++i) {
+    ComputeDevice cd;
+    cd.index = i;
+    cd.device = chosen[i];
+    cd.queue = cl::CommandQueue(set.context_, chosen[i], CL_QUEUE_PROFILING_ENABLE);
+    cd.compute_units = static_cast<int>(chosen[i].getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>());
+    cd.description = chosen[i].getInfo<CL_DEVICE_NAME>() + " (" + notes[i] + ", " +
+                     std::to_string(cd.compute_units) + " CU)";
+    set.devices_.push_back(std::move(cd));
+  }
+  return set;
+}
+
+const cl::Program& DeviceSet::program(const std::string& path, const std::string& extra_options) {
+  const std::string key = path + "|" + extra_options;
+  auto it = programs_.find(key);
+  if (it != programs_.end()) return it->second;
+
+  const std::string source = resolve_kernel_source(path);
+  cl::Program program(context_, source);
+  // No fast-relaxed-math: the box test relies on IEEE infinities and the watertight triangle
+  // test on exact signs. Single-precision constants guard against a stray unsuffixed literal.
+  const std::string opts = "-cl-std=CL1.2 -cl-single-precision-constant " + extra_options;
+  try {
+    program.build(unique_devices_, opts.c_str());
+  } catch (const cl::Error& e) {
+    std::ostringstream msg;
+    msg << "OpenCL build of kernels/" << path << " failed (" << cl_status_name(e.err()) << ")";
+    for (auto& d : unique_devices_) {
+      auto log = program.getBuildInfo<CL_PROGRAM_BUILD_LOG>(d);
+      msg << "\n--- build log, " << d.getInfo<CL_DEVICE_NAME>() << " ---\n" << log;
+    }
+    throw ClFailure(msg.str());
+  }
+  return programs_.emplace(key, std::move(program)).first->second;
+}
+
+void DeviceSet::finish_all() {
+  for (auto& d : devices_) d.queue.finish();
+}
+
+std::string describe_platforms() {
+  std::ostringstream out;
+  auto platforms = all_platforms();
+  if (platforms.empty()) {
+    out << "no OpenCL platform found (Debian: apt-get install pocl-opencl-icd)\n";
+    return out.str();
+  }
+  for (std::size_t pi = 0; pi < platforms.size(); ++pi) {
+    auto& p = platforms[pi];
+    out << "platform " << pi << ": " << p.getInfo<CL_PLATFORM_NAME>() << " ("
+        << p.getInfo<CL_PLATFORM_VERSION>() << ")\n";
+    auto devices = platform_devices(p);
+    for (std::size_t di = 0; di < devices.size(); ++di) {
+      auto& d = devices[di];
+      auto type = d.getInfo<CL_DEVICE_TYPE>();
+      out << "  device " << di << ": " << d.getInfo<CL_DEVICE_NAME>() << "\n"
+          << "    type " << ((type & CL_DEVICE_TYPE_GPU) ? "GPU" : (type & CL_DEVICE_TYPE_CPU) ? "CPU" : "other")
+          << ", " << d.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>() << " compute units, "
+          << (d.getInfo<CL_DEVICE_GLOBAL_MEM_SIZE>() >> 20) << " MiB global memory, "
+          << d.getInfo<CL_DEVICE_VERSION>() << "\n"
+          << "    sub-devices: " << (supports_equal_partition(d) ? "yes (one per compute unit at most)" : "no")
+          << "\n";
+    }
+  }
+  return out.str();
+}
+
+}  // namespace px

@@ -1,0 +1,77 @@
+// The devices a frame is split across. `DeviceSet::create({.count = N})` always yields N
+// ComputeDevices, whatever the hardware: sub-devices of one CPU (clCreateSubDevices) while
+// there are enough compute units, else N devices of the platform (several GPUs, or PoCL's
+// POCL_DEVICES list), else N in-order queues on one device. Nothing downstream knows which:
+// every stage sees a context, a device and its own in-order, profiling-enabled queue.
+#pragma once
+
+#include "cl/cl_error.h"
+
+#include <CL/opencl.hpp>
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace px {
+
+enum class DeviceMode { Auto, SubDevices, PlatformDevices, SharedQueues };
+
+const char* to_string(DeviceMode mode);
+// Parses "auto", "subdevices", "platform", "queues"; throws std::invalid_argument.
+DeviceMode parse_device_mode(const std::string& text);
+
+struct DeviceOptions {
+  int count = 1;
+  DeviceMode mode = DeviceMode::Auto;
+  // Substring of the platform name to use ("" = first platform that has a GPU, else the first
+  // with any device). Also read from $PARALLAX_PLATFORM when empty.
+  std::string platform;
+};
+
+struct ComputeDevice {
+  int index = 0;               // 0 = the owner (root of the dependency tree)
+  cl::Device device;           // a sub-device, a platform device, or a shared device
+  cl::CommandQueue queue;      // in-order, CL_QUEUE_PROFILING_ENABLE
+  std::string description;     // for logs: "pthread-haswell (sub-device 1 of 2, 1 CU)"
+  int compute_units = 0;
+};
+
+class DeviceSet {
+ public:
+  static DeviceSet create(const DeviceOptions& options);
+
+  const cl::Context& context() const { return context_; }
+  std::vector<ComputeDevice>& devices() { return devices_; }
+  const std::vector<ComputeDevice>& devices() const { return devices_; }
+  int size() const { return static_cast<int>(devices_.size()); }
+  DeviceMode mode() const { return mode_; }  // the mode actually used (never Auto)
+  const std::string& platform_name() const { return platform_name_; }
+
+  // Builds kernels/<path> (with its includes) for every device in the set; cached per
+  // (path, options). A failed build throws ClFailure carrying each device's build log.
+  const cl::Program& program(const std::string& path, const std::string& extra_options = "");
+
+  // Finishes every queue.
+  void finish_all();
+
+ private:
+  cl::Platform platform_;
+  cl::Context context_;
+  std::vector<cl::Device> unique_devices_;  // what the context and programs were built for
+  std::vector<ComputeDevice> devices_;
+  DeviceMode mode_ = DeviceMode::Auto;
+  std::string platform_name_;
+  std::map<std::string, cl::Program> programs_;
+};
+
+// One line per platform and device with the facts that matter for splitting work
+// (type, compute units, memory, partition support). For `parallax devices`.
+std::string describe_platforms();
+
+// Rounds `n` up to a multiple of `local` (global sizes must be multiples of the explicit
+// local size in OpenCL 1.2).
+inline std::size_t round_up(std::size_t n, std::size_t local) { return (n + local - 1) / local * local; }
+
+}  // namespace px

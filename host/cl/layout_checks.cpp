@@ -1,0 +1,45 @@
+// Compile-time proof that the host sees kernels/shared/types.h with the byte layout that the
+// header documents (and that OpenCL C gives it: 4-byte scalars only, no implicit padding).
+#include "shared/types.h"
+
+#include <cstddef>
+
+namespace px {
+
+static_assert(sizeof(BvhNode) == 64);
+static_assert(offsetof(BvhNode, left) == 12 && offsetof(BvhNode, lmax) == 16);
+static_assert(offsetof(BvhNode, left_count) == 28 && offsetof(BvhNode, rmin) == 32);
+static_assert(offsetof(BvhNode, right) == 44 && offsetof(BvhNode, rmax) == 48);
+static_assert(offsetof(BvhNode, right_count) == 60);
+
+static_assert(sizeof(BvhTriangle) == 48);
+static_assert(offsetof(BvhTriangle, prim) == 12 && offsetof(BvhTriangle, v1) == 16);
+static_assert(offsetof(BvhTriangle, flags) == 28 && offsetof(BvhTriangle, v2) == 32);
+static_assert(offsetof(BvhTriangle, material) == 44);
+
+static_assert(sizeof(Ray) == 32 && offsetof(Ray, tmin) == 12 && offsetof(Ray, tmax) == 28);
+static_assert(sizeof(Hit) == 16 && offsetof(Hit, prim) == 12);
+
+static_assert(sizeof(TriangleShading) == 64);
+static_assert(offsetof(TriangleShading, uv0) == 12 && offsetof(TriangleShading, n1) == 20);
+static_assert(offsetof(TriangleShading, uv1) == 32 && offsetof(TriangleShading, n2) == 40);
+static_assert(offsetof(TriangleShading, uv2) == 52 && offsetof(TriangleShading, material) == 60);
+
+static_assert(sizeof(GpuMaterial) == 64);
+static_assert(offsetof(GpuMaterial, diffuse_texture) == 12 && offsetof(GpuMaterial, roughness) == 28);
+static_assert(offsetof(GpuMaterial, alpha_texture) == 44 && offsetof(GpuMaterial, flags) == 48);
+
+static_assert(sizeof(CameraParams) == 64);
+static_assert(offsetof(CameraParams, tan_half_fov_y) == 12 && offsetof(CameraParams, aspect) == 28);
+static_assert(offsetof(CameraParams, width) == 44 && offsetof(CameraParams, height) == 60);
+
+static_assert(sizeof(TextureInfo) == 16);
+static_assert(sizeof(LightTriangle) == 64);
+static_assert(offsetof(LightTriangle, area) == 28 && offsetof(LightTriangle, cdf) == 44);
+static_assert(offsetof(LightTriangle, emission) == 48 && offsetof(LightTriangle, pdf_select) == 60);
+static_assert(sizeof(FrameParams) == 128);
+static_assert(offsetof(FrameParams, p_sun) == 28 && offsetof(FrameParams, light_count) == 76);
+static_assert(offsetof(FrameParams, frame) == 80 && offsetof(FrameParams, rr_start_bounce) == 104);
+static_assert(offsetof(FrameParams, row0) == 108 && offsetof(FrameParams, rows) == 112);
+
+}  // namespace px

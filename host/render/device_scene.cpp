@@ -1,0 +1,159 @@
+#include "render/device_scene.h"
+
+#include <cmath>
+
+namespace px {
+namespace {
+
+template <typename T>
+cl::Buffer upload(const cl::Context& ctx, cl::CommandQueue& queue, const std::vector<T>& data,
+                  std::size_t& total) {
+  // A zero-sized buffer is invalid in OpenCL; keep one element so kernels always get a buffer.
+  const std::size_t bytes = std::max<std::size_t>(1, data.size()) * sizeof(T);
+  cl::Buffer buffer(ctx, CL_MEM_READ_ONLY, bytes);
+  if (!data.empty()) queue.enqueueWriteBuffer(buffer, CL_TRUE, 0, data.size() * sizeof(T), data.data());
+  total += bytes;
+  return buffer;
+}
+
+void copy3(float* dst, const glm::vec3& v) {
+  dst[0] = v.x;
+  dst[1] = v.y;
+  dst[2] = v.z;
+}
+
+float luminance(const glm::vec3& c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+
+}  // namespace
+
+cl_uint DeviceSceneBuffers::bind(cl::Kernel& kernel, cl_uint first) const {
+  for (const cl::Buffer* b : {&nodes, &triangles, &shading, &materials, &textures, &texels, &lights})
+    kernel.setArg(first++, *b);
+  return first;
+}
+
+std::vector<TriangleShading> make_triangle_shading(const Scene& scene) {
+  std::vector<TriangleShading> out(scene.triangles.size());
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    const SceneTriangle& t = scene.triangles[i];
+    TriangleShading& s = out[i];
+    copy3(s.n0, t.n[0]);
+    copy3(s.n1, t.n[1]);
+    copy3(s.n2, t.n[2]);
+    s.uv0[0] = t.uv[0].x; s.uv0[1] = t.uv[0].y;
+    s.uv1[0] = t.uv[1].x; s.uv1[1] = t.uv[1].y;
+    s.uv2[0] = t.uv[2].x; s.uv2[1] = t.uv[2].y;
+    s.material = t.material;
+  }
+  return out;
+}
+
+std::vector<GpuMaterial> make_gpu_materials(const Scene& scene) {
+  std::vector<GpuMaterial> out(scene.materials.size());
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    const Material& m = scene.materials[i];
+    GpuMaterial& g = out[i];
+    g = GpuMaterial{};
+    copy3(g.diffuse, m.diffuse);
+    copy3(g.specular, m.specular);
+    copy3(g.emission, m.emission);
+    g.diffuse_texture = m.diffuse_texture;
+    g.alpha_texture = m.alpha_texture;
+    g.roughness = m.mirror ? 0.0f : m.roughness;
+    const bool has_specular = (m.specular.x + m.specular.y + m.specular.z) > 0.0f;
+    g.flags = (m.mirror ? PX_MAT_MIRROR : 0u) | (!m.mirror && has_specular ? PX_MAT_GLOSSY : 0u) |
+              (m.is_emissive() ? PX_MAT_EMISSIVE : 0u);
+  }
+  return out;
+}
+
+std::vector<LightTriangle> make_light_table(const Scene& scene) {
+  std::vector<LightTriangle> out;
+  double total = 0.0;
+  for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
+    const SceneTriangle& t = scene.triangles[i];
+    const Material& m = scene.materials.at(t.material);
+    if (!m.is_emissive()) continue;
+    const float area = 0.5f * glm::length(glm::cross(t.p[1] - t.p[0], t.p[2] - t.p[0]));
+    const double power = static_cast<double>(area) * luminance(m.emission);
+    if (!(power > 0.0)) continue;
+    LightTriangle l{};
+    copy3(l.v0, t.p[0]);
+    copy3(l.v1, t.p[1]);
+    copy3(l.v2, t.p[2]);
+    copy3(l.emission, m.emission);
+    l.prim = static_cast<std::uint32_t>(i);
+    l.area = area;
+    l.pdf_select = static_cast<float>(power);  // normalised below
+    total += power;
+    out.push_back(l);
+  }
+  double running = 0.0;
+  for (auto& l : out) {
+    running += l.pdf_select;
+    l.pdf_select = static_cast<float>(l.pdf_select / total);
+    l.cdf = static_cast<float>(running / total);
+  }
+  if (!out.empty()) out.back().cdf = 1.0f;  // exact end, whatever the rounding
+  return out;
+}
+
+std::vector<BvhTriangle> flag_triangles(const Scene& scene, const std::vector<BvhTriangle>& tris) {
+  std::vector<BvhTriangle> out = tris;
+  for (auto& t : out) {
+    const Material& m = scene.materials.at(t.material);
+    t.flags = (m.alpha_texture >= 0 ? PX_TRI_ALPHA_TESTED : 0u) | (m.is_emissive() ? PX_TRI_EMISSIVE : 0u);
+  }
+  return out;
+}
+
+void fill_light_params(const Scene& scene, std::size_t light_count, FrameParams& p) {
+  copy3(p.sun_dir, scene.sun.enabled ? glm::normalize(scene.sun.direction) : glm::vec3(0, 1, 0));
+  p.sun_cos_max = std::cos(glm::radians(scene.sun.angular_radius_deg));
+  copy3(p.sun_radiance, scene.sun.enabled ? scene.sun.radiance : glm::vec3(0.0f));
+  copy3(p.sky_zenith, scene.sky.enabled ? scene.sky.zenith : glm::vec3(0.0f));
+  copy3(p.sky_horizon, scene.sky.enabled ? scene.sky.horizon : glm::vec3(0.0f));
+  copy3(p.sky_ground, scene.sky.enabled ? scene.sky.ground : glm::vec3(0.0f));
+  p.light_count = static_cast<std::uint32_t>(light_count);
+  // Each present kind of light gets an equal share of next-event samples: the kinds differ in
+  // units (radiance of a disk, a dome, a set of triangles), so power is no fair common measure.
+  const int kinds = (scene.sun.enabled ? 1 : 0) + (scene.sky.enabled ? 1 : 0) + (light_count > 0 ? 1 : 0);
+  const float share = kinds > 0 ? 1.0f / static_cast<float>(kinds) : 0.0f;
+  p.p_sun = scene.sun.enabled ? share : 0.0f;
+  p.p_sky = scene.sky.enabled ? share : 0.0f;
+  p.p_triangles = light_count > 0 ? share : 0.0f;
+}
+
+DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, const FlatBvh& bvh) {
+  const auto triangles = flag_triangles(scene, bvh.triangles);
+  const auto shading = make_triangle_shading(scene);
+  const auto materials = make_gpu_materials(scene);
+  const auto lights = make_light_table(scene);
+  light_count_ = lights.size();
+  std::vector<TextureInfo> infos;
+  std::vector<cl_float4> texels;
+  for (const auto& t : scene.textures) {
+    TextureInfo info{};
+    info.offset = static_cast<std::uint32_t>(texels.size());
+    info.width = static_cast<std::uint32_t>(t.width);
+    info.height = static_cast<std::uint32_t>(t.height);
+    infos.push_back(info);
+    for (std::size_t i = 0; i < t.rgba.size() / 4; ++i)
+      texels.push_back({{t.rgba[4 * i], t.rgba[4 * i + 1], t.rgba[4 * i + 2], t.rgba[4 * i + 3]}});
+  }
+  for (auto& dev : devices.devices()) {
+    std::size_t bytes = 0;
+    DeviceSceneBuffers b;
+    b.nodes = upload(devices.context(), dev.queue, bvh.nodes, bytes);
+    b.triangles = upload(devices.context(), dev.queue, triangles, bytes);
+    b.shading = upload(devices.context(), dev.queue, shading, bytes);
+    b.materials = upload(devices.context(), dev.queue, materials, bytes);
+    b.textures = upload(devices.context(), dev.queue, infos, bytes);
+    b.texels = upload(devices.context(), dev.queue, texels, bytes);
+    b.lights = upload(devices.context(), dev.queue, lights, bytes);
+    bytes_per_device_ = bytes;
+    per_device_.push_back(std::move(b));
+  }
+}
+
+}  // namespace px

@@ -1,0 +1,102 @@
+#include "render/path_tracer.h"
+
+#include "trace/ray_batch_tracer.h"
+
+#include <stdexcept>
+
+namespace px {
+
+LightSampling parse_light_sampling(const std::string& text) {
+  if (text == "mis") return LightSampling::Mis;
+  if (text == "nee") return LightSampling::Nee;
+  if (text == "bsdf") return LightSampling::Bsdf;
+  throw std::invalid_argument("unknown light sampling '" + text + "' (expected mis, nee or bsdf)");
+}
+
+std::array<ImageRGB, 2> PathTracer::render_stereo(float time_s, std::uint32_t frame, unsigned width,
+                                                  unsigned height, const Options& options,
+                                                  std::uint32_t sample_offset) {
+  if (options.spp == 0) throw std::invalid_argument("spp must be at least 1");
+  if (options.bounces > kMaxBounces)
+    throw std::invalid_argument("bounces must be at most " + std::to_string(kMaxBounces));
+  if (width > 65535 || height > 65535) throw std::invalid_argument("image too large (65535 max per side)");
+  const Camera centre = evaluate_camera(scene_, time_s);
+  const int n = devices_.size();
+  const cl::Program& program = devices_.program("pathtrace/path_trace.cl");
+
+  struct Launch {
+    cl::Buffer out, counter;
+    cl::Event done;
+    std::vector<cl_float4> pixels;
+    cl_uint nonfinite = 0;
+    unsigned row0 = 0, rows = 0;
+    int eye = 0, device = 0;
+  };
+  std::vector<Launch> launches;
+  launches.reserve(2 * n);
+  for (int e = 0; e < 2; ++e) {
+    const CameraParams cam = make_eye_camera(centre, static_cast<Eye>(e), scene_.ipd_units(), width, height);
+    for (int d = 0; d < n; ++d) {
+      Launch l;
+      l.row0 = height * d / n;
+      l.rows = height * (d + 1) / n - l.row0;
+      l.eye = e;
+      l.device = d;
+      if (l.rows == 0) continue;
+      auto& dev = devices_.devices()[d];
+      const std::size_t pixels = static_cast<std::size_t>(l.rows) * width;
+      l.out = cl::Buffer(devices_.context(), CL_MEM_WRITE_ONLY, pixels * sizeof(cl_float4));
+      const cl_uint zero = 0;
+      l.counter = cl::Buffer(devices_.context(), CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, sizeof(cl_uint),
+                             const_cast<cl_uint*>(&zero));
+      FrameParams fp{};
+      fill_light_params(scene_, device_scene_.light_count(), fp);
+      fp.frame = frame;
+      fp.eye = static_cast<cl_uint>(e);
+      fp.spp = options.spp;
+      fp.max_bounces = options.bounces;
+      fp.seed = options.seed;
+      fp.light_sampling = static_cast<cl_uint>(options.light_sampling);
+      fp.rr_start_bounce = options.rr_start_bounce;
+      fp.row0 = l.row0;
+      fp.rows = l.rows;
+      fp.sample_offset = sample_offset;
+      cl::Kernel k(program, "path_trace");
+      k.setArg(0, l.out);
+      k.setArg(1, l.counter);
+      k.setArg(2, fp);
+      k.setArg(3, cam);
+      device_scene_.on(d).bind(k, 4);
+      dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(pixels, kLocalSize)),
+                                     cl::NDRange(kLocalSize), nullptr, &l.done);
+      l.pixels.resize(pixels);
+      launches.push_back(std::move(l));
+    }
+  }
+  // Read back after every launch is queued so devices run concurrently.
+  for (auto& l : launches) {
+    auto& q = devices_.devices()[l.device].queue;
+    q.enqueueReadBuffer(l.out, CL_FALSE, 0, l.pixels.size() * sizeof(cl_float4), l.pixels.data());
+    q.enqueueReadBuffer(l.counter, CL_FALSE, 0, sizeof(cl_uint), &l.nonfinite);
+  }
+  devices_.finish_all();
+
+  std::array<ImageRGB, 2> images;
+  for (auto& img : images) {
+    img.width = static_cast<int>(width);
+    img.height = static_cast<int>(height);
+    img.rgb.assign(static_cast<std::size_t>(width) * height * 3, 0.0f);
+  }
+  last_device_ms_.assign(n, 0.0);
+  for (auto& l : launches) {
+    auto& img = images[l.eye];
+    for (std::size_t i = 0; i < l.pixels.size(); ++i)
+      for (int c = 0; c < 3; ++c)
+        img.rgb[(static_cast<std::size_t>(l.row0) * width + i) * 3 + c] = l.pixels[i].s[c];
+    nonfinite_total_ += l.nonfinite;
+    last_device_ms_[l.device] += event_ms(l.done);
+  }
+  return images;
+}
+
+}  // namespace px

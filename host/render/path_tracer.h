@@ -1,0 +1,53 @@
+// Stage 2 (and, for the mono pipeline, the whole right eye): path traces one eye's rows on
+// every device, each device its own contiguous strip, and gathers the strips on the host.
+// The kernel is kernels/pathtrace/path_trace.cl; this class owns its launch parameters.
+#pragma once
+
+#include "cl/device_set.h"
+#include "image/image_io.h"
+#include "render/device_scene.h"
+#include "render/stereo_camera.h"
+
+#include <array>
+#include <cstdint>
+
+namespace px {
+
+enum class LightSampling : std::uint32_t { Mis = PX_LIGHTS_MIS, Nee = PX_LIGHTS_NEE, Bsdf = PX_LIGHTS_BSDF };
+LightSampling parse_light_sampling(const std::string& text);  // "mis", "nee", "bsdf"
+
+class PathTracer {
+ public:
+  static constexpr std::size_t kLocalSize = 64;
+  static constexpr unsigned kMaxBounces = 256;  // PX_MAX_BOUNCES_LIMIT in the kernel
+
+  struct Options {
+    unsigned spp = 1;
+    unsigned bounces = 6;
+    unsigned rr_start_bounce = 3;  // Russian roulette from this bounce on
+    LightSampling light_sampling = LightSampling::Mis;
+    std::uint32_t seed = 0;
+  };
+
+  PathTracer(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene)
+      : devices_(devices), device_scene_(device_scene), scene_(scene) {}
+
+  // Both eyes at `time_s` for frame number `frame` (the frame selects the sample stream).
+  // `sample_offset` shifts the sample indices (progressive passes draw new samples).
+  std::array<ImageRGB, 2> render_stereo(float time_s, std::uint32_t frame, unsigned width, unsigned height,
+                                        const Options& options, std::uint32_t sample_offset = 0);
+
+  // Paths dropped because their radiance was not finite, summed over every launch so far.
+  std::uint64_t nonfinite_paths() const { return nonfinite_total_; }
+  // Device time of the last render_stereo, per device (ms, from profiling events).
+  const std::vector<double>& last_device_ms() const { return last_device_ms_; }
+
+ private:
+  DeviceSet& devices_;
+  const DeviceScene& device_scene_;
+  const Scene& scene_;
+  std::uint64_t nonfinite_total_ = 0;
+  std::vector<double> last_device_ms_;
+};
+
+}  // namespace px

@@ -1,0 +1,109 @@
+// The in-memory scene: triangles with shading attributes, materials, textures, camera and
+// lights. Everything the renderer needs, independent of where it came from (an OBJ file or a
+// built-in generator). Loaders fill it; the BVH builder and the device uploader read it.
+#pragma once
+
+#include <glm/glm.hpp>
+
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace px {
+
+// Any failure to produce a valid scene. The message names the file (and line, where there is
+// one) and says what is wrong, so the CLI can print it as is and exit non-zero.
+struct SceneError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// RGBA float texture, linear colour (sRGB images are converted on load), rows top to bottom.
+struct Texture {
+  std::string path;
+  int width = 0;
+  int height = 0;
+  std::vector<float> rgba;  // width * height * 4
+};
+
+// Material as the scenes need it (OBJ/MTL mapping in parentheses):
+// Lambertian diffuse (Kd, map_Kd), a GGX glossy lobe (Ks, Ns -> roughness), a perfect mirror
+// (Ks with very high Ns, or illum 3/5/7 with Ks), alpha cut-outs (map_d), emission (Ke).
+struct Material {
+  std::string name;
+  glm::vec3 diffuse{0.8f};    // Kd, linear albedo
+  glm::vec3 specular{0.0f};   // Ks
+  float roughness = 1.0f;     // GGX alpha derived from Ns; 0 = perfect mirror
+  glm::vec3 emission{0.0f};   // Ke, radiance
+  int diffuse_texture = -1;   // index into Scene::textures, -1 = none
+  int alpha_texture = -1;     // map_d; texels with alpha < 0.5 are cut out
+  bool mirror = false;        // perfect specular reflection
+  bool is_emissive() const { return emission.x > 0.0f || emission.y > 0.0f || emission.z > 0.0f; }
+};
+
+// One triangle with its shading attributes. Normals are always present (geometric normal when
+// the source had none); uvs are zero when absent.
+struct SceneTriangle {
+  glm::vec3 p[3];
+  glm::vec3 n[3];
+  glm::vec2 uv[3];
+  std::uint32_t material = 0;
+};
+
+struct Camera {
+  glm::vec3 position{0.0f, 0.0f, 5.0f};
+  glm::vec3 target{0.0f};
+  glm::vec3 up{0.0f, 1.0f, 0.0f};
+  float vfov_deg = 45.0f;  // vertical field of view
+};
+
+// One keyframe of a camera path; the path is evaluated by time in seconds (linear
+// interpolation of position and target between keys; before the first / after the last key
+// it holds).
+struct CameraKey {
+  float time = 0.0f;
+  glm::vec3 position{0.0f};
+  glm::vec3 target{0.0f};
+};
+
+struct Sun {
+  bool enabled = false;
+  glm::vec3 direction{0.0f, 1.0f, 0.0f};  // unit vector pointing towards the sun
+  glm::vec3 radiance{0.0f};              // radiance of the sun disk
+  float angular_radius_deg = 0.27f;
+};
+
+// Simple analytic sky: radiance blends from horizon to zenith by the direction's elevation;
+// below the horizon it is `ground`.
+struct Sky {
+  bool enabled = false;
+  glm::vec3 zenith{0.0f};
+  glm::vec3 horizon{0.0f};
+  glm::vec3 ground{0.0f};
+};
+
+// What loading repaired or noticed, reported to the user.
+struct SceneStats {
+  std::size_t dropped_degenerate = 0;  // zero-area triangles removed
+  std::size_t dropped_nonfinite = 0;   // triangles with NaN/Inf coordinates removed
+  std::vector<std::string> warnings;   // e.g. "missing texture x.png, material y: using Kd"
+};
+
+struct Scene {
+  std::string name;
+  std::vector<SceneTriangle> triangles;
+  std::vector<Material> materials;  // at least one
+  std::vector<Texture> textures;
+  Camera camera;
+  std::vector<CameraKey> camera_path;  // empty = static camera
+  float meters_per_unit = 1.0f;        // scene units -> metres
+  float ipd_m = 0.062f;                // interpupillary distance in metres
+  Sun sun;
+  Sky sky;
+  SceneStats stats;
+
+  // Interpupillary distance in scene units.
+  float ipd_units() const { return ipd_m / meters_per_unit; }
+};
+
+}  // namespace px

@@ -1,0 +1,317 @@
+// load_scene: the one entry point from user input (a scene JSON file, an OBJ, or a built-in
+// name) to a Scene. The JSON format is documented in scenes/README.md; every check here has a
+// line there.
+#include "scene/builtin_scenes.h"
+#include "scene/scene_loader.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+namespace px {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  return s;
+}
+
+std::string builtin_list() {
+  std::string list;
+  for (const std::string& n : builtin_scene_names()) list += (list.empty() ? "" : ", ") + n;
+  return list;
+}
+
+// A camera that sees the whole bounding sphere of the scene from the +z side (the side OBJ
+// exporters conventionally face), up = +y.
+Camera frame_bounds(const Scene& scene) {
+  glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+  for (const SceneTriangle& t : scene.triangles)
+    for (const glm::vec3& p : t.p) {
+      lo = glm::min(lo, p);
+      hi = glm::max(hi, p);
+    }
+  Camera cam;
+  cam.vfov_deg = 45.0f;
+  const glm::vec3 center = 0.5f * (lo + hi);
+  const float radius = std::max(0.5f * glm::length(hi - lo), 1e-6f * std::max(1.0f, glm::length(center)));
+  const float distance = radius / std::sin(glm::radians(0.5f * cam.vfov_deg));
+  cam.target = center;
+  cam.position = center + glm::vec3(0.0f, 0.0f, 1.05f * distance);
+  cam.up = glm::vec3(0.0f, 1.0f, 0.0f);
+  return cam;
+}
+
+bool has_light(const Scene& scene) {
+  if (scene.sun.enabled || scene.sky.enabled) return true;
+  return std::any_of(scene.materials.begin(), scene.materials.end(),
+                     [](const Material& m) { return m.is_emissive(); });
+}
+
+Scene load_obj_framed(const std::string& path) {
+  Scene scene = load_obj(path);
+  scene.camera = frame_bounds(scene);
+  if (!has_light(scene))
+    scene.stats.warnings.push_back(path + ": no emissive material; without a sun or sky (scene "
+                                          "JSON) the image will be black");
+  return scene;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Typed access to the JSON with errors that name the file and the key.
+
+class SceneFileReader {
+ public:
+  explicit SceneFileReader(std::string file) : file_(std::move(file)) {}
+
+  [[noreturn]] void fail(const std::string& key, const std::string& what) const {
+    throw SceneError(file_ + ": '" + key + "': " + what);
+  }
+
+  void require_object(const json& v, const std::string& key) const {
+    if (!v.is_object()) fail(key, std::string("must be an object, got ") + v.type_name());
+  }
+
+  // Unknown keys are refused: a typo would otherwise silently fall back to a default.
+  void check_keys(const json& obj, const std::string& prefix,
+                  std::initializer_list<std::string_view> allowed) const {
+    for (const auto& [key, value] : obj.items()) {
+      if (std::find(allowed.begin(), allowed.end(), key) != allowed.end()) continue;
+      std::string list;
+      for (std::string_view a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
+      fail(prefix + key, "unknown key (allowed here: " + list + ")");
+    }
+  }
+
+  float number(const json& v, const std::string& key) const {
+    if (!v.is_number()) fail(key, std::string("must be a number, got ") + v.type_name());
+    const double d = v.get<double>();
+    if (!std::isfinite(d) || std::abs(d) > double(std::numeric_limits<float>::max()))
+      fail(key, "must be a finite number");
+    return float(d);
+  }
+
+  glm::vec3 vec3(const json& v, const std::string& key) const {
+    if (!v.is_array() || v.size() != 3)
+      fail(key, std::string("must be an array of 3 numbers, got ") +
+                    (v.is_array() ? "an array of " + std::to_string(v.size()) : std::string(v.type_name())));
+    return glm::vec3(number(v[0], key + "[0]"), number(v[1], key + "[1]"), number(v[2], key + "[2]"));
+  }
+
+  glm::vec3 non_negative_vec3(const json& v, const std::string& key) const {
+    const glm::vec3 c = vec3(v, key);
+    if (c.x < 0.0f || c.y < 0.0f || c.z < 0.0f) fail(key, "components must not be negative");
+    return c;
+  }
+
+  std::string string(const json& v, const std::string& key) const {
+    if (!v.is_string()) fail(key, std::string("must be a string, got ") + v.type_name());
+    return v.get<std::string>();
+  }
+
+  bool boolean(const json& v, const std::string& key) const {
+    if (!v.is_boolean()) fail(key, std::string("must be true or false, got ") + v.type_name());
+    return v.get<bool>();
+  }
+
+  const std::string& file() const { return file_; }
+
+ private:
+  std::string file_;
+};
+
+json parse_json_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw SceneError("cannot open scene file '" + path + "'");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  const std::string text = std::move(ss).str();
+
+  // Duplicate keys are refused (nlohmann keeps the last one silently); the callback sees every
+  // key with a stack of the keys seen in each enclosing object.
+  std::vector<std::set<std::string>> keys_in_object;
+  std::string duplicate;
+  auto callback = [&](int /*depth*/, json::parse_event_t event, json& parsed) {
+    if (event == json::parse_event_t::object_start) keys_in_object.emplace_back();
+    if (event == json::parse_event_t::object_end && !keys_in_object.empty()) keys_in_object.pop_back();
+    if (event == json::parse_event_t::key && !keys_in_object.empty() && duplicate.empty() &&
+        !keys_in_object.back().insert(parsed.get<std::string>()).second)
+      duplicate = parsed.get<std::string>();
+    return true;
+  };
+  json doc;
+  try {
+    doc = json::parse(text, callback, /*allow_exceptions=*/true, /*ignore_comments=*/true);
+  } catch (const json::exception& e) {
+    // e.what() is "[json.exception.parse_error.101] parse error at line L, column C: ..."
+    std::string what = e.what();
+    if (const std::size_t close = what.find("] "); what.rfind("[json.", 0) == 0 && close != std::string::npos)
+      what = what.substr(close + 2);
+    throw SceneError(path + ": invalid JSON: " + what);
+  }
+  if (!duplicate.empty()) throw SceneError(path + ": '" + duplicate + "': duplicate key");
+  return doc;
+}
+
+Scene load_scene_file(const std::string& path) {
+  const json doc = parse_json_file(path);
+  const SceneFileReader r(path);
+  if (!doc.is_object()) throw SceneError(path + ": the scene file must hold a JSON object");
+  r.check_keys(doc, "", {"name", "mesh", "generator", "generator_params", "meters_per_unit",
+                         "ipd_m", "camera", "camera_path", "sun", "sky"});
+
+  // The base scene: a mesh or a generator, exactly one.
+  const bool has_mesh = doc.contains("mesh"), has_generator = doc.contains("generator");
+  if (has_mesh == has_generator)
+    throw SceneError(path + ": needs exactly one of 'mesh' (an OBJ path) or 'generator' (" +
+                     builtin_list() + ")");
+  if (doc.contains("generator_params") && !has_generator)
+    r.fail("generator_params", "only allowed together with 'generator'");
+  Scene scene;
+  if (has_mesh) {
+    const std::string mesh = r.string(doc["mesh"], "mesh");
+    if (mesh.empty()) r.fail("mesh", "must not be empty");
+    const fs::path mesh_path = fs::path(path).parent_path() / mesh;
+    try {
+      scene = load_obj_framed(mesh_path.string());
+    } catch (const SceneError& e) {
+      r.fail("mesh", e.what());
+    }
+  } else {
+    const std::string generator = r.string(doc["generator"], "generator");
+    const auto& names = builtin_scene_names();
+    if (std::find(names.begin(), names.end(), generator) == names.end())
+      r.fail("generator", "unknown generator '" + generator + "' (known: " + builtin_list() + ")");
+    json params = json::object();
+    if (doc.contains("generator_params")) {
+      params = doc["generator_params"];
+      r.require_object(params, "generator_params");
+    }
+    try {
+      scene = make_builtin_scene(generator, params);
+    } catch (const SceneError& e) {
+      r.fail("generator_params", e.what());
+    }
+  }
+  scene.name = doc.contains("name") ? r.string(doc["name"], "name") : fs::path(path).stem().string();
+
+  if (doc.contains("meters_per_unit")) {
+    const float m = r.number(doc["meters_per_unit"], "meters_per_unit");
+    if (!(m > 0.0f)) r.fail("meters_per_unit", "must be positive");
+    scene.meters_per_unit = m;
+  }
+  if (doc.contains("ipd_m")) {
+    const float ipd = r.number(doc["ipd_m"], "ipd_m");
+    if (ipd < 0.0f || ipd > 1.0f) r.fail("ipd_m", "must be within [0, 1] metres");
+    scene.ipd_m = ipd;
+  }
+
+  if (doc.contains("camera")) {
+    const json& cam = doc["camera"];
+    r.require_object(cam, "camera");
+    r.check_keys(cam, "camera.", {"position", "target", "up", "vfov_deg"});
+    if (cam.contains("position")) scene.camera.position = r.vec3(cam["position"], "camera.position");
+    if (cam.contains("target")) scene.camera.target = r.vec3(cam["target"], "camera.target");
+    if (cam.contains("up")) scene.camera.up = r.vec3(cam["up"], "camera.up");
+    if (cam.contains("vfov_deg")) {
+      const float fov = r.number(cam["vfov_deg"], "camera.vfov_deg");
+      if (!(fov > 0.0f && fov < 180.0f)) r.fail("camera.vfov_deg", "must be within (0, 180) degrees");
+      scene.camera.vfov_deg = fov;
+    }
+  }
+  // Checked on the merged camera, whichever fields came from the generator.
+  if (scene.camera.position == scene.camera.target)
+    r.fail("camera.position", "equals camera.target (no view direction)");
+  {
+    const glm::vec3 forward = scene.camera.target - scene.camera.position;
+    const glm::vec3 side = glm::cross(forward, scene.camera.up);
+    if (!(glm::dot(side, side) > 0.0f)) r.fail("camera.up", "is zero or parallel to the view direction");
+  }
+
+  if (doc.contains("camera_path")) {
+    const json& path_json = doc["camera_path"];
+    if (!path_json.is_array()) r.fail("camera_path", std::string("must be an array, got ") + path_json.type_name());
+    std::vector<CameraKey> keys;
+    for (std::size_t i = 0; i < path_json.size(); ++i) {
+      const std::string key = "camera_path[" + std::to_string(i) + "]";
+      const json& k = path_json[i];
+      r.require_object(k, key);
+      r.check_keys(k, key + ".", {"time", "position", "target"});
+      for (const char* required : {"time", "position", "target"})
+        if (!k.contains(required)) r.fail(key + "." + required, "missing");
+      CameraKey ck;
+      ck.time = r.number(k["time"], key + ".time");
+      ck.position = r.vec3(k["position"], key + ".position");
+      ck.target = r.vec3(k["target"], key + ".target");
+      if (ck.position == ck.target) r.fail(key + ".position", "equals the key's target");
+      if (!keys.empty() && !(ck.time > keys.back().time))
+        r.fail(key + ".time", "must be greater than the previous key's time");
+      keys.push_back(ck);
+    }
+    scene.camera_path = std::move(keys);
+  }
+
+  if (doc.contains("sun")) {
+    const json& sun = doc["sun"];
+    r.require_object(sun, "sun");
+    r.check_keys(sun, "sun.", {"enabled", "direction", "radiance", "angular_radius_deg"});
+    scene.sun.enabled = sun.contains("enabled") ? r.boolean(sun["enabled"], "sun.enabled") : true;
+    if (sun.contains("direction")) {
+      const glm::vec3 d = r.vec3(sun["direction"], "sun.direction");
+      const float len = glm::length(d);
+      if (!(len > 0.0f) || !std::isfinite(len)) r.fail("sun.direction", "must be a non-zero vector");
+      scene.sun.direction = d / len;
+    }
+    if (sun.contains("radiance")) scene.sun.radiance = r.non_negative_vec3(sun["radiance"], "sun.radiance");
+    if (sun.contains("angular_radius_deg")) {
+      const float a = r.number(sun["angular_radius_deg"], "sun.angular_radius_deg");
+      if (!(a > 0.0f && a < 90.0f)) r.fail("sun.angular_radius_deg", "must be within (0, 90) degrees");
+      scene.sun.angular_radius_deg = a;
+    }
+  }
+  if (doc.contains("sky")) {
+    const json& sky = doc["sky"];
+    r.require_object(sky, "sky");
+    r.check_keys(sky, "sky.", {"enabled", "zenith", "horizon", "ground"});
+    scene.sky.enabled = sky.contains("enabled") ? r.boolean(sky["enabled"], "sky.enabled") : true;
+    if (sky.contains("zenith")) scene.sky.zenith = r.non_negative_vec3(sky["zenith"], "sky.zenith");
+    if (sky.contains("horizon")) scene.sky.horizon = r.non_negative_vec3(sky["horizon"], "sky.horizon");
+    if (sky.contains("ground")) scene.sky.ground = r.non_negative_vec3(sky["ground"], "sky.ground");
+  }
+  return scene;
+}
+
+bool is_plain_file(const fs::path& p) {
+  std::error_code ec;
+  return fs::is_regular_file(p, ec);
+}
+
+}  // namespace
+
+Scene load_scene(const std::string& spec) {
+  const fs::path p(spec);
+  const std::string ext = lower(p.extension().string());
+  if (is_plain_file(p)) {
+    if (ext == ".json") return load_scene_file(spec);
+    if (ext == ".obj") return load_obj_framed(spec);
+    throw SceneError("scene '" + spec + "': unsupported file type (expected a .json scene file or an .obj)");
+  }
+  const auto& names = builtin_scene_names();
+  if (std::find(names.begin(), names.end(), spec) != names.end()) return make_builtin_scene(spec);
+  std::error_code ec;
+  if (fs::exists(p, ec)) throw SceneError("scene '" + spec + "': not a regular file");
+  if (ext == ".json" || ext == ".obj")
+    throw SceneError("scene file '" + spec + "' not found");
+  throw SceneError("unknown scene '" + spec + "': no such file, and not a built-in scene (" +
+                   builtin_list() + ")");
+}
+
+}  // namespace px

@@ -1,0 +1,47 @@
+// Traces host-made ray lists on the devices: the ray list is cut into one contiguous chunk per
+// device, every chunk runs concurrently on its device's queue, and the hits come back in input
+// order. The test suite checks the kernels through this against independent host code, and
+// bench-trace times it against Embree on the same rays.
+#pragma once
+
+#include "cl/device_set.h"
+#include "render/device_scene.h"
+#include "shared/types.h"
+
+#include <glm/glm.hpp>
+#include <vector>
+
+namespace px {
+
+class RayBatchTracer {
+ public:
+  // Explicit local size (PoCL compiles one work-group function per local size; 64 suits both
+  // CPU and GPU for a traversal kernel).
+  static constexpr std::size_t kLocalSize = 64;
+
+  RayBatchTracer(DeviceSet& devices, const DeviceScene& scene);
+
+  std::vector<Hit> closest(const std::vector<Ray>& rays);
+  std::vector<std::uint32_t> occluded(const std::vector<Ray>& rays);
+
+  // The kernels' self-intersection-free origin offset applied to points along normals.
+  std::vector<glm::vec3> offset_origins(const std::vector<glm::vec3>& points,
+                                        const std::vector<glm::vec3>& normals);
+
+  // Device time of the last closest()/occluded() call: the slowest device's kernel time from
+  // OpenCL profiling events (the makespan of the concurrent chunks), in milliseconds.
+  double last_kernel_ms() const { return last_kernel_ms_; }
+
+ private:
+  template <typename Out>
+  std::vector<Out> run(const char* kernel_name, const std::vector<Ray>& rays);
+
+  DeviceSet& devices_;
+  const DeviceScene& scene_;
+  double last_kernel_ms_ = 0.0;
+};
+
+// Milliseconds between an event's CL_PROFILING_COMMAND_START and _END.
+double event_ms(const cl::Event& e);
+
+}  // namespace px

@@ -1,0 +1,145 @@
+/* Path tracing megakernel: one work-item per pixel of a strip of rows of one eye, `spp`
+ * paths each, next-event estimation and BSDF sampling combined by the power heuristic,
+ * Russian roulette from `rr_start_bounce`, at most `max_bounces` bounces.
+ *
+ * Every random number comes from the counter-based stream keyed by (frame, eye, pixel,
+ * sample, dimension), so the result is independent of which device or strip ran the pixel.
+ * A path whose radiance is not finite is dropped (contributes zero) and counted in
+ * `nonfinite`: no NaN or Inf ever reaches the output. */
+#include "shared/types.h"
+#include "render/camera.h"
+#include "sampling/sample_stream.h"
+#include "sampling/warp.h"
+#include "scene/scene_view.h"
+#include "shading/bsdf.h"
+#include "shading/lights.h"
+#include "trace/ray_offset.h"
+#include "trace/traverse.h"
+
+/* Upper bound on max_bounces the host accepts (keeps the dimension counter in range). */
+#define PX_MAX_BOUNCES_LIMIT 256u
+
+inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir,
+                            SampleKey key) {
+  float3 radiance = (float3)(0.0f, 0.0f, 0.0f);
+  float3 throughput = (float3)(1.0f, 1.0f, 1.0f);
+  float prev_pdf = 0.0f;
+  int prev_delta = 1; /* the camera ray counts as a delta "bounce": emission seen directly is kept */
+  float3 prev_n = (float3)(0.0f, 1.0f, 0.0f);
+  const int use_nee = fp->light_sampling != PX_LIGHTS_BSDF;
+  const int use_bsdf_light = fp->light_sampling != PX_LIGHTS_NEE;
+
+  for (uint bounce = 0; bounce <= fp->max_bounces; ++bounce) {
+    const Hit hit = px_trace_closest_leaf(scene, org, dir, 0.0f, INFINITY);
+    if (hit.prim == PX_NO_HIT) {
+      const float3 le = px_environment(fp, dir);
+      float w = 1.0f;
+      if (!prev_delta) {
+        if (!use_bsdf_light) w = 0.0f;
+        else if (use_nee) w = px_mis_power(prev_pdf, px_environment_pdf(fp, prev_n, dir));
+      }
+      radiance += throughput * le * w;
+      break;
+    }
+
+    const global BvhTriangle* tri = scene->tris + hit.prim;
+    const uint prim = tri->prim;
+    const global TriangleShading* sh = scene->shading + prim;
+    const global GpuMaterial* mat = scene->materials + sh->material;
+    const float3 v0 = px_load3(tri->v0), v1 = px_load3(tri->v1), v2 = px_load3(tri->v2);
+    const float bw = 1.0f - hit.u - hit.v;
+    const float3 p = bw * v0 + hit.u * v1 + hit.v * v2;
+    const float3 wo = -dir;
+    float3 ng = normalize(cross(v1 - v0, v2 - v0));
+    float3 ns = bw * px_load3(sh->n0) + hit.u * px_load3(sh->n1) + hit.v * px_load3(sh->n2);
+    const float ns_len = length(ns);
+    ns = ns_len > 0.0f && isfinite(ns_len) ? ns / ns_len : ng;
+    /* Two-sided surfaces: face both normals towards the viewer of this vertex. */
+    if (dot(ng, wo) < 0.0f) ng = -ng;
+    if (dot(ns, ng) < 0.0f) ns = -ns;
+
+    if (mat->flags & PX_MAT_EMISSIVE) {
+      float w = 1.0f;
+      if (!prev_delta) {
+        if (!use_bsdf_light) {
+          w = 0.0f;
+        } else if (use_nee) {
+          const int li = px_find_light(scene, fp->light_count, prim);
+          const float lp = li >= 0 ? px_triangle_light_pdf(fp, scene->lights + li, hit.t, fabs(dot(ng, dir))) : 0.0f;
+          w = px_mis_power(prev_pdf, lp);
+        }
+      }
+      radiance += throughput * px_load3(mat->emission) * w;
+    }
+    if (bounce == fp->max_bounces) break;
+
+    float3 albedo = px_load3(mat->diffuse);
+    if (mat->diffuse_texture >= 0)
+      albedo *= px_texture_bilinear(scene, mat->diffuse_texture, px_interpolate_uv(sh, hit.u, hit.v)).xyz;
+    const Bsdf bsdf = px_make_bsdf(albedo, px_load3(mat->specular), mat->roughness,
+                                   (mat->flags & PX_MAT_MIRROR) != 0u);
+    const float3 origin = px_offset_ray_origin(p, ng);
+    const float4 u_light = px_sample4(key, 1u + 2u * bounce);
+    const float4 u_bsdf = px_sample4(key, 2u + 2u * bounce);
+
+    /* Next-event estimation (only the non-delta part of the BSDF can use it). */
+    const int has_smooth = bsdf.p_specular < 1.0f || !bsdf.mirror;
+    if (use_nee && has_smooth) {
+      const LightSample ls = px_sample_light(scene, fp, p, ns, u_light);
+      if (ls.pdf > 0.0f && dot(ng, ls.wi) > 0.0f && dot(ns, ls.wi) > 0.0f) {
+        const float3 f = px_bsdf_eval(&bsdf, ns, wo, ls.wi);
+        if (f.x + f.y + f.z > 0.0f) {
+          /* Stop short of the light's own surface; environment rays are unbounded. */
+          const float tmax = isinf(ls.dist) ? INFINITY : ls.dist * (1.0f - 1e-4f);
+          if (!px_trace_any(scene, origin, ls.wi, 0.0f, tmax)) {
+            const float w = use_bsdf_light ? px_mis_power(ls.pdf, px_bsdf_pdf(&bsdf, ns, wo, ls.wi)) : 1.0f;
+            radiance += throughput * f * ls.radiance * (dot(ns, ls.wi) * w / ls.pdf);
+          }
+        }
+      }
+    }
+
+    const BsdfSample bs = px_bsdf_sample(&bsdf, ns, wo, u_bsdf.xyz);
+    if (!bs.valid || dot(ng, bs.wi) <= 0.0f) break;
+    throughput *= bs.weight;
+    prev_pdf = bs.pdf;
+    prev_delta = bs.delta;
+    prev_n = ns;
+
+    if (bounce + 1u >= fp->rr_start_bounce) {
+      const float q = fmin(0.95f, fmax(throughput.x, fmax(throughput.y, throughput.z)));
+      if (!(u_bsdf.w < q)) break;
+      throughput /= q;
+    }
+    org = origin;
+    dir = bs.wi;
+  }
+  return radiance;
+}
+
+/* out: rows * width float4 (rgb = mean radiance of this launch's samples, a = sample count
+ * that was finite). nonfinite: incremented once per dropped path. */
+kernel void path_trace(global float4* out, global uint* nonfinite, FrameParams fp, CameraParams cam,
+                       PX_SCENE_PARAMS) {
+  const uint i = get_global_id(0);
+  if (i >= fp.rows * cam.width) return;
+  const SceneView scene = PX_SCENE_VIEW();
+  const uint x = i % cam.width;
+  const uint y = fp.row0 + i / cam.width;
+  const float3 org = px_camera_origin(&cam);
+  float3 sum = (float3)(0.0f, 0.0f, 0.0f);
+  uint good = 0;
+  for (uint s = 0; s < fp.spp; ++s) {
+    const SampleKey key = px_sample_key(x, y, fp.frame, fp.eye, fp.sample_offset + s, fp.seed);
+    const float4 u = px_sample4(key, 0u);
+    const float3 dir = px_camera_dir(&cam, x, y, u.x, u.y);
+    const float3 l = px_trace_path(&scene, &fp, org, dir, key);
+    if (isfinite(l.x) && isfinite(l.y) && isfinite(l.z)) {
+      sum += l;
+      ++good;
+    } else {
+      atomic_inc(nonfinite);
+    }
+  }
+  out[i] = (float4)(good > 0u ? sum / (float)good : sum, (float)good);
+}

@@ -1,0 +1,126 @@
+/* The one BSDF the scenes need: a Lambertian base plus a specular lobe that is either GGX
+ * (glossy, OBJ Ks/Ns) or a perfect mirror.
+ *
+ *   f(wo, wi) = kd (1 - max(ks)) / pi  +  ks D(h) G(wo, wi) / (4 |n.wo| |n.wi|)
+ *
+ * Scaling the diffuse part by 1 - max(ks) keeps the total albedo <= 1 (no Fresnel: ks plays
+ * the role of a constant reflectance). The specular lobe is picked for sampling with
+ * probability proportional to its weight's luminance. All directions point away from the
+ * surface; n is the shading normal flipped to the side of wo. */
+#ifndef PARALLAX_BSDF_H
+#define PARALLAX_BSDF_H
+
+#include "sampling/warp.h"
+
+typedef struct Bsdf {
+  float3 diffuse;  /* already scaled by 1 - max(ks) */
+  float3 specular;
+  float alpha;     /* GGX roughness (alpha = roughness^2 is NOT applied: the material stores alpha) */
+  int mirror;      /* specular lobe is a delta */
+  float p_specular; /* probability of sampling the specular lobe */
+} Bsdf;
+
+inline float px_luminance(float3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+
+inline Bsdf px_make_bsdf(float3 diffuse, float3 specular, float alpha, int mirror) {
+  Bsdf b;
+  const float ks_max = fmax(specular.x, fmax(specular.y, specular.z));
+  b.diffuse = diffuse * (1.0f - fmin(ks_max, 1.0f));
+  b.specular = specular;
+  b.mirror = mirror || alpha <= 0.0f;
+  /* Very small alpha makes D overflow in float; such lobes are mirrors in all but name. */
+  b.alpha = fmax(alpha, 1e-3f);
+  const float ld = px_luminance(b.diffuse), ls = px_luminance(specular);
+  b.p_specular = ld + ls > 0.0f ? ls / (ld + ls) : 0.0f;
+  return b;
+}
+
+/* GGX normal distribution; cos_h = n.h. */
+inline float px_ggx_d(float cos_h, float alpha) {
+  if (cos_h <= 0.0f) return 0.0f;
+  const float a2 = alpha * alpha;
+  const float c2 = cos_h * cos_h;
+  const float d = c2 * (a2 - 1.0f) + 1.0f;
+  return a2 / (PX_PI * d * d);
+}
+
+/* Smith masking for one direction, cos_v = |n.v|. */
+inline float px_ggx_g1(float cos_v, float alpha) {
+  const float a2 = alpha * alpha;
+  return 2.0f * cos_v / (cos_v + sqrt(a2 + (1.0f - a2) * cos_v * cos_v));
+}
+
+/* f(wo, wi) for the non-delta parts; zero below the surface. */
+inline float3 px_bsdf_eval(const Bsdf* b, float3 n, float3 wo, float3 wi) {
+  const float cos_o = dot(n, wo), cos_i = dot(n, wi);
+  if (cos_o <= 0.0f || cos_i <= 0.0f) return (float3)(0.0f, 0.0f, 0.0f);
+  float3 f = b->diffuse * PX_INV_PI;
+  if (!b->mirror && b->p_specular > 0.0f) {
+    const float3 h = normalize(wo + wi);
+    const float d = px_ggx_d(dot(n, h), b->alpha);
+    const float g = px_ggx_g1(cos_o, b->alpha) * px_ggx_g1(cos_i, b->alpha);
+    f += b->specular * (d * g / (4.0f * cos_o * cos_i));
+  }
+  return f;
+}
+
+/* Solid-angle density with which px_bsdf_sample produces wi (non-delta parts only). */
+inline float px_bsdf_pdf(const Bsdf* b, float3 n, float3 wo, float3 wi) {
+  const float cos_o = dot(n, wo), cos_i = dot(n, wi);
+  if (cos_o <= 0.0f || cos_i <= 0.0f) return 0.0f;
+  float pdf = (1.0f - b->p_specular) * cos_i * PX_INV_PI;
+  if (!b->mirror && b->p_specular > 0.0f) {
+    const float3 h = normalize(wo + wi);
+    const float cos_h = dot(n, h);
+    /* Half-vector density D(h) cos_h, mapped to wi by the reflection Jacobian 1 / (4 wo.h). */
+    pdf += b->p_specular * px_ggx_d(cos_h, b->alpha) * cos_h / (4.0f * fabs(dot(wo, h)));
+  }
+  return pdf;
+}
+
+typedef struct BsdfSample {
+  float3 wi;
+  float3 weight; /* f cos / pdf (for a delta lobe: ks / p_specular) */
+  float pdf;     /* solid-angle pdf of the whole mixture; 0 for a delta sample */
+  int delta;
+  int valid;
+} BsdfSample;
+
+inline BsdfSample px_bsdf_sample(const Bsdf* b, float3 n, float3 wo, float3 u) {
+  BsdfSample s;
+  s.valid = 0;
+  s.delta = 0;
+  s.pdf = 0.0f;
+  s.weight = (float3)(0.0f, 0.0f, 0.0f);
+  s.wi = n;
+  const float cos_o = dot(n, wo);
+  if (cos_o <= 0.0f) return s;
+  if (u.z < b->p_specular) {
+    if (b->mirror) {
+      s.wi = 2.0f * cos_o * n - wo;
+      s.delta = 1;
+      s.weight = b->specular / b->p_specular;
+      s.valid = 1;
+      return s;
+    }
+    /* GGX half vector: tan^2(theta_h) = alpha^2 u / (1 - u). */
+    const float a2 = b->alpha * b->alpha;
+    const float cos2 = (1.0f - u.x) / (1.0f + (a2 - 1.0f) * u.x);
+    const float cos_h = sqrt(fmax(0.0f, cos2));
+    const float sin_h = sqrt(fmax(0.0f, 1.0f - cos2));
+    const float phi = 2.0f * PX_PI * u.y;
+    const float3 h = px_to_world((float3)(sin_h * cos(phi), sin_h * sin(phi), cos_h), n);
+    s.wi = 2.0f * dot(wo, h) * h - wo;
+  } else {
+    s.wi = px_to_world(px_cosine_hemisphere(u.x, u.y), n);
+  }
+  const float cos_i = dot(n, s.wi);
+  if (cos_i <= 0.0f) return s;
+  s.pdf = px_bsdf_pdf(b, n, wo, s.wi);
+  if (!(s.pdf > 0.0f)) return s;
+  s.weight = px_bsdf_eval(b, n, wo, s.wi) * (cos_i / s.pdf);
+  s.valid = 1;
+  return s;
+}
+
+#endif

@@ -1,0 +1,111 @@
+/* Lights: emissive triangles (two-sided), and an environment made of a sun disk and an
+ * analytic sky. Next-event estimation first picks a kind of light (FrameParams p_*), then:
+ *   triangles - one triangle by power (binary search of the CDF), a uniform point on it;
+ *   sun       - a uniform direction inside the sun's cone;
+ *   sky       - a cosine-weighted direction around the shading normal.
+ * The sun and sky form one environment: a direction inside the sun's cone sees the sun, any
+ * other the sky. Its light pdf is the mixture p_sun pdf_sun + p_sky pdf_sky, so a direction has
+ * the same density whichever strategy produced it, which is what MIS needs. */
+#ifndef PARALLAX_LIGHTS_H
+#define PARALLAX_LIGHTS_H
+
+#include "sampling/warp.h"
+#include "scene/scene_view.h"
+#include "shading/bsdf.h"
+
+inline float3 px_sky_radiance(const FrameParams* fp, float3 d) {
+  if (d.y < 0.0f) return px_load3_private(fp->sky_ground);
+  return mix(px_load3_private(fp->sky_horizon), px_load3_private(fp->sky_zenith), sqrt(d.y));
+}
+
+/* Radiance arriving along a ray that left the scene in direction d. */
+inline float3 px_environment(const FrameParams* fp, float3 d) {
+  if (fp->p_sun > 0.0f && dot(d, px_load3_private(fp->sun_dir)) >= fp->sun_cos_max)
+    return px_load3_private(fp->sun_radiance);
+  return px_sky_radiance(fp, d);
+}
+
+/* Density (solid angle, light-type selection included) with which NEE samples d toward the
+ * environment from a point with shading normal n. */
+inline float px_environment_pdf(const FrameParams* fp, float3 n, float3 d) {
+  float pdf = 0.0f;
+  if (fp->p_sun > 0.0f && dot(d, px_load3_private(fp->sun_dir)) >= fp->sun_cos_max)
+    pdf += fp->p_sun / (2.0f * PX_PI * (1.0f - fp->sun_cos_max));
+  if (fp->p_sky > 0.0f) pdf += fp->p_sky * fmax(0.0f, dot(n, d)) * PX_INV_PI;
+  return pdf;
+}
+
+/* Index into the light table of scene triangle `prim` (the table is sorted by prim), or -1. */
+inline int px_find_light(const SceneView* s, uint count, uint prim) {
+  int lo = 0, hi = (int)count - 1;
+  while (lo <= hi) {
+    const int mid = (lo + hi) / 2;
+    const uint p = s->lights[mid].prim;
+    if (p == prim) return mid;
+    if (p < prim) lo = mid + 1;
+    else hi = mid - 1;
+  }
+  return -1;
+}
+
+/* Density (solid angle, selection included) of NEE reaching emissive triangle `light` at
+ * distance `dist`, arriving with cosine `cos_light` to its plane. */
+inline float px_triangle_light_pdf(const FrameParams* fp, const global LightTriangle* l, float dist,
+                                   float cos_light) {
+  if (cos_light <= 0.0f || l->area <= 0.0f) return 0.0f;
+  return fp->p_triangles * l->pdf_select * dist * dist / (l->area * cos_light);
+}
+
+typedef struct LightSample {
+  float3 wi;
+  float dist;      /* INFINITY for the environment */
+  float3 radiance;
+  float pdf;       /* solid angle, light-type selection included; 0 = no sample */
+} LightSample;
+
+inline LightSample px_sample_light(const SceneView* s, const FrameParams* fp, float3 p, float3 n,
+                                   float4 u) {
+  LightSample ls;
+  ls.pdf = 0.0f;
+  ls.dist = INFINITY;
+  ls.radiance = (float3)(0.0f, 0.0f, 0.0f);
+  ls.wi = n;
+  float pick = u.z;
+  if (pick < fp->p_triangles) {
+    if (fp->light_count == 0u) return ls;
+    /* First entry whose inclusive CDF exceeds u.w. */
+    int lo = 0, hi = (int)fp->light_count - 1;
+    while (lo < hi) {
+      const int mid = (lo + hi) / 2;
+      if (s->lights[mid].cdf > u.w) hi = mid;
+      else lo = mid + 1;
+    }
+    const global LightTriangle* l = s->lights + lo;
+    const float2 b = px_uniform_triangle(u.x, u.y);
+    const float3 v0 = px_load3(l->v0), v1 = px_load3(l->v1), v2 = px_load3(l->v2);
+    const float3 q = (1.0f - b.x - b.y) * v0 + b.x * v1 + b.y * v2;
+    const float3 to = q - p;
+    const float d2 = dot(to, to);
+    if (!(d2 > 0.0f)) return ls;
+    ls.dist = sqrt(d2);
+    ls.wi = to / ls.dist;
+    const float3 ng = normalize(cross(v1 - v0, v2 - v0));
+    ls.pdf = px_triangle_light_pdf(fp, l, ls.dist, fabs(dot(ng, ls.wi)));
+    ls.radiance = px_load3(l->emission);
+    return ls;
+  }
+  pick -= fp->p_triangles;
+  if (pick < fp->p_sun) {
+    const float3 sd = px_load3_private(fp->sun_dir);
+    ls.wi = px_to_world(px_uniform_cone(u.x, u.y, fp->sun_cos_max), sd);
+  } else if (fp->p_sky > 0.0f) {
+    ls.wi = px_to_world(px_cosine_hemisphere(u.x, u.y), n);
+  } else {
+    return ls;
+  }
+  ls.pdf = px_environment_pdf(fp, n, ls.wi);
+  ls.radiance = px_environment(fp, ls.wi);
+  return ls;
+}
+
+#endif

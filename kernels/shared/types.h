@@ -1,0 +1,226 @@
+/* Structs shared by the host (C++) and the kernels (OpenCL C).
+ *
+ * This header is compiled by both sides, so a layout cannot drift: the host static_asserts
+ * every size and offset documented here (host/cl/layout_checks.cpp). Rules that keep the two
+ * compilers in agreement:
+ *   - only 4-byte scalars (float, uint, int) and arrays of them; no float3 (16 bytes in
+ *     OpenCL C, 12 in C++), no pointers, no bool;
+ *   - every struct is a multiple of 16 bytes where it is read in bulk, so a node or triangle
+ *     never straddles more cache lines than it must.
+ */
+#ifndef PARALLAX_SHARED_TYPES_H
+#define PARALLAX_SHARED_TYPES_H
+
+#ifndef __OPENCL_C_VERSION__
+#include <cstdint>
+namespace px {
+typedef std::uint32_t uint;
+#endif
+
+/* Deepest BVH the kernels can traverse. The host asks Embree for at most this depth
+ * (RTCBuildArguments::maxDepth) and the validator re-checks it; the traversal stack holds
+ * PX_BVH_STACK_SIZE entries, which covers a depth-first walk of such a tree. */
+#define PX_BVH_MAX_DEPTH 40
+#define PX_BVH_STACK_SIZE 48
+
+/* Largest leaf the builder produces. */
+#define PX_BVH_MAX_LEAF_SIZE 4
+
+/* Binary BVH node, 64 bytes (one cache line), holding both children's boxes so one node
+ * fetch tests two boxes (Aila & Laine 2009).
+ *
+ *  offset  field
+ *   0..11  lmin[3]   left child box min
+ *  12..15  left      left child: node index, or first triangle index if left_count > 0
+ *  16..27  lmax[3]   left child box max
+ *  28..31  left_count  0 = interior child, else number of triangles in the leaf
+ *  32..43  rmin[3]
+ *  44..47  right
+ *  48..59  rmax[3]
+ *  60..63  right_count
+ *
+ * An absent child (a root whose whole scene fits in one leaf) has an inverted box
+ * (min = +FLT_MAX, max = -FLT_MAX) and count 0 / index 0: no ray ever enters it. */
+typedef struct BvhNode {
+  float lmin[3];
+  uint left;
+  float lmax[3];
+  uint left_count;
+  float rmin[3];
+  uint right;
+  float rmax[3];
+  uint right_count;
+} BvhNode;
+
+/* Triangle as traversal reads it, 48 bytes, stored in leaf order (with spatial splits a
+ * scene triangle may appear in several leaves, so this array can be longer than the scene).
+ *
+ *   0..11  v0[3]
+ *  12..15  prim       index of the triangle in the scene (shading data, material)
+ *  16..27  v1[3]
+ *  28..31  flags      PX_TRI_* bits (alpha-tested, emissive...)
+ *  32..43  v2[3]
+ *  44..47  material   material index (duplicated here so any-hit can alpha test without
+ *                     another fetch)
+ */
+typedef struct BvhTriangle {
+  float v0[3];
+  uint prim;
+  float v1[3];
+  uint flags;
+  float v2[3];
+  uint material;
+} BvhTriangle;
+
+#define PX_TRI_ALPHA_TESTED 1u
+#define PX_TRI_EMISSIVE 2u
+
+/* A ray, 32 bytes. tmax bounds the search (closest hit and occlusion). */
+typedef struct Ray {
+  float org[3];
+  float tmin;
+  float dir[3];
+  float tmax;
+} Ray;
+
+/* Closest-hit result, 16 bytes. prim = PX_NO_HIT on a miss; (u, v) are the barycentrics of
+ * v1 and v2, so the hit point is (1 - u - v) v0 + u v1 + v v2. */
+typedef struct Hit {
+  float t;
+  float u;
+  float v;
+  uint prim;
+} Hit;
+
+#define PX_NO_HIT 0xffffffffu
+
+/* Per-scene-triangle shading attributes, 64 bytes, indexed by Hit::prim (scene order, not
+ * leaf order: traversal never reads them, only shading does).
+ *
+ *   0..11 n0[3]  12..19 uv0[2]  20..31 n1[3]  32..39 uv1[2]  40..51 n2[3]  52..59 uv2[2]
+ *  60..63 material */
+typedef struct TriangleShading {
+  float n0[3];
+  float uv0[2];
+  float n1[3];
+  float uv1[2];
+  float n2[3];
+  float uv2[2];
+  uint material;
+} TriangleShading;
+
+/* Material as the kernels read it, 64 bytes.
+ *
+ *   0..11 diffuse[3] (linear albedo)       12..15 diffuse_texture (-1 = none)
+ *  16..27 specular[3]                      28..31 roughness (GGX alpha; 0 = mirror)
+ *  32..43 emission[3] (radiance)           44..47 alpha_texture (-1 = none)
+ *  48..51 flags (PX_MAT_*)                 52..63 padding */
+typedef struct GpuMaterial {
+  float diffuse[3];
+  int diffuse_texture;
+  float specular[3];
+  float roughness;
+  float emission[3];
+  int alpha_texture;
+  uint flags;
+  uint pad[3];
+} GpuMaterial;
+
+#define PX_MAT_MIRROR 1u
+#define PX_MAT_GLOSSY 2u
+#define PX_MAT_EMISSIVE 4u
+
+/* One eye's pinhole camera for one frame, 64 bytes. Rays leave `origin` through the image
+ * plane at distance 1 along `forward`; pixel (x, y) with y = 0 at the top maps to
+ * ndc = ((x + 0.5) / width * 2 - 1) * tan_half_fov_y * aspect along `right`, and
+ * (1 - (y + 0.5) / height * 2) * tan_half_fov_y along `up`.
+ *
+ *   0..11 origin[3]   12..15 tan_half_fov_y
+ *  16..27 right[3]    28..31 aspect (width / height)
+ *  32..43 up[3]       44..47 width
+ *  48..59 forward[3]  60..63 height */
+typedef struct CameraParams {
+  float origin[3];
+  float tan_half_fov_y;
+  float right[3];
+  float aspect;
+  float up[3];
+  uint width;
+  float forward[3];
+  uint height;
+} CameraParams;
+
+
+/* Where a texture's texels start in the shared texel buffer (float4 RGBA, linear, rows top to
+ * bottom), 16 bytes. */
+typedef struct TextureInfo {
+  uint offset; /* in texels */
+  uint width;
+  uint height;
+  uint pad;
+} TextureInfo;
+
+/* One emissive triangle for next-event estimation, 64 bytes. Lights are chosen in proportion
+ * to power (area x luminance of emission): `cdf` is the inclusive running sum over the table,
+ * normalised to 1 at the last entry, and `pdf_select` this triangle's probability.
+ *
+ *   0..11 v0[3]  12..15 prim   16..27 v1[3]  28..31 area
+ *  32..43 v2[3]  44..47 cdf    48..59 emission[3]  60..63 pdf_select */
+typedef struct LightTriangle {
+  float v0[3];
+  uint prim;
+  float v1[3];
+  float area;
+  float v2[3];
+  float cdf;
+  float emission[3];
+  float pdf_select;
+} LightTriangle;
+
+/* Everything a path-tracing launch needs besides buffers, 128 bytes, passed by value.
+ *
+ *   0..11 sun_dir[3] (towards the sun)         12..15 sun_cos_max (cos of angular radius)
+ *  16..27 sun_radiance[3]                      28..31 p_sun (light-type selection)
+ *  32..43 sky_zenith[3]                        44..47 p_sky
+ *  48..59 sky_horizon[3]                       60..63 p_triangles
+ *  64..75 sky_ground[3]                        76..79 light_count (LightTriangle entries)
+ *  80..83 frame   84..87 eye   88..91 spp   92..95 max_bounces
+ *  96..99 seed   100..103 light_sampling (PX_LIGHTS_*)  104..107 rr_start_bounce
+ * 108..111 row0 (first image row of this launch)  112..115 rows
+ * 116..119 sample_offset (index of this launch's first sample: progressive passes)
+ * 120..127 padding */
+typedef struct FrameParams {
+  float sun_dir[3];
+  float sun_cos_max;
+  float sun_radiance[3];
+  float p_sun;
+  float sky_zenith[3];
+  float p_sky;
+  float sky_horizon[3];
+  float p_triangles;
+  float sky_ground[3];
+  uint light_count;
+  uint frame;
+  uint eye;
+  uint spp;
+  uint max_bounces;
+  uint seed;
+  uint light_sampling;
+  uint rr_start_bounce;
+  uint row0;
+  uint rows;
+  uint sample_offset;
+  uint pad[2];
+} FrameParams;
+
+/* Which estimators combine at each vertex: next-event estimation only, BSDF sampling only,
+ * or both weighted by the power heuristic (the default). */
+#define PX_LIGHTS_MIS 0u
+#define PX_LIGHTS_NEE 1u
+#define PX_LIGHTS_BSDF 2u
+
+#ifndef __OPENCL_C_VERSION__
+} /* namespace px */
+#endif
+
+#endif /* PARALLAX_SHARED_TYPES_H */

@@ -1,0 +1,116 @@
+/* Watertight ray/triangle intersection (Woop, Benthin, Wald, JCGT 2013) and a conservative
+ * ray/box slab test.
+ *
+ * Triangle: translate the vertices to the ray origin, shear so the ray runs along +z (the
+ * ray's dominant axis becomes z), then evaluate the 2D edge functions U, V, W at the origin.
+ * A hit needs all three with the same sign; a zero edge function means the ray passes exactly
+ * through an edge or vertex, which both neighbours report consistently, so a closed mesh
+ * never leaks. Division happens once, at the end, for accepted hits only. */
+#ifndef PARALLAX_WATERTIGHT_H
+#define PARALLAX_WATERTIGHT_H
+
+#include "shared/types.h"
+
+/* Per-ray constants of the shear transform, computed once per ray. */
+typedef struct RayShear {
+  float3 org;
+  int kx, ky, kz; /* permuted axes; kz = dominant direction axis */
+  float sx, sy, sz;
+} RayShear;
+
+inline float px_axis(float3 v, int k) { return k == 0 ? v.x : (k == 1 ? v.y : v.z); }
+
+inline RayShear px_make_shear(float3 org, float3 dir) {
+  RayShear s;
+  s.org = org;
+  float3 a = fabs(dir);
+  s.kz = (a.x >= a.y && a.x >= a.z) ? 0 : (a.y >= a.z ? 1 : 2);
+  s.kx = s.kz == 2 ? 0 : s.kz + 1;
+  s.ky = s.kx == 2 ? 0 : s.kx + 1;
+  /* Keep the winding: if the dominant component is negative, swap x and y. */
+  if (px_axis(dir, s.kz) < 0.0f) {
+    int t = s.kx;
+    s.kx = s.ky;
+    s.ky = t;
+  }
+  float dz = px_axis(dir, s.kz);
+  s.sx = px_axis(dir, s.kx) / dz;
+  s.sy = px_axis(dir, s.ky) / dz;
+  s.sz = 1.0f / dz;
+  return s;
+}
+
+/* Returns 1 and sets *t, *u, *v (barycentrics of v1, v2) on a hit with tmin <= t < tmax. */
+inline int px_intersect_triangle(const RayShear* s, float3 v0, float3 v1, float3 v2, float tmin,
+                                 float tmax, float* t, float* u, float* v) {
+  const float3 a = v0 - s->org;
+  const float3 b = v1 - s->org;
+  const float3 c = v2 - s->org;
+  const float az = px_axis(a, s->kz), bz = px_axis(b, s->kz), cz = px_axis(c, s->kz);
+  const float ax = px_axis(a, s->kx) - s->sx * az;
+  const float ay = px_axis(a, s->ky) - s->sy * az;
+  const float bx = px_axis(b, s->kx) - s->sx * bz;
+  const float by = px_axis(b, s->ky) - s->sy * bz;
+  const float cx = px_axis(c, s->kx) - s->sx * cz;
+  const float cy = px_axis(c, s->ky) - s->sy * cz;
+
+  float eu = cx * by - cy * bx;
+  float ev = ax * cy - ay * cx;
+  float ew = bx * ay - by * ax;
+#ifdef cl_khr_fp64
+  /* An exact zero in single precision may be a rounding artefact of a ray that grazes an
+   * edge; double precision decides the sign so both triangles sharing the edge agree. */
+  if (eu == 0.0f || ev == 0.0f || ew == 0.0f) {
+    eu = (float)((double)cx * (double)by - (double)cy * (double)bx);
+    ev = (float)((double)ax * (double)cy - (double)ay * (double)cx);
+    ew = (float)((double)bx * (double)ay - (double)by * (double)ax);
+  }
+#endif
+  if ((eu < 0.0f || ev < 0.0f || ew < 0.0f) && (eu > 0.0f || ev > 0.0f || ew > 0.0f)) return 0;
+  float det = eu + ev + ew;
+  if (det == 0.0f) return 0; /* ray in the triangle's plane, or degenerate triangle */
+
+  float tt = eu * (s->sz * az) + ev * (s->sz * bz) + ew * (s->sz * cz);
+  /* Compare t against the interval without dividing: flip signs so det > 0. */
+  if (det < 0.0f) {
+    det = -det;
+    tt = -tt;
+  }
+  if (tt < tmin * det || tt >= tmax * det) return 0;
+  const float inv = 1.0f / det;
+  *t = tt * inv;
+  *u = ev * inv;
+  *v = ew * inv;
+  return 1;
+}
+
+/* Reciprocal direction without infinities: a zero component becomes a huge finite value of
+ * the right sign, so (box - origin) * inv never evaluates 0 * inf = NaN. */
+inline float3 px_safe_inverse(float3 d) {
+  const float big = 1e30f;
+  float3 r;
+  r.x = fabs(d.x) > 1e-30f ? 1.0f / d.x : copysign(big, d.x);
+  r.y = fabs(d.y) > 1e-30f ? 1.0f / d.y : copysign(big, d.y);
+  r.z = fabs(d.z) > 1e-30f ? 1.0f / d.z : copysign(big, d.z);
+  return r;
+}
+
+/* 1 + 2 * gamma(3), gamma(n) = n eps / (1 - n eps), eps = 2^-24: widening the far distance by
+ * this factor makes the slab test conservative under float rounding (Ize 2013; pbrt-v4). */
+#define PX_BOX_FAR_SCALE 1.00000036f
+
+/* Slab test. Returns the entry distance, or INFINITY when the ray misses [tmin, tmax]. */
+inline float px_intersect_box(float3 org, float3 inv_dir, const float* bmin_p, const float* bmax_p,
+                              float tmin, float tmax) {
+  const float3 bmin = (float3)(bmin_p[0], bmin_p[1], bmin_p[2]);
+  const float3 bmax = (float3)(bmax_p[0], bmax_p[1], bmax_p[2]);
+  const float3 t0 = (bmin - org) * inv_dir;
+  const float3 t1 = (bmax - org) * inv_dir;
+  const float3 tnear = fmin(t0, t1);
+  const float3 tfar = fmax(t0, t1);
+  const float enter = fmax(fmax(tnear.x, tnear.y), fmax(tnear.z, tmin));
+  const float leave = fmin(fmin(tfar.x, tfar.y), fmin(tfar.z, tmax)) * PX_BOX_FAR_SCALE;
+  return enter <= leave ? enter : INFINITY;
+}
+
+#endif

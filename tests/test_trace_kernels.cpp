@@ -1,0 +1,398 @@
+// The trace kernels (watertight triangle test, conservative box test, BVH traversal, origin
+// offset) checked against independent host code: a double-precision brute-force loop over all
+// triangles, Embree, and analytic answers.
+#include "bvh/embree_reference.h"
+#include "bvh/flat_bvh.h"
+#include "cl/device_set.h"
+#include "render/device_scene.h"
+#include "scene/primitives.h"
+#include "scene/scene_loader.h"
+#include "support/brute_force.h"
+#include "trace/ray_batch_tracer.h"
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <memory>
+#include <random>
+
+namespace px {
+namespace {
+
+using test::brute_force_closest;
+using test::make_ray;
+
+// A scene uploaded to a device set, with a tracer.
+struct TraceFixture {
+  Scene scene;
+  FlatBvh bvh;
+  std::unique_ptr<DeviceScene> device_scene;
+  std::unique_ptr<RayBatchTracer> tracer;
+  TraceFixture(DeviceSet& devices, Scene s, bool spatial_splits = true) : scene(std::move(s)) {
+    BvhBuildOptions opt;
+    opt.spatial_splits = spatial_splits;
+    bvh = build_bvh(scene.triangles, opt);
+    auto check = validate_bvh(bvh, scene.triangles);
+    EXPECT_TRUE(check.ok) << (check.errors.empty() ? "" : check.errors.front());
+    device_scene = std::make_unique<DeviceScene>(devices, scene, bvh);
+    tracer = std::make_unique<RayBatchTracer>(devices, *device_scene);
+  }
+};
+
+DeviceSet& one_device() {
+  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  return set;
+}
+
+Scene scene_from(std::vector<SceneTriangle> tris) {
+  Scene s;
+  s.name = "test";
+  s.triangles = std::move(tris);
+  s.materials.resize(1);
+  return s;
+}
+
+std::vector<SceneTriangle> random_soup(int count, std::uint32_t seed, float extent = 10.0f) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> pos(-extent, extent), off(-1.0f, 1.0f);
+  std::vector<SceneTriangle> tris;
+  while (static_cast<int>(tris.size()) < count) {
+    glm::vec3 c(pos(rng), pos(rng), pos(rng));
+    append_triangle(tris, c + glm::vec3(off(rng), off(rng), off(rng)),
+                    c + glm::vec3(off(rng), off(rng), off(rng)),
+                    c + glm::vec3(off(rng), off(rng), off(rng)), 0);
+  }
+  return tris;
+}
+
+glm::vec3 random_unit(std::mt19937& rng) {
+  std::normal_distribution<float> n;
+  glm::vec3 v;
+  do v = glm::vec3(n(rng), n(rng), n(rng));
+  while (glm::dot(v, v) < 1e-6f);
+  return glm::normalize(v);
+}
+
+struct BoundsF {
+  glm::vec3 lo{1e30f}, hi{-1e30f};
+};
+BoundsF bounds_of(const std::vector<SceneTriangle>& tris) {
+  BoundsF b;
+  for (auto& t : tris)
+    for (auto& p : t.p) {
+      b.lo = glm::min(b.lo, p);
+      b.hi = glm::max(b.hi, p);
+    }
+  return b;
+}
+
+// Random rays from inside (and a bit beyond) the scene's bounds in random directions.
+std::vector<Ray> random_rays(const std::vector<SceneTriangle>& tris, int count, std::uint32_t seed) {
+  auto b = bounds_of(tris);
+  glm::vec3 c = 0.5f * (b.lo + b.hi), h = 0.6f * (b.hi - b.lo);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<Ray> rays;
+  for (int i = 0; i < count; ++i)
+    rays.push_back(make_ray(c + h * glm::vec3(u(rng), u(rng), u(rng)), random_unit(rng)));
+  return rays;
+}
+
+// Compares kernel hits to the brute-force loop. A different triangle is accepted only where
+// the answer is ambiguous: the reference hit grazes an edge (both neighbours own it) or two
+// surfaces lie at the same distance (coplanar overlap); t must then still agree.
+void expect_matches_brute_force(const std::vector<SceneTriangle>& tris, const std::vector<Ray>& rays,
+                                const std::vector<Hit>& hits) {
+  ASSERT_EQ(rays.size(), hits.size());
+  int hit_count = 0, mismatches = 0, ambiguous = 0;
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    const auto ref = brute_force_closest(tris, rays[i]);
+    const Hit& h = hits[i];
+    const bool near_edge = ref.prim != PX_NO_HIT && ref.edge_distance < 1e-5;
+    if (ref.prim == PX_NO_HIT) {
+      if (h.prim != PX_NO_HIT) {
+        // The kernel may only "hit" where the reference grazes: check it is at an edge.
+        ++mismatches;
+        ADD_FAILURE() << "ray " << i << ": kernel hit prim " << h.prim << " t=" << h.t << ", reference missed";
+      }
+      continue;
+    }
+    ++hit_count;
+    if (h.prim == PX_NO_HIT) {
+      if (near_edge) { ++ambiguous; continue; }
+      ++mismatches;
+      ADD_FAILURE() << "ray " << i << ": kernel missed, reference hit prim " << ref.prim << " t=" << ref.t;
+      continue;
+    }
+    ASSERT_TRUE(std::isfinite(h.t));
+    const double tol = 1e-5 * std::max(1.0, ref.t);
+    if (h.prim != ref.prim) {
+      if (near_edge || std::abs(h.t - ref.t) <= tol) { ++ambiguous; continue; }
+      ++mismatches;
+      ADD_FAILURE() << "ray " << i << ": kernel prim " << h.prim << " t=" << h.t << ", reference prim "
+                    << ref.prim << " t=" << ref.t;
+      continue;
+    }
+    EXPECT_NEAR(h.t, ref.t, tol) << "ray " << i;
+    EXPECT_NEAR(h.u, ref.u, 1e-3) << "ray " << i;
+    EXPECT_NEAR(h.v, ref.v, 1e-3) << "ray " << i;
+  }
+  EXPECT_EQ(mismatches, 0);
+  EXPECT_GT(hit_count, static_cast<int>(rays.size()) / 10) << "too few hits to say anything";
+  EXPECT_LE(ambiguous, static_cast<int>(rays.size()) / 100) << "too many ambiguous rays";
+}
+
+TEST(TraceKernels, ClosestHitMatchesBruteForceOnRandomSoup) {
+  for (bool splits : {false, true}) {
+    TraceFixture f(one_device(), scene_from(random_soup(3000, 7)), splits);
+    auto rays = random_rays(f.scene.triangles, 3000, 11);
+    expect_matches_brute_force(f.scene.triangles, rays, f.tracer->closest(rays));
+  }
+}
+
+TEST(TraceKernels, ClosestHitMatchesBruteForceOnCornell) {
+  TraceFixture f(one_device(), make_builtin_scene("cornell"));
+  auto rays = random_rays(f.scene.triangles, 4000, 3);
+  expect_matches_brute_force(f.scene.triangles, rays, f.tracer->closest(rays));
+}
+
+TEST(TraceKernels, ClosestHitMatchesBruteForceOnAtrium) {
+  // Reduced detail keeps the O(rays x triangles) reference affordable; the full-size atrium is
+  // checked against Embree below.
+  TraceFixture f(one_device(), make_builtin_scene("atrium", {{"detail", 0.05}}));
+  ASSERT_GT(f.scene.triangles.size(), 1000u);
+  auto rays = random_rays(f.scene.triangles, 1500, 5);
+  expect_matches_brute_force(f.scene.triangles, rays, f.tracer->closest(rays));
+}
+
+TEST(TraceKernels, ClosestHitMatchesEmbreeOnFullAtrium) {
+  TraceFixture f(one_device(), make_builtin_scene("atrium"));
+  EmbreeReference embree(f.scene.triangles);
+  auto rays = random_rays(f.scene.triangles, 20000, 9);
+  auto hits = f.tracer->closest(rays);
+  int disagree = 0, hits_seen = 0;
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    Hit e = embree.intersect(rays[i]);
+    if ((e.prim == PX_NO_HIT) != (hits[i].prim == PX_NO_HIT)) { ++disagree; continue; }
+    if (e.prim == PX_NO_HIT) continue;
+    ++hits_seen;
+    if (e.prim != hits[i].prim && std::abs(e.t - hits[i].t) > 1e-4f * std::max(1.0f, e.t)) ++disagree;
+  }
+  EXPECT_GT(hits_seen, 1000);
+  // Embree is not watertight: it may differ on rays through edges; those are rare.
+  EXPECT_LE(disagree, 5) << "of " << rays.size();
+}
+
+TEST(TraceKernels, AnyHitAgreesWithClosestHit) {
+  TraceFixture f(one_device(), scene_from(random_soup(2000, 21)));
+  auto rays = random_rays(f.scene.triangles, 3000, 22);
+  // Half the rays get a finite tmax so occlusion is decided by the interval, not just hit/miss.
+  for (std::size_t i = 0; i < rays.size(); i += 2) rays[i].tmax = 3.0f;
+  auto hits = f.tracer->closest(rays);
+  auto occ = f.tracer->occluded(rays);
+  for (std::size_t i = 0; i < rays.size(); ++i)
+    EXPECT_EQ(occ[i] != 0, hits[i].prim != PX_NO_HIT) << "ray " << i;
+}
+
+// Rays aimed exactly at every vertex and edge midpoint of a closed mesh, from outside and from
+// inside, never miss: the watertight test leaves no crack between neighbours.
+void expect_watertight(const std::vector<SceneTriangle>& mesh, glm::vec3 inside, std::uint32_t seed) {
+  TraceFixture f(one_device(), scene_from(mesh));
+  std::mt19937 rng(seed);
+  auto b = bounds_of(mesh);
+  const float radius = 2.0f * glm::length(b.hi - b.lo);
+  std::vector<Ray> rays;
+  std::vector<float> target_dist;
+  for (const auto& t : mesh) {
+    const glm::vec3 targets[6] = {t.p[0], t.p[1], t.p[2], 0.5f * (t.p[0] + t.p[1]),
+                                  0.5f * (t.p[1] + t.p[2]), 0.5f * (t.p[2] + t.p[0])};
+    for (const auto& target : targets) {
+      for (glm::vec3 o : {inside, inside + radius * random_unit(rng)}) {
+        rays.push_back(make_ray(o, glm::normalize(target - o)));
+        target_dist.push_back(glm::length(target - o));
+      }
+    }
+  }
+  auto hits = f.tracer->closest(rays);
+  int misses = 0;
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    if (hits[i].prim == PX_NO_HIT) {
+      ++misses;
+      continue;
+    }
+    // The first surface is at or before the target point.
+    EXPECT_LE(hits[i].t, target_dist[i] * (1.0f + 1e-4f)) << "ray " << i;
+  }
+  EXPECT_EQ(misses, 0) << "of " << rays.size() << " rays";
+}
+
+TEST(TraceKernels, WatertightIcosphere) {
+  std::vector<SceneTriangle> m;
+  append_icosphere(m, glm::vec3(0.3f, -0.2f, 0.1f), 1.7f, 3, 0);
+  expect_watertight(m, glm::vec3(0.3f, -0.2f, 0.1f), 1);
+}
+
+TEST(TraceKernels, WatertightCube) {
+  std::vector<SceneTriangle> m;
+  append_box(m, glm::vec3(-1.0f), glm::vec3(1.0f, 2.0f, 0.5f), 0);
+  expect_watertight(m, glm::vec3(0.1f, 0.2f, -0.1f), 2);
+}
+
+TEST(TraceKernels, WatertightCornellRoom) {
+  // The Cornell room is closed but for its front (the camera side, at its smallest z). From a
+  // point inside, rays aimed at every vertex and centroid not on that open rim end on a surface.
+  Scene s = make_builtin_scene("cornell");
+  auto b = bounds_of(s.triangles);
+  const glm::vec3 inside = glm::mix(b.lo, b.hi, glm::vec3(0.3f, 0.8f, 0.5f));
+  TraceFixture f(one_device(), s);
+  std::vector<Ray> rays;
+  for (const auto& t : s.triangles)
+    for (const auto& target : {t.p[0], t.p[1], t.p[2], (t.p[0] + t.p[1] + t.p[2]) / 3.0f})
+      if (target.z > b.lo.z + 1e-3f * (b.hi.z - b.lo.z))
+        rays.push_back(make_ray(inside, glm::normalize(target - inside)));
+  ASSERT_GT(rays.size(), 50u);
+  auto hits = f.tracer->closest(rays);
+  int misses = 0;
+  for (auto& h : hits) misses += h.prim == PX_NO_HIT;
+  EXPECT_EQ(misses, 0) << "of " << rays.size();
+}
+
+TEST(TraceKernels, AxisAlignedAndGrazingRays) {
+  std::vector<SceneTriangle> m;
+  append_box(m, glm::vec3(-1.0f), glm::vec3(1.0f), 0);
+  TraceFixture f(one_device(), scene_from(m));
+  std::vector<Ray> rays;
+  std::vector<float> expect_t;
+  // Zero direction components: axis-parallel rays at face interiors have exact answers.
+  for (int axis = 0; axis < 3; ++axis)
+    for (float sign : {-1.0f, 1.0f}) {
+      glm::vec3 o(0.25f, -0.5f, 0.125f), d(0.0f);
+      o[axis] = -5.0f * sign;
+      d[axis] = sign;
+      rays.push_back(make_ray(o, d));
+      expect_t.push_back(4.0f);
+    }
+  auto hits = f.tracer->closest(rays);
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    ASSERT_NE(hits[i].prim, PX_NO_HIT) << "axis ray " << i;
+    EXPECT_FLOAT_EQ(hits[i].t, expect_t[i]);
+  }
+  // Grazing: rays lying in a face's plane and along edges. Either answer is geometrically
+  // defensible; what must hold is no NaN/Inf, and t inside the ray interval.
+  std::vector<Ray> graze;
+  for (float y : {-1.0f, 1.0f, 0.0f})
+    for (float z : {-1.0f, 1.0f, 0.3f}) graze.push_back(make_ray({-5.0f, y, z}, {1.0f, 0.0f, 0.0f}));
+  graze.push_back(make_ray({-5.0f, 1.0f, -5.0f}, glm::normalize(glm::vec3(1.0f, 0.0f, 1.0f))));
+  auto gh = f.tracer->closest(graze);
+  for (std::size_t i = 0; i < graze.size(); ++i) {
+    if (gh[i].prim == PX_NO_HIT) continue;
+    EXPECT_TRUE(std::isfinite(gh[i].t) && gh[i].t >= 0.0f) << "grazing ray " << i;
+    EXPECT_TRUE(std::isfinite(gh[i].u) && std::isfinite(gh[i].v)) << "grazing ray " << i;
+  }
+  // A ray inside the box along the x axis through its centre must hit the +x face at t = 1.
+  auto c = f.tracer->closest({make_ray({0.0f, 0.0f, 0.0f}, {1.0f, 0.0f, 0.0f})});
+  ASSERT_NE(c[0].prim, PX_NO_HIT);
+  EXPECT_FLOAT_EQ(c[0].t, 1.0f);
+}
+
+TEST(TraceKernels, DegenerateTrianglesAreNeverHit) {
+  std::vector<SceneTriangle> m;
+  append_box(m, glm::vec3(-1.0f), glm::vec3(1.0f), 0);
+  const std::uint32_t first_degenerate = static_cast<std::uint32_t>(m.size());
+  // Collinear, coincident, and needle triangles placed in front of the box faces.
+  append_triangle(m, {-2, 0, 0}, {2, 0, 0}, {0, 0, 0}, 0);
+  append_triangle(m, {0, 0, -1.5f}, {0, 0, -1.5f}, {0, 0, -1.5f}, 0);
+  append_triangle(m, {-0.5f, -0.5f, -1.2f}, {0.5f, 0.5f, -1.2f}, {0.0f, 0.0f, -1.2f}, 0);
+  TraceFixture f(one_device(), scene_from(m));
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-0.6f, 0.6f);
+  std::vector<Ray> rays;
+  for (int i = 0; i < 2000; ++i) {
+    glm::vec3 target(u(rng), u(rng), -1.0f);
+    glm::vec3 o(u(rng), u(rng), -4.0f);
+    // Some rays aimed exactly at the degenerate triangles' points.
+    if (i % 4 == 0) target = {0.0f, 0.0f, -1.2f};
+    rays.push_back(make_ray(o, glm::normalize(target - o)));
+  }
+  auto hits = f.tracer->closest(rays);
+  for (std::size_t i = 0; i < hits.size(); ++i) {
+    ASSERT_NE(hits[i].prim, PX_NO_HIT) << "ray " << i << " should reach the box";
+    EXPECT_LT(hits[i].prim, first_degenerate) << "ray " << i << " hit a degenerate triangle";
+  }
+}
+
+// Secondary rays leave from the offset hit point. At 1e5 and 1e6 units a fixed epsilon would be
+// far below one ULP; the ULP-space offset must still keep rays off their own surface.
+TEST(TraceKernels, NoSelfIntersectionFarFromOrigin) {
+  for (float offset : {0.0f, 1e5f, 1e6f}) {
+    const float scale = offset >= 1e6f ? 100.0f : 10.0f;  // keep triangles many ULPs wide
+    const glm::vec3 shift(offset, -0.5f * offset, 0.25f * offset);
+    std::vector<SceneTriangle> m;
+    append_icosphere(m, shift, 1.0f * scale, 3, 0);
+    append_box(m, shift + glm::vec3(2.0f, -1.0f, -1.0f) * scale, shift + glm::vec3(3.0f, 1.0f, 1.0f) * scale, 0);
+    TraceFixture f(one_device(), scene_from(m));
+    std::mt19937 rng(static_cast<std::uint32_t>(offset) + 1);
+    std::vector<Ray> primary;
+    for (int i = 0; i < 2000; ++i) {
+      const glm::vec3 o = shift + 6.0f * scale * random_unit(rng);
+      const glm::vec3 target = shift + 0.5f * scale * random_unit(rng);
+      primary.push_back(make_ray(o, glm::normalize(target - o)));
+    }
+    auto hits = f.tracer->closest(primary);
+    std::vector<glm::vec3> points, normals;
+    std::vector<std::uint32_t> prims;
+    for (std::size_t i = 0; i < hits.size(); ++i) {
+      if (hits[i].prim == PX_NO_HIT) continue;
+      const auto& t = m[hits[i].prim];
+      const float w = 1.0f - hits[i].u - hits[i].v;
+      points.push_back(w * t.p[0] + hits[i].u * t.p[1] + hits[i].v * t.p[2]);
+      glm::vec3 n = geometric_normal(t);
+      const glm::vec3 d(primary[i].dir[0], primary[i].dir[1], primary[i].dir[2]);
+      if (glm::dot(n, d) > 0.0f) n = -n;  // leave on the side the ray came from
+      normals.push_back(n);
+      prims.push_back(hits[i].prim);
+    }
+    ASSERT_GT(points.size(), 1000u);
+    auto origins = f.tracer->offset_origins(points, normals);
+    std::vector<Ray> secondary;
+    for (std::size_t i = 0; i < origins.size(); ++i) {
+      // The offset point lies strictly on the outer side of the surface's plane.
+      const auto& t = m[prims[i]];
+      const double side = glm::dot(glm::dvec3(origins[i]) - glm::dvec3(t.p[0]), glm::dvec3(normals[i]));
+      EXPECT_GT(side, 0.0) << "offset " << offset << " point " << i;
+      // Directions in the outer hemisphere: a convex closed mesh is never hit again.
+      glm::vec3 d = random_unit(rng);
+      if (glm::dot(d, normals[i]) < 0.0f) d = -d;
+      secondary.push_back(make_ray(origins[i], d));
+    }
+    auto again = f.tracer->closest(secondary);
+    int self_hits = 0;
+    for (std::size_t i = 0; i < again.size(); ++i) self_hits += again[i].prim == prims[i];
+    EXPECT_EQ(self_hits, 0) << "at offset " << offset;
+  }
+}
+
+// The image (here: the hit list) must not depend on how many devices shared the work, nor on
+// how those devices were made.
+TEST(TraceKernels, SameHitsWithOneTwoAndFourDevices) {
+  Scene s = make_builtin_scene("cornell-glossy");
+  auto rays = random_rays(s.triangles, 5000, 77);
+  std::vector<Hit> reference;
+  for (auto [count, mode] : {std::pair{1, DeviceMode::Auto}, {2, DeviceMode::Auto}, {4, DeviceMode::Auto},
+                             {2, DeviceMode::SharedQueues}, {3, DeviceMode::SharedQueues}}) {
+    DeviceSet set = DeviceSet::create({count, mode, ""});
+    ASSERT_EQ(set.size(), count);
+    TraceFixture f(set, s);
+    auto hits = f.tracer->closest(rays);
+    if (reference.empty()) {
+      reference = hits;
+      continue;
+    }
+    ASSERT_EQ(hits.size(), reference.size());
+    EXPECT_EQ(0, std::memcmp(hits.data(), reference.data(), hits.size() * sizeof(Hit)))
+        << count << " devices (" << to_string(set.mode()) << ") differ from 1 device";
+  }
+}
+
+}  // namespace
+}  // namespace px
