@@ -8,7 +8,6 @@
 
 #include <algorithm>
 #include <array>
-#include <cstdio>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -51,6 +50,7 @@ struct BuildContext {
   // Positions only, 36 bytes a triangle instead of SceneTriangle's 100: the split callback
   // fetches a random triangle per call, so a compact array saves cache misses.
   std::vector<std::array<float, 9>> positions;
+  std::uint64_t build_id = 0;  // unique per build, keys the split callback's per-thread cache
   // Set by a callback that saw something the flat layout cannot hold; checked after the build
   // (throwing through Embree's C API from a TBB thread is not an option).
   std::atomic<bool> unexpected_arity{false};
@@ -154,15 +154,16 @@ int clip_polygon(const Point3d* in, int n, int axis, double plane, bool keep_bel
 // went the wrong way step outwards by at least one ulp (|f| 2^-23 >= ulp(f); denorm_min covers
 // zero). Selects rather than branches: which way rounding goes is a coin flip, and this runs
 // ~10^8 times in a large spatial-split build. At most 2 ulps looser than exact.
+float outward_step(float f) {
+  return std::abs(f) * 0x1p-23f + std::numeric_limits<float>::denorm_min();
+}
 float round_down(double value) {
   const float f = static_cast<float>(value);
-  const float below = f - (std::abs(f) * 0x1p-23f + std::numeric_limits<float>::denorm_min());
-  return static_cast<double>(f) > value ? below : f;
+  return f - outward_step(f) * static_cast<float>(static_cast<double>(f) > value);
 }
 float round_up(double value) {
   const float f = static_cast<float>(value);
-  const float above = f + (std::abs(f) * 0x1p-23f + std::numeric_limits<float>::denorm_min());
-  return static_cast<double>(f) < value ? above : f;
+  return f + outward_step(f) * static_cast<float>(static_cast<double>(f) < value);
 }
 
 void set_empty(RTCBounds* bounds) {
@@ -203,31 +204,81 @@ void to_rtc_bounds(const BoundsD& bounds, const float lo[3], const float hi[3], 
   out->upper_z = bmax[2];
 }
 
-void split_primitive(const RTCBuildPrimitive* primitive, unsigned int dim, float pos,
-                     RTCBounds* left, RTCBounds* right, void* user) {
-  const auto* context = static_cast<const BuildContext*>(user);
-  const std::array<float, 9>& p = context->positions[primitive->primID];
-  const float lo[3] = {primitive->lower_x, primitive->lower_y, primitive->lower_z};
-  const float hi[3] = {primitive->upper_x, primitive->upper_y, primitive->upper_z};
+// Embree's spatial binning walks each primitive across the bin planes of one axis: it splits
+// the primitive's box at the first plane, then splits the right piece at the next plane, and so
+// on (and starts again from the full box for the next axis). Clipping the triangle to the box
+// is most of the work of a split, so each thread remembers the clipped polygons of the last full
+// box and of the last right piece: a hit skips the clipping. The polygon of a right piece is
+// also exactly the triangle clipped to that piece's box (its box lies inside the old box and on
+// the right of the plane, and contains the piece), so reusing it changes no result.
+struct PolygonCache {
+  std::uint64_t build_id = 0;  // 0: empty
+  std::uint32_t prim = 0;
+  float box[6] = {};
+  int n = 0;
+  Point3d poly[kMaxPolygon];
 
-  Point3d buffer[2][kMaxPolygon];
+  bool matches(std::uint64_t id, std::uint32_t p, const float lo[3], const float hi[3]) const {
+    return build_id == id && prim == p && box[0] == lo[0] && box[1] == lo[1] && box[2] == lo[2] &&
+           box[3] == hi[0] && box[4] == hi[1] && box[5] == hi[2];
+  }
+  void store(std::uint64_t id, std::uint32_t p, const float lo[3], const float hi[3],
+             const Point3d* polygon, int count) {
+    build_id = id, prim = p, n = count;
+    for (int k = 0; k < 3; ++k) box[k] = lo[k], box[3 + k] = hi[k];
+    std::copy(polygon, polygon + count, poly);
+  }
+};
+thread_local PolygonCache t_full_box;
+thread_local PolygonCache t_right_piece;
+
+std::atomic<std::uint64_t> g_next_build_id{1};
+
+// The triangle clipped to the box [lo, hi]; returns the vertex count (0: rounding lost a
+// grazing sliver). `scratch` holds two polygons; the result points into it.
+int clip_triangle_to_box(const std::array<float, 9>& p, const float lo[3], const float hi[3],
+                         Point3d (*scratch)[kMaxPolygon], const Point3d** result) {
   int current = 0;
   int n = 3;
   for (int v = 0; v < 3; ++v)
-    for (int k = 0; k < 3; ++k) buffer[0][v].x[k] = p[3 * v + k];
-
-  // Clip to the fragment's box; only planes the triangle actually crosses cost anything.
+    for (int k = 0; k < 3; ++k) scratch[0][v].x[k] = p[3 * v + k];
+  // Only planes the triangle actually crosses cost anything.
   for (int k = 0; k < 3 && n > 0; ++k) {
     const float tmin = std::min({p[k], p[3 + k], p[6 + k]});
     const float tmax = std::max({p[k], p[3 + k], p[6 + k]});
     if (tmin < lo[k]) {
-      n = clip_polygon(buffer[current], n, k, lo[k], false, buffer[1 - current]);
+      n = clip_polygon(scratch[current], n, k, lo[k], false, scratch[1 - current]);
       current = 1 - current;
     }
     if (n > 0 && tmax > hi[k]) {
-      n = clip_polygon(buffer[current], n, k, hi[k], true, buffer[1 - current]);
+      n = clip_polygon(scratch[current], n, k, hi[k], true, scratch[1 - current]);
       current = 1 - current;
     }
+  }
+  *result = scratch[current];
+  return n;
+}
+
+void split_primitive(const RTCBuildPrimitive* primitive, unsigned int dim, float pos,
+                     RTCBounds* left, RTCBounds* right, void* user) {
+  const auto* context = static_cast<const BuildContext*>(user);
+  const std::uint32_t prim = primitive->primID;
+  const float lo[3] = {primitive->lower_x, primitive->lower_y, primitive->lower_z};
+  const float hi[3] = {primitive->upper_x, primitive->upper_y, primitive->upper_z};
+
+  Point3d scratch[2][kMaxPolygon];
+  const Point3d* poly = nullptr;
+  int n = 0;
+  if (t_right_piece.matches(context->build_id, prim, lo, hi)) {
+    std::copy(t_right_piece.poly, t_right_piece.poly + t_right_piece.n, scratch[0]);
+    poly = scratch[0];
+    n = t_right_piece.n;
+  } else if (t_full_box.matches(context->build_id, prim, lo, hi)) {
+    poly = t_full_box.poly;
+    n = t_full_box.n;
+  } else {
+    n = clip_triangle_to_box(context->positions[prim], lo, hi, scratch, &poly);
+    t_full_box.store(context->build_id, prim, lo, hi, poly, n);
   }
 
   float left_hi[3] = {hi[0], hi[1], hi[2]};
@@ -245,26 +296,34 @@ void split_primitive(const RTCBuildPrimitive* primitive, unsigned int dim, float
     return;
   }
 
-  // Cut the clipped polygon at the plane in one pass over its edges: each vertex extends the
-  // side(s) it lies on, each edge crossing the plane extends both sides with the crossing.
-  const Point3d* poly = buffer[current];
-  BoundsD lbounds, rbounds;
+  // Left piece: bounds only, in one pass over the edges (each vertex extends the side it lies
+  // on, each edge crossing the plane contributes its crossing point).
+  BoundsD lbounds;
   for (int i = 0, prev = n - 1; i < n; prev = i++) {
     const double* a = poly[prev].x;
     const double* b = poly[i].x;
     if (b[dim] <= pos) lbounds.extend(b);
-    if (b[dim] >= pos) rbounds.extend(b);
     if ((a[dim] < pos && pos < b[dim]) || (b[dim] < pos && pos < a[dim])) {
       const double t = (pos - a[dim]) / (b[dim] - a[dim]);
       double c[3];
       for (int k = 0; k < 3; ++k) c[k] = a[k] + t * (b[k] - a[k]);
       c[dim] = pos;
       lbounds.extend(c);
-      rbounds.extend(c);
     }
   }
   to_rtc_bounds(lbounds, lo, left_hi, left);
+
+  // Right piece: the polygon itself, since Embree's next call is likely about it.
+  Point3d piece[kMaxPolygon];
+  const int m = clip_polygon(poly, n, static_cast<int>(dim), pos, false, piece);
+  BoundsD rbounds;
+  for (int i = 0; i < m; ++i) rbounds.extend(piece[i].x);
   to_rtc_bounds(rbounds, right_lo, hi, right);
+  if (m > 0 && right->lower_x <= right->upper_x) {
+    const float rlo[3] = {right->lower_x, right->lower_y, right->lower_z};
+    const float rhi[3] = {right->upper_x, right->upper_y, right->upper_z};
+    t_right_piece.store(context->build_id, prim, rlo, rhi, piece, m);
+  }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -560,6 +619,7 @@ bool build_once(const std::vector<SceneTriangle>& triangles, const BvhBuildOptio
   }
 
   BuildContext context;
+  context.build_id = g_next_build_id.fetch_add(1);
   if (options.spatial_splits) {
     context.positions.resize(count);
     for (std::size_t i = 0; i < count; ++i)
@@ -644,7 +704,6 @@ FlatBvh build_bvh(const std::vector<SceneTriangle>& triangles, const BvhBuildOpt
   FlatBvh bvh;
   std::string first_error;
   if (!build_once(triangles, options, PX_BVH_MAX_DEPTH, bvh, first_error)) {
-    fprintf(stderr, "DEBUGRETRY %s\n", first_error.c_str());
     // Almost always "depth limit reached": more primitives than median splits can separate in
     // the last levels. Build without the tight limit; the flattener restores it.
     constexpr unsigned int kRelaxedDepth = 256;  // Embree recurses: keep its stack bounded

@@ -11,6 +11,12 @@
 
 #include "shared/types.h"
 
+/* Watertightness rests on two triangles that share an edge computing that edge's function as
+ * exact negatives of each other (x1*y2 - y1*x2 against x2*y1 - y2*x1). OpenCL C allows the
+ * compiler to contract a*b - c*d into an fma by default, which rounds the two differently and
+ * reopens the cracks: contraction stays off in this file. */
+#pragma OPENCL FP_CONTRACT OFF
+
 /* Per-ray constants of the shear transform, computed once per ray. */
 typedef struct RayShear {
   float3 org;
@@ -75,6 +81,8 @@ inline int px_intersect_triangle(const RayShear* s, float3 v0, float3 v1, float3
   if (det < 0.0f) {
     det = -det;
     tt = -tt;
+    ev = -ev;
+    ew = -ew;
   }
   if (tt < tmin * det || tt >= tmax * det) return 0;
   const float inv = 1.0f / det;
