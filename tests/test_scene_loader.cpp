@@ -329,6 +329,7 @@ TEST(ObjLoader, MapsMtlParameters) {
 }
 
 void write_png(const fs::path& path, int w, int h, int channels, const std::vector<unsigned char>& data) {
+  fs::create_directories(path.parent_path());
   auto out = OIIO::ImageOutput::create(path.string());
   ASSERT_TRUE(out) << OIIO::geterror();
   OIIO::ImageSpec spec(w, h, channels, OIIO::TypeDesc::UINT8);
@@ -442,7 +443,8 @@ TEST(SceneFile, ErrorsNameTheFileAndKey) {
       {"bad vector", R"({"generator": "cornell", "camera": {"position": [1, 2]}})", "camera.position"},
       {"vector element", R"({"generator": "cornell", "camera": {"target": [1, "x", 2]}})", "camera.target[1]"},
       {"NaN literal", R"({"generator": "cornell", "ipd_m": NaN})", "line 1"},
-      {"overflow", R"({"generator": "cornell", "ipd_m": 1e999})", "ipd_m"},
+      {"overflow", R"({"generator": "cornell", "ipd_m": 1e999})", "1e999"},
+      {"too large for float", R"({"generator": "cornell", "ipd_m": 1e300})", "ipd_m"},
       {"syntax", "{\"generator\": \"cornell\",\n \"ipd_m\": 0.06,,\n}", "line 2"},
       {"vfov", R"({"generator": "cornell", "camera": {"vfov_deg": 190}})", "camera.vfov_deg"},
       {"vfov zero", R"({"generator": "cornell", "camera": {"vfov_deg": 0}})", "camera.vfov_deg"},

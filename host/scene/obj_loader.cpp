@@ -315,7 +315,11 @@ enum class TextureUse { kDiffuse, kAlpha };
 // renderer reads .w whatever texture it is given (the alpha channel when the image has one,
 // else the first channel).
 std::string read_texture(const fs::path& file, TextureUse use, Texture& tex) {
-  auto in = OIIO::ImageInput::open(file.string());
+  // Keep colour unassociated (straight) as stored in the file: cut-outs are alpha-tested, not
+  // blended, so premultiplying would only darken the edges of leaves.
+  OIIO::ImageSpec config;
+  config.attribute("oiio:UnassociatedAlpha", 1);
+  auto in = OIIO::ImageInput::open(file.string(), &config);
   if (!in) return OIIO::geterror();
   const OIIO::ImageSpec spec = in->spec();
   const int w = spec.width, h = spec.height, nc = spec.nchannels;
@@ -477,29 +481,36 @@ void triangulate_polygon(const std::vector<glm::dvec3>& pts, std::vector<Tri>& o
 
   std::vector<int> ring(n);
   for (int i = 0; i < n; ++i) ring[i] = i;
-  auto inside = [&](glm::dvec2 p, glm::dvec2 a, glm::dvec2 b, glm::dvec2 c) {
-    return cross2(a, b, p) > 0.0 && cross2(b, c, p) > 0.0 && cross2(c, a, p) > 0.0;
+  // Only a reflex vertex can make a convex corner a non-ear, and one lying exactly on the
+  // candidate's diagonal must block it too (an L shape's inner corner does), hence the
+  // inclusive test.
+  auto inside_or_on = [&](glm::dvec2 p, glm::dvec2 a, glm::dvec2 b, glm::dvec2 c) {
+    return cross2(a, b, p) >= 0.0 && cross2(b, c, p) >= 0.0 && cross2(c, a, p) >= 0.0;
   };
-  std::size_t guard = 0;
+  std::vector<char> reflex;
   while (ring.size() > 3) {
     const std::size_t m = ring.size();
+    reflex.assign(m, 0);
+    for (std::size_t k = 0; k < m; ++k)
+      reflex[k] = cross2(q[ring[(k + m - 1) % m]], q[ring[k]], q[ring[(k + 1) % m]]) < 0.0;
     bool clipped = false;
     for (std::size_t i = 0; i < m && !clipped; ++i) {
       const int ia = ring[(i + m - 1) % m], ib = ring[i], ic = ring[(i + 1) % m];
       if (cross2(q[ia], q[ib], q[ic]) <= 0.0) continue;  // reflex or flat corner
       bool empty = true;
       for (std::size_t k = 0; k < m && empty; ++k) {
+        if (!reflex[k]) continue;
         const int ip = ring[k];
         if (ip == ia || ip == ib || ip == ic) continue;
         if (q[ip] == q[ia] || q[ip] == q[ib] || q[ip] == q[ic]) continue;
-        empty = !inside(q[ip], q[ia], q[ib], q[ic]);
+        empty = !inside_or_on(q[ip], q[ia], q[ib], q[ic]);
       }
       if (!empty) continue;
       out.push_back({ia, ib, ic});
       ring.erase(ring.begin() + std::ptrdiff_t(i));
       clipped = true;
     }
-    if (!clipped || ++guard > std::size_t(n)) {
+    if (!clipped) {
       // No ear (self-intersecting or collinear remainder): fan the rest.
       for (std::size_t i = 1; i + 1 < ring.size(); ++i) out.push_back({ring[0], ring[i], ring[i + 1]});
       return;
