@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <set>
 #include <unistd.h>
 
 namespace px {
@@ -494,7 +495,10 @@ TEST(SceneFile, SpecResolution) {
   EXPECT_FALSE(s.sun.enabled);
   EXPECT_FALSE(s.sky.enabled);
   EXPECT_GT(s.camera.position.z, 0.0f);
-  EXPECT_TRUE(any_warning_contains(s, "emissive"));
+  EXPECT_TRUE(any_warning_contains(s, "no light"));
+  // The same mesh with a sky from a scene file is lit: no warning.
+  const fs::path json = dir.write("lit.json", R"({"mesh": "tri.obj", "sky": {"zenith": [1, 1, 1]}})");
+  EXPECT_FALSE(any_warning_contains(load_scene(json.string()), "no light"));
 }
 
 }  // namespace

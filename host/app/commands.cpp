@@ -6,6 +6,10 @@
 #include "image/image_metrics.h"
 #include "render/device_scene.h"
 #include "render/preview_renderer.h"
+#include "pipeline/stereo_pipeline.h"
+
+#include <nlohmann/json.hpp>
+#include <fstream>
 
 #include <chrono>
 #include <cstdio>
@@ -75,37 +79,82 @@ int run_preview(const PreviewCommand& cmd) {
 }
 
 int run_render(const RenderCommand& cmd) {
-  if (cmd.pipeline != "mono")
-    throw std::invalid_argument("--pipeline " + cmd.pipeline +
-                                " is not available yet: only 'mono' (both eyes fully path traced) is implemented");
   if (cmd.trace.spp == 0) throw std::invalid_argument("--spp must be at least 1");
   if (cmd.frames == 0) throw std::invalid_argument("--frames must be at least 1");
   if (!(cmd.fps > 0.0f)) throw std::invalid_argument("--fps must be positive");
+  StereoPipeline::Options opt;
+  opt.pipeline = parse_pipeline(cmd.pipeline);
+  opt.trace = cmd.trace;
+  opt.trace.light_sampling = parse_light_sampling(cmd.light_sampling);
+  opt.exposure = cmd.exposure;
+  if (cmd.explain) {
+    // The schedule depends only on pipeline, device count and height: no scene needed.
+    std::printf("%s", make_schedule(opt.pipeline, cmd.devices.count, cmd.height).explain().c_str());
+    return 0;
+  }
   prepare_output_dir(cmd.out, cmd.overwrite);
   auto loaded = load_and_build(cmd.scene);
   auto devices = cmd.devices.create();
   print_device_set(devices);
   DeviceScene device_scene(devices, loaded.scene, loaded.bvh);
-  PathTracer tracer(devices, device_scene, loaded.scene);
-  PathTracer::Options opt = cmd.trace;
-  opt.light_sampling = parse_light_sampling(cmd.light_sampling);
+  StereoPipeline pipeline(devices, device_scene, loaded.scene, cmd.width, cmd.height, opt);
   std::fprintf(stderr, "[render] %u frame(s), %ux%u per eye, %u spp, %u bounces, pipeline %s\n", cmd.frames, cmd.width,
-               cmd.height, opt.spp, opt.bounces, cmd.pipeline.c_str());
+               cmd.height, opt.trace.spp, opt.trace.bounces, cmd.pipeline.c_str());
+  nlohmann::json report_frames = nlohmann::json::array();
+  double makespan_ms = 0.0;
+  std::size_t reprojected = 0, right_pixels = 0, bytes = 0;
   for (unsigned f = 0; f < cmd.frames; ++f) {
-    auto t0 = clock_type::now();
-    auto eyes = tracer.render_stereo(static_cast<float>(f) / cmd.fps, f, cmd.width, cmd.height, opt);
-    const double wall = ms_since(t0);
-    std::string per_device;
-    for (double ms : tracer.last_device_ms()) per_device += " " + std::to_string(static_cast<int>(ms + 0.5));
-    std::fprintf(stderr, "[render] frame %u/%u: %.0f ms wall, device ms:%s\n", f + 1, cmd.frames, wall,
-                 per_device.c_str());
-    write_stereo(cmd.out, frame_name(f, ""), eyes, cmd.exposure);
+    const FrameStats st = pipeline.render(f, static_cast<float>(f) / cmd.fps);
+    makespan_ms += st.wall_ms;
+    reprojected += st.reprojected;
+    right_pixels += st.right_pixels;
+    bytes += st.bytes_transferred;
+    std::fprintf(stderr, "[render] frame %u/%u: %.0f ms, %.1f%% of the right eye reprojected\n", f + 1, cmd.frames,
+                 st.wall_ms, st.right_pixels ? 100.0 * st.reprojected / st.right_pixels : 0.0);
+    auto eyes = pipeline.radiance();
+    auto png = pipeline.rgba8();
+    const std::string prefix = frame_name(f, "");
+    for (int e = 0; e < 2; ++e) {
+      const std::string name = prefix + (e == 0 ? "left" : "right");
+      write_exr((fs::path(cmd.out) / (name + ".exr")).string(), eyes[e]);
+      write_png((fs::path(cmd.out) / (name + ".png")).string(), eyes[e].width, eyes[e].height, png[e]);
+    }
+    write_png((fs::path(cmd.out) / (prefix + "stereo.png")).string(), 2 * eyes[0].width, eyes[0].height,
+              side_by_side(png[0], png[1], eyes[0].width, eyes[0].height));
+    nlohmann::json stages = nlohmann::json::array();
+    for (const auto& s : st.stages)
+      stages.push_back({{"stage", static_cast<int>(s.stage)}, {"name", stage_name(s.stage)}, {"device", s.device},
+                        {"device_ms", s.ms}});
+    report_frames.push_back({{"frame", f}, {"wall_ms", st.wall_ms}, {"stages", stages},
+                             {"right_pixels", st.right_pixels}, {"reprojected", st.reprojected},
+                             {"bytes_transferred", st.bytes_transferred}});
   }
-  if (tracer.nonfinite_paths() > 0)
+  if (pipeline.nonfinite_paths() > 0)
     std::fprintf(stderr, "[render] warning: %llu paths had non-finite radiance and were dropped\n",
-                 static_cast<unsigned long long>(tracer.nonfinite_paths()));
-  std::printf("wrote %u frame(s) to %s (frame_NNNN_{left,right}.{exr,png}, frame_NNNN_stereo.png)\n", cmd.frames,
-              cmd.out.c_str());
+                 static_cast<unsigned long long>(pipeline.nonfinite_paths()));
+  if (!cmd.report.empty()) {
+    nlohmann::json r = {{"schema", "parallax-render-report/1"},
+                        {"scene", cmd.scene},
+                        {"pipeline", cmd.pipeline},
+                        {"devices", devices.size()},
+                        {"device_mode", to_string(devices.mode())},
+                        {"width", cmd.width},
+                        {"height", cmd.height},
+                        {"spp", opt.trace.spp},
+                        {"bounces", opt.trace.bounces},
+                        {"frames", report_frames},
+                        {"makespan_ms", makespan_ms},
+                        {"hz", makespan_ms > 0 ? 1000.0 * cmd.frames / makespan_ms : 0.0},
+                        {"reprojected_share", right_pixels ? double(reprojected) / right_pixels : 0.0},
+                        {"bytes_transferred", bytes},
+                        {"nonfinite_paths", pipeline.nonfinite_paths()}};
+    std::ofstream out(cmd.report);
+    if (!out) throw std::runtime_error("cannot write report " + cmd.report);
+    out << r.dump(2) << "\n";
+    std::fprintf(stderr, "[render] report written to %s\n", cmd.report.c_str());
+  }
+  std::printf("wrote %u frame(s) to %s (frame_NNNN_{left,right}.{exr,png}, frame_NNNN_stereo.png); %.1f Hz over the run\n",
+              cmd.frames, cmd.out.c_str(), makespan_ms > 0 ? 1000.0 * cmd.frames / makespan_ms : 0.0);
   return 0;
 }
 

@@ -28,7 +28,7 @@ struct PreviewCommand {
 
 struct RenderCommand {
   std::string scene = "cornell";
-  std::string pipeline = "mono";
+  std::string pipeline = "proposed";
   unsigned width = 640, height = 360;
   unsigned frames = 1;
   float fps = 30.0f;           // camera-path time of frame f is f / fps
@@ -37,6 +37,8 @@ struct RenderCommand {
   std::string light_sampling = "mis";
   std::string out = "out/render";
   bool overwrite = false;
+  bool explain = false;        // print the schedule (stage x device workload pairs, tree)
+  std::string report;          // JSON report path ("" = none)
   DeviceChoice devices;
 };
 

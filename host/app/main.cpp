@@ -56,7 +56,9 @@ int main(int argc, char** argv) {
       "render", "path trace a stereo animation; writes per frame and eye a linear EXR and an sRGB PNG, plus a "
                 "side-by-side stereo PNG (frame_NNNN_{left,right}.{exr,png}, frame_NNNN_stereo.png)");
   render_cmd->add_option("--scene", render.scene, kSceneHelp)->capture_default_str();
-  render_cmd->add_option("--pipeline", render.pipeline, "mono: both eyes fully path traced")
+  render_cmd->add_option("--pipeline", render.pipeline,
+                         "proposed: every stage on every device for its strip; baseline: Tauray-style, path "
+                         "tracing distributed, the rest on the owner; mono: both eyes fully path traced")
       ->check(CLI::IsMember({"mono", "proposed", "baseline"}))
       ->capture_default_str();
   add_size_flags(render_cmd, render.width, render.height);
@@ -72,6 +74,11 @@ int main(int argc, char** argv) {
   render_cmd->add_option("--seed", render.trace.seed, "seed of the sample streams")->capture_default_str();
   render_cmd->add_option("--exposure", render.exposure, "scale applied before the sRGB PNG encoding")->capture_default_str();
   render_cmd->add_option("--out", render.out, "output directory")->capture_default_str();
+  render_cmd->add_flag("--explain", render.explain,
+                       "print the schedule (stage x device workload pairs, dependency tree) and exit");
+  render_cmd->add_option("--report", render.report,
+                         "write a JSON report: per frame, stage and device the device time (OpenCL profiling), "
+                         "wall time, reprojected share, bytes transferred; makespan and Hz");
   render_cmd->add_flag("--overwrite", render.overwrite, "allow writing into a non-empty output directory");
   add_device_flags(render_cmd, render.devices);
 

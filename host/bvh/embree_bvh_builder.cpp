@@ -151,20 +151,20 @@ int clip_polygon(const Point3d* in, int n, int axis, double plane, bool keep_bel
 }
 
 // Float bounds that never shrink the double value they round: round to nearest, and where that
-// went the wrong way step outwards by at least one ulp (|f| 2^-23 >= ulp(f)). Selects rather than branches: which way rounding goes is a coin flip, and this runs
-// ~10^8 times in a large spatial-split build. At most 2 ulps looser than exact.
+// went the wrong way step outwards by at least one ulp (|f| 2^-23 >= ulp(f) for normal f; FLT_MIN
+// covers zero and subnormals without feeding a subnormal operand to the FPU, which would cost a
+// microcode assist). At most 2 ulps looser than exact; plain arithmetic instead of
+// std::nextafter because a large spatial-split build calls this ~10^8 times.
 float outward_step(float f) {
-  // FLT_MIN rather than denorm_min covers zero: a subnormal operand would cost a microcode
-  // assist on every call.
   return std::max(std::abs(f) * 0x1p-23f, std::numeric_limits<float>::min());
 }
 float round_down(double value) {
   const float f = static_cast<float>(value);
-  return f - outward_step(f) * static_cast<float>(static_cast<double>(f) > value);
+  return static_cast<double>(f) > value ? f - outward_step(f) : f;
 }
 float round_up(double value) {
   const float f = static_cast<float>(value);
-  return f + outward_step(f) * static_cast<float>(static_cast<double>(f) < value);
+  return static_cast<double>(f) < value ? f + outward_step(f) : f;
 }
 
 void set_empty(RTCBounds* bounds) {
@@ -230,8 +230,14 @@ struct PolygonCache {
     std::copy(polygon, polygon + count, poly);
   }
 };
-thread_local PolygonCache t_full_box;
-thread_local PolygonCache t_right_piece;
+// Per thread: the last full box, and two slots for right pieces used alternately (the piece
+// being split is read from one while the new right piece is written to the other).
+struct SplitCaches {
+  PolygonCache full_box;
+  PolygonCache right_piece[2];
+  int current_right = 0;
+};
+thread_local SplitCaches t_caches;
 
 std::atomic<std::uint64_t> g_next_build_id{1};
 
@@ -267,19 +273,20 @@ void split_primitive(const RTCBuildPrimitive* primitive, unsigned int dim, float
   const float lo[3] = {primitive->lower_x, primitive->lower_y, primitive->lower_z};
   const float hi[3] = {primitive->upper_x, primitive->upper_y, primitive->upper_z};
 
+  SplitCaches& caches = t_caches;
+  const PolygonCache& last_right = caches.right_piece[caches.current_right];
   Point3d scratch[2][kMaxPolygon];
   const Point3d* poly = nullptr;
   int n = 0;
-  if (t_right_piece.matches(context->build_id, prim, lo, hi)) {
-    std::copy(t_right_piece.poly, t_right_piece.poly + t_right_piece.n, scratch[0]);
-    poly = scratch[0];
-    n = t_right_piece.n;
-  } else if (t_full_box.matches(context->build_id, prim, lo, hi)) {
-    poly = t_full_box.poly;
-    n = t_full_box.n;
+  if (last_right.matches(context->build_id, prim, lo, hi)) {
+    poly = last_right.poly;
+    n = last_right.n;
+  } else if (caches.full_box.matches(context->build_id, prim, lo, hi)) {
+    poly = caches.full_box.poly;
+    n = caches.full_box.n;
   } else {
     n = clip_triangle_to_box(context->positions[prim], lo, hi, scratch, &poly);
-    t_full_box.store(context->build_id, prim, lo, hi, poly, n);
+    caches.full_box.store(context->build_id, prim, lo, hi, poly, n);
   }
 
   float left_hi[3] = {hi[0], hi[1], hi[2]};
@@ -314,16 +321,23 @@ void split_primitive(const RTCBuildPrimitive* primitive, unsigned int dim, float
   }
   to_rtc_bounds(lbounds, lo, left_hi, left);
 
-  // Right piece: the polygon itself, since Embree's next call is likely about it.
-  Point3d piece[kMaxPolygon];
-  const int m = clip_polygon(poly, n, static_cast<int>(dim), pos, false, piece);
+  // Right piece: the polygon itself, written straight into the free cache slot, since
+  // Embree's next call is likely about it.
+  PolygonCache& next_right = caches.right_piece[1 - caches.current_right];
+  const int m = clip_polygon(poly, n, static_cast<int>(dim), pos, false, next_right.poly);
   BoundsD rbounds;
-  for (int i = 0; i < m; ++i) rbounds.extend(piece[i].x);
+  for (int i = 0; i < m; ++i) rbounds.extend(next_right.poly[i].x);
   to_rtc_bounds(rbounds, right_lo, hi, right);
   if (m > 0 && right->lower_x <= right->upper_x) {
-    const float rlo[3] = {right->lower_x, right->lower_y, right->lower_z};
-    const float rhi[3] = {right->upper_x, right->upper_y, right->upper_z};
-    t_right_piece.store(context->build_id, prim, rlo, rhi, piece, m);
+    next_right.build_id = context->build_id;
+    next_right.prim = prim;
+    next_right.n = m;
+    const float box[6] = {right->lower_x, right->lower_y, right->lower_z,
+                          right->upper_x, right->upper_y, right->upper_z};
+    std::copy(box, box + 6, next_right.box);
+    caches.current_right = 1 - caches.current_right;
+  } else {
+    next_right.build_id = 0;  // whatever the slot held was overwritten
   }
 }
 

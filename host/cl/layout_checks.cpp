@@ -41,5 +41,8 @@ static_assert(sizeof(FrameParams) == 128);
 static_assert(offsetof(FrameParams, p_sun) == 28 && offsetof(FrameParams, light_count) == 76);
 static_assert(offsetof(FrameParams, frame) == 80 && offsetof(FrameParams, rr_start_bounce) == 104);
 static_assert(offsetof(FrameParams, row0) == 108 && offsetof(FrameParams, rows) == 112);
+static_assert(sizeof(GBufferTexel) == 48);
+static_assert(offsetof(GBufferTexel, depth) == 12 && offsetof(GBufferTexel, material_class) == 28);
+static_assert(offsetof(GBufferTexel, albedo) == 32 && offsetof(GBufferTexel, prim) == 44);
 
 }  // namespace px

@@ -45,7 +45,10 @@ std::array<ImageRGB, 2> PathTracer::render_stereo(float time_s, std::uint32_t fr
       if (l.rows == 0) continue;
       auto& dev = devices_.devices()[d];
       const std::size_t pixels = static_cast<std::size_t>(l.rows) * width;
-      l.out = cl::Buffer(devices_.context(), CL_MEM_WRITE_ONLY, pixels * sizeof(cl_float4));
+      // The kernel writes a full-frame image at absolute pixel indices; only this strip's rows
+      // (the tail of the allocation) are touched and read back.
+      l.out = cl::Buffer(devices_.context(), CL_MEM_WRITE_ONLY,
+                         static_cast<std::size_t>(l.row0 + l.rows) * width * sizeof(cl_float4));
       const cl_uint zero = 0;
       l.counter = cl::Buffer(devices_.context(), CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, sizeof(cl_uint),
                              const_cast<cl_uint*>(&zero));
@@ -76,7 +79,8 @@ std::array<ImageRGB, 2> PathTracer::render_stereo(float time_s, std::uint32_t fr
   // Read back after every launch is queued so devices run concurrently.
   for (auto& l : launches) {
     auto& q = devices_.devices()[l.device].queue;
-    q.enqueueReadBuffer(l.out, CL_FALSE, 0, l.pixels.size() * sizeof(cl_float4), l.pixels.data());
+    q.enqueueReadBuffer(l.out, CL_FALSE, static_cast<std::size_t>(l.row0) * width * sizeof(cl_float4),
+                        l.pixels.size() * sizeof(cl_float4), l.pixels.data());
     q.enqueueReadBuffer(l.counter, CL_FALSE, 0, sizeof(cl_uint), &l.nonfinite);
   }
   devices_.finish_all();

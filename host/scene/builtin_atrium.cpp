@@ -270,13 +270,21 @@ void append_arcade_bay(std::vector<SceneTriangle>& tris, glm::vec3 c0, glm::vec3
   std::vector<float> cos_a(count), sin_a(count);
   for (std::size_t i = 0; i < count; ++i) {
     cos_a[i] = std::cos(angle[i]);
-    sin_a[i] = std::sin(angle[i]);
+    sin_a[i] = std::max(0.0f, std::sin(angle[i]));
   }
-  // Soffit point: arch point i at depth strip j (0 and P are the wall faces).
+  // Exact springing points, so the arch meets the abacus without a sliver.
+  cos_a.front() = 1.0f;
+  sin_a.front() = 0.0f;
+  cos_a.back() = -1.0f;
+  sin_a.back() = 0.0f;
+  // Soffit point: arch point i at depth strip j (0 and P are the wall faces). The rounding
+  // fades out towards the springing (factor sin a), where the soffit meets the flat abacus.
   const int strips = tess.soffit_strips;
   auto soffit = [&](std::size_t i, int j) {
     const float depth = -half_depth + 2.0f * half_depth * float(j) / float(strips);
-    const float r = (j == 0 || j == strips) ? radius : radius - bulge * std::sin(kPi * float(j) / float(strips));
+    const float r = (j == 0 || j == strips)
+                        ? radius
+                        : radius - bulge * sin_a[i] * std::sin(kPi * float(j) / float(strips));
     return at(half + r * cos_a[i], y_spring + r * sin_a[i], depth);
   };
 

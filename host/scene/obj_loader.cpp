@@ -4,8 +4,10 @@
 // out-of-range indices with only a warning (and its polygon triangulation then reads past the
 // vertex array), and reports the last line of the file for them. So before handing the text
 // to it, a light pre-scan walks the file with the same line and token rules and
-//   - refuses any face/line/point index that is zero, unparseable or out of range, naming the
-//     line (after this, every index tinyobjloader returns is known to be valid);
+//   - refuses any face/line/point index that is zero or unparseable, and any vertex index out
+//     of range, naming the line (after this, every vertex index tinyobjloader returns is known
+//     to be valid); texture-coordinate and normal indices out of range only lose that
+//     attribute, with a warning;
 //   - parses vertex coordinates itself, so NaN/Inf (including MSVC's "1.#IND") are seen.
 // tinyobjloader is then asked not to triangulate; polygons are ear-clipped here.
 #include "scene/primitives.h"
@@ -17,11 +19,13 @@
 #include <algorithm>
 #include <array>
 #include <charconv>
+#include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <sstream>
 #include <string_view>
@@ -325,7 +329,8 @@ std::string read_texture(const fs::path& file, TextureUse use, Texture& tex) {
   const int w = spec.width, h = spec.height, nc = spec.nchannels;
   if (w <= 0 || h <= 0 || nc <= 0) return "empty image";
   if (spec.depth > 1) return "volume images are not supported";
-  if (std::size_t(w) * std::size_t(h) > (std::size_t(1) << 28)) return "image too large";
+  // 8192 x 8192 as float RGBA is already 1 GiB per device copy.
+  if (std::size_t(w) * std::size_t(h) > (std::size_t(1) << 26)) return "image larger than 8192 x 8192";
   std::vector<float> pixels(std::size_t(w) * h * nc);
   if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, pixels.data())) return in->geterror();
   in->close();

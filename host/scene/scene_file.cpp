@@ -59,10 +59,13 @@ bool has_light(const Scene& scene) {
 Scene load_obj_framed(const std::string& path) {
   Scene scene = load_obj(path);
   scene.camera = frame_bounds(scene);
-  if (!has_light(scene))
-    scene.stats.warnings.push_back(path + ": no emissive material; without a sun or sky (scene "
-                                          "JSON) the image will be black");
   return scene;
+}
+
+void warn_if_unlit(Scene& scene, const std::string& path) {
+  if (!has_light(scene))
+    scene.stats.warnings.push_back(path + ": no light source (no emissive material, sun or sky); "
+                                          "the image will be black");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -286,6 +289,7 @@ Scene load_scene_file(const std::string& path) {
     if (sky.contains("horizon")) scene.sky.horizon = r.non_negative_vec3(sky["horizon"], "sky.horizon");
     if (sky.contains("ground")) scene.sky.ground = r.non_negative_vec3(sky["ground"], "sky.ground");
   }
+  warn_if_unlit(scene, path);
   return scene;
 }
 
@@ -301,7 +305,11 @@ Scene load_scene(const std::string& spec) {
   const std::string ext = lower(p.extension().string());
   if (is_plain_file(p)) {
     if (ext == ".json") return load_scene_file(spec);
-    if (ext == ".obj") return load_obj_framed(spec);
+    if (ext == ".obj") {
+      Scene scene = load_obj_framed(spec);
+      warn_if_unlit(scene, spec);
+      return scene;
+    }
     throw SceneError("scene '" + spec + "': unsupported file type (expected a .json scene file or an .obj)");
   }
   const auto& names = builtin_scene_names();

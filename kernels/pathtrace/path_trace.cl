@@ -117,23 +117,18 @@ inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float
   return radiance;
 }
 
-/* out: rows * width float4 (rgb = mean radiance of this launch's samples, a = sample count
- * that was finite). nonfinite: incremented once per dropped path. */
-kernel void path_trace(global float4* out, global uint* nonfinite, FrameParams fp, CameraParams cam,
-                       PX_SCENE_PARAMS) {
-  const uint i = get_global_id(0);
-  if (i >= fp.rows * cam.width) return;
-  const SceneView scene = PX_SCENE_VIEW();
-  const uint x = i % cam.width;
-  const uint y = fp.row0 + i / cam.width;
-  const float3 org = px_camera_origin(&cam);
+/* Mean radiance of pixel (x, y): fp->spp paths; a path with non-finite radiance is dropped
+ * from the mean and counted in *nonfinite. Returns (rgb, finite sample count). */
+inline float4 px_render_pixel(const SceneView* scene, const FrameParams* fp, const CameraParams* cam,
+                              uint x, uint y, volatile global uint* nonfinite) {
+  const float3 org = px_camera_origin(cam);
   float3 sum = (float3)(0.0f, 0.0f, 0.0f);
   uint good = 0;
-  for (uint s = 0; s < fp.spp; ++s) {
-    const SampleKey key = px_sample_key(x, y, fp.frame, fp.eye, fp.sample_offset + s, fp.seed);
+  for (uint s = 0; s < fp->spp; ++s) {
+    const SampleKey key = px_sample_key(x, y, fp->frame, fp->eye, fp->sample_offset + s, fp->seed);
     const float4 u = px_sample4(key, 0u);
-    const float3 dir = px_camera_dir(&cam, x, y, u.x, u.y);
-    const float3 l = px_trace_path(&scene, &fp, org, dir, key);
+    const float3 dir = px_camera_dir(cam, x, y, u.x, u.y);
+    const float3 l = px_trace_path(scene, fp, org, dir, key);
     if (isfinite(l.x) && isfinite(l.y) && isfinite(l.z)) {
       sum += l;
       ++good;
@@ -141,5 +136,29 @@ kernel void path_trace(global float4* out, global uint* nonfinite, FrameParams f
       atomic_inc(nonfinite);
     }
   }
-  out[i] = (float4)(good > 0u ? sum / (float)good : sum, (float)good);
+  return (float4)(good > 0u ? sum / (float)good : sum, (float)good);
+}
+
+/* Stage 2 (and mono): every pixel of rows [fp.row0, fp.row0 + fp.rows) of eye fp.eye.
+ * out: a full-frame float4 image (width * height); only these rows are written. */
+kernel void path_trace(global float4* out, volatile global uint* nonfinite, FrameParams fp,
+                       CameraParams cam, PX_SCENE_PARAMS) {
+  const uint i = get_global_id(0);
+  if (i >= fp.rows * cam.width) return;
+  const SceneView scene = PX_SCENE_VIEW();
+  const uint p = fp.row0 * cam.width + i;
+  out[p] = px_render_pixel(&scene, &fp, &cam, p % cam.width, p / cam.width, nonfinite);
+}
+
+/* Stage 5, hole filling: only the pixels listed in `holes` (full-frame indices, *hole_count of
+ * them, compacted by compact_holes), so work-items do not idle on reprojected pixels. The launch
+ * is sized for the worst case; items past the count return at once. */
+kernel void path_trace_list(global float4* out, volatile global uint* nonfinite, const global uint* holes,
+                            const global uint* hole_count, FrameParams fp, CameraParams cam,
+                            PX_SCENE_PARAMS) {
+  const uint i = get_global_id(0);
+  if (i >= *hole_count) return;
+  const SceneView scene = PX_SCENE_VIEW();
+  const uint p = holes[i];
+  out[p] = px_render_pixel(&scene, &fp, &cam, p % cam.width, p / cam.width, nonfinite);
 }

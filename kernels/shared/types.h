@@ -219,6 +219,35 @@ typedef struct FrameParams {
 #define PX_LIGHTS_NEE 1u
 #define PX_LIGHTS_BSDF 2u
 
+
+/* One G-buffer texel (stage 3): what the primary ray through the pixel centre hit, 48 bytes.
+ *
+ *   0..11 pos[3] (world hit point)       12..15 depth (distance along the ray; 0 on a miss)
+ *  16..27 normal[3] (shading, facing the eye)  28..31 material_class (PX_CLASS_*)
+ *  32..43 albedo[3] (diffuse albedo, textured)  44..47 prim (scene triangle, PX_NO_HIT on a miss) */
+typedef struct GBufferTexel {
+  float pos[3];
+  float depth;
+  float normal[3];
+  uint material_class;
+  float albedo[3];
+  uint prim;
+} GBufferTexel;
+
+#define PX_CLASS_MISS 0u
+#define PX_CLASS_DIFFUSE 1u  /* view-independent: may be reprojected between eyes */
+#define PX_CLASS_GLOSSY 2u
+#define PX_CLASS_MIRROR 3u
+#define PX_CLASS_EMISSIVE 4u
+
+/* Reprojection tolerances (after Tauray's normal cosine 0.99, made scale-free): a left-eye tap
+ * is the same surface when the normals' cosine exceeds PX_REPROJECT_MIN_COS, its distance from
+ * the right pixel's tangent plane is below PX_REPROJECT_REL_DIST x depth, and it lies within
+ * PX_REPROJECT_FOOTPRINTS pixel footprints (stretched by 1/cos of the viewing angle). */
+#define PX_REPROJECT_MIN_COS 0.99f
+#define PX_REPROJECT_REL_DIST 0.01f
+#define PX_REPROJECT_FOOTPRINTS 3.0f
+
 #ifndef __OPENCL_C_VERSION__
 } /* namespace px */
 #endif

@@ -1,0 +1,309 @@
+#include "pipeline/stereo_pipeline.h"
+
+#include "trace/ray_batch_tracer.h"
+
+#include <chrono>
+#include <stdexcept>
+
+namespace px {
+
+namespace {
+
+cl::Buffer device_buffer(const cl::Context& ctx, std::size_t bytes) {
+  return cl::Buffer(ctx, CL_MEM_READ_WRITE, std::max<std::size_t>(bytes, 16));
+}
+
+}  // namespace
+
+StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene,
+                               unsigned width, unsigned height, Options options)
+    : devices_(devices),
+      device_scene_(device_scene),
+      scene_(scene),
+      width_(width),
+      height_(height),
+      options_(options),
+      schedule_(make_schedule(options.pipeline, devices.size(), height)) {
+  if (width == 0 || height == 0 || width > 65535 || height > 65535)
+    throw std::invalid_argument("image size must be between 1 and 65535 per side");
+  const std::size_t pixels = static_cast<std::size_t>(width) * height;
+  const auto& ctx = devices.context();
+  for (int d = 0; d < devices.size(); ++d) {
+    DeviceBuffers b;
+    for (int e = 0; e < 2; ++e) {
+      b.radiance[e] = device_buffer(ctx, pixels * sizeof(cl_float4));
+      b.gbuffer[e] = device_buffer(ctx, pixels * sizeof(GBufferTexel));
+      b.rgba[e] = device_buffer(ctx, pixels * sizeof(cl_uchar4));
+    }
+    b.holes = device_buffer(ctx, pixels * sizeof(cl_uint));
+    b.hole_count = device_buffer(ctx, sizeof(cl_uint));
+    b.nonfinite = device_buffer(ctx, sizeof(cl_uint));
+    if (d != schedule_.tree.root) {
+      // Both eyes side by side in one host-allocated buffer per kind.
+      b.staging_radiance = cl::Buffer(ctx, CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR, 2 * pixels * sizeof(cl_float4));
+      b.staging_rgba = cl::Buffer(ctx, CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR, 2 * pixels * sizeof(cl_uchar4));
+    }
+    buffers_.push_back(std::move(b));
+  }
+}
+
+void StereoPipeline::record(Stage stage, int device, const cl::Event& e) { events_.push_back({{stage, device}, e}); }
+
+void StereoPipeline::path_trace(int d, int eye, RowRange rows, const CameraParams& cam, unsigned frame, Stage stage) {
+  if (rows.size() == 0) return;
+  FrameParams fp{};
+  fill_light_params(scene_, device_scene_.light_count(), fp);
+  fp.frame = frame;
+  fp.eye = static_cast<cl_uint>(eye);
+  fp.spp = options_.trace.spp;
+  fp.max_bounces = options_.trace.bounces;
+  fp.seed = options_.trace.seed;
+  fp.light_sampling = static_cast<cl_uint>(options_.trace.light_sampling);
+  fp.rr_start_bounce = options_.trace.rr_start_bounce;
+  fp.row0 = rows.begin;
+  fp.rows = rows.size();
+  cl::Kernel k(devices_.program("pathtrace/path_trace.cl"), "path_trace");
+  k.setArg(0, buffers_[d].radiance[eye]);
+  k.setArg(1, buffers_[d].nonfinite);
+  k.setArg(2, fp);
+  k.setArg(3, cam);
+  device_scene_.on(d).bind(k, 4);
+  cl::Event e;
+  devices_.devices()[d].queue.enqueueNDRangeKernel(
+      k, cl::NullRange, cl::NDRange(round_up(static_cast<std::size_t>(rows.size()) * width_, kLocalSize)),
+      cl::NDRange(kLocalSize), nullptr, &e);
+  record(stage, d, e);
+}
+
+void StereoPipeline::gbuffer(int d, int eye, RowRange rows, const CameraParams& cam) {
+  if (rows.size() == 0) return;
+  cl::Kernel k(devices_.program("pipeline/gbuffer.cl"), "gbuffer");
+  k.setArg(0, buffers_[d].gbuffer[eye]);
+  k.setArg(1, static_cast<cl_uint>(rows.begin));
+  k.setArg(2, static_cast<cl_uint>(rows.size()));
+  k.setArg(3, cam);
+  device_scene_.on(d).bind(k, 4);
+  cl::Event e;
+  devices_.devices()[d].queue.enqueueNDRangeKernel(
+      k, cl::NullRange, cl::NDRange(round_up(static_cast<std::size_t>(rows.size()) * width_, kLocalSize)),
+      cl::NDRange(kLocalSize), nullptr, &e);
+  record(Stage::GBuffer, d, e);
+}
+
+void StereoPipeline::reproject(int d, RowRange rows, const CameraParams& left_cam) {
+  if (rows.size() == 0) return;
+  auto& q = devices_.devices()[d].queue;
+  const cl_uint zero = 0;
+  q.enqueueFillBuffer(buffers_[d].hole_count, zero, 0, sizeof(cl_uint));
+  cl::Kernel k(devices_.program("pipeline/reproject.cl"), "reproject");
+  auto& b = buffers_[d];
+  k.setArg(0, b.radiance[1]);
+  k.setArg(1, b.holes);
+  k.setArg(2, b.hole_count);
+  k.setArg(3, b.radiance[0]);
+  k.setArg(4, b.gbuffer[0]);
+  k.setArg(5, b.gbuffer[1]);
+  k.setArg(6, static_cast<cl_uint>(rows.begin));
+  k.setArg(7, static_cast<cl_uint>(rows.size()));
+  k.setArg(8, left_cam);
+  cl::Event e;
+  q.enqueueNDRangeKernel(k, cl::NullRange,
+                         cl::NDRange(round_up(static_cast<std::size_t>(rows.size()) * width_, kLocalSize)),
+                         cl::NDRange(kLocalSize), nullptr, &e);
+  record(Stage::Reproject, d, e);
+}
+
+void StereoPipeline::fill_holes(int d, RowRange rows, const CameraParams& right_cam, unsigned frame) {
+  if (rows.size() == 0) return;
+  FrameParams fp{};
+  fill_light_params(scene_, device_scene_.light_count(), fp);
+  fp.frame = frame;
+  fp.eye = 1;
+  fp.spp = options_.trace.spp;
+  fp.max_bounces = options_.trace.bounces;
+  fp.seed = options_.trace.seed;
+  fp.light_sampling = static_cast<cl_uint>(options_.trace.light_sampling);
+  fp.rr_start_bounce = options_.trace.rr_start_bounce;
+  fp.row0 = rows.begin;
+  fp.rows = rows.size();
+  auto& b = buffers_[d];
+  cl::Kernel k(devices_.program("pathtrace/path_trace.cl"), "path_trace_list");
+  k.setArg(0, b.radiance[1]);
+  k.setArg(1, b.nonfinite);
+  k.setArg(2, b.holes);
+  k.setArg(3, b.hole_count);
+  k.setArg(4, fp);
+  k.setArg(5, right_cam);
+  device_scene_.on(d).bind(k, 6);
+  cl::Event e;
+  // Sized for the worst case (every pixel a hole): the hole count lives on the device, so no
+  // host round trip is needed between reprojection and hole filling.
+  devices_.devices()[d].queue.enqueueNDRangeKernel(
+      k, cl::NullRange, cl::NDRange(round_up(static_cast<std::size_t>(rows.size()) * width_, kLocalSize)),
+      cl::NDRange(kLocalSize), nullptr, &e);
+  record(Stage::HoleFill, d, e);
+}
+
+void StereoPipeline::tonemap(int d, int eye, RowRange rows) {
+  if (rows.size() == 0) return;
+  const cl_uint first = rows.begin * width_, count = rows.size() * width_;
+  cl::Kernel k(devices_.program("pipeline/tonemap.cl"), "tonemap");
+  k.setArg(0, buffers_[d].rgba[eye]);
+  k.setArg(1, buffers_[d].radiance[eye]);
+  k.setArg(2, first);
+  k.setArg(3, count);
+  k.setArg(4, options_.exposure);
+  cl::Event e;
+  devices_.devices()[d].queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(count, kLocalSize)),
+                                                   cl::NDRange(kLocalSize), nullptr, &e);
+  record(Stage::Tonemap, d, e);
+}
+
+void StereoPipeline::transfer(int d, int eye, RowRange rows, bool radiance, bool rgba) {
+  const int owner = schedule_.tree.root;
+  if (d == owner || rows.size() == 0) return;
+  auto& child_q = devices_.devices()[d].queue;
+  auto& owner_q = devices_.devices()[owner].queue;
+  const std::size_t pixels = static_cast<std::size_t>(width_) * height_;
+  const std::size_t first = static_cast<std::size_t>(rows.begin) * width_, count = static_cast<std::size_t>(rows.size()) * width_;
+  auto hop = [&](const cl::Buffer& src, const cl::Buffer& staging, const cl::Buffer& dst, std::size_t texel) {
+    cl::Event to_host, to_owner;
+    const std::size_t staged = (static_cast<std::size_t>(eye) * pixels + first) * texel;
+    child_q.enqueueCopyBuffer(src, staging, first * texel, staged, count * texel, nullptr, &to_host);
+    std::vector<cl::Event> wait{to_host};
+    owner_q.enqueueCopyBuffer(staging, dst, staged, first * texel, count * texel, &wait, &to_owner);
+    record(Stage::Transfer, d, to_host);
+    record(Stage::Transfer, owner, to_owner);
+    bytes_this_frame_ += count * texel;
+  };
+  if (radiance) hop(buffers_[d].radiance[eye], buffers_[d].staging_radiance, buffers_[owner].radiance[eye], sizeof(cl_float4));
+  if (rgba) hop(buffers_[d].rgba[eye], buffers_[d].staging_rgba, buffers_[owner].rgba[eye], sizeof(cl_uchar4));
+}
+
+FrameStats StereoPipeline::render(unsigned frame, float time_s) {
+  using clock_type = std::chrono::steady_clock;
+  const auto t0 = clock_type::now();
+  events_.clear();
+  bytes_this_frame_ = 0;
+  // Stage 1, scene update: this frame's camera constants, passed to every launch.
+  const Camera centre = evaluate_camera(scene_, time_s);
+  const std::array<CameraParams, 2> cams = {
+      make_eye_camera(centre, Eye::Left, scene_.ipd_units(), width_, height_),
+      make_eye_camera(centre, Eye::Right, scene_.ipd_units(), width_, height_)};
+  const cl_uint zero = 0;
+  for (int d = 0; d < devices_.size(); ++d) {
+    devices_.devices()[d].queue.enqueueFillBuffer(buffers_[d].nonfinite, zero, 0, sizeof(cl_uint));
+    devices_.devices()[d].queue.enqueueFillBuffer(buffers_[d].hole_count, zero, 0, sizeof(cl_uint));
+  }
+
+  const int n = devices_.size();
+  for (const StageWork& work : schedule_.stages) {
+    for (int d = 0; d < n; ++d) {
+      for (const RowRange& r : work.left_rows[d]) {
+        switch (work.stage) {
+          case Stage::PathTraceLeft: path_trace(d, 0, r, cams[0], frame, Stage::PathTraceLeft); break;
+          case Stage::GBuffer: gbuffer(d, 0, r, cams[0]); break;
+          case Stage::Tonemap: tonemap(d, 0, r); break;
+          // Baseline transfers the left radiance (before the owner's G-buffer); the others
+          // transfer finished images.
+          case Stage::Transfer:
+            transfer(d, 0, r, true, schedule_.pipeline != PipelineKind::Baseline);
+            break;
+          default: break;
+        }
+      }
+      for (const RowRange& r : work.right_rows[d]) {
+        switch (work.stage) {
+          case Stage::PathTraceRight: path_trace(d, 1, r, cams[1], frame, Stage::PathTraceRight); break;
+          case Stage::GBuffer: gbuffer(d, 1, r, cams[1]); break;
+          case Stage::Reproject: reproject(d, r, cams[0]); break;
+          case Stage::HoleFill: fill_holes(d, r, cams[1], frame); break;
+          case Stage::Tonemap: tonemap(d, 1, r); break;
+          case Stage::Transfer: transfer(d, 1, r, true, true); break;
+          default: break;
+        }
+      }
+    }
+  }
+  devices_.finish_all();
+
+  FrameStats stats;
+  stats.frame = frame;
+  stats.wall_ms = std::chrono::duration<double, std::milli>(clock_type::now() - t0).count();
+  std::map<std::pair<Stage, int>, double> sums;
+  for (auto& [key, e] : events_) sums[key] += event_ms(e);
+  for (auto& [key, ms] : sums) stats.stages.push_back({key.first, key.second, ms});
+  stats.bytes_transferred = bytes_this_frame_;
+  stats.right_pixels = static_cast<std::size_t>(width_) * height_;
+  const StageWork* fill = schedule_.find(Stage::HoleFill);
+  std::size_t holes = 0;
+  for (int d = 0; d < n; ++d) {
+    cl_uint count = 0, bad = 0;
+    auto& q = devices_.devices()[d].queue;
+    q.enqueueReadBuffer(buffers_[d].nonfinite, CL_FALSE, 0, sizeof(cl_uint), &bad);
+    if (fill) q.enqueueReadBuffer(buffers_[d].hole_count, CL_FALSE, 0, sizeof(cl_uint), &count);
+    q.finish();
+    holes += count;  // one reprojection launch per device and frame at most, in either pipeline
+    nonfinite_total_ += bad;
+  }
+  stats.reprojected = fill ? stats.right_pixels - holes : 0;
+  return stats;
+}
+
+std::vector<std::uint8_t> StereoPipeline::hole_mask() {
+  std::vector<std::uint8_t> mask(static_cast<std::size_t>(width_) * height_, 0);
+  const StageWork* fill = schedule_.find(Stage::HoleFill);
+  if (!fill) return mask;
+  for (int d = 0; d < devices_.size(); ++d) {
+    if (fill->right_rows[d].empty()) continue;
+    auto& q = devices_.devices()[d].queue;
+    cl_uint count = 0;
+    q.enqueueReadBuffer(buffers_[d].hole_count, CL_TRUE, 0, sizeof(cl_uint), &count);
+    std::vector<cl_uint> list(count);
+    if (count) q.enqueueReadBuffer(buffers_[d].holes, CL_TRUE, 0, count * sizeof(cl_uint), list.data());
+    for (cl_uint p : list) mask.at(p) = 1;
+  }
+  return mask;
+}
+
+std::vector<GBufferTexel> StereoPipeline::gbuffer_of(int eye) {
+  std::vector<GBufferTexel> out(static_cast<std::size_t>(width_) * height_);
+  const StageWork* g = schedule_.find(Stage::GBuffer);
+  if (!g) return out;
+  for (int d = 0; d < devices_.size(); ++d)
+    for (const RowRange& r : eye == 0 ? g->left_rows[d] : g->right_rows[d]) {
+      const std::size_t first = static_cast<std::size_t>(r.begin) * width_, count = static_cast<std::size_t>(r.size()) * width_;
+      devices_.devices()[d].queue.enqueueReadBuffer(buffers_[d].gbuffer[eye], CL_TRUE, first * sizeof(GBufferTexel),
+                                                    count * sizeof(GBufferTexel), out.data() + first);
+    }
+  return out;
+}
+
+std::array<ImageRGB, 2> StereoPipeline::radiance() {
+  const std::size_t pixels = static_cast<std::size_t>(width_) * height_;
+  auto& q = devices_.devices()[schedule_.tree.root].queue;
+  std::array<ImageRGB, 2> out;
+  for (int e = 0; e < 2; ++e) {
+    std::vector<cl_float4> px(pixels);
+    q.enqueueReadBuffer(buffers_[schedule_.tree.root].radiance[e], CL_TRUE, 0, pixels * sizeof(cl_float4), px.data());
+    out[e].width = static_cast<int>(width_);
+    out[e].height = static_cast<int>(height_);
+    out[e].rgb.resize(pixels * 3);
+    for (std::size_t i = 0; i < pixels; ++i)
+      for (int c = 0; c < 3; ++c) out[e].rgb[i * 3 + c] = px[i].s[c];
+  }
+  return out;
+}
+
+std::array<std::vector<std::uint8_t>, 2> StereoPipeline::rgba8() {
+  const std::size_t pixels = static_cast<std::size_t>(width_) * height_;
+  auto& q = devices_.devices()[schedule_.tree.root].queue;
+  std::array<std::vector<std::uint8_t>, 2> out;
+  for (int e = 0; e < 2; ++e) {
+    out[e].resize(pixels * 4);
+    q.enqueueReadBuffer(buffers_[schedule_.tree.root].rgba[e], CL_TRUE, 0, pixels * 4, out[e].data());
+  }
+  return out;
+}
+
+}  // namespace px

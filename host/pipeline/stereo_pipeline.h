@@ -1,0 +1,106 @@
+// Runs one FrameSchedule per frame: every stage is a kernel enqueued on the queue of each
+// device that has work in it (rows from the schedule), dependencies between devices are
+// cl_events, and finished strips travel child -> owner through host-mapped staging buffers
+// (CL_MEM_ALLOC_HOST_PTR: device -> host memory -> device, no peer-to-peer).
+//
+// Every device keeps full-frame buffers and writes only its own rows, so a pixel's index is
+// the same everywhere and a strip transfer is one contiguous byte range.
+#pragma once
+
+#include "cl/device_set.h"
+#include "image/image_io.h"
+#include "pipeline/strip_schedule.h"
+#include "render/device_scene.h"
+#include "render/path_tracer.h"
+#include "render/stereo_camera.h"
+
+#include <array>
+#include <map>
+#include <vector>
+
+namespace px {
+
+struct StageTiming {
+  Stage stage;
+  int device;
+  double ms;  // summed device time of the stage's commands on that device (profiling events)
+};
+
+struct FrameStats {
+  unsigned frame = 0;
+  double wall_ms = 0.0;                 // host time from first enqueue to the owner's last command
+  std::vector<StageTiming> stages;
+  std::size_t right_pixels = 0;         // right-eye pixels in the frame
+  std::size_t reprojected = 0;          // of those, reprojected from the left eye
+  std::size_t bytes_transferred = 0;    // child -> host -> owner, both hops counted once
+};
+
+class StereoPipeline {
+ public:
+  static constexpr std::size_t kLocalSize = 64;
+
+  struct Options {
+    PipelineKind pipeline = PipelineKind::Proposed;
+    PathTracer::Options trace;
+    float exposure = 1.0f;
+  };
+
+  StereoPipeline(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene, unsigned width,
+                 unsigned height, Options options);
+
+  const FrameSchedule& schedule() const { return schedule_; }
+
+  // Renders frame `frame` at camera-path time `time_s`. The finished images are on the owner
+  // device afterwards; fetch them with images().
+  FrameStats render(unsigned frame, float time_s);
+
+  // Linear radiance of both eyes from the owner (blocking read).
+  std::array<ImageRGB, 2> radiance();
+  // Tonemapped RGBA8 of both eyes from the owner (blocking read).
+  std::array<std::vector<std::uint8_t>, 2> rgba8();
+
+  std::uint64_t nonfinite_paths() const { return nonfinite_total_; }
+
+  // Inspection (tests, debugging): gathered from whichever device owns each row at the stage.
+  // Per right-eye pixel: 1 if the last frame filled it by path tracing (a hole), else 0.
+  std::vector<std::uint8_t> hole_mask();
+  std::vector<GBufferTexel> gbuffer_of(int eye);
+
+ private:
+  struct DeviceBuffers {
+    std::array<cl::Buffer, 2> radiance;  // float4, full frame
+    std::array<cl::Buffer, 2> gbuffer;   // GBufferTexel, full frame
+    std::array<cl::Buffer, 2> rgba;      // uchar4, full frame
+    cl::Buffer holes;                    // uint, full frame (worst case: every pixel a hole)
+    cl::Buffer hole_count;               // uint
+    cl::Buffer nonfinite;                // uint
+    // Host-mapped staging for strips travelling to the owner (children only).
+    cl::Buffer staging_radiance, staging_rgba;
+  };
+
+  // Kernel launchers; each records its event under (stage, device).
+  void path_trace(int d, int eye, RowRange rows, const CameraParams& cam, unsigned frame, Stage stage);
+  void gbuffer(int d, int eye, RowRange rows, const CameraParams& cam);
+  void reproject(int d, RowRange rows, const CameraParams& left_cam);
+  void fill_holes(int d, RowRange rows, const CameraParams& right_cam, unsigned frame);
+  void tonemap(int d, int eye, RowRange rows);
+  // Copies rows of `eye` (radiance and/or rgba) from device d to the owner via d's staging
+  // buffer; returns the owner-side event.
+  void transfer(int d, int eye, RowRange rows, bool radiance, bool rgba);
+
+  void record(Stage stage, int device, const cl::Event& e);
+
+  DeviceSet& devices_;
+  const DeviceScene& device_scene_;
+  const Scene& scene_;
+  unsigned width_, height_;
+  Options options_;
+  FrameSchedule schedule_;
+  std::vector<DeviceBuffers> buffers_;
+  std::vector<std::pair<std::pair<Stage, int>, cl::Event>> events_;  // this frame's, for timing
+  std::vector<cl::Event> owner_waits_;                                // cross-device dependencies
+  std::size_t bytes_this_frame_ = 0;
+  std::uint64_t nonfinite_total_ = 0;
+};
+
+}  // namespace px

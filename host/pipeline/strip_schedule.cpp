@@ -1,0 +1,193 @@
+#include "pipeline/strip_schedule.h"
+
+#include <cstdio>
+#include <sstream>
+#include <stdexcept>
+
+namespace px {
+
+const char* to_string(PipelineKind p) {
+  switch (p) {
+    case PipelineKind::Proposed: return "proposed";
+    case PipelineKind::Baseline: return "baseline";
+    case PipelineKind::Mono: return "mono";
+  }
+  return "?";
+}
+
+PipelineKind parse_pipeline(const std::string& text) {
+  if (text == "proposed") return PipelineKind::Proposed;
+  if (text == "baseline") return PipelineKind::Baseline;
+  if (text == "mono") return PipelineKind::Mono;
+  throw std::invalid_argument("unknown pipeline '" + text + "' (expected proposed, baseline or mono)");
+}
+
+const char* stage_name(Stage s) {
+  switch (s) {
+    case Stage::SceneUpdate: return "scene update";
+    case Stage::PathTraceLeft: return "path trace left";
+    case Stage::GBuffer: return "g-buffer";
+    case Stage::Reproject: return "reprojection";
+    case Stage::HoleFill: return "hole filling";
+    case Stage::Denoise: return "denoise";
+    case Stage::RecordPrevious: return "record previous";
+    case Stage::Tonemap: return "tonemap";
+    case Stage::Transfer: return "transfer";
+    case Stage::Stitch: return "stitch";
+    case Stage::Output: return "output";
+    case Stage::PathTraceRight: return "path trace right";
+  }
+  return "?";
+}
+
+std::vector<RowRange> split_rows(unsigned height, unsigned strips) {
+  if (strips == 0) throw std::invalid_argument("split_rows: zero strips");
+  std::vector<RowRange> out(strips);
+  const unsigned base = height / strips, extra = height % strips;
+  unsigned row = 0;
+  for (unsigned i = 0; i < strips; ++i) {
+    out[i].begin = row;
+    row += base + (i < extra ? 1 : 0);
+    out[i].end = row;
+  }
+  return out;
+}
+
+std::vector<unsigned> bit_reversed_order(unsigned n) {
+  unsigned bits = 0;
+  while ((1u << bits) < n) ++bits;
+  if ((1u << bits) != n) throw std::invalid_argument("bit_reversed_order: n must be a power of two");
+  std::vector<unsigned> out(n);
+  for (unsigned i = 0; i < n; ++i) {
+    unsigned r = 0;
+    for (unsigned b = 0; b < bits; ++b)
+      if (i & (1u << b)) r |= 1u << (bits - 1 - b);
+    out[i] = r;
+  }
+  return out;
+}
+
+const StageWork* FrameSchedule::find(Stage s) const {
+  for (const auto& w : stages)
+    if (w.stage == s) return &w;
+  return nullptr;
+}
+
+namespace {
+
+double share(const std::vector<RowRange>& rows, unsigned height) {
+  unsigned n = 0;
+  for (const auto& r : rows) n += r.size();
+  return height ? static_cast<double>(n) / height : 0.0;
+}
+
+StageWork work(Stage s, int devices, unsigned height, const std::vector<std::vector<RowRange>>& left,
+               const std::vector<std::vector<RowRange>>& right) {
+  StageWork w{s, std::vector<Workload>(devices), left, right};
+  for (int d = 0; d < devices; ++d) w.per_device[d] = {share(left[d], height), share(right[d], height)};
+  return w;
+}
+
+}  // namespace
+
+FrameSchedule make_schedule(PipelineKind pipeline, int devices, unsigned height) {
+  if (devices < 1) throw std::invalid_argument("make_schedule: at least one device");
+  FrameSchedule fs;
+  fs.pipeline = pipeline;
+  fs.devices = devices;
+  fs.height = height;
+  fs.tree.root = 0;
+  for (int d = 1; d < devices; ++d) fs.tree.children.push_back(d);
+
+  const std::vector<std::vector<RowRange>> none(devices);
+  // Each device's own strip (proposed and mono): N contiguous strips, round-robin.
+  fs.strips = split_rows(height, static_cast<unsigned>(devices));
+  std::vector<std::vector<RowRange>> own(devices);
+  for (int i = 0; i < devices; ++i) {
+    fs.strip_device.push_back(i % devices);
+    own[i % devices].push_back(fs.strips[i]);
+  }
+  std::vector<std::vector<RowRange>> owner_all(devices);
+  owner_all[fs.tree.root].push_back({0, height});
+
+  switch (pipeline) {
+    case PipelineKind::Proposed:
+      fs.stages.push_back(work(Stage::PathTraceLeft, devices, height, own, none));
+      fs.stages.push_back(work(Stage::GBuffer, devices, height, own, own));
+      fs.stages.push_back(work(Stage::Reproject, devices, height, none, own));
+      fs.stages.push_back(work(Stage::HoleFill, devices, height, none, own));
+      fs.stages.push_back(work(Stage::Tonemap, devices, height, own, own));
+      fs.stages.push_back(work(Stage::Transfer, devices, height, own, own));
+      fs.stages.push_back(work(Stage::Stitch, devices, height, owner_all, owner_all));
+      break;
+    case PipelineKind::Baseline: {
+      // Tauray-style: path tracing balanced over many small strips in bit-reversed order.
+      unsigned n = 1;
+      while (n < 4u * static_cast<unsigned>(devices)) n <<= 1;
+      n = std::min(n, std::max(1u, height));
+      while (n & (n - 1)) n &= n - 1;  // a power of two not above the height
+      auto small = split_rows(height, n);
+      auto order = bit_reversed_order(n);
+      fs.strips.clear();
+      fs.strip_device.clear();
+      std::vector<std::vector<RowRange>> shuffled(devices);
+      for (unsigned i = 0; i < n; ++i) {
+        fs.strips.push_back(small[order[i]]);
+        fs.strip_device.push_back(static_cast<int>(i % devices));
+        shuffled[i % devices].push_back(small[order[i]]);
+      }
+      fs.stages.push_back(work(Stage::PathTraceLeft, devices, height, shuffled, none));
+      fs.stages.push_back(work(Stage::Transfer, devices, height, shuffled, none));
+      fs.stages.push_back(work(Stage::Stitch, devices, height, owner_all, none));
+      fs.stages.push_back(work(Stage::GBuffer, devices, height, owner_all, owner_all));
+      fs.stages.push_back(work(Stage::Reproject, devices, height, none, owner_all));
+      fs.stages.push_back(work(Stage::HoleFill, devices, height, none, owner_all));
+      fs.stages.push_back(work(Stage::Tonemap, devices, height, owner_all, owner_all));
+      break;
+    }
+    case PipelineKind::Mono:
+      fs.stages.push_back(work(Stage::PathTraceLeft, devices, height, own, none));
+      fs.stages.push_back(work(Stage::PathTraceRight, devices, height, none, own));
+      fs.stages.push_back(work(Stage::Tonemap, devices, height, own, own));
+      fs.stages.push_back(work(Stage::Transfer, devices, height, own, own));
+      fs.stages.push_back(work(Stage::Stitch, devices, height, owner_all, owner_all));
+      break;
+  }
+  return fs;
+}
+
+std::string FrameSchedule::explain() const {
+  std::ostringstream out;
+  out << "pipeline " << to_string(pipeline) << ", " << devices << " device(s), " << height << " rows, "
+      << strips.size() << " strip(s)\n";
+  out << "strips (rows -> device):";
+  for (std::size_t i = 0; i < strips.size(); ++i)
+    out << " [" << strips[i].begin << "," << strips[i].end << ")->" << strip_device[i];
+  out << "\n\nworkload pairs (w_left, w_right) per stage and device:\n";
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%-4s %-18s", "#", "stage");
+  out << buf;
+  for (int d = 0; d < devices; ++d) {
+    std::snprintf(buf, sizeof buf, " %14s", ("device " + std::to_string(d)).c_str());
+    out << buf;
+  }
+  out << "\n";
+  for (const auto& s : stages) {
+    std::snprintf(buf, sizeof buf, "%-4d %-18s", static_cast<int>(s.stage), stage_name(s.stage));
+    out << buf;
+    for (const auto& w : s.per_device) {
+      std::snprintf(buf, sizeof buf, " (%5.3f, %5.3f)", w.left, w.right);
+      out << buf;
+    }
+    out << "\n";
+  }
+  out << "\ndependency tree: device " << tree.root << " (owner, stitches and writes)";
+  if (!tree.children.empty()) {
+    out << " <- children";
+    for (int c : tree.children) out << " " << c;
+  }
+  out << "\n(stages 6-7, denoising, are not implemented yet; their place is after hole filling)\n";
+  return out.str();
+}
+
+}  // namespace px

@@ -1,0 +1,82 @@
+// The task-scheduling structure: for every stage and device, the workload pair
+// (w_left, w_right) — the share of each eye's rows that device processes — and the rows it
+// implies; plus the two-level dependency tree that decides where strips travel (children send
+// to the owner at the root). The pipelines are built from this data, never from ad-hoc logic.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace px {
+
+enum class PipelineKind { Proposed, Baseline, Mono };
+const char* to_string(PipelineKind p);
+PipelineKind parse_pipeline(const std::string& text);  // "proposed", "baseline", "mono"
+
+// Stage numbers follow the paper (DESIGN.md section 3).
+enum class Stage : int {
+  SceneUpdate = 1,
+  PathTraceLeft = 2,
+  GBuffer = 3,
+  Reproject = 4,
+  HoleFill = 5,
+  Denoise = 6,         // reserved: SVGF (issue 5)
+  RecordPrevious = 7,  // reserved
+  Tonemap = 8,
+  Transfer = 9,
+  Stitch = 10,
+  Output = 11,
+  PathTraceRight = 12,  // mono pipeline only: the right eye path traced in full
+};
+const char* stage_name(Stage s);
+
+struct RowRange {
+  unsigned begin = 0, end = 0;
+  unsigned size() const { return end - begin; }
+};
+
+struct Workload {
+  double left = 0.0, right = 0.0;  // shares of each eye's rows, in [0, 1]
+};
+
+struct StageWork {
+  Stage stage;
+  std::vector<Workload> per_device;                  // indexed by device
+  std::vector<std::vector<RowRange>> left_rows;      // per device: rows of the left eye
+  std::vector<std::vector<RowRange>> right_rows;     // per device: rows of the right eye
+};
+
+// Owner at the root, every other device its child: strips travel child -> owner.
+struct DependencyTree {
+  int root = 0;
+  std::vector<int> children;
+};
+
+struct FrameSchedule {
+  PipelineKind pipeline = PipelineKind::Proposed;
+  int devices = 1;
+  unsigned height = 0;
+  std::vector<RowRange> strips;       // the image-space decomposition, top to bottom
+  std::vector<int> strip_device;      // device of each strip
+  std::vector<StageWork> stages;      // in execution order
+  DependencyTree tree;
+
+  const StageWork* find(Stage s) const;
+  // Stage x device table of workload pairs and the tree, for `render --explain`.
+  std::string explain() const;
+};
+
+// N contiguous full-width strips (sizes differ by at most one row, remainders to the top).
+std::vector<RowRange> split_rows(unsigned height, unsigned strips);
+
+// Bit-reversal permutation of 0..n-1 for n a power of two (Tauray's "shuffled strips").
+std::vector<unsigned> bit_reversed_order(unsigned n);
+
+// proposed: N strips, strip i on device i; PT (1/N, 0), G-buffer/reproject... (1/N, 1/N),
+//   hole filling (0, 1/N), tonemap (1/N, 1/N); transfer of finished strips to the owner.
+// baseline: left-eye path tracing over 4N (rounded up to a power of two) shuffled strips dealt
+//   round-robin; everything after the transfer on the owner alone: (1, 1) there, (0, 0) elsewhere.
+// mono: both eyes path traced on N strips, tonemapped, transferred.
+FrameSchedule make_schedule(PipelineKind pipeline, int devices, unsigned height);
+
+}  // namespace px

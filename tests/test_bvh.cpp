@@ -1,0 +1,831 @@
+// BVH module: build_bvh (Embree builder + flattening), validate_bvh, EmbreeReference.
+//
+// The trees are checked three ways: the validator (structure and boxes), a host traversal of
+// the flat arrays against a brute-force loop over all triangles (both in double precision, so
+// they must agree exactly), and Embree's own ray tracer (float, so agreement within tolerance).
+#include "bvh/embree_reference.h"
+#include "bvh/flat_bvh.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cfloat>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace px {
+// Defined in embree_bvh_builder.cpp; flat_bvh.h does not declare it yet.
+void set_triangle_flags(FlatBvh& bvh, const std::vector<std::uint32_t>& flags_per_scene_triangle);
+}  // namespace px
+
+namespace px {
+namespace {
+
+constexpr float kInfinity = std::numeric_limits<float>::infinity();
+
+// ---------------------------------------------------------------------------------------------
+// Scenes
+
+SceneTriangle make_triangle(glm::vec3 a, glm::vec3 b, glm::vec3 c, std::uint32_t material = 0) {
+  SceneTriangle t{};
+  t.p[0] = a, t.p[1] = b, t.p[2] = c;
+  const glm::vec3 n = glm::cross(b - a, c - a);
+  const float len = glm::length(n);
+  for (auto& normal : t.n) normal = len > 0.0f ? n / len : glm::vec3(0, 0, 1);
+  t.material = material;
+  return t;
+}
+
+// n triangles with random vertices around random centres in [offset, offset + extent]^3.
+std::vector<SceneTriangle> random_soup(std::size_t n, unsigned seed, float extent = 100.0f,
+                                       float size = 2.0f, float offset = 0.0f) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  std::vector<SceneTriangle> tris;
+  tris.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const glm::vec3 c = glm::vec3(offset) + extent * glm::vec3(u(rng), u(rng), u(rng));
+    auto jitter = [&] { return size * (glm::vec3(u(rng), u(rng), u(rng)) - 0.5f); };
+    tris.push_back(make_triangle(c + jitter(), c + jitter(), c + jitter(),
+                                 static_cast<std::uint32_t>(i % 7)));
+  }
+  return tris;
+}
+
+// Long thin triangles (length ~60, width ~0.5) in random diagonal directions.
+std::vector<SceneTriangle> long_thin_soup(std::size_t n, unsigned seed, float length = 60.0f) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  std::vector<SceneTriangle> tris;
+  for (std::size_t i = 0; i < n; ++i) {
+    const glm::vec3 c = 100.0f * glm::vec3(u(rng), u(rng), u(rng));
+    const glm::vec3 d = glm::normalize(glm::vec3(u(rng) < 0.5f ? -1 : 1, u(rng) < 0.5f ? -1 : 1,
+                                                 u(rng) < 0.5f ? -1 : 1));
+    const glm::vec3 side =
+        glm::normalize(glm::cross(d, glm::vec3(u(rng), u(rng), u(rng)) - 0.5f));
+    const glm::vec3 a = c - 0.5f * length * d;
+    tris.push_back(make_triangle(a, c + 0.5f * length * d, a + 0.5f * side));
+  }
+  return tris;
+}
+
+// Parallel strips along the diagonal of a slanted square: every strip's box covers most of the
+// square, so no partition of whole triangles separates them — the case spatial splits exist for.
+std::vector<SceneTriangle> diagonal_strips(int strips) {
+  std::vector<SceneTriangle> tris;
+  auto slant = [](glm::vec3 p) { return glm::vec3(p.x, p.y, 0.3f * p.x); };
+  for (int i = 0; i < strips; ++i) {
+    const float o = -100.0f + 200.0f * i / strips, w = 200.0f / strips;
+    const glm::vec3 a(std::max(o, 0.0f), std::max(-o, 0.0f), 0.0f);
+    const glm::vec3 b = a + glm::vec3(100.0f - std::abs(o), 100.0f - std::abs(o), 0.0f);
+    const glm::vec3 off(0.5f * w, -0.5f * w, 0.0f);
+    tris.push_back(make_triangle(slant(a), slant(b), slant(b + off)));
+    tris.push_back(make_triangle(slant(a), slant(b + off), slant(a + off)));
+  }
+  return tris;
+}
+
+// Triangles whose positions and sizes grow geometrically from 1e-15 to 1e15: every SAH split
+// peels off a few of the largest, so an unconstrained SAH tree is hundreds of levels deep.
+std::vector<SceneTriangle> geometric_progression(std::size_t n) {
+  std::vector<SceneTriangle> tris;
+  const double ratio = std::pow(1e30, 1.0 / double(n));
+  double x = 1e-15;
+  for (std::size_t i = 0; i < n; ++i, x *= ratio) {
+    const auto c = float(x), s = float(0.5 * x);
+    tris.push_back(make_triangle({c, 0, 0}, {c + s, s, 0}, {c, 0, s}));
+  }
+  return tris;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reference ray tracing in double precision
+
+struct RefHit {
+  double t = std::numeric_limits<double>::infinity();
+  std::uint32_t prim = PX_NO_HIT;
+};
+
+// Möller–Trumbore in double: returns true and t for a hit with tmin <= t <= tmax.
+bool intersect_triangle(const Ray& ray, const float* p0, const float* p1, const float* p2,
+                        double tmin, double tmax, double& t_out) {
+  double o[3], d[3], e1[3], e2[3], tv[3];
+  for (int k = 0; k < 3; ++k) {
+    o[k] = ray.org[k], d[k] = ray.dir[k];
+    e1[k] = double(p1[k]) - p0[k];
+    e2[k] = double(p2[k]) - p0[k];
+    tv[k] = o[k] - p0[k];
+  }
+  auto cross = [](const double* a, const double* b, double* r) {
+    r[0] = a[1] * b[2] - a[2] * b[1];
+    r[1] = a[2] * b[0] - a[0] * b[2];
+    r[2] = a[0] * b[1] - a[1] * b[0];
+  };
+  auto dot = [](const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; };
+  double pv[3], qv[3];
+  cross(d, e2, pv);
+  const double det = dot(e1, pv);
+  if (det == 0.0) return false;
+  const double inv = 1.0 / det;
+  const double u = dot(tv, pv) * inv;
+  if (u < 0.0 || u > 1.0) return false;
+  cross(tv, e1, qv);
+  const double v = dot(d, qv) * inv;
+  if (v < 0.0 || u + v > 1.0) return false;
+  const double t = dot(e2, qv) * inv;
+  if (t < tmin || t > tmax) return false;
+  t_out = t;
+  return true;
+}
+
+RefHit brute_force(const std::vector<SceneTriangle>& tris, const Ray& ray) {
+  RefHit best;
+  double tmax = ray.tmax;
+  for (std::size_t i = 0; i < tris.size(); ++i) {
+    double t;
+    if (intersect_triangle(ray, &tris[i].p[0].x, &tris[i].p[1].x, &tris[i].p[2].x, ray.tmin,
+                           tmax, t)) {
+      tmax = t;
+      best = {t, static_cast<std::uint32_t>(i)};
+    }
+  }
+  return best;
+}
+
+// Slab test in double; the interval is widened by a relative 1e-9 so rounding never loses a
+// hit that lies exactly on a box face (flat boxes of axis-aligned triangles). Absent children
+// are skipped by the caller.
+bool hit_box(const Ray& ray, const float* lo, const float* hi, double tmin, double tmax) {
+  for (int k = 0; k < 3; ++k) {
+    const double o = ray.org[k], d = ray.dir[k];
+    if (d == 0.0) {
+      if (o < lo[k] || o > hi[k]) return false;
+      continue;
+    }
+    double t0 = (lo[k] - o) / d, t1 = (hi[k] - o) / d;
+    if (t0 > t1) std::swap(t0, t1);
+    tmin = std::max(tmin, t0);
+    tmax = std::min(tmax, t1);
+  }
+  return tmin <= tmax + 1e-9 * std::abs(tmax) + 1e-300;
+}
+
+bool is_absent(const float* lo, const float* hi) { return lo[0] > hi[0]; }
+
+struct TraversalStats {
+  std::size_t triangle_tests = 0;
+  std::size_t node_visits = 0;
+};
+
+// Closest hit by walking the flat arrays the way the kernels will: a stack of node indices,
+// leaves test their triangle range.
+RefHit traverse(const FlatBvh& bvh, const Ray& ray, TraversalStats* stats = nullptr) {
+  RefHit best;
+  double tmax = ray.tmax;
+  std::vector<std::uint32_t> stack{0};
+  while (!stack.empty()) {
+    const BvhNode& node = bvh.nodes[stack.back()];
+    stack.pop_back();
+    if (stats) ++stats->node_visits;
+    const float* lo[2] = {node.lmin, node.rmin};
+    const float* hi[2] = {node.lmax, node.rmax};
+    const std::uint32_t index[2] = {node.left, node.right};
+    const std::uint32_t count[2] = {node.left_count, node.right_count};
+    for (int side = 0; side < 2; ++side) {
+      if (is_absent(lo[side], hi[side]) || !hit_box(ray, lo[side], hi[side], ray.tmin, tmax))
+        continue;
+      if (count[side] == 0) {
+        stack.push_back(index[side]);
+        continue;
+      }
+      for (std::uint32_t i = index[side]; i < index[side] + count[side]; ++i) {
+        const BvhTriangle& t = bvh.triangles[i];
+        if (stats) ++stats->triangle_tests;
+        double th;
+        if (intersect_triangle(ray, t.v0, t.v1, t.v2, ray.tmin, tmax, th)) {
+          tmax = th;
+          best = {th, t.prim};
+        }
+      }
+    }
+  }
+  return best;
+}
+
+// Half the rays aim at a random point of a random triangle (so most hit), half go in random
+// directions from random origins in and around the scene.
+std::vector<Ray> random_rays(const std::vector<SceneTriangle>& tris, std::size_t n, unsigned seed) {
+  glm::vec3 lo(kInfinity), hi(-kInfinity);
+  for (const auto& t : tris)
+    for (const auto& p : t.p) lo = glm::min(lo, p), hi = glm::max(hi, p);
+  const glm::vec3 centre = 0.5f * (lo + hi), half = 0.75f * (hi - lo) + 1e-3f;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  std::uniform_int_distribution<std::size_t> pick(0, tris.size() - 1);
+  std::vector<Ray> rays;
+  for (std::size_t i = 0; i < n; ++i) {
+    const glm::vec3 org = centre + half * (2.0f * glm::vec3(u(rng), u(rng), u(rng)) - 1.0f);
+    glm::vec3 dir;
+    if (i % 2 == 0) {
+      const SceneTriangle& t = tris[pick(rng)];
+      float a = u(rng), b = u(rng);
+      if (a + b > 1.0f) a = 1.0f - a, b = 1.0f - b;
+      dir = (1.0f - a - b) * t.p[0] + a * t.p[1] + b * t.p[2] - org;
+    } else {
+      dir = glm::vec3(u(rng), u(rng), u(rng)) - 0.5f;
+    }
+    if (glm::length(dir) == 0.0f) dir = glm::vec3(0, 0, 1);
+    dir = glm::normalize(dir);
+    rays.push_back({{org.x, org.y, org.z}, 0.0f, {dir.x, dir.y, dir.z}, kInfinity});
+  }
+  return rays;
+}
+
+// Same closest surface: the same triangle, or (coplanar duplicates, a shared edge) the same
+// distance.
+bool same_hit(double t_a, std::uint32_t prim_a, double t_b, std::uint32_t prim_b,
+              double rel = 1e-4) {
+  if (prim_a == PX_NO_HIT || prim_b == PX_NO_HIT) return prim_a == prim_b;
+  if (prim_a == prim_b) return true;
+  return std::abs(t_a - t_b) <= rel * std::max({std::abs(t_a), std::abs(t_b), 1e-30});
+}
+
+// Checks the flat tree against brute force on `rays` rays; returns the average number of
+// triangle tests per ray (how much the tree prunes).
+double expect_traversal_matches_brute_force(const FlatBvh& bvh,
+                                            const std::vector<SceneTriangle>& tris,
+                                            std::size_t rays, unsigned seed) {
+  TraversalStats stats;
+  std::size_t mismatches = 0, hits = 0;
+  for (const Ray& ray : random_rays(tris, rays, seed)) {
+    const RefHit a = traverse(bvh, ray, &stats);
+    const RefHit b = brute_force(tris, ray);
+    hits += b.prim != PX_NO_HIT;
+    if (!same_hit(a.t, a.prim, b.t, b.prim)) {
+      if (++mismatches <= 5)
+        ADD_FAILURE() << "BVH traversal: prim " << a.prim << " t " << a.t << ", brute force: prim "
+                      << b.prim << " t " << b.t;
+    }
+  }
+  EXPECT_EQ(mismatches, 0u);
+  EXPECT_GT(hits, rays / 3) << "too few hits for the comparison to mean much";
+  return double(stats.triangle_tests) / double(rays);
+}
+
+void expect_valid(const FlatBvh& bvh, const std::vector<SceneTriangle>& tris) {
+  const BvhValidation v = validate_bvh(bvh, tris);
+  std::string all;
+  for (const auto& e : v.errors) all += "\n  " + e;
+  EXPECT_TRUE(v.ok) << all;
+  EXPECT_TRUE(v.errors.empty());
+  EXPECT_EQ(bvh.stats.scene_triangles, tris.size());
+  EXPECT_EQ(bvh.stats.nodes, bvh.nodes.size());
+  EXPECT_EQ(bvh.stats.leaf_triangles, bvh.triangles.size());
+  EXPECT_GE(bvh.stats.leaf_triangles, tris.size());
+  EXPECT_GE(bvh.stats.depth, 2);
+  EXPECT_LE(bvh.stats.depth, PX_BVH_MAX_DEPTH);
+  EXPECT_GE(bvh.stats.sah_cost, 1.0);
+}
+
+BvhBuildOptions with_splits(bool spatial_splits) {
+  BvhBuildOptions options;
+  options.spatial_splits = spatial_splits;
+  return options;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Building
+
+class BuildSoup : public ::testing::TestWithParam<std::tuple<std::size_t, bool>> {};
+
+TEST_P(BuildSoup, ProducesAValidTree) {
+  const auto [n, splits] = GetParam();
+  const auto tris = random_soup(n, 1234 + unsigned(n));
+  const FlatBvh bvh = build_bvh(tris, with_splits(splits));
+  expect_valid(bvh, tris);
+  // A binary tree with L leaves has L - 1 inner nodes (plus the root of a one-leaf scene).
+  EXPECT_GE(bvh.nodes.size(), (bvh.triangles.size() + PX_BVH_MAX_LEAF_SIZE - 1) /
+                                  PX_BVH_MAX_LEAF_SIZE - 1);
+  EXPECT_LE(bvh.nodes.size(), std::max<std::size_t>(bvh.triangles.size(), 2) - 1);
+}
+
+INSTANTIATE_TEST_SUITE_P(Sizes, BuildSoup,
+                         ::testing::Combine(::testing::Values(1, 2, 3, 4, 5, 17, 1000, 100000),
+                                            ::testing::Bool()),
+                         [](const auto& info) {
+                           return std::to_string(std::get<0>(info.param)) +
+                                  (std::get<1>(info.param) ? "_splits" : "_binned");
+                         });
+
+TEST(Bvh, OneTriangleGivesARootWithOneLeafAndAnAbsentChild) {
+  const auto tris = random_soup(1, 7);
+  for (bool splits : {false, true}) {
+    const FlatBvh bvh = build_bvh(tris, with_splits(splits));
+    ASSERT_EQ(bvh.nodes.size(), 1u);
+    ASSERT_EQ(bvh.triangles.size(), 1u);
+    const BvhNode& root = bvh.nodes[0];
+    EXPECT_EQ(root.left, 0u);
+    EXPECT_EQ(root.left_count, 1u);
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_EQ(root.lmin[k], std::min({tris[0].p[0][k], tris[0].p[1][k], tris[0].p[2][k]}));
+      EXPECT_EQ(root.lmax[k], std::max({tris[0].p[0][k], tris[0].p[1][k], tris[0].p[2][k]}));
+      EXPECT_EQ(root.rmin[k], FLT_MAX);
+      EXPECT_EQ(root.rmax[k], -FLT_MAX);
+    }
+    EXPECT_EQ(root.right, 0u);
+    EXPECT_EQ(root.right_count, 0u);
+    EXPECT_EQ(bvh.stats.depth, 2);
+    expect_valid(bvh, tris);
+  }
+}
+
+TEST(Bvh, TrianglesCarryTheirSceneData) {
+  const auto tris = random_soup(500, 99);
+  const FlatBvh bvh = build_bvh(tris, with_splits(false));
+  ASSERT_EQ(bvh.triangles.size(), tris.size());
+  std::vector<int> seen(tris.size(), 0);
+  for (const BvhTriangle& t : bvh.triangles) {
+    ASSERT_LT(t.prim, tris.size());
+    ++seen[t.prim];
+    const SceneTriangle& s = tris[t.prim];
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_EQ(t.v0[k], s.p[0][k]);
+      EXPECT_EQ(t.v1[k], s.p[1][k]);
+      EXPECT_EQ(t.v2[k], s.p[2][k]);
+    }
+    EXPECT_EQ(t.material, s.material);
+    EXPECT_EQ(t.flags, 0u);
+  }
+  EXPECT_TRUE(std::all_of(seen.begin(), seen.end(), [](int c) { return c == 1; }));
+}
+
+TEST(Bvh, SetTriangleFlagsCopiesPerSceneTriangleFlags) {
+  const auto tris = diagonal_strips(50);  // spatial splits duplicate some triangles
+  FlatBvh bvh = build_bvh(tris, with_splits(true));
+  std::vector<std::uint32_t> flags(tris.size());
+  for (std::size_t i = 0; i < flags.size(); ++i) flags[i] = i % 3 == 0 ? PX_TRI_EMISSIVE : 0u;
+  set_triangle_flags(bvh, flags);
+  for (const BvhTriangle& t : bvh.triangles) EXPECT_EQ(t.flags, flags[t.prim]);
+  EXPECT_THROW(set_triangle_flags(bvh, std::vector<std::uint32_t>(3)), std::out_of_range);
+}
+
+TEST(Bvh, RespectsMaxLeafSize) {
+  const auto tris = random_soup(3000, 5, 10.0f, 2.0f);  // dense: SAH wants big leaves
+  for (int max_leaf : {1, 2, PX_BVH_MAX_LEAF_SIZE}) {
+    BvhBuildOptions options;
+    options.spatial_splits = false;
+    options.max_leaf_size = max_leaf;
+    const FlatBvh bvh = build_bvh(tris, options);
+    expect_valid(bvh, tris);
+    std::uint32_t largest = 0;
+    for (const BvhNode& n : bvh.nodes) largest = std::max({largest, n.left_count, n.right_count});
+    EXPECT_LE(largest, std::uint32_t(max_leaf));
+    if (max_leaf == 1) {
+      EXPECT_EQ(bvh.nodes.size(), tris.size() - 1);
+    }
+  }
+}
+
+TEST(Bvh, RejectsBadInput) {
+  EXPECT_THROW(build_bvh({}), std::runtime_error);
+  auto tris = random_soup(10, 3);
+  tris[4].p[1].y = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_THROW(build_bvh(tris), std::runtime_error);
+  tris[4].p[1].y = kInfinity;
+  EXPECT_THROW(build_bvh(tris), std::runtime_error);
+  BvhBuildOptions options;
+  options.max_leaf_size = PX_BVH_MAX_LEAF_SIZE + 1;
+  EXPECT_THROW(build_bvh(random_soup(10, 3), options), std::invalid_argument);
+  options.max_leaf_size = 0;
+  EXPECT_THROW(build_bvh(random_soup(10, 3), options), std::invalid_argument);
+}
+
+TEST(Bvh, BinnedBuildIsDeterministic) {
+  const auto tris = random_soup(20000, 77);
+  const FlatBvh a = build_bvh(tris, with_splits(false));
+  const FlatBvh b = build_bvh(tris, with_splits(false));
+  ASSERT_EQ(a.nodes.size(), b.nodes.size());
+  ASSERT_EQ(a.triangles.size(), b.triangles.size());
+  EXPECT_EQ(0, std::memcmp(a.nodes.data(), b.nodes.data(), a.nodes.size() * sizeof(BvhNode)));
+  EXPECT_EQ(0, std::memcmp(a.triangles.data(), b.triangles.data(),
+                           a.triangles.size() * sizeof(BvhTriangle)));
+}
+
+// Inputs that break naive builders: degenerate centroid distributions, zero-area and zero-
+// thickness triangles, large coordinates.
+struct HardScene {
+  const char* name;
+  std::vector<SceneTriangle> triangles;
+};
+
+std::vector<HardScene> hard_scenes() {
+  std::vector<HardScene> scenes;
+  scenes.push_back({"long_thin", long_thin_soup(2000, 11)});
+  {
+    // 1000 copies of one triangle: every centroid is the same, binning cannot split.
+    std::vector<SceneTriangle> same(1000, make_triangle({0, 0, 0}, {1, 0, 0}, {0, 1, 0}));
+    scenes.push_back({"identical", same});
+  }
+  {
+    // Heavily overlapping: 2000 big triangles through one small region.
+    scenes.push_back({"overlapping", random_soup(2000, 12, 1.0f, 40.0f)});
+  }
+  {
+    // Axis-aligned triangles (flat boxes), some zero-area ones, and a shared-edge fan.
+    std::vector<SceneTriangle> t;
+    std::mt19937 rng(13);
+    std::uniform_real_distribution<float> u(0.0f, 50.0f);
+    for (int i = 0; i < 600; ++i) {
+      const glm::vec3 c(u(rng), u(rng), u(rng));
+      if (i % 3 == 0) t.push_back(make_triangle(c, c + glm::vec3(3, 0, 0), c + glm::vec3(0, 3, 0)));
+      if (i % 3 == 1) t.push_back(make_triangle(c, c + glm::vec3(0, 0, 3), c + glm::vec3(0, 3, 0)));
+      if (i % 3 == 2) t.push_back(make_triangle(c, c + glm::vec3(2, 2, 2), c + glm::vec3(4, 4, 4)));
+    }
+    for (int i = 0; i < 64; ++i) {
+      const float a0 = 6.2831853f * i / 64, a1 = 6.2831853f * (i + 1) / 64;
+      t.push_back(make_triangle({25, 25, 25}, {25 + 10 * std::cos(a0), 25 + 10 * std::sin(a0), 25},
+                                {25 + 10 * std::cos(a1), 25 + 10 * std::sin(a1), 25}));
+    }
+    scenes.push_back({"flat_degenerate_fan", t});
+  }
+  scenes.push_back({"huge_coordinates", random_soup(3000, 14, 1000.0f, 20.0f, 1.0e6f)});
+  scenes.push_back({"huge_negative_coordinates", random_soup(3000, 15, 1000.0f, 20.0f, -1.0e6f)});
+  return scenes;
+}
+
+TEST(Bvh, HardInputsBuildValidTreesThatTraceCorrectly) {
+  for (const HardScene& scene : hard_scenes()) {
+    for (bool splits : {false, true}) {
+      SCOPED_TRACE(std::string(scene.name) + (splits ? " with spatial splits" : " binned"));
+      const FlatBvh bvh = build_bvh(scene.triangles, with_splits(splits));
+      expect_valid(bvh, scene.triangles);
+      expect_traversal_matches_brute_force(bvh, scene.triangles, 600, 21);
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Traversal of the flat tree
+
+TEST(Bvh, TraversalMatchesBruteForceAndPrunes) {
+  for (bool splits : {false, true}) {
+    SCOPED_TRACE(splits ? "with spatial splits" : "binned");
+    const auto tris = random_soup(4000, 31);
+    const FlatBvh bvh = build_bvh(tris, with_splits(splits));
+    const double tests_per_ray = expect_traversal_matches_brute_force(bvh, tris, 3000, 32);
+    // The tree must actually cull: a ray tests a small fraction of the triangles.
+    EXPECT_LT(tests_per_ray, tris.size() / 20.0);
+  }
+}
+
+TEST(Bvh, TraversalMatchesEmbree) {
+  const auto tris = random_soup(20000, 41, 100.0f, 3.0f);
+  const EmbreeReference embree(tris);
+  for (bool splits : {false, true}) {
+    SCOPED_TRACE(splits ? "with spatial splits" : "binned");
+    const FlatBvh bvh = build_bvh(tris, with_splits(splits));
+    std::size_t mismatches = 0, hits = 0;
+    const auto rays = random_rays(tris, 4000, 42);
+    for (const Ray& ray : rays) {
+      const RefHit a = traverse(bvh, ray);
+      const Hit b = embree.intersect(ray);
+      hits += b.prim != PX_NO_HIT;
+      if (!same_hit(a.t, a.prim, b.t, b.prim)) {
+        // Float (Embree) and double (here) may disagree on a ray through an edge; count them.
+        if (++mismatches <= 3)
+          ADD_FAILURE() << "flat BVH: prim " << a.prim << " t " << a.t << ", Embree: prim "
+                        << b.prim << " t " << b.t;
+      }
+    }
+    EXPECT_EQ(mismatches, 0u);
+    EXPECT_GT(hits, rays.size() / 3);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Spatial splits and depth
+
+TEST(Bvh, SpatialSplitsLowerSahOnDiagonalStrips) {
+  const auto tris = diagonal_strips(400);
+  const FlatBvh binned = build_bvh(tris, with_splits(false));
+  const FlatBvh split = build_bvh(tris, with_splits(true));
+  expect_valid(binned, tris);
+  expect_valid(split, tris);
+  // Measured: about 35% lower. Splits must have happened, and paid off clearly.
+  EXPECT_GT(split.stats.leaf_triangles, tris.size());
+  EXPECT_LT(split.stats.sah_cost, 0.9 * binned.stats.sah_cost)
+      << "binned " << binned.stats.sah_cost << ", split " << split.stats.sah_cost;
+  expect_traversal_matches_brute_force(split, tris, 1000, 51);
+}
+
+TEST(Bvh, SpatialSplitsDoNotWorsenSahOnLongDiagonalTriangles) {
+  for (unsigned seed : {1u, 2u, 3u}) {
+    const auto tris = long_thin_soup(3000, seed);
+    const FlatBvh binned = build_bvh(tris, with_splits(false));
+    const FlatBvh split = build_bvh(tris, with_splits(true));
+    expect_valid(split, tris);
+    EXPECT_GT(split.stats.leaf_triangles, tris.size());
+    EXPECT_LE(split.stats.sah_cost, 1.01 * binned.stats.sah_cost)
+        << "binned " << binned.stats.sah_cost << ", split " << split.stats.sah_cost;
+  }
+}
+
+TEST(Bvh, DepthLimitHoldsOnAGeometricProgression) {
+  // Embree alone fails here ("depth limit reached"); build_bvh must still deliver a tree no
+  // deeper than the kernels' stack allows, and a correct one.
+  for (bool splits : {false, true}) {
+    SCOPED_TRACE(splits ? "with spatial splits" : "binned");
+    const auto tris = geometric_progression(splits ? 20000 : 100000);
+    const FlatBvh bvh = build_bvh(tris, with_splits(splits));
+    expect_valid(bvh, tris);
+    EXPECT_LE(bvh.stats.depth, PX_BVH_MAX_DEPTH);
+    EXPECT_GE(bvh.stats.depth, PX_BVH_MAX_DEPTH - 8) << "the scene is meant to be pathological";
+    // Rays along the progression's axis from its small end, and random ones.
+    std::vector<Ray> rays;
+    for (int i = 0; i < 200; ++i) {
+      const float y = 1e-16f * std::pow(1.4f, float(i % 100));
+      rays.push_back({{-1.0f, y, y}, 0.0f, {1.0f, 0.0f, 0.0f}, kInfinity});
+    }
+    std::size_t mismatches = 0;
+    for (const Ray& ray : rays) {
+      const RefHit a = traverse(bvh, ray), b = brute_force(tris, ray);
+      mismatches += !same_hit(a.t, a.prim, b.t, b.prim);
+    }
+    EXPECT_EQ(mismatches, 0u);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The validator must catch corruption
+
+class ValidatorDetects : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    tris_ = random_soup(2000, 61);
+    bvh_ = build_bvh(tris_, with_splits(false));
+    ASSERT_TRUE(validate_bvh(bvh_, tris_).ok);
+    // A leaf with at least two triangles, an inner child slot, and the parent of each.
+    for (std::uint32_t i = 0; i < bvh_.nodes.size(); ++i) {
+      const BvhNode& n = bvh_.nodes[i];
+      if (big_leaf_node_ == kNone && n.left_count >= 2) big_leaf_node_ = i;
+      if (inner_child_node_ == kNone && n.left_count == 0 && n.right_count == 0)
+        inner_child_node_ = i;
+    }
+    ASSERT_NE(big_leaf_node_, kNone);
+    ASSERT_NE(inner_child_node_, kNone);
+  }
+
+  void expect_invalid(const FlatBvh& bvh, const char* what) {
+    const BvhValidation v = validate_bvh(bvh, tris_);
+    EXPECT_FALSE(v.ok) << what;
+    EXPECT_FALSE(v.errors.empty()) << what;
+    EXPECT_LE(v.errors.size(), 11u) << "only the first few errors are reported";
+  }
+
+  static constexpr std::uint32_t kNone = ~0u;
+  std::vector<SceneTriangle> tris_;
+  FlatBvh bvh_;
+  std::uint32_t big_leaf_node_ = kNone;    // its left child is a leaf of >= 2 triangles
+  std::uint32_t inner_child_node_ = kNone;  // both its children are inner nodes
+};
+
+TEST_F(ValidatorDetects, ShrunkLeafBox) {
+  FlatBvh bad = bvh_;
+  BvhNode& n = bad.nodes[big_leaf_node_];
+  n.lmax[0] = 0.5f * (n.lmin[0] + n.lmax[0]);
+  expect_invalid(bad, "leaf box no longer contains its triangles");
+}
+
+TEST_F(ValidatorDetects, ShrunkInnerBox) {
+  FlatBvh bad = bvh_;
+  BvhNode& n = bad.nodes[inner_child_node_];
+  n.lmin[1] = 0.5f * (n.lmin[1] + n.lmax[1]);
+  expect_invalid(bad, "inner box no longer contains its children");
+}
+
+TEST_F(ValidatorDetects, DroppedLeafTriangle) {
+  FlatBvh bad = bvh_;
+  bad.nodes[big_leaf_node_].left_count -= 1;
+  expect_invalid(bad, "a triangle is no longer referenced");
+}
+
+TEST_F(ValidatorDetects, Cycle) {
+  FlatBvh to_root = bvh_;
+  to_root.nodes[inner_child_node_].left = 0;
+  expect_invalid(to_root, "child points at the root");
+  FlatBvh to_self = bvh_;
+  to_self.nodes[inner_child_node_].right = inner_child_node_;
+  expect_invalid(to_self, "child points at its own node");
+  FlatBvh shared = bvh_;
+  shared.nodes[inner_child_node_].right = shared.nodes[inner_child_node_].left;
+  expect_invalid(shared, "two parents share a subtree");
+}
+
+TEST_F(ValidatorDetects, OutOfRangeIndices) {
+  FlatBvh node_index = bvh_;
+  node_index.nodes[inner_child_node_].left = static_cast<std::uint32_t>(bvh_.nodes.size() + 5);
+  expect_invalid(node_index, "node index past the end");
+  FlatBvh tri_index = bvh_;
+  tri_index.nodes[big_leaf_node_].left = static_cast<std::uint32_t>(bvh_.triangles.size() - 1);
+  expect_invalid(tri_index, "leaf range past the end");
+  FlatBvh prim = bvh_;
+  prim.triangles[3].prim = static_cast<std::uint32_t>(tris_.size());
+  expect_invalid(prim, "prim index past the scene");
+}
+
+TEST_F(ValidatorDetects, NanBox) {
+  FlatBvh bad = bvh_;
+  bad.nodes[0].rmax[2] = std::numeric_limits<float>::quiet_NaN();
+  expect_invalid(bad, "NaN in a box");
+}
+
+TEST_F(ValidatorDetects, WrongTriangleData) {
+  FlatBvh bad = bvh_;
+  bad.triangles[10].v1[0] += 0.25f;
+  expect_invalid(bad, "vertex differs from the scene");
+}
+
+TEST_F(ValidatorDetects, UnreachableNode) {
+  FlatBvh bad = bvh_;
+  bad.nodes.push_back(bad.nodes[1]);
+  expect_invalid(bad, "a node nothing points to");
+}
+
+TEST_F(ValidatorDetects, ManyErrorsAreCapped) {
+  FlatBvh bad = bvh_;
+  for (BvhNode& n : bad.nodes) n.lmax[0] = n.lmin[0];  // flattens every left box
+  const BvhValidation v = validate_bvh(bad, tris_);
+  EXPECT_FALSE(v.ok);
+  EXPECT_LE(v.errors.size(), 11u);
+  EXPECT_NE(v.errors.back().find("more"), std::string::npos) << v.errors.back();
+}
+
+TEST(Validator, DetectsUncoveredSplitTriangle) {
+  // With spatial splits a triangle spans several leaves; moving one of them away must be
+  // caught even though the triangle is still referenced.
+  const auto tris = diagonal_strips(100);
+  FlatBvh bvh = build_bvh(tris, with_splits(true));
+  ASSERT_TRUE(validate_bvh(bvh, tris).ok);
+  ASSERT_GT(bvh.triangles.size(), tris.size());
+  for (BvhNode& n : bvh.nodes) {
+    if (n.left_count == 0) continue;
+    // Shrink this leaf's box to a corner of itself.
+    for (int k = 0; k < 3; ++k) n.lmax[k] = n.lmin[k] + 0.01f * (n.lmax[k] - n.lmin[k]);
+    break;
+  }
+  EXPECT_FALSE(validate_bvh(bvh, tris).ok);
+}
+
+// A chain: node i has a leaf (triangle i) on the left and node i + 1 on the right; the last
+// node has two leaves. `inner` nodes give a tree of depth inner + 1.
+FlatBvh chain(const std::vector<SceneTriangle>& tris, std::uint32_t inner) {
+  FlatBvh bvh;
+  auto box_of = [&](std::uint32_t first, std::uint32_t last, float* lo, float* hi) {
+    for (int k = 0; k < 3; ++k) lo[k] = FLT_MAX, hi[k] = -FLT_MAX;
+    for (std::uint32_t i = first; i <= last; ++i)
+      for (const auto& p : tris[i].p)
+        for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], p[k]), hi[k] = std::max(hi[k], p[k]);
+  };
+  for (std::uint32_t i = 0; i < tris.size(); ++i) {
+    BvhTriangle t{};
+    for (int k = 0; k < 3; ++k) t.v0[k] = tris[i].p[0][k], t.v1[k] = tris[i].p[1][k], t.v2[k] = tris[i].p[2][k];
+    t.prim = i;
+    t.material = tris[i].material;
+    bvh.triangles.push_back(t);
+  }
+  const auto last = static_cast<std::uint32_t>(tris.size() - 1);
+  for (std::uint32_t i = 0; i < inner; ++i) {
+    BvhNode n{};
+    box_of(i, i, n.lmin, n.lmax);
+    n.left = i;
+    n.left_count = 1;
+    if (i + 1 < inner) {
+      box_of(i + 1, last, n.rmin, n.rmax);
+      n.right = i + 1;
+      n.right_count = 0;
+    } else {
+      box_of(i + 1, last, n.rmin, n.rmax);
+      n.right = i + 1;
+      n.right_count = last - i;
+    }
+    bvh.nodes.push_back(n);
+  }
+  return bvh;
+}
+
+TEST(Validator, DepthAndLeafSizeLimits) {
+  const auto tris = random_soup(PX_BVH_MAX_DEPTH + 2, 71);
+  // Depth exactly PX_BVH_MAX_DEPTH passes; one more level fails.
+  const FlatBvh deepest_allowed = chain(
+      std::vector<SceneTriangle>(tris.begin(), tris.begin() + PX_BVH_MAX_DEPTH), PX_BVH_MAX_DEPTH - 1);
+  EXPECT_TRUE(validate_bvh(deepest_allowed, {tris.begin(), tris.begin() + PX_BVH_MAX_DEPTH}).ok);
+  const std::vector<SceneTriangle> one_more(tris.begin(), tris.begin() + PX_BVH_MAX_DEPTH + 1);
+  const BvhValidation too_deep = validate_bvh(chain(one_more, PX_BVH_MAX_DEPTH), one_more);
+  EXPECT_FALSE(too_deep.ok);
+  ASSERT_FALSE(too_deep.errors.empty());
+  EXPECT_NE(too_deep.errors[0].find("depth"), std::string::npos) << too_deep.errors[0];
+
+  // One inner node whose right leaf holds PX_BVH_MAX_LEAF_SIZE + 1 triangles.
+  const std::vector<SceneTriangle> few(tris.begin(), tris.begin() + PX_BVH_MAX_LEAF_SIZE + 2);
+  EXPECT_FALSE(validate_bvh(chain(few, 1), few).ok);
+  const std::vector<SceneTriangle> fits(tris.begin(), tris.begin() + PX_BVH_MAX_LEAF_SIZE + 1);
+  EXPECT_TRUE(validate_bvh(chain(fits, 1), fits).ok);
+}
+
+TEST(Validator, EmptyTreeAndAbsentChildRules) {
+  const auto tris = random_soup(3, 81);
+  EXPECT_FALSE(validate_bvh(FlatBvh{}, tris).ok);
+  // An absent child anywhere but the root is an error.
+  FlatBvh bvh = build_bvh(random_soup(50, 82), with_splits(false));
+  ASSERT_GT(bvh.nodes.size(), 1u);
+  BvhNode& n = bvh.nodes[1];
+  for (int k = 0; k < 3; ++k) n.rmin[k] = FLT_MAX, n.rmax[k] = -FLT_MAX;
+  n.right_count = 0;
+  n.right = 0;
+  EXPECT_FALSE(validate_bvh(bvh, random_soup(50, 82)).ok);
+}
+
+// ---------------------------------------------------------------------------------------------
+// EmbreeReference
+
+TEST(EmbreeReference, MatchesBruteForce) {
+  const auto tris = random_soup(3000, 91);
+  const EmbreeReference embree(tris);
+  std::size_t mismatches = 0, hits = 0;
+  for (const Ray& ray : random_rays(tris, 3000, 92)) {
+    const Hit a = embree.intersect(ray);
+    const RefHit b = brute_force(tris, ray);
+    hits += b.prim != PX_NO_HIT;
+    mismatches += !same_hit(a.t, a.prim, b.t, b.prim);
+    if (a.prim != PX_NO_HIT) {
+      // (u, v) are the barycentrics of v1 and v2: they rebuild the hit point.
+      const SceneTriangle& t = tris[a.prim];
+      const glm::vec3 p = (1.0f - a.u - a.v) * t.p[0] + a.u * t.p[1] + a.v * t.p[2];
+      const glm::vec3 q = glm::vec3(ray.org[0], ray.org[1], ray.org[2]) +
+                          a.t * glm::vec3(ray.dir[0], ray.dir[1], ray.dir[2]);
+      EXPECT_LT(glm::length(p - q), 1e-5f * std::max(1.0f, glm::length(q)) + 1e-4f * a.t);
+    }
+  }
+  EXPECT_EQ(mismatches, 0u);
+  EXPECT_GT(hits, 1000u);
+}
+
+TEST(EmbreeReference, RespectsTheRayIntervalAndOcclusion) {
+  const std::vector<SceneTriangle> tris = {make_triangle({-1, -1, 5}, {1, -1, 5}, {0, 1, 5}),
+                                           make_triangle({-1, -1, 8}, {1, -1, 8}, {0, 1, 8})};
+  const EmbreeReference embree(tris);
+  Ray ray{{0, 0, 0}, 0.0f, {0, 0, 1}, kInfinity};
+  Hit hit = embree.intersect(ray);
+  EXPECT_EQ(hit.prim, 0u);
+  EXPECT_NEAR(hit.t, 5.0f, 1e-5f);
+  EXPECT_TRUE(embree.occluded(ray));
+  ray.tmin = 6.0f;  // skips the first triangle
+  hit = embree.intersect(ray);
+  EXPECT_EQ(hit.prim, 1u);
+  EXPECT_NEAR(hit.t, 8.0f, 1e-5f);
+  ray.tmax = 7.0f;  // and now both
+  EXPECT_EQ(embree.intersect(ray).prim, PX_NO_HIT);
+  EXPECT_FALSE(embree.occluded(ray));
+  const Ray away{{0, 0, 0}, 0.0f, {0, 0, -1}, kInfinity};
+  EXPECT_EQ(embree.intersect(away).prim, PX_NO_HIT);
+  EXPECT_FALSE(embree.occluded(away));
+}
+
+TEST(EmbreeReference, IntersectAllMatchesSingleRaysOnAnyThreadCount) {
+  const auto tris = random_soup(2000, 101);
+  const EmbreeReference embree(tris);
+  const auto rays = random_rays(tris, 2001, 102);
+  std::vector<Hit> expected;
+  for (const Ray& r : rays) expected.push_back(embree.intersect(r));
+  for (int threads : {1, 2, 3}) {
+    std::vector<Hit> hits;
+    embree.intersect_all(rays, hits, threads);
+    ASSERT_EQ(hits.size(), rays.size());
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+      EXPECT_EQ(hits[i].prim, expected[i].prim);
+      EXPECT_EQ(hits[i].t, expected[i].t);
+    }
+  }
+  // Occlusion agrees with closest hit.
+  for (std::size_t i = 0; i < rays.size(); ++i)
+    EXPECT_EQ(embree.occluded(rays[i]), expected[i].prim != PX_NO_HIT);
+}
+
+TEST(EmbreeReference, EmptySceneMissesEverything) {
+  const EmbreeReference embree(std::vector<SceneTriangle>{});
+  const Ray ray{{0, 0, 0}, 0.0f, {0, 0, 1}, kInfinity};
+  EXPECT_EQ(embree.intersect(ray).prim, PX_NO_HIT);
+  EXPECT_FALSE(embree.occluded(ray));
+  std::vector<Hit> hits;
+  embree.intersect_all({}, hits, 2);
+  EXPECT_TRUE(hits.empty());
+}
+
+}  // namespace
+}  // namespace px
