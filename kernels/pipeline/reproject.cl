@@ -3,9 +3,10 @@
  * Parallel stereo cameras have horizontal epipolar lines: the left-eye image of a right-eye
  * pixel's surface point lies on the same row. So each right pixel gathers from its own row of
  * the left eye, which the same device owns: no data crosses devices. The two left pixels
- * around the projected position are linearly weighted; a tap is kept only when the left eye
- * sees the same surface there (normal cosine and relative distance within tolerance) and it is
- * diffuse. No kept tap, or a right pixel that is not diffuse, makes a hole. Background pixels
+ * around the projected position are linearly weighted; both must see the same surface as the
+ * right pixel (normal, tangent-plane distance and footprint tolerances) and be diffuse.
+ * Otherwise — a silhouette, a disocclusion, the image border, or a right pixel that is not
+ * diffuse — the pixel is a hole. Background pixels
  * (both eyes miss the scene) are copied from the same left pixel. */
 #include "shared/types.h"
 #include "render/camera.h"
@@ -61,17 +62,26 @@ kernel void reproject(global float4* right_radiance, global uint* holes, volatil
       const int x0 = (int)x0f;
       float wsum = 0.0f;
       float3 acc = (float3)(0.0f, 0.0f, 0.0f);
+      int rejected = 0;
       for (int k = 0; k < 2; ++k) {
         const int x = x0 + k;
-        if (x < 0 || x >= (int)width) continue;
         const float w = k == 0 ? 1.0f - a : a;
         if (w <= 0.0f) continue;
+        if (x < 0 || x >= (int)width) {
+          rejected = 1;
+          continue;
+        }
         const uint j = row_start + (uint)x;
-        if (!px_same_surface(left_g + j, p, n, g->depth, cos_view, footprint)) continue;
+        /* Conservative at silhouettes: if either neighbour sees another surface, the exact point
+         * may be hidden from the left eye (a disocclusion edge), so the pixel is a hole. */
+        if (!px_same_surface(left_g + j, p, n, g->depth, cos_view, footprint)) {
+          rejected = 1;
+          continue;
+        }
         acc += w * left_radiance[j].xyz;
         wsum += w;
       }
-      if (wsum > 0.0f) {
+      if (!rejected && wsum > 0.0f) {
         result = (float4)(acc / wsum, 1.0f);
         ok = 1;
       }

@@ -1,0 +1,248 @@
+// The image-parallel stereo pipeline: the scheduler's tables, device-count invariance,
+// baseline == proposed, reprojection correctness (against an independent visibility check
+// with Embree and against the path tracer's own values), and hole bookkeeping.
+#include "app/scene_setup.h"
+#include "bvh/embree_reference.h"
+#include "pipeline/stereo_pipeline.h"
+#include "pipeline/strip_schedule.h"
+#include "scene/primitives.h"
+#include "scene/scene_loader.h"
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <memory>
+#include <set>
+
+namespace px {
+namespace {
+
+// ---- scheduler ----
+
+TEST(StripSchedule, PaperFourDeviceExample) {
+  auto fs = make_schedule(PipelineKind::Proposed, 4, 720);
+  for (int d = 0; d < 4; ++d) {
+    EXPECT_DOUBLE_EQ(fs.find(Stage::PathTraceLeft)->per_device[d].left, 0.25);
+    EXPECT_DOUBLE_EQ(fs.find(Stage::PathTraceLeft)->per_device[d].right, 0.0);
+    EXPECT_DOUBLE_EQ(fs.find(Stage::HoleFill)->per_device[d].left, 0.0);
+    EXPECT_DOUBLE_EQ(fs.find(Stage::HoleFill)->per_device[d].right, 0.25);
+    EXPECT_DOUBLE_EQ(fs.find(Stage::Tonemap)->per_device[d].left, 0.25);
+    EXPECT_DOUBLE_EQ(fs.find(Stage::Tonemap)->per_device[d].right, 0.25);
+  }
+  EXPECT_EQ(fs.tree.root, 0);
+  EXPECT_EQ(fs.tree.children, (std::vector<int>{1, 2, 3}));
+  EXPECT_NE(fs.explain().find("(0.250, 0.000)"), std::string::npos);
+}
+
+TEST(StripSchedule, StripsCoverEveryRowOnceForAnyHeightAndCount) {
+  for (auto kind : {PipelineKind::Proposed, PipelineKind::Baseline, PipelineKind::Mono})
+    for (int n = 1; n <= 5; ++n)
+      for (unsigned h : {1u, 2u, 7u, 100u, 101u, 719u}) {
+        if (static_cast<unsigned>(n) > h && kind != PipelineKind::Baseline) continue;
+        auto fs = make_schedule(kind, n, h);
+        const StageWork* pt = fs.find(Stage::PathTraceLeft);
+        std::vector<int> seen(h, 0);
+        for (int d = 0; d < n; ++d)
+          for (auto r : pt->left_rows[d])
+            for (unsigned y = r.begin; y < r.end; ++y) seen[y]++;
+        for (unsigned y = 0; y < h; ++y) ASSERT_EQ(seen[y], 1) << to_string(kind) << " n=" << n << " h=" << h << " row " << y;
+      }
+  auto rows = split_rows(10, 4);
+  EXPECT_EQ(rows[0].size(), 3u);
+  EXPECT_EQ(rows[3].size(), 2u);
+}
+
+TEST(StripSchedule, BitReversedOrderIsAPermutation) {
+  EXPECT_EQ(bit_reversed_order(8), (std::vector<unsigned>{0, 4, 2, 6, 1, 5, 3, 7}));
+  auto o = bit_reversed_order(64);
+  EXPECT_EQ(std::set<unsigned>(o.begin(), o.end()).size(), 64u);
+  EXPECT_THROW(bit_reversed_order(6), std::invalid_argument);
+}
+
+TEST(StripSchedule, BaselineRunsEverythingAfterTransferOnTheOwner) {
+  auto fs = make_schedule(PipelineKind::Baseline, 3, 90);
+  for (Stage s : {Stage::GBuffer, Stage::Reproject, Stage::HoleFill, Stage::Tonemap}) {
+    const StageWork* w = fs.find(s);
+    ASSERT_NE(w, nullptr);
+    EXPECT_DOUBLE_EQ(w->per_device[0].right, 1.0) << stage_name(s);
+    for (int d = 1; d < 3; ++d) EXPECT_DOUBLE_EQ(w->per_device[d].right, 0.0) << stage_name(s);
+  }
+  // Path tracing is spread: every device gets a share.
+  for (int d = 0; d < 3; ++d) EXPECT_GT(fs.find(Stage::PathTraceLeft)->per_device[d].left, 0.2);
+}
+
+// ---- pipeline runs ----
+
+struct PipelineRun {
+  std::array<ImageRGB, 2> radiance;
+  std::vector<std::uint8_t> holes;
+  std::vector<GBufferTexel> gright;
+  FrameStats stats;
+};
+
+PipelineRun run(const LoadedScene& loaded, PipelineKind kind, int devices, unsigned w, unsigned h, unsigned spp,
+                std::uint32_t seed = 0, unsigned frame = 0) {
+  DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
+  DeviceScene ds(set, loaded.scene, loaded.bvh);
+  StereoPipeline::Options opt;
+  opt.pipeline = kind;
+  opt.trace.spp = spp;
+  opt.trace.bounces = 4;
+  opt.trace.seed = seed;
+  StereoPipeline p(set, ds, loaded.scene, w, h, opt);
+  PipelineRun r;
+  r.stats = p.render(frame, 0.1f * frame);
+  r.radiance = p.radiance();
+  r.holes = p.hole_mask();
+  r.gright = p.gbuffer_of(1);
+  return r;
+}
+
+bool same_bits(const ImageRGB& a, const ImageRGB& b) {
+  return a.rgb.size() == b.rgb.size() && std::memcmp(a.rgb.data(), b.rgb.data(), a.rgb.size() * sizeof(float)) == 0;
+}
+
+const LoadedScene& glossy_cornell() {
+  static LoadedScene s = load_and_build("cornell-glossy", true);
+  return s;
+}
+
+TEST(StereoPipeline, ProposedIsBitIdenticalForOneToFourDevices) {
+  const auto& scene = glossy_cornell();
+  const unsigned w = 48, h = 37;  // 37 rows: divisible by none of 2, 3, 4
+  auto one = run(scene, PipelineKind::Proposed, 1, w, h, 2, 0, 1);
+  for (int n : {2, 3, 4}) {
+    auto many = run(scene, PipelineKind::Proposed, n, w, h, 2, 0, 1);
+    EXPECT_TRUE(same_bits(one.radiance[0], many.radiance[0])) << n << " devices, left eye";
+    EXPECT_TRUE(same_bits(one.radiance[1], many.radiance[1])) << n << " devices, right eye";
+    EXPECT_EQ(one.holes, many.holes) << n << " devices";
+  }
+}
+
+TEST(StereoPipeline, BaselineGivesTheSameImagesAsProposed) {
+  const auto& scene = glossy_cornell();
+  auto proposed = run(scene, PipelineKind::Proposed, 2, 40, 30, 2);
+  auto baseline = run(scene, PipelineKind::Baseline, 3, 40, 30, 2);
+  EXPECT_TRUE(same_bits(proposed.radiance[0], baseline.radiance[0]));
+  EXPECT_TRUE(same_bits(proposed.radiance[1], baseline.radiance[1]));
+  EXPECT_GT(baseline.stats.bytes_transferred, 0u);
+}
+
+TEST(StereoPipeline, HolesAreExactlyThePathTracedRightPixels) {
+  // Every right pixel is reprojected or filled, never neither: a hole holds exactly what the
+  // mono pipeline path traces there (same sample streams), and a reprojected pixel is a
+  // diffuse surface or background.
+  const auto& scene = glossy_cornell();
+  auto proposed = run(scene, PipelineKind::Proposed, 2, 48, 36, 2);
+  auto mono = run(scene, PipelineKind::Mono, 2, 48, 36, 2);
+  EXPECT_TRUE(same_bits(proposed.radiance[0], mono.radiance[0])) << "left eyes should match";
+  int holes = 0, reprojected = 0;
+  for (std::size_t i = 0; i < proposed.holes.size(); ++i) {
+    const auto cls = proposed.gright[i].material_class;
+    for (int c = 0; c < 3; ++c) ASSERT_TRUE(std::isfinite(proposed.radiance[1].rgb[i * 3 + c]));
+    if (proposed.holes[i]) {
+      ++holes;
+      for (int c = 0; c < 3; ++c)
+        ASSERT_EQ(proposed.radiance[1].rgb[i * 3 + c], mono.radiance[1].rgb[i * 3 + c]) << "hole pixel " << i;
+    } else {
+      ++reprojected;
+      EXPECT_TRUE(cls == PX_CLASS_DIFFUSE || cls == PX_CLASS_MISS) << "pixel " << i << " class " << cls;
+    }
+    // Glossy, mirror and emissive surfaces are view-dependent: always holes.
+    if (cls == PX_CLASS_GLOSSY || cls == PX_CLASS_MIRROR || cls == PX_CLASS_EMISSIVE)
+      EXPECT_TRUE(proposed.holes[i]) << "pixel " << i << " class " << cls;
+  }
+  EXPECT_GT(reprojected, holes) << "most of a diffuse scene should be reprojected";
+  EXPECT_EQ(proposed.stats.reprojected, static_cast<std::size_t>(reprojected));
+}
+
+TEST(StereoPipeline, ReprojectedSurfacesAreVisibleFromTheLeftEye) {
+  // Independent check of disocclusion handling: for every reprojected right pixel, Embree casts
+  // a ray from the left eye to that surface point; it must arrive unblocked (else the left eye
+  // never saw it and reusing its radiance would be wrong).
+  Scene s;
+  Material white;
+  white.diffuse = glm::vec3(0.7f);
+  Material light = white;
+  light.emission = glm::vec3(5.0f);
+  s.materials = {white, light};
+  append_quad(s.triangles, {-3, -2, 4}, {3, -2, 4}, {3, 2, 4}, {-3, 2, 4}, 0);            // back wall
+  append_box(s.triangles, {-0.3f, -0.6f, 0.8f}, {0.3f, 0.6f, 1.2f}, 0);                   // near occluder
+  append_quad(s.triangles, {-1, 1.9f, 2}, {1, 1.9f, 2}, {1, 1.9f, 3}, {-1, 1.9f, 3}, 1);   // light
+  s.camera.position = {0.0f, 0.0f, -1.0f};
+  s.camera.target = {0.0f, 0.0f, 4.0f};
+  s.camera.vfov_deg = 60.0f;
+  s.ipd_m = 0.25f;  // wide eyes: large disocclusions beside the occluder
+  LoadedScene loaded{s, build_bvh(s.triangles)};
+  auto r = run(loaded, PipelineKind::Proposed, 2, 64, 48, 1);
+  const glm::vec3 left_eye = s.camera.position - glm::vec3(-1, 0, 0) * (0.5f * s.ipd_units());  // right = -x here
+  EmbreeReference embree(s.triangles);
+  int checked = 0, disoccluded_holes = 0;
+  for (std::size_t i = 0; i < r.holes.size(); ++i) {
+    const auto& g = r.gright[i];
+    if (g.material_class != PX_CLASS_DIFFUSE) continue;
+    const glm::vec3 p(g.pos[0], g.pos[1], g.pos[2]);
+    const glm::vec3 to = p - left_eye;
+    const float dist = glm::length(to);
+    Ray ray{};
+    for (int k = 0; k < 3; ++k) {
+      ray.org[k] = left_eye[k];
+      ray.dir[k] = to[k] / dist;
+    }
+    ray.tmin = 0.0f;
+    ray.tmax = dist * 0.999f;
+    const bool blocked = embree.occluded(ray);
+    if (!r.holes[i]) {
+      ++checked;
+      EXPECT_FALSE(blocked) << "pixel " << i << " reprojected but hidden from the left eye";
+    } else if (blocked) {
+      ++disoccluded_holes;
+    }
+  }
+  EXPECT_GT(checked, 500);
+  EXPECT_GT(disoccluded_holes, 10) << "the scene should have disocclusions (else the test says nothing)";
+}
+
+// 4x4 block means over blocks whose pixels were all reprojected.
+double reprojected_block_mse(const ImageRGB& a, const ImageRGB& b, const std::vector<std::uint8_t>& holes, int* blocks) {
+  double s = 0;
+  int n = 0;
+  for (int by = 0; by + 4 <= a.height; by += 4)
+    for (int bx = 0; bx + 4 <= a.width; bx += 4) {
+      bool all = true;
+      for (int y = by; y < by + 4; ++y)
+        for (int x = bx; x < bx + 4; ++x) all = all && !holes[y * a.width + x];
+      if (!all) continue;
+      for (int c = 0; c < 3; ++c) {
+        double ma = 0, mb = 0;
+        for (int y = by; y < by + 4; ++y)
+          for (int x = bx; x < bx + 4; ++x) {
+            ma += a.rgb[(y * a.width + x) * 3 + c] / 16.0;
+            mb += b.rgb[(y * a.width + x) * 3 + c] / 16.0;
+          }
+        s += (ma - mb) * (ma - mb);
+        ++n;
+      }
+    }
+  *blocks = n / 3;
+  return n ? s / n : 0.0;
+}
+
+TEST(StereoPipeline, ReprojectionEqualsPathTracingInExpectation) {
+  // Diffuse scene, many samples: the reprojected right eye and the path-traced right eye
+  // (mono) differ by noise only. Noise floor: two mono renders with different seeds.
+  static LoadedScene cornell = load_and_build("cornell", true);
+  const unsigned w = 64, h = 48, spp = 64;
+  auto proposed = run(cornell, PipelineKind::Proposed, 2, w, h, spp, 1);
+  auto mono_a = run(cornell, PipelineKind::Mono, 2, w, h, spp, 2);
+  auto mono_b = run(cornell, PipelineKind::Mono, 2, w, h, spp, 3);
+  int blocks = 0;
+  const double noise = reprojected_block_mse(mono_a.radiance[1], mono_b.radiance[1], proposed.holes, &blocks);
+  const double diff = reprojected_block_mse(proposed.radiance[1], mono_a.radiance[1], proposed.holes, &blocks);
+  EXPECT_GT(blocks, 50);
+  // Reprojection adds the left estimate's own noise and a half-pixel resampling blur.
+  EXPECT_LT(diff, 3.0 * noise + 1e-7) << "noise floor " << noise << " over " << blocks << " blocks";
+}
+
+}  // namespace
+}  // namespace px
