@@ -21,7 +21,6 @@
 
 namespace px {
 // Defined in embree_bvh_builder.cpp; flat_bvh.h does not declare it yet.
-void set_triangle_flags(FlatBvh& bvh, const std::vector<std::uint32_t>& flags_per_scene_triangle);
 }  // namespace px
 
 namespace px {

@@ -192,6 +192,25 @@ TEST(TraceKernels, ClosestHitMatchesEmbreeOnFullAtrium) {
   EXPECT_LE(disagree, 5) << "of " << rays.size();
 }
 
+TEST(TraceKernels, TinyScenesWithAOneLeafTree) {
+  // A scene that fits one leaf has a root with an absent child (inverted box): traversal must
+  // skip it rather than take it for an interior node (which once looped forever).
+  for (int count : {1, 2, 3}) {
+    std::vector<SceneTriangle> tris;
+    for (int i = 0; i < count; ++i)
+      append_triangle(tris, {-1.0f, -1.0f, float(i)}, {1.0f, -1.0f, float(i)}, {0.0f, 1.0f, float(i)}, 0);
+    TraceFixture f(one_device(), scene_from(tris));
+    std::vector<Ray> rays{make_ray({0.0f, 0.0f, -5.0f}, {0.0f, 0.0f, 1.0f}), make_ray({5.0f, 5.0f, -5.0f}, {0.0f, 0.0f, 1.0f})};
+    auto hits = f.tracer->closest(rays);
+    ASSERT_EQ(hits[0].prim, 0u) << count << " triangles";
+    EXPECT_FLOAT_EQ(hits[0].t, 5.0f);
+    EXPECT_EQ(hits[1].prim, PX_NO_HIT);
+    auto occ = f.tracer->occluded(rays);
+    EXPECT_TRUE(occ[0]);
+    EXPECT_FALSE(occ[1]);
+  }
+}
+
 TEST(TraceKernels, AnyHitAgreesWithClosestHit) {
   TraceFixture f(one_device(), scene_from(random_soup(2000, 21)));
   auto rays = random_rays(f.scene.triangles, 3000, 22);

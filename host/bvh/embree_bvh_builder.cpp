@@ -210,8 +210,8 @@ void to_rtc_bounds(const BoundsD& bounds, const float lo[3], const float hi[3], 
 // on (and starts again from the full box for the next axis). Clipping the triangle to the box
 // is most of the work of a split, so each thread remembers the clipped polygons of the last full
 // box and of the last right piece: a hit skips the clipping. The polygon of a right piece is
-// also exactly the triangle clipped to that piece's box (its box lies inside the old box and on
-// the right of the plane, and contains the piece), so reusing it changes no result.
+// the triangle clipped to that piece's box, too (the box lies inside the old box, on the right
+// of the plane, and contains the piece), so reusing it is exact, not an approximation.
 struct PolygonCache {
   std::uint64_t build_id = 0;  // 0: empty
   std::uint32_t prim = 0;
@@ -738,7 +738,6 @@ FlatBvh build_bvh(const std::vector<SceneTriangle>& triangles, const BvhBuildOpt
 // Hook for the renderer: BvhTriangle::flags (PX_TRI_* bits) from one value per scene triangle,
 // e.g. derived from its material. build_bvh leaves flags at 0. flat_bvh.h does not declare this
 // yet (not this module's file); the declaration to add there is
-//   void set_triangle_flags(FlatBvh& bvh, const std::vector<std::uint32_t>& flags_per_scene_triangle);
 void set_triangle_flags(FlatBvh& bvh, const std::vector<std::uint32_t>& flags_per_scene_triangle) {
   for (BvhTriangle& t : bvh.triangles) {
     if (t.prim >= flags_per_scene_triangle.size())

@@ -37,6 +37,10 @@ struct FlatBvh {
 // flattens the result. Throws std::runtime_error on an empty input or an Embree error.
 FlatBvh build_bvh(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options = {});
 
+// Sets BvhTriangle::flags of every leaf triangle from a per-scene-triangle table
+// (PX_TRI_* bits). Throws std::out_of_range if the table is shorter than the scene.
+void set_triangle_flags(FlatBvh& bvh, const std::vector<std::uint32_t>& flags_per_scene_triangle);
+
 struct BvhValidation {
   bool ok = true;
   std::vector<std::string> errors;  // first few problems, human readable

@@ -98,11 +98,11 @@ std::vector<LightTriangle> make_light_table(const Scene& scene) {
   return out;
 }
 
-std::vector<BvhTriangle> flag_triangles(const Scene& scene, const std::vector<BvhTriangle>& tris) {
-  std::vector<BvhTriangle> out = tris;
-  for (auto& t : out) {
-    const Material& m = scene.materials.at(t.material);
-    t.flags = (m.alpha_texture >= 0 ? PX_TRI_ALPHA_TESTED : 0u) | (m.is_emissive() ? PX_TRI_EMISSIVE : 0u);
+std::vector<std::uint32_t> triangle_flags(const Scene& scene) {
+  std::vector<std::uint32_t> out(scene.triangles.size());
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    const Material& m = scene.materials.at(scene.triangles[i].material);
+    out[i] = (m.alpha_texture >= 0 ? PX_TRI_ALPHA_TESTED : 0u) | (m.is_emissive() ? PX_TRI_EMISSIVE : 0u);
   }
   return out;
 }
@@ -125,7 +125,9 @@ void fill_light_params(const Scene& scene, std::size_t light_count, FrameParams&
 }
 
 DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, const FlatBvh& bvh) {
-  const auto triangles = flag_triangles(scene, bvh.triangles);
+  FlatBvh flagged = bvh;
+  set_triangle_flags(flagged, triangle_flags(scene));
+  const auto& triangles = flagged.triangles;
   const auto shading = make_triangle_shading(scene);
   const auto materials = make_gpu_materials(scene);
   const auto lights = make_light_table(scene);

@@ -30,8 +30,8 @@ struct DeviceSceneBuffers {
 std::vector<TriangleShading> make_triangle_shading(const Scene& scene);
 std::vector<GpuMaterial> make_gpu_materials(const Scene& scene);
 std::vector<LightTriangle> make_light_table(const Scene& scene);
-// Leaf-order triangles with PX_TRI_* flags set from their materials.
-std::vector<BvhTriangle> flag_triangles(const Scene& scene, const std::vector<BvhTriangle>& tris);
+// PX_TRI_* flags of every scene triangle, from its material (alpha-tested, emissive).
+std::vector<std::uint32_t> triangle_flags(const Scene& scene);
 
 // How next-event estimation picks a light type, and the sun/sky constants, as FrameParams
 // fields (the per-launch fields are left for the caller).

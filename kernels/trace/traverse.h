@@ -13,6 +13,8 @@
 #include "trace/watertight.h"
 #include "scene/scene_view.h"
 
+inline int px_child_absent(uint index, uint count) { return count == 0u && index == 0u; }
+
 /* Intersects `count` leaf triangles starting at `first`; updates *best. Returns 1 on any hit. */
 inline int px_intersect_leaf(const SceneView* scene, uint first, uint count,
                              const RayShear* shear, float tmin, Hit* best) {
@@ -50,8 +52,10 @@ inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir,
   uint node_index = 0;
   for (;;) {
     const BvhNode n = nodes[node_index];
-    float tl = px_intersect_box(org, inv_dir, n.lmin, n.lmax, tmin, best.t);
-    float tr = px_intersect_box(org, inv_dir, n.rmin, n.rmax, tmin, best.t);
+    float tl = px_child_absent(n.left, n.left_count) ? INFINITY
+                                                     : px_intersect_box(org, inv_dir, n.lmin, n.lmax, tmin, best.t);
+    float tr = px_child_absent(n.right, n.right_count) ? INFINITY
+                                                       : px_intersect_box(org, inv_dir, n.rmin, n.rmax, tmin, best.t);
     if (tl != INFINITY && n.left_count > 0) {
       px_intersect_leaf(scene, n.left, n.left_count, &shear, tmin, &best);
       tl = INFINITY;
@@ -97,8 +101,10 @@ inline int px_trace_any(const SceneView* scene, float3 org, float3 dir, float tm
   Hit scratch;
   for (;;) {
     const BvhNode n = nodes[node_index];
-    const float tl = px_intersect_box(org, inv_dir, n.lmin, n.lmax, tmin, tmax);
-    const float tr = px_intersect_box(org, inv_dir, n.rmin, n.rmax, tmin, tmax);
+    const float tl = px_child_absent(n.left, n.left_count) ? INFINITY
+                                                           : px_intersect_box(org, inv_dir, n.lmin, n.lmax, tmin, tmax);
+    const float tr = px_child_absent(n.right, n.right_count) ? INFINITY
+                                                             : px_intersect_box(org, inv_dir, n.rmin, n.rmax, tmin, tmax);
     int go_left = tl != INFINITY, go_right = tr != INFINITY;
     if (go_left && n.left_count > 0) {
       scratch.t = tmax;
