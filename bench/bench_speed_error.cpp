@@ -4,11 +4,14 @@
 //
 //   build/bench_speed_error --scene cornell --scene atrium --width 128 --height 72
 //       --ref-spp 4096 --spp 1 --spp 2 --spp 4 --spp 8 --devices 2 --csv speed_error.csv
+#include "app/guarded_main.h"
 #include "app/scene_setup.h"
+#include "bench_common.h"
 #include "cl/device_set.h"
 #include "image/image_metrics.h"
 #include "render/device_scene.h"
 #include "render/path_tracer.h"
+#include "render/reference_render.h"
 
 #include <CLI/CLI.hpp>
 
@@ -18,15 +21,8 @@
 #include <fstream>
 
 namespace {
-
 using clock_type = std::chrono::steady_clock;
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
+using px::bench::median;
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -53,7 +49,7 @@ int main(int argc, char** argv) {
     double wall_ms, device_ms, rel_mse, psnr;
   };
   std::vector<Row> rows;
-  try {
+  const int rc = px::run_guarded([&]() -> int {
     for (const auto& name : scenes) {
       auto loaded = px::load_and_build(name);
       auto set = px::DeviceSet::create({devices, px::DeviceMode::Auto, ""});
@@ -61,30 +57,10 @@ int main(int argc, char** argv) {
       px::PathTracer tracer(set, ds, loaded.scene);
       px::PathTracer::Options opt;
       opt.bounces = bounces;
-      // Reference: independent samples (another seed), accumulated in double.
-      opt.seed = 0x5eed;
-      const unsigned pass = 64;
-      std::array<std::vector<double>, 2> sum;
-      for (auto& s : sum) s.assign(static_cast<std::size_t>(width) * height * 3, 0.0);
-      auto t0 = clock_type::now();
-      for (unsigned done = 0; done < ref_spp;) {
-        opt.spp = std::min(pass, ref_spp - done);
-        auto eyes = tracer.render_stereo(0.0f, 0, width, height, opt, done);
-        for (int e = 0; e < 2; ++e)
-          for (std::size_t i = 0; i < sum[e].size(); ++i) sum[e][i] += double(eyes[e].rgb[i]) * opt.spp;
-        done += opt.spp;
-        const double s = std::chrono::duration<double>(clock_type::now() - t0).count();
-        std::fprintf(stderr, "\r[%s] reference %u/%u spp, %.0f s, ~%.0f s left   ", name.c_str(), done, ref_spp, s,
-                     s / done * (ref_spp - done));
-      }
-      std::fprintf(stderr, "\n");
-      std::array<px::ImageRGB, 2> ref;
-      for (int e = 0; e < 2; ++e) {
-        ref[e].width = static_cast<int>(width);
-        ref[e].height = static_cast<int>(height);
-        ref[e].rgb.resize(sum[e].size());
-        for (std::size_t i = 0; i < sum[e].size(); ++i) ref[e].rgb[i] = static_cast<float>(sum[e][i] / ref_spp);
-      }
+      px::ReferenceOptions ref_opt;
+      ref_opt.spp = ref_spp;
+      ref_opt.bounces = bounces;
+      const auto ref = px::render_reference(tracer, 0.0f, 0, width, height, ref_opt, px::eta_printer(name + " reference"));
       opt.seed = 0;
       for (unsigned spp : spps) {
         opt.spp = spp;
@@ -105,13 +81,9 @@ int main(int argc, char** argv) {
         rows.push_back({name, spp, median(wall), median(dev), rel, psnr});
       }
     }
-  } catch (const cl::Error& e) {
-    std::fprintf(stderr, "error: OpenCL: %s\n", px::describe(e).c_str());
-    return 1;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
-    return 1;
-  }
+    return 0;
+  });
+  if (rc != 0) return rc;
   std::printf("\n%-10s %5s %14s %14s %12s %10s\n", "scene", "spp", "ms/frame wall", "ms/frame dev", "relMSE", "PSNR dB");
   for (const auto& r : rows)
     std::printf("%-10s %5u %14.1f %14.1f %12.5f %10.2f\n", r.scene.c_str(), r.spp, r.wall_ms, r.device_ms, r.rel_mse,

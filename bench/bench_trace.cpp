@@ -8,7 +8,9 @@
 // Alpha cut-outs are off on both sides, so both trace exactly the same geometry.
 //
 //   build/bench_trace --scene atrium --width 640 --height 360 --devices 1 --repeats 7 [--csv F]
+#include "app/guarded_main.h"
 #include "app/scene_setup.h"
+#include "bench_common.h"
 #include "bvh/embree_reference.h"
 #include "cl/device_set.h"
 #include "render/device_scene.h"
@@ -29,12 +31,7 @@
 namespace {
 
 using clock_type = std::chrono::steady_clock;
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
+using px::bench::median;
 
 std::vector<px::Ray> primary_rays(const px::Scene& scene, unsigned w, unsigned h) {
   const auto cam = px::make_eye_camera(px::evaluate_camera(scene, 0.0f), px::Eye::Left, scene.ipd_units(), w, h);
@@ -151,7 +148,7 @@ int main(int argc, char** argv) {
   app.add_option("--csv", csv, "also write the table as CSV");
   CLI11_PARSE(app, argc, argv);
 
-  try {
+  return px::run_guarded([&]() -> int {
     std::vector<Row> rows;
     for (const auto& name : scenes) {
       auto loaded = px::load_and_build(name);
@@ -190,12 +187,6 @@ int main(int argc, char** argv) {
             << r.embree_mrays << ',' << r.embree1_mrays << ',' << r.kernel_mrays / r.embree_mrays << ','
             << r.mismatches << '\n';
     }
-  } catch (const cl::Error& e) {
-    std::fprintf(stderr, "error: OpenCL: %s\n", px::describe(e).c_str());
-    return 1;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
-    return 1;
-  }
-  return 0;
+    return 0;
+  });
 }

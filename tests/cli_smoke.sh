@@ -38,5 +38,19 @@ check "non-empty output dir is refused" 1 "not empty|overwrite" -- "$bin" previe
 check "--overwrite allows it" 0 "stereo.png" -- "$bin" preview --scene cornell --width 32 --height 16 --out "$tmp/p" --overwrite
 check "scene json from scenes/" 0 "stereo.png" -- "$bin" preview --scene "$src/scenes/cornell-glossy.json" --width 32 --height 16 --out "$tmp/j"
 
+check "render --explain prints the workload table" 0 "\(0\.250, 0\.000\)" -- "$bin" render --explain --devices 4 --height 720
+check "unknown pipeline is refused" 1 "pipeline" -- "$bin" render --pipeline nope --out "$tmp/x"
+for p in proposed baseline mono; do
+  check "render --pipeline $p" 0 "wrote 2 frame" -- "$bin" render --scene cornell --pipeline "$p" --width 32 --height 18 \
+    --frames 2 --devices 2 --out "$tmp/r_$p" --report "$tmp/r_$p.json"
+  if grep -q '"schema": "parallax-render-report/1"' "$tmp/r_$p.json" && grep -q '"device_ms"' "$tmp/r_$p.json"; then
+    passes=$((passes + 1)); echo "ok   report for $p"
+  else
+    fails=$((fails + 1)); echo "FAIL report for $p lacks schema or device times"
+  fi
+done
+check "compare gives PSNR" 0 "psnr_db" -- "$bin" compare "$tmp/r_proposed/frame_0000_left.exr" "$tmp/r_mono/frame_0000_left.exr"
+check "reference shows progress" 0 "reference_" -- "$bin" reference --scene cornell --width 16 --height 9 --spp 8 --pass-spp 4 --out "$tmp/ref"
+
 echo "$passes passed, $fails failed"
 [ "$fails" -eq 0 ]

@@ -272,7 +272,9 @@ TEST(Bsdf, SampledDistributionMatchesPdfAndAlbedo) {
       mass[bin_of(d.s[0], d.s[1], d.s[2])] += ev[i].s[3] * 4.0 * M_PI / n;
     }
     EXPECT_NEAR(albedo_sampled, albedo_integral, 0.02 + 0.03 * albedo_integral) << "alpha " << c.alpha;
-    if (c.mirror) EXPECT_NEAR(delta_weight, 0.5, 0.01);  // mirror reflects ks = 0.5 exactly
+    if (c.mirror) {
+      EXPECT_NEAR(delta_weight, 0.5, 0.01);  // mirror reflects ks = 0.5 exactly
+    }
     EXPECT_LE(albedo_integral + delta_weight, 1.01) << "energy gain";
     for (int b = 0; b < 64; ++b) {
       const double expected = mass[b] * n;

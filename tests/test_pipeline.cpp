@@ -149,8 +149,9 @@ TEST(StereoPipeline, HolesAreExactlyThePathTracedRightPixels) {
       EXPECT_TRUE(cls == PX_CLASS_DIFFUSE || cls == PX_CLASS_MISS) << "pixel " << i << " class " << cls;
     }
     // Glossy, mirror and emissive surfaces are view-dependent: always holes.
-    if (cls == PX_CLASS_GLOSSY || cls == PX_CLASS_MIRROR || cls == PX_CLASS_EMISSIVE)
+    if (cls == PX_CLASS_GLOSSY || cls == PX_CLASS_MIRROR || cls == PX_CLASS_EMISSIVE) {
       EXPECT_TRUE(proposed.holes[i]) << "pixel " << i << " class " << cls;
+    }
   }
   EXPECT_GT(reprojected, holes) << "most of a diffuse scene should be reprojected";
   EXPECT_EQ(proposed.stats.reprojected, static_cast<std::size_t>(reprojected));

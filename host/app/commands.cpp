@@ -6,6 +6,7 @@
 #include "image/image_metrics.h"
 #include "render/device_scene.h"
 #include "render/preview_renderer.h"
+#include "render/reference_render.h"
 #include "pipeline/stereo_pipeline.h"
 
 #include <nlohmann/json.hpp>
@@ -159,45 +160,23 @@ int run_render(const RenderCommand& cmd) {
 }
 
 int run_reference(const ReferenceCommand& cmd) {
-  if (cmd.spp == 0 || cmd.pass_spp == 0) throw std::invalid_argument("--spp and --pass-spp must be at least 1");
   prepare_output_dir(cmd.out, cmd.overwrite);
   auto loaded = load_and_build(cmd.scene);
   auto devices = cmd.devices.create();
   print_device_set(devices);
   DeviceScene device_scene(devices, loaded.scene, loaded.bvh);
   PathTracer tracer(devices, device_scene, loaded.scene);
-  PathTracer::Options opt;
+  ReferenceOptions opt;
+  opt.spp = cmd.spp;
+  opt.pass_spp = cmd.pass_spp;
   opt.bounces = cmd.bounces;
-  std::array<std::vector<double>, 2> sum;
-  for (auto& s : sum) s.assign(static_cast<std::size_t>(cmd.width) * cmd.height * 3, 0.0);
-  const auto start = clock_type::now();
-  unsigned done = 0;
-  const float time_s = static_cast<float>(cmd.frame) / cmd.fps;
-  // Progressive: passes of pass_spp new samples each (sample_offset advances), summed in double
-  // so 4096 spp do not lose precision.
-  while (done < cmd.spp) {
-    opt.spp = std::min(cmd.pass_spp, cmd.spp - done);
-    auto eyes = tracer.render_stereo(time_s, cmd.frame, cmd.width, cmd.height, opt, done);
-    for (int e = 0; e < 2; ++e)
-      for (std::size_t i = 0; i < sum[e].size(); ++i) sum[e][i] += static_cast<double>(eyes[e].rgb[i]) * opt.spp;
-    done += opt.spp;
-    const double elapsed = ms_since(start) / 1000.0;
-    const double eta = elapsed / done * (cmd.spp - done);
-    std::fprintf(stderr, "\r[reference] %u/%u spp, %.0f s elapsed, about %.0f s left   ", done, cmd.spp, elapsed, eta);
-  }
-  std::fprintf(stderr, "\n");
-  std::array<ImageRGB, 2> eyes;
-  for (int e = 0; e < 2; ++e) {
-    eyes[e].width = static_cast<int>(cmd.width);
-    eyes[e].height = static_cast<int>(cmd.height);
-    eyes[e].rgb.resize(sum[e].size());
-    for (std::size_t i = 0; i < sum[e].size(); ++i) eyes[e].rgb[i] = static_cast<float>(sum[e][i] / done);
-  }
+  auto eyes = render_reference(tracer, static_cast<float>(cmd.frame) / cmd.fps, cmd.frame, cmd.width, cmd.height, opt,
+                               eta_printer("reference"));
   write_stereo(cmd.out, "reference_", eyes, cmd.exposure);
   if (tracer.nonfinite_paths() > 0)
     std::fprintf(stderr, "[reference] warning: %llu paths had non-finite radiance and were dropped\n",
                  static_cast<unsigned long long>(tracer.nonfinite_paths()));
-  std::printf("wrote %s/reference_{left,right}.exr (%u spp) and PNG previews\n", cmd.out.c_str(), done);
+  std::printf("wrote %s/reference_{left,right}.exr (%u spp) and PNG previews\n", cmd.out.c_str(), cmd.spp);
   return 0;
 }
 

@@ -1,7 +1,7 @@
 // parallax command line: parses flags into the command structs of app/commands.h and runs
 // one. No rendering logic lives here.
 #include "app/commands.h"
-#include "cl/cl_error.h"
+#include "app/guarded_main.h"
 
 #include <CLI/CLI.hpp>
 
@@ -108,8 +108,8 @@ int main(int argc, char** argv) {
   demo_cmd->add_option("--out", demo_out, "output directory (existing demo files are replaced, and said so)")
       ->capture_default_str();
 
-  try {
-    CLI11_PARSE(app, argc, argv);
+  CLI11_PARSE(app, argc, argv);
+  return px::run_guarded([&]() -> int {
     if (devices_cmd->parsed()) return px::run_devices(devices_choice);
     if (preview_cmd->parsed()) return px::run_preview(preview);
     if (render_cmd->parsed()) return px::run_render(render);
@@ -126,12 +126,6 @@ int main(int argc, char** argv) {
       demo.devices.count = 2;
       return px::run_render(demo);
     }
-  } catch (const cl::Error& e) {
-    std::fprintf(stderr, "error: OpenCL: %s\n", px::describe(e).c_str());
-    return 1;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
-    return 1;
-  }
-  return 0;
+    return 0;
+  });
 }

@@ -49,19 +49,14 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
 
 void StereoPipeline::record(Stage stage, int device, const cl::Event& e) { events_.push_back({{stage, device}, e}); }
 
+FrameParams StereoPipeline::frame_params(int eye, RowRange rows, unsigned frame) const {
+  return PathTracer::frame_params(scene_, device_scene_.light_count(), options_.trace, eye, rows.begin, rows.size(),
+                                  frame);
+}
+
 void StereoPipeline::path_trace(int d, int eye, RowRange rows, const CameraParams& cam, unsigned frame, Stage stage) {
   if (rows.size() == 0) return;
-  FrameParams fp{};
-  fill_light_params(scene_, device_scene_.light_count(), fp);
-  fp.frame = frame;
-  fp.eye = static_cast<cl_uint>(eye);
-  fp.spp = options_.trace.spp;
-  fp.max_bounces = options_.trace.bounces;
-  fp.seed = options_.trace.seed;
-  fp.light_sampling = static_cast<cl_uint>(options_.trace.light_sampling);
-  fp.rr_start_bounce = options_.trace.rr_start_bounce;
-  fp.row0 = rows.begin;
-  fp.rows = rows.size();
+  const FrameParams fp = frame_params(eye, rows, frame);
   cl::Kernel k(devices_.program("pathtrace/path_trace.cl"), "path_trace");
   k.setArg(0, buffers_[d].radiance[eye]);
   k.setArg(1, buffers_[d].nonfinite);
@@ -115,17 +110,7 @@ void StereoPipeline::reproject(int d, RowRange rows, const CameraParams& left_ca
 
 void StereoPipeline::fill_holes(int d, RowRange rows, const CameraParams& right_cam, unsigned frame) {
   if (rows.size() == 0) return;
-  FrameParams fp{};
-  fill_light_params(scene_, device_scene_.light_count(), fp);
-  fp.frame = frame;
-  fp.eye = 1;
-  fp.spp = options_.trace.spp;
-  fp.max_bounces = options_.trace.bounces;
-  fp.seed = options_.trace.seed;
-  fp.light_sampling = static_cast<cl_uint>(options_.trace.light_sampling);
-  fp.rr_start_bounce = options_.trace.rr_start_bounce;
-  fp.row0 = rows.begin;
-  fp.rows = rows.size();
+  const FrameParams fp = frame_params(1, rows, frame);
   auto& b = buffers_[d];
   cl::Kernel k(devices_.program("pathtrace/path_trace.cl"), "path_trace_list");
   k.setArg(0, b.radiance[1]);

@@ -89,6 +89,7 @@ class StereoPipeline {
   void transfer(int d, int eye, RowRange rows, bool radiance, bool rgba);
 
   void record(Stage stage, int device, const cl::Event& e);
+  FrameParams frame_params(int eye, RowRange rows, unsigned frame) const;
 
   DeviceSet& devices_;
   const DeviceScene& device_scene_;

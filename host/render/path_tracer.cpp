@@ -13,6 +13,23 @@ LightSampling parse_light_sampling(const std::string& text) {
   throw std::invalid_argument("unknown light sampling '" + text + "' (expected mis, nee or bsdf)");
 }
 
+FrameParams PathTracer::frame_params(const Scene& scene, std::size_t light_count, const Options& options, int eye,
+                                     unsigned row0, unsigned rows, std::uint32_t frame, std::uint32_t sample_offset) {
+  FrameParams fp{};
+  fill_light_params(scene, light_count, fp);
+  fp.frame = frame;
+  fp.eye = static_cast<cl_uint>(eye);
+  fp.spp = options.spp;
+  fp.max_bounces = options.bounces;
+  fp.seed = options.seed;
+  fp.light_sampling = static_cast<cl_uint>(options.light_sampling);
+  fp.rr_start_bounce = options.rr_start_bounce;
+  fp.row0 = row0;
+  fp.rows = rows;
+  fp.sample_offset = sample_offset;
+  return fp;
+}
+
 std::array<ImageRGB, 2> PathTracer::render_stereo(float time_s, std::uint32_t frame, unsigned width,
                                                   unsigned height, const Options& options,
                                                   std::uint32_t sample_offset) {
@@ -52,18 +69,8 @@ std::array<ImageRGB, 2> PathTracer::render_stereo(float time_s, std::uint32_t fr
       const cl_uint zero = 0;
       l.counter = cl::Buffer(devices_.context(), CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, sizeof(cl_uint),
                              const_cast<cl_uint*>(&zero));
-      FrameParams fp{};
-      fill_light_params(scene_, device_scene_.light_count(), fp);
-      fp.frame = frame;
-      fp.eye = static_cast<cl_uint>(e);
-      fp.spp = options.spp;
-      fp.max_bounces = options.bounces;
-      fp.seed = options.seed;
-      fp.light_sampling = static_cast<cl_uint>(options.light_sampling);
-      fp.rr_start_bounce = options.rr_start_bounce;
-      fp.row0 = l.row0;
-      fp.rows = l.rows;
-      fp.sample_offset = sample_offset;
+      const FrameParams fp =
+          frame_params(scene_, device_scene_.light_count(), options, e, l.row0, l.rows, frame, sample_offset);
       cl::Kernel k(program, "path_trace");
       k.setArg(0, l.out);
       k.setArg(1, l.counter);

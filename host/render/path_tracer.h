@@ -29,6 +29,10 @@ class PathTracer {
     std::uint32_t seed = 0;
   };
 
+  // Everything but buffers that a path_trace / path_trace_list launch needs.
+  static FrameParams frame_params(const Scene& scene, std::size_t light_count, const Options& options, int eye,
+                                  unsigned row0, unsigned rows, std::uint32_t frame, std::uint32_t sample_offset = 0);
+
   PathTracer(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene)
       : devices_(devices), device_scene_(device_scene), scene_(scene) {}
 

@@ -1,0 +1,141 @@
+// bench_pipelines: proposed vs baseline vs mono, side by side in one process, on the same
+// devices, scene and camera animation. Reports per pipeline the makespan of the animation
+// (warm-up frames excluded), per stage and device the median device time (the paper's
+// Table 1 for this machine), the ratios baseline/proposed and mono/proposed, and the right
+// eye's error against a converged reference of frame 0, so every speed figure has its error.
+//
+//   build/bench_pipelines --scene atrium --width 160 --height 90 --frames 50 --devices 2
+//       --ref-spp 1024 --csv pipelines.csv
+#include "app/guarded_main.h"
+#include "app/scene_setup.h"
+#include "bench_common.h"
+#include "cl/device_set.h"
+#include "image/image_metrics.h"
+#include "pipeline/stereo_pipeline.h"
+#include "render/path_tracer.h"
+#include "render/reference_render.h"
+
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <map>
+
+namespace {
+
+using px::bench::median;
+
+struct PipelineResult {
+  std::string name;
+  double makespan_ms = 0, median_frame_ms = 0, reprojected = 0;
+  std::map<std::pair<int, int>, std::vector<double>> stage_ms;  // (stage, device) -> per frame
+  double right_psnr = 0, right_rel_mse = 0;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"bench_pipelines: proposed vs baseline vs mono on one camera animation"};
+  std::vector<std::string> scenes{"atrium", "cornell"};
+  unsigned width = 160, height = 90, frames = 50, warmup = 2, spp = 1, bounces = 6, ref_spp = 1024;
+  int devices = 2;
+  float fps = 30.0f;
+  std::string csv;
+  app.add_option("--scene", scenes)->capture_default_str();
+  app.add_option("--width", width)->capture_default_str();
+  app.add_option("--height", height)->capture_default_str();
+  app.add_option("--frames", frames, "timed frames of the camera animation")->capture_default_str();
+  app.add_option("--warmup", warmup, "untimed frames first (kernel compilation)")->capture_default_str();
+  app.add_option("--spp", spp)->capture_default_str();
+  app.add_option("--bounces", bounces)->capture_default_str();
+  app.add_option("--devices", devices)->capture_default_str();
+  app.add_option("--fps", fps, "camera-path time step")->capture_default_str();
+  app.add_option("--ref-spp", ref_spp, "samples of the frame-0 reference (0 = skip the error figures)")->capture_default_str();
+  app.add_option("--csv", csv, "per stage and device medians as CSV");
+  CLI11_PARSE(app, argc, argv);
+
+  std::ofstream csv_out;
+  if (!csv.empty()) {
+    csv_out.open(csv);
+    csv_out << "scene,pipeline,stage,stage_name,device,median_device_ms\n";
+  }
+  return px::run_guarded([&]() -> int {
+    for (const auto& name : scenes) {
+      auto loaded = px::load_and_build(name);
+      auto set = px::DeviceSet::create({devices, px::DeviceMode::Auto, ""});
+      std::fprintf(stderr, "[bench] %s: %d devices (%s)\n", name.c_str(), set.size(), px::to_string(set.mode()));
+      px::DeviceScene ds(set, loaded.scene, loaded.bvh);
+
+      std::array<px::ImageRGB, 2> reference;
+      if (ref_spp > 0) {
+        px::PathTracer tracer(set, ds, loaded.scene);
+        px::ReferenceOptions ref_opt;
+        ref_opt.spp = ref_spp;
+        ref_opt.bounces = bounces;
+        reference = px::render_reference(tracer, 0.0f, 0, width, height, ref_opt, px::eta_printer(name + " reference"));
+      }
+
+      std::vector<PipelineResult> results;
+      for (auto kind : {px::PipelineKind::Proposed, px::PipelineKind::Baseline, px::PipelineKind::Mono}) {
+        px::StereoPipeline::Options opt;
+        opt.pipeline = kind;
+        opt.trace.spp = spp;
+        opt.trace.bounces = bounces;
+        px::StereoPipeline pipeline(set, ds, loaded.scene, width, height, opt);
+        PipelineResult r;
+        r.name = px::to_string(kind);
+        std::vector<double> frame_ms;
+        double reprojected = 0;
+        for (unsigned f = 0; f < warmup + frames; ++f) {
+          const auto st = pipeline.render(f, static_cast<float>(f) / fps);
+          if (f == 0 && ref_spp > 0) {
+            auto eyes = pipeline.radiance();
+            auto d = px::compare_images(eyes[1], reference[1]);
+            r.right_psnr = d.psnr_db;
+            r.right_rel_mse = d.rel_mse;
+          }
+          if (f < warmup) continue;
+          frame_ms.push_back(st.wall_ms);
+          r.makespan_ms += st.wall_ms;
+          reprojected += st.right_pixels ? double(st.reprojected) / st.right_pixels : 0.0;
+          for (const auto& s : st.stages) r.stage_ms[{static_cast<int>(s.stage), s.device}].push_back(s.ms);
+        }
+        r.median_frame_ms = median(frame_ms);
+        r.reprojected = reprojected / frames;
+        std::fprintf(stderr, "[bench] %s %s: makespan %.0f ms over %u frames\n", name.c_str(), r.name.c_str(),
+                     r.makespan_ms, frames);
+        results.push_back(std::move(r));
+      }
+
+      std::printf("\n== %s, %ux%u per eye, %u spp, %u bounces, %d devices (%s), %u frames after %u warm-up ==\n",
+                  name.c_str(), width, height, spp, bounces, set.size(), px::to_string(set.mode()), frames, warmup);
+      std::printf("%-10s %12s %12s %8s %12s %10s %10s\n", "pipeline", "makespan ms", "median ms", "Hz", "reprojected",
+                  "right PSNR", "right rMSE");
+      for (const auto& r : results)
+        std::printf("%-10s %12.0f %12.1f %8.2f %11.1f%% %10.2f %10.4f\n", r.name.c_str(), r.makespan_ms,
+                    r.median_frame_ms, 1000.0 * frames / r.makespan_ms, 100.0 * r.reprojected, r.right_psnr,
+                    r.right_rel_mse);
+      std::printf("speed-up proposed vs baseline: x%.2f (makespan ratio); proposed vs mono: x%.2f\n",
+                  results[1].makespan_ms / results[0].makespan_ms, results[2].makespan_ms / results[0].makespan_ms);
+      std::printf("\nmedian device ms per frame, by stage and device:\n%-22s", "stage");
+      for (const auto& r : results)
+        for (int d = 0; d < set.size(); ++d) std::printf(" %9s", (r.name.substr(0, 4) + "/d" + std::to_string(d)).c_str());
+      std::printf("\n");
+      for (int stage : {2, 12, 3, 4, 5, 8, 9}) {
+        std::printf("%-3d %-18s", stage, px::stage_name(static_cast<px::Stage>(stage)));
+        for (const auto& r : results)
+          for (int d = 0; d < set.size(); ++d) {
+            auto it = r.stage_ms.find({stage, d});
+            const double m = it == r.stage_ms.end() ? 0.0 : median(it->second);
+            std::printf(" %9.2f", m);
+            if (csv_out && it != r.stage_ms.end())
+              csv_out << name << ',' << r.name << ',' << stage << ','
+                      << px::stage_name(static_cast<px::Stage>(stage)) << ',' << d << ',' << m << '\n';
+          }
+        std::printf("\n");
+      }
+    }
+    return 0;
+  });
+}

@@ -1,0 +1,29 @@
+// Converged images for error figures: progressive passes of the path tracer with fresh samples
+// each (the sample offset advances), accumulated in double so thousands of samples lose no
+// precision. Used by `parallax reference` and the benchmarks.
+#pragma once
+
+#include "render/path_tracer.h"
+
+#include <functional>
+
+namespace px {
+
+struct ReferenceOptions {
+  unsigned spp = 4096;
+  unsigned pass_spp = 64;
+  unsigned bounces = 6;
+  std::uint32_t seed = 0x5eed;  // differs from the default render seed: independent samples
+};
+
+// Called after each pass with (samples done, samples total).
+using ReferenceProgress = std::function<void(unsigned, unsigned)>;
+
+std::array<ImageRGB, 2> render_reference(PathTracer& tracer, float time_s, std::uint32_t frame, unsigned width,
+                                         unsigned height, const ReferenceOptions& options,
+                                         const ReferenceProgress& progress = {});
+
+// A progress callback printing "\r[label] done/total spp, elapsed, ~remaining" on stderr.
+ReferenceProgress eta_printer(const std::string& label);
+
+}  // namespace px
