@@ -89,6 +89,7 @@ PipelineRun run(const LoadedScene& loaded, PipelineKind kind, int devices, unsig
   opt.trace.spp = spp;
   opt.trace.bounces = 4;
   opt.trace.seed = seed;
+  opt.denoise = false;  // these tests are about stages 2-5; SVGF has its own suite
   StereoPipeline p(set, ds, loaded.scene, w, h, opt);
   PipelineRun r;
   r.stats = p.render(frame, 0.1f * frame);

@@ -88,9 +88,12 @@ int run_render(const RenderCommand& cmd) {
   opt.trace = cmd.trace;
   opt.trace.light_sampling = parse_light_sampling(cmd.light_sampling);
   opt.exposure = cmd.exposure;
+  opt.denoise = !cmd.no_denoise;
+  opt.svgf = cmd.svgf;
+  opt.seams = parse_seam_mode(cmd.seams);
   if (cmd.explain) {
-    // The schedule depends only on pipeline, device count and height: no scene needed.
-    std::printf("%s", make_schedule(opt.pipeline, cmd.devices.count, cmd.height).explain().c_str());
+    // The schedule depends only on pipeline, device count, height and denoising: no scene needed.
+    std::printf("%s", make_schedule(opt.pipeline, cmd.devices.count, cmd.height, opt.denoise).explain().c_str());
     return 0;
   }
   prepare_output_dir(cmd.out, cmd.overwrite);
@@ -99,8 +102,9 @@ int run_render(const RenderCommand& cmd) {
   print_device_set(devices);
   DeviceScene device_scene(devices, loaded.scene, loaded.bvh);
   StereoPipeline pipeline(devices, device_scene, loaded.scene, cmd.width, cmd.height, opt);
-  std::fprintf(stderr, "[render] %u frame(s), %ux%u per eye, %u spp, %u bounces, pipeline %s\n", cmd.frames, cmd.width,
-               cmd.height, opt.trace.spp, opt.trace.bounces, cmd.pipeline.c_str());
+  std::fprintf(stderr, "[render] %u frame(s), %ux%u per eye, %u spp, %u bounces, pipeline %s, denoise %s\n", cmd.frames,
+               cmd.width, cmd.height, opt.trace.spp, opt.trace.bounces, cmd.pipeline.c_str(),
+               opt.denoise ? ("SVGF, seams " + cmd.seams).c_str() : "off");
   nlohmann::json report_frames = nlohmann::json::array();
   double makespan_ms = 0.0;
   std::size_t reprojected = 0, right_pixels = 0, bytes = 0;
@@ -143,6 +147,8 @@ int run_render(const RenderCommand& cmd) {
                         {"height", cmd.height},
                         {"spp", opt.trace.spp},
                         {"bounces", opt.trace.bounces},
+                        {"denoise", opt.denoise},
+                        {"seams", cmd.seams},
                         {"frames", report_frames},
                         {"makespan_ms", makespan_ms},
                         {"hz", makespan_ms > 0 ? 1000.0 * cmd.frames / makespan_ms : 0.0},

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "cl/device_set.h"
+#include "denoise/svgf_denoiser.h"
 #include "render/path_tracer.h"
 
 #include <string>
@@ -38,6 +39,9 @@ struct RenderCommand {
   std::string out = "out/render";
   bool overwrite = false;
   bool explain = false;        // print the schedule (stage x device workload pairs, tree)
+  bool no_denoise = false;
+  SvgfDenoiser::Options svgf;
+  std::string seams = "halo";
   std::string report;          // JSON report path ("" = none)
   DeviceChoice devices;
 };

@@ -73,6 +73,18 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   render_cmd->add_option("--seed", render.trace.seed, "seed of the sample streams")->capture_default_str();
   render_cmd->add_option("--exposure", render.exposure, "scale applied before the sRGB PNG encoding")->capture_default_str();
+  render_cmd->add_flag("--no-denoise", render.no_denoise, "skip SVGF (stages 6-7): write the noisy images");
+  render_cmd->add_option("--svgf-iterations", render.svgf.iterations, "a-trous iterations")->check(CLI::Range(1u, 8u))->capture_default_str();
+  render_cmd->add_option("--sigma-l", render.svgf.sigma_l, "SVGF luminance edge-stopping (paper 4, Tauray 10, stereo paper 32)")->capture_default_str();
+  render_cmd->add_option("--sigma-z", render.svgf.sigma_z, "SVGF depth edge-stopping (paper 1, stereo paper 128)")->capture_default_str();
+  render_cmd->add_option("--sigma-n", render.svgf.sigma_n, "SVGF normal edge-stopping exponent (paper 128, stereo paper 4)")->capture_default_str();
+  render_cmd->add_option("--alpha", render.svgf.alpha, "temporal blend floor for colour")->check(CLI::Range(0.0f, 1.0f))->capture_default_str();
+  render_cmd->add_option("--alpha-moments", render.svgf.alpha_moments, "temporal blend floor for moments")->check(CLI::Range(0.0f, 1.0f))->capture_default_str();
+  render_cmd->add_option("--seams", render.seams,
+                         "strip borders when denoising: halo (exchange neighbour rows; N devices = 1 device), "
+                         "independent (each strip alone), bilateral (independent + seam-band filter)")
+      ->check(CLI::IsMember({"halo", "independent", "bilateral"}))
+      ->capture_default_str();
   render_cmd->add_option("--out", render.out, "output directory")->capture_default_str();
   render_cmd->add_flag("--explain", render.explain,
                        "print the schedule (stage x device workload pairs, dependency tree) and exit");

@@ -44,5 +44,8 @@ static_assert(offsetof(FrameParams, row0) == 108 && offsetof(FrameParams, rows) 
 static_assert(sizeof(GBufferTexel) == 48);
 static_assert(offsetof(GBufferTexel, depth) == 12 && offsetof(GBufferTexel, material_class) == 28);
 static_assert(offsetof(GBufferTexel, albedo) == 32 && offsetof(GBufferTexel, prim) == 44);
+static_assert(sizeof(SvgfParams) == 64);
+static_assert(offsetof(SvgfParams, temporal_rows) == 24 && offsetof(SvgfParams, lo_row) == 40);
+static_assert(offsetof(SvgfParams, width) == 48 && offsetof(SvgfParams, height) == 52);
 
 }  // namespace px

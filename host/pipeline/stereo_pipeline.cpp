@@ -2,6 +2,7 @@
 
 #include "trace/ray_batch_tracer.h"
 
+#include <algorithm>
 #include <chrono>
 #include <stdexcept>
 
@@ -15,6 +16,22 @@ cl::Buffer device_buffer(const cl::Context& ctx, std::size_t bytes) {
 
 }  // namespace
 
+const char* to_string(SeamMode m) {
+  switch (m) {
+    case SeamMode::Independent: return "independent";
+    case SeamMode::Bilateral: return "bilateral";
+    case SeamMode::Halo: return "halo";
+  }
+  return "?";
+}
+
+SeamMode parse_seam_mode(const std::string& text) {
+  if (text == "independent") return SeamMode::Independent;
+  if (text == "bilateral") return SeamMode::Bilateral;
+  if (text == "halo") return SeamMode::Halo;
+  throw std::invalid_argument("unknown seam mode '" + text + "' (expected independent, bilateral or halo)");
+}
+
 StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene,
                                unsigned width, unsigned height, Options options)
     : devices_(devices),
@@ -23,7 +40,7 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
       width_(width),
       height_(height),
       options_(options),
-      schedule_(make_schedule(options.pipeline, devices.size(), height)) {
+      schedule_(make_schedule(options.pipeline, devices.size(), height, options.denoise)) {
   if (width == 0 || height == 0 || width > 65535 || height > 65535)
     throw std::invalid_argument("image size must be between 1 and 65535 per side");
   const std::size_t pixels = static_cast<std::size_t>(width) * height;
@@ -38,6 +55,14 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
     b.holes = device_buffer(ctx, pixels * sizeof(cl_uint));
     b.hole_count = device_buffer(ctx, sizeof(cl_uint));
     b.nonfinite = device_buffer(ctx, sizeof(cl_uint));
+    if (options_.denoise) {
+      if (options_.svgf.iterations < 1) throw std::invalid_argument("SVGF needs at least one a-trous iteration");
+      for (int e = 0; e < 2; ++e) {
+        b.gbuffer_prev[e] = device_buffer(ctx, pixels * sizeof(GBufferTexel));
+        b.svgf[e] = std::make_unique<SvgfDenoiser>(devices, d, width, height, options_.svgf);
+      }
+      b.staging_halo = cl::Buffer(ctx, CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR, pixels * sizeof(cl_float4));
+    }
     if (d != schedule_.tree.root) {
       // Both eyes side by side in one host-allocated buffer per kind.
       b.staging_radiance = cl::Buffer(ctx, CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR, 2 * pixels * sizeof(cl_float4));
@@ -183,11 +208,19 @@ FrameStats StereoPipeline::render(unsigned frame, float time_s) {
 
   const int n = devices_.size();
   for (const StageWork& work : schedule_.stages) {
+    if (work.stage == Stage::Denoise) {
+      denoise(work, cams);
+      continue;
+    }
     for (int d = 0; d < n; ++d) {
       for (const RowRange& r : work.left_rows[d]) {
         switch (work.stage) {
           case Stage::PathTraceLeft: path_trace(d, 0, r, cams[0], frame, Stage::PathTraceLeft); break;
-          case Stage::GBuffer: gbuffer(d, 0, r, cams[0]); break;
+          case Stage::GBuffer: {
+            const unsigned m = gbuffer_margin();
+            gbuffer(d, 0, {r.begin > m ? r.begin - m : 0u, std::min(height_, r.end + m)}, cams[0]);
+            break;
+          }
           case Stage::Tonemap: tonemap(d, 0, r); break;
           // Baseline transfers the left radiance (before the owner's G-buffer); the others
           // transfer finished images.
@@ -200,7 +233,11 @@ FrameStats StereoPipeline::render(unsigned frame, float time_s) {
       for (const RowRange& r : work.right_rows[d]) {
         switch (work.stage) {
           case Stage::PathTraceRight: path_trace(d, 1, r, cams[1], frame, Stage::PathTraceRight); break;
-          case Stage::GBuffer: gbuffer(d, 1, r, cams[1]); break;
+          case Stage::GBuffer: {
+            const unsigned m = gbuffer_margin();
+            gbuffer(d, 1, {r.begin > m ? r.begin - m : 0u, std::min(height_, r.end + m)}, cams[1]);
+            break;
+          }
           case Stage::Reproject: reproject(d, r, cams[0]); break;
           case Stage::HoleFill: fill_holes(d, r, cams[1], frame); break;
           case Stage::Tonemap: tonemap(d, 1, r); break;
@@ -211,6 +248,17 @@ FrameStats StereoPipeline::render(unsigned frame, float time_s) {
     }
   }
   devices_.finish_all();
+  if (options_.denoise) {
+    // Stage 7: this frame's G-buffers and SVGF history become the previous frame's.
+    for (auto& b : buffers_) {
+      for (int e = 0; e < 2; ++e) {
+        std::swap(b.gbuffer[e], b.gbuffer_prev[e]);
+        b.svgf[e]->end_frame();
+      }
+      b.staging_halo_readers.clear();
+    }
+    prev_cams_ = cams;
+  }
 
   FrameStats stats;
   stats.frame = frame;
@@ -233,6 +281,93 @@ FrameStats StereoPipeline::render(unsigned frame, float time_s) {
   }
   stats.reprojected = fill ? stats.right_pixels - holes : 0;
   return stats;
+}
+
+unsigned StereoPipeline::gbuffer_margin() const {
+  if (!options_.denoise || options_.seams == SeamMode::Independent) return 0;
+  if (options_.seams == SeamMode::Bilateral) return options_.seam_band + 3;
+  // Halo: the widest read of any pass: a-trous taps at 2 * 2^(iterations-1), history taps at
+  // temporal_rows + 1, the variance estimate at 3; plus one row for the depth gradient.
+  const unsigned atrous = 2u << (options_.svgf.iterations - 1);
+  return std::max({atrous, options_.svgf.temporal_rows + 1, 3u}) + 1;
+}
+
+template <typename BufferOf>
+void StereoPipeline::exchange_halo(BufferOf buffer, const std::vector<RowRange>& strip, unsigned radius) {
+  const int n = devices_.size();
+  for (int d = 0; d < n; ++d) {
+    if (strip[d].size() == 0) continue;
+    const RowRange wanted[2] = {{strip[d].begin > radius ? strip[d].begin - radius : 0u, strip[d].begin},
+                                {strip[d].end, std::min(height_, strip[d].end + radius)}};
+    for (int src = 0; src < n; ++src) {
+      if (src == d || strip[src].size() == 0) continue;
+      for (const RowRange& w : wanted) {
+        const unsigned a = std::max(w.begin, strip[src].begin), b = std::min(w.end, strip[src].end);
+        if (a >= b) continue;
+        const std::size_t off = static_cast<std::size_t>(a) * width_ * sizeof(cl_float4);
+        const std::size_t len = static_cast<std::size_t>(b - a) * width_ * sizeof(cl_float4);
+        auto& sb = buffers_[src];
+        cl::Event out, in;
+        // The staging rows may still be read by an earlier exchange's copy-in: wait for it.
+        std::vector<cl::Event> wait = sb.staging_halo_readers;
+        devices_.devices()[src].queue.enqueueCopyBuffer(buffer(src), sb.staging_halo, off, off, len,
+                                                        wait.empty() ? nullptr : &wait, &out);
+        std::vector<cl::Event> after{out};
+        devices_.devices()[d].queue.enqueueCopyBuffer(sb.staging_halo, buffer(d), off, off, len, &after, &in);
+        sb.staging_halo_readers = {in};
+        record(Stage::Transfer, src, out);
+        record(Stage::Transfer, d, in);
+        bytes_this_frame_ += len;
+      }
+    }
+  }
+}
+
+void StereoPipeline::denoise(const StageWork& work, const std::array<CameraParams, 2>& cams) {
+  const int n = devices_.size();
+  const bool halo = options_.seams == SeamMode::Halo;
+  const RowRange image{0, height_};
+  for (int e = 0; e < 2; ++e) {
+    std::vector<RowRange> strip(n);
+    for (int d = 0; d < n; ++d) {
+      const auto& rows = e == 0 ? work.left_rows[d] : work.right_rows[d];
+      if (!rows.empty()) strip[d] = {rows.front().begin, rows.back().end};
+    }
+    auto readable = [&](int d) { return halo ? image : strip[d]; };
+    auto svgf = [&](int d) -> SvgfDenoiser& { return *buffers_[d].svgf[e]; };
+    const CameraParams prev = prev_cams_ ? (*prev_cams_)[e] : cams[e];
+    const auto& o = options_.svgf;
+    if (halo) {
+      exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).history_illum_prev(); }, strip, o.temporal_rows + 1);
+      exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).history_moments_prev(); }, strip, o.temporal_rows + 1);
+    }
+    for (int d = 0; d < n; ++d)
+      svgf(d).temporal(buffers_[d].radiance[e], buffers_[d].gbuffer[e], buffers_[d].gbuffer_prev[e], prev, strip[d],
+                       readable(d));
+    if (halo) {
+      exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).illum(); }, strip, 3);
+      exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).moments(); }, strip, gbuffer_margin());
+    }
+    for (int d = 0; d < n; ++d) svgf(d).variance(buffers_[d].gbuffer[e], strip[d], readable(d));
+    for (unsigned i = 0; i < o.iterations; ++i) {
+      if (halo) exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).illum(); }, strip, 2u << i);
+      for (int d = 0; d < n; ++d) svgf(d).atrous(i, buffers_[d].gbuffer[e], strip[d], readable(d));
+    }
+    for (int d = 0; d < n; ++d) svgf(d).remodulate(buffers_[d].radiance[e], buffers_[d].gbuffer[e], strip[d]);
+    if (options_.seams == SeamMode::Bilateral && n > 1) {
+      exchange_halo([&](int d) -> const cl::Buffer& { return buffers_[d].radiance[e]; }, strip,
+                    options_.seam_band + 2);
+      for (int d = 0; d < n; ++d) {
+        if (strip[d].size() == 0) continue;
+        const int above = strip[d].begin > 0 ? static_cast<int>(strip[d].begin) : -1;
+        const int below = strip[d].end < height_ ? static_cast<int>(strip[d].end) : -1;
+        svgf(d).seam_filter(buffers_[d].radiance[e], buffers_[d].gbuffer[e], strip[d], image, above, below,
+                            static_cast<int>(options_.seam_band));
+      }
+    }
+    for (int d = 0; d < n; ++d)
+      for (auto& [stage, ev] : svgf(d).take_events()) record(stage, d, ev);
+  }
 }
 
 std::vector<std::uint8_t> StereoPipeline::hole_mask() {

@@ -8,6 +8,7 @@
 #pragma once
 
 #include "cl/device_set.h"
+#include "denoise/svgf_denoiser.h"
 #include "image/image_io.h"
 #include "pipeline/strip_schedule.h"
 #include "render/device_scene.h"
@@ -16,6 +17,8 @@
 
 #include <array>
 #include <map>
+#include <memory>
+#include <optional>
 #include <vector>
 
 namespace px {
@@ -35,6 +38,16 @@ struct FrameStats {
   std::size_t bytes_transferred = 0;    // child -> host -> owner, both hops counted once
 };
 
+// How denoising treats the borders between devices' strips.
+enum class SeamMode {
+  Independent,  // each strip filtered alone (the paper): seams visible
+  Bilateral,    // independent, then the paper's bilateral filter in a band around each seam
+  Halo,         // neighbours' rows copied in before every pass that reads across a border:
+                // the N-device image equals the 1-device image
+};
+const char* to_string(SeamMode m);
+SeamMode parse_seam_mode(const std::string& text);  // "independent", "bilateral", "halo"
+
 class StereoPipeline {
  public:
   static constexpr std::size_t kLocalSize = 64;
@@ -43,6 +56,10 @@ class StereoPipeline {
     PipelineKind pipeline = PipelineKind::Proposed;
     PathTracer::Options trace;
     float exposure = 1.0f;
+    bool denoise = true;
+    SvgfDenoiser::Options svgf;
+    SeamMode seams = SeamMode::Halo;
+    unsigned seam_band = 4;  // rows each side of a seam the bilateral seam filter touches
   };
 
   StereoPipeline(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene, unsigned width,
@@ -76,6 +93,12 @@ class StereoPipeline {
     cl::Buffer nonfinite;                // uint
     // Host-mapped staging for strips travelling to the owner (children only).
     cl::Buffer staging_radiance, staging_rgba;
+    // Denoising: last frame's G-buffers, one SVGF state per eye, and host-mapped staging for
+    // halo rows leaving this device (with the copies still reading it).
+    std::array<cl::Buffer, 2> gbuffer_prev;
+    std::array<std::unique_ptr<SvgfDenoiser>, 2> svgf;
+    cl::Buffer staging_halo;
+    std::vector<cl::Event> staging_halo_readers;
   };
 
   // Kernel launchers; each records its event under (stage, device).
@@ -89,6 +112,15 @@ class StereoPipeline {
   void transfer(int d, int eye, RowRange rows, bool radiance, bool rgba);
 
   void record(Stage stage, int device, const cl::Event& e);
+  // Stage 6-7 for every device at once (passes interleave with halo exchanges).
+  void denoise(const StageWork& work, const std::array<CameraParams, 2>& cams);
+  // Copies into each device's `buffer(d)` the rows within `radius` of its strip `strip[d]`
+  // that other devices own, through the owners' host-mapped staging buffers.
+  template <typename BufferOf>
+  void exchange_halo(BufferOf buffer, const std::vector<RowRange>& strip, unsigned radius);
+  // Rows beyond its strip that each device's G-buffer covers, so that every pass of a halo
+  // exchange finds normals and depths of the rows it reads without transferring them.
+  unsigned gbuffer_margin() const;
   FrameParams frame_params(int eye, RowRange rows, unsigned frame) const;
 
   DeviceSet& devices_;
@@ -101,6 +133,7 @@ class StereoPipeline {
   std::vector<std::pair<std::pair<Stage, int>, cl::Event>> events_;  // this frame's, for timing
   std::vector<cl::Event> owner_waits_;                                // cross-device dependencies
   std::size_t bytes_this_frame_ = 0;
+  std::optional<std::array<CameraParams, 2>> prev_cams_;
   std::uint64_t nonfinite_total_ = 0;
 };
 

@@ -90,7 +90,7 @@ StageWork work(Stage s, int devices, unsigned height, const std::vector<std::vec
 
 }  // namespace
 
-FrameSchedule make_schedule(PipelineKind pipeline, int devices, unsigned height) {
+FrameSchedule make_schedule(PipelineKind pipeline, int devices, unsigned height, bool denoise) {
   if (devices < 1) throw std::invalid_argument("make_schedule: at least one device");
   FrameSchedule fs;
   fs.pipeline = pipeline;
@@ -116,6 +116,10 @@ FrameSchedule make_schedule(PipelineKind pipeline, int devices, unsigned height)
       fs.stages.push_back(work(Stage::GBuffer, devices, height, own, own));
       fs.stages.push_back(work(Stage::Reproject, devices, height, none, own));
       fs.stages.push_back(work(Stage::HoleFill, devices, height, none, own));
+      if (denoise) {
+        fs.stages.push_back(work(Stage::Denoise, devices, height, own, own));
+        fs.stages.push_back(work(Stage::RecordPrevious, devices, height, own, own));
+      }
       fs.stages.push_back(work(Stage::Tonemap, devices, height, own, own));
       fs.stages.push_back(work(Stage::Transfer, devices, height, own, own));
       fs.stages.push_back(work(Stage::Stitch, devices, height, owner_all, owner_all));
@@ -142,12 +146,21 @@ FrameSchedule make_schedule(PipelineKind pipeline, int devices, unsigned height)
       fs.stages.push_back(work(Stage::GBuffer, devices, height, owner_all, owner_all));
       fs.stages.push_back(work(Stage::Reproject, devices, height, none, owner_all));
       fs.stages.push_back(work(Stage::HoleFill, devices, height, none, owner_all));
+      if (denoise) {
+        fs.stages.push_back(work(Stage::Denoise, devices, height, owner_all, owner_all));
+        fs.stages.push_back(work(Stage::RecordPrevious, devices, height, owner_all, owner_all));
+      }
       fs.stages.push_back(work(Stage::Tonemap, devices, height, owner_all, owner_all));
       break;
     }
     case PipelineKind::Mono:
       fs.stages.push_back(work(Stage::PathTraceLeft, devices, height, own, none));
       fs.stages.push_back(work(Stage::PathTraceRight, devices, height, none, own));
+      if (denoise) {
+        fs.stages.push_back(work(Stage::GBuffer, devices, height, own, own));
+        fs.stages.push_back(work(Stage::Denoise, devices, height, own, own));
+        fs.stages.push_back(work(Stage::RecordPrevious, devices, height, own, own));
+      }
       fs.stages.push_back(work(Stage::Tonemap, devices, height, own, own));
       fs.stages.push_back(work(Stage::Transfer, devices, height, own, own));
       fs.stages.push_back(work(Stage::Stitch, devices, height, owner_all, owner_all));
@@ -186,7 +199,8 @@ std::string FrameSchedule::explain() const {
     out << " <- children";
     for (int c : tree.children) out << " " << c;
   }
-  out << "\n(stages 6-7, denoising, are not implemented yet; their place is after hole filling)\n";
+  if (!find(Stage::Denoise)) out << "\n(denoising off: stages 6-7 would follow hole filling)";
+  out << "\n";
   return out.str();
 }
 

@@ -77,6 +77,9 @@ std::vector<unsigned> bit_reversed_order(unsigned n);
 // baseline: left-eye path tracing over 4N (rounded up to a power of two) shuffled strips dealt
 //   round-robin; everything after the transfer on the owner alone: (1, 1) there, (0, 0) elsewhere.
 // mono: both eyes path traced on N strips, tonemapped, transferred.
-FrameSchedule make_schedule(PipelineKind pipeline, int devices, unsigned height);
+// With `denoise`, stages 6 (SVGF, both eyes) and 7 follow hole filling: proposed and mono on
+// every device for its strip (1/N, 1/N), baseline on the owner (1, 1); mono then also builds
+// the G-buffer SVGF needs.
+FrameSchedule make_schedule(PipelineKind pipeline, int devices, unsigned height, bool denoise = false);
 
 }  // namespace px

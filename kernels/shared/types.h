@@ -248,6 +248,33 @@ typedef struct GBufferTexel {
 #define PX_REPROJECT_REL_DIST 0.01f
 #define PX_REPROJECT_FOOTPRINTS 3.0f
 
+
+/* SVGF launch constants (Schied et al. 2017), 64 bytes, passed by value to every SVGF pass.
+ *
+ *   0..3 sigma_l  4..7 sigma_z  8..11 sigma_n  12..15 alpha (colour)  16..19 alpha_moments
+ *  20..23 max_history  24..27 temporal_rows (largest vertical reprojection offset, rows, beyond
+ *  which history is rejected — a uniform rule, so every strip split reads the same rows)
+ *  28..31 step (a-trous tap spacing, 2^i)  32..35 row0  36..39 rows (rows written)
+ *  40..43 lo_row  44..47 hi_row (rows that may be read: the strip alone with independent seams,
+ *  the whole image with halo exchange)  48..51 width  52..55 height  56..63 padding */
+typedef struct SvgfParams {
+  float sigma_l;
+  float sigma_z;
+  float sigma_n;
+  float alpha;
+  float alpha_moments;
+  uint max_history;
+  uint temporal_rows;
+  uint step;
+  uint row0;
+  uint rows;
+  uint lo_row;
+  uint hi_row;
+  uint width;
+  uint height;
+  uint pad[2];
+} SvgfParams;
+
 #ifndef __OPENCL_C_VERSION__
 } /* namespace px */
 #endif

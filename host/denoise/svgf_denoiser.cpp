@@ -1,0 +1,148 @@
+#include "denoise/svgf_denoiser.h"
+
+namespace px {
+
+SvgfDenoiser::SvgfDenoiser(DeviceSet& devices, int device, unsigned width, unsigned height, const Options& options)
+    : devices_(devices), device_(device), width_(width), height_(height), options_(options) {
+  const std::size_t bytes = static_cast<std::size_t>(width) * height * sizeof(cl_float4);
+  const auto& ctx = devices.context();
+  auto& q = devices.devices()[device].queue;
+  const cl_float4 zero{{0, 0, 0, 0}};
+  for (int k = 0; k < 2; ++k) {
+    illum_[k] = cl::Buffer(ctx, CL_MEM_READ_WRITE, bytes);
+    hist_illum_[k] = cl::Buffer(ctx, CL_MEM_READ_WRITE, bytes);
+    hist_moments_[k] = cl::Buffer(ctx, CL_MEM_READ_WRITE, bytes);
+    q.enqueueFillBuffer(hist_illum_[k], zero, 0, bytes);
+    q.enqueueFillBuffer(hist_moments_[k], zero, 0, bytes);
+  }
+  moments_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, bytes);
+  q.enqueueFillBuffer(moments_, zero, 0, bytes);
+}
+
+SvgfParams SvgfDenoiser::params(RowRange rows, RowRange readable, unsigned step) const {
+  SvgfParams p{};
+  p.sigma_l = options_.sigma_l;
+  p.sigma_z = options_.sigma_z;
+  p.sigma_n = options_.sigma_n;
+  p.alpha = options_.alpha;
+  p.alpha_moments = options_.alpha_moments;
+  p.max_history = options_.max_history;
+  p.temporal_rows = options_.temporal_rows;
+  p.step = step;
+  p.row0 = rows.begin;
+  p.rows = rows.size();
+  p.lo_row = readable.begin;
+  p.hi_row = readable.end;
+  p.width = width_;
+  p.height = height_;
+  return p;
+}
+
+void SvgfDenoiser::launch(cl::Kernel& k, RowRange rows, Stage stage) {
+  cl::Event e;
+  devices_.devices()[device_].queue.enqueueNDRangeKernel(
+      k, cl::NullRange, cl::NDRange(round_up(static_cast<std::size_t>(rows.size()) * width_, kLocalSize)),
+      cl::NDRange(kLocalSize), nullptr, &e);
+  events_.push_back({stage, e});
+}
+
+void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& gbuf, const cl::Buffer& prev_gbuf,
+                            const CameraParams& prev_cam, RowRange rows, RowRange readable) {
+  if (rows.size() == 0) return;
+  cl::Kernel k(devices_.program("denoise/svgf.cl"), "svgf_temporal");
+  current_ = 0;
+  k.setArg(0, illum_[0]);
+  k.setArg(1, moments_);
+  k.setArg(2, color);
+  k.setArg(3, gbuf);
+  k.setArg(4, prev_gbuf);
+  k.setArg(5, hist_illum_[1 - frame_parity_]);
+  k.setArg(6, hist_moments_[1 - frame_parity_]);
+  k.setArg(7, params(rows, readable, 1));
+  k.setArg(8, prev_cam);
+  k.setArg(9, static_cast<cl_uint>(have_history_));
+  launch(k, rows, Stage::Denoise);
+  // The moments (with history length) are this frame's moment history as they stand.
+  cl::Event e;
+  const std::size_t off = static_cast<std::size_t>(rows.begin) * width_ * sizeof(cl_float4);
+  const std::size_t len = static_cast<std::size_t>(rows.size()) * width_ * sizeof(cl_float4);
+  devices_.devices()[device_].queue.enqueueCopyBuffer(moments_, hist_moments_[frame_parity_], off, off, len, nullptr, &e);
+  events_.push_back({Stage::RecordPrevious, e});
+}
+
+void SvgfDenoiser::variance(const cl::Buffer& gbuf, RowRange rows, RowRange readable) {
+  if (rows.size() == 0) return;
+  cl::Kernel k(devices_.program("denoise/svgf.cl"), "svgf_variance");
+  k.setArg(0, illum_[1 - current_]);
+  k.setArg(1, illum_[current_]);
+  k.setArg(2, moments_);
+  k.setArg(3, gbuf);
+  k.setArg(4, params(rows, readable, 1));
+  launch(k, rows, Stage::Denoise);
+  current_ = 1 - current_;
+}
+
+void SvgfDenoiser::atrous(unsigned iteration, const cl::Buffer& gbuf, RowRange rows, RowRange readable) {
+  if (rows.size() == 0) return;
+  cl::Kernel k(devices_.program("denoise/svgf.cl"), "svgf_atrous");
+  k.setArg(0, illum_[1 - current_]);
+  k.setArg(1, illum_[current_]);
+  k.setArg(2, moments_);
+  k.setArg(3, gbuf);
+  k.setArg(4, params(rows, readable, 1u << iteration));
+  launch(k, rows, Stage::Denoise);
+  current_ = 1 - current_;
+  if (iteration == 0) {
+    // The feedback tap: the first filtered iterate is next frame's colour history.
+    cl::Event e;
+    const std::size_t off = static_cast<std::size_t>(rows.begin) * width_ * sizeof(cl_float4);
+    const std::size_t len = static_cast<std::size_t>(rows.size()) * width_ * sizeof(cl_float4);
+    devices_.devices()[device_].queue.enqueueCopyBuffer(illum_[current_], hist_illum_[frame_parity_], off, off, len,
+                                                        nullptr, &e);
+    events_.push_back({Stage::RecordPrevious, e});
+  }
+}
+
+void SvgfDenoiser::remodulate(const cl::Buffer& out_color, const cl::Buffer& gbuf, RowRange rows) {
+  if (rows.size() == 0) return;
+  cl::Kernel k(devices_.program("denoise/svgf.cl"), "svgf_remodulate");
+  k.setArg(0, out_color);
+  k.setArg(1, illum_[current_]);
+  k.setArg(2, moments_);
+  k.setArg(3, gbuf);
+  k.setArg(4, params(rows, rows, 1));
+  launch(k, rows, Stage::Denoise);
+}
+
+void SvgfDenoiser::seam_filter(const cl::Buffer& color, const cl::Buffer& gbuf, RowRange rows, RowRange readable,
+                               int seam_above, int seam_below, int band) {
+  if (rows.size() == 0) return;
+  cl::Kernel k(devices_.program("denoise/svgf.cl"), "seam_bilateral");
+  const cl::Buffer& scratch = illum_[1 - current_];
+  k.setArg(0, scratch);
+  k.setArg(1, color);
+  k.setArg(2, gbuf);
+  k.setArg(3, params(rows, readable, 1));
+  k.setArg(4, static_cast<cl_int>(seam_above));
+  k.setArg(5, static_cast<cl_int>(seam_below));
+  k.setArg(6, static_cast<cl_int>(band));
+  launch(k, rows, Stage::Denoise);
+  cl::Event e;
+  const std::size_t off = static_cast<std::size_t>(rows.begin) * width_ * sizeof(cl_float4);
+  const std::size_t len = static_cast<std::size_t>(rows.size()) * width_ * sizeof(cl_float4);
+  devices_.devices()[device_].queue.enqueueCopyBuffer(scratch, color, off, off, len, nullptr, &e);
+  events_.push_back({Stage::Denoise, e});
+}
+
+void SvgfDenoiser::end_frame() {
+  frame_parity_ = 1 - frame_parity_;
+  have_history_ = true;
+}
+
+std::vector<std::pair<Stage, cl::Event>> SvgfDenoiser::take_events() {
+  std::vector<std::pair<Stage, cl::Event>> out;
+  out.swap(events_);
+  return out;
+}
+
+}  // namespace px

@@ -1,0 +1,76 @@
+// Stage 6-7: SVGF for one eye on one device (kernels/denoise/svgf.cl). It owns the filter's
+// working buffers and the temporal history, and exposes each pass separately so the pipeline
+// can exchange halo rows with neighbouring devices between passes (seam-free mode). All
+// buffers are full-frame; each pass writes `rows` and reads only `readable` rows.
+#pragma once
+
+#include "cl/device_set.h"
+#include "pipeline/strip_schedule.h"
+#include "shared/types.h"
+
+namespace px {
+
+class SvgfDenoiser {
+ public:
+  static constexpr std::size_t kLocalSize = 64;
+
+  struct Options {
+    unsigned iterations = 5;    // a-trous steps (spacing 1, 2, 4, ...)
+    float sigma_l = 4.0f;       // luminance edge-stopping (SVGF paper default)
+    float sigma_z = 1.0f;       // depth
+    float sigma_n = 128.0f;     // normal
+    float alpha = 0.2f;         // colour blend floor (paper 0.2)
+    float alpha_moments = 0.2f;
+    unsigned max_history = 32;
+    unsigned temporal_rows = 16;  // largest vertical history offset (rows) still accepted
+  };
+
+  SvgfDenoiser(DeviceSet& devices, int device, unsigned width, unsigned height, const Options& options);
+
+  // Pass 1: demodulate `color`, blend with history reprojected through `prev_cam`.
+  void temporal(const cl::Buffer& color, const cl::Buffer& gbuf, const cl::Buffer& prev_gbuf,
+                const CameraParams& prev_cam, RowRange rows, RowRange readable);
+  // Pass 2: variance from moments (spatial estimate for short histories).
+  void variance(const cl::Buffer& gbuf, RowRange rows, RowRange readable);
+  // Pass 3+i: one a-trous step; iteration 0's output becomes next frame's colour history.
+  void atrous(unsigned iteration, const cl::Buffer& gbuf, RowRange rows, RowRange readable);
+  // Last pass: remodulate into `out_color` (float4 radiance).
+  void remodulate(const cl::Buffer& out_color, const cl::Buffer& gbuf, RowRange rows);
+  // The paper's bilateral seam filter on `color` (rows within `band` of a seam; -1 = none),
+  // reading rows across the seam (exchanged beforehand).
+  void seam_filter(const cl::Buffer& color, const cl::Buffer& gbuf, RowRange rows, RowRange readable, int seam_above,
+                   int seam_below, int band);
+  // Stage 7: this frame's history becomes the previous frame's (call once per frame, after all
+  // devices finished reading the previous history).
+  void end_frame();
+
+  // Buffers a halo exchange copies rows of.
+  const cl::Buffer& illum() const { return illum_[current_]; }  // input of the next pass
+  const cl::Buffer& moments() const { return moments_; }
+  const cl::Buffer& history_illum_prev() const { return hist_illum_[1 - frame_parity_]; }
+  const cl::Buffer& history_moments_prev() const { return hist_moments_[1 - frame_parity_]; }
+
+  // Events of this frame's passes, by stage, for the timeline.
+  std::vector<std::pair<Stage, cl::Event>> take_events();
+
+  const Options& options() const { return options_; }
+
+ private:
+  SvgfParams params(RowRange rows, RowRange readable, unsigned step) const;
+  void launch(cl::Kernel& k, RowRange rows, Stage stage);
+
+  DeviceSet& devices_;
+  int device_;
+  unsigned width_, height_;
+  Options options_;
+  cl::Buffer illum_[2];        // ping-pong filter buffers (rgb, variance)
+  cl::Buffer moments_;         // (m1, m2, history length, filtered flag)
+  cl::Buffer hist_illum_[2];   // colour history: [frame_parity_] written this frame
+  cl::Buffer hist_moments_[2];
+  int current_ = 0;
+  int frame_parity_ = 0;
+  bool have_history_ = false;
+  std::vector<std::pair<Stage, cl::Event>> events_;
+};
+
+}  // namespace px

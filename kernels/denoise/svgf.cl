@@ -1,0 +1,310 @@
+/* Spatiotemporal variance-guided filtering (Schied et al., HPG 2017), one eye, rows
+ * [p.row0, p.row0 + p.rows) of full-frame buffers. Passes, in order:
+ *   svgf_temporal   demodulate by albedo, reproject last frame's history through the previous
+ *                   camera (2x2 bilinear taps, 3x3 fallback), accumulate colour and luminance
+ *                   moments with alpha = max(alpha_min, 1/h);
+ *   svgf_variance   variance from the moments, or a 7x7 bilateral spatial estimate while h < 4;
+ *   svgf_atrous     5x5 B3-spline a-trous steps (spacing 2^i) with normal, depth and luminance
+ *                   edge-stopping; variance propagates as sum w^2 var / (sum w)^2;
+ *   svgf_remodulate multiply the albedo back.
+ * Every read of another pixel stays inside [lo_row, hi_row) and, for history, within
+ * temporal_rows rows of the pixel: with independent seams those bounds are the strip, with
+ * halo exchange the neighbours' rows have been copied in and the bounds are the image, and the
+ * result does not depend on how the image was split.
+ *
+ * Buffers: illum float4 (rgb illumination, w = variance); moments float4 (m1, m2, history
+ * length, 1 if the pixel is filtered else 0). Background and emitters are not filtered: they
+ * pass through with their noisy colour and never serve as taps. */
+#include "shared/types.h"
+#include "render/camera.h"
+#include "scene/scene_view.h"
+
+inline float px_lum(float3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+
+inline int px_filtered_class(uint c) { return c == PX_CLASS_DIFFUSE || c == PX_CLASS_GLOSSY || c == PX_CLASS_MIRROR; }
+
+/* Albedo used for demodulation: channels too dark to divide by are left as they are. */
+inline float3 px_demod_albedo(const global GBufferTexel* g) {
+  const float3 a = px_load3(g->albedo);
+  return (float3)(a.x > 1e-3f ? a.x : 1.0f, a.y > 1e-3f ? a.y : 1.0f, a.z > 1e-3f ? a.z : 1.0f);
+}
+
+inline int px_row_readable(int y, const SvgfParams* p) { return y >= (int)p->lo_row && y < (int)p->hi_row; }
+
+/* Is history texel `q` the same surface as the current pixel (world point pos, normal n,
+ * distance `expected` from the previous camera)? */
+inline int px_history_matches(const global GBufferTexel* q, float3 n, float expected) {
+  if (!px_filtered_class(q->material_class)) return 0;
+  return fabs(q->depth - expected) < 0.05f * expected && dot(px_load3(q->normal), n) > 0.9f;
+}
+
+kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, const global float4* color,
+                          const global GBufferTexel* gbuf, const global GBufferTexel* prev_gbuf,
+                          const global float4* prev_illum, const global float4* prev_moments, SvgfParams p,
+                          CameraParams prev_cam, uint have_history) {
+  const uint gid = get_global_id(0);
+  if (gid >= p.rows * p.width) return;
+  const uint i = p.row0 * p.width + gid;
+  const int x = (int)(i % p.width), y = (int)(i / p.width);
+  const global GBufferTexel* g = gbuf + i;
+  const float3 c = color[i].xyz;
+  if (!px_filtered_class(g->material_class)) {
+    out_illum[i] = (float4)(c, 0.0f);
+    out_moments[i] = (float4)(0.0f, 0.0f, 0.0f, 0.0f);
+    return;
+  }
+  const float3 illum = c / px_demod_albedo(g);
+  const float l = px_lum(illum);
+
+  float3 hist = (float3)(0.0f, 0.0f, 0.0f);
+  float2 hist_m = (float2)(0.0f, 0.0f);
+  float hist_len = 0.0f, wsum = 0.0f;
+  if (have_history) {
+    const float3 pos = px_load3(g->pos);
+    const float3 n = px_load3(g->normal);
+    const float3 d = pos - px_camera_origin(&prev_cam);
+    const float expected = length(d);
+    const float zf = dot(d, (float3)(prev_cam.forward[0], prev_cam.forward[1], prev_cam.forward[2]));
+    if (zf > 0.0f) {
+      const float sx = dot(d, (float3)(prev_cam.right[0], prev_cam.right[1], prev_cam.right[2])) / zf;
+      const float sy = dot(d, (float3)(prev_cam.up[0], prev_cam.up[1], prev_cam.up[2])) / zf;
+      const float fx = (sx / (prev_cam.tan_half_fov_y * prev_cam.aspect) + 1.0f) * 0.5f * (float)p.width - 0.5f;
+      const float fy = (1.0f - sy / prev_cam.tan_half_fov_y) * 0.5f * (float)p.height - 0.5f;
+      const float x0f = floor(fx), y0f = floor(fy);
+      const float ax = fx - x0f, ay = fy - y0f;
+      /* 2x2 bilinear taps, each kept only on the same surface. */
+      for (int k = 0; k < 4; ++k) {
+        const int tx = (int)x0f + (k & 1), ty = (int)y0f + (k >> 1);
+        const float w = ((k & 1) ? ax : 1.0f - ax) * ((k >> 1) ? ay : 1.0f - ay);
+        if (w <= 0.0f || tx < 0 || tx >= (int)p.width || ty < 0 || ty >= (int)p.height) continue;
+        if (abs(ty - y) > (int)p.temporal_rows || !px_row_readable(ty, &p)) continue;
+        const uint j = (uint)ty * p.width + (uint)tx;
+        if (!px_history_matches(prev_gbuf + j, n, expected)) continue;
+        hist += w * prev_illum[j].xyz;
+        hist_m += w * prev_moments[j].xy;
+        hist_len += w * prev_moments[j].z;
+        wsum += w;
+      }
+      /* 3x3 fallback around the nearest texel: thin features and edges that no bilinear tap
+       * matched may still have valid neighbours. */
+      if (wsum <= 0.0f) {
+        const int cx = (int)floor(fx + 0.5f), cy = (int)floor(fy + 0.5f);
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int tx = cx + dx, ty = cy + dy;
+            if (tx < 0 || tx >= (int)p.width || ty < 0 || ty >= (int)p.height) continue;
+            if (abs(ty - y) > (int)p.temporal_rows || !px_row_readable(ty, &p)) continue;
+            const uint j = (uint)ty * p.width + (uint)tx;
+            if (!px_history_matches(prev_gbuf + j, n, expected)) continue;
+            hist += prev_illum[j].xyz;
+            hist_m += prev_moments[j].xy;
+            hist_len += prev_moments[j].z;
+            wsum += 1.0f;
+          }
+      }
+    }
+  }
+  (void)x;
+  float len;
+  float3 out;
+  float2 m;
+  const float2 cur_m = (float2)(l, l * l);
+  if (wsum > 0.0f) {
+    hist /= wsum;
+    hist_m /= wsum;
+    len = fmin((float)p.max_history, floor(hist_len / wsum + 0.5f) + 1.0f);
+    const float a = fmax(p.alpha, 1.0f / len);
+    const float am = fmax(p.alpha_moments, 1.0f / len);
+    out = mix(hist, illum, a);
+    m = mix(hist_m, cur_m, am);
+  } else {
+    len = 1.0f; /* disocclusion or first frame: history starts over */
+    out = illum;
+    m = cur_m;
+  }
+  out_illum[i] = (float4)(out, fmax(0.0f, m.y - m.x * m.x));
+  out_moments[i] = (float4)(m, len, 1.0f);
+}
+
+/* Edge-stopping weight between centre (normal n, depth z, depth gradient grad per pixel) and a
+ * tap at pixel offset (dx, dy). */
+inline float px_geometry_weight(const global GBufferTexel* a, float3 n, float z, float2 grad, float dx, float dy,
+                                const SvgfParams* p) {
+  if (!px_filtered_class(a->material_class)) return 0.0f;
+  const float wn = pow(fmax(0.0f, dot(n, px_load3(a->normal))), p->sigma_n);
+  const float wz = exp(-fabs(z - a->depth) / (p->sigma_z * fabs(grad.x * dx + grad.y * dy) + 1e-3f * z + 1e-6f));
+  return wn * wz;
+}
+
+/* Screen-space depth gradient at pixel (x, y) from its readable neighbours (one-sided at the
+ * edge of the readable rows or of the image). */
+inline float2 px_depth_gradient(const global GBufferTexel* g, int x, int y, const SvgfParams* p) {
+  const uint i = (uint)y * p->width + (uint)x;
+  const float z = g[i].depth;
+  const int xl = max(x - 1, 0), xr = min(x + 1, (int)p->width - 1);
+  const int yu = px_row_readable(y - 1, p) && y > 0 ? y - 1 : y;
+  const int yd = px_row_readable(y + 1, p) && y + 1 < (int)p->height ? y + 1 : y;
+  float gx = 0.0f, gy = 0.0f;
+  if (xr > xl) gx = (g[(uint)y * p->width + (uint)xr].depth - g[(uint)y * p->width + (uint)xl].depth) / (float)(xr - xl);
+  if (yd > yu) gy = (g[(uint)yd * p->width + (uint)x].depth - g[(uint)yu * p->width + (uint)x].depth) / (float)(yd - yu);
+  (void)z;
+  return (float2)(gx, gy);
+}
+
+kernel void svgf_variance(global float4* out_illum, const global float4* illum, const global float4* moments,
+                          const global GBufferTexel* gbuf, SvgfParams p) {
+  const uint gid = get_global_id(0);
+  if (gid >= p.rows * p.width) return;
+  const uint i = p.row0 * p.width + gid;
+  const int x = (int)(i % p.width), y = (int)(i / p.width);
+  const float4 c = illum[i];
+  const float4 m = moments[i];
+  if (m.w == 0.0f || m.z >= 4.0f) {
+    out_illum[i] = c;
+    return;
+  }
+  /* Short history: estimate the moments spatially with a 7x7 bilateral filter. */
+  const global GBufferTexel* g = gbuf + i;
+  const float3 n = px_load3(g->normal);
+  const float z = g->depth;
+  const float2 grad = px_depth_gradient(gbuf, x, y, &p);
+  const float l = px_lum(c.xyz);
+  float wsum = 0.0f;
+  float3 csum = (float3)(0.0f, 0.0f, 0.0f);
+  float2 msum = (float2)(0.0f, 0.0f);
+  for (int dy = -3; dy <= 3; ++dy) {
+    const int ty = y + dy;
+    if (ty < 0 || ty >= (int)p.height || !px_row_readable(ty, &p)) continue;
+    for (int dx = -3; dx <= 3; ++dx) {
+      const int tx = x + dx;
+      if (tx < 0 || tx >= (int)p.width) continue;
+      const uint j = (uint)ty * p.width + (uint)tx;
+      if (moments[j].w == 0.0f) continue;
+      const float wl = exp(-fabs(l - px_lum(illum[j].xyz)) / (p.sigma_l + 1e-6f));
+      const float w = (dx == 0 && dy == 0) ? 1.0f : px_geometry_weight(gbuf + j, n, z, grad, (float)dx, (float)dy, &p) * wl;
+      wsum += w;
+      csum += w * illum[j].xyz;
+      msum += w * moments[j].xy;
+    }
+  }
+  csum /= wsum;
+  msum /= wsum;
+  /* Few frames of history: the estimate is uncertain, so boost it (as in the SVGF paper). */
+  const float var = fmax(0.0f, msum.y - msum.x * msum.x) * 4.0f / m.z;
+  out_illum[i] = (float4)(csum, var);
+}
+
+kernel void svgf_atrous(global float4* out_illum, const global float4* illum, const global float4* moments,
+                        const global GBufferTexel* gbuf, SvgfParams p) {
+  const uint gid = get_global_id(0);
+  if (gid >= p.rows * p.width) return;
+  const uint i = p.row0 * p.width + gid;
+  const int x = (int)(i % p.width), y = (int)(i / p.width);
+  const float4 c = illum[i];
+  if (moments[i].w == 0.0f) {
+    out_illum[i] = c;
+    return;
+  }
+  const global GBufferTexel* g = gbuf + i;
+  const float3 n = px_load3(g->normal);
+  const float z = g->depth;
+  const float2 grad = px_depth_gradient(gbuf, x, y, &p);
+  const float l = px_lum(c.xyz);
+  /* Variance prefiltered with a 3x3 Gaussian: the luminance weight's scale. */
+  float var = 0.0f, vw = 0.0f;
+  for (int dy = -1; dy <= 1; ++dy) {
+    const int ty = y + dy;
+    if (ty < 0 || ty >= (int)p.height || !px_row_readable(ty, &p)) continue;
+    for (int dx = -1; dx <= 1; ++dx) {
+      const int tx = x + dx;
+      if (tx < 0 || tx >= (int)p.width) continue;
+      const uint j = (uint)ty * p.width + (uint)tx;
+      if (moments[j].w == 0.0f) continue;
+      const float k = (dx == 0 ? 0.5f : 0.25f) * (dy == 0 ? 0.5f : 0.25f);
+      var += k * illum[j].w;
+      vw += k;
+    }
+  }
+  var = vw > 0.0f ? var / vw : c.w;
+  const float lum_scale = p.sigma_l * sqrt(fmax(0.0f, var)) + 1e-6f;
+  const float h[5] = {1.0f / 16.0f, 1.0f / 4.0f, 3.0f / 8.0f, 1.0f / 4.0f, 1.0f / 16.0f};
+  const int step = (int)p.step;
+  float wsum = 0.0f, vsum = 0.0f;
+  float3 csum = (float3)(0.0f, 0.0f, 0.0f);
+  for (int ky = -2; ky <= 2; ++ky) {
+    const int ty = y + ky * step;
+    if (ty < 0 || ty >= (int)p.height || !px_row_readable(ty, &p)) continue;
+    for (int kx = -2; kx <= 2; ++kx) {
+      const int tx = x + kx * step;
+      if (tx < 0 || tx >= (int)p.width) continue;
+      const uint j = (uint)ty * p.width + (uint)tx;
+      if (moments[j].w == 0.0f) continue;
+      const float4 t = illum[j];
+      float w = h[kx + 2] * h[ky + 2];
+      if (kx != 0 || ky != 0) {
+        w *= px_geometry_weight(gbuf + j, n, z, grad, (float)(kx * step), (float)(ky * step), &p) *
+             exp(-fabs(l - px_lum(t.xyz)) / lum_scale);
+      }
+      wsum += w;
+      vsum += w * w * t.w;
+      csum += w * t.xyz;
+    }
+  }
+  out_illum[i] = (float4)(csum / wsum, vsum / (wsum * wsum));
+}
+
+/* Back from illumination to radiance: multiply the albedo that demodulation divided out.
+ * Unfiltered pixels (background, emitters) already hold their colour. */
+kernel void svgf_remodulate(global float4* out_color, const global float4* illum, const global float4* moments,
+                            const global GBufferTexel* gbuf, SvgfParams p) {
+  const uint gid = get_global_id(0);
+  if (gid >= p.rows * p.width) return;
+  const uint i = p.row0 * p.width + gid;
+  const float4 c = illum[i];
+  if (moments[i].w == 0.0f) {
+    out_color[i] = (float4)(c.xyz, 1.0f);
+    return;
+  }
+  out_color[i] = (float4)(c.xyz * px_demod_albedo(gbuf + i), 1.0f);
+}
+
+/* The paper's optional seam filter ("--seams bilateral"): after independent per-strip
+ * denoising, a 5x5 bilateral (normal, depth, luminance) blur of the rows within `band` rows of
+ * a seam. Rows across the seam were copied in beforehand. */
+kernel void seam_bilateral(global float4* out_color, const global float4* color, const global GBufferTexel* gbuf,
+                           SvgfParams p, int seam_above, int seam_below, int band) {
+  const uint gid = get_global_id(0);
+  if (gid >= p.rows * p.width) return;
+  const uint i = p.row0 * p.width + gid;
+  const int x = (int)(i % p.width), y = (int)(i / p.width);
+  const int near_above = seam_above >= 0 && abs(y - seam_above) < band;
+  const int near_below = seam_below >= 0 && abs(y - seam_below) < band;
+  const global GBufferTexel* g = gbuf + i;
+  if (!(near_above || near_below) || !px_filtered_class(g->material_class)) {
+    out_color[i] = color[i];
+    return;
+  }
+  const float3 n = px_load3(g->normal);
+  const float z = g->depth;
+  const float2 grad = px_depth_gradient(gbuf, x, y, &p);
+  const float l = px_lum(color[i].xyz);
+  float wsum = 0.0f;
+  float3 csum = (float3)(0.0f, 0.0f, 0.0f);
+  for (int dy = -2; dy <= 2; ++dy) {
+    const int ty = y + dy;
+    if (ty < 0 || ty >= (int)p.height || !px_row_readable(ty, &p)) continue;
+    for (int dx = -2; dx <= 2; ++dx) {
+      const int tx = x + dx;
+      if (tx < 0 || tx >= (int)p.width) continue;
+      const uint j = (uint)ty * p.width + (uint)tx;
+      const float3 t = color[j].xyz;
+      float w = exp(-(float)(dx * dx + dy * dy) / 4.0f);
+      if (dx != 0 || dy != 0)
+        w *= px_geometry_weight(gbuf + j, n, z, grad, (float)dx, (float)dy, &p) *
+             exp(-fabs(l - px_lum(t)) / (0.25f * l + 1e-3f));
+      wsum += w;
+      csum += w * t;
+    }
+  }
+  out_color[i] = (float4)(csum / wsum, 1.0f);
+}
