@@ -126,14 +126,32 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
   out_moments[i] = (float4)(m, len, 1.0f);
 }
 
-/* Edge-stopping weight between centre (normal n, depth z, depth gradient grad per pixel) and a
- * tap at pixel offset (dx, dy). */
+/* cos^sigma_n: the exponent is almost always an integer (128, 4...), and pown is a few
+ * multiplications where pow is a log and an exp. */
+inline float px_normal_weight(float c, float sigma_n) {
+  c = fmax(0.0f, c);
+  const int k = (int)sigma_n;
+  return (float)k == sigma_n ? pown(c, k) : pow(c, sigma_n);
+}
+
+/* Exponent of the depth edge-stopping weight between centre (depth z, gradient grad per pixel)
+ * and a tap at pixel offset (dx, dy): w_z = exp(-this). */
+inline float px_depth_term(float tap_depth, float z, float2 grad, float dx, float dy, const SvgfParams* p) {
+  return fabs(z - tap_depth) / (p->sigma_z * fabs(grad.x * dx + grad.y * dy) + 1e-3f * z + 1e-6f);
+}
+
+/* Normal and depth edge-stopping weight of a tap (0 for unfiltered taps), with an extra
+ * exponent (the luminance term) folded into the same exp. */
+inline float px_geometry_weight_x(const global GBufferTexel* a, float3 n, float z, float2 grad, float dx, float dy,
+                                  const SvgfParams* p, float extra) {
+  if (!px_filtered_class(a->material_class)) return 0.0f;
+  return px_normal_weight(dot(n, px_load3(a->normal)), p->sigma_n) *
+         exp(-(px_depth_term(a->depth, z, grad, dx, dy, p) + extra));
+}
+
 inline float px_geometry_weight(const global GBufferTexel* a, float3 n, float z, float2 grad, float dx, float dy,
                                 const SvgfParams* p) {
-  if (!px_filtered_class(a->material_class)) return 0.0f;
-  const float wn = pow(fmax(0.0f, dot(n, px_load3(a->normal))), p->sigma_n);
-  const float wz = exp(-fabs(z - a->depth) / (p->sigma_z * fabs(grad.x * dx + grad.y * dy) + 1e-3f * z + 1e-6f));
-  return wn * wz;
+  return px_geometry_weight_x(a, n, z, grad, dx, dy, p, 0.0f);
 }
 
 /* Screen-space depth gradient at pixel (x, y) from its readable neighbours (one-sided at the
@@ -180,8 +198,9 @@ kernel void svgf_variance(global float4* out_illum, const global float4* illum, 
       if (tx < 0 || tx >= (int)p.width) continue;
       const uint j = (uint)ty * p.width + (uint)tx;
       if (moments[j].w == 0.0f) continue;
-      const float wl = exp(-fabs(l - px_lum(illum[j].xyz)) / (p.sigma_l + 1e-6f));
-      const float w = (dx == 0 && dy == 0) ? 1.0f : px_geometry_weight(gbuf + j, n, z, grad, (float)dx, (float)dy, &p) * wl;
+      const float w = (dx == 0 && dy == 0) ? 1.0f
+                                           : px_geometry_weight_x(gbuf + j, n, z, grad, (float)dx, (float)dy, &p,
+                                                                  fabs(l - px_lum(illum[j].xyz)) / (p.sigma_l + 1e-6f));
       wsum += w;
       csum += w * illum[j].xyz;
       msum += w * moments[j].xy;
@@ -241,10 +260,9 @@ kernel void svgf_atrous(global float4* out_illum, const global float4* illum, co
       if (moments[j].w == 0.0f) continue;
       const float4 t = illum[j];
       float w = h[kx + 2] * h[ky + 2];
-      if (kx != 0 || ky != 0) {
-        w *= px_geometry_weight(gbuf + j, n, z, grad, (float)(kx * step), (float)(ky * step), &p) *
-             exp(-fabs(l - px_lum(t.xyz)) / lum_scale);
-      }
+      if (kx != 0 || ky != 0)
+        w *= px_geometry_weight_x(gbuf + j, n, z, grad, (float)(kx * step), (float)(ky * step), &p,
+                                  fabs(l - px_lum(t.xyz)) / lum_scale);
       wsum += w;
       vsum += w * w * t.w;
       csum += w * t.xyz;
