@@ -49,6 +49,10 @@ for p in proposed baseline mono; do
     fails=$((fails + 1)); echo "FAIL report for $p lacks schema or device times"
   fi
 done
+check "denoised render with independent seams" 0 "wrote 2 frame" -- "$bin" render --scene cornell --width 32 --height 18 \
+  --frames 2 --devices 2 --seams independent --svgf-iterations 2 --out "$tmp/dn"
+check "bad seam mode is refused" 1 "seams" -- "$bin" render --seams wobbly --out "$tmp/y"
+check "explain shows the denoise stage" 0 "denoise" -- "$bin" render --explain --devices 2 --height 100
 check "compare gives PSNR" 0 "psnr_db" -- "$bin" compare "$tmp/r_proposed/frame_0000_left.exr" "$tmp/r_mono/frame_0000_left.exr"
 check "reference shows progress" 0 "reference_" -- "$bin" reference --scene cornell --width 16 --height 9 --spp 8 --pass-spp 4 --out "$tmp/ref"
 

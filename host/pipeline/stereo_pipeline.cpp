@@ -74,6 +74,13 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
 
 void StereoPipeline::record(Stage stage, int device, const cl::Event& e) { events_.push_back({{stage, device}, e}); }
 
+void StereoPipeline::enqueue(int d, cl::Kernel& k, std::size_t items, Stage stage) {
+  cl::Event e;
+  devices_.devices()[d].queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(items, kLocalSize)),
+                                                   cl::NDRange(kLocalSize), nullptr, &e);
+  record(stage, d, e);
+}
+
 FrameParams StereoPipeline::frame_params(int eye, RowRange rows, unsigned frame) const {
   return PathTracer::frame_params(scene_, device_scene_.light_count(), options_.trace, eye, rows.begin, rows.size(),
                                   frame);
@@ -88,11 +95,7 @@ void StereoPipeline::path_trace(int d, int eye, RowRange rows, const CameraParam
   k.setArg(2, fp);
   k.setArg(3, cam);
   device_scene_.on(d).bind(k, 4);
-  cl::Event e;
-  devices_.devices()[d].queue.enqueueNDRangeKernel(
-      k, cl::NullRange, cl::NDRange(round_up(static_cast<std::size_t>(rows.size()) * width_, kLocalSize)),
-      cl::NDRange(kLocalSize), nullptr, &e);
-  record(stage, d, e);
+  enqueue(d, k, static_cast<std::size_t>(rows.size()) * width_, stage);
 }
 
 void StereoPipeline::gbuffer(int d, int eye, RowRange rows, const CameraParams& cam) {
@@ -103,11 +106,7 @@ void StereoPipeline::gbuffer(int d, int eye, RowRange rows, const CameraParams& 
   k.setArg(2, static_cast<cl_uint>(rows.size()));
   k.setArg(3, cam);
   device_scene_.on(d).bind(k, 4);
-  cl::Event e;
-  devices_.devices()[d].queue.enqueueNDRangeKernel(
-      k, cl::NullRange, cl::NDRange(round_up(static_cast<std::size_t>(rows.size()) * width_, kLocalSize)),
-      cl::NDRange(kLocalSize), nullptr, &e);
-  record(Stage::GBuffer, d, e);
+  enqueue(d, k, static_cast<std::size_t>(rows.size()) * width_, Stage::GBuffer);
 }
 
 void StereoPipeline::reproject(int d, RowRange rows, const CameraParams& left_cam) {
@@ -126,11 +125,7 @@ void StereoPipeline::reproject(int d, RowRange rows, const CameraParams& left_ca
   k.setArg(6, static_cast<cl_uint>(rows.begin));
   k.setArg(7, static_cast<cl_uint>(rows.size()));
   k.setArg(8, left_cam);
-  cl::Event e;
-  q.enqueueNDRangeKernel(k, cl::NullRange,
-                         cl::NDRange(round_up(static_cast<std::size_t>(rows.size()) * width_, kLocalSize)),
-                         cl::NDRange(kLocalSize), nullptr, &e);
-  record(Stage::Reproject, d, e);
+  enqueue(d, k, static_cast<std::size_t>(rows.size()) * width_, Stage::Reproject);
 }
 
 void StereoPipeline::fill_holes(int d, RowRange rows, const CameraParams& right_cam, unsigned frame) {
@@ -145,13 +140,9 @@ void StereoPipeline::fill_holes(int d, RowRange rows, const CameraParams& right_
   k.setArg(4, fp);
   k.setArg(5, right_cam);
   device_scene_.on(d).bind(k, 6);
-  cl::Event e;
   // Sized for the worst case (every pixel a hole): the hole count lives on the device, so no
   // host round trip is needed between reprojection and hole filling.
-  devices_.devices()[d].queue.enqueueNDRangeKernel(
-      k, cl::NullRange, cl::NDRange(round_up(static_cast<std::size_t>(rows.size()) * width_, kLocalSize)),
-      cl::NDRange(kLocalSize), nullptr, &e);
-  record(Stage::HoleFill, d, e);
+  enqueue(d, k, static_cast<std::size_t>(rows.size()) * width_, Stage::HoleFill);
 }
 
 void StereoPipeline::tonemap(int d, int eye, RowRange rows) {
@@ -163,10 +154,7 @@ void StereoPipeline::tonemap(int d, int eye, RowRange rows) {
   k.setArg(2, first);
   k.setArg(3, count);
   k.setArg(4, options_.exposure);
-  cl::Event e;
-  devices_.devices()[d].queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(count, kLocalSize)),
-                                                   cl::NDRange(kLocalSize), nullptr, &e);
-  record(Stage::Tonemap, d, e);
+  enqueue(d, k, count, Stage::Tonemap);
 }
 
 void StereoPipeline::transfer(int d, int eye, RowRange rows, bool radiance, bool rgba) {

@@ -112,6 +112,8 @@ class StereoPipeline {
   void transfer(int d, int eye, RowRange rows, bool radiance, bool rgba);
 
   void record(Stage stage, int device, const cl::Event& e);
+  // Launches `k` over `items` work-items (rounded up to kLocalSize) on device d and records it.
+  void enqueue(int d, cl::Kernel& k, std::size_t items, Stage stage);
   // Stage 6-7 for every device at once (passes interleave with halo exchanges).
   void denoise(const StageWork& work, const std::array<CameraParams, 2>& cams);
   // Copies into each device's `buffer(d)` the rows within `radius` of its strip `strip[d]`
