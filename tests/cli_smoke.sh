@@ -51,6 +51,13 @@ for p in proposed baseline mono; do
 done
 check "denoised render with independent seams" 0 "wrote 2 frame" -- "$bin" render --scene cornell --width 32 --height 18 \
   --frames 2 --devices 2 --seams independent --svgf-iterations 2 --out "$tmp/dn"
+check "timeline is written" 0 "timeline written" -- "$bin" render --scene cornell --width 32 --height 18 --devices 2 \
+  --no-denoise --out "$tmp/tl" --timeline "$tmp/tl.json"
+if grep -q '"traceEvents"' "$tmp/tl.json" && grep -q '"path trace left"' "$tmp/tl.json"; then
+  passes=$((passes + 1)); echo "ok   timeline has path-tracing slices"
+else
+  fails=$((fails + 1)); echo "FAIL timeline lacks traceEvents or stage slices"
+fi
 check "bad seam mode is refused" 1 "seams" -- "$bin" render --seams wobbly --out "$tmp/y"
 check "explain shows the denoise stage" 0 "denoise" -- "$bin" render --explain --devices 2 --height 100
 check "compare gives PSNR" 0 "psnr_db" -- "$bin" compare "$tmp/r_proposed/frame_0000_left.exr" "$tmp/r_mono/frame_0000_left.exr"

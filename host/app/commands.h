@@ -43,6 +43,7 @@ struct RenderCommand {
   SvgfDenoiser::Options svgf;
   std::string seams = "halo";
   std::string report;          // JSON report path ("" = none)
+  std::string timeline;        // Chrome trace / Perfetto JSON path ("" = none)
   DeviceChoice devices;
 };
 

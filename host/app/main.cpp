@@ -73,6 +73,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   render_cmd->add_option("--seed", render.trace.seed, "seed of the sample streams")->capture_default_str();
   render_cmd->add_option("--exposure", render.exposure, "scale applied before the sRGB PNG encoding")->capture_default_str();
+  render_cmd->add_option("--timeline", render.timeline,
+                         "write a Chrome trace / Perfetto JSON: one track per device, one slice per OpenCL command "
+                         "(from profiling events)");
   render_cmd->add_flag("--no-denoise", render.no_denoise, "skip SVGF (stages 6-7): write the noisy images");
   render_cmd->add_option("--svgf-iterations", render.svgf.iterations, "a-trous iterations")->check(CLI::Range(1u, 8u))->capture_default_str();
   render_cmd->add_option("--sigma-l", render.svgf.sigma_l, "SVGF luminance edge-stopping (paper 4, Tauray 10, stereo paper 32)")->capture_default_str();

@@ -252,7 +252,11 @@ FrameStats StereoPipeline::render(unsigned frame, float time_s) {
   stats.frame = frame;
   stats.wall_ms = std::chrono::duration<double, std::milli>(clock_type::now() - t0).count();
   std::map<std::pair<Stage, int>, double> sums;
-  for (auto& [key, e] : events_) sums[key] += event_ms(e);
+  for (auto& [key, e] : events_) {
+    sums[key] += event_ms(e);
+    stats.spans.push_back({key.first, key.second, e.getProfilingInfo<CL_PROFILING_COMMAND_START>(),
+                           e.getProfilingInfo<CL_PROFILING_COMMAND_END>()});
+  }
   for (auto& [key, ms] : sums) stats.stages.push_back({key.first, key.second, ms});
   stats.bytes_transferred = bytes_this_frame_;
   stats.right_pixels = static_cast<std::size_t>(width_) * height_;

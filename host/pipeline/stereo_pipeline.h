@@ -29,10 +29,18 @@ struct StageTiming {
   double ms;  // summed device time of the stage's commands on that device (profiling events)
 };
 
+// One command's execution on a device, from its OpenCL profiling timestamps (ns, device clock).
+struct StageSpan {
+  Stage stage;
+  int device;
+  std::uint64_t start_ns, end_ns;
+};
+
 struct FrameStats {
   unsigned frame = 0;
   double wall_ms = 0.0;                 // host time from first enqueue to the owner's last command
   std::vector<StageTiming> stages;
+  std::vector<StageSpan> spans;         // every command, for timelines
   std::size_t right_pixels = 0;         // right-eye pixels in the frame
   std::size_t reprojected = 0;          // of those, reprojected from the left eye
   std::size_t bytes_transferred = 0;    // child -> host -> owner, both hops counted once
