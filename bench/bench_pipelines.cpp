@@ -122,7 +122,7 @@ int main(int argc, char** argv) {
       for (const auto& r : results)
         for (int d = 0; d < set.size(); ++d) std::printf(" %9s", (r.name.substr(0, 4) + "/d" + std::to_string(d)).c_str());
       std::printf("\n");
-      for (int stage : {2, 12, 3, 4, 5, 8, 9}) {
+      for (int stage : {2, 12, 3, 4, 5, 6, 7, 8, 9}) {
         std::printf("%-3d %-18s", stage, px::stage_name(static_cast<px::Stage>(stage)));
         for (const auto& r : results)
           for (int d = 0; d < set.size(); ++d) {

@@ -65,7 +65,7 @@ int main(int argc, char** argv) {
   render_cmd->add_option("--frames", render.frames, "frames to render along the camera path")->check(CLI::Range(1u, 100000u))->capture_default_str();
   render_cmd->add_option("--fps", render.fps, "frame rate: frame f is at time f / fps on the camera path")->capture_default_str();
   render_cmd->add_option("--spp", render.trace.spp, "samples per pixel")->check(CLI::Range(1u, 1u << 20))->capture_default_str();
-  render_cmd->add_option("--bounces", render.trace.bounces, "maximum path length in bounces")->check(CLI::Range(0u, 256u))->capture_default_str();
+  render_cmd->add_option("--bounces", render.trace.bounces, "maximum path length in bounces")->check(CLI::Range(0u, px::PathTracer::kMaxBounces))->capture_default_str();
   render_cmd->add_option("--rr-start", render.trace.rr_start_bounce, "Russian roulette from this bounce on")->capture_default_str();
   render_cmd->add_option("--light-sampling", render.light_sampling,
                          "mis (NEE + BSDF sampling, power heuristic), nee (next-event only), bsdf (BSDF sampling only)")
@@ -107,7 +107,7 @@ int main(int argc, char** argv) {
   reference_cmd->add_option("--pass-spp", reference.pass_spp, "samples per progressive pass")->check(CLI::Range(1u, 4096u))->capture_default_str();
   reference_cmd->add_option("--frame", reference.frame, "frame number on the camera path (time = frame / fps)")->capture_default_str();
   reference_cmd->add_option("--fps", reference.fps, "frame rate of the animation the reference belongs to")->capture_default_str();
-  reference_cmd->add_option("--bounces", reference.bounces, "maximum path length")->check(CLI::Range(0u, 256u))->capture_default_str();
+  reference_cmd->add_option("--bounces", reference.bounces, "maximum path length")->check(CLI::Range(0u, px::PathTracer::kMaxBounces))->capture_default_str();
   reference_cmd->add_option("--exposure", reference.exposure, "PNG preview scale")->capture_default_str();
   reference_cmd->add_option("--out", reference.out, "output directory")->capture_default_str();
   reference_cmd->add_flag("--overwrite", reference.overwrite, "allow writing into a non-empty output directory");

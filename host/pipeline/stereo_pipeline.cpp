@@ -43,6 +43,9 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
       schedule_(make_schedule(options.pipeline, devices.size(), height, options.denoise)) {
   if (width == 0 || height == 0 || width > 65535 || height > 65535)
     throw std::invalid_argument("image size must be between 1 and 65535 per side");
+  if (options.trace.spp == 0) throw std::invalid_argument("spp must be at least 1");
+  if (options.trace.bounces > PathTracer::kMaxBounces)
+    throw std::invalid_argument("bounces must be at most " + std::to_string(PathTracer::kMaxBounces));
   const std::size_t pixels = static_cast<std::size_t>(width) * height;
   const auto& ctx = devices.context();
   for (int d = 0; d < devices.size(); ++d) {

@@ -19,7 +19,7 @@ LightSampling parse_light_sampling(const std::string& text);  // "mis", "nee", "
 class PathTracer {
  public:
   static constexpr std::size_t kLocalSize = 64;
-  static constexpr unsigned kMaxBounces = 256;  // PX_MAX_BOUNCES_LIMIT in the kernel
+  static constexpr unsigned kMaxBounces = PX_MAX_BOUNCES_LIMIT;
 
   struct Options {
     unsigned spp = 1;

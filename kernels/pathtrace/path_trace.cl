@@ -4,8 +4,8 @@
  *
  * Every random number comes from the counter-based stream keyed by (frame, eye, pixel,
  * sample, dimension), so the result is independent of which device or strip ran the pixel.
- * A path whose radiance is not finite is dropped (contributes zero) and counted in
- * `nonfinite`: no NaN or Inf ever reaches the output. */
+ * A path whose radiance is not finite is dropped (left out of the pixel's mean) and counted
+ * in `nonfinite`: no NaN or Inf ever reaches the output. */
 #include "shared/types.h"
 #include "render/camera.h"
 #include "sampling/sample_stream.h"
@@ -15,9 +15,6 @@
 #include "shading/lights.h"
 #include "trace/ray_offset.h"
 #include "trace/traverse.h"
-
-/* Upper bound on max_bounces the host accepts (keeps the dimension counter in range). */
-#define PX_MAX_BOUNCES_LIMIT 256u
 
 inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir,
                             SampleKey key) {

@@ -213,6 +213,10 @@ typedef struct FrameParams {
   uint pad[2];
 } FrameParams;
 
+/* Largest FrameParams::max_bounces the host accepts: two sample dimensions per bounce must
+ * stay clear of the bits px_sample4 shifts the dimension into. */
+#define PX_MAX_BOUNCES_LIMIT 256u
+
 /* Which estimators combine at each vertex: next-event estimation only, BSDF sampling only,
  * or both weighted by the power heuristic (the default). */
 #define PX_LIGHTS_MIS 0u
