@@ -10,7 +10,6 @@
 #include <algorithm>
 #include <array>
 #include <bit>
-#include <chrono>
 #include <cmath>
 #include <map>
 #include <optional>
@@ -361,11 +360,9 @@ TEST(Cornell, GlossyVariantHasAGlossyBlockAndAClosedMirrorSphere) {
 // Atrium
 
 TEST(Atrium, DefaultDetailIsLarge) {
-  const auto t0 = std::chrono::steady_clock::now();
+  // (How long generation takes is measured, not asserted: tests check behaviour only.)
   const Scene s = make_builtin_scene("atrium");
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   EXPECT_GE(s.triangles.size(), 500000u);
-  EXPECT_LT(seconds, 5.0) << "generation should take well under a second";
   expect_all_valid(s, "atrium");
 }
 
