@@ -22,8 +22,7 @@ inline int px_intersect_leaf(const SceneView* scene, uint first, uint count,
   for (uint i = first; i < first + count; ++i) {
     const global BvhTriangle* tri = scene->tris + i;
     float t, u, v;
-    if (px_intersect_triangle(shear, px_load3(tri->v0), px_load3(tri->v1), px_load3(tri->v2), tmin,
-                              best->t, &t, &u, &v) &&
+    if (px_intersect_triangle_mem(shear, tri->v0, tri->v1, tri->v2, tmin, best->t, &t, &u, &v) &&
         ((tri->flags & PX_TRI_ALPHA_TESTED) == 0u || px_alpha_visible(scene, tri->prim, u, v))) {
       best->t = t;
       best->u = u;

@@ -46,20 +46,19 @@ inline RayShear px_make_shear(float3 org, float3 dir) {
   return s;
 }
 
-/* Returns 1 and sets *t, *u, *v (barycentrics of v1, v2) on a hit with tmin <= t < tmax. */
-inline int px_intersect_triangle(const RayShear* s, float3 v0, float3 v1, float3 v2, float tmin,
-                                 float tmax, float* t, float* u, float* v) {
-  const float3 a = v0 - s->org;
-  const float3 b = v1 - s->org;
-  const float3 c = v2 - s->org;
-  const float az = px_axis(a, s->kz), bz = px_axis(b, s->kz), cz = px_axis(c, s->kz);
-  const float ax = px_axis(a, s->kx) - s->sx * az;
-  const float ay = px_axis(a, s->ky) - s->sy * az;
-  const float bx = px_axis(b, s->kx) - s->sx * bz;
-  const float by = px_axis(b, s->ky) - s->sy * bz;
-  const float cx = px_axis(c, s->kx) - s->sx * cz;
-  const float cy = px_axis(c, s->ky) - s->sy * cz;
-
+/* Returns 1 and sets *t, *u, *v (barycentrics of v1, v2) on a hit with tmin <= t < tmax.
+ * Vertices are read component-wise in the ray's permuted axis order straight from memory
+ * (indexed loads), which is cheaper than permuting float3 values with selects. */
+inline int px_intersect_triangle_mem(const RayShear* s, const global float* v0, const global float* v1,
+                                     const global float* v2, float tmin, float tmax, float* t, float* u, float* v) {
+  const float ox = px_axis(s->org, s->kx), oy = px_axis(s->org, s->ky), oz = px_axis(s->org, s->kz);
+  const float az = v0[s->kz] - oz, bz = v1[s->kz] - oz, cz = v2[s->kz] - oz;
+  const float ax = (v0[s->kx] - ox) - s->sx * az;
+  const float ay = (v0[s->ky] - oy) - s->sy * az;
+  const float bx = (v1[s->kx] - ox) - s->sx * bz;
+  const float by = (v1[s->ky] - oy) - s->sy * bz;
+  const float cx = (v2[s->kx] - ox) - s->sx * cz;
+  const float cy = (v2[s->ky] - oy) - s->sy * cz;
   float eu = cx * by - cy * bx;
   float ev = ax * cy - ay * cx;
   float ew = bx * ay - by * ax;
