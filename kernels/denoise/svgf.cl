@@ -45,7 +45,7 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
   const uint gid = get_global_id(0);
   if (gid >= p.rows * p.width) return;
   const uint i = p.row0 * p.width + gid;
-  const int x = (int)(i % p.width), y = (int)(i / p.width);
+  const int y = (int)(i / p.width);
   const global GBufferTexel* g = gbuf + i;
   const float3 c = color[i].xyz;
   if (!px_filtered_class(g->material_class)) {
@@ -104,7 +104,6 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
       }
     }
   }
-  (void)x;
   float len;
   float3 out;
   float2 m;
@@ -157,16 +156,31 @@ inline float px_geometry_weight(const global GBufferTexel* a, float3 n, float z,
 /* Screen-space depth gradient at pixel (x, y) from its readable neighbours (one-sided at the
  * edge of the readable rows or of the image). */
 inline float2 px_depth_gradient(const global GBufferTexel* g, int x, int y, const SvgfParams* p) {
-  const uint i = (uint)y * p->width + (uint)x;
-  const float z = g[i].depth;
   const int xl = max(x - 1, 0), xr = min(x + 1, (int)p->width - 1);
   const int yu = px_row_readable(y - 1, p) && y > 0 ? y - 1 : y;
   const int yd = px_row_readable(y + 1, p) && y + 1 < (int)p->height ? y + 1 : y;
   float gx = 0.0f, gy = 0.0f;
   if (xr > xl) gx = (g[(uint)y * p->width + (uint)xr].depth - g[(uint)y * p->width + (uint)xl].depth) / (float)(xr - xl);
   if (yd > yu) gy = (g[(uint)yd * p->width + (uint)x].depth - g[(uint)yu * p->width + (uint)x].depth) / (float)(yd - yu);
-  (void)z;
   return (float2)(gx, gy);
+}
+
+/* What every spatial pass needs about its centre pixel for edge-stopping. */
+typedef struct FilterCentre {
+  float3 n;     /* normal */
+  float z;      /* depth */
+  float2 grad;  /* screen-space depth gradient */
+  float l;      /* luminance of the value being filtered */
+} FilterCentre;
+
+inline FilterCentre px_filter_centre(const global GBufferTexel* gbuf, int x, int y, float3 value, const SvgfParams* p) {
+  const global GBufferTexel* g = gbuf + (uint)y * p->width + (uint)x;
+  FilterCentre c;
+  c.n = px_load3(g->normal);
+  c.z = g->depth;
+  c.grad = px_depth_gradient(gbuf, x, y, p);
+  c.l = px_lum(value);
+  return c;
 }
 
 kernel void svgf_variance(global float4* out_illum, const global float4* illum, const global float4* moments,
@@ -182,11 +196,7 @@ kernel void svgf_variance(global float4* out_illum, const global float4* illum, 
     return;
   }
   /* Short history: estimate the moments spatially with a 7x7 bilateral filter. */
-  const global GBufferTexel* g = gbuf + i;
-  const float3 n = px_load3(g->normal);
-  const float z = g->depth;
-  const float2 grad = px_depth_gradient(gbuf, x, y, &p);
-  const float l = px_lum(c.xyz);
+  const FilterCentre fc = px_filter_centre(gbuf, x, y, c.xyz, &p);
   float wsum = 0.0f;
   float3 csum = (float3)(0.0f, 0.0f, 0.0f);
   float2 msum = (float2)(0.0f, 0.0f);
@@ -199,8 +209,8 @@ kernel void svgf_variance(global float4* out_illum, const global float4* illum, 
       const uint j = (uint)ty * p.width + (uint)tx;
       if (moments[j].w == 0.0f) continue;
       const float w = (dx == 0 && dy == 0) ? 1.0f
-                                           : px_geometry_weight_x(gbuf + j, n, z, grad, (float)dx, (float)dy, &p,
-                                                                  fabs(l - px_lum(illum[j].xyz)) / (p.sigma_l + 1e-6f));
+                                           : px_geometry_weight_x(gbuf + j, fc.n, fc.z, fc.grad, (float)dx, (float)dy, &p,
+                                                                  fabs(fc.l - px_lum(illum[j].xyz)) / (p.sigma_l + 1e-6f));
       wsum += w;
       csum += w * illum[j].xyz;
       msum += w * moments[j].xy;
@@ -224,11 +234,7 @@ kernel void svgf_atrous(global float4* out_illum, const global float4* illum, co
     out_illum[i] = c;
     return;
   }
-  const global GBufferTexel* g = gbuf + i;
-  const float3 n = px_load3(g->normal);
-  const float z = g->depth;
-  const float2 grad = px_depth_gradient(gbuf, x, y, &p);
-  const float l = px_lum(c.xyz);
+  const FilterCentre fc = px_filter_centre(gbuf, x, y, c.xyz, &p);
   /* Variance prefiltered with a 3x3 Gaussian: the luminance weight's scale. */
   float var = 0.0f, vw = 0.0f;
   for (int dy = -1; dy <= 1; ++dy) {
@@ -261,8 +267,8 @@ kernel void svgf_atrous(global float4* out_illum, const global float4* illum, co
       const float4 t = illum[j];
       float w = h[kx + 2] * h[ky + 2];
       if (kx != 0 || ky != 0)
-        w *= px_geometry_weight_x(gbuf + j, n, z, grad, (float)(kx * step), (float)(ky * step), &p,
-                                  fabs(l - px_lum(t.xyz)) / lum_scale);
+        w *= px_geometry_weight_x(gbuf + j, fc.n, fc.z, fc.grad, (float)(kx * step), (float)(ky * step), &p,
+                                  fabs(fc.l - px_lum(t.xyz)) / lum_scale);
       wsum += w;
       vsum += w * w * t.w;
       csum += w * t.xyz;
@@ -302,10 +308,7 @@ kernel void seam_bilateral(global float4* out_color, const global float4* color,
     out_color[i] = color[i];
     return;
   }
-  const float3 n = px_load3(g->normal);
-  const float z = g->depth;
-  const float2 grad = px_depth_gradient(gbuf, x, y, &p);
-  const float l = px_lum(color[i].xyz);
+  const FilterCentre fc = px_filter_centre(gbuf, x, y, color[i].xyz, &p);
   float wsum = 0.0f;
   float3 csum = (float3)(0.0f, 0.0f, 0.0f);
   for (int dy = -2; dy <= 2; ++dy) {
@@ -318,8 +321,8 @@ kernel void seam_bilateral(global float4* out_color, const global float4* color,
       const float3 t = color[j].xyz;
       float w = exp(-(float)(dx * dx + dy * dy) / 4.0f);
       if (dx != 0 || dy != 0)
-        w *= px_geometry_weight(gbuf + j, n, z, grad, (float)dx, (float)dy, &p) *
-             exp(-fabs(l - px_lum(t)) / (0.25f * l + 1e-3f));
+        w *= px_geometry_weight(gbuf + j, fc.n, fc.z, fc.grad, (float)dx, (float)dy, &p) *
+             exp(-fabs(fc.l - px_lum(t)) / (0.25f * fc.l + 1e-3f));
       wsum += w;
       csum += w * t;
     }
