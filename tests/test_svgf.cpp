@@ -172,20 +172,25 @@ struct SyntheticView {
 struct FilterRun {
   SyntheticView view;
   SvgfDenoiser den;
-  cl::Buffer gbuf, prev_gbuf, color, out;
+  cl::Buffer gbuf, prev_gbuf, color, albedo, out;
   explicit FilterRun(SvgfDenoiser::Options o = {})
       : den(one_device(), 0, view.w, view.h, o),
         out(one_device().context(), CL_MEM_READ_WRITE, view.w * view.h * sizeof(cl_float4)) {}
-  // One frame: returns the denoised radiance.
-  std::vector<cl_float4> frame(const std::vector<GBufferTexel>& g, const std::vector<cl_float4>& c) {
+  // One frame: returns the denoised radiance. The demodulation albedo is `a`, or the
+  // G-buffer's albedo when `a` is empty.
+  std::vector<cl_float4> frame(const std::vector<GBufferTexel>& g, const std::vector<cl_float4>& c,
+                               std::vector<cl_float4> a = {}) {
     prev_gbuf = gbuf.get() ? gbuf : upload(g);
     gbuf = upload(g);
     color = upload(c);
+    if (a.empty())
+      for (const GBufferTexel& t : g) a.push_back({{t.albedo[0], t.albedo[1], t.albedo[2], 1.0f}});
+    albedo = upload(a);
     const RowRange all{0, view.h};
-    den.temporal(color, gbuf, prev_gbuf, view.cam, all, all);
+    den.temporal(color, albedo, gbuf, prev_gbuf, view.cam, all, all);
     den.variance(gbuf, all, all);
     for (unsigned i = 0; i < den.options().iterations; ++i) den.atrous(i, gbuf, all, all);
-    den.remodulate(out, gbuf, all);
+    den.remodulate(out, albedo, all);
     auto result = download<cl_float4>(out, view.w * view.h);
     den.end_frame();
     return result;

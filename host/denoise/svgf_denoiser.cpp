@@ -46,21 +46,23 @@ void SvgfDenoiser::launch(cl::Kernel& k, RowRange rows, Stage stage) {
   events_.push_back({stage, e});
 }
 
-void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& gbuf, const cl::Buffer& prev_gbuf,
-                            const CameraParams& prev_cam, RowRange rows, RowRange readable) {
+void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& albedo, const cl::Buffer& gbuf,
+                            const cl::Buffer& prev_gbuf, const CameraParams& prev_cam, RowRange rows,
+                            RowRange readable) {
   if (rows.size() == 0) return;
   cl::Kernel k(devices_.program("denoise/svgf.cl"), "svgf_temporal");
   current_ = 0;
   k.setArg(0, illum_[0]);
   k.setArg(1, moments_);
   k.setArg(2, color);
-  k.setArg(3, gbuf);
-  k.setArg(4, prev_gbuf);
-  k.setArg(5, hist_illum_[1 - frame_parity_]);
-  k.setArg(6, hist_moments_[1 - frame_parity_]);
-  k.setArg(7, params(rows, readable, 1));
-  k.setArg(8, prev_cam);
-  k.setArg(9, static_cast<cl_uint>(have_history_));
+  k.setArg(3, albedo);
+  k.setArg(4, gbuf);
+  k.setArg(5, prev_gbuf);
+  k.setArg(6, hist_illum_[1 - frame_parity_]);
+  k.setArg(7, hist_moments_[1 - frame_parity_]);
+  k.setArg(8, params(rows, readable, 1));
+  k.setArg(9, prev_cam);
+  k.setArg(10, static_cast<cl_uint>(have_history_));
   launch(k, rows, Stage::Denoise);
   // The moments (with history length) are this frame's moment history as they stand.
   cl::Event e;
@@ -103,13 +105,13 @@ void SvgfDenoiser::atrous(unsigned iteration, const cl::Buffer& gbuf, RowRange r
   }
 }
 
-void SvgfDenoiser::remodulate(const cl::Buffer& out_color, const cl::Buffer& gbuf, RowRange rows) {
+void SvgfDenoiser::remodulate(const cl::Buffer& out_color, const cl::Buffer& albedo, RowRange rows) {
   if (rows.size() == 0) return;
   cl::Kernel k(devices_.program("denoise/svgf.cl"), "svgf_remodulate");
   k.setArg(0, out_color);
   k.setArg(1, illum_[current_]);
   k.setArg(2, moments_);
-  k.setArg(3, gbuf);
+  k.setArg(3, albedo);
   k.setArg(4, params(rows, rows, 1));
   launch(k, rows, Stage::Denoise);
 }

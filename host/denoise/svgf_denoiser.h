@@ -27,15 +27,16 @@ class SvgfDenoiser {
 
   SvgfDenoiser(DeviceSet& devices, int device, unsigned width, unsigned height, const Options& options);
 
-  // Pass 1: demodulate `color`, blend with history reprojected through `prev_cam`.
-  void temporal(const cl::Buffer& color, const cl::Buffer& gbuf, const cl::Buffer& prev_gbuf,
+  // Pass 1: demodulate `color` by `albedo` (float4, the path tracer's per-pixel mean primary
+  // albedo), blend with history reprojected through `prev_cam`.
+  void temporal(const cl::Buffer& color, const cl::Buffer& albedo, const cl::Buffer& gbuf, const cl::Buffer& prev_gbuf,
                 const CameraParams& prev_cam, RowRange rows, RowRange readable);
   // Pass 2: variance from moments (spatial estimate for short histories).
   void variance(const cl::Buffer& gbuf, RowRange rows, RowRange readable);
   // Pass 3+i: one a-trous step; iteration 0's output becomes next frame's colour history.
   void atrous(unsigned iteration, const cl::Buffer& gbuf, RowRange rows, RowRange readable);
-  // Last pass: remodulate into `out_color` (float4 radiance).
-  void remodulate(const cl::Buffer& out_color, const cl::Buffer& gbuf, RowRange rows);
+  // Last pass: remodulate by the same `albedo` into `out_color` (float4 radiance).
+  void remodulate(const cl::Buffer& out_color, const cl::Buffer& albedo, RowRange rows);
   // The paper's bilateral seam filter on `color` (rows within `band` of a seam; -1 = none),
   // reading rows across the seam (exchanged beforehand).
   void seam_filter(const cl::Buffer& color, const cl::Buffer& gbuf, RowRange rows, RowRange readable, int seam_above,

@@ -52,6 +52,7 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
     DeviceBuffers b;
     for (int e = 0; e < 2; ++e) {
       b.radiance[e] = device_buffer(ctx, pixels * sizeof(cl_float4));
+      b.albedo[e] = device_buffer(ctx, pixels * sizeof(cl_float4));
       b.gbuffer[e] = device_buffer(ctx, pixels * sizeof(GBufferTexel));
       b.rgba[e] = device_buffer(ctx, pixels * sizeof(cl_uchar4));
     }
@@ -69,6 +70,7 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
     if (d != schedule_.tree.root) {
       // Both eyes side by side in one host-allocated buffer per kind.
       b.staging_radiance = cl::Buffer(ctx, CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR, 2 * pixels * sizeof(cl_float4));
+      b.staging_albedo = cl::Buffer(ctx, CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR, 2 * pixels * sizeof(cl_float4));
       b.staging_rgba = cl::Buffer(ctx, CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR, 2 * pixels * sizeof(cl_uchar4));
     }
     buffers_.push_back(std::move(b));
@@ -94,10 +96,11 @@ void StereoPipeline::path_trace(int d, int eye, RowRange rows, const CameraParam
   const FrameParams fp = frame_params(eye, rows, frame);
   cl::Kernel k(devices_.program("pathtrace/path_trace.cl"), "path_trace");
   k.setArg(0, buffers_[d].radiance[eye]);
-  k.setArg(1, buffers_[d].nonfinite);
-  k.setArg(2, fp);
-  k.setArg(3, cam);
-  device_scene_.on(d).bind(k, 4);
+  k.setArg(1, buffers_[d].albedo[eye]);
+  k.setArg(2, buffers_[d].nonfinite);
+  k.setArg(3, fp);
+  k.setArg(4, cam);
+  device_scene_.on(d).bind(k, 5);
   enqueue(d, k, static_cast<std::size_t>(rows.size()) * width_, stage);
 }
 
@@ -120,14 +123,16 @@ void StereoPipeline::reproject(int d, RowRange rows, const CameraParams& left_ca
   cl::Kernel k(devices_.program("pipeline/reproject.cl"), "reproject");
   auto& b = buffers_[d];
   k.setArg(0, b.radiance[1]);
-  k.setArg(1, b.holes);
-  k.setArg(2, b.hole_count);
-  k.setArg(3, b.radiance[0]);
-  k.setArg(4, b.gbuffer[0]);
-  k.setArg(5, b.gbuffer[1]);
-  k.setArg(6, static_cast<cl_uint>(rows.begin));
-  k.setArg(7, static_cast<cl_uint>(rows.size()));
-  k.setArg(8, left_cam);
+  k.setArg(1, b.albedo[1]);
+  k.setArg(2, b.holes);
+  k.setArg(3, b.hole_count);
+  k.setArg(4, b.radiance[0]);
+  k.setArg(5, b.albedo[0]);
+  k.setArg(6, b.gbuffer[0]);
+  k.setArg(7, b.gbuffer[1]);
+  k.setArg(8, static_cast<cl_uint>(rows.begin));
+  k.setArg(9, static_cast<cl_uint>(rows.size()));
+  k.setArg(10, left_cam);
   enqueue(d, k, static_cast<std::size_t>(rows.size()) * width_, Stage::Reproject);
 }
 
@@ -137,12 +142,13 @@ void StereoPipeline::fill_holes(int d, RowRange rows, const CameraParams& right_
   auto& b = buffers_[d];
   cl::Kernel k(devices_.program("pathtrace/path_trace.cl"), "path_trace_list");
   k.setArg(0, b.radiance[1]);
-  k.setArg(1, b.nonfinite);
-  k.setArg(2, b.holes);
-  k.setArg(3, b.hole_count);
-  k.setArg(4, fp);
-  k.setArg(5, right_cam);
-  device_scene_.on(d).bind(k, 6);
+  k.setArg(1, b.albedo[1]);
+  k.setArg(2, b.nonfinite);
+  k.setArg(3, b.holes);
+  k.setArg(4, b.hole_count);
+  k.setArg(5, fp);
+  k.setArg(6, right_cam);
+  device_scene_.on(d).bind(k, 7);
   // Sized for the worst case (every pixel a hole): the hole count lives on the device, so no
   // host round trip is needed between reprojection and hole filling.
   enqueue(d, k, static_cast<std::size_t>(rows.size()) * width_, Stage::HoleFill);
@@ -177,7 +183,12 @@ void StereoPipeline::transfer(int d, int eye, RowRange rows, bool radiance, bool
     record(Stage::Transfer, owner, to_owner);
     bytes_this_frame_ += count * texel;
   };
-  if (radiance) hop(buffers_[d].radiance[eye], buffers_[d].staging_radiance, buffers_[owner].radiance[eye], sizeof(cl_float4));
+  if (radiance) {
+    hop(buffers_[d].radiance[eye], buffers_[d].staging_radiance, buffers_[owner].radiance[eye], sizeof(cl_float4));
+    // The owner denoises transferred radiance (baseline), which needs its albedo alongside.
+    if (options_.denoise && schedule_.pipeline == PipelineKind::Baseline)
+      hop(buffers_[d].albedo[eye], buffers_[d].staging_albedo, buffers_[owner].albedo[eye], sizeof(cl_float4));
+  }
   if (rgba) hop(buffers_[d].rgba[eye], buffers_[d].staging_rgba, buffers_[owner].rgba[eye], sizeof(cl_uchar4));
 }
 
@@ -279,8 +290,11 @@ FrameStats StereoPipeline::render(unsigned frame, float time_s) {
 }
 
 unsigned StereoPipeline::gbuffer_margin() const {
-  if (!options_.denoise || options_.seams == SeamMode::Independent) return 0;
-  if (options_.seams == SeamMode::Bilateral) return options_.seam_band + 3;
+  // Reprojection checks the 3x3 neighbourhood of every pixel it touches: one row beyond the
+  // strip, in both eyes.
+  const unsigned reprojection = schedule_.find(Stage::Reproject) ? 1u : 0u;
+  if (!options_.denoise || options_.seams == SeamMode::Independent) return reprojection;
+  if (options_.seams == SeamMode::Bilateral) return std::max(reprojection, options_.seam_band + 3);
   // Halo: the widest read of any pass: a-trous taps at 2 * 2^(iterations-1), history taps at
   // temporal_rows + 1, the variance estimate at 3; plus one row for the depth gradient.
   const unsigned atrous = 2u << (options_.svgf.iterations - 1);
@@ -337,7 +351,7 @@ void StereoPipeline::denoise(const StageWork& work, const std::array<CameraParam
       exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).history_moments_prev(); }, strip, o.temporal_rows + 1);
     }
     for (int d = 0; d < n; ++d)
-      svgf(d).temporal(buffers_[d].radiance[e], buffers_[d].gbuffer[e], buffers_[d].gbuffer_prev[e], prev, strip[d],
+      svgf(d).temporal(buffers_[d].radiance[e], buffers_[d].albedo[e], buffers_[d].gbuffer[e], buffers_[d].gbuffer_prev[e], prev, strip[d],
                        readable(d));
     if (halo) {
       exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).illum(); }, strip, 3);
@@ -348,7 +362,7 @@ void StereoPipeline::denoise(const StageWork& work, const std::array<CameraParam
       if (halo) exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).illum(); }, strip, 2u << i);
       for (int d = 0; d < n; ++d) svgf(d).atrous(i, buffers_[d].gbuffer[e], strip[d], readable(d));
     }
-    for (int d = 0; d < n; ++d) svgf(d).remodulate(buffers_[d].radiance[e], buffers_[d].gbuffer[e], strip[d]);
+    for (int d = 0; d < n; ++d) svgf(d).remodulate(buffers_[d].radiance[e], buffers_[d].albedo[e], strip[d]);
     if (options_.seams == SeamMode::Bilateral && n > 1) {
       exchange_halo([&](int d) -> const cl::Buffer& { return buffers_[d].radiance[e]; }, strip,
                     options_.seam_band + 2);

@@ -94,13 +94,15 @@ class StereoPipeline {
  private:
   struct DeviceBuffers {
     std::array<cl::Buffer, 2> radiance;  // float4, full frame
+    std::array<cl::Buffer, 2> albedo;    // float4, full frame: mean primary albedo of the
+                                         // samples behind `radiance` (SVGF demodulates by it)
     std::array<cl::Buffer, 2> gbuffer;   // GBufferTexel, full frame
     std::array<cl::Buffer, 2> rgba;      // uchar4, full frame
     cl::Buffer holes;                    // uint, full frame (worst case: every pixel a hole)
     cl::Buffer hole_count;               // uint
     cl::Buffer nonfinite;                // uint
     // Host-mapped staging for strips travelling to the owner (children only).
-    cl::Buffer staging_radiance, staging_rgba;
+    cl::Buffer staging_radiance, staging_albedo, staging_rgba;
     // Denoising: last frame's G-buffers, one SVGF state per eye, and host-mapped staging for
     // halo rows leaving this device (with the copies still reading it).
     std::array<cl::Buffer, 2> gbuffer_prev;
@@ -115,8 +117,8 @@ class StereoPipeline {
   void reproject(int d, RowRange rows, const CameraParams& left_cam);
   void fill_holes(int d, RowRange rows, const CameraParams& right_cam, unsigned frame);
   void tonemap(int d, int eye, RowRange rows);
-  // Copies rows of `eye` (radiance and/or rgba) from device d to the owner via d's staging
-  // buffer; returns the owner-side event.
+  // Copies rows of `eye` (radiance with its albedo, and/or rgba) from device d to the owner via
+  // d's staging buffers.
   void transfer(int d, int eye, RowRange rows, bool radiance, bool rgba);
 
   void record(Stage stage, int device, const cl::Event& e);

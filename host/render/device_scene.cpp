@@ -62,7 +62,7 @@ std::vector<GpuMaterial> make_gpu_materials(const Scene& scene) {
     g.roughness = m.mirror ? 0.0f : m.roughness;
     const bool has_specular = (m.specular.x + m.specular.y + m.specular.z) > 0.0f;
     g.flags = (m.mirror ? PX_MAT_MIRROR : 0u) | (!m.mirror && has_specular ? PX_MAT_GLOSSY : 0u) |
-              (m.is_emissive() ? PX_MAT_EMISSIVE : 0u);
+              (m.is_emissive() ? PX_MAT_EMISSIVE : 0u) | (m.two_sided ? PX_MAT_TWO_SIDED_EMITTER : 0u);
   }
   return out;
 }
@@ -75,7 +75,8 @@ std::vector<LightTriangle> make_light_table(const Scene& scene) {
     const Material& m = scene.materials.at(t.material);
     if (!m.is_emissive()) continue;
     const float area = 0.5f * glm::length(glm::cross(t.p[1] - t.p[0], t.p[2] - t.p[0]));
-    const double power = static_cast<double>(area) * luminance(m.emission);
+    // Emitted power is pi * area * radiance per emitting face.
+    const double power = static_cast<double>(area) * luminance(m.emission) * (m.two_sided ? 2.0 : 1.0);
     if (!(power > 0.0)) continue;
     LightTriangle l{};
     copy3(l.v0, t.p[0]);

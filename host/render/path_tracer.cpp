@@ -42,7 +42,7 @@ std::array<ImageRGB, 2> PathTracer::render_stereo(float time_s, std::uint32_t fr
   const cl::Program& program = devices_.program("pathtrace/path_trace.cl");
 
   struct Launch {
-    cl::Buffer out, counter;
+    cl::Buffer out, albedo, counter;
     cl::Event done;
     std::vector<cl_float4> pixels;
     cl_uint nonfinite = 0;
@@ -66,6 +66,9 @@ std::array<ImageRGB, 2> PathTracer::render_stereo(float time_s, std::uint32_t fr
       // (the tail of the allocation) are touched and read back.
       l.out = cl::Buffer(devices_.context(), CL_MEM_WRITE_ONLY,
                          static_cast<std::size_t>(l.row0 + l.rows) * width * sizeof(cl_float4));
+      // The per-pixel albedo output only feeds the denoiser, which this path does not run.
+      l.albedo = cl::Buffer(devices_.context(), CL_MEM_WRITE_ONLY,
+                            static_cast<std::size_t>(l.row0 + l.rows) * width * sizeof(cl_float4));
       const cl_uint zero = 0;
       l.counter = cl::Buffer(devices_.context(), CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, sizeof(cl_uint),
                              const_cast<cl_uint*>(&zero));
@@ -73,10 +76,11 @@ std::array<ImageRGB, 2> PathTracer::render_stereo(float time_s, std::uint32_t fr
           frame_params(scene_, device_scene_.light_count(), options, e, l.row0, l.rows, frame, sample_offset);
       cl::Kernel k(program, "path_trace");
       k.setArg(0, l.out);
-      k.setArg(1, l.counter);
-      k.setArg(2, fp);
-      k.setArg(3, cam);
-      device_scene_.on(d).bind(k, 4);
+      k.setArg(1, l.albedo);
+      k.setArg(2, l.counter);
+      k.setArg(3, fp);
+      k.setArg(4, cam);
+      device_scene_.on(d).bind(k, 5);
       dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(pixels, kLocalSize)),
                                      cl::NDRange(kLocalSize), nullptr, &l.done);
       l.pixels.resize(pixels);

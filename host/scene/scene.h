@@ -28,7 +28,8 @@ struct Texture {
 
 // Material as the scenes need it (OBJ/MTL mapping in parentheses):
 // Lambertian diffuse (Kd, map_Kd), a GGX glossy lobe (Ks, Ns -> roughness), a perfect mirror
-// (Ks with very high Ns, or illum 3/5/7 with Ks), alpha cut-outs (map_d), emission (Ke).
+// (Ks with very high Ns, or illum 3/5/7 with Ks), alpha cut-outs (map_d), emission (Ke, from
+// the front face unless the scene file asks for two-sided emitters).
 struct Material {
   std::string name;
   glm::vec3 diffuse{0.8f};    // Kd, linear albedo
@@ -38,6 +39,8 @@ struct Material {
   int diffuse_texture = -1;   // index into Scene::textures, -1 = none
   int alpha_texture = -1;     // map_d; texels with alpha < 0.5 are cut out
   bool mirror = false;        // perfect specular reflection
+  bool two_sided = false;     // emits from both faces (default: only from the front face, the
+                              // side the winding order's normal points to)
   bool is_emissive() const { return emission.x > 0.0f || emission.y > 0.0f || emission.z > 0.0f; }
 };
 

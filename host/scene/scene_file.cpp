@@ -169,7 +169,7 @@ Scene load_scene_file(const std::string& path) {
   const SceneFileReader r(path);
   if (!doc.is_object()) throw SceneError(path + ": the scene file must hold a JSON object");
   r.check_keys(doc, "", {"name", "mesh", "generator", "generator_params", "meters_per_unit",
-                         "ipd_m", "camera", "camera_path", "sun", "sky"});
+                         "ipd_m", "camera", "camera_path", "sun", "sky", "two_sided_emitters"});
 
   // The base scene: a mesh or a generator, exactly one.
   const bool has_mesh = doc.contains("mesh"), has_generator = doc.contains("generator");
@@ -205,6 +205,10 @@ Scene load_scene_file(const std::string& path) {
     }
   }
   scene.name = doc.contains("name") ? r.string(doc["name"], "name") : fs::path(path).stem().string();
+  // Emitters light their front face only (pbrt, Mitsuba and the references published with
+  // scenes like the Cornell box agree); some assets were made for renderers that emit both ways.
+  if (doc.contains("two_sided_emitters") && r.boolean(doc["two_sided_emitters"], "two_sided_emitters"))
+    for (Material& m : scene.materials) m.two_sided = true;
 
   if (doc.contains("meters_per_unit")) {
     const float m = r.number(doc["meters_per_unit"], "meters_per_unit");

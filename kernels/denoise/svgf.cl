@@ -23,10 +23,13 @@ inline float px_lum(float3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f *
 
 inline int px_filtered_class(uint c) { return c == PX_CLASS_DIFFUSE || c == PX_CLASS_GLOSSY || c == PX_CLASS_MIRROR; }
 
-/* Albedo used for demodulation: channels too dark to divide by are left as they are. */
-inline float3 px_demod_albedo(const global GBufferTexel* g) {
-  const float3 a = px_load3(g->albedo);
-  return (float3)(a.x > 1e-3f ? a.x : 1.0f, a.y > 1e-3f ? a.y : 1.0f, a.z > 1e-3f ? a.z : 1.0f);
+/* Albedo used for demodulation: the path tracer's mean primary-hit albedo of the very samples
+ * that made the pixel's radiance (the G-buffer's centre albedo is not: where the texture or the
+ * surface changes inside a pixel, dividing by it scaled a channel by up to 1/albedo and the
+ * filter spread that into neighbours). The floor only keeps the division finite: a channel
+ * that dark reflected next to nothing, and multiplying it back gives next to nothing again. */
+inline float3 px_demod_albedo(const global float4* albedo, uint i) {
+  return fmax(albedo[i].xyz, (float3)(1e-3f, 1e-3f, 1e-3f));
 }
 
 inline int px_row_readable(int y, const SvgfParams* p) { return y >= (int)p->lo_row && y < (int)p->hi_row; }
@@ -39,7 +42,7 @@ inline int px_history_matches(const global GBufferTexel* q, float3 n, float expe
 }
 
 kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, const global float4* color,
-                          const global GBufferTexel* gbuf, const global GBufferTexel* prev_gbuf,
+                          const global float4* albedo, const global GBufferTexel* gbuf, const global GBufferTexel* prev_gbuf,
                           const global float4* prev_illum, const global float4* prev_moments, SvgfParams p,
                           CameraParams prev_cam, uint have_history) {
   const uint gid = get_global_id(0);
@@ -53,7 +56,7 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
     out_moments[i] = (float4)(0.0f, 0.0f, 0.0f, 0.0f);
     return;
   }
-  const float3 illum = c / px_demod_albedo(g);
+  const float3 illum = c / px_demod_albedo(albedo, i);
   const float l = px_lum(illum);
 
   float3 hist = (float3)(0.0f, 0.0f, 0.0f);
@@ -277,10 +280,11 @@ kernel void svgf_atrous(global float4* out_illum, const global float4* illum, co
   out_illum[i] = (float4)(csum / wsum, vsum / (wsum * wsum));
 }
 
-/* Back from illumination to radiance: multiply the albedo that demodulation divided out.
+/* Back from illumination to radiance: multiply the albedo that demodulation divided out, so
+ * that an unfiltered pixel comes back exactly as it went in.
  * Unfiltered pixels (background, emitters) already hold their colour. */
 kernel void svgf_remodulate(global float4* out_color, const global float4* illum, const global float4* moments,
-                            const global GBufferTexel* gbuf, SvgfParams p) {
+                            const global float4* albedo, SvgfParams p) {
   const uint gid = get_global_id(0);
   if (gid >= p.rows * p.width) return;
   const uint i = p.row0 * p.width + gid;
@@ -289,7 +293,7 @@ kernel void svgf_remodulate(global float4* out_color, const global float4* illum
     out_color[i] = (float4)(c.xyz, 1.0f);
     return;
   }
-  out_color[i] = (float4)(c.xyz * px_demod_albedo(gbuf + i), 1.0f);
+  out_color[i] = (float4)(c.xyz * px_demod_albedo(albedo, i), 1.0f);
 }
 
 /* The paper's optional seam filter ("--seams bilateral"): after independent per-strip

@@ -16,8 +16,12 @@
 #include "trace/ray_offset.h"
 #include "trace/traverse.h"
 
+/* Radiance along one camera path. *primary_albedo receives the demodulation albedo of the
+ * first vertex (px_demodulation_albedo; 1 where the ray escapes or meets an emitter, whose
+ * radiance is its own "illumination"). */
 inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir,
-                            SampleKey key) {
+                            SampleKey key, float3* primary_albedo) {
+  *primary_albedo = (float3)(1.0f, 1.0f, 1.0f);
   float3 radiance = (float3)(0.0f, 0.0f, 0.0f);
   float3 throughput = (float3)(1.0f, 1.0f, 1.0f);
   float prev_pdf = 0.0f;
@@ -51,11 +55,13 @@ inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float
     float3 ns = bw * px_load3(sh->n0) + hit.u * px_load3(sh->n1) + hit.v * px_load3(sh->n2);
     const float ns_len = length(ns);
     ns = ns_len > 0.0f && isfinite(ns_len) ? ns / ns_len : ng;
+    /* The winding order's normal is the front; emitters light only that side (unless two-sided). */
+    const int front_face = dot(ng, wo) > 0.0f;
     /* Two-sided surfaces: face both normals towards the viewer of this vertex. */
-    if (dot(ng, wo) < 0.0f) ng = -ng;
+    if (!front_face) ng = -ng;
     if (dot(ns, ng) < 0.0f) ns = -ns;
 
-    if (mat->flags & PX_MAT_EMISSIVE) {
+    if ((mat->flags & PX_MAT_EMISSIVE) && (front_face || (mat->flags & PX_MAT_TWO_SIDED_EMITTER))) {
       float w = 1.0f;
       if (!prev_delta) {
         if (!use_bsdf_light) {
@@ -75,6 +81,7 @@ inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float
       albedo *= px_texture_bilinear(scene, mat->diffuse_texture, px_interpolate_uv(sh, hit.u, hit.v)).xyz;
     const Bsdf bsdf = px_make_bsdf(albedo, px_load3(mat->specular), mat->roughness,
                                    (mat->flags & PX_MAT_MIRROR) != 0u);
+    if (bounce == 0u && !(mat->flags & PX_MAT_EMISSIVE)) *primary_albedo = px_demodulation_albedo(&bsdf);
     const float3 origin = px_offset_ray_origin(p, ng);
     const float4 u_light = px_sample4(key, 1u + 2u * bounce);
     const float4 u_bsdf = px_sample4(key, 2u + 2u * bounce);
@@ -115,47 +122,59 @@ inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float
 }
 
 /* Mean radiance of pixel (x, y): fp->spp paths; a path with non-finite radiance is dropped
- * from the mean and counted in *nonfinite. Returns (rgb, finite sample count). */
+ * from the mean and counted in *nonfinite. Returns (rgb, finite sample count); *albedo gets
+ * the mean primary demodulation albedo of the same (finite) paths, so that radiance / albedo
+ * is the pixel's illumination even where the albedo varies inside the pixel (textures,
+ * silhouettes, cut-outs). */
 inline float4 px_render_pixel(const SceneView* scene, const FrameParams* fp, const CameraParams* cam,
-                              uint x, uint y, volatile global uint* nonfinite) {
+                              uint x, uint y, volatile global uint* nonfinite, float4* albedo) {
   const float3 org = px_camera_origin(cam);
   float3 sum = (float3)(0.0f, 0.0f, 0.0f);
+  float3 albedo_sum = (float3)(0.0f, 0.0f, 0.0f);
   uint good = 0;
   for (uint s = 0; s < fp->spp; ++s) {
     const SampleKey key = px_sample_key(x, y, fp->frame, fp->eye, fp->sample_offset + s, fp->seed);
     const float4 u = px_sample4(key, 0u);
     const float3 dir = px_camera_dir(cam, x, y, u.x, u.y);
-    const float3 l = px_trace_path(scene, fp, org, dir, key);
+    float3 a;
+    const float3 l = px_trace_path(scene, fp, org, dir, key, &a);
     if (isfinite(l.x) && isfinite(l.y) && isfinite(l.z)) {
       sum += l;
+      albedo_sum += a;
       ++good;
     } else {
       atomic_inc(nonfinite);
     }
   }
+  const float inv = good > 0u ? 1.0f / (float)good : 0.0f;
+  *albedo = good > 0u ? (float4)(albedo_sum * inv, 1.0f) : (float4)(1.0f, 1.0f, 1.0f, 0.0f);
   return (float4)(good > 0u ? sum / (float)good : sum, (float)good);
 }
 
 /* Stage 2 (and mono): every pixel of rows [fp.row0, fp.row0 + fp.rows) of eye fp.eye.
- * out: a full-frame float4 image (width * height); only these rows are written. */
-kernel void path_trace(global float4* out, volatile global uint* nonfinite, FrameParams fp,
-                       CameraParams cam, PX_SCENE_PARAMS) {
+ * out, albedo_out: full-frame float4 images (width * height); only these rows are written. */
+kernel void path_trace(global float4* out, global float4* albedo_out, volatile global uint* nonfinite,
+                       FrameParams fp, CameraParams cam, PX_SCENE_PARAMS) {
   const uint i = get_global_id(0);
   if (i >= fp.rows * cam.width) return;
   const SceneView scene = PX_SCENE_VIEW();
   const uint p = fp.row0 * cam.width + i;
-  out[p] = px_render_pixel(&scene, &fp, &cam, p % cam.width, p / cam.width, nonfinite);
+  float4 albedo;
+  out[p] = px_render_pixel(&scene, &fp, &cam, p % cam.width, p / cam.width, nonfinite, &albedo);
+  albedo_out[p] = albedo;
 }
 
 /* Stage 5, hole filling: only the pixels listed in `holes` (full-frame indices, *hole_count of
  * them, compacted by compact_holes), so work-items do not idle on reprojected pixels. The launch
  * is sized for the worst case; items past the count return at once. */
-kernel void path_trace_list(global float4* out, volatile global uint* nonfinite, const global uint* holes,
-                            const global uint* hole_count, FrameParams fp, CameraParams cam,
-                            PX_SCENE_PARAMS) {
+kernel void path_trace_list(global float4* out, global float4* albedo_out, volatile global uint* nonfinite,
+                            const global uint* holes, const global uint* hole_count, FrameParams fp,
+                            CameraParams cam, PX_SCENE_PARAMS) {
   const uint i = get_global_id(0);
   if (i >= *hole_count) return;
   const SceneView scene = PX_SCENE_VIEW();
   const uint p = holes[i];
-  out[p] = px_render_pixel(&scene, &fp, &cam, p % cam.width, p / cam.width, nonfinite);
+  float4 albedo;
+  out[p] = px_render_pixel(&scene, &fp, &cam, p % cam.width, p / cam.width, nonfinite, &albedo);
+  albedo_out[p] = albedo;
 }

@@ -35,6 +35,12 @@ inline Bsdf px_make_bsdf(float3 diffuse, float3 specular, float alpha, int mirro
   return b;
 }
 
+/* What the denoiser divides a pixel's radiance by before filtering and multiplies back after:
+ * the surface's reflectance, diffuse plus specular weight, within [0, 1]. Any colour that
+ * scales all reflected light works, as long as the same one is used both ways and it is
+ * averaged over the same samples as the radiance (see px_render_pixel). */
+inline float3 px_demodulation_albedo(const Bsdf* b) { return clamp(b->diffuse + b->specular, 0.0f, 1.0f); }
+
 /* GGX normal distribution; cos_h = n.h. */
 inline float px_ggx_d(float cos_h, float alpha) {
   if (cos_h <= 0.0f) return 0.0f;

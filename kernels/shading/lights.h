@@ -1,4 +1,4 @@
-/* Lights: emissive triangles (two-sided), and an environment made of a sun disk and an
+/* Lights: emissive triangles (front face only, unless their material is two-sided), and an environment made of a sun disk and an
  * analytic sky. Next-event estimation first picks a kind of light (FrameParams p_*), then:
  *   triangles - one triangle by power (binary search of the CDF), a uniform point on it;
  *   sun       - a uniform direction inside the sun's cone;
@@ -90,6 +90,10 @@ inline LightSample px_sample_light(const SceneView* s, const FrameParams* fp, fl
     ls.dist = sqrt(d2);
     ls.wi = to / ls.dist;
     const float3 ng = normalize(cross(v1 - v0, v2 - v0));
+    /* Seen from behind, a one-sided emitter sends nothing: no sample (pdf 0), exactly as a
+     * BSDF-sampled ray that hits its back gets no emission. */
+    const uint flags = s->materials[s->shading[l->prim].material].flags;
+    if (!(flags & PX_MAT_TWO_SIDED_EMITTER) && dot(ng, ls.wi) >= 0.0f) return ls;
     ls.pdf = px_triangle_light_pdf(fp, l, ls.dist, fabs(dot(ng, ls.wi)));
     ls.radiance = px_load3(l->emission);
     return ls;

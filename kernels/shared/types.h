@@ -129,6 +129,9 @@ typedef struct GpuMaterial {
 #define PX_MAT_MIRROR 1u
 #define PX_MAT_GLOSSY 2u
 #define PX_MAT_EMISSIVE 4u
+/* Emits from both faces. Without it an emitter emits only from its front face, the side its
+ * winding order's normal (v1 - v0) x (v2 - v0) points to, as pbrt and Mitsuba do. */
+#define PX_MAT_TWO_SIDED_EMITTER 8u
 
 /* One eye's pinhole camera for one frame, 64 bytes. Rays leave `origin` through the image
  * plane at distance 1 along `forward`; pixel (x, y) with y = 0 at the top maps to
@@ -251,6 +254,9 @@ typedef struct GBufferTexel {
 #define PX_REPROJECT_MIN_COS 0.99f
 #define PX_REPROJECT_REL_DIST 0.01f
 #define PX_REPROJECT_FOOTPRINTS 3.0f
+/* The neighbours of a reprojected pixel (its footprint's surroundings) only need to lie on the
+ * same continuous surface: a looser normal test, so that curved surfaces stay reprojectable. */
+#define PX_REPROJECT_NEIGHBOUR_MIN_COS 0.9f
 
 
 /* SVGF launch constants (Schied et al. 2017), 64 bytes, passed by value to every SVGF pass.
