@@ -425,11 +425,13 @@ TEST(ObjLoader, GlassIsADielectric) {
             "newmtl filter\nKs 0.04 0.04 0.04\nNs 200\nNi 1.6\nTf 0.95 0.9 0.85\n"  // cornell-mapping's sphere
             "newmtl glass4\nillum 4\n"
             "newmtl opaque_tf\nKd 0.5 0.5 0.5\nTf 1 1 1\nNi 1.5\nd 1\nillum 2\n"
-            "newmtl fresnel_mirror\nKs 0.9 0.9 0.9\nillum 5\n");
+            "newmtl fresnel_mirror\nKs 0.9 0.9 0.9\nillum 5\n"
+            "newmtl tr_as_d\nKd 0.5 0.5 0.5\nTr 1\n");
   const fs::path obj = dir.write("m.obj",
                                  "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
                                  "usemtl water\nf 1 2 3\nusemtl dissolved\nf 1 2 3\nusemtl filter\nf 1 2 3\n"
-                                 "usemtl glass4\nf 1 2 3\nusemtl opaque_tf\nf 1 2 3\nusemtl fresnel_mirror\nf 1 2 3\n");
+                                 "usemtl glass4\nf 1 2 3\nusemtl opaque_tf\nf 1 2 3\nusemtl fresnel_mirror\nf 1 2 3\n"
+                                 "usemtl tr_as_d\nf 1 2 3\n");
   const Scene s = load_obj(obj.string());
   auto mat = [&](int i) { return s.materials[s.triangles[i].material]; };
   EXPECT_TRUE(mat(0).dielectric);
@@ -445,6 +447,9 @@ TEST(ObjLoader, GlassIsADielectric) {
   EXPECT_FALSE(mat(4).dielectric) << "Tf 1 1 1 with d 1 is what exporters write on opaque materials";
   EXPECT_FALSE(mat(5).dielectric);
   EXPECT_TRUE(mat(5).mirror);
+  // "Tr 1" is d = 0 (invisible) by the letter, opaque by some exporters' meaning: opaque, said.
+  EXPECT_FALSE(mat(6).dielectric);
+  EXPECT_TRUE(any_warning_contains(s, "fully transparent d 0 / Tr 1 (rendered opaque) (tr_as_d)"));
 }
 
 TEST(ObjLoader, NormalMapsAndIgnoredFeaturesAreNamedInOneLine) {

@@ -468,7 +468,10 @@ bool is_normal_map(const Texture& tex) {
 // everywhere.
 bool is_glass(const tinyobj::material_t& m, const MtlStatements& st) {
   if (m.illum == 4 || m.illum == 6 || m.illum == 7) return true;
-  if (std::isfinite(m.dissolve) && m.dissolve < 1.0f) return true;
+  // A dissolve of 0 would be an invisible object; files that say so mostly come from exporters
+  // that write Tr with the meaning of d (tinyobjloader's note on 3ds Max): left opaque, and
+  // named in the ignored-features line.
+  if (std::isfinite(m.dissolve) && m.dissolve > 0.0f && m.dissolve < 1.0f) return true;
   if (!st.has("Tf")) return false;
   const glm::vec3 tf = sane_colour(m.transmittance, 1.0f);
   const float hi = std::max(tf.x, std::max(tf.y, tf.z));
@@ -698,6 +701,8 @@ Scene load_obj(const std::string& path) {
     } else if (mat.normal_texture >= 0 && !m.bump_texname.empty() && m.bump_texname != m.normal_texname) {
       ignored.add(origin.library, "bump beside norm", m.name);
     }
+    if (!(m.dissolve > 0.0f) && (st.has("d") || st.has("Tr")))
+      ignored.add(origin.library, "fully transparent d 0 / Tr 1 (rendered opaque)", m.name);
     if (mat.dielectric && (mat.diffuse_texture >= 0 || mat.specular_texture >= 0))
       ignored.add(origin.library, "textures on glass", m.name);
     for (const auto* o : {&m.diffuse_texopt, &m.specular_texopt, &m.normal_texopt, &m.bump_texopt, &m.alpha_texopt})
