@@ -339,9 +339,9 @@ enum class TextureUse { kColour, kAlpha, kNormal };
 
 // Loads an image into `tex`; on failure returns the reason. Colour textures in an integer
 // format are sRGB-encoded (what 8-bit colour files hold) unless the file says it is linear;
-// alpha and normal maps stay linear (they hold numbers, not colours). An alpha texture keeps its cut-out value in every channel, so the
-// renderer reads .w whatever texture it is given (the alpha channel when the image has one,
-// else the first channel).
+// alpha and normal maps stay linear (they hold numbers, not colours). An alpha texture keeps
+// its cut-out value in every channel, so the renderer reads .w whatever texture it is given
+// (the alpha channel when the image has one, else the first channel).
 std::string read_texture(const fs::path& file, TextureUse use, Texture& tex) {
   // Keep colour unassociated (straight) as stored in the file: cut-outs are alpha-tested, not
   // blended, so premultiplying would only darken the edges of leaves.
@@ -390,15 +390,15 @@ class TextureCache {
  public:
   TextureCache(Scene& scene, std::string obj_path) : scene_(scene), obj_path_(std::move(obj_path)) {}
 
-  // Index into scene.textures, or -1 (with a warning) when the file is missing or unreadable.
-  // Returned when `accept` turned the image down (no warning: the caller says why).
+  // Returned by get() when `accept` turned the image down (no warning: the caller says why).
   static constexpr int kRejected = -2;
 
-  // `statement` (map_Kd, norm...) names the texture in warnings. `accept`, when given, decides
-  // from the pixels whether the image is what the statement needs; a rejected image is not
-  // kept (a bump height map would otherwise be uploaded for nothing).
+  // Index into scene.textures, or -1 (with a warning) when the file is missing or unreadable.
+  // `what` (map_Kd, norm...) names the texture in warnings. `accept`, when given, decides from
+  // the pixels whether the image is what the statement needs; a rejected image is not kept (a
+  // bump height map would otherwise be uploaded for nothing).
   int get(const std::string& name, const std::vector<fs::path>& dirs, TextureUse use,
-          const std::string& statement, const std::string& material,
+          const std::string& what, const std::string& material,
           bool (*accept)(const Texture&) = nullptr) {
     if (name.empty()) return -1;
     fs::path found;
@@ -407,7 +407,6 @@ class TextureCache {
         found = c;
         break;
       }
-    const std::string& what = statement;
     if (found.empty()) {
       scene_.stats.warnings.push_back(obj_path_ + ": material '" + material + "': " + what +
                                       " texture '" + name + "' not found; ignoring it");
@@ -515,6 +514,46 @@ bool has_unapplied_texture_options(const tinyobj::texture_option_t& o) {
   for (int i = 0; i < 3; ++i)
     if (o.origin_offset[i] != 0.0f || o.scale[i] != 1.0f || o.turbulence[i] != 0.0f) return true;
   return false;
+}
+
+// One MTL material with its textures; what it asks for but is not rendered goes to `ignored`.
+Material make_material(const tinyobj::material_t& m, const MtlLibraryReader::Origin& origin,
+                       const fs::path& obj_dir, TextureCache& textures, IgnoredMtlFeatures& ignored) {
+  const MtlStatements& st = origin.statements;
+  Material mat = convert_material(m, st);
+  const std::vector<fs::path> dirs = {origin.directory, obj_dir};
+  mat.diffuse_texture = textures.get(m.diffuse_texname, dirs, TextureUse::kColour, "map_Kd", m.name);
+  if (mat.diffuse_texture < 0 && !st.has("Kd") && st.has("map_Kd"))
+    mat.diffuse = Material{}.diffuse;  // texture unreadable (warned): neutral grey, not white
+  mat.specular_texture = textures.get(m.specular_texname, dirs, TextureUse::kColour, "map_Ks", m.name);
+  mat.alpha_texture = textures.get(m.alpha_texname, dirs, TextureUse::kAlpha, "map_d", m.name);
+  // A normal map: `norm`, else a `bump` whose image holds normals (not heights).
+  auto strength = [](const tinyobj::texture_option_t& o) {
+    return std::isfinite(o.bump_multiplier) ? std::clamp(float(o.bump_multiplier), 0.0f, 10.0f) : 1.0f;
+  };
+  mat.normal_texture = textures.get(m.normal_texname, dirs, TextureUse::kNormal, "norm", m.name);
+  mat.normal_scale = strength(m.normal_texopt);
+  if (mat.normal_texture < 0 && !m.bump_texname.empty()) {
+    const int bump = textures.get(m.bump_texname, dirs, TextureUse::kNormal, "bump", m.name, is_normal_map);
+    if (bump == TextureCache::kRejected) ignored.add(origin.library, "bump height map", m.name);
+    mat.normal_texture = std::max(bump, -1);
+    mat.normal_scale = strength(m.bump_texopt);
+  } else if (mat.normal_texture >= 0 && !m.bump_texname.empty() && m.bump_texname != m.normal_texname) {
+    ignored.add(origin.library, "bump beside norm", m.name);
+  }
+  if (!(m.dissolve > 0.0f) && (st.has("d") || st.has("Tr")))
+    ignored.add(origin.library, "fully transparent d 0 / Tr 1 (rendered opaque)", m.name);
+  if (mat.dielectric && (mat.diffuse_texture >= 0 || mat.specular_texture >= 0))
+    ignored.add(origin.library, "textures on glass", m.name);
+  for (const auto* o : {&m.diffuse_texopt, &m.specular_texopt, &m.normal_texopt, &m.bump_texopt, &m.alpha_texopt})
+    if (has_unapplied_texture_options(*o)) {
+      ignored.add(origin.library, "texture options -o/-s/-t", m.name);
+      break;
+    }
+  for (const std::string& kw : st.keywords)
+    if (!is_modelled_mtl_keyword(kw) && !is_meaningless_in_path_tracer(kw))
+      ignored.add(origin.library, kw, m.name);
+  return mat;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -678,42 +717,7 @@ Scene load_obj(const std::string& path) {
   IgnoredMtlFeatures ignored;
   for (std::size_t i = 0; i < mtl_materials.size(); ++i) {
     const tinyobj::material_t& m = mtl_materials[i];
-    const auto origin = mtl_reader.origin_of(i);
-    const MtlStatements& st = origin.statements;
-    Material mat = convert_material(m, st);
-    const std::vector<fs::path> dirs = {origin.directory, obj_dir};
-    mat.diffuse_texture = textures.get(m.diffuse_texname, dirs, TextureUse::kColour, "map_Kd", m.name);
-    if (mat.diffuse_texture < 0 && !st.has("Kd") && st.has("map_Kd"))
-      mat.diffuse = Material{}.diffuse;  // texture unreadable (warned): neutral grey, not white
-    mat.specular_texture = textures.get(m.specular_texname, dirs, TextureUse::kColour, "map_Ks", m.name);
-    mat.alpha_texture = textures.get(m.alpha_texname, dirs, TextureUse::kAlpha, "map_d", m.name);
-    // A normal map: `norm`, else a `bump` whose image holds normals (not heights).
-    auto strength = [](const tinyobj::texture_option_t& o) {
-      return std::isfinite(o.bump_multiplier) ? std::clamp(float(o.bump_multiplier), 0.0f, 10.0f) : 1.0f;
-    };
-    mat.normal_texture = textures.get(m.normal_texname, dirs, TextureUse::kNormal, "norm", m.name);
-    mat.normal_scale = strength(m.normal_texopt);
-    if (mat.normal_texture < 0 && !m.bump_texname.empty()) {
-      const int bump = textures.get(m.bump_texname, dirs, TextureUse::kNormal, "bump", m.name, is_normal_map);
-      if (bump == TextureCache::kRejected) ignored.add(origin.library, "bump height map", m.name);
-      mat.normal_texture = std::max(bump, -1);
-      mat.normal_scale = strength(m.bump_texopt);
-    } else if (mat.normal_texture >= 0 && !m.bump_texname.empty() && m.bump_texname != m.normal_texname) {
-      ignored.add(origin.library, "bump beside norm", m.name);
-    }
-    if (!(m.dissolve > 0.0f) && (st.has("d") || st.has("Tr")))
-      ignored.add(origin.library, "fully transparent d 0 / Tr 1 (rendered opaque)", m.name);
-    if (mat.dielectric && (mat.diffuse_texture >= 0 || mat.specular_texture >= 0))
-      ignored.add(origin.library, "textures on glass", m.name);
-    for (const auto* o : {&m.diffuse_texopt, &m.specular_texopt, &m.normal_texopt, &m.bump_texopt, &m.alpha_texopt})
-      if (has_unapplied_texture_options(*o)) {
-        ignored.add(origin.library, "texture options -o/-s/-t", m.name);
-        break;
-      }
-    for (const std::string& kw : st.keywords)
-      if (!is_modelled_mtl_keyword(kw) && !is_meaningless_in_path_tracer(kw))
-        ignored.add(origin.library, kw, m.name);
-    scene.materials.push_back(std::move(mat));
+    scene.materials.push_back(make_material(m, mtl_reader.origin_of(i), obj_dir, textures, ignored));
   }
   for (std::string& line : ignored.warning_lines()) scene.stats.warnings.push_back(std::move(line));
   // Faces without a (known) material share one grey default, created on first use.
