@@ -119,22 +119,25 @@ TEST(PathTracer, FurnaceWhiteSphereUnderUniformSky) {
 // ---- BSDF routines, through the probe kernel ----
 
 struct BsdfCase {
-  glm::vec3 diffuse, specular;
+  glm::vec3 diffuse, specular;  // for a dielectric, diffuse is its transmission filter
   float alpha;
   bool mirror;
   glm::vec3 wo;
+  float ior = 0.0f;             // > 0: a smooth dielectric of this index
+  bool outside = true;          // dielectric: wo lies outside the glass
 };
 
 struct ProbeResult {
   std::vector<cl_float4> sample, sample2;
 };
 
-// Kernel arguments 3..6 of both probe kernels: the BSDF and the outgoing direction.
+// Kernel arguments 3..7 of both probe kernels: the BSDF and the outgoing direction.
 void set_case_args(cl::Kernel& k, const BsdfCase& c) {
   k.setArg(3, cl_float4{{c.diffuse.x, c.diffuse.y, c.diffuse.z, 0}});
   k.setArg(4, cl_float4{{c.specular.x, c.specular.y, c.specular.z, c.alpha}});
   k.setArg(5, static_cast<cl_uint>(c.mirror));
   k.setArg(6, cl_float4{{c.wo.x, c.wo.y, c.wo.z, 0}});
+  k.setArg(7, cl_float4{{c.ior, c.outside ? 1.0f : 0.0f, 0, 0}});
 }
 
 ProbeResult probe_samples(const BsdfCase& c, std::uint32_t count) {
@@ -148,7 +151,7 @@ ProbeResult probe_samples(const BsdfCase& c, std::uint32_t count) {
   k.setArg(1, out2);
   k.setArg(2, count);
   set_case_args(k, c);
-  k.setArg(7, static_cast<cl_uint>(17));
+  k.setArg(8, static_cast<cl_uint>(17));
   q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(count, 64)), cl::NDRange(64));
   ProbeResult r;
   r.sample.resize(count);
@@ -498,6 +501,223 @@ TEST(PathTracer, NonFiniteRadianceIsDroppedAndCounted) {
   for (const auto& eye : eyes)
     for (float v : eye.rgb) ASSERT_TRUE(std::isfinite(v));
   EXPECT_GT(f.tracer->nonfinite_paths(), 0u);
+}
+
+// ---- glass: a smooth dielectric ----
+
+// Unpolarised Fresnel reflectance in Fresnel's own angle form (Born & Wolf, sec. 1.5):
+// rs = -sin(ti - tt) / sin(ti + tt), rp = tan(ti - tt) / tan(ti + tt), with Snell's law for tt.
+// A second formulation, in double, against which the kernel's cosine form is checked.
+double fresnel_angle_form(double theta_i, double n_near, double n_far) {
+  const double sin_t = n_near / n_far * std::sin(theta_i);
+  if (sin_t >= 1.0) return 1.0;
+  const double tt = std::asin(sin_t);
+  if (theta_i == 0.0) return std::pow((n_far - n_near) / (n_far + n_near), 2.0);
+  const double rs = -std::sin(theta_i - tt) / std::sin(theta_i + tt);
+  const double rp = std::tan(theta_i - tt) / std::tan(theta_i + tt);
+  return 0.5 * (rs * rs + rp * rp);
+}
+
+BsdfCase glass_case(float ior, bool outside, double theta_i, glm::vec3 transmission = glm::vec3(1.0f)) {
+  BsdfCase c{transmission, glm::vec3(0.0f), 0.0f, false,
+             glm::vec3(float(std::sin(theta_i)), 0.0f, float(std::cos(theta_i)))};
+  c.ior = ior;
+  c.outside = outside;
+  return c;
+}
+
+struct GlassSplit {
+  double reflected = 0.0;  // fraction of samples reflected
+  std::size_t count = 0;
+};
+
+// Samples the dielectric and checks every sample's geometry and weight on the way: a
+// reflection is the mirror direction with weight 1 (white reflection tint), a refraction obeys
+// Snell's law and carries the filter times (eta_near / eta_far)^2.
+GlassSplit sample_glass(const BsdfCase& c, std::uint32_t n) {
+  const double n_near = c.outside ? 1.0 : c.ior, n_far = c.outside ? c.ior : 1.0;
+  const glm::dvec3 wo = glm::normalize(glm::dvec3(c.wo));
+  const double sin_i = std::sqrt(std::max(0.0, 1.0 - wo.z * wo.z));
+  const double sin_t = n_near / n_far * sin_i;
+  auto smp = probe_samples(c, n);
+  GlassSplit split;
+  split.count = n;
+  int bad = 0;
+  for (std::size_t i = 0; i < n && bad < 5; ++i) {
+    const auto& s = smp.sample[i];
+    const auto& w = smp.sample2[i];
+    if (s.s[3] != -1.0f) {
+      ADD_FAILURE() << "glass sample " << i << " is not a valid delta sample";
+      ++bad;
+      continue;
+    }
+    const glm::dvec3 wi(s.s[0], s.s[1], s.s[2]);
+    if (wi.z > 0.0) {
+      split.reflected += 1.0;
+      const bool ok = glm::length(wi - glm::dvec3(-wo.x, -wo.y, wo.z)) < 1e-5 &&
+                      std::abs(w.s[0] - 1.0f) < 1e-6f && std::abs(w.s[1] - 1.0f) < 1e-6f;
+      if (!ok) {
+        ADD_FAILURE() << "reflection " << i << ": wi (" << wi.x << ", " << wi.y << ", " << wi.z
+                      << ") weight " << w.s[0];
+        ++bad;
+      }
+    } else {
+      // Snell: the refracted ray continues sideways (-x) with sin(theta_t) = n_near / n_far sin(theta_i).
+      const double expect_weight = c.diffuse.x * (n_near * n_near) / (n_far * n_far);
+      const bool ok = std::abs(wi.x + sin_t) < 1e-5 && std::abs(wi.y) < 1e-5 &&
+                      std::abs(wi.z + std::sqrt(std::max(0.0, 1.0 - sin_t * sin_t))) < 1e-5 &&
+                      std::abs(w.s[0] - expect_weight) < 1e-5 * expect_weight;
+      if (!ok) {
+        ADD_FAILURE() << "refraction " << i << ": wi (" << wi.x << ", " << wi.y << ", " << wi.z
+                      << "), expected sin_t " << sin_t << "; weight " << w.s[0] << " expected " << expect_weight;
+        ++bad;
+      }
+    }
+  }
+  split.reflected /= n;
+  return split;
+}
+
+// Binomial noise bound on a sampled fraction: five standard deviations, and never below what a
+// handful of samples could move it.
+double fraction_tolerance(double p, std::size_t n) {
+  return 5.0 * std::sqrt(std::max(p * (1.0 - p), 1e-4) / double(n)) + 2.0 / double(n);
+}
+
+TEST(Glass, FresnelAtNormalIncidenceIsTheSquaredIndexRatio) {
+  const std::uint32_t n = 1u << 18;
+  for (float ior : {1.33f, 1.5f, 2.4f})
+    for (bool outside : {true, false}) {
+      const double f0 = std::pow((ior - 1.0) / (ior + 1.0), 2.0);  // ((n - 1) / (n + 1))^2
+      const GlassSplit split = sample_glass(glass_case(ior, outside, 0.0), n);
+      EXPECT_NEAR(split.reflected, f0, fraction_tolerance(f0, n))
+          << "ior " << ior << (outside ? " from outside" : " from inside");
+    }
+}
+
+TEST(Glass, FresnelAtObliqueIncidenceMatchesTheAngleForm) {
+  const std::uint32_t n = 1u << 17;
+  const double deg = M_PI / 180.0;
+  struct Case { double theta; bool outside; };
+  // From inside, the critical angle of 1.5 is 41.81 degrees: 40 degrees is just below it.
+  for (const Case c : {Case{30 * deg, true}, Case{60 * deg, true}, Case{80 * deg, true},
+                       Case{20 * deg, false}, Case{35 * deg, false}, Case{40 * deg, false}}) {
+    const double expected = c.outside ? fresnel_angle_form(c.theta, 1.0, 1.5) : fresnel_angle_form(c.theta, 1.5, 1.0);
+    const GlassSplit split = sample_glass(glass_case(1.5f, c.outside, c.theta, glm::vec3(0.8f)), n);
+    EXPECT_NEAR(split.reflected, expected, fraction_tolerance(expected, n))
+        << "theta " << c.theta / deg << (c.outside ? " from outside" : " from inside");
+    EXPECT_LT(split.reflected, 1.0) << "below the critical angle some light must refract";
+  }
+}
+
+TEST(Glass, TotalInternalReflectionBeyondTheCriticalAngle) {
+  // From inside glass of index 1.5, beyond asin(1 / 1.5) = 41.81 degrees, everything reflects
+  // (sample_glass checks each one is the mirror direction with weight 1).
+  const double deg = M_PI / 180.0;
+  for (double theta : {42.5 * deg, 60.0 * deg, 85.0 * deg}) {
+    const GlassSplit split = sample_glass(glass_case(1.5f, false, theta), 1u << 14);
+    EXPECT_EQ(split.reflected, 1.0) << "theta " << theta / deg;
+  }
+  // The same angles from outside refract most of the light: the side matters.
+  const GlassSplit outside = sample_glass(glass_case(1.5f, true, 60.0 * deg), 1u << 14);
+  EXPECT_LT(outside.reflected, 0.2);
+}
+
+TEST(Glass, FurnaceSphereInUniformSkyStaysUniform) {
+  // A clear dielectric sphere in a uniform environment of radiance 1, nothing else: every path
+  // leaves to the environment with throughput 1 (reflection and refraction are chosen with
+  // their Fresnel probabilities, and the 1 / eta^2 on entering cancels the eta^2 on leaving),
+  // so the image is the environment, sphere or not.
+  Scene s;
+  Material glass;
+  glass.dielectric = true;
+  glass.ior = 1.5f;
+  glass.diffuse = glm::vec3(0.0f);  // unused by a dielectric: a bug reading it shows as dark
+  s.materials.push_back(glass);
+  append_icosphere(s.triangles, glm::vec3(0.0f), 1.0f, 4, 0);
+  s.sky.enabled = true;
+  s.sky.zenith = s.sky.horizon = s.sky.ground = glm::vec3(1.0f);
+  s.camera.position = glm::vec3(0.0f, 0.0f, -3.0f);
+  s.camera.target = glm::vec3(0.0f);
+  s.camera.vfov_deg = 50.0f;
+  RenderFixture f(one_device(), s);
+  PathTracer::Options opt;
+  opt.spp = 32;
+  opt.bounces = 32;
+  opt.rr_start_bounce = 32;  // no roulette: every path is exactly 1
+  auto eyes = f.render(40, 30, opt);
+  for (const auto& eye : eyes) {
+    EXPECT_NEAR(mean(eye), 1.0, 0.01);
+    EXPECT_LT(rmse_to(eye, 1.0), 0.05);
+    std::size_t off = 0;
+    for (float v : eye.rgb) off += std::abs(v - 1.0f) > 0.1f;
+    EXPECT_LE(off, eye.rgb.size() / 200) << "channels more than 10% off the environment";
+  }
+  EXPECT_EQ(f.tracer->nonfinite_paths(), 0u);
+}
+
+// ---- normal maps ----
+
+// A white-ish Lambertian plane z = 0 lit by a sun of angular radius r from elevation
+// 90 - alpha degrees (towards +x); nothing else. Its radiance is exactly
+//   (a / pi) R pi sin^2(r) cos(angle between the shading normal and the sun)
+// (the cosine integrated over the sun's cone: its sideways parts cancel by symmetry).
+Scene sunlit_plane(const float* normal_texel) {
+  Scene s;
+  Material m;
+  m.diffuse = glm::vec3(0.5f);
+  if (normal_texel) {
+    Texture t;
+    t.width = t.height = 1;
+    t.rgba.assign(normal_texel, normal_texel + 4);
+    s.textures.push_back(t);
+    m.normal_texture = 0;
+  }
+  s.materials.push_back(m);
+  // u grows along +x, v along +y: the tangent frame is (x, y, z).
+  append_quad(s.triangles, glm::vec3(-10, -10, 0), glm::vec3(10, -10, 0), glm::vec3(10, 10, 0),
+              glm::vec3(-10, 10, 0), 0);
+  s.sun.enabled = true;
+  const double alpha = 40.0 * M_PI / 180.0;
+  s.sun.direction = glm::vec3(float(std::sin(alpha)), 0.0f, float(std::cos(alpha)));
+  s.sun.angular_radius_deg = 5.0f;
+  s.sun.radiance = glm::vec3(250.0f);
+  s.camera.position = glm::vec3(0.0f, 0.0f, 4.0f);
+  s.camera.target = glm::vec3(0.0f);
+  s.camera.vfov_deg = 40.0f;
+  return s;
+}
+
+double sunlit_plane_radiance(double normal_tilt_towards_sun) {
+  const double alpha = 40.0 * M_PI / 180.0, r = 5.0 * M_PI / 180.0;
+  return 0.5 * 250.0 * std::pow(std::sin(r), 2.0) * std::cos(alpha - normal_tilt_towards_sun);
+}
+
+TEST(NormalMap, FlatMapChangesNothingAndTiltedMapFollowsTheCosine) {
+  PathTracer::Options opt;
+  opt.spp = 8;
+  opt.bounces = 2;
+  RenderFixture plain(one_device(), sunlit_plane(nullptr));
+  const auto reference = plain.render(32, 24, opt);
+  EXPECT_NEAR(mean(reference[0]), sunlit_plane_radiance(0.0), 0.01 * sunlit_plane_radiance(0.0));
+
+  // (0.5, 0.5, 1) encodes the unperturbed normal: the same image, pixel for pixel.
+  const float flat[4] = {0.5f, 0.5f, 1.0f, 1.0f};
+  RenderFixture flat_map(one_device(), sunlit_plane(flat));
+  const auto same = flat_map.render(32, 24, opt);
+  for (int e = 0; e < 2; ++e)
+    for (std::size_t i = 0; i < same[e].rgb.size(); ++i)
+      ASSERT_NEAR(same[e].rgb[i], reference[e].rgb[i], 1e-4f * (1.0f + reference[e].rgb[i])) << "eye " << e << " value " << i;
+
+  // A constant normal tilted by 20 degrees towards the sun (+x, the map's +u), then away.
+  const double tilt = 20.0 * M_PI / 180.0;
+  for (double sign : {1.0, -1.0}) {
+    const float texel[4] = {float(0.5 + 0.5 * sign * std::sin(tilt)), 0.5f, float(0.5 + 0.5 * std::cos(tilt)), 1.0f};
+    RenderFixture tilted(one_device(), sunlit_plane(texel));
+    const auto eyes = tilted.render(32, 24, opt);
+    const double expected = sunlit_plane_radiance(sign * tilt);
+    for (const auto& eye : eyes) EXPECT_NEAR(mean(eye), expected, 0.01 * expected) << "tilt sign " << sign;
+  }
 }
 
 }  // namespace

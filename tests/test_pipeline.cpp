@@ -160,6 +160,41 @@ TEST(StereoPipeline, HolesAreExactlyThePathTracedRightPixels) {
   EXPECT_EQ(proposed.stats.reprojected, static_cast<std::size_t>(reprojected));
 }
 
+TEST(StereoPipeline, GlassIsNeverReprojected) {
+  // What a dielectric shows depends on the eye (it refracts the scene behind it): its G-buffer
+  // class is PX_CLASS_DIELECTRIC, and every right pixel on it is path traced, holding what
+  // the mono pipeline computes there.
+  Scene s;
+  Material white;
+  white.diffuse = glm::vec3(0.7f);
+  Material light = white;
+  light.emission = glm::vec3(5.0f);
+  Material glass;
+  glass.dielectric = true;
+  glass.ior = 1.5f;
+  s.materials = {white, light, glass};
+  append_quad(s.triangles, {-3, -2, 4}, {3, -2, 4}, {3, 2, 4}, {-3, 2, 4}, 0);           // back wall
+  append_quad(s.triangles, {-1, 1.9f, 2}, {1, 1.9f, 2}, {1, 1.9f, 3}, {-1, 1.9f, 3}, 1);  // light
+  append_icosphere(s.triangles, {0.0f, 0.0f, 2.0f}, 0.8f, 3, 2);
+  s.camera.position = {0.0f, 0.0f, -1.0f};
+  s.camera.target = {0.0f, 0.0f, 4.0f};
+  s.camera.vfov_deg = 60.0f;
+  LoadedScene loaded{s, build_bvh(s.triangles)};
+  auto proposed = run(loaded, PipelineKind::Proposed, 2, 48, 36, 2);
+  auto mono = run(loaded, PipelineKind::Mono, 2, 48, 36, 2);
+  int glass_pixels = 0, reprojected = 0;
+  for (std::size_t i = 0; i < proposed.holes.size(); ++i) {
+    reprojected += !proposed.holes[i];
+    if (proposed.gright[i].material_class != PX_CLASS_DIELECTRIC) continue;
+    ++glass_pixels;
+    ASSERT_TRUE(proposed.holes[i]) << "glass pixel " << i << " was reprojected";
+    for (int c = 0; c < 3; ++c)
+      ASSERT_EQ(proposed.radiance[1].rgb[i * 3 + c], mono.radiance[1].rgb[i * 3 + c]) << "glass pixel " << i;
+  }
+  EXPECT_GT(glass_pixels, 100) << "the sphere should cover a good part of the image";
+  EXPECT_GT(reprojected, 100) << "the diffuse wall around it is still reprojected";
+}
+
 TEST(StereoPipeline, ReprojectedSurfacesAreVisibleFromTheLeftEye) {
   // Independent check of disocclusion handling: for every reprojected right pixel, Embree casts
   // a ray from the left eye to that surface point; it must arrive unblocked (else the left eye

@@ -373,6 +373,141 @@ TEST(ObjLoader, LoadsTexturesLinearised) {
   EXPECT_TRUE(any_warning_contains(s, "missing.png"));
 }
 
+TEST(ObjLoader, MapKdWithoutKdIsTheTexturesOwnColour) {
+  // OBJ viewers show a map_Kd's own colour; only an explicit Kd scales it (it used to be taken
+  // as 0: a black wall). Same rule for map_Ks and Ks.
+  TempDir dir;
+  write_png(dir.path() / "wall.png", 1, 1, 3, {255, 128, 0});
+  dir.write("m.mtl", "newmtl bare\nmap_Kd wall.png\n"
+                     "newmtl scaled\nKd 0.5 0.25 1\nmap_Kd wall.png\n"
+                     "newmtl plain\nKd 0.3 0.3 0.3\n"
+                     "newmtl spec_bare\nKd 0.5 0.5 0.5\nmap_Ks wall.png\nNs 20\n"
+                     "newmtl spec_scaled\nKs 0.2 0.2 0.2\nmap_Ks wall.png\n"
+                     "newmtl missing\nmap_Kd nowhere.png\n");
+  const fs::path obj = dir.write("m.obj",
+                                 "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+                                 "usemtl bare\nf 1/1 2/2 3/3\nusemtl scaled\nf 1/1 2/2 3/3\n"
+                                 "usemtl plain\nf 1/1 2/2 3/3\nusemtl spec_bare\nf 1/1 2/2 3/3\n"
+                                 "usemtl spec_scaled\nf 1/1 2/2 3/3\nusemtl missing\nf 1/1 2/2 3/3\n");
+  const Scene s = load_obj(obj.string());
+  auto mat = [&](int i) { return s.materials[s.triangles[i].material]; };
+  // The albedo the renderer uses is Kd x texel.
+  auto albedo = [&](const Material& m) {
+    glm::vec3 a = m.diffuse;
+    if (m.diffuse_texture >= 0) {
+      const auto& t = s.textures[m.diffuse_texture].rgba;
+      a *= glm::vec3(t[0], t[1], t[2]);
+    }
+    return a;
+  };
+  const glm::vec3 texel(1.0f, 0.21586f, 0.0f);  // sRGB (255, 128, 0), linear
+  ASSERT_GE(mat(0).diffuse_texture, 0);
+  EXPECT_EQ(mat(0).diffuse, glm::vec3(1.0f));
+  EXPECT_NEAR(glm::length(albedo(mat(0)) - texel), 0.0f, 1e-4f);
+  EXPECT_NEAR(glm::length(albedo(mat(1)) - texel * glm::vec3(0.5f, 0.25f, 1.0f)), 0.0f, 1e-4f);
+  EXPECT_EQ(mat(2).diffuse, glm::vec3(0.3f));
+  EXPECT_EQ(mat(2).diffuse_texture, -1);
+  ASSERT_GE(mat(3).specular_texture, 0);
+  EXPECT_EQ(mat(3).specular, glm::vec3(1.0f));
+  EXPECT_EQ(mat(4).specular, glm::vec3(0.2f));
+  EXPECT_GE(mat(4).specular_texture, 0);
+  // An unreadable map: warned, and a neutral grey rather than black or white.
+  EXPECT_EQ(mat(5).diffuse_texture, -1);
+  EXPECT_EQ(mat(5).diffuse, Material{}.diffuse);
+  EXPECT_TRUE(any_warning_contains(s, "nowhere.png"));
+}
+
+TEST(ObjLoader, GlassIsADielectric) {
+  TempDir dir;
+  dir.write("m.mtl",
+            "newmtl water\nKd 0.1 0.1 0.1\nKs 1 1 1\nNi 1.33\nillum 7\n"
+            "newmtl dissolved\nKd 0.5 0.5 0.5\nd 0.4\n"
+            "newmtl filter\nKs 0.04 0.04 0.04\nNs 200\nNi 1.6\nTf 0.95 0.9 0.85\n"  // cornell-mapping's sphere
+            "newmtl glass4\nillum 4\n"
+            "newmtl opaque_tf\nKd 0.5 0.5 0.5\nTf 1 1 1\nNi 1.5\nd 1\nillum 2\n"
+            "newmtl fresnel_mirror\nKs 0.9 0.9 0.9\nillum 5\n"
+            "newmtl tr_as_d\nKd 0.5 0.5 0.5\nTr 1\n");
+  const fs::path obj = dir.write("m.obj",
+                                 "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                                 "usemtl water\nf 1 2 3\nusemtl dissolved\nf 1 2 3\nusemtl filter\nf 1 2 3\n"
+                                 "usemtl glass4\nf 1 2 3\nusemtl opaque_tf\nf 1 2 3\nusemtl fresnel_mirror\nf 1 2 3\n"
+                                 "usemtl tr_as_d\nf 1 2 3\n");
+  const Scene s = load_obj(obj.string());
+  auto mat = [&](int i) { return s.materials[s.triangles[i].material]; };
+  EXPECT_TRUE(mat(0).dielectric);
+  EXPECT_FLOAT_EQ(mat(0).ior, 1.33f);
+  EXPECT_EQ(mat(0).transmission, glm::vec3(1.0f));
+  EXPECT_FALSE(mat(0).mirror);
+  EXPECT_TRUE(mat(1).dielectric);
+  EXPECT_FLOAT_EQ(mat(1).ior, 1.5f);  // no Ni: common glass
+  EXPECT_TRUE(mat(2).dielectric);
+  EXPECT_FLOAT_EQ(mat(2).ior, 1.6f);
+  EXPECT_EQ(mat(2).transmission, glm::vec3(0.95f, 0.9f, 0.85f));
+  EXPECT_TRUE(mat(3).dielectric);
+  EXPECT_FALSE(mat(4).dielectric) << "Tf 1 1 1 with d 1 is what exporters write on opaque materials";
+  EXPECT_FALSE(mat(5).dielectric);
+  EXPECT_TRUE(mat(5).mirror);
+  // "Tr 1" is d = 0 (invisible) by the letter, opaque by some exporters' meaning: opaque, said.
+  EXPECT_FALSE(mat(6).dielectric);
+  EXPECT_TRUE(any_warning_contains(s, "fully transparent d 0 / Tr 1 (rendered opaque) (tr_as_d)"));
+}
+
+TEST(ObjLoader, NormalMapsAndIgnoredFeaturesAreNamedInOneLine) {
+  TempDir dir;
+  // A tangent-space normal map (bluish, not grey), and a grey height map.
+  write_png(dir.path() / "n.png", 2, 1, 3, {128, 128, 255, 200, 128, 230});
+  write_png(dir.path() / "h.png", 2, 1, 1, {10, 240});
+  dir.write("m.mtl",
+            "newmtl norm_map\nKd 1 1 1\nnorm n.png\n"
+            "newmtl bump_normal\nKd 1 1 1\nbump -bm 0.5 n.png\n"
+            "newmtl bump_height\nKd 1 1 1\nmap_Bump h.png\nmap_Ns rough.png\n"
+            "newmtl lamp\nKe 1 1 1\nPe 10\nKa 0.1 0.1 0.1\n");
+  const fs::path obj = dir.write("m.obj",
+                                 "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                                 "usemtl norm_map\nf 1 2 3\nusemtl bump_normal\nf 1 2 3\n"
+                                 "usemtl bump_height\nf 1 2 3\nusemtl lamp\nf 1 2 3\n");
+  const Scene s = load_obj(obj.string());
+  auto mat = [&](int i) { return s.materials[s.triangles[i].material]; };
+  ASSERT_GE(mat(0).normal_texture, 0);
+  // Normals are numbers, not colours: no sRGB decoding (128 / 255, not 0.2159).
+  const Texture& n = s.textures[mat(0).normal_texture];
+  EXPECT_NEAR(n.rgba[0], 128.0f / 255.0f, 1e-5f);
+  EXPECT_NEAR(n.rgba[2], 1.0f, 1e-5f);
+  EXPECT_FLOAT_EQ(mat(0).normal_scale, 1.0f);
+  ASSERT_GE(mat(1).normal_texture, 0);
+  EXPECT_FLOAT_EQ(mat(1).normal_scale, 0.5f);
+  EXPECT_EQ(mat(2).normal_texture, -1) << "a height map is not a normal map";
+  // Exactly one line for the library, naming every ignored feature and where it is.
+  std::vector<std::string> lines;
+  for (const auto& w : s.stats.warnings)
+    if (w.find("m.mtl") != std::string::npos && w.find("ignored") != std::string::npos) lines.push_back(w);
+  ASSERT_EQ(lines.size(), 1u);
+  for (const char* what : {"bump height map (bump_height)", "map_Ns (bump_height)", "Pe (lamp)"})
+    EXPECT_NE(lines[0].find(what), std::string::npos) << what << " missing from: " << lines[0];
+  EXPECT_EQ(lines[0].find("Ka"), std::string::npos) << "ambient means nothing to a path tracer";
+  EXPECT_EQ(lines[0].find("norm_map"), std::string::npos) << "norm_map is fully modelled";
+}
+
+TEST(ObjLoader, CornellMappingBackWallHasItsTexturesAndTheSphereIsGlass) {
+  const fs::path shared = test::shared_dir();
+  const fs::path file = shared / "scenes" / "real" / "cornell-mapping" / "CornellBox-Mapping.obj";
+  if (shared.empty() || !fs::exists(file)) GTEST_SKIP() << "../shared/scenes/real is absent on this machine";
+  const Scene s = load_obj(file.string());
+  const Material* wall = nullptr;
+  const Material* sphere = nullptr;
+  for (const auto& m : s.materials) {
+    if (m.name == "backWall") wall = &m;
+    if (m.name == "rightSphere") sphere = &m;
+  }
+  ASSERT_TRUE(wall && sphere);
+  EXPECT_EQ(wall->diffuse, glm::vec3(1.0f));
+  EXPECT_GE(wall->diffuse_texture, 0);
+  EXPECT_GE(wall->specular_texture, 0);
+  EXPECT_GE(wall->normal_texture, 0) << "its bump is a normal map";
+  EXPECT_TRUE(sphere->dielectric);
+  EXPECT_FLOAT_EQ(sphere->ior, 1.6f);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Scene files
 

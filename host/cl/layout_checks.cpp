@@ -25,9 +25,12 @@ static_assert(offsetof(TriangleShading, uv0) == 12 && offsetof(TriangleShading, 
 static_assert(offsetof(TriangleShading, uv1) == 32 && offsetof(TriangleShading, n2) == 40);
 static_assert(offsetof(TriangleShading, uv2) == 52 && offsetof(TriangleShading, material) == 60);
 
-static_assert(sizeof(GpuMaterial) == 64);
+static_assert(sizeof(GpuMaterial) == 80);
 static_assert(offsetof(GpuMaterial, diffuse_texture) == 12 && offsetof(GpuMaterial, roughness) == 28);
 static_assert(offsetof(GpuMaterial, alpha_texture) == 44 && offsetof(GpuMaterial, flags) == 48);
+static_assert(offsetof(GpuMaterial, specular_texture) == 52 && offsetof(GpuMaterial, normal_texture) == 56);
+static_assert(offsetof(GpuMaterial, ior) == 60 && offsetof(GpuMaterial, transmission) == 64);
+static_assert(offsetof(GpuMaterial, normal_scale) == 76);
 
 static_assert(sizeof(CameraParams) == 64);
 static_assert(offsetof(CameraParams, tan_half_fov_y) == 12 && offsetof(CameraParams, aspect) == 28);

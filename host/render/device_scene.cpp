@@ -57,12 +57,21 @@ std::vector<GpuMaterial> make_gpu_materials(const Scene& scene) {
     copy3(g.diffuse, m.diffuse);
     copy3(g.specular, m.specular);
     copy3(g.emission, m.emission);
+    copy3(g.transmission, m.transmission);
     g.diffuse_texture = m.diffuse_texture;
+    g.specular_texture = m.specular_texture;
+    g.normal_texture = m.normal_texture;
+    g.normal_scale = m.normal_scale;
     g.alpha_texture = m.alpha_texture;
+    g.ior = m.ior;
     g.roughness = m.mirror ? 0.0f : m.roughness;
     const bool has_specular = (m.specular.x + m.specular.y + m.specular.z) > 0.0f;
-    g.flags = (m.mirror ? PX_MAT_MIRROR : 0u) | (!m.mirror && has_specular ? PX_MAT_GLOSSY : 0u) |
-              (m.is_emissive() ? PX_MAT_EMISSIVE : 0u) | (m.two_sided ? PX_MAT_TWO_SIDED_EMITTER : 0u);
+    // A dielectric is its own lobe: it is neither mirror nor glossy, whatever Ks says.
+    const bool opaque = !m.dielectric;
+    g.flags = (opaque && m.mirror ? PX_MAT_MIRROR : 0u) |
+              (opaque && !m.mirror && has_specular ? PX_MAT_GLOSSY : 0u) |
+              (m.dielectric ? PX_MAT_DIELECTRIC : 0u) | (m.is_emissive() ? PX_MAT_EMISSIVE : 0u) |
+              (m.two_sided ? PX_MAT_TWO_SIDED_EMITTER : 0u);
   }
   return out;
 }

@@ -27,9 +27,11 @@ struct Texture {
 };
 
 // Material as the scenes need it (OBJ/MTL mapping in parentheses):
-// Lambertian diffuse (Kd, map_Kd), a GGX glossy lobe (Ks, Ns -> roughness), a perfect mirror
-// (Ks with very high Ns, or illum 3/5/7 with Ks), alpha cut-outs (map_d), emission (Ke, from
-// the front face unless the scene file asks for two-sided emitters).
+// Lambertian diffuse (Kd, map_Kd), a GGX glossy lobe (Ks, map_Ks, Ns -> roughness), a perfect
+// mirror (Ks with very high Ns, or illum 3/5 with Ks), a smooth dielectric (glass: illum 4/6/7,
+// d < 1 or a transmission filter Tf; index of refraction Ni), tangent-space normal maps (norm,
+// or bump naming a normal map), alpha cut-outs (map_d), emission (Ke, from the front face
+// unless the scene file asks for two-sided emitters).
 struct Material {
   std::string name;
   glm::vec3 diffuse{0.8f};    // Kd, linear albedo
@@ -37,8 +39,14 @@ struct Material {
   float roughness = 1.0f;     // GGX alpha derived from Ns; 0 = perfect mirror
   glm::vec3 emission{0.0f};   // Ke, radiance
   int diffuse_texture = -1;   // index into Scene::textures, -1 = none
+  int specular_texture = -1;  // map_Ks: multiplies `specular`
+  int normal_texture = -1;    // tangent-space normal map (linear RGB, (0.5, 0.5, 1) = flat)
+  float normal_scale = 1.0f;  // -bm: scales the map's tangent-plane components
   int alpha_texture = -1;     // map_d; texels with alpha < 0.5 are cut out
   bool mirror = false;        // perfect specular reflection
+  bool dielectric = false;    // smooth glass: Fresnel reflection + refraction
+  float ior = 1.5f;           // Ni, dielectric only: index inside relative to outside
+  glm::vec3 transmission{1.0f};  // Tf, dielectric only: filter on refracted light
   bool two_sided = false;     // emits from both faces (default: only from the front face, the
                               // side the winding order's normal points to)
   bool is_emissive() const { return emission.x > 0.0f || emission.y > 0.0f || emission.z > 0.0f; }

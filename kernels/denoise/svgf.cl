@@ -21,7 +21,11 @@
 
 inline float px_lum(float3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
 
-inline int px_filtered_class(uint c) { return c == PX_CLASS_DIFFUSE || c == PX_CLASS_GLOSSY || c == PX_CLASS_MIRROR; }
+/* Surfaces the filter smooths. Specular ones (mirror, glass) too: their noise at low sample counts
+ * is worse to look at than the blur of what they reflect or refract. */
+inline int px_filtered_class(uint c) {
+  return c == PX_CLASS_DIFFUSE || c == PX_CLASS_GLOSSY || c == PX_CLASS_MIRROR || c == PX_CLASS_DIELECTRIC;
+}
 
 /* Albedo used for demodulation: the path tracer's mean primary-hit albedo of the very samples
  * that made the pixel's radiance (the G-buffer's centre albedo is not: where the texture or the
@@ -151,6 +155,16 @@ inline float px_geometry_weight_x(const global GBufferTexel* a, float3 n, float 
          exp(-(px_depth_term(a->depth, z, grad, dx, dy, p) + extra));
 }
 
+/* The same weight twice: (strict, loose) = with the normal exponent sigma_n and with the loose
+ * one used for isolated pixels (see svgf_atrous), sharing the depth and luminance terms. */
+inline float2 px_geometry_weights(const global GBufferTexel* a, float3 n, float z, float2 grad, float dx, float dy,
+                                  const SvgfParams* p, float extra) {
+  if (!px_filtered_class(a->material_class)) return (float2)(0.0f, 0.0f);
+  const float c = dot(n, px_load3(a->normal));
+  const float rest = exp(-(px_depth_term(a->depth, z, grad, dx, dy, p) + extra));
+  return (float2)(px_normal_weight(c, p->sigma_n), px_normal_weight(c, fmin(p->sigma_n, PX_SVGF_LOOSE_SIGMA_N))) * rest;
+}
+
 inline float px_geometry_weight(const global GBufferTexel* a, float3 n, float z, float2 grad, float dx, float dy,
                                 const SvgfParams* p) {
   return px_geometry_weight_x(a, n, z, grad, dx, dy, p, 0.0f);
@@ -200,9 +214,10 @@ kernel void svgf_variance(global float4* out_illum, const global float4* illum, 
   }
   /* Short history: estimate the moments spatially with a 7x7 bilateral filter. */
   const FilterCentre fc = px_filter_centre(gbuf, x, y, c.xyz, &p);
-  float wsum = 0.0f;
-  float3 csum = (float3)(0.0f, 0.0f, 0.0f);
-  float2 msum = (float2)(0.0f, 0.0f);
+  /* Strict and loose normal weights side by side (.x, .y), as in svgf_atrous. */
+  float2 wsum = (float2)(0.0f, 0.0f);
+  float3 csum_strict = (float3)(0.0f, 0.0f, 0.0f), csum_loose = csum_strict;
+  float4 msum = (float4)(0.0f, 0.0f, 0.0f, 0.0f); /* (strict m1, m2, loose m1, m2) */
   for (int dy = -3; dy <= 3; ++dy) {
     const int ty = y + dy;
     if (ty < 0 || ty >= (int)p.height || !px_row_readable(ty, &p)) continue;
@@ -211,18 +226,21 @@ kernel void svgf_variance(global float4* out_illum, const global float4* illum, 
       if (tx < 0 || tx >= (int)p.width) continue;
       const uint j = (uint)ty * p.width + (uint)tx;
       if (moments[j].w == 0.0f) continue;
-      const float w = (dx == 0 && dy == 0) ? 1.0f
-                                           : px_geometry_weight_x(gbuf + j, fc.n, fc.z, fc.grad, (float)dx, (float)dy, &p,
-                                                                  fabs(fc.l - px_lum(illum[j].xyz)) / (p.sigma_l + 1e-6f));
+      const float2 w = (dx == 0 && dy == 0)
+                           ? (float2)(1.0f, 1.0f)
+                           : px_geometry_weights(gbuf + j, fc.n, fc.z, fc.grad, (float)dx, (float)dy, &p,
+                                                 fabs(fc.l - px_lum(illum[j].xyz)) / (p.sigma_l + 1e-6f));
       wsum += w;
-      csum += w * illum[j].xyz;
-      msum += w * moments[j].xy;
+      csum_strict += w.x * illum[j].xyz;
+      csum_loose += w.y * illum[j].xyz;
+      msum += (float4)(w.x * moments[j].xy, w.y * moments[j].xy);
     }
   }
-  csum /= wsum;
-  msum /= wsum;
+  const int isolated = wsum.x - 1.0f < PX_SVGF_ISOLATED;
+  const float3 csum = isolated ? csum_loose / wsum.y : csum_strict / wsum.x;
+  const float2 m12 = isolated ? msum.zw / wsum.y : msum.xy / wsum.x;
   /* Few frames of history: the estimate is uncertain, so boost it (as in the SVGF paper). */
-  const float var = fmax(0.0f, msum.y - msum.x * msum.x) * 4.0f / m.z;
+  const float var = fmax(0.0f, m12.y - m12.x * m12.x) * 4.0f / m.z;
   out_illum[i] = (float4)(csum, var);
 }
 
@@ -257,8 +275,14 @@ kernel void svgf_atrous(global float4* out_illum, const global float4* illum, co
   const float lum_scale = p.sigma_l * sqrt(fmax(0.0f, var)) + 1e-6f;
   const float h[5] = {1.0f / 16.0f, 1.0f / 4.0f, 3.0f / 8.0f, 1.0f / 4.0f, 1.0f / 16.0f};
   const int step = (int)p.step;
-  float wsum = 0.0f, vsum = 0.0f;
-  float3 csum = (float3)(0.0f, 0.0f, 0.0f);
+  /* Every tap's weight twice: .x with the normal exponent sigma_n, .y with a loose one. A pixel
+   * whose normal no neighbour shares closely — alpha-cut foliage cards, curved surfaces seen at
+   * grazing angles, silhouettes — gets no weight from anyone under the strict test and keeps
+   * its lone sample, at 1 spp often black. Such an isolated pixel takes the loose weights,
+   * which still stop at creases, depth steps and luminance edges; every other pixel is
+   * filtered exactly as before. */
+  float2 wsum = (float2)(0.0f, 0.0f), vsum = (float2)(0.0f, 0.0f);
+  float3 csum_strict = (float3)(0.0f, 0.0f, 0.0f), csum_loose = csum_strict;
   for (int ky = -2; ky <= 2; ++ky) {
     const int ty = y + ky * step;
     if (ty < 0 || ty >= (int)p.height || !px_row_readable(ty, &p)) continue;
@@ -268,16 +292,21 @@ kernel void svgf_atrous(global float4* out_illum, const global float4* illum, co
       const uint j = (uint)ty * p.width + (uint)tx;
       if (moments[j].w == 0.0f) continue;
       const float4 t = illum[j];
-      float w = h[kx + 2] * h[ky + 2];
+      float2 w = (float2)(h[kx + 2] * h[ky + 2]);
       if (kx != 0 || ky != 0)
-        w *= px_geometry_weight_x(gbuf + j, fc.n, fc.z, fc.grad, (float)(kx * step), (float)(ky * step), &p,
-                                  fabs(fc.l - px_lum(t.xyz)) / lum_scale);
+        w *= px_geometry_weights(gbuf + j, fc.n, fc.z, fc.grad, (float)(kx * step), (float)(ky * step), &p,
+                                 fabs(fc.l - px_lum(t.xyz)) / lum_scale);
       wsum += w;
       vsum += w * w * t.w;
-      csum += w * t.xyz;
+      csum_strict += w.x * t.xyz;
+      csum_loose += w.y * t.xyz;
     }
   }
-  out_illum[i] = (float4)(csum / wsum, vsum / (wsum * wsum));
+  const float centre = h[2] * h[2];
+  if (wsum.x - centre < PX_SVGF_ISOLATED * centre)
+    out_illum[i] = (float4)(csum_loose / wsum.y, vsum.y / (wsum.y * wsum.y));
+  else
+    out_illum[i] = (float4)(csum_strict / wsum.x, vsum.x / (wsum.x * wsum.x));
 }
 
 /* Back from illumination to radiance: multiply the albedo that demodulation divided out, so

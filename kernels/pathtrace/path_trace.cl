@@ -13,6 +13,8 @@
 #include "scene/scene_view.h"
 #include "shading/bsdf.h"
 #include "shading/lights.h"
+#include "shading/material.h"
+#include "shading/normal_map.h"
 #include "trace/ray_offset.h"
 #include "trace/traverse.h"
 
@@ -57,6 +59,9 @@ inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float
     ns = ns_len > 0.0f && isfinite(ns_len) ? ns / ns_len : ng;
     /* The winding order's normal is the front; emitters light only that side (unless two-sided). */
     const int front_face = dot(ng, wo) > 0.0f;
+    /* The side the path arrives from, for glass: the geometric normal oriented like the vertex
+     * normals (outwards on closed meshes), taken before the two-sided flips below. */
+    const int outside = front_face == (dot(ng, ns) >= 0.0f);
     /* Two-sided surfaces: face both normals towards the viewer of this vertex. */
     if (!front_face) ng = -ng;
     if (dot(ns, ng) < 0.0f) ns = -ns;
@@ -79,8 +84,9 @@ inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float
     float3 albedo = px_load3(mat->diffuse);
     if (mat->diffuse_texture >= 0)
       albedo *= px_texture_bilinear(scene, mat->diffuse_texture, px_interpolate_uv(sh, hit.u, hit.v)).xyz;
-    const Bsdf bsdf = px_make_bsdf(albedo, px_load3(mat->specular), mat->roughness,
-                                   (mat->flags & PX_MAT_MIRROR) != 0u);
+    const float2 uv = px_interpolate_uv(sh, hit.u, hit.v);
+    if (mat->normal_texture >= 0) ns = px_normal_mapped(scene, mat, sh, v0, v1, v2, uv, ns, wo);
+    const Bsdf bsdf = px_material_bsdf(scene, mat, albedo, uv, outside);
     if (bounce == 0u && !(mat->flags & PX_MAT_EMISSIVE)) *primary_albedo = px_demodulation_albedo(&bsdf);
     const float3 origin = px_offset_ray_origin(p, ng);
     const float4 u_light = px_sample4(key, 1u + 2u * bounce);
@@ -104,7 +110,9 @@ inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float
     }
 
     const BsdfSample bs = px_bsdf_sample(&bsdf, ns, wo, u_bsdf.xyz);
-    if (!bs.valid || dot(ng, bs.wi) <= 0.0f) break;
+    /* A refracted direction must cross the surface; any other must stay on the viewer's side. */
+    const float side = bs.transmitted ? -1.0f : 1.0f;
+    if (!bs.valid || side * dot(ng, bs.wi) <= 0.0f) break;
     throughput *= bs.weight;
     prev_pdf = bs.pdf;
     prev_delta = bs.delta;
@@ -115,7 +123,7 @@ inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float
       if (!(u_bsdf.w < q)) break;
       throughput /= q;
     }
-    org = origin;
+    org = bs.transmitted ? px_offset_ray_origin(p, -ng) : origin;
     dir = bs.wi;
   }
   return radiance;

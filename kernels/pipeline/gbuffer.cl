@@ -47,7 +47,8 @@ kernel void gbuffer(global GBufferTexel* out, uint row0, uint rows, CameraParams
   g.normal[0] = n.x; g.normal[1] = n.y; g.normal[2] = n.z;
   g.albedo[0] = albedo.x; g.albedo[1] = albedo.y; g.albedo[2] = albedo.z;
   g.prim = prim;
-  g.material_class = (m->flags & PX_MAT_EMISSIVE) ? PX_CLASS_EMISSIVE
+  g.material_class = (m->flags & PX_MAT_EMISSIVE)     ? PX_CLASS_EMISSIVE
+                     : (m->flags & PX_MAT_DIELECTRIC) ? PX_CLASS_DIELECTRIC
                      : (m->flags & PX_MAT_MIRROR)  ? PX_CLASS_MIRROR
                      : (m->flags & PX_MAT_GLOSSY)  ? PX_CLASS_GLOSSY
                                                    : PX_CLASS_DIFFUSE;

@@ -1,5 +1,6 @@
 /* The one BSDF the scenes need: a Lambertian base plus a specular lobe that is either GGX
- * (glossy, OBJ Ks/Ns) or a perfect mirror.
+ * (glossy, OBJ Ks/Ns) or a perfect mirror; or, for glass, a smooth dielectric (Fresnel
+ * reflection and refraction, both delta lobes: shading/dielectric.h).
  *
  *   f(wo, wi) = kd (1 - max(ks)) / pi  +  ks D(h) G(wo, wi) / (4 |n.wo| |n.wi|)
  *
@@ -11,13 +12,17 @@
 #define PARALLAX_BSDF_H
 
 #include "sampling/warp.h"
+#include "shading/dielectric.h"
 
 typedef struct Bsdf {
   float3 diffuse;  /* already scaled by 1 - max(ks) */
-  float3 specular;
+  float3 specular; /* dielectric: tint of the reflected part */
   float alpha;     /* GGX roughness (alpha = roughness^2 is NOT applied: the material stores alpha) */
   int mirror;      /* specular lobe is a delta */
   float p_specular; /* probability of sampling the specular lobe */
+  int dielectric;  /* smooth dielectric: every sample is a delta reflection or refraction */
+  float eta;       /* dielectric: eta_far / eta_near as seen from wo's side */
+  float3 transmission; /* dielectric: filter on the refracted part */
 } Bsdf;
 
 inline float px_luminance(float3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
@@ -32,6 +37,27 @@ inline Bsdf px_make_bsdf(float3 diffuse, float3 specular, float alpha, int mirro
   b.alpha = fmax(alpha, 1e-3f);
   const float ld = px_luminance(b.diffuse), ls = px_luminance(specular);
   b.p_specular = ld + ls > 0.0f ? ls / (ld + ls) : 0.0f;
+  b.dielectric = 0;
+  b.eta = 1.0f;
+  b.transmission = (float3)(0.0f, 0.0f, 0.0f);
+  return b;
+}
+
+/* Smooth dielectric of index `ior` (inside relative to outside); `outside`: wo lies on the
+ * outside. It has no smooth part (mirror with p_specular = 1), so next-event estimation, eval
+ * and pdf all leave it alone; only px_bsdf_sample sees it. */
+inline Bsdf px_make_dielectric_bsdf(float3 reflect_tint, float3 transmission, float ior, int outside) {
+  Bsdf b;
+  b.diffuse = (float3)(0.0f, 0.0f, 0.0f);
+  b.specular = reflect_tint;
+  b.alpha = 1e-3f;
+  b.mirror = 1;
+  b.p_specular = 1.0f;
+  b.dielectric = 1;
+  /* A non-positive or non-finite index would divide by zero in Snell's law: treat it as 1. */
+  const float n = ior > 0.0f && isfinite(ior) ? ior : 1.0f;
+  b.eta = outside ? n : 1.0f / n;
+  b.transmission = transmission;
   return b;
 }
 
@@ -39,7 +65,10 @@ inline Bsdf px_make_bsdf(float3 diffuse, float3 specular, float alpha, int mirro
  * the surface's reflectance, diffuse plus specular weight, within [0, 1]. Any colour that
  * scales all reflected light works, as long as the same one is used both ways and it is
  * averaged over the same samples as the radiance (see px_render_pixel). */
-inline float3 px_demodulation_albedo(const Bsdf* b) { return clamp(b->diffuse + b->specular, 0.0f, 1.0f); }
+inline float3 px_demodulation_albedo(const Bsdf* b) {
+  if (b->dielectric) return (float3)(1.0f, 1.0f, 1.0f); /* glass passes (nearly) all light on */
+  return clamp(b->diffuse + b->specular, 0.0f, 1.0f);
+}
 
 /* GGX normal distribution; cos_h = n.h. */
 inline float px_ggx_d(float cos_h, float alpha) {
@@ -90,7 +119,30 @@ typedef struct BsdfSample {
   float pdf;     /* solid-angle pdf of the whole mixture; 0 for a delta sample */
   int delta;
   int valid;
+  int transmitted; /* wi crossed the surface (dielectric refraction) */
 } BsdfSample;
+
+/* Smooth dielectric: reflect with probability F (Fresnel), else refract; each choice's
+ * weight is its tint, since F / F and (1 - F) / (1 - F) cancel. Refracted radiance is scaled
+ * by (eta_near / eta_far)^2 = 1 / eta^2: radiance / eta^2 is what is conserved across the
+ * interface (Veach 1997, sec. 5.2), and camera paths carry radiance. */
+inline BsdfSample px_dielectric_sample(const Bsdf* b, float3 n, float3 wo, float cos_o, float u) {
+  BsdfSample s;
+  s.pdf = 0.0f;
+  s.delta = 1;
+  s.valid = 1;
+  const float f = px_fresnel_dielectric(cos_o, b->eta);
+  if (u < f) {
+    s.wi = 2.0f * cos_o * n - wo;
+    s.weight = b->specular;
+    s.transmitted = 0;
+  } else {
+    s.wi = px_refract(wo, n, cos_o, b->eta);
+    s.weight = b->transmission / (b->eta * b->eta);
+    s.transmitted = 1;
+  }
+  return s;
+}
 
 inline BsdfSample px_bsdf_sample(const Bsdf* b, float3 n, float3 wo, float3 u) {
   BsdfSample s;
@@ -99,8 +151,10 @@ inline BsdfSample px_bsdf_sample(const Bsdf* b, float3 n, float3 wo, float3 u) {
   s.pdf = 0.0f;
   s.weight = (float3)(0.0f, 0.0f, 0.0f);
   s.wi = n;
+  s.transmitted = 0;
   const float cos_o = dot(n, wo);
   if (cos_o <= 0.0f) return s;
+  if (b->dielectric) return px_dielectric_sample(b, n, wo, cos_o, u.z);
   if (u.z < b->p_specular) {
     if (b->mirror) {
       s.wi = 2.0f * cos_o * n - wo;

@@ -109,12 +109,17 @@ typedef struct TriangleShading {
   uint material;
 } TriangleShading;
 
-/* Material as the kernels read it, 64 bytes.
+/* Material as the kernels read it, 80 bytes.
  *
  *   0..11 diffuse[3] (linear albedo)       12..15 diffuse_texture (-1 = none)
  *  16..27 specular[3]                      28..31 roughness (GGX alpha; 0 = mirror)
  *  32..43 emission[3] (radiance)           44..47 alpha_texture (-1 = none)
- *  48..51 flags (PX_MAT_*)                 52..63 padding */
+ *  48..51 flags (PX_MAT_*)                 52..55 specular_texture (-1 = none; scales specular)
+ *  56..59 normal_texture (-1 = none; tangent-space normal map, linear)
+ *  60..63 ior (PX_MAT_DIELECTRIC: index of refraction inside, relative to the outside)
+ *  64..75 transmission[3] (PX_MAT_DIELECTRIC: colour filter applied to refracted light)
+ *  76..79 normal_scale (normal map strength: the map's tangent-plane components are scaled
+ *         by it, MTL -bm) */
 typedef struct GpuMaterial {
   float diffuse[3];
   int diffuse_texture;
@@ -123,15 +128,24 @@ typedef struct GpuMaterial {
   float emission[3];
   int alpha_texture;
   uint flags;
-  uint pad[3];
+  int specular_texture;
+  int normal_texture;
+  float ior;
+  float transmission[3];
+  float normal_scale;
 } GpuMaterial;
 
 #define PX_MAT_MIRROR 1u
 #define PX_MAT_GLOSSY 2u
 #define PX_MAT_EMISSIVE 4u
+/* Smooth dielectric (glass, water): Fresnel-weighted specular reflection and refraction; the
+ * diffuse and glossy parameters are unused. The side a ray arrives from is told by the
+ * interpolated shading normal (outward on meshes with vertex normals, the winding's normal
+ * otherwise). */
+#define PX_MAT_DIELECTRIC 8u
 /* Emits from both faces. Without it an emitter emits only from its front face, the side its
  * winding order's normal (v1 - v0) x (v2 - v0) points to, as pbrt and Mitsuba do. */
-#define PX_MAT_TWO_SIDED_EMITTER 8u
+#define PX_MAT_TWO_SIDED_EMITTER 16u
 
 /* One eye's pinhole camera for one frame, 64 bytes. Rays leave `origin` through the image
  * plane at distance 1 along `forward`; pixel (x, y) with y = 0 at the top maps to
@@ -246,6 +260,7 @@ typedef struct GBufferTexel {
 #define PX_CLASS_GLOSSY 2u
 #define PX_CLASS_MIRROR 3u
 #define PX_CLASS_EMISSIVE 4u
+#define PX_CLASS_DIELECTRIC 5u /* refracts: view-dependent, never reprojected */
 
 /* Reprojection tolerances (after Tauray's normal cosine 0.99, made scale-free): a left-eye tap
  * is the same surface when the normals' cosine exceeds PX_REPROJECT_MIN_COS, its distance from
@@ -254,6 +269,12 @@ typedef struct GBufferTexel {
 #define PX_REPROJECT_MIN_COS 0.99f
 #define PX_REPROJECT_REL_DIST 0.01f
 #define PX_REPROJECT_FOOTPRINTS 3.0f
+
+/* SVGF: a pixel is isolated when its neighbours' total weight under the normal exponent
+ * sigma_n is below PX_SVGF_ISOLATED x its own; it is then filtered with the normal exponent
+ * PX_SVGF_LOOSE_SIGMA_N instead (the stereo paper's sigma_n). */
+#define PX_SVGF_ISOLATED 0.25f
+#define PX_SVGF_LOOSE_SIGMA_N 4.0f
 /* The neighbours of a reprojected pixel (its footprint's surroundings) only need to lie on the
  * same continuous surface: a looser normal test, so that curved surfaces stay reprojectable. */
 #define PX_REPROJECT_NEIGHBOUR_MIN_COS 0.9f
