@@ -7,6 +7,7 @@
 #include "image/image_metrics.h"
 #include "pipeline/stereo_pipeline.h"
 #include "render/stereo_camera.h"
+#include "scene/primitives.h"
 
 #include <gtest/gtest.h>
 
@@ -53,6 +54,8 @@ TEST(Svgf, AtrousMatchesHostImplementation) {
     GBufferTexel t{};
     glm::vec3 nn = glm::normalize(glm::vec3(0.3f * std::sin(0.2f * x), 0.2f * std::cos(0.3f * y), 1.0f));
     if (x > 25) nn = glm::normalize(glm::vec3(1.0f, 0.0f, 0.3f));  // a crease
+    // Scattered pixels whose normal no neighbour shares (like foliage cards): isolated.
+    if ((x * 7 + y * 3) % 23 == 0) nn = glm::normalize(glm::vec3(u(rng) - 0.5f, u(rng) - 0.5f, 1.0f));
     t.normal[0] = nn.x; t.normal[1] = nn.y; t.normal[2] = nn.z;
     t.depth = 2.0f + 0.01f * x + (y > 20 ? 1.0f : 0.0f);           // a depth step
     t.material_class = moments[i].s[3] != 0.0f ? PX_CLASS_DIFFUSE : PX_CLASS_MISS;
@@ -63,6 +66,7 @@ TEST(Svgf, AtrousMatchesHostImplementation) {
   p.width = w; p.height = h;
   p.row0 = 3; p.rows = 20;   // a strip in the middle
   p.lo_row = 0; p.hi_row = 26;  // readable rows: reads beyond must be skipped
+  int isolated = 0;  // pixels that took the loose normal weights (the fallback must be exercised)
   for (unsigned step : {1u, 2u, 4u}) {
     p.step = step;
     auto bi = upload(illum), bm = upload(moments), bg = upload(g);
@@ -99,31 +103,42 @@ TEST(Svgf, AtrousMatchesHostImplementation) {
         var /= vw;
         const double hk[5] = {1 / 16.0, 1 / 4.0, 3 / 8.0, 1 / 4.0, 1 / 16.0};
         const glm::dvec3 n0(g[i].normal[0], g[i].normal[1], g[i].normal[2]);
+        // Twice: with the normal exponent 128, and with the loose exponent that an isolated
+        // pixel (others' total weight < PX_SVGF_ISOLATED x its own) falls back to.
         double ws = 0, vs = 0, cs[3] = {0, 0, 0};
-        for (int ky = -2; ky <= 2; ++ky)
-          for (int kx = -2; kx <= 2; ++kx) {
-            const int tx = x + kx * step, ty = y + ky * step;
-            if (!readable(ty) || tx < 0 || tx >= static_cast<int>(w)) continue;
-            const std::size_t j = at(tx, ty);
-            if (moments[j].s[3] == 0.0f) continue;
-            double wt = hk[kx + 2] * hk[ky + 2];
-            if (kx || ky) {
-              const glm::dvec3 n1(g[j].normal[0], g[j].normal[1], g[j].normal[2]);
-              const double wn = std::pow(std::max(0.0, glm::dot(n0, n1)), 128.0);
-              const double wz = std::exp(-std::abs(g[i].depth - g[j].depth) /
-                                         (1.0 * std::abs(gx * kx * step + gy * ky * step) + 1e-3 * g[i].depth + 1e-6));
-              const double wl = std::exp(-std::abs(lum(illum[i]) - lum(illum[j])) / (4.0 * std::sqrt(std::max(0.0, var)) + 1e-6));
-              wt *= wn * wz * wl;
+        for (double sigma_n : {128.0, double(PX_SVGF_LOOSE_SIGMA_N)}) {
+          ws = vs = cs[0] = cs[1] = cs[2] = 0;
+          for (int ky = -2; ky <= 2; ++ky)
+            for (int kx = -2; kx <= 2; ++kx) {
+              const int tx = x + kx * step, ty = y + ky * step;
+              if (!readable(ty) || tx < 0 || tx >= static_cast<int>(w)) continue;
+              const std::size_t j = at(tx, ty);
+              if (moments[j].s[3] == 0.0f) continue;
+              double wt = hk[kx + 2] * hk[ky + 2];
+              if (kx || ky) {
+                const glm::dvec3 n1(g[j].normal[0], g[j].normal[1], g[j].normal[2]);
+                const double wn = std::pow(std::max(0.0, glm::dot(n0, n1)), sigma_n);
+                const double wz = std::exp(-std::abs(g[i].depth - g[j].depth) /
+                                           (1.0 * std::abs(gx * kx * step + gy * ky * step) + 1e-3 * g[i].depth + 1e-6));
+                const double wl = std::exp(-std::abs(lum(illum[i]) - lum(illum[j])) / (4.0 * std::sqrt(std::max(0.0, var)) + 1e-6));
+                wt *= wn * wz * wl;
+              }
+              ws += wt;
+              vs += wt * wt * illum[j].s[3];
+              for (int c = 0; c < 3; ++c) cs[c] += wt * illum[j].s[c];
             }
-            ws += wt;
-            vs += wt * wt * illum[j].s[3];
-            for (int c = 0; c < 3; ++c) cs[c] += wt * illum[j].s[c];
+          const double centre = hk[2] * hk[2];
+          if (sigma_n == 128.0) {
+            if (ws - centre >= PX_SVGF_ISOLATED * centre) break;  // not isolated: the strict result stands
+            ++isolated;
           }
+        }
         for (int c = 0; c < 3; ++c)
           ASSERT_NEAR(got[i].s[c], cs[c] / ws, 2e-4 * (1.0 + std::abs(cs[c] / ws))) << "pixel " << x << "," << y << " step " << step;
         ASSERT_NEAR(got[i].s[3], vs / (ws * ws), 2e-4 * (1e-3 + vs / (ws * ws))) << "variance at " << x << "," << y;
       }
   }
+  EXPECT_GT(isolated, 10);
 }
 
 // ---- synthetic scenes through the full filter ----
@@ -300,6 +315,40 @@ TEST(Svgf, DisocclusionResetsHistory) {
   }
 }
 
+TEST(Svgf, PixelsWhoseNormalNoNeighbourSharesAreStillFiltered) {
+  // Foliage-like surface: every pixel's normal is tilted at random (as alpha-cut leaf cards
+  // are), at the same depth. The truth is 1 everywhere; each pixel's one sample is 0 (a path
+  // that found no light) or 1 / 0.6 — mean 1. A pixel no neighbour matches under the strict
+  // normal exponent must not keep its lone black sample.
+  FilterRun run;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  auto g = run.view.gbuffer([](unsigned, unsigned) { return std::pair{3.0f, glm::vec3(0, 0, -1)}; });
+  for (auto& t : g) {
+    const glm::vec3 n = glm::normalize(glm::vec3(u(rng) - 0.5f, u(rng) - 0.5f, -0.6f));
+    for (int k = 0; k < 3; ++k) t.normal[k] = n[k];
+  }
+  std::vector<cl_float4> c(g.size());
+  int black_in = 0;
+  for (auto& v : c) {
+    const float s = u(rng) < 0.6f ? 1.0f / 0.6f : 0.0f;
+    black_in += s == 0.0f;
+    v = {{0.5f * s, 0.5f * s, 0.5f * s, 1.0f}};  // albedo 0.5 (the synthetic G-buffer's): illumination s
+  }
+  auto out = run.frame(g, c);
+  int black_out = 0;
+  double sum = 0.0;
+  for (const auto& v : out) {
+    black_out += lum(v) < 0.05f * 0.5f;
+    sum += lum(v);
+  }
+  std::printf("[ measure  ] black pixels: %d of %zu in, %d out; mean %.3f (truth 0.5)\n", black_in, out.size(),
+              black_out, sum / out.size());
+  EXPECT_GT(black_in, 1000);
+  EXPECT_LT(black_out, 0.002 * out.size());
+  EXPECT_NEAR(sum / out.size(), 0.5, 0.05);
+}
+
 // ---- distributed ----
 
 struct DenoisedRun {
@@ -391,6 +440,64 @@ TEST(SvgfDistributed, DenoisingBringsCornellCloserToTheReference) {
     // pixels are already smoother). Assert half the smaller margin.
     EXPECT_GT(after, before + 1.0) << "eye " << e << ": noisy " << before << " dB, denoised " << after << " dB";
     std::printf("[ measure  ] eye %d: 1 spp %.2f dB -> SVGF %.2f dB (frame %u)\n", e, before, after, frames - 1);
+  }
+}
+
+// A quad filling the view, textured with a checker much finer than a pixel, lit by a white
+// sky: every pixel mixes two albedos. `a` and `b` are the checker's colours.
+LoadedScene fine_checker_quad(glm::vec3 a, glm::vec3 b) {
+  Scene s;
+  Texture t;
+  t.path = "checker";
+  t.width = t.height = 256;
+  for (int y = 0; y < t.height; ++y)
+    for (int x = 0; x < t.width; ++x) {
+      const glm::vec3 c = ((x + y) % 2) ? a : b;
+      t.rgba.insert(t.rgba.end(), {c.x, c.y, c.z, 1.0f});
+    }
+  s.textures.push_back(t);
+  Material m;
+  m.diffuse = glm::vec3(1.0f);
+  m.diffuse_texture = 0;
+  s.materials = {m};
+  append_quad_facing(s.triangles, {-2, -2, 0}, {2, -2, 0}, {2, 2, 0}, {-2, 2, 0}, {0, 0, 1}, 0);
+  s.sky.enabled = true;
+  s.sky.zenith = s.sky.horizon = s.sky.ground = glm::vec3(1.0f);
+  s.camera.position = {0.0f, 0.0f, 3.0f};
+  s.camera.target = {0.0f, 0.0f, 0.0f};
+  s.camera.vfov_deg = 40.0f;
+  return LoadedScene{s, build_bvh(s.triangles)};
+}
+
+TEST(SvgfDistributed, RemodulationKeepsEveryChannelsMeanForNearZeroAndSaturatedAlbedos) {
+  // Demodulation divides by the albedo and remodulation multiplies it back. Where the albedo
+  // varies inside a pixel and one channel is near zero (a foliage texture with blue ~2/255),
+  // dividing by the pixel centre's albedo instead of the albedo behind the pixel's samples
+  // scaled that channel by up to 1/albedo, and the filter spread it: saturated colours. The
+  // denoised image must keep each channel's mean over the surface (the noisy image's, within
+  // noise).
+  struct Case {
+    const char* name;
+    glm::vec3 a, b;
+  };
+  for (const Case& c : {Case{"near-zero blue", {0.35f, 0.45f, 2.0f / 255.0f}, {0.05f, 0.25f, 0.2f / 255.0f}},
+                        Case{"saturated", {0.9f, 0.02f, 0.01f}, {0.01f, 0.8f, 0.02f}}}) {
+    const LoadedScene loaded = fine_checker_quad(c.a, c.b);
+    const unsigned w = 48, h = 36, frames = 3;
+    auto noisy = run_pipeline(loaded, 1, SeamMode::Halo, frames, w, h, 5, false);
+    auto denoised = run_pipeline(loaded, 1, SeamMode::Halo, frames, w, h, 5, true);
+    for (int e = 0; e < 2; ++e)
+      for (int ch = 0; ch < 3; ++ch) {
+        double before = 0.0, after = 0.0;
+        const auto& n = noisy.frames.back()[e];
+        const auto& d = denoised.frames.back()[e];
+        for (std::size_t i = ch; i < n.rgb.size(); i += 3) {
+          before += n.rgb[i];
+          after += d.rgb[i];
+        }
+        EXPECT_NEAR(after / before, 1.0, 0.05) << c.name << ", eye " << e << ", channel " << ch << ": noisy mean "
+                                               << before / (w * h) << ", denoised " << after / (w * h);
+      }
   }
 }
 
