@@ -49,6 +49,20 @@ double rmse_to(const ImageRGB& img, double value) {
   return std::sqrt(s / img.rgb.size());
 }
 
+// A unit sphere of material `m` at the origin under a uniform white sky (radiance 1 from every
+// direction), seen from 3 units away: the furnace set-up.
+Scene sphere_in_uniform_sky(const Material& m, int subdivisions) {
+  Scene s;
+  s.materials.push_back(m);
+  append_icosphere(s.triangles, glm::vec3(0.0f), 1.0f, subdivisions, 0);
+  s.sky.enabled = true;
+  s.sky.zenith = s.sky.horizon = s.sky.ground = glm::vec3(1.0f);
+  s.camera.position = glm::vec3(0.0f, 0.0f, -3.0f);
+  s.camera.target = glm::vec3(0.0f);
+  s.camera.vfov_deg = 50.0f;
+  return s;
+}
+
 // Inside a closed sphere whose surface has albedo a and emits Le, radiance is Le / (1 - a)
 // everywhere (the geometric series of bounces); no other light exists.
 Scene closed_emissive_sphere(float albedo, float le) {
@@ -93,17 +107,9 @@ TEST(PathTracer, FurnaceWhiteSphereUnderUniformSky) {
   // A white Lambertian convex object under a uniform sky of radiance 1 reflects exactly 1
   // everywhere; the background is the sky itself. Every pixel must be 1.
   for (auto mode : {LightSampling::Mis, LightSampling::Nee, LightSampling::Bsdf}) {
-    Scene s;
     Material white;
     white.diffuse = glm::vec3(1.0f);
-    s.materials.push_back(white);
-    append_icosphere(s.triangles, glm::vec3(0.0f), 1.0f, 3, 0);
-    s.sky.enabled = true;
-    s.sky.zenith = s.sky.horizon = s.sky.ground = glm::vec3(1.0f);
-    s.camera.position = glm::vec3(0.0f, 0.0f, -3.0f);
-    s.camera.target = glm::vec3(0.0f);
-    s.camera.vfov_deg = 50.0f;
-    RenderFixture f(one_device(), s);
+    RenderFixture f(one_device(), sphere_in_uniform_sky(white, 3));
     PathTracer::Options opt;
     opt.spp = 32;
     opt.bounces = 8;
@@ -628,19 +634,11 @@ TEST(Glass, FurnaceSphereInUniformSkyStaysUniform) {
   // leaves to the environment with throughput 1 (reflection and refraction are chosen with
   // their Fresnel probabilities, and the 1 / eta^2 on entering cancels the eta^2 on leaving),
   // so the image is the environment, sphere or not.
-  Scene s;
   Material glass;
   glass.dielectric = true;
   glass.ior = 1.5f;
   glass.diffuse = glm::vec3(0.0f);  // unused by a dielectric: a bug reading it shows as dark
-  s.materials.push_back(glass);
-  append_icosphere(s.triangles, glm::vec3(0.0f), 1.0f, 4, 0);
-  s.sky.enabled = true;
-  s.sky.zenith = s.sky.horizon = s.sky.ground = glm::vec3(1.0f);
-  s.camera.position = glm::vec3(0.0f, 0.0f, -3.0f);
-  s.camera.target = glm::vec3(0.0f);
-  s.camera.vfov_deg = 50.0f;
-  RenderFixture f(one_device(), s);
+  RenderFixture f(one_device(), sphere_in_uniform_sky(glass, 4));
   PathTracer::Options opt;
   opt.spp = 32;
   opt.bounces = 32;
