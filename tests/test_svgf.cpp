@@ -349,6 +349,31 @@ TEST(Svgf, PixelsWhoseNormalNoNeighbourSharesAreStillFiltered) {
   EXPECT_NEAR(sum / out.size(), 0.5, 0.05);
 }
 
+TEST(Svgf, RareBrightSamplesKeepTheirEnergy) {
+  // One-sample paths are heavy-tailed: most find little light, a few find a lot (a bounce
+  // that reaches the sun). Here 5% of the pixels hold 20 and the rest 0, on one flat surface.
+  // Luminance edge-stopping must not take those samples for edges and drop them: the filtered
+  // mean stays the input's. (The spatial variance estimate is what scales that test; weighted
+  // by luminance itself, as it once was, it ignored the bright samples, judged the dark pixels
+  // noise-free, and 79% of the energy vanished.)
+  FilterRun run;
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  auto g = run.view.gbuffer([](unsigned, unsigned) { return std::pair{3.0f, glm::vec3(0, 0, -1)}; });
+  std::vector<cl_float4> c(g.size());
+  double in = 0.0;
+  for (auto& v : c) {
+    const float s = u(rng) < 0.05f ? 20.0f : 0.0f;
+    v = {{0.5f * s, 0.5f * s, 0.5f * s, 1.0f}};
+    in += lum(v);
+  }
+  auto out = run.frame(g, c);
+  double sum = 0.0;
+  for (const auto& v : out) sum += lum(v);
+  std::printf("[ measure  ] mean in %.4f, out %.4f\n", in / c.size(), sum / out.size());
+  EXPECT_NEAR(sum / in, 1.0, 0.1);
+}
+
 // ---- distributed ----
 
 struct DenoisedRun {

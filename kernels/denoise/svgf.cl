@@ -212,7 +212,11 @@ kernel void svgf_variance(global float4* out_illum, const global float4* illum, 
     out_illum[i] = c;
     return;
   }
-  /* Short history: estimate the moments spatially with a 7x7 bilateral filter. */
+  /* Short history: estimate the moments spatially with a 7x7 bilateral filter driven by depth
+   * and normals only (as in the SVGF paper). A luminance term here would be circular: it would
+   * leave out exactly the rare bright samples that make a one-sample pixel noisy, call the
+   * dark pixels around them noise-free, and the a-trous luminance test would then cut those
+   * samples off as edges — energy lost, the image darker than its input. */
   const FilterCentre fc = px_filter_centre(gbuf, x, y, c.xyz, &p);
   /* Strict and loose normal weights side by side (.x, .y), as in svgf_atrous. */
   float2 wsum = (float2)(0.0f, 0.0f);
@@ -228,8 +232,7 @@ kernel void svgf_variance(global float4* out_illum, const global float4* illum, 
       if (moments[j].w == 0.0f) continue;
       const float2 w = (dx == 0 && dy == 0)
                            ? (float2)(1.0f, 1.0f)
-                           : px_geometry_weights(gbuf + j, fc.n, fc.z, fc.grad, (float)dx, (float)dy, &p,
-                                                 fabs(fc.l - px_lum(illum[j].xyz)) / (p.sigma_l + 1e-6f));
+                           : px_geometry_weights(gbuf + j, fc.n, fc.z, fc.grad, (float)dx, (float)dy, &p, 0.0f);
       wsum += w;
       csum_strict += w.x * illum[j].xyz;
       csum_loose += w.y * illum[j].xyz;
