@@ -468,6 +468,37 @@ TEST(SvgfDistributed, DenoisingBringsCornellCloserToTheReference) {
   }
 }
 
+TEST(SvgfDistributed, QualityChangesBetweenFramesKeepHaloSeamsBitIdentical) {
+  // What the control loop does: spp, bounces and SVGF iterations change from frame to frame.
+  // The N-device image must still equal the 1-device image, and a quality outside what the
+  // pipeline was built for is refused.
+  const auto& scene = cornell();
+  const FrameQuality schedule[] = {{1, 3, 5}, {2, 2, 3}, {1, 4, 1}, {3, 3, 4}};
+  std::vector<std::array<ImageRGB, 2>> images[2];
+  const int device_counts[2] = {1, 3};
+  for (int run = 0; run < 2; ++run) {
+    DeviceSet set = DeviceSet::create({device_counts[run], DeviceMode::Auto, ""});
+    DeviceScene ds(set, scene.scene, scene.bvh);
+    StereoPipeline::Options opt;
+    opt.svgf.iterations = 5;
+    StereoPipeline p(set, ds, scene.scene, 40, 31, opt);
+    EXPECT_THROW(p.set_quality({1, 3, 6}), std::invalid_argument);
+    EXPECT_THROW(p.set_quality({0, 3, 2}), std::invalid_argument);
+    for (unsigned f = 0; f < 4; ++f) {
+      p.set_quality(schedule[f]);
+      EXPECT_EQ(p.quality(), schedule[f]);
+      p.render(f, 0.25f * f);
+      images[run].push_back(p.radiance());
+    }
+  }
+  for (unsigned f = 0; f < 4; ++f)
+    for (int e = 0; e < 2; ++e)
+      EXPECT_EQ(std::memcmp(images[0][f][e].rgb.data(), images[1][f][e].rgb.data(),
+                            images[0][f][e].rgb.size() * sizeof(float)),
+                0)
+          << "frame " << f << " eye " << e;
+}
+
 // A quad filling the view, textured with a checker much finer than a pixel, lit by a white
 // sky: every pixel mixes two albedos. `a` and `b` are the checker's colours.
 LoadedScene fine_checker_quad(glm::vec3 a, glm::vec3 b) {

@@ -40,7 +40,8 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
       width_(width),
       height_(height),
       options_(options),
-      schedule_(make_schedule(options.pipeline, devices.size(), height, options.denoise)) {
+      schedule_(make_schedule(options.pipeline, devices.size(), height, options.denoise)),
+      max_svgf_iterations_(options.svgf.iterations) {
   if (width == 0 || height == 0 || width > 65535 || height > 65535)
     throw std::invalid_argument("image size must be between 1 and 65535 per side");
   if (options.trace.spp == 0) throw std::invalid_argument("spp must be at least 1");
@@ -75,6 +76,31 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
     }
     buffers_.push_back(std::move(b));
   }
+}
+
+void StereoPipeline::set_quality(const FrameQuality& q) {
+  if (q.spp == 0) throw std::invalid_argument("spp must be at least 1");
+  if (q.bounces > PathTracer::kMaxBounces)
+    throw std::invalid_argument("bounces must be at most " + std::to_string(PathTracer::kMaxBounces));
+  if (options_.denoise && (q.svgf_iterations < 1 || q.svgf_iterations > max_svgf_iterations_))
+    throw std::invalid_argument("SVGF iterations must be within [1, " + std::to_string(max_svgf_iterations_) + "]");
+  options_.trace.spp = q.spp;
+  options_.trace.bounces = q.bounces;
+  if (options_.denoise) options_.svgf.iterations = q.svgf_iterations;
+}
+
+FrameQuality StereoPipeline::quality() const {
+  return {options_.trace.spp, options_.trace.bounces, options_.svgf.iterations};
+}
+
+FrameCost StereoPipeline::frame_cost(const FrameStats& stats) {
+  std::map<Stage, double> slowest;  // per stage, the slowest device
+  for (const StageTiming& t : stats.stages) slowest[t.stage] = std::max(slowest[t.stage], t.ms);
+  FrameCost c;
+  for (Stage s : {Stage::PathTraceLeft, Stage::PathTraceRight, Stage::HoleFill}) c.trace_ms += slowest[s];
+  c.denoise_ms = slowest[Stage::Denoise];
+  c.other_ms = std::max(0.0, stats.wall_ms - c.trace_ms - c.denoise_ms);
+  return c;
 }
 
 void StereoPipeline::record(Stage stage, int device, const cl::Event& e) { events_.push_back({{stage, device}, e}); }

@@ -8,6 +8,7 @@
 #pragma once
 
 #include "cl/device_set.h"
+#include "control/frame_time_controller.h"
 #include "denoise/svgf_denoiser.h"
 #include "image/image_io.h"
 #include "pipeline/strip_schedule.h"
@@ -75,6 +76,16 @@ class StereoPipeline {
 
   const FrameSchedule& schedule() const { return schedule_; }
 
+  // What the control loop tunes, for the frames rendered from now on. Throws
+  // std::invalid_argument outside what the pipeline was built for (spp >= 1, bounces within
+  // the kernel's limit, 1 <= iterations <= the iterations it was constructed with, since the
+  // halo margins were sized for those).
+  void set_quality(const FrameQuality& q);
+  FrameQuality quality() const;
+  // A frame's cost as the control loop splits it: the slowest device's time in the stages
+  // each parameter drives, and the rest of the wall time.
+  static FrameCost frame_cost(const FrameStats& stats);
+
   // Renders frame `frame` at camera-path time `time_s`. The finished images are on the owner
   // device afterwards; fetch them with images().
   FrameStats render(unsigned frame, float time_s);
@@ -141,6 +152,7 @@ class StereoPipeline {
   unsigned width_, height_;
   Options options_;
   FrameSchedule schedule_;
+  unsigned max_svgf_iterations_;  // the halo margins and exchanges are sized for up to these
   std::vector<DeviceBuffers> buffers_;
   std::vector<std::pair<std::pair<Stage, int>, cl::Event>> events_;  // this frame's, for timing
   std::vector<cl::Event> owner_waits_;                                // cross-device dependencies
