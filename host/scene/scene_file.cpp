@@ -9,7 +9,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <set>
+#include <unordered_set>
 #include <sstream>
 
 namespace px {
@@ -131,6 +131,64 @@ class SceneFileReader {
   std::string file_;
 };
 
+// Checks made before the document is built, by a SAX pass that keeps no values:
+//  - nesting depth is bounded: nlohmann's DOM parser is iterative, but copying or comparing a
+//    value recurses, and a generator_params nested ~70,000 deep overflowed the stack there;
+//  - duplicate keys are refused (nlohmann keeps the last one silently). One hash set per open
+//    object keeps this linear; nlohmann's callback parser, used for it before, rescans the
+//    enclosing array for discarded values after every object (quadratic: a 160k-key
+//    camera_path took 17 s).
+class ScanKeysAndDepth : public nlohmann::json_sax<json> {
+ public:
+  static constexpr std::size_t kMaxDepth = 128;
+
+  bool null() override { return true; }
+  bool boolean(bool) override { return true; }
+  bool number_integer(number_integer_t) override { return true; }
+  bool number_unsigned(number_unsigned_t) override { return true; }
+  bool number_float(number_float_t, const string_t&) override { return true; }
+  bool string(string_t&) override { return true; }
+  bool binary(binary_t&) override { return true; }
+  bool start_object(std::size_t) override {
+    if (!open()) return false;
+    if (objects_ == keys_.size()) keys_.emplace_back();
+    keys_[objects_++].clear();
+    return true;
+  }
+  bool key(string_t& k) override {
+    if (!keys_[objects_ - 1].insert(k).second) {
+      duplicate = k;
+      return false;
+    }
+    return true;
+  }
+  bool end_object() override {
+    --objects_;
+    --depth_;
+    return true;
+  }
+  bool start_array(std::size_t) override { return open(); }
+  bool end_array() override {
+    --depth_;
+    return true;
+  }
+  bool parse_error(std::size_t, const std::string&, const nlohmann::detail::exception&) override {
+    syntax_error = true;
+    return false;
+  }
+
+  std::string duplicate;
+  bool too_deep = false, syntax_error = false;
+
+ private:
+  bool open() {
+    if (++depth_ > kMaxDepth) too_deep = true;
+    return !too_deep;
+  }
+  std::size_t depth_ = 0, objects_ = 0;
+  std::vector<std::unordered_set<std::string>> keys_;  // reused across objects at a depth
+};
+
 json parse_json_file(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw SceneError("cannot open scene file '" + path + "'");
@@ -138,21 +196,16 @@ json parse_json_file(const std::string& path) {
   ss << in.rdbuf();
   const std::string text = std::move(ss).str();
 
-  // Duplicate keys are refused (nlohmann keeps the last one silently); the callback sees every
-  // key with a stack of the keys seen in each enclosing object.
-  std::vector<std::set<std::string>> keys_in_object;
-  std::string duplicate;
-  auto callback = [&](int /*depth*/, json::parse_event_t event, json& parsed) {
-    if (event == json::parse_event_t::object_start) keys_in_object.emplace_back();
-    if (event == json::parse_event_t::object_end && !keys_in_object.empty()) keys_in_object.pop_back();
-    if (event == json::parse_event_t::key && !keys_in_object.empty() && duplicate.empty() &&
-        !keys_in_object.back().insert(parsed.get<std::string>()).second)
-      duplicate = parsed.get<std::string>();
-    return true;
-  };
+  ScanKeysAndDepth scan;
+  json::sax_parse(text, &scan, json::input_format_t::json, /*strict=*/true, /*ignore_comments=*/true);
+  if (scan.too_deep)
+    throw SceneError(path + ": objects and arrays nested deeper than " + std::to_string(ScanKeysAndDepth::kMaxDepth) +
+                     " levels (a scene file needs a handful)");
+  if (!scan.duplicate.empty()) throw SceneError(path + ": '" + scan.duplicate + "': duplicate key");
+  // A syntax error is reported by the DOM parse below, which says where.
   json doc;
   try {
-    doc = json::parse(text, callback, /*allow_exceptions=*/true, /*ignore_comments=*/true);
+    doc = json::parse(text, nullptr, /*allow_exceptions=*/true, /*ignore_comments=*/true);
   } catch (const json::exception& e) {
     // e.what() is "[json.exception.parse_error.101] parse error at line L, column C: ..."
     std::string what = e.what();
@@ -160,7 +213,6 @@ json parse_json_file(const std::string& path) {
       what = what.substr(close + 2);
     throw SceneError(path + ": invalid JSON: " + what);
   }
-  if (!duplicate.empty()) throw SceneError(path + ": '" + duplicate + "': duplicate key");
   return doc;
 }
 
