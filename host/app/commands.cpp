@@ -18,6 +18,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 
 namespace px {
 namespace {
@@ -74,30 +75,6 @@ void write_stereo(const OutputDir& dir, const std::string& prefix, const std::ar
             side_by_side(png[0], png[1], eyes[0].width, eyes[0].height));
 }
 
-// Serialises `doc` with the array `items` (already serialised, one element each) as its member
-// `key`: per-frame records are kept as compact text during a run instead of as JSON trees, which
-// cost ~10x the memory.
-std::string dump_with_array(nlohmann::json doc, const std::string& key, const std::vector<std::string>& items,
-                            int indent) {
-  const std::string placeholder = "@@px-array@@";
-  doc[key] = placeholder;
-  const std::string text = doc.dump(indent);
-  std::string array = "[";
-  for (std::size_t i = 0; i < items.size(); ++i) {
-    array += (i ? "," : "");
-    if (indent >= 0) array.append(1, '\n').append(2 * static_cast<std::size_t>(indent), ' ');
-    array += items[i];
-  }
-  if (indent >= 0 && !items.empty()) array.append(1, '\n').append(static_cast<std::size_t>(indent), ' ');
-  array += "]";
-  const std::size_t at = text.find("\"" + placeholder + "\"");
-  return text.substr(0, at) + array + text.substr(at + placeholder.size() + 2) + "\n";
-}
-
-void write_text(const std::string& path, const std::string& text) {
-  write_file_atomic(path, text);
-}
-
 }  // namespace
 
 DeviceSet DeviceChoice::create() const { return DeviceSet::create({count, parse_device_mode(mode), platform}); }
@@ -148,6 +125,17 @@ int run_render(const RenderCommand& cmd) {
   }
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite, is_render_frame_file);
+  // The report and the timeline are streamed frame by frame into their (temporary) files, so a
+  // long run holds no per-frame records: before, every command's span was kept as a JSON tree
+  // whether or not a timeline was asked for (~130 KB per frame with 2 denoising devices).
+  // Opening them now also refuses an unwritable path before any rendering.
+  std::optional<AtomicFileWriter> report_file, timeline_file;
+  bool first_report_frame = true, first_trace_event = true;
+  if (!cmd.report.empty()) {
+    report_file.emplace(cmd.report);
+    report_file->write("{\n  \"frames\": [");
+  }
+  if (!cmd.timeline.empty()) timeline_file.emplace(cmd.timeline);
   auto loaded = load_and_build(cmd.scene);
   auto devices = cmd.devices.create();
   print_device_set(devices);
@@ -160,21 +148,20 @@ int run_render(const RenderCommand& cmd) {
     std::printf("interrupted by %s before the first frame: nothing written\n", interrupt_signal_name());
     return interrupt_exit_code();
   }
-  // Per-frame records are kept only for the outputs asked for, and as compact text: a long run
-  // must not grow by a JSON tree per frame (it did, ~130 KB per frame with 2 denoising devices).
-  const bool want_report = !cmd.report.empty(), want_timeline = !cmd.timeline.empty();
-  std::vector<std::string> report_frames;
   // Chrome trace events: one track (tid) per device, one slice per OpenCL command. Device
   // clocks are made relative to the run's first command; devices that do not share a clock
   // (separate GPUs) are only comparable within their own track.
-  std::vector<std::string> trace_events;
+  auto trace_event = [&](const nlohmann::json& event) {
+    timeline_file->write((first_trace_event ? "\n" : ",\n") + event.dump());
+    first_trace_event = false;
+  };
   std::uint64_t trace_origin = 0;
-  if (want_timeline)
+  if (timeline_file) {
+    timeline_file->write("{\"displayTimeUnit\": \"ms\", \"traceEvents\": [");
     for (int d = 0; d < devices.size(); ++d)
-      trace_events.push_back(nlohmann::json{{"name", "thread_name"}, {"ph", "M"}, {"pid", 0}, {"tid", d},
-                                            {"args", {{"name", "device " + std::to_string(d) + ": " +
-                                                                   devices.devices()[d].description}}}}
-                                 .dump());
+      trace_event({{"name", "thread_name"}, {"ph", "M"}, {"pid", 0}, {"tid", d},
+                   {"args", {{"name", "device " + std::to_string(d) + ": " + devices.devices()[d].description}}}});
+  }
   double makespan_ms = 0.0, first_frame_ms = 0.0;
   std::size_t reprojected = 0, right_pixels = 0, bytes = 0;
   unsigned done = 0;
@@ -200,28 +187,29 @@ int run_render(const RenderCommand& cmd) {
     std::fprintf(stderr, "[render] frame %u/%u: %.0f ms%s, %.1f%% of the right eye reprojected\n", f + 1, cmd.frames,
                  st.wall_ms, f == 0 ? " (includes kernel compilation)" : "",
                  st.right_pixels ? 100.0 * st.reprojected / st.right_pixels : 0.0);
-    if (want_timeline) {
+    if (timeline_file) {
       if (trace_origin == 0 && !st.spans.empty())
         trace_origin = std::min_element(st.spans.begin(), st.spans.end(), [](const StageSpan& a, const StageSpan& b) {
                          return a.start_ns < b.start_ns;
                        })->start_ns;
       for (const auto& sp : st.spans) {
         const double ts = (static_cast<double>(sp.start_ns) - static_cast<double>(trace_origin)) * 1e-3;
-        trace_events.push_back(nlohmann::json{{"name", stage_name(sp.stage)}, {"cat", "frame " + std::to_string(f)},
-                                              {"ph", "X"}, {"pid", 0}, {"tid", sp.device}, {"ts", ts},
-                                              {"dur", static_cast<double>(sp.end_ns - sp.start_ns) * 1e-3}}
-                                   .dump());
+        trace_event({{"name", stage_name(sp.stage)}, {"cat", "frame " + std::to_string(f)}, {"ph", "X"}, {"pid", 0},
+                     {"tid", sp.device}, {"ts", ts}, {"dur", static_cast<double>(sp.end_ns - sp.start_ns) * 1e-3}});
       }
     }
-    if (want_report) {
+    if (report_file) {
       nlohmann::json stages = nlohmann::json::array();
       for (const auto& s : st.stages)
         stages.push_back({{"stage", static_cast<int>(s.stage)}, {"name", stage_name(s.stage)}, {"device", s.device},
                           {"device_ms", s.ms}});
-      report_frames.push_back(nlohmann::json{{"frame", f}, {"wall_ms", st.wall_ms}, {"stages", stages},
-                                             {"right_pixels", st.right_pixels}, {"reprojected", st.reprojected},
-                                             {"bytes_transferred", st.bytes_transferred}}
-                                  .dump());
+      // One line per frame.
+      report_file->write((first_report_frame ? "\n    " : ",\n    ") +
+                         nlohmann::json{{"frame", f}, {"wall_ms", st.wall_ms}, {"stages", stages},
+                                        {"right_pixels", st.right_pixels}, {"reprojected", st.reprojected},
+                                        {"bytes_transferred", st.bytes_transferred}}
+                             .dump());
+      first_report_frame = false;
     }
     if (interrupted()) break;
   }
@@ -234,8 +222,8 @@ int run_render(const RenderCommand& cmd) {
     std::fprintf(stderr, "[render] warning: %llu paths had non-finite radiance and were dropped\n",
                  static_cast<unsigned long long>(pipeline.nonfinite_paths()));
   const bool stopped = done < cmd.frames;
-  if (want_report) {
-    nlohmann::json r = {{"schema", "parallax-render-report/1"},
+  if (report_file) {
+    const nlohmann::json r = {{"schema", "parallax-render-report/1"},
                         {"scene", cmd.scene},
                         {"pipeline", cmd.pipeline},
                         {"devices", devices.size()},
@@ -256,12 +244,14 @@ int run_render(const RenderCommand& cmd) {
                         {"reprojected_share", right_pixels ? double(reprojected) / right_pixels : 0.0},
                         {"bytes_transferred", bytes},
                         {"nonfinite_paths", pipeline.nonfinite_paths()}};
-    write_text(cmd.report, dump_with_array(std::move(r), "frames", report_frames, 2));
+    // The summary's members follow the frames: "{\n  ...\n}" minus its opening brace.
+    report_file->write("\n  ],\n" + r.dump(2).substr(2) + "\n");
+    report_file->commit();
     std::fprintf(stderr, "[render] report written to %s\n", cmd.report.c_str());
   }
-  if (want_timeline) {
-    write_text(cmd.timeline,
-               dump_with_array(nlohmann::json{{"displayTimeUnit", "ms"}}, "traceEvents", trace_events, -1));
+  if (timeline_file) {
+    timeline_file->write("\n]}\n");
+    timeline_file->commit();
     std::fprintf(stderr, "[render] timeline written to %s (open in chrome://tracing or ui.perfetto.dev)\n",
                  cmd.timeline.c_str());
   }
@@ -269,7 +259,7 @@ int run_render(const RenderCommand& cmd) {
     std::printf("interrupted by %s after %u of %u frame(s): wrote frames 0-%u to %s "
                 "(frame_NNNN_{left,right}.{exr,png}, frame_NNNN_stereo.png), every file complete%s\n",
                 interrupt_signal_name(), done, cmd.frames, done - 1, cmd.out.c_str(),
-                want_report ? "; the report covers those frames" : "");
+                report_file ? "; the report covers those frames" : "");
     return interrupt_exit_code();
   }
   std::printf("wrote %u frame(s) to %s (frame_NNNN_{left,right}.{exr,png}, frame_NNNN_stereo.png); %.1f Hz %s\n",

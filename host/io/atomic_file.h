@@ -16,6 +16,27 @@ struct WriteError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// A file written in pieces (a report streamed frame by frame) with the same guarantee: it
+// appears under `path` only at commit(); destroyed uncommitted, it leaves nothing. Creating it
+// checks at once that the file can be written (a bad --report path fails before rendering).
+class AtomicFileWriter {
+ public:
+  explicit AtomicFileWriter(std::string path);  // throws WriteError
+  ~AtomicFileWriter();
+  AtomicFileWriter(const AtomicFileWriter&) = delete;
+  AtomicFileWriter& operator=(const AtomicFileWriter&) = delete;
+
+  void write(std::string_view bytes);  // throws WriteError (and removes the temporary file)
+  void commit();                       // close + rename; throws WriteError
+  const std::string& path() const { return path_; }
+
+ private:
+  [[noreturn]] void fail(const char* step, int err);
+  std::string path_, tmp_;
+  int fd_ = -1;
+  int slot_ = -1;  // interrupt-handler registration of tmp_
+};
+
 // Writes `bytes` to `path` atomically (see above). Throws WriteError; on failure neither the
 // temporary file nor a new file under `path` remains (an existing file at `path` is untouched).
 void write_file_atomic(const std::string& path, std::string_view bytes);

@@ -18,19 +18,21 @@ struct Slot {
 };
 
 volatile std::sig_atomic_t g_signal = 0;
-Slot g_partial{};
+constexpr int kMaxPartials = 8;
+Slot g_partials[kMaxPartials]{};
 Slot g_lock{};
 Slot g_dirs[kMaxDirs]{};
 std::atomic<bool> g_installed{false};
 
-void fill(Slot& slot, const char* path) {
+bool fill(Slot& slot, const char* path) {
   slot.set = 0;
   std::atomic_signal_fence(std::memory_order_seq_cst);
   const std::size_t n = std::strlen(path);
-  if (n >= kPathMax) return;
+  if (n >= kPathMax) return false;
   std::memcpy(slot.path, path, n + 1);
   std::atomic_signal_fence(std::memory_order_seq_cst);
   slot.set = 1;
+  return true;
 }
 
 void say(const char* text) {
@@ -46,7 +48,8 @@ extern "C" void on_interrupt(int sig) {
         "(interrupt again to stop at once)\n");
     return;
   }
-  if (g_partial.set) ::unlink(g_partial.path);
+  for (const Slot& s : g_partials)
+    if (s.set) ::unlink(s.path);
   if (g_lock.set) ::unlink(g_lock.path);
   for (int i = kMaxDirs - 1; i >= 0; --i)
     if (g_dirs[i].set) ::rmdir(g_dirs[i].path);
@@ -78,8 +81,15 @@ const char* interrupt_signal_name() {
   return "a signal";
 }
 
-void register_partial_file(const char* path) { fill(g_partial, path); }
-void unregister_partial_file() { g_partial.set = 0; }
+// Registration happens on the main thread only; the handler only reads.
+int register_partial_file(const char* path) {
+  for (int i = 0; i < kMaxPartials; ++i)
+    if (!g_partials[i].set) return fill(g_partials[i], path) ? i : -1;
+  return -1;
+}
+void unregister_partial_file(int slot) {
+  if (slot >= 0 && slot < kMaxPartials) g_partials[slot].set = 0;
+}
 void register_lock_file(const char* path) { fill(g_lock, path); }
 void unregister_lock_file() { g_lock.set = 0; }
 void register_created_dir(const char* path) {

@@ -23,8 +23,10 @@ const char* interrupt_signal_name();
 // Registrations for the second-signal exit. Each slot holds one path; paths longer than the
 // slot (4 KiB) are not registered (the file is then left behind by a hard exit, never a
 // truncated file under a final name, since final names only ever appear by rename).
-void register_partial_file(const char* path);  // the one temporary file being written
-void unregister_partial_file();
+// Temporary files being written (up to 8 at once: the image being encoded plus streamed reports).
+// Returns the slot to unregister, -1 if none was free or the path too long.
+int register_partial_file(const char* path);
+void unregister_partial_file(int slot);
 void register_lock_file(const char* path);
 void unregister_lock_file();
 void register_created_dir(const char* path);   // removed (rmdir: only if empty) in reverse order
