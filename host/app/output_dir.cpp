@@ -9,7 +9,6 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <regex>
 #include <stdexcept>
 
 #include <fcntl.h>
@@ -37,8 +36,19 @@ std::string describe_holder(const std::string& lock) {
 }  // namespace
 
 bool is_render_frame_file(std::string_view name) {
-  static const std::regex pattern(R"(frame_[0-9]{4,}_(left|right|stereo)\.(exr|png))");
-  return std::regex_match(name.begin(), name.end(), pattern);
+  // frame_[0-9]{4,}_(left|right|stereo).(exr|png)
+  constexpr std::string_view prefix = "frame_";
+  if (name.substr(0, prefix.size()) != prefix) return false;
+  name.remove_prefix(prefix.size());
+  std::size_t digits = 0;
+  while (digits < name.size() && name[digits] >= '0' && name[digits] <= '9') ++digits;
+  if (digits < 4 || digits >= name.size() || name[digits] != '_') return false;
+  name.remove_prefix(digits + 1);
+  for (std::string_view eye : {"left", "right", "stereo"})
+    for (std::string_view ext : {".exr", ".png"})
+      if (name.size() == eye.size() + ext.size() && name.substr(0, eye.size()) == eye && name.substr(eye.size()) == ext)
+        return true;
+  return false;
 }
 
 OutputDir::OutputDir(const std::string& dir, bool overwrite, const StaleFilter& stale) : dir_(dir) {
