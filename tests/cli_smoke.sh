@@ -155,6 +155,9 @@ else
   echo "skip full-disk test (needs root and mount)"
 fi
 
+printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nv 3 0 0\nf 1 2 3\nf 1 4 5\n' >"$tmp/degen.obj"
+n=$("$bin" preview --scene "$tmp/degen.obj" --width 8 --height 8 --out "$tmp/degen" 2>&1 | grep -c "degenerate")
+if [ "$n" -eq 1 ]; then ok "dropped degenerate triangles are reported once"; else bad "degenerate message printed $n times"; fi
 check "coordinates beyond float range are refused" 1 "1e\+19 units" -- "$bin" preview \
   --scene "$(printf 'v -1e19 0 0\nv 1e19 0 0\nv 0 1e19 0\nf 1 2 3\n' >"$tmp/huge.obj"; echo "$tmp/huge.obj")" --out "$tmp/huge"
 yes '{"a":' | head -n 70000 | tr -d '\n' >"$tmp/deep.body"

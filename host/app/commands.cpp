@@ -171,13 +171,20 @@ int run_render(const RenderCommand& cmd) {
     require_finite(eyes, "frame " + std::to_string(f));
     auto png = pipeline.rgba8();
     const std::string prefix = frame_name(f, "");
-    for (int e = 0; e < 2; ++e) {
-      const std::string name = prefix + (e == 0 ? "left" : "right");
-      write_exr(out_dir.file(name + ".exr"), eyes[e]);
-      write_png(out_dir.file(name + ".png"), eyes[e].width, eyes[e].height, png[e]);
+    try {
+      for (int e = 0; e < 2; ++e) {
+        const std::string name = prefix + (e == 0 ? "left" : "right");
+        write_exr(out_dir.file(name + ".exr"), eyes[e]);
+        write_png(out_dir.file(name + ".png"), eyes[e].width, eyes[e].height, png[e]);
+      }
+      write_png(out_dir.file(prefix + "stereo.png"), 2 * eyes[0].width, eyes[0].height,
+                side_by_side(png[0], png[1], eyes[0].width, eyes[0].height));
+    } catch (const ImageError& e) {
+      // Say what is usable: the frames before this one are complete.
+      throw std::runtime_error(std::string(e.what()) + " (frame " + std::to_string(f) + "; " +
+                               (f ? "frames 0-" + std::to_string(f - 1) + " in " + cmd.out + " are complete"
+                                  : std::string("no frame was completed")) + ")");
     }
-    write_png(out_dir.file(prefix + "stereo.png"), 2 * eyes[0].width, eyes[0].height,
-              side_by_side(png[0], png[1], eyes[0].width, eyes[0].height));
     done = f + 1;
     if (f == 0) first_frame_ms = st.wall_ms;
     makespan_ms += st.wall_ms;
