@@ -151,9 +151,16 @@ int run_render(const RenderCommand& cmd) {
   // Chrome trace events: one track (tid) per device, one slice per OpenCL command. Device
   // clocks are made relative to the run's first command; devices that do not share a clock
   // (separate GPUs) are only comparable within their own track.
+  // Events are gathered per frame and written with one write() (a frame has ~100 commands).
+  std::string trace_chunk;
   auto trace_event = [&](const nlohmann::json& event) {
-    timeline_file->write((first_trace_event ? "\n" : ",\n") + event.dump());
+    trace_chunk += first_trace_event ? "\n" : ",\n";
+    trace_chunk += event.dump();
     first_trace_event = false;
+  };
+  auto flush_trace = [&] {
+    timeline_file->write(trace_chunk);
+    trace_chunk.clear();
   };
   std::uint64_t trace_origin = 0;
   if (timeline_file) {
@@ -161,6 +168,7 @@ int run_render(const RenderCommand& cmd) {
     for (int d = 0; d < devices.size(); ++d)
       trace_event({{"name", "thread_name"}, {"ph", "M"}, {"pid", 0}, {"tid", d},
                    {"args", {{"name", "device " + std::to_string(d) + ": " + devices.devices()[d].description}}}});
+    flush_trace();
   }
   double makespan_ms = 0.0, first_frame_ms = 0.0;
   std::size_t reprojected = 0, right_pixels = 0, bytes = 0;
@@ -204,6 +212,7 @@ int run_render(const RenderCommand& cmd) {
         trace_event({{"name", stage_name(sp.stage)}, {"cat", "frame " + std::to_string(f)}, {"ph", "X"}, {"pid", 0},
                      {"tid", sp.device}, {"ts", ts}, {"dur", static_cast<double>(sp.end_ns - sp.start_ns) * 1e-3}});
       }
+      flush_trace();
     }
     if (report_file) {
       nlohmann::json stages = nlohmann::json::array();
