@@ -158,6 +158,14 @@ fi
 printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nv 3 0 0\nf 1 2 3\nf 1 4 5\n' >"$tmp/degen.obj"
 n=$("$bin" preview --scene "$tmp/degen.obj" --width 8 --height 8 --out "$tmp/degen" 2>&1 | grep -c "degenerate")
 if [ "$n" -eq 1 ]; then ok "dropped degenerate triangles are reported once"; else bad "degenerate message printed $n times"; fi
+cat >"$tmp/cross.json" <<'EOF'
+{"generator": "cornell", "camera_path": [
+  {"time": 0, "position": [278, 273, -800], "target": [278, 273, 0]},
+  {"time": 1, "position": [278, 273, 0], "target": [278, 273, -800]}]}
+EOF
+check "a camera path whose position meets its target fails before rendering" 1 "frame 15 .*no view direction" -- \
+  "$bin" render --scene "$tmp/cross.json" --width 16 --height 9 --frames 20 --fps 30 --no-denoise --out "$tmp/cross"
+if [ ! -e "$tmp/cross" ]; then ok "nothing written for a bad camera path"; else bad "frames written before a bad camera"; fi
 check "coordinates beyond float range are refused" 1 "1e\+19 units" -- "$bin" preview \
   --scene "$(printf 'v -1e19 0 0\nv 1e19 0 0\nv 0 1e19 0\nf 1 2 3\n' >"$tmp/huge.obj"; echo "$tmp/huge.obj")" --out "$tmp/huge"
 yes '{"a":' | head -n 70000 | tr -d '\n' >"$tmp/deep.body"

@@ -9,6 +9,7 @@
 #include "render/device_scene.h"
 #include "render/preview_renderer.h"
 #include "render/reference_render.h"
+#include "render/stereo_camera.h"
 #include "pipeline/stereo_pipeline.h"
 
 #include <nlohmann/json.hpp>
@@ -61,6 +62,22 @@ void require_finite(const std::array<ImageRGB, 2>& eyes, const std::string& what
                                "probably beyond what 32-bit floats resolve: scale or recentre it");
 }
 
+// The camera at `time_s`, checked before rendering with it. Every key of a camera path is
+// valid on load, but interpolating between two keys can still make position meet target (keys
+// that swap them) or the view parallel to up: a NaN camera, whose rays miss everything, gave a
+// silently black frame with exit 0.
+void check_camera(const Scene& scene, float time_s, const std::string& what) {
+  const Camera c = evaluate_camera(scene, time_s);
+  const glm::vec3 forward = c.target - c.position;
+  const glm::vec3 side = glm::cross(forward, c.up);
+  const float f2 = glm::dot(forward, forward), s2 = glm::dot(side, side);
+  if (std::isfinite(f2) && f2 > 0.0f && std::isfinite(s2) && s2 > 0.0f) return;
+  char when[64];
+  std::snprintf(when, sizeof when, " (t = %.4g s)", double(time_s));
+  throw std::runtime_error(what + when + ": the camera path gives no view direction there (position meets target, "
+                                         "or the view is parallel to up); adjust the camera_path keys");
+}
+
 // Writes left/right EXR + PNG and the side-by-side stereo PNG under `dir` with `prefix`.
 void write_stereo(const OutputDir& dir, const std::string& prefix, const std::array<ImageRGB, 2>& eyes,
                   float exposure) {
@@ -96,6 +113,7 @@ int run_preview(const PreviewCommand& cmd) {
   DeviceScene device_scene(devices, loaded.scene, loaded.bvh);
   PreviewRenderer renderer(devices, device_scene);
   std::fprintf(stderr, "[preview] %ux%u per eye, t = %.2f s ...\n", cmd.width, cmd.height, cmd.time_s);
+  check_camera(loaded.scene, cmd.time_s, "preview");
   auto t0 = clock_type::now();
   auto eyes = renderer.render(loaded.scene, cmd.time_s, cmd.width, cmd.height);
   std::fprintf(stderr, "[preview] done in %.0f ms (first run includes kernel compilation)\n", ms_since(t0));
@@ -173,6 +191,9 @@ int run_render(const RenderCommand& cmd) {
   double makespan_ms = 0.0, first_frame_ms = 0.0;
   std::size_t reprojected = 0, right_pixels = 0, bytes = 0;
   unsigned done = 0;
+  // Every frame's camera is checked before the first is rendered: a bad one fails the run now.
+  for (unsigned f = 0; f < cmd.frames; ++f)
+    check_camera(loaded.scene, static_cast<float>(f) / cmd.fps, "frame " + std::to_string(f));
   for (unsigned f = 0; f < cmd.frames; ++f) {
     const FrameStats st = pipeline.render(f, static_cast<float>(f) / cmd.fps);
     auto eyes = pipeline.radiance();
@@ -299,6 +320,7 @@ int run_reference(const ReferenceCommand& cmd) {
   opt.spp = cmd.spp;
   opt.pass_spp = cmd.pass_spp;
   opt.bounces = cmd.bounces;
+  check_camera(loaded.scene, static_cast<float>(cmd.frame) / cmd.fps, "reference frame " + std::to_string(cmd.frame));
   // Ctrl-C stops after the pass in flight and writes the average of the passes done.
   opt.stop = [] { return interrupted(); };
   unsigned spp_done = 0;
