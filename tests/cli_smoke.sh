@@ -122,13 +122,19 @@ else
   bad "long render did not start"; kill "$pid" 2>/dev/null; wait "$pid"
 fi
 
-# A second signal stops at once, and still leaves no partial file and no lock.
-"$bin" render --scene cornell --width 64 --height 36 --spp 16 --frames 100000 --devices 2 --out "$tmp/sig2" >/dev/null 2>&1 &
+# A second signal stops at once (here during a frame of about a second), and still leaves no
+# partial file and no lock. The second signal is sent only once the first has been seen, so
+# that the two are not merged into one pending signal.
+"$bin" render --scene cornell --width 160 --height 90 --spp 16 --frames 100000 --devices 2 --out "$tmp/sig2" \
+  >/dev/null 2>"$tmp/sig2.err" &
 pid=$!
 if wait_for "$tmp/sig2/frame_0000_stereo.png" "$pid"; then
-  kill -TERM "$pid"; kill -TERM "$pid"
+  kill -TERM "$pid"
+  while ! grep -q "finishing the work in flight" "$tmp/sig2.err" && kill -0 "$pid" 2>/dev/null; do sleep 0.05; done
+  kill -TERM "$pid" 2>/dev/null
   wait "$pid"; rc=$?
-  if [ "$rc" -eq 143 ]; then ok "two SIGTERMs exit 143"; else bad "two SIGTERMs: exit $rc, expected 143"; fi
+  if [ "$rc" -eq 143 ]; then ok "SIGTERM exits 143"; else bad "SIGTERM: exit $rc, expected 143"; fi
+  grep -q "stopped at once" "$tmp/sig2.err" && ok "a second signal stops at once" || bad "second signal did not stop at once"
   if all_readable "$tmp/sig2"; then ok "every file after a hard stop reads back"; else bad "hard stop left a bad file"; fi
 else
   bad "second long render did not start"; kill "$pid" 2>/dev/null; wait "$pid"
