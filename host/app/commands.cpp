@@ -4,18 +4,22 @@
 #include "app/scene_setup.h"
 #include "image/image_io.h"
 #include "image/image_metrics.h"
+#include "io/atomic_file.h"
+#include "io/interrupt.h"
 #include "render/device_scene.h"
 #include "render/preview_renderer.h"
 #include "render/reference_render.h"
+#include "render/stereo_camera.h"
 #include "pipeline/stereo_pipeline.h"
 
 #include <nlohmann/json.hpp>
-#include <fstream>
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 
 namespace px {
 namespace {
@@ -38,17 +42,53 @@ std::string frame_name(unsigned frame, const char* what) {
   return buf;
 }
 
+// Pixels of `image` with a NaN or infinite channel. An image is either finite or the run fails:
+// a NaN made before the path loop (camera, primary hit) is not caught by the kernels'
+// per-path guard and would otherwise be written as a silently wrong image.
+std::size_t count_nonfinite(const ImageRGB& image) {
+  std::size_t bad = 0;
+  for (std::size_t i = 0; i + 2 < image.rgb.size(); i += 3)
+    bad += !(std::isfinite(image.rgb[i]) && std::isfinite(image.rgb[i + 1]) && std::isfinite(image.rgb[i + 2]));
+  return bad;
+}
+
+void require_finite(const std::array<ImageRGB, 2>& eyes, const std::string& what) {
+  for (int e = 0; e < 2; ++e)
+    if (const std::size_t bad = count_nonfinite(eyes[e]))
+      throw std::runtime_error(what + ": " + std::to_string(bad) + " of " +
+                               std::to_string(static_cast<std::size_t>(eyes[e].width) * eyes[e].height) +
+                               " pixels of the " + (e == 0 ? "left" : "right") +
+                               " eye are NaN or infinite (not written). The scene's coordinates or camera are "
+                               "probably beyond what 32-bit floats resolve: scale or recentre it");
+}
+
+// The camera at `time_s`, checked before rendering with it. Every key of a camera path is
+// valid on load, but interpolating between two keys can still make position meet target (keys
+// that swap them) or the view parallel to up: a NaN camera, whose rays miss everything, gave a
+// silently black frame with exit 0.
+void check_camera(const Scene& scene, float time_s, const std::string& what) {
+  const Camera c = evaluate_camera(scene, time_s);
+  const glm::vec3 forward = c.target - c.position;
+  const glm::vec3 side = glm::cross(forward, c.up);
+  const float f2 = glm::dot(forward, forward), s2 = glm::dot(side, side);
+  if (std::isfinite(f2) && f2 > 0.0f && std::isfinite(s2) && s2 > 0.0f) return;
+  char when[64];
+  std::snprintf(when, sizeof when, " (t = %.4g s)", double(time_s));
+  throw std::runtime_error(what + when + ": the camera path gives no view direction there (position meets target, "
+                                         "or the view is parallel to up); adjust the camera_path keys");
+}
+
 // Writes left/right EXR + PNG and the side-by-side stereo PNG under `dir` with `prefix`.
-void write_stereo(const std::string& dir, const std::string& prefix, const std::array<ImageRGB, 2>& eyes,
+void write_stereo(const OutputDir& dir, const std::string& prefix, const std::array<ImageRGB, 2>& eyes,
                   float exposure) {
   std::array<std::vector<std::uint8_t>, 2> png;
   for (int e = 0; e < 2; ++e) {
     const std::string name = prefix + (e == 0 ? "left" : "right");
-    write_exr((fs::path(dir) / (name + ".exr")).string(), eyes[e]);
+    write_exr(dir.file(name + ".exr"), eyes[e]);
     png[e] = to_srgb8(eyes[e], exposure);
-    write_png((fs::path(dir) / (name + ".png")).string(), eyes[e].width, eyes[e].height, png[e]);
+    write_png(dir.file(name + ".png"), eyes[e].width, eyes[e].height, png[e]);
   }
-  write_png((fs::path(dir) / (prefix + "stereo.png")).string(), 2 * eyes[0].width, eyes[0].height,
+  write_png(dir.file(prefix + "stereo.png"), 2 * eyes[0].width, eyes[0].height,
             side_by_side(png[0], png[1], eyes[0].width, eyes[0].height));
 }
 
@@ -65,18 +105,22 @@ int run_devices(const DeviceChoice& choice) {
 }
 
 int run_preview(const PreviewCommand& cmd) {
-  prepare_output_dir(cmd.out, cmd.overwrite);
+  install_interrupt_handlers();
+  const OutputDir out_dir(cmd.out, cmd.overwrite);
   auto loaded = load_and_build(cmd.scene);
   auto devices = cmd.devices.create();
   print_device_set(devices);
   DeviceScene device_scene(devices, loaded.scene, loaded.bvh);
   PreviewRenderer renderer(devices, device_scene);
   std::fprintf(stderr, "[preview] %ux%u per eye, t = %.2f s ...\n", cmd.width, cmd.height, cmd.time_s);
+  check_camera(loaded.scene, cmd.time_s, "preview");
   auto t0 = clock_type::now();
   auto eyes = renderer.render(loaded.scene, cmd.time_s, cmd.width, cmd.height);
   std::fprintf(stderr, "[preview] done in %.0f ms (first run includes kernel compilation)\n", ms_since(t0));
-  write_stereo(cmd.out, "", eyes, 1.0f);
+  require_finite(eyes, "preview");
+  write_stereo(out_dir, "", eyes, 1.0f);
   std::printf("wrote %s/{left,right}.{exr,png} and %s/stereo.png\n", cmd.out.c_str(), cmd.out.c_str());
+  if (interrupted()) return interrupt_exit_code();
   return 0;
 }
 
@@ -97,7 +141,19 @@ int run_render(const RenderCommand& cmd) {
     std::printf("%s", make_schedule(opt.pipeline, cmd.devices.count, cmd.height, opt.denoise).explain().c_str());
     return 0;
   }
-  prepare_output_dir(cmd.out, cmd.overwrite);
+  install_interrupt_handlers();
+  const OutputDir out_dir(cmd.out, cmd.overwrite, is_render_frame_file);
+  // The report and the timeline are streamed frame by frame into their (temporary) files, so a
+  // long run holds no per-frame records: before, every command's span was kept as a JSON tree
+  // whether or not a timeline was asked for (~130 KB per frame with 2 denoising devices).
+  // Opening them now also refuses an unwritable path before any rendering.
+  std::optional<AtomicFileWriter> report_file, timeline_file;
+  bool first_report_frame = true, first_trace_event = true;
+  if (!cmd.report.empty()) {
+    report_file.emplace(cmd.report);
+    report_file->write("{\n  \"frames\": [");
+  }
+  if (!cmd.timeline.empty()) timeline_file.emplace(cmd.timeline);
   auto loaded = load_and_build(cmd.scene);
   auto devices = cmd.devices.create();
   print_device_set(devices);
@@ -106,58 +162,105 @@ int run_render(const RenderCommand& cmd) {
   std::fprintf(stderr, "[render] %u frame(s), %ux%u per eye, %u spp, %u bounces, pipeline %s, denoise %s\n", cmd.frames,
                cmd.width, cmd.height, opt.trace.spp, opt.trace.bounces, cmd.pipeline.c_str(),
                opt.denoise ? ("SVGF, seams " + cmd.seams).c_str() : "off");
-  nlohmann::json report_frames = nlohmann::json::array();
+  if (interrupted()) {
+    std::printf("interrupted by %s before the first frame: nothing written\n", interrupt_signal_name());
+    return interrupt_exit_code();
+  }
   // Chrome trace events: one track (tid) per device, one slice per OpenCL command. Device
   // clocks are made relative to the run's first command; devices that do not share a clock
   // (separate GPUs) are only comparable within their own track.
-  nlohmann::json trace_events = nlohmann::json::array();
+  // Events are gathered per frame and written with one write() (a frame has ~100 commands).
+  std::string trace_chunk;
+  auto trace_event = [&](const nlohmann::json& event) {
+    trace_chunk += first_trace_event ? "\n" : ",\n";
+    trace_chunk += event.dump();
+    first_trace_event = false;
+  };
+  auto flush_trace = [&] {
+    timeline_file->write(trace_chunk);
+    trace_chunk.clear();
+  };
   std::uint64_t trace_origin = 0;
-  for (int d = 0; d < devices.size(); ++d)
-    trace_events.push_back({{"name", "thread_name"}, {"ph", "M"}, {"pid", 0}, {"tid", d},
-                            {"args", {{"name", "device " + std::to_string(d) + ": " + devices.devices()[d].description}}}});
-  double makespan_ms = 0.0;
+  if (timeline_file) {
+    timeline_file->write("{\"displayTimeUnit\": \"ms\", \"traceEvents\": [");
+    for (int d = 0; d < devices.size(); ++d)
+      trace_event({{"name", "thread_name"}, {"ph", "M"}, {"pid", 0}, {"tid", d},
+                   {"args", {{"name", "device " + std::to_string(d) + ": " + devices.devices()[d].description}}}});
+    flush_trace();
+  }
+  double makespan_ms = 0.0, first_frame_ms = 0.0;
   std::size_t reprojected = 0, right_pixels = 0, bytes = 0;
+  unsigned done = 0;
+  // Every frame's camera is checked before the first is rendered: a bad one fails the run now.
+  for (unsigned f = 0; f < cmd.frames; ++f)
+    check_camera(loaded.scene, static_cast<float>(f) / cmd.fps, "frame " + std::to_string(f));
   for (unsigned f = 0; f < cmd.frames; ++f) {
     const FrameStats st = pipeline.render(f, static_cast<float>(f) / cmd.fps);
+    auto eyes = pipeline.radiance();
+    require_finite(eyes, "frame " + std::to_string(f));
+    auto png = pipeline.rgba8();
+    const std::string prefix = frame_name(f, "");
+    try {
+      for (int e = 0; e < 2; ++e) {
+        const std::string name = prefix + (e == 0 ? "left" : "right");
+        write_exr(out_dir.file(name + ".exr"), eyes[e]);
+        write_png(out_dir.file(name + ".png"), eyes[e].width, eyes[e].height, png[e]);
+      }
+      write_png(out_dir.file(prefix + "stereo.png"), 2 * eyes[0].width, eyes[0].height,
+                side_by_side(png[0], png[1], eyes[0].width, eyes[0].height));
+    } catch (const ImageError& e) {
+      // Say what is usable: the frames before this one are complete.
+      throw std::runtime_error(std::string(e.what()) + " (frame " + std::to_string(f) + "; " +
+                               (f ? "frames 0-" + std::to_string(f - 1) + " in " + cmd.out + " are complete"
+                                  : std::string("no frame was completed")) + ")");
+    }
+    done = f + 1;
+    if (f == 0) first_frame_ms = st.wall_ms;
     makespan_ms += st.wall_ms;
     reprojected += st.reprojected;
     right_pixels += st.right_pixels;
     bytes += st.bytes_transferred;
-    std::fprintf(stderr, "[render] frame %u/%u: %.0f ms, %.1f%% of the right eye reprojected\n", f + 1, cmd.frames,
-                 st.wall_ms, st.right_pixels ? 100.0 * st.reprojected / st.right_pixels : 0.0);
-    auto eyes = pipeline.radiance();
-    auto png = pipeline.rgba8();
-    const std::string prefix = frame_name(f, "");
-    for (int e = 0; e < 2; ++e) {
-      const std::string name = prefix + (e == 0 ? "left" : "right");
-      write_exr((fs::path(cmd.out) / (name + ".exr")).string(), eyes[e]);
-      write_png((fs::path(cmd.out) / (name + ".png")).string(), eyes[e].width, eyes[e].height, png[e]);
+    std::fprintf(stderr, "[render] frame %u/%u: %.0f ms%s, %.1f%% of the right eye reprojected\n", f + 1, cmd.frames,
+                 st.wall_ms, f == 0 ? " (includes kernel compilation)" : "",
+                 st.right_pixels ? 100.0 * st.reprojected / st.right_pixels : 0.0);
+    if (timeline_file) {
+      if (trace_origin == 0 && !st.spans.empty())
+        trace_origin = std::min_element(st.spans.begin(), st.spans.end(), [](const StageSpan& a, const StageSpan& b) {
+                         return a.start_ns < b.start_ns;
+                       })->start_ns;
+      for (const auto& sp : st.spans) {
+        const double ts = (static_cast<double>(sp.start_ns) - static_cast<double>(trace_origin)) * 1e-3;
+        trace_event({{"name", stage_name(sp.stage)}, {"cat", "frame " + std::to_string(f)}, {"ph", "X"}, {"pid", 0},
+                     {"tid", sp.device}, {"ts", ts}, {"dur", static_cast<double>(sp.end_ns - sp.start_ns) * 1e-3}});
+      }
+      flush_trace();
     }
-    write_png((fs::path(cmd.out) / (prefix + "stereo.png")).string(), 2 * eyes[0].width, eyes[0].height,
-              side_by_side(png[0], png[1], eyes[0].width, eyes[0].height));
-    if (trace_origin == 0 && !st.spans.empty())
-      trace_origin = std::min_element(st.spans.begin(), st.spans.end(), [](const StageSpan& a, const StageSpan& b) {
-                       return a.start_ns < b.start_ns;
-                     })->start_ns;
-    for (const auto& sp : st.spans) {
-      const double ts = (static_cast<double>(sp.start_ns) - static_cast<double>(trace_origin)) * 1e-3;
-      trace_events.push_back({{"name", stage_name(sp.stage)}, {"cat", "frame " + std::to_string(f)}, {"ph", "X"},
-                              {"pid", 0}, {"tid", sp.device}, {"ts", ts},
-                              {"dur", static_cast<double>(sp.end_ns - sp.start_ns) * 1e-3}});
+    if (report_file) {
+      nlohmann::json stages = nlohmann::json::array();
+      for (const auto& s : st.stages)
+        stages.push_back({{"stage", static_cast<int>(s.stage)}, {"name", stage_name(s.stage)}, {"device", s.device},
+                          {"device_ms", s.ms}});
+      // One line per frame.
+      report_file->write((first_report_frame ? "\n    " : ",\n    ") +
+                         nlohmann::json{{"frame", f}, {"wall_ms", st.wall_ms}, {"stages", stages},
+                                        {"right_pixels", st.right_pixels}, {"reprojected", st.reprojected},
+                                        {"bytes_transferred", st.bytes_transferred}}
+                             .dump());
+      first_report_frame = false;
     }
-    nlohmann::json stages = nlohmann::json::array();
-    for (const auto& s : st.stages)
-      stages.push_back({{"stage", static_cast<int>(s.stage)}, {"name", stage_name(s.stage)}, {"device", s.device},
-                        {"device_ms", s.ms}});
-    report_frames.push_back({{"frame", f}, {"wall_ms", st.wall_ms}, {"stages", stages},
-                             {"right_pixels", st.right_pixels}, {"reprojected", st.reprojected},
-                             {"bytes_transferred", st.bytes_transferred}});
+    if (interrupted()) break;
   }
+  // The first frame compiles the kernels (seconds on PoCL): Hz over the frames after it says
+  // what the pipeline sustains; with one frame there is nothing else to measure.
+  const unsigned hz_frames = done > 1 ? done - 1 : done;
+  const double hz_ms = done > 1 ? makespan_ms - first_frame_ms : makespan_ms;
+  const double hz = hz_ms > 0 ? 1000.0 * hz_frames / hz_ms : 0.0;
   if (pipeline.nonfinite_paths() > 0)
     std::fprintf(stderr, "[render] warning: %llu paths had non-finite radiance and were dropped\n",
                  static_cast<unsigned long long>(pipeline.nonfinite_paths()));
-  if (!cmd.report.empty()) {
-    nlohmann::json r = {{"schema", "parallax-render-report/1"},
+  const bool stopped = done < cmd.frames;
+  if (report_file) {
+    const nlohmann::json r = {{"schema", "parallax-render-report/1"},
                         {"scene", cmd.scene},
                         {"pipeline", cmd.pipeline},
                         {"devices", devices.size()},
@@ -168,31 +271,46 @@ int run_render(const RenderCommand& cmd) {
                         {"bounces", opt.trace.bounces},
                         {"denoise", opt.denoise},
                         {"seams", cmd.seams},
-                        {"frames", report_frames},
+                        {"frames_requested", cmd.frames},
+                        {"frames_done", done},
+                        {"interrupted", stopped},
                         {"makespan_ms", makespan_ms},
-                        {"hz", makespan_ms > 0 ? 1000.0 * cmd.frames / makespan_ms : 0.0},
+                        {"first_frame_ms", first_frame_ms},
+                        {"hz", hz},
+                        {"hz_frames", hz_frames},
                         {"reprojected_share", right_pixels ? double(reprojected) / right_pixels : 0.0},
                         {"bytes_transferred", bytes},
                         {"nonfinite_paths", pipeline.nonfinite_paths()}};
-    std::ofstream out(cmd.report);
-    if (!out) throw std::runtime_error("cannot write report " + cmd.report);
-    out << r.dump(2) << "\n";
+    // The summary's members follow the frames: "{\n  ...\n}" minus its opening brace.
+    report_file->write("\n  ],\n" + r.dump(2).substr(2) + "\n");
+    report_file->commit();
     std::fprintf(stderr, "[render] report written to %s\n", cmd.report.c_str());
   }
-  if (!cmd.timeline.empty()) {
-    std::ofstream out(cmd.timeline);
-    if (!out) throw std::runtime_error("cannot write timeline " + cmd.timeline);
-    out << nlohmann::json{{"traceEvents", trace_events}, {"displayTimeUnit", "ms"}}.dump() << "\n";
+  if (timeline_file) {
+    timeline_file->write("\n]}\n");
+    timeline_file->commit();
     std::fprintf(stderr, "[render] timeline written to %s (open in chrome://tracing or ui.perfetto.dev)\n",
                  cmd.timeline.c_str());
   }
-  std::printf("wrote %u frame(s) to %s (frame_NNNN_{left,right}.{exr,png}, frame_NNNN_stereo.png); %.1f Hz over the run\n",
-              cmd.frames, cmd.out.c_str(), makespan_ms > 0 ? 1000.0 * cmd.frames / makespan_ms : 0.0);
+  if (stopped) {
+    std::printf("interrupted by %s after %u of %u frame(s): wrote frames 0-%u to %s "
+                "(frame_NNNN_{left,right}.{exr,png}, frame_NNNN_stereo.png), every file complete%s\n",
+                interrupt_signal_name(), done, cmd.frames, done - 1, cmd.out.c_str(),
+                report_file ? "; the report covers those frames" : "");
+    return interrupt_exit_code();
+  }
+  std::printf("wrote %u frame(s) to %s (frame_NNNN_{left,right}.{exr,png}, frame_NNNN_stereo.png); %.1f Hz %s\n",
+              cmd.frames, cmd.out.c_str(), hz,
+              done > 1 ? "over the frames after the first (which includes kernel compilation)"
+                       : "(one frame, including kernel compilation)");
+  // A signal after the last frame: every frame is written, but the exit status still says so.
+  if (interrupted()) return interrupt_exit_code();
   return 0;
 }
 
 int run_reference(const ReferenceCommand& cmd) {
-  prepare_output_dir(cmd.out, cmd.overwrite);
+  install_interrupt_handlers();
+  const OutputDir out_dir(cmd.out, cmd.overwrite);
   auto loaded = load_and_build(cmd.scene);
   auto devices = cmd.devices.create();
   print_device_set(devices);
@@ -202,13 +320,26 @@ int run_reference(const ReferenceCommand& cmd) {
   opt.spp = cmd.spp;
   opt.pass_spp = cmd.pass_spp;
   opt.bounces = cmd.bounces;
+  check_camera(loaded.scene, static_cast<float>(cmd.frame) / cmd.fps, "reference frame " + std::to_string(cmd.frame));
+  // Ctrl-C stops after the pass in flight and writes the average of the passes done.
+  opt.stop = [] { return interrupted(); };
+  unsigned spp_done = 0;
   auto eyes = render_reference(tracer, static_cast<float>(cmd.frame) / cmd.fps, cmd.frame, cmd.width, cmd.height, opt,
-                               eta_printer("reference"));
-  write_stereo(cmd.out, "reference_", eyes, cmd.exposure);
+                               eta_printer("reference"), &spp_done);
+  require_finite(eyes, "reference");
+  write_stereo(out_dir, "reference_", eyes, cmd.exposure);
   if (tracer.nonfinite_paths() > 0)
     std::fprintf(stderr, "[reference] warning: %llu paths had non-finite radiance and were dropped\n",
                  static_cast<unsigned long long>(tracer.nonfinite_paths()));
+  if (spp_done < cmd.spp) {
+    std::fprintf(stderr, "\n");
+    std::printf("interrupted by %s after %u of %u spp: wrote %s/reference_{left,right}.exr with the %u spp done, "
+                "and PNG previews\n",
+                interrupt_signal_name(), spp_done, cmd.spp, cmd.out.c_str(), spp_done);
+    return interrupt_exit_code();
+  }
   std::printf("wrote %s/reference_{left,right}.exr (%u spp) and PNG previews\n", cmd.out.c_str(), cmd.spp);
+  if (interrupted()) return interrupt_exit_code();
   return 0;
 }
 

@@ -19,10 +19,7 @@ LoadedScene load_and_build(const std::string& spec, bool quiet) {
     std::fprintf(stderr, "[scene] %s: %zu triangles, %zu materials, %zu textures (%.0f ms)\n",
                  out.scene.name.c_str(), out.scene.triangles.size(), out.scene.materials.size(),
                  out.scene.textures.size(), std::chrono::duration<double, std::milli>(t1 - t0).count());
-    if (st.dropped_degenerate)
-      std::fprintf(stderr, "[scene] dropped %zu degenerate triangles\n", st.dropped_degenerate);
-    if (st.dropped_nonfinite)
-      std::fprintf(stderr, "[scene] dropped %zu triangles with NaN/Inf coordinates\n", st.dropped_nonfinite);
+    // Dropped triangles are reported once, by the loader's warnings (which name the file).
     for (const auto& w : st.warnings) std::fprintf(stderr, "[scene] warning: %s\n", w.c_str());
   }
   out.bvh = build_bvh(out.scene.triangles);

@@ -1,5 +1,8 @@
 #include "image/image_io.h"
 
+#include "io/atomic_file.h"
+
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
@@ -8,14 +11,28 @@
 namespace px {
 namespace {
 
+// Encodes into memory (an OIIO IOProxy) and hands the bytes to write_file_atomic: OIIO's own
+// file output does not report every failed write or close (a full disk gave 0-byte files and
+// success), and a file written in place is truncated under its final name if the run stops.
 void write_image(const std::string& path, int width, int height, int channels, OIIO::TypeDesc type,
                  const void* pixels) {
-  auto out = OIIO::ImageOutput::create(path);
+  std::vector<unsigned char> encoded;
+  OIIO::Filesystem::IOVecOutput proxy(encoded);
+  auto out = OIIO::ImageOutput::create(path, &proxy);
   if (!out) throw ImageError("cannot write " + path + ": " + OIIO::geterror());
+  if (!out->supports("ioproxy"))
+    throw ImageError("cannot write " + path + ": the " + out->format_name() +
+                     " writer of this OpenImageIO cannot encode into memory");
   OIIO::ImageSpec spec(width, height, channels, type);
-  if (!out->open(path, spec)) throw ImageError("cannot open " + path + " for writing: " + out->geterror());
-  if (!out->write_image(type, pixels)) throw ImageError("cannot write " + path + ": " + out->geterror());
-  if (!out->close()) throw ImageError("cannot finish " + path + ": " + out->geterror());
+  if (!out->open(path, spec)) throw ImageError("cannot encode " + path + ": " + out->geterror());
+  if (!out->write_image(type, pixels)) throw ImageError("cannot encode " + path + ": " + out->geterror());
+  if (!out->close()) throw ImageError("cannot encode " + path + ": " + out->geterror());
+  out.reset();
+  try {
+    write_file_atomic(path, std::string_view(reinterpret_cast<const char*>(encoded.data()), encoded.size()));
+  } catch (const WriteError& e) {
+    throw ImageError(e.what());
+  }
 }
 
 float linear_to_srgb(float c) {

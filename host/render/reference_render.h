@@ -14,6 +14,8 @@ struct ReferenceOptions {
   unsigned pass_spp = 64;
   unsigned bounces = 6;
   std::uint32_t seed = 0x5eed;  // differs from the default render seed: independent samples
+  // Polled after each pass: true stops early (Ctrl-C), and the images average the passes done.
+  std::function<bool()> stop;
 };
 
 // Called after each pass with (samples done, samples total).
@@ -21,7 +23,8 @@ using ReferenceProgress = std::function<void(unsigned, unsigned)>;
 
 std::array<ImageRGB, 2> render_reference(PathTracer& tracer, float time_s, std::uint32_t frame, unsigned width,
                                          unsigned height, const ReferenceOptions& options,
-                                         const ReferenceProgress& progress = {});
+                                         const ReferenceProgress& progress = {},
+                                         unsigned* spp_done = nullptr);
 
 // A progress callback printing "\r[label] done/total spp, elapsed, ~remaining" on stderr.
 ReferenceProgress eta_printer(const std::string& label);

@@ -7,9 +7,10 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <set>
+#include <unordered_set>
 #include <sstream>
 
 namespace px {
@@ -58,6 +59,9 @@ bool has_light(const Scene& scene) {
 
 Scene load_obj_framed(const std::string& path) {
   Scene scene = load_obj(path);
+  // Before framing: a camera framed on out-of-range geometry overflows, and the error would
+  // then be about the camera, not the vertices.
+  check_coordinate_range(scene, path, /*warn=*/false);  // load_scene warns, once
   scene.camera = frame_bounds(scene);
   return scene;
 }
@@ -131,6 +135,64 @@ class SceneFileReader {
   std::string file_;
 };
 
+// Checks made before the document is built, by a SAX pass that keeps no values:
+//  - nesting depth is bounded: nlohmann's DOM parser is iterative, but copying or comparing a
+//    value recurses, and a generator_params nested ~70,000 deep overflowed the stack there;
+//  - duplicate keys are refused (nlohmann keeps the last one silently). One hash set per open
+//    object keeps this linear; nlohmann's callback parser, used for it before, rescans the
+//    enclosing array for discarded values after every object (quadratic: a 160k-key
+//    camera_path took 17 s).
+class ScanKeysAndDepth : public nlohmann::json_sax<json> {
+ public:
+  static constexpr std::size_t kMaxDepth = 128;
+
+  bool null() override { return true; }
+  bool boolean(bool) override { return true; }
+  bool number_integer(number_integer_t) override { return true; }
+  bool number_unsigned(number_unsigned_t) override { return true; }
+  bool number_float(number_float_t, const string_t&) override { return true; }
+  bool string(string_t&) override { return true; }
+  bool binary(binary_t&) override { return true; }
+  bool start_object(std::size_t) override {
+    if (!open()) return false;
+    if (objects_ == keys_.size()) keys_.emplace_back();
+    keys_[objects_++].clear();
+    return true;
+  }
+  bool key(string_t& k) override {
+    if (!keys_[objects_ - 1].insert(k).second) {
+      duplicate = k;
+      return false;
+    }
+    return true;
+  }
+  bool end_object() override {
+    --objects_;
+    --depth_;
+    return true;
+  }
+  bool start_array(std::size_t) override { return open(); }
+  bool end_array() override {
+    --depth_;
+    return true;
+  }
+  bool parse_error(std::size_t, const std::string&, const nlohmann::detail::exception&) override {
+    syntax_error = true;
+    return false;
+  }
+
+  std::string duplicate;
+  bool too_deep = false, syntax_error = false;
+
+ private:
+  bool open() {
+    if (++depth_ > kMaxDepth) too_deep = true;
+    return !too_deep;
+  }
+  std::size_t depth_ = 0, objects_ = 0;
+  std::vector<std::unordered_set<std::string>> keys_;  // reused across objects at a depth
+};
+
 json parse_json_file(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw SceneError("cannot open scene file '" + path + "'");
@@ -138,21 +200,16 @@ json parse_json_file(const std::string& path) {
   ss << in.rdbuf();
   const std::string text = std::move(ss).str();
 
-  // Duplicate keys are refused (nlohmann keeps the last one silently); the callback sees every
-  // key with a stack of the keys seen in each enclosing object.
-  std::vector<std::set<std::string>> keys_in_object;
-  std::string duplicate;
-  auto callback = [&](int /*depth*/, json::parse_event_t event, json& parsed) {
-    if (event == json::parse_event_t::object_start) keys_in_object.emplace_back();
-    if (event == json::parse_event_t::object_end && !keys_in_object.empty()) keys_in_object.pop_back();
-    if (event == json::parse_event_t::key && !keys_in_object.empty() && duplicate.empty() &&
-        !keys_in_object.back().insert(parsed.get<std::string>()).second)
-      duplicate = parsed.get<std::string>();
-    return true;
-  };
+  ScanKeysAndDepth scan;
+  json::sax_parse(text, &scan, json::input_format_t::json, /*strict=*/true, /*ignore_comments=*/true);
+  if (scan.too_deep)
+    throw SceneError(path + ": objects and arrays nested deeper than " + std::to_string(ScanKeysAndDepth::kMaxDepth) +
+                     " levels (a scene file needs a handful)");
+  if (!scan.duplicate.empty()) throw SceneError(path + ": '" + scan.duplicate + "': duplicate key");
+  // A syntax error is reported by the DOM parse below, which says where.
   json doc;
   try {
-    doc = json::parse(text, callback, /*allow_exceptions=*/true, /*ignore_comments=*/true);
+    doc = json::parse(text, nullptr, /*allow_exceptions=*/true, /*ignore_comments=*/true);
   } catch (const json::exception& e) {
     // e.what() is "[json.exception.parse_error.101] parse error at line L, column C: ..."
     std::string what = e.what();
@@ -160,7 +217,6 @@ json parse_json_file(const std::string& path) {
       what = what.substr(close + 2);
     throw SceneError(path + ": invalid JSON: " + what);
   }
-  if (!duplicate.empty()) throw SceneError(path + ": '" + duplicate + "': duplicate key");
   return doc;
 }
 
@@ -302,9 +358,61 @@ bool is_plain_file(const fs::path& p) {
   return fs::is_regular_file(p, ec);
 }
 
+Scene load_scene_unchecked(const std::string& spec);
+
 }  // namespace
 
+void check_coordinate_range(Scene& scene, const std::string& source, bool warn) {
+  char value[32];
+  auto refuse = [&](const std::string& what, float v) {
+    std::snprintf(value, sizeof value, "%g", double(v));
+    char limit[32];
+    std::snprintf(limit, sizeof limit, "%g", double(kMaxSceneCoordinate));
+    throw SceneError(source + ": " + what + " has a coordinate of " + value + " units, beyond the +-" + limit +
+                     " that 32-bit float ray tracing handles; scale the scene down or move it nearer the origin");
+  };
+  auto check = [&](const glm::vec3& p, const std::string& what) {
+    for (int c = 0; c < 3; ++c)
+      if (!(std::abs(p[c]) <= kMaxSceneCoordinate)) refuse(what, p[c]);
+  };
+  glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+  float far = 0.0f;
+  for (std::size_t i = 0; i < scene.triangles.size(); ++i)
+    for (const glm::vec3& p : scene.triangles[i].p) {
+      check(p, "triangle " + std::to_string(i));
+      lo = glm::min(lo, p);
+      hi = glm::max(hi, p);
+      far = std::max({far, std::abs(p.x), std::abs(p.y), std::abs(p.z)});
+    }
+  check(scene.camera.position, "the camera position");
+  check(scene.camera.target, "the camera target");
+  for (std::size_t i = 0; i < scene.camera_path.size(); ++i) {
+    check(scene.camera_path[i].position, "camera_path[" + std::to_string(i) + "].position");
+    check(scene.camera_path[i].target, "camera_path[" + std::to_string(i) + "].target");
+  }
+  // A float near `far` is resolved to about far * 2^-23, and ray origins are pushed off surfaces
+  // by 256 such steps. Measured on a 2.8-unit model: 1e4 units from the origin renders like at
+  // the origin, 1e6 visibly noisy; warn from a distance of 1e5 extents on.
+  const float extent = scene.triangles.empty() ? 0.0f : glm::length(hi - lo);
+  if (warn && extent > 0.0f && far > 1e5f * extent) {
+    char buf[256];
+    std::snprintf(buf, sizeof buf,
+                  "%s: the geometry lies up to %g units from the origin but spans only %g: at that distance "
+                  "32-bit floats resolve about %g units, so surfaces may show holes or noise; recentre it",
+                  source.c_str(), double(far), double(extent), double(far * std::numeric_limits<float>::epsilon()));
+    scene.stats.warnings.push_back(buf);
+  }
+}
+
 Scene load_scene(const std::string& spec) {
+  Scene scene = load_scene_unchecked(spec);
+  check_coordinate_range(scene, spec);
+  return scene;
+}
+
+namespace {
+
+Scene load_scene_unchecked(const std::string& spec) {
   const fs::path p(spec);
   const std::string ext = lower(p.extension().string());
   if (is_plain_file(p)) {
@@ -325,5 +433,7 @@ Scene load_scene(const std::string& spec) {
   throw SceneError("unknown scene '" + spec + "': no such file, and not a built-in scene (" +
                    builtin_list() + ")");
 }
+
+}  // namespace
 
 }  // namespace px

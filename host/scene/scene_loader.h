@@ -13,7 +13,19 @@ namespace px {
 //   - a path to a scene JSON file (scenes/*.json; format documented in scenes/README.md),
 //   - a path to an .obj file (camera framed on its bounding box, no sun/sky),
 //   - the name of a built-in generator: "cornell", "cornell-glossy", "atrium".
+// Whatever the source, the scene's coordinates are then checked (check_coordinate_range).
 Scene load_scene(const std::string& spec);
+
+// Largest coordinate magnitude (vertices, camera, camera path) parallax traces. Rays are traced
+// in 32-bit floats: intersection tests multiply up to three coordinates, so beyond ~1e12 they
+// overflow (geometry at 1e13 vanished, at 1e19 the image was all NaN with exit 0); 1e11 keeps
+// a factor of ten in hand. A scene of any shape fits by scaling or recentring.
+inline constexpr float kMaxSceneCoordinate = 1e11f;
+
+// Refuses (SceneError naming `source` and what is out of range) a scene with a vertex or
+// camera coordinate beyond kMaxSceneCoordinate; warns (scene.stats.warnings) when the geometry
+// lies so far from the origin relative to its size that floats resolve it coarsely.
+void check_coordinate_range(Scene& scene, const std::string& source, bool warn = true);
 
 // Loads an OBJ (+MTL, textures through OpenImageIO) into triangles and materials.
 // Repairs (with counts in scene.stats): drops degenerate and non-finite triangles,
