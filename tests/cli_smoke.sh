@@ -58,6 +58,13 @@ if grep -q '"traceEvents"' "$tmp/tl.json" && grep -q '"path trace left"' "$tmp/t
 else
   fails=$((fails + 1)); echo "FAIL timeline lacks traceEvents or stage slices"
 fi
+check "control loop: a bad window is refused" 1 "LO:HI" -- "$bin" render --scene cornell --target-ms 20:11 --out "$tmp/ctl_bad"
+check "control loop runs and reports its choices" 0 "spp, .* bounces, .* iterations" -- "$bin" render --scene cornell \
+  --width 32 --height 18 --frames 4 --devices 2 --svgf-iterations 2 --target-ms 1000:2000 --out "$tmp/ctl" \
+  --report "$tmp/ctl.json"
+if grep -q '"predicted_ms"' "$tmp/ctl.json" && grep -q '"svgf_iterations"' "$tmp/ctl.json" && grep -q '"target_ms": "1000:2000"' "$tmp/ctl.json"; then
+  passes=$((passes + 1)); echo "ok   control-loop report fields"
+else fails=$((fails + 1)); echo "FAIL report lacks predicted_ms / svgf_iterations / target_ms"; fi
 check "bad seam mode is refused" 1 "seams" -- "$bin" render --seams wobbly --out "$tmp/y"
 check "explain shows the denoise stage" 0 "denoise" -- "$bin" render --explain --devices 2 --height 100
 check "compare gives PSNR" 0 "psnr_db" -- "$bin" compare "$tmp/r_proposed/frame_0000_left.exr" "$tmp/r_mono/frame_0000_left.exr"

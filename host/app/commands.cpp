@@ -136,6 +136,19 @@ int run_render(const RenderCommand& cmd) {
   opt.denoise = !cmd.no_denoise;
   opt.svgf = cmd.svgf;
   opt.seams = parse_seam_mode(cmd.seams);
+  // The control loop, when asked for: limits from the command line (the starting bounces and
+  // iterations are the most it may use; spp may rise to --max-spp).
+  std::optional<FrameTimeController> controller;
+  if (!cmd.target_ms.empty()) {
+    FrameTimeController::Options c;
+    std::tie(c.lo_ms, c.hi_ms) = FrameTimeController::parse_window(cmd.target_ms);
+    if (opt.trace.bounces == 0) throw std::invalid_argument("--target-ms needs --bounces of at least 1");
+    c.spp = {1, std::max(cmd.max_spp, opt.trace.spp)};
+    c.bounces = {1, opt.trace.bounces};
+    // Without denoising the iterations cost nothing and stay where they are.
+    c.svgf_iterations = {opt.denoise ? 1u : opt.svgf.iterations, opt.svgf.iterations};
+    controller.emplace(c);
+  }
   if (cmd.explain) {
     // The schedule depends only on pipeline, device count, height and denoising: no scene needed.
     std::printf("%s", make_schedule(opt.pipeline, cmd.devices.count, cmd.height, opt.denoise).explain().c_str());
@@ -194,8 +207,16 @@ int run_render(const RenderCommand& cmd) {
   // Every frame's camera is checked before the first is rendered: a bad one fails the run now.
   for (unsigned f = 0; f < cmd.frames; ++f)
     check_camera(loaded.scene, static_cast<float>(f) / cmd.fps, "frame " + std::to_string(f));
+  std::optional<double> predicted_ms;  // the control loop's prediction for the coming frame
   for (unsigned f = 0; f < cmd.frames; ++f) {
+    const FrameQuality quality = pipeline.quality();
     const FrameStats st = pipeline.render(f, static_cast<float>(f) / cmd.fps);
+    const std::optional<double> predicted_this_frame = predicted_ms;
+    // Frame 0 compiles the kernels (seconds on PoCL): it says nothing about the frame time.
+    if (controller && f > 0) {
+      pipeline.set_quality(controller->update(quality, StereoPipeline::frame_cost(st)));
+      predicted_ms = controller->predicted_ms();
+    }
     auto eyes = pipeline.radiance();
     require_finite(eyes, "frame " + std::to_string(f));
     auto png = pipeline.rgba8();
@@ -220,9 +241,15 @@ int run_render(const RenderCommand& cmd) {
     reprojected += st.reprojected;
     right_pixels += st.right_pixels;
     bytes += st.bytes_transferred;
-    std::fprintf(stderr, "[render] frame %u/%u: %.0f ms%s, %.1f%% of the right eye reprojected\n", f + 1, cmd.frames,
+    std::fprintf(stderr, "[render] frame %u/%u: %.0f ms%s, %.1f%% of the right eye reprojected", f + 1, cmd.frames,
                  st.wall_ms, f == 0 ? " (includes kernel compilation)" : "",
                  st.right_pixels ? 100.0 * st.reprojected / st.right_pixels : 0.0);
+    if (controller)
+      std::fprintf(stderr, "; %u spp, %u bounces, %u iterations%s", quality.spp, quality.bounces,
+                   quality.svgf_iterations,
+                   predicted_this_frame ? (" (predicted " + std::to_string(int(*predicted_this_frame + 0.5)) + " ms)").c_str()
+                                        : "");
+    std::fputc('\n', stderr);
     if (timeline_file) {
       if (trace_origin == 0 && !st.spans.empty())
         trace_origin = std::min_element(st.spans.begin(), st.spans.end(), [](const StageSpan& a, const StageSpan& b) {
@@ -244,7 +271,11 @@ int run_render(const RenderCommand& cmd) {
       report_file->write((first_report_frame ? "\n    " : ",\n    ") +
                          nlohmann::json{{"frame", f}, {"wall_ms", st.wall_ms}, {"stages", stages},
                                         {"right_pixels", st.right_pixels}, {"reprojected", st.reprojected},
-                                        {"bytes_transferred", st.bytes_transferred}}
+                                        {"bytes_transferred", st.bytes_transferred}, {"spp", quality.spp},
+                                        {"bounces", quality.bounces},
+                                        {"svgf_iterations", opt.denoise ? quality.svgf_iterations : 0u},
+                                        {"predicted_ms", predicted_this_frame ? nlohmann::json(*predicted_this_frame)
+                                                                              : nlohmann::json(nullptr)}}
                              .dump());
       first_report_frame = false;
     }
@@ -271,6 +302,7 @@ int run_render(const RenderCommand& cmd) {
                         {"bounces", opt.trace.bounces},
                         {"denoise", opt.denoise},
                         {"seams", cmd.seams},
+                        {"target_ms", cmd.target_ms.empty() ? nlohmann::json(nullptr) : nlohmann::json(cmd.target_ms)},
                         {"frames_requested", cmd.frames},
                         {"frames_done", done},
                         {"interrupted", stopped},

@@ -94,6 +94,13 @@ int main(int argc, char** argv) {
   render_cmd->add_option("--report", render.report,
                          "write a JSON report: per frame, stage and device the device time (OpenCL profiling), "
                          "wall time, reprojected share, bytes transferred; makespan and Hz");
+  render_cmd->add_option("--target-ms", render.target_ms,
+                         "hold the stereo frame time inside LO:HI ms (the paper's window is 11:20) by tuning spp, "
+                         "bounces and SVGF iterations between frames; --spp, --bounces and --svgf-iterations are "
+                         "the starting values, and bounces and iterations never rise above them (off by default)");
+  render_cmd->add_option("--max-spp", render.max_spp, "with --target-ms: the most samples per pixel the loop may use")
+      ->check(CLI::Range(1u, 1048576u))
+      ->capture_default_str();
   render_cmd->add_flag("--overwrite", render.overwrite, "allow writing into a non-empty output directory");
   add_device_flags(render_cmd, render.devices);
 
