@@ -260,6 +260,8 @@ def main(out):
               f"(commit {machine.get('git', '?')}).\n")
     md.append("## Machine\n")
     md.append(f"- CPU: {machine.get('cpu', '?')}, {machine.get('cores', '?')} cores visible")
+    md.append(f"- Load average (1, 5, 15 min) when the run started: {machine.get('loadavg', '?')}. Other processes "
+              "on the same cores slow every figure and take from what parallel devices can gain.")
     md.append(f"- Run: {ours_setup}; {machine.get('frames', '?')} timed frames after {machine.get('warmup', '?')} "
               f"warm-up for Tables 1-2; {machine.get('seam_frames', '?')} frames for the seams; scenes "
               f"{', '.join(scenes)}")
