@@ -5,7 +5,9 @@
 // eye's error against a converged reference of frame 0, so every speed figure has its error.
 //
 //   build/bench_pipelines --scene atrium --width 160 --height 90 --frames 50 --devices 2
-//       --ref-spp 1024 --csv pipelines.csv
+//       --ref-spp 1024 --csv pipelines.csv --summary-csv makespan.csv --frames-csv frames.csv
+//
+// The CSVs feed scripts/evaluate (Tables 1 and 2 of the paper, and the frame-time plot).
 #include "app/guarded_main.h"
 #include "app/scene_setup.h"
 #include "bench_common.h"
@@ -31,6 +33,8 @@ struct PipelineResult {
   double makespan_ms = 0, median_frame_ms = 0, reprojected = 0;
   std::map<std::pair<int, int>, std::vector<double>> stage_ms;  // (stage, device) -> per frame
   double right_psnr = 0, right_rel_mse = 0;
+  std::vector<double> frame_ms;  // wall time of each timed frame
+  int owner = 0;
 };
 
 }  // namespace
@@ -41,7 +45,7 @@ int main(int argc, char** argv) {
   unsigned width = 160, height = 90, frames = 50, warmup = 2, spp = 1, bounces = 6, ref_spp = 1024;
   int devices = 2;
   float fps = 30.0f;
-  std::string csv;
+  std::string csv, summary_csv, frames_csv;
   app.add_option("--scene", scenes)->capture_default_str();
   app.add_option("--width", width)->capture_default_str();
   app.add_option("--height", height)->capture_default_str();
@@ -52,13 +56,32 @@ int main(int argc, char** argv) {
   app.add_option("--devices", devices)->capture_default_str();
   app.add_option("--fps", fps, "camera-path time step")->capture_default_str();
   app.add_option("--ref-spp", ref_spp, "samples of the frame-0 reference (0 = skip the error figures)")->capture_default_str();
-  app.add_option("--csv", csv, "per stage and device medians as CSV");
+  app.add_option("--csv", csv, "per stage and device medians as CSV (owner = 1 on the owner device)");
+  app.add_option("--summary-csv", summary_csv, "per scene and pipeline: makespan, Hz, error vs the reference");
+  app.add_option("--frames-csv", frames_csv, "per scene, pipeline and timed frame: wall ms");
   CLI11_PARSE(app, argc, argv);
+  if (frames == 0 || width == 0 || height == 0 || devices < 1) {
+    std::fprintf(stderr, "bench_pipelines: --frames, --width, --height and --devices must be positive\n");
+    return 1;
+  }
 
-  std::ofstream csv_out;
+  std::ofstream csv_out, summary_out, frames_out;
   if (!csv.empty()) {
     csv_out.open(csv);
-    csv_out << "scene,pipeline,stage,stage_name,device,median_device_ms\n";
+    csv_out << "scene,pipeline,stage,stage_name,device,owner,median_device_ms\n";
+  }
+  if (!summary_csv.empty()) {
+    summary_out.open(summary_csv);
+    summary_out << "scene,pipeline,devices,device_mode,width,height,spp,bounces,frames,makespan_ms,median_frame_ms,hz,"
+                   "reprojected,ref_spp,right_psnr_db,right_rel_mse\n";
+  }
+  if (!frames_csv.empty()) {
+    frames_out.open(frames_csv);
+    frames_out << "scene,pipeline,frame,wall_ms\n";
+  }
+  if ((!csv.empty() && !csv_out) || (!summary_csv.empty() && !summary_out) || (!frames_csv.empty() && !frames_out)) {
+    std::fprintf(stderr, "bench_pipelines: cannot write a CSV file\n");
+    return 1;
   }
   return px::run_guarded([&]() -> int {
     for (const auto& name : scenes) {
@@ -85,6 +108,7 @@ int main(int argc, char** argv) {
         px::StereoPipeline pipeline(set, ds, loaded.scene, width, height, opt);
         PipelineResult r;
         r.name = px::to_string(kind);
+        r.owner = pipeline.schedule().tree.root;
         std::vector<double> frame_ms;
         double reprojected = 0;
         for (unsigned f = 0; f < warmup + frames; ++f) {
@@ -97,11 +121,13 @@ int main(int argc, char** argv) {
           }
           if (f < warmup) continue;
           frame_ms.push_back(st.wall_ms);
+          if (frames_out) frames_out << name << ',' << r.name << ',' << f << ',' << st.wall_ms << '\n';
           r.makespan_ms += st.wall_ms;
           reprojected += st.right_pixels ? double(st.reprojected) / st.right_pixels : 0.0;
           for (const auto& s : st.stages) r.stage_ms[{static_cast<int>(s.stage), s.device}].push_back(s.ms);
         }
         r.median_frame_ms = median(frame_ms);
+        r.frame_ms = frame_ms;
         r.reprojected = reprojected / frames;
         std::fprintf(stderr, "[bench] %s %s: makespan %.0f ms over %u frames\n", name.c_str(), r.name.c_str(),
                      r.makespan_ms, frames);
@@ -116,6 +142,12 @@ int main(int argc, char** argv) {
         std::printf("%-10s %12.0f %12.1f %8.2f %11.1f%% %10.2f %10.4f\n", r.name.c_str(), r.makespan_ms,
                     r.median_frame_ms, 1000.0 * frames / r.makespan_ms, 100.0 * r.reprojected, r.right_psnr,
                     r.right_rel_mse);
+      if (summary_out)
+        for (const auto& r : results)
+          summary_out << name << ',' << r.name << ',' << set.size() << ',' << px::to_string(set.mode()) << ',' << width
+                      << ',' << height << ',' << spp << ',' << bounces << ',' << frames << ',' << r.makespan_ms << ','
+                      << r.median_frame_ms << ',' << 1000.0 * frames / r.makespan_ms << ',' << r.reprojected << ','
+                      << ref_spp << ',' << r.right_psnr << ',' << r.right_rel_mse << '\n';
       std::printf("speed-up proposed vs baseline: x%.2f (makespan ratio); proposed vs mono: x%.2f\n",
                   results[1].makespan_ms / results[0].makespan_ms, results[2].makespan_ms / results[0].makespan_ms);
       std::printf("\nmedian device ms per frame, by stage and device:\n%-22s", "stage");
@@ -131,7 +163,8 @@ int main(int argc, char** argv) {
             std::printf(" %9.2f", m);
             if (csv_out && it != r.stage_ms.end())
               csv_out << name << ',' << r.name << ',' << stage << ','
-                      << px::stage_name(static_cast<px::Stage>(stage)) << ',' << d << ',' << m << '\n';
+                      << px::stage_name(static_cast<px::Stage>(stage)) << ',' << d << ',' << (d == r.owner) << ','
+                      << m << '\n';
           }
         std::printf("\n");
       }
