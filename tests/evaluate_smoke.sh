@@ -29,13 +29,14 @@ refused "bad build dir" "build first" -- --build "$tmp/nothing" --out "$tmp/b"
 out="$tmp/eval"
 if "$src/scripts/evaluate" --quick --build "$build" --out "$out"; then ok "evaluate --quick ran"; else fail "evaluate --quick exit $?"; fi
 for f in pipelines_stages.csv pipelines_makespan.csv pipelines_frames.csv seams.csv seams_frames.csv speed_error.csv \
-         table1_stage_times.png table2_makespan.png fig5_seam_psnr.png seam_images.png speed_vs_error.png summary.md; do
+         table1_stage_times.png table2_makespan.png fig5_seam_psnr.png seam_images.png speed_vs_error.png \
+         fig4_control_loop.png control_report.json summary.md; do
   if [ -s "$out/$f" ]; then ok "wrote $f"; else fail "$f missing or empty"; fi
 done
 for f in "$out"/*.csv; do  # a header and at least one row
   if [ "$(wc -l <"$f")" -ge 2 ]; then ok "$(basename "$f") has rows"; else fail "$(basename "$f") has no rows"; fi
 done
-for heading in "## Machine" "## Beside the paper" "## Table 1" "## Table 2" "## Table 3" "## Speed vs error" "Fig. 4" \
+for heading in "## Machine" "## Beside the paper" "## Table 1" "## Table 2" "## Table 3" "## Speed vs error" "## Fig. 4: the control loop" \
                "FLIP" "CAMBI"; do
   if grep -qF "$heading" "$out/summary.md"; then ok "summary has '$heading'"; else fail "summary lacks '$heading'"; fi
 done
