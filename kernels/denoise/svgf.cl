@@ -132,12 +132,24 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
   out_moments[i] = (float4)(m, len, 1.0f);
 }
 
-/* cos^sigma_n: the exponent is almost always an integer (128, 4...), and pown is a few
- * multiplications where pow is a log and an exp. */
+/* c^k for an integer k >= 0 by repeated squaring: log2(k) multiplications (7 for the usual 128).
+ * PoCL's pown is a library call costing about as much as a whole a-trous tap. */
+inline float px_pow_int(float c, uint k) {
+  float r = 1.0f;
+  while (k != 0u) {
+    if (k & 1u) r *= c;
+    c *= c;
+    k >>= 1;
+  }
+  return r;
+}
+
+/* cos^sigma_n: the exponent is almost always an integer (128, 4...): a few multiplications,
+ * where pow is a log and an exp. */
 inline float px_normal_weight(float c, float sigma_n) {
   c = fmax(0.0f, c);
-  const int k = (int)sigma_n;
-  return (float)k == sigma_n ? pown(c, k) : pow(c, sigma_n);
+  const uint k = (uint)sigma_n;
+  return sigma_n >= 0.0f && (float)k == sigma_n && k <= 1024u ? px_pow_int(c, k) : pow(c, sigma_n);
 }
 
 /* Exponent of the depth edge-stopping weight between centre (depth z, gradient grad per pixel)
