@@ -74,6 +74,28 @@ std::vector<SceneTriangle> long_thin_soup(std::size_t n, unsigned seed, float le
   return tris;
 }
 
+// n slivers through the unit cube, as bench_bvh_build's `slivers` scene (issue 14): each joins
+// two random points on the cube's surface and is 1e-3 wide at one end, so all of them overlap.
+std::vector<SceneTriangle> slivers(std::size_t n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  auto on_surface = [&] {
+    glm::vec3 p(u(rng), u(rng), u(rng));
+    const int face = static_cast<int>(u(rng) * 6.0f) % 6;
+    p[face % 3] = face < 3 ? 0.0f : 1.0f;
+    return p;
+  };
+  std::vector<SceneTriangle> tris;
+  while (tris.size() < n) {
+    const glm::vec3 a = on_surface(), b = on_surface();
+    if (glm::length(b - a) < 0.25f) continue;
+    glm::vec3 side = glm::cross(b - a, glm::vec3(u(rng), u(rng), u(rng)) - 0.5f);
+    if (glm::length(side) == 0.0f) continue;
+    tris.push_back(make_triangle(a, b, a + 1e-3f * glm::normalize(side)));
+  }
+  return tris;
+}
+
 // Parallel strips along the diagonal of a slanted square: every strip's box covers most of the
 // square, so no partition of whole triangles separates them — the case spatial splits exist for.
 std::vector<SceneTriangle> diagonal_strips(int strips) {
@@ -517,6 +539,7 @@ TEST(Bvh, SpatialSplitsLowerSahOnDiagonalStrips) {
   expect_valid(binned, tris);
   expect_valid(split, tris);
   // Measured: about 35% lower. Splits must have happened, and paid off clearly.
+  EXPECT_FALSE(split.stats.split_budget_exceeded);
   EXPECT_GT(split.stats.leaf_triangles, tris.size());
   EXPECT_LT(split.stats.sah_cost, 0.9 * binned.stats.sah_cost)
       << "binned " << binned.stats.sah_cost << ", split " << split.stats.sah_cost;
@@ -533,6 +556,35 @@ TEST(Bvh, SpatialSplitsDoNotWorsenSahOnLongDiagonalTriangles) {
     EXPECT_LE(split.stats.sah_cost, 1.01 * binned.stats.sah_cost)
         << "binned " << binned.stats.sah_cost << ", split " << split.stats.sah_cost;
   }
+}
+
+TEST(Bvh, OverlappingSliversStayWithinTheSplitBudgetAndTraceCorrectly) {
+  // Issue 14: on overlapping slivers Embree's spatial binning asks for ~500 splits per triangle
+  // (101k slivers: 12 s). The build must stop at its split budget and fall back to binned SAH,
+  // and the result must still be a valid tree with exact closest hits.
+  const auto tris = slivers(20000, 14);
+  const FlatBvh bvh = build_bvh(tris, with_splits(true));
+  expect_valid(bvh, tris);
+  EXPECT_TRUE(bvh.stats.split_budget_exceeded);
+  const std::uint64_t budget = split_call_budget(tris.size());
+  // The cancelled attempt stops within a batch of calls per build thread of the budget.
+  EXPECT_GE(bvh.stats.split_calls, budget);
+  EXPECT_LE(bvh.stats.split_calls, budget + budget / 100);
+  EXPECT_EQ(bvh.stats.leaf_triangles, tris.size()) << "the fallback is binned: no fragments";
+  const FlatBvh binned = build_bvh(tris, with_splits(false));
+  EXPECT_FALSE(binned.stats.split_budget_exceeded);
+  EXPECT_EQ(binned.stats.split_calls, 0u);
+  EXPECT_DOUBLE_EQ(bvh.stats.sah_cost, binned.stats.sah_cost);
+  expect_traversal_matches_brute_force(bvh, tris, 600, 15);
+}
+
+TEST(Bvh, SpatialSplitsWithinTheBudgetOnOrdinaryScenes) {
+  // A scene of ordinary triangles keeps its spatial splits, well inside the budget.
+  const auto tris = random_soup(20000, 16, 100.0f, 3.0f);
+  const FlatBvh bvh = build_bvh(tris, with_splits(true));
+  EXPECT_FALSE(bvh.stats.split_budget_exceeded);
+  EXPECT_GT(bvh.stats.split_calls, 0u);
+  EXPECT_LT(bvh.stats.split_calls, split_call_budget(tris.size()) / 2);
 }
 
 TEST(Bvh, DepthLimitHoldsOnAGeometricProgression) {

@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <exception>
 #include <limits>
 #include <new>
 #include <stdexcept>
@@ -56,6 +57,13 @@ struct BuildContext {
   std::atomic<bool> unexpected_arity{false};
   std::atomic<bool> oversized_leaf{false};
   std::atomic<bool> out_of_memory{false};
+  // The spatial-split work budget (see split_call_budget): calls of split_primitive so far
+  // (counted per thread, added here in batches of kSplitCountBatch, so up to that many per
+  // thread are not included) and the limit; once the count passes it the callback cancels the
+  // build by throwing.
+  std::atomic<std::uint64_t> split_calls{0};
+  std::uint64_t split_budget = 0;
+  std::atomic<bool> over_budget{false};
 };
 
 void* create_node(RTCThreadLocalAllocator allocator, unsigned int child_count, void* user) {
@@ -236,10 +244,20 @@ struct SplitCaches {
   PolygonCache full_box;
   PolygonCache right_piece[2];
   int current_right = 0;
+  // Calls not yet added to BuildContext::split_calls (one shared counter bumped on every call
+  // would bounce its cache line between the build threads ~10^7 times).
+  std::uint64_t pending_build = 0;
+  std::uint32_t pending_calls = 0;
 };
+constexpr std::uint32_t kSplitCountBatch = 256;
 thread_local SplitCaches t_caches;
 
 std::atomic<std::uint64_t> g_next_build_id{1};
+
+// Thrown by split_primitive to cancel a build whose split budget ran out.
+struct SplitBudgetExceeded : std::exception {
+  const char* what() const noexcept override { return "BVH: spatial-split budget exceeded"; }
+};
 
 // The triangle clipped to the box [lo, hi]; returns the vertex count (0: rounding lost a
 // grazing sliver). `scratch` holds two polygons; the result points into it.
@@ -268,12 +286,41 @@ int clip_triangle_to_box(const std::array<float, 9>& p, const float lo[3], const
 
 void split_primitive(const RTCBuildPrimitive* primitive, unsigned int dim, float pos,
                      RTCBounds* left, RTCBounds* right, void* user) {
-  const auto* context = static_cast<const BuildContext*>(user);
+  auto* context = static_cast<BuildContext*>(user);
   const std::uint32_t prim = primitive->primID;
   const float lo[3] = {primitive->lower_x, primitive->lower_y, primitive->lower_z};
   const float hi[3] = {primitive->upper_x, primitive->upper_y, primitive->upper_z};
+  float left_hi[3] = {hi[0], hi[1], hi[2]};
+  float right_lo[3] = {lo[0], lo[1], lo[2]};
+  left_hi[dim] = std::min(pos, hi[dim]);
+  right_lo[dim] = std::max(pos, lo[dim]);
+  auto box_halves = [&] {
+    // The halves of the box itself certainly bound whatever part of the triangle is there.
+    left->lower_x = lo[0], left->lower_y = lo[1], left->lower_z = lo[2];
+    left->upper_x = left_hi[0], left->upper_y = left_hi[1], left->upper_z = left_hi[2];
+    right->lower_x = right_lo[0], right->lower_y = right_lo[1], right->lower_z = right_lo[2];
+    right->upper_x = hi[0], right->upper_y = hi[1], right->upper_z = hi[2];
+  };
 
   SplitCaches& caches = t_caches;
+  if (caches.pending_build != context->build_id) {
+    caches.pending_build = context->build_id;
+    caches.pending_calls = 0;
+  }
+  if (++caches.pending_calls == kSplitCountBatch) {
+    caches.pending_calls = 0;
+    if (context->split_calls.fetch_add(kSplitCountBatch, std::memory_order_relaxed) +
+            kSplitCountBatch > context->split_budget)
+      context->over_budget.store(true, std::memory_order_relaxed);
+  }
+  if (context->over_budget.load(std::memory_order_relaxed)) {
+    // Cancel the build. Embree cancels its own builds the same way (its progress monitor
+    // throws from inside the build tasks; TBB carries the exception to the calling thread and
+    // rtcBuildBVH catches it and reports an error), so the unwinding path is one it supports.
+    // Its buildProgress callback would be too late: Embree only calls it below its single-thread
+    // threshold, after the expensive top levels.
+    throw SplitBudgetExceeded{};
+  }
   const PolygonCache& last_right = caches.right_piece[caches.current_right];
   Point3d scratch[2][kMaxPolygon];
   const Point3d* poly = nullptr;
@@ -289,18 +336,9 @@ void split_primitive(const RTCBuildPrimitive* primitive, unsigned int dim, float
     caches.full_box.store(context->build_id, prim, lo, hi, poly, n);
   }
 
-  float left_hi[3] = {hi[0], hi[1], hi[2]};
-  float right_lo[3] = {lo[0], lo[1], lo[2]};
-  left_hi[dim] = std::min(pos, hi[dim]);
-  right_lo[dim] = std::max(pos, lo[dim]);
-
   if (n == 0) {
-    // The box only grazes the triangle and rounding lost the sliver. Stay conservative: the
-    // halves of the box itself certainly bound whatever part of the triangle is there.
-    left->lower_x = lo[0], left->lower_y = lo[1], left->lower_z = lo[2];
-    left->upper_x = left_hi[0], left->upper_y = left_hi[1], left->upper_z = left_hi[2];
-    right->lower_x = right_lo[0], right->lower_y = right_lo[1], right->lower_z = right_lo[2];
-    right->upper_x = hi[0], right->upper_y = hi[1], right->upper_z = hi[2];
+    // The box only grazes the triangle and rounding lost the sliver. Stay conservative.
+    box_halves();
     return;
   }
 
@@ -340,6 +378,18 @@ void split_primitive(const RTCBuildPrimitive* primitive, unsigned int dim, float
     next_right.build_id = 0;  // whatever the slot held was overwritten
   }
 }
+
+// The spatial-split work budget. Embree's spatial binning calls split_primitive for every
+// primitive at every bin plane its box crosses (up to 15 planes on each of 3 axes), at every node
+// where the best object split leaves overlapping children, whether or not a spatial split is
+// then taken. On ordinary scenes that is ~70 calls per triangle (atrium: 38M calls for 551k
+// triangles). On overlapping slivers (issue 14) every node overlaps and every sliver crosses
+// most planes: ~530 calls per triangle, 54M for 101k triangles, 12 s against 1.7 s for Embree's
+// own spatial-split build of the same triangles, while the splits gain ~10% SAH. So a build may
+// spend at most BvhBuildOptions::split_calls_per_triangle (default 96, ~1.4x atrium's need)
+// calls per triangle plus a floor for small scenes; past it the build is cancelled and redone
+// with binned SAH, which costs a fraction of what Embree's own spatial-split build does.
+constexpr std::uint64_t kSplitCallsFloor = std::uint64_t{1} << 20;
 
 // ---------------------------------------------------------------------------------------------
 // Flattening, with a depth guarantee.
@@ -606,10 +656,12 @@ void compute_stats(FlatBvh& bvh) {
   s.sah_cost = cost;
 }
 
-// One rtcBuildBVH run. Returns false if Embree failed (message in `error`); throws for
-// failures a retry cannot fix.
+// One rtcBuildBVH run. Returns false if Embree failed (message in `error`) or, with spatial
+// splits, if the split budget ran out (`over_budget` set); throws for failures a retry cannot
+// fix.
 bool build_once(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options,
-                unsigned int max_depth, FlatBvh& out, std::string& error) {
+                unsigned int max_depth, FlatBvh& out, std::string& error, bool& over_budget) {
+  over_budget = false;
   RTCDevice device = embree_device();
   take_embree_error();
   rtcGetDeviceError(device);
@@ -635,6 +687,7 @@ bool build_once(const std::vector<SceneTriangle>& triangles, const BvhBuildOptio
 
   BuildContext context;
   context.build_id = g_next_build_id.fetch_add(1);
+  context.split_budget = split_call_budget(count, options.split_calls_per_triangle);
   if (options.spatial_splits) {
     context.positions.resize(count);
     for (std::size_t i = 0; i < count; ++i)
@@ -673,6 +726,12 @@ bool build_once(const std::vector<SceneTriangle>& triangles, const BvhBuildOptio
 
   void* root = rtcBuildBVH(&args);
   error = take_embree_error();
+  if (options.spatial_splits) out.stats.split_calls = context.split_calls.load();
+  if (context.over_budget) {
+    over_budget = true;
+    rtcReleaseBVH(bvh);
+    return false;
+  }
   const RTCError code = rtcGetDeviceError(device);
   if (error.empty() && code != RTC_ERROR_NONE) error = "RTCError " + std::to_string(int(code));
   if (error.empty() && !root) error = "rtcBuildBVH returned no root";
@@ -702,6 +761,11 @@ bool build_once(const std::vector<SceneTriangle>& triangles, const BvhBuildOptio
 
 }  // namespace
 
+std::uint64_t split_call_budget(std::size_t triangles, std::uint32_t calls_per_triangle) {
+  if (calls_per_triangle == 0) return std::numeric_limits<std::uint64_t>::max();
+  return kSplitCallsFloor + std::uint64_t{calls_per_triangle} * triangles;
+}
+
 FlatBvh build_bvh(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   if (triangles.empty()) throw std::runtime_error("BVH: cannot build over an empty scene");
@@ -717,13 +781,28 @@ FlatBvh build_bvh(const std::vector<SceneTriangle>& triangles, const BvhBuildOpt
                                  " has a non-finite vertex");
 
   FlatBvh bvh;
+  BvhBuildOptions used = options;
   std::string first_error;
-  if (!build_once(triangles, options, PX_BVH_MAX_DEPTH, bvh, first_error)) {
+  bool over_budget = false;
+  bool built = build_once(triangles, used, PX_BVH_MAX_DEPTH, bvh, first_error, over_budget);
+  if (!built && over_budget) {
+    // Spatial splits would cost far more than they gain here (see split_call_budget).
+    bvh.stats.split_budget_exceeded = true;
+    used.spatial_splits = false;
+    built = build_once(triangles, used, PX_BVH_MAX_DEPTH, bvh, first_error, over_budget);
+  }
+  if (!built) {
     // Almost always "depth limit reached": more primitives than median splits can separate in
     // the last levels. Build without the tight limit; the flattener restores it.
     constexpr unsigned int kRelaxedDepth = 256;  // Embree recurses: keep its stack bounded
     std::string second_error;
-    if (!build_once(triangles, options, kRelaxedDepth, bvh, second_error))
+    built = build_once(triangles, used, kRelaxedDepth, bvh, second_error, over_budget);
+    if (!built && over_budget) {
+      bvh.stats.split_budget_exceeded = true;
+      used.spatial_splits = false;
+      built = build_once(triangles, used, kRelaxedDepth, bvh, second_error, over_budget);
+    }
+    if (!built)
       throw std::runtime_error("Embree: rtcBuildBVH failed: " + first_error + "; retry with " +
                                "maxDepth " + std::to_string(kRelaxedDepth) + ": " + second_error);
   }

@@ -6,6 +6,7 @@
 #include "scene/scene.h"
 #include "shared/types.h"
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,10 @@ struct BvhBuildOptions {
   // primitive capacity). Off: binned SAH only.
   bool spatial_splits = true;
   int max_leaf_size = PX_BVH_MAX_LEAF_SIZE;  // <= PX_BVH_MAX_LEAF_SIZE
+  // Work bound for spatial splits, in split-callback calls per triangle (see
+  // split_call_budget); past it the build is redone with binned SAH. 0: unbounded (only for
+  // measuring what the bound saves: overlapping slivers then take ~5-8x Embree's own build).
+  std::uint32_t split_calls_per_triangle = 96;
 };
 
 struct BvhBuildStats {
@@ -25,7 +30,19 @@ struct BvhBuildStats {
   int depth = 0;                   // root = depth 1... leaves included as a level below nodes
   double build_ms = 0.0;
   double sah_cost = 0.0;           // SAH cost of the flattened tree (traversal 1, intersection 1)
+  // Spatial splits are bounded in work: a build may call the split callback at most
+  // split_call_budget(scene_triangles) times; past that it is redone with binned SAH
+  // (split_budget_exceeded), which on overlapping slivers costs a small fraction of what the
+  // splits would. split_calls: callback calls of the last spatial-split build attempt (counted
+  // in per-thread batches of 256, so it may be short by up to 255 per build thread).
+  bool split_budget_exceeded = false;
+  std::uint64_t split_calls = 0;
 };
+
+// The most split-callback calls one spatial-split build of `triangles` triangles may make:
+// 2^20 + calls_per_triangle * triangles (UINT64_MAX for calls_per_triangle 0, unbounded).
+std::uint64_t split_call_budget(std::size_t triangles,
+                                std::uint32_t calls_per_triangle = BvhBuildOptions{}.split_calls_per_triangle);
 
 struct FlatBvh {
   std::vector<BvhNode> nodes;          // nodes[0] is the root; never empty for a built BVH

@@ -1,0 +1,212 @@
+// bench_bvh_build: build_bvh (with and without spatial splits) against Embree's own BVH build of
+// the same triangles (an RTCScene with one triangle geometry, rtcCommitScene), side by side in
+// one process. Embree's scene build is the reference for what a build of this input should cost
+// on this machine: `high` (RTC_BUILD_QUALITY_HIGH, its spatial-split builder) is the counterpart
+// of build_bvh with splits, `medium` (binned SAH) of build_bvh without.
+//
+// Scenes: any scene spec load_scene accepts (cornell, atrium, a file), and `slivers`: N long
+// thin triangles all crossing the unit cube (issue 14: a user's file of ~101k overlapping
+// slivers took 14 s to build). The builds of one scene are interleaved, round after round, so
+// load from other processes on a shared machine hits them alike; medians are printed.
+//
+//   build/bench_bvh_build --scene cornell --scene atrium --scene slivers --slivers 101000 --repeats 5
+//   [--unbounded: also time spatial splits without the split budget] [--csv F]
+#include "app/guarded_main.h"
+#include "bench_common.h"
+#include "bvh/embree_reference.h"
+#include "bvh/flat_bvh.h"
+#include "scene/scene_loader.h"
+
+#include <CLI/CLI.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <random>
+#include <stdexcept>
+
+namespace {
+
+using clock_type = std::chrono::steady_clock;
+using px::bench::median;
+
+// n slivers through the unit cube: each joins two random points on the cube's surface (so it
+// crosses the interior, length ~0.7 on average) and is 1e-3 wide at one end. Every box covers a
+// large part of the cube and all of them overlap: no partition of whole triangles separates
+// them, and every node of a spatial-split build is a candidate for splitting.
+std::vector<px::SceneTriangle> slivers(std::size_t n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  auto on_surface = [&] {
+    glm::vec3 p(u(rng), u(rng), u(rng));
+    const int face = static_cast<int>(u(rng) * 6.0f) % 6;
+    p[face % 3] = face < 3 ? 0.0f : 1.0f;
+    return p;
+  };
+  std::vector<px::SceneTriangle> tris;
+  tris.reserve(n);
+  while (tris.size() < n) {
+    const glm::vec3 a = on_surface(), b = on_surface();
+    const glm::vec3 d = b - a;
+    if (glm::length(d) < 0.25f) continue;
+    glm::vec3 side = glm::cross(d, glm::vec3(u(rng), u(rng), u(rng)) - 0.5f);
+    if (glm::length(side) == 0.0f) continue;
+    side = 1e-3f * glm::normalize(side);
+    px::SceneTriangle t{};
+    t.p[0] = a, t.p[1] = b, t.p[2] = a + side;
+    const glm::vec3 normal = glm::normalize(glm::cross(t.p[1] - t.p[0], t.p[2] - t.p[0]));
+    for (auto& nrm : t.n) nrm = normal;
+    tris.push_back(t);
+  }
+  return tris;
+}
+
+// Embree's own build of the triangles: scene + geometry creation, copy, rtcCommitScene.
+double embree_build_ms(const std::vector<px::SceneTriangle>& triangles, RTCBuildQuality quality) {
+  RTCDevice device = px::embree_device();
+  const auto t0 = clock_type::now();
+  RTCScene scene = rtcNewScene(device);
+  rtcSetSceneBuildQuality(scene, quality);
+  RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  rtcSetGeometryBuildQuality(geometry, quality);
+  const std::size_t n = triangles.size();
+  auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
+      geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), 3 * n));
+  auto* indices = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+      geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), n));
+  if (!vertices || !indices) throw std::runtime_error("Embree: allocating geometry buffers failed");
+  for (std::size_t i = 0; i < n; ++i)
+    for (int k = 0; k < 3; ++k) {
+      for (int c = 0; c < 3; ++c) vertices[9 * i + 3 * k + c] = triangles[i].p[k][c];
+      indices[3 * i + k] = static_cast<unsigned>(3 * i + k);
+    }
+  rtcCommitGeometry(geometry);
+  rtcAttachGeometry(scene, geometry);
+  rtcReleaseGeometry(geometry);
+  rtcCommitScene(scene);
+  const double ms = std::chrono::duration<double, std::milli>(clock_type::now() - t0).count();
+  const std::string error = px::take_embree_error();
+  rtcReleaseScene(scene);
+  if (!error.empty()) throw std::runtime_error("Embree: " + error);
+  return ms;
+}
+
+struct Row {
+  std::string scene;
+  std::size_t triangles = 0;
+  double split_ms = 0, binned_ms = 0, high_ms = 0, medium_ms = 0, unbounded_ms = 0;
+  px::BvhBuildStats split, binned, unbounded;
+};
+
+Row measure(const std::string& name, const std::vector<px::SceneTriangle>& tris, int repeats,
+            bool with_unbounded) {
+  Row row;
+  row.scene = name;
+  row.triangles = tris.size();
+  px::BvhBuildOptions split_options, binned_options;
+  split_options.spatial_splits = true;
+  binned_options.spatial_splits = false;
+  px::BvhBuildOptions unbounded_options = split_options;
+  unbounded_options.split_calls_per_triangle = 0;
+  std::vector<double> split_ms, binned_ms, high_ms, medium_ms, unbounded_ms;
+  for (int r = 0; r < repeats; ++r) {
+    if (with_unbounded) {
+      const px::FlatBvh unbounded = px::build_bvh(tris, unbounded_options);
+      unbounded_ms.push_back(unbounded.stats.build_ms);
+      row.unbounded = unbounded.stats;
+    }
+    const px::FlatBvh split = px::build_bvh(tris, split_options);
+    split_ms.push_back(split.stats.build_ms);
+    row.split = split.stats;
+    const px::FlatBvh binned = px::build_bvh(tris, binned_options);
+    binned_ms.push_back(binned.stats.build_ms);
+    row.binned = binned.stats;
+    high_ms.push_back(embree_build_ms(tris, RTC_BUILD_QUALITY_HIGH));
+    medium_ms.push_back(embree_build_ms(tris, RTC_BUILD_QUALITY_MEDIUM));
+    std::fprintf(stderr, "[bench] %s round %d: split %.1f ms, binned %.1f ms, embree high %.1f ms, "
+                 "medium %.1f ms\n", name.c_str(), r + 1, split_ms.back(), binned_ms.back(),
+                 high_ms.back(), medium_ms.back());
+  }
+  row.split_ms = median(split_ms);
+  row.binned_ms = median(binned_ms);
+  row.high_ms = median(high_ms);
+  row.medium_ms = median(medium_ms);
+  row.unbounded_ms = median(unbounded_ms);
+  return row;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"bench_bvh_build: build_bvh vs Embree's own BVH build of the same triangles"};
+  std::vector<std::string> scenes{"cornell", "atrium", "slivers"};
+  std::size_t sliver_count = 101000;
+  int repeats = 5;
+  std::string csv;
+  bool unbounded = false;
+  app.add_flag("--unbounded", unbounded,
+               "also time spatial splits without the split budget (the behaviour before it)");
+  app.add_option("--scene", scenes, "scenes to measure (repeatable; `slivers` is generated)")
+      ->capture_default_str();
+  app.add_option("--slivers", sliver_count, "triangles in the `slivers` scene")->capture_default_str();
+  app.add_option("--repeats", repeats, "timed rounds (median reported)")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  app.add_option("--csv", csv, "also write the table as CSV");
+  CLI11_PARSE(app, argc, argv);
+
+  return px::run_guarded([&]() -> int {
+    std::vector<Row> rows;
+    for (const auto& name : scenes) {
+      std::vector<px::SceneTriangle> tris;
+      if (name == "slivers") {
+        tris = slivers(sliver_count, 14);
+      } else {
+        tris = px::load_scene(name).triangles;
+      }
+      embree_build_ms(tris, RTC_BUILD_QUALITY_HIGH);  // warm-up: TBB threads, first-touch
+      rows.push_back(measure(name, tris, repeats, unbounded));
+    }
+    std::printf("\n%-10s %8s | %10s %10s %10s %10s | %8s %8s | %9s %9s %9s %6s %9s %8s\n", "scene",
+                "tris", "px split", "px binned", "emb high", "emb med", "split/hi", "bin/med",
+                "SAH split", "SAH bin", "refs/tri", "depth", "calls/tri", "fallback");
+    for (const auto& r : rows)
+      std::printf("%-10s %8zu | %10.1f %10.1f %10.1f %10.1f | %8.2f %8.2f | %9.2f %9.2f %9.3f %6d %9.1f %8s\n",
+                  r.scene.c_str(), r.triangles, r.split_ms, r.binned_ms, r.high_ms, r.medium_ms,
+                  r.split_ms / r.high_ms, r.binned_ms / r.medium_ms, r.split.sah_cost,
+                  r.binned.sah_cost, double(r.split.leaf_triangles) / double(r.triangles),
+                  r.split.depth, double(r.split.split_calls) / double(r.triangles),
+                  r.split.split_budget_exceeded ? "binned" : "-");
+    std::printf("\nbuild ms, medians of %d interleaved rounds; px = build_bvh (validation not "
+                "included), emb = Embree rtcCommitScene of one triangle geometry at build quality "
+                "high (spatial splits) / medium (binned SAH); refs/tri = leaf references per scene "
+                "triangle with spatial splits; calls/tri = split-callback calls per triangle of the (last) spatial-split attempt; fallback = binned: the split budget ran out and build_bvh rebuilt with binned SAH (so px split includes the cancelled attempt)\n",
+                repeats);
+    if (unbounded) {
+      std::printf("\n%-10s %12s %12s %10s %11s %11s\n", "scene", "unbounded ms", "bounded ms",
+                  "emb high", "unbnd/high", "bound/high");
+      for (const auto& r : rows)
+        std::printf("%-10s %12.1f %12.1f %10.1f %11.2f %11.2f   (unbounded: SAH %.2f, %.1f "
+                    "calls/tri, refs/tri %.3f)\n",
+                    r.scene.c_str(), r.unbounded_ms, r.split_ms, r.high_ms,
+                    r.unbounded_ms / r.high_ms, r.split_ms / r.high_ms, r.unbounded.sah_cost,
+                    double(r.unbounded.split_calls) / double(r.triangles),
+                    double(r.unbounded.leaf_triangles) / double(r.triangles));
+    }
+    if (!csv.empty()) {
+      std::ofstream out(csv);
+      out << "scene,triangles,px_split_ms,px_binned_ms,embree_high_ms,embree_medium_ms,"
+             "split_over_high,binned_over_medium,sah_split,sah_binned,refs_per_triangle,depth,"
+             "split_calls_per_triangle,split_budget_exceeded\n";
+      for (const auto& r : rows)
+        out << r.scene << ',' << r.triangles << ',' << r.split_ms << ',' << r.binned_ms << ','
+            << r.high_ms << ',' << r.medium_ms << ',' << r.split_ms / r.high_ms << ','
+            << r.binned_ms / r.medium_ms << ',' << r.split.sah_cost << ',' << r.binned.sah_cost
+            << ',' << double(r.split.leaf_triangles) / double(r.triangles) << ',' << r.split.depth
+            << ',' << double(r.split.split_calls) / double(r.triangles) << ','
+            << r.split.split_budget_exceeded << '\n';
+    }
+    return 0;
+  });
+}
