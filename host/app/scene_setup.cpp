@@ -25,8 +25,11 @@ LoadedScene load_and_build(const std::string& spec, bool quiet) {
   out.bvh = build_bvh(out.scene.triangles);
   const auto& bs = out.bvh.stats;
   if (!quiet)
-    std::fprintf(stderr, "[bvh] %zu nodes, %zu leaf triangles, depth %d, SAH %.1f (%.0f ms)\n", bs.nodes,
-                 bs.leaf_triangles, bs.depth, bs.sah_cost, bs.build_ms);
+    std::fprintf(stderr, "[bvh] %zu nodes, %zu leaf triangles, depth %d, SAH %.1f (%.0f ms)%s\n", bs.nodes,
+                 bs.leaf_triangles, bs.depth, bs.sah_cost, bs.build_ms,
+                 bs.split_budget_exceeded ? "; spatial splits stopped at their budget (heavily overlapping "
+                                            "triangles): binned SAH instead"
+                                          : "");
   auto check = validate_bvh(out.bvh, out.scene.triangles);
   if (!check.ok) {
     std::string msg = "internal error: BVH failed validation:";
