@@ -15,6 +15,7 @@
 #include "bench_common.h"
 #include "bvh/embree_reference.h"
 #include "bvh/flat_bvh.h"
+#include "scene/primitives.h"
 #include "scene/scene_loader.h"
 
 #include <CLI/CLI.hpp>
@@ -30,37 +31,6 @@ namespace {
 
 using clock_type = std::chrono::steady_clock;
 using px::bench::median;
-
-// n slivers through the unit cube: each joins two random points on the cube's surface (so it
-// crosses the interior, length ~0.7 on average) and is 1e-3 wide at one end. Every box covers a
-// large part of the cube and all of them overlap: no partition of whole triangles separates
-// them, and every node of a spatial-split build is a candidate for splitting.
-std::vector<px::SceneTriangle> slivers(std::size_t n, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> u(0.0f, 1.0f);
-  auto on_surface = [&] {
-    glm::vec3 p(u(rng), u(rng), u(rng));
-    const int face = static_cast<int>(u(rng) * 6.0f) % 6;
-    p[face % 3] = face < 3 ? 0.0f : 1.0f;
-    return p;
-  };
-  std::vector<px::SceneTriangle> tris;
-  tris.reserve(n);
-  while (tris.size() < n) {
-    const glm::vec3 a = on_surface(), b = on_surface();
-    const glm::vec3 d = b - a;
-    if (glm::length(d) < 0.25f) continue;
-    glm::vec3 side = glm::cross(d, glm::vec3(u(rng), u(rng), u(rng)) - 0.5f);
-    if (glm::length(side) == 0.0f) continue;
-    side = 1e-3f * glm::normalize(side);
-    px::SceneTriangle t{};
-    t.p[0] = a, t.p[1] = b, t.p[2] = a + side;
-    const glm::vec3 normal = glm::normalize(glm::cross(t.p[1] - t.p[0], t.p[2] - t.p[0]));
-    for (auto& nrm : t.n) nrm = normal;
-    tris.push_back(t);
-  }
-  return tris;
-}
 
 // Embree's own build of the triangles: scene + geometry creation, copy, rtcCommitScene.
 double embree_build_ms(const std::vector<px::SceneTriangle>& triangles, RTCBuildQuality quality) {
@@ -161,7 +131,7 @@ int main(int argc, char** argv) {
     for (const auto& name : scenes) {
       std::vector<px::SceneTriangle> tris;
       if (name == "slivers") {
-        tris = slivers(sliver_count, 14);
+        px::append_slivers(tris, sliver_count, 14);
       } else {
         tris = px::load_scene(name).triangles;
       }

@@ -5,6 +5,7 @@
 // they must agree exactly), and Embree's own ray tracer (float, so agreement within tolerance).
 #include "bvh/embree_reference.h"
 #include "bvh/flat_bvh.h"
+#include "scene/primitives.h"
 
 #include <gtest/gtest.h>
 
@@ -70,28 +71,6 @@ std::vector<SceneTriangle> long_thin_soup(std::size_t n, unsigned seed, float le
         glm::normalize(glm::cross(d, glm::vec3(u(rng), u(rng), u(rng)) - 0.5f));
     const glm::vec3 a = c - 0.5f * length * d;
     tris.push_back(make_triangle(a, c + 0.5f * length * d, a + 0.5f * side));
-  }
-  return tris;
-}
-
-// n slivers through the unit cube, as bench_bvh_build's `slivers` scene (issue 14): each joins
-// two random points on the cube's surface and is 1e-3 wide at one end, so all of them overlap.
-std::vector<SceneTriangle> slivers(std::size_t n, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> u(0.0f, 1.0f);
-  auto on_surface = [&] {
-    glm::vec3 p(u(rng), u(rng), u(rng));
-    const int face = static_cast<int>(u(rng) * 6.0f) % 6;
-    p[face % 3] = face < 3 ? 0.0f : 1.0f;
-    return p;
-  };
-  std::vector<SceneTriangle> tris;
-  while (tris.size() < n) {
-    const glm::vec3 a = on_surface(), b = on_surface();
-    if (glm::length(b - a) < 0.25f) continue;
-    glm::vec3 side = glm::cross(b - a, glm::vec3(u(rng), u(rng), u(rng)) - 0.5f);
-    if (glm::length(side) == 0.0f) continue;
-    tris.push_back(make_triangle(a, b, a + 1e-3f * glm::normalize(side)));
   }
   return tris;
 }
@@ -562,7 +541,8 @@ TEST(Bvh, OverlappingSliversStayWithinTheSplitBudgetAndTraceCorrectly) {
   // Issue 14: on overlapping slivers Embree's spatial binning asks for ~500 splits per triangle
   // (101k slivers: 12 s). The build must stop at its split budget and fall back to binned SAH,
   // and the result must still be a valid tree with exact closest hits.
-  const auto tris = slivers(20000, 14);
+  std::vector<SceneTriangle> tris;
+  append_slivers(tris, 20000, 14);
   const FlatBvh bvh = build_bvh(tris, with_splits(true));
   expect_valid(bvh, tris);
   EXPECT_TRUE(bvh.stats.split_budget_exceeded);

@@ -5,6 +5,7 @@
 #include "image/image_io.h"
 #include "io/atomic_file.h"
 #include "io/interrupt.h"
+#include "support/test_support.h"
 
 #include <gtest/gtest.h>
 
@@ -23,22 +24,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-class TempDir {
- public:
-  TempDir() {
-    std::random_device rd;
-    path_ = fs::temp_directory_path() / ("px_outputs_test_" + std::to_string(::getpid()) + "_" + std::to_string(rd()));
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
+using test::TempDir;
 
 std::set<std::string> names_in(const fs::path& dir) {
   std::set<std::string> names;

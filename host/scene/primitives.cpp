@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <random>
 #include <unordered_map>
 
 namespace px {
@@ -133,6 +134,33 @@ void append_oriented_box(std::vector<SceneTriangle>& tris, glm::vec3 min, glm::v
   // A mirroring transform turns counter-clockwise into clockwise; reverse to stay outward.
   const bool mirrored = glm::determinant(glm::mat3(transform)) < 0.0f;
   append_box_corners(tris, c, mirrored, material);
+}
+
+void append_slivers(std::vector<SceneTriangle>& tris, std::size_t n, unsigned seed, std::uint32_t material) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  auto on_surface = [&] {
+    glm::vec3 p(u(rng), u(rng), u(rng));
+    const int face = static_cast<int>(u(rng) * 6.0f) % 6;
+    p[face % 3] = face < 3 ? 0.0f : 1.0f;
+    return p;
+  };
+  tris.reserve(tris.size() + n);
+  for (std::size_t made = 0; made < n;) {
+    const glm::vec3 a = on_surface(), b = on_surface();
+    if (glm::length(b - a) < 0.25f) continue;
+    glm::vec3 side = glm::cross(b - a, glm::vec3(u(rng), u(rng), u(rng)) - 0.5f);
+    if (glm::length(side) == 0.0f) continue;
+    SceneTriangle t{};
+    t.p[0] = a;
+    t.p[1] = b;
+    t.p[2] = a + 1e-3f * glm::normalize(side);
+    const glm::vec3 normal = glm::normalize(glm::cross(t.p[1] - t.p[0], t.p[2] - t.p[0]));
+    for (auto& nrm : t.n) nrm = normal;
+    t.material = material;
+    tris.push_back(t);
+    ++made;
+  }
 }
 
 void append_icosphere(std::vector<SceneTriangle>& tris, glm::vec3 center, float radius,

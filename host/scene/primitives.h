@@ -66,6 +66,12 @@ void append_box(std::vector<SceneTriangle>& tris, glm::vec3 min, glm::vec3 max,
 void append_oriented_box(std::vector<SceneTriangle>& tris, glm::vec3 min, glm::vec3 max,
                          const glm::mat4& transform, std::uint32_t material);
 
+// n overlapping slivers through the unit cube: each joins two random points on the cube's
+// surface (at least 0.25 apart) and is 1e-3 wide at one end, so every box covers a large part
+// of the cube and no partition of whole triangles separates them: the worst case of a
+// spatial-split BVH build (tests and bench_bvh_build). Deterministic for a given seed.
+void append_slivers(std::vector<SceneTriangle>& tris, std::size_t n, unsigned seed, std::uint32_t material = 0);
+
 // Sphere from a subdivided icosahedron: 20 * 4^subdivisions triangles, closed, vertices on
 // the sphere, smooth normals.
 void append_icosphere(std::vector<SceneTriangle>& tris, glm::vec3 center, float radius,
