@@ -175,7 +175,6 @@ struct SyntheticView {
         for (int k = 0; k < 3; ++k) {
           t0.pos[k] = t * d[k];
           t0.normal[k] = n[k];
-          t0.albedo[k] = 0.5f;
         }
         t0.depth = t;
         t0.material_class = PX_CLASS_DIFFUSE;
@@ -191,15 +190,15 @@ struct FilterRun {
   explicit FilterRun(SvgfDenoiser::Options o = {})
       : den(one_device(), 0, view.w, view.h, o),
         out(one_device().context(), CL_MEM_READ_WRITE, view.w * view.h * sizeof(cl_float4)) {}
-  // One frame: returns the denoised radiance. The demodulation albedo is `a`, or the
-  // G-buffer's albedo when `a` is empty.
+  // One frame: returns the denoised radiance. The demodulation albedo is `a`, or 0.5
+  // everywhere when `a` is empty.
   std::vector<cl_float4> frame(const std::vector<GBufferTexel>& g, const std::vector<cl_float4>& c,
                                std::vector<cl_float4> a = {}) {
     prev_gbuf = gbuf.get() ? gbuf : upload(g);
     gbuf = upload(g);
     color = upload(c);
     if (a.empty())
-      for (const GBufferTexel& t : g) a.push_back({{t.albedo[0], t.albedo[1], t.albedo[2], 1.0f}});
+      a.assign(g.size(), cl_float4{{0.5f, 0.5f, 0.5f, 1.0f}});
     albedo = upload(a);
     const RowRange all{0, view.h};
     den.temporal(color, albedo, gbuf, prev_gbuf, view.cam, all, all);
@@ -333,7 +332,7 @@ TEST(Svgf, PixelsWhoseNormalNoNeighbourSharesAreStillFiltered) {
   for (auto& v : c) {
     const float s = u(rng) < 0.6f ? 1.0f / 0.6f : 0.0f;
     black_in += s == 0.0f;
-    v = {{0.5f * s, 0.5f * s, 0.5f * s, 1.0f}};  // albedo 0.5 (the synthetic G-buffer's): illumination s
+    v = {{0.5f * s, 0.5f * s, 0.5f * s, 1.0f}};  // albedo 0.5 (FilterRun's default): illumination s
   }
   auto out = run.frame(g, c);
   int black_out = 0;

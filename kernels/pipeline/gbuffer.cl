@@ -1,5 +1,5 @@
 /* Stage 3: G-buffer of one eye's rows. The primary ray through each pixel centre: hit point,
- * depth, shading normal facing the eye, textured diffuse albedo, and the material class that
+ * depth, shading normal facing the eye, and the material class that
  * decides whether reprojection may reuse the pixel (only view-independent, diffuse surfaces). */
 #include "shared/types.h"
 #include "render/camera.h"
@@ -20,7 +20,6 @@ kernel void gbuffer(global GBufferTexel* out, uint row0, uint rows, CameraParams
     g.pos[0] = g.pos[1] = g.pos[2] = 0.0f;
     g.depth = 0.0f;
     g.normal[0] = g.normal[1] = g.normal[2] = 0.0f;
-    g.albedo[0] = g.albedo[1] = g.albedo[2] = 0.0f;
     g.material_class = PX_CLASS_MISS;
     g.prim = PX_NO_HIT;
     out[i] = g;
@@ -39,13 +38,9 @@ kernel void gbuffer(global GBufferTexel* out, uint row0, uint rows, CameraParams
   const float len = length(n);
   n = len > 0.0f && isfinite(len) ? n / len : ng;
   if (dot(n, ng) < 0.0f) n = -n;
-  float3 albedo = px_load3(m->diffuse);
-  if (m->diffuse_texture >= 0)
-    albedo *= px_texture_bilinear(&scene, m->diffuse_texture, px_interpolate_uv(sh, hit.u, hit.v)).xyz;
   g.pos[0] = p.x; g.pos[1] = p.y; g.pos[2] = p.z;
   g.depth = hit.t;
   g.normal[0] = n.x; g.normal[1] = n.y; g.normal[2] = n.z;
-  g.albedo[0] = albedo.x; g.albedo[1] = albedo.y; g.albedo[2] = albedo.z;
   g.prim = prim;
   g.material_class = (m->flags & PX_MAT_EMISSIVE)     ? PX_CLASS_EMISSIVE
                      : (m->flags & PX_MAT_DIELECTRIC) ? PX_CLASS_DIELECTRIC

@@ -241,17 +241,18 @@ typedef struct FrameParams {
 #define PX_LIGHTS_BSDF 2u
 
 
-/* One G-buffer texel (stage 3): what the primary ray through the pixel centre hit, 48 bytes.
+/* One G-buffer texel (stage 3): what the primary ray through the pixel centre hit, 36 bytes.
+ * (No albedo: the denoiser demodulates by the path tracer's per-pixel mean albedo of the
+ * samples themselves, which the centre's albedo is not.)
  *
  *   0..11 pos[3] (world hit point)       12..15 depth (distance along the ray; 0 on a miss)
  *  16..27 normal[3] (shading, facing the eye)  28..31 material_class (PX_CLASS_*)
- *  32..43 albedo[3] (diffuse albedo, textured)  44..47 prim (scene triangle, PX_NO_HIT on a miss) */
+ *  32..35 prim (scene triangle, PX_NO_HIT on a miss) */
 typedef struct GBufferTexel {
   float pos[3];
   float depth;
   float normal[3];
   uint material_class;
-  float albedo[3];
   uint prim;
 } GBufferTexel;
 
