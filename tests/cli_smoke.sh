@@ -65,6 +65,26 @@ check "control loop runs and reports its choices" 0 "spp, .* bounces, .* iterati
 if grep -q '"predicted_ms"' "$tmp/ctl.json" && grep -q '"svgf_iterations"' "$tmp/ctl.json" && grep -q '"target_ms": "1000:2000"' "$tmp/ctl.json"; then
   passes=$((passes + 1)); echo "ok   control-loop report fields"
 else fails=$((fails + 1)); echo "FAIL report lacks predicted_ms / svgf_iterations / target_ms"; fi
+check "dynamic balance refuses the baseline pipeline" 1 "balance dynamic needs" -- "$bin" render --pipeline baseline \
+  --balance dynamic --out "$tmp/bal_bad"
+check "explain names the dynamic balance" 0 "balance: dynamic" -- "$bin" render --explain --devices 3 --height 90 \
+  --balance dynamic
+check "dynamic balance renders and shows the strips" 0 "strips [0-9]+/[0-9]+/[0-9]+ rows" -- "$bin" render --scene cornell \
+  --width 32 --height 30 --frames 4 --devices 3 --svgf-iterations 2 --balance dynamic --balance-step 2 \
+  --out "$tmp/bal" --report "$tmp/bal.json"
+if grep -q '"strips":\[\[0,' "$tmp/bal.json" && grep -q '"balance": "dynamic"' "$tmp/bal.json"; then
+  passes=$((passes + 1)); echo "ok   report has per-frame strips"
+else fails=$((fails + 1)); echo "FAIL report lacks strips / balance"; fi
+# The report plots (Debian's python3-matplotlib); skipped where it is not installed.
+if /usr/bin/python3 -c "import matplotlib, numpy" 2>/dev/null; then
+  check "plot_report draws a report" 0 "strips.png" -- "$src/scripts/plot_report" "$tmp/bal.json" "$tmp/ctl.json" \
+    --out "$tmp/plots"
+  for f in frame_times.png stages.png strips.png; do
+    if [ -s "$tmp/plots/$f" ]; then passes=$((passes + 1)); echo "ok   plot $f"; else fails=$((fails + 1)); echo "FAIL plot $f missing"; fi
+  done
+  check "plot_report refuses a non-report" 1 "not a parallax render report" -- "$src/scripts/plot_report" \
+    "$tmp/tl.json" --out "$tmp/plots2"
+else echo "skip plot_report (no python3-matplotlib)"; fi
 check "bad seam mode is refused" 1 "seams" -- "$bin" render --seams wobbly --out "$tmp/y"
 check "explain shows the denoise stage" 0 "denoise" -- "$bin" render --explain --devices 2 --height 100
 check "compare gives PSNR" 0 "psnr_db" -- "$bin" compare "$tmp/r_proposed/frame_0000_left.exr" "$tmp/r_mono/frame_0000_left.exr"

@@ -556,5 +556,71 @@ TEST(SvgfDistributed, RemodulationKeepsEveryChannelsMeanForNearZeroAndSaturatedA
   }
 }
 
+// Dynamic load balancing: strip boundaries that move every frame, by more rows than the
+// G-buffer margin (so last frame's G-buffer of the rows taken over must travel too), must
+// not change a bit of the image. History (colour, moments, history length) moves with its
+// rows to the new owner.
+std::vector<std::array<ImageRGB, 2>> run_with_strips(const LoadedScene& loaded, PipelineKind kind, int devices,
+                                                     const std::vector<std::vector<RowRange>>& strips_per_frame,
+                                                     unsigned w, unsigned h) {
+  DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
+  DeviceScene ds(set, loaded.scene, loaded.bvh);
+  StereoPipeline::Options opt;
+  opt.pipeline = kind;
+  opt.trace.spp = 1;
+  opt.trace.bounces = 3;
+  opt.svgf.iterations = 2;  // G-buffer margin 18 rows: the moves below go past it
+  StereoPipeline p(set, ds, loaded.scene, w, h, opt);
+  std::vector<std::array<ImageRGB, 2>> frames;
+  for (unsigned f = 0; f < strips_per_frame.size(); ++f) {
+    if (!strips_per_frame[f].empty()) {
+      p.set_strips(strips_per_frame[f]);
+      EXPECT_EQ(p.strips(), strips_per_frame[f]);
+    }
+    p.render(f, 0.25f * f);
+    frames.push_back(p.radiance());
+  }
+  return frames;
+}
+
+TEST(SvgfDistributed, StripsMovingEveryFrameKeepImagesBitIdentical) {
+  const unsigned w = 40, h = 97;
+  const std::vector<std::vector<RowRange>> two = {
+      {{0, 48}, {48, 97}}, {{0, 20}, {20, 97}}, {{0, 75}, {75, 97}}, {{0, 74}, {74, 97}}, {{0, 3}, {3, 97}}};
+  const std::vector<std::vector<RowRange>> three = {{{0, 32}, {32, 65}, {65, 97}},
+                                                    {{0, 60}, {60, 70}, {70, 97}},
+                                                    {{0, 5}, {5, 90}, {90, 97}},
+                                                    {{0, 40}, {40, 41}, {41, 97}},
+                                                    {{0, 41}, {41, 60}, {60, 97}}};
+  const std::vector<std::vector<RowRange>> one_device(two.size());
+  for (PipelineKind kind : {PipelineKind::Proposed, PipelineKind::Mono}) {
+    const auto reference = run_with_strips(cornell(), kind, 1, one_device, w, h);
+    for (const auto* strips : {&two, &three}) {
+      const int n = static_cast<int>(strips->front().size());
+      const auto moved = run_with_strips(cornell(), kind, n, *strips, w, h);
+      for (std::size_t f = 0; f < reference.size(); ++f)
+        for (int e = 0; e < 2; ++e)
+          EXPECT_TRUE(same_bits(reference[f][e], moved[f][e]))
+              << to_string(kind) << ", " << n << " devices, frame " << f << ", eye " << e;
+    }
+  }
+}
+
+TEST(SvgfDistributed, StripsThatCannotMoveAreRefused) {
+  const auto& scene = cornell();
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  DeviceScene ds(set, scene.scene, scene.bvh);
+  StereoPipeline::Options opt;
+  StereoPipeline p(set, ds, scene.scene, 16, 20, opt);
+  EXPECT_THROW(p.set_strips({{0, 10}}), std::invalid_argument);              // one strip for two devices
+  EXPECT_THROW(p.set_strips({{0, 10}, {11, 20}}), std::invalid_argument);    // a gap
+  EXPECT_THROW(p.set_strips({{0, 0}, {0, 20}}), std::invalid_argument);      // an empty strip
+  EXPECT_THROW(p.set_strips({{0, 12}, {12, 21}}), std::invalid_argument);    // past the image
+  EXPECT_EQ(p.strips(), (std::vector<RowRange>{{0, 10}, {10, 20}}));        // unchanged
+  opt.pipeline = PipelineKind::Baseline;
+  StereoPipeline baseline(set, ds, scene.scene, 16, 20, opt);
+  EXPECT_THROW(baseline.set_strips({{0, 8}, {8, 20}}), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace px

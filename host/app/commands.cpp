@@ -2,6 +2,7 @@
 
 #include "app/output_dir.h"
 #include "app/scene_setup.h"
+#include "control/strip_balancer.h"
 #include "image/image_io.h"
 #include "image/image_metrics.h"
 #include "io/atomic_file.h"
@@ -149,9 +150,17 @@ int run_render(const RenderCommand& cmd) {
     c.svgf_iterations = {opt.denoise ? 1u : opt.svgf.iterations, opt.svgf.iterations};
     controller.emplace(c);
   }
+  const bool dynamic_strips = cmd.balance == "dynamic";
+  if (dynamic_strips && !has_movable_strips(opt.pipeline))
+    throw std::invalid_argument("--balance dynamic needs the proposed or mono pipeline (baseline already spreads path "
+                                "tracing over many shuffled strips and runs the rest on one device)");
   if (cmd.explain) {
     // The schedule depends only on pipeline, device count, height and denoising: no scene needed.
     std::printf("%s", make_schedule(opt.pipeline, cmd.devices.count, cmd.height, opt.denoise).explain().c_str());
+    if (dynamic_strips)
+      std::printf("balance: dynamic — the strips above are the starting split; between frames each boundary moves "
+                  "up to %u rows toward equal measured device time\n",
+                  cmd.balance_step);
     return 0;
   }
   install_interrupt_handlers();
@@ -172,6 +181,14 @@ int run_render(const RenderCommand& cmd) {
   print_device_set(devices);
   DeviceScene device_scene(devices, loaded.scene, loaded.bvh);
   StereoPipeline pipeline(devices, device_scene, loaded.scene, cmd.width, cmd.height, opt);
+  std::optional<StripBalancer> balancer;
+  if (dynamic_strips && devices.size() > 1) {
+    if (cmd.height < static_cast<unsigned>(devices.size()))
+      throw std::invalid_argument("--balance dynamic needs at least one row per device");
+    StripBalancer::Options b;
+    b.max_step_rows = cmd.balance_step;
+    balancer.emplace(cmd.height, devices.size(), b);
+  }
   std::fprintf(stderr, "[render] %u frame(s), %ux%u per eye, %u spp, %u bounces, pipeline %s, denoise %s\n", cmd.frames,
                cmd.width, cmd.height, opt.trace.spp, opt.trace.bounces, cmd.pipeline.c_str(),
                opt.denoise ? ("SVGF, seams " + cmd.seams).c_str() : "off");
@@ -210,12 +227,26 @@ int run_render(const RenderCommand& cmd) {
   std::optional<double> predicted_ms;  // the control loop's prediction for the coming frame
   for (unsigned f = 0; f < cmd.frames; ++f) {
     const FrameQuality quality = pipeline.quality();
+    const std::vector<RowRange> strips = pipeline.strips();
     const FrameStats st = pipeline.render(f, static_cast<float>(f) / cmd.fps);
     const std::optional<double> predicted_this_frame = predicted_ms;
     // Frame 0 compiles the kernels (seconds on PoCL): it says nothing about the frame time.
     if (controller && f > 0) {
       pipeline.set_quality(controller->update(quality, StereoPipeline::frame_cost(st)));
       predicted_ms = controller->predicted_ms();
+    }
+    // Frame 0's times include kernel compilation: the balancer starts from frame 1's.
+    if (balancer && f > 0) {
+      std::vector<unsigned> rows;
+      for (const RowRange& r : strips) rows.push_back(r.size());
+      rows = balancer->update(rows, StereoPipeline::device_busy_ms(st, devices.size()));
+      std::vector<RowRange> next;
+      unsigned row = 0;
+      for (unsigned r : rows) {
+        next.push_back({row, row + r});
+        row += r;
+      }
+      pipeline.set_strips(next);
     }
     auto eyes = pipeline.radiance();
     require_finite(eyes, "frame " + std::to_string(f));
@@ -249,6 +280,11 @@ int run_render(const RenderCommand& cmd) {
                    quality.svgf_iterations,
                    predicted_this_frame ? (" (predicted " + std::to_string(int(*predicted_this_frame + 0.5)) + " ms)").c_str()
                                         : "");
+    if (balancer) {
+      std::fprintf(stderr, "; strips");
+      for (std::size_t d = 0; d < strips.size(); ++d) std::fprintf(stderr, "%s%u", d ? "/" : " ", strips[d].size());
+      std::fprintf(stderr, " rows");
+    }
     std::fputc('\n', stderr);
     if (timeline_file) {
       if (trace_origin == 0 && !st.spans.empty())
@@ -263,6 +299,8 @@ int run_render(const RenderCommand& cmd) {
       flush_trace();
     }
     if (report_file) {
+      nlohmann::json strip_rows = nlohmann::json::array();  // [row0, rows] per device
+      for (const RowRange& r : strips) strip_rows.push_back({r.begin, r.size()});
       nlohmann::json stages = nlohmann::json::array();
       for (const auto& s : st.stages)
         stages.push_back({{"stage", static_cast<int>(s.stage)}, {"name", stage_name(s.stage)}, {"device", s.device},
@@ -271,7 +309,8 @@ int run_render(const RenderCommand& cmd) {
       report_file->write((first_report_frame ? "\n    " : ",\n    ") +
                          nlohmann::json{{"frame", f}, {"wall_ms", st.wall_ms}, {"stages", stages},
                                         {"right_pixels", st.right_pixels}, {"reprojected", st.reprojected},
-                                        {"bytes_transferred", st.bytes_transferred}, {"spp", quality.spp},
+                                        {"bytes_transferred", st.bytes_transferred}, {"strips", strip_rows},
+                                        {"spp", quality.spp},
                                         {"bounces", quality.bounces},
                                         {"svgf_iterations", opt.denoise ? quality.svgf_iterations : 0u},
                                         {"predicted_ms", predicted_this_frame ? nlohmann::json(*predicted_this_frame)
@@ -302,6 +341,7 @@ int run_render(const RenderCommand& cmd) {
                         {"bounces", opt.trace.bounces},
                         {"denoise", opt.denoise},
                         {"seams", cmd.seams},
+                        {"balance", cmd.balance},
                         {"target_ms", cmd.target_ms.empty() ? nlohmann::json(nullptr) : nlohmann::json(cmd.target_ms)},
                         {"frames_requested", cmd.frames},
                         {"frames_done", done},

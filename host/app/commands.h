@@ -46,6 +46,8 @@ struct RenderCommand {
   std::string timeline;        // Chrome trace / Perfetto JSON path ("" = none)
   std::string target_ms;       // control-loop window "LO:HI" ("" = off: fixed quality)
   unsigned max_spp = 64;       // control loop: the most spp it may raise to
+  std::string balance = "static";  // "dynamic": strip boundaries follow the measured device times
+  unsigned balance_step = 8;   // dynamic balance: most rows a boundary moves per frame
   DeviceChoice devices;
 };
 

@@ -101,6 +101,15 @@ int main(int argc, char** argv) {
   render_cmd->add_option("--max-spp", render.max_spp, "with --target-ms: the most samples per pixel the loop may use")
       ->check(CLI::Range(1u, 1048576u))
       ->capture_default_str();
+  render_cmd->add_option("--balance", render.balance,
+                         "strip boundaries between devices: static (even split) or dynamic (moved between frames "
+                         "toward equal measured device time; images stay identical; proposed and mono pipelines)")
+      ->check(CLI::IsMember({"static", "dynamic"}))
+      ->capture_default_str();
+  render_cmd->add_option("--balance-step", render.balance_step,
+                         "with --balance dynamic: the most rows a strip boundary moves per frame")
+      ->check(CLI::Range(1u, 65535u))
+      ->capture_default_str();
   render_cmd->add_flag("--overwrite", render.overwrite, "allow writing into a non-empty output directory");
   add_device_flags(render_cmd, render.devices);
 

@@ -66,7 +66,7 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
         b.gbuffer_prev[e] = device_buffer(ctx, pixels * sizeof(GBufferTexel));
         b.svgf[e] = std::make_unique<SvgfDenoiser>(devices, d, width, height, options_.svgf);
       }
-      b.staging_halo = cl::Buffer(ctx, CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR, pixels * sizeof(cl_float4));
+      b.staging_halo.buffer = cl::Buffer(ctx, CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR, pixels * sizeof(cl_float4));
     }
     if (d != schedule_.tree.root) {
       // Both eyes side by side in one host-allocated buffer per kind.
@@ -101,6 +101,13 @@ FrameCost StereoPipeline::frame_cost(const FrameStats& stats) {
   c.denoise_ms = slowest[Stage::Denoise];
   c.other_ms = std::max(0.0, stats.wall_ms - c.trace_ms - c.denoise_ms);
   return c;
+}
+
+std::vector<double> StereoPipeline::device_busy_ms(const FrameStats& stats, int devices) {
+  std::vector<double> ms(devices, 0.0);
+  for (const StageTiming& t : stats.stages)
+    if (t.stage != Stage::Transfer && t.device >= 0 && t.device < devices) ms[t.device] += t.ms;
+  return ms;
 }
 
 void StereoPipeline::record(Stage stage, int device, const cl::Event& e) { events_.push_back({{stage, device}, e}); }
@@ -283,9 +290,18 @@ FrameStats StereoPipeline::render(unsigned frame, float time_s) {
         std::swap(b.gbuffer[e], b.gbuffer_prev[e]);
         b.svgf[e]->end_frame();
       }
-      b.staging_halo_readers.clear();
+      b.staging_halo.readers.clear();
+      b.staging_gbuffer.readers.clear();
     }
     prev_cams_ = cams;
+    if (const StageWork* dn = schedule_.find(Stage::Denoise))
+      for (int e = 0; e < 2; ++e) {
+        history_strips_[e].assign(n, RowRange{});
+        for (int d = 0; d < n; ++d) {
+          const auto& rows = e == 0 ? dn->left_rows[d] : dn->right_rows[d];
+          if (!rows.empty()) history_strips_[e][d] = {rows.front().begin, rows.back().end};
+        }
+      }
   }
 
   FrameStats stats;
@@ -327,35 +343,57 @@ unsigned StereoPipeline::gbuffer_margin() const {
   return std::max({atrous, options_.svgf.temporal_rows + 1, 3u}) + 1;
 }
 
+std::vector<RowRange> StereoPipeline::widen(const std::vector<RowRange>& strip, unsigned radius) const {
+  std::vector<RowRange> out(strip.size());
+  for (std::size_t d = 0; d < strip.size(); ++d)
+    if (strip[d].size() > 0)
+      out[d] = {strip[d].begin > radius ? strip[d].begin - radius : 0u, std::min(height_, strip[d].end + radius)};
+  return out;
+}
+
 template <typename BufferOf>
 void StereoPipeline::exchange_halo(BufferOf buffer, const std::vector<RowRange>& strip, unsigned radius) {
+  exchange_rows(buffer, strip, widen(strip, radius), sizeof(cl_float4), &DeviceBuffers::staging_halo);
+}
+
+template <typename BufferOf>
+void StereoPipeline::exchange_rows(BufferOf buffer, const std::vector<RowRange>& owned,
+                                   const std::vector<RowRange>& needed, std::size_t texel,
+                                   HaloStaging DeviceBuffers::*staging) {
   const int n = devices_.size();
   for (int d = 0; d < n; ++d) {
-    if (strip[d].size() == 0) continue;
-    const RowRange wanted[2] = {{strip[d].begin > radius ? strip[d].begin - radius : 0u, strip[d].begin},
-                                {strip[d].end, std::min(height_, strip[d].end + radius)}};
+    if (needed[d].size() == 0) continue;
     for (int src = 0; src < n; ++src) {
-      if (src == d || strip[src].size() == 0) continue;
-      for (const RowRange& w : wanted) {
-        const unsigned a = std::max(w.begin, strip[src].begin), b = std::min(w.end, strip[src].end);
-        if (a >= b) continue;
-        const std::size_t off = static_cast<std::size_t>(a) * width_ * sizeof(cl_float4);
-        const std::size_t len = static_cast<std::size_t>(b - a) * width_ * sizeof(cl_float4);
-        auto& sb = buffers_[src];
-        cl::Event out, in;
-        // The staging rows may still be read by an earlier exchange's copy-in: wait for it.
-        std::vector<cl::Event> wait = sb.staging_halo_readers;
-        devices_.devices()[src].queue.enqueueCopyBuffer(buffer(src), sb.staging_halo, off, off, len,
-                                                        wait.empty() ? nullptr : &wait, &out);
-        std::vector<cl::Event> after{out};
-        devices_.devices()[d].queue.enqueueCopyBuffer(sb.staging_halo, buffer(d), off, off, len, &after, &in);
-        sb.staging_halo_readers = {in};
-        record(Stage::Transfer, src, out);
-        record(Stage::Transfer, d, in);
-        bytes_this_frame_ += len;
-      }
+      if (src == d || owned[src].size() == 0) continue;
+      // The owned ranges are disjoint, so this never overwrites rows d holds itself.
+      const unsigned a = std::max(needed[d].begin, owned[src].begin), b = std::min(needed[d].end, owned[src].end);
+      if (a >= b) continue;
+      const std::size_t off = static_cast<std::size_t>(a) * width_ * texel;
+      const std::size_t len = static_cast<std::size_t>(b - a) * width_ * texel;
+      HaloStaging& st = buffers_[src].*staging;
+      if (!st.buffer())
+        st.buffer = cl::Buffer(devices_.context(), CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR,
+                               static_cast<std::size_t>(width_) * height_ * texel);
+      cl::Event out, in;
+      // The staging rows may still be read by an earlier exchange's copy-in: wait for it.
+      std::vector<cl::Event> wait = st.readers;
+      devices_.devices()[src].queue.enqueueCopyBuffer(buffer(src), st.buffer, off, off, len,
+                                                      wait.empty() ? nullptr : &wait, &out);
+      std::vector<cl::Event> after{out};
+      devices_.devices()[d].queue.enqueueCopyBuffer(st.buffer, buffer(d), off, off, len, &after, &in);
+      st.readers = {in};
+      record(Stage::Transfer, src, out);
+      record(Stage::Transfer, d, in);
+      bytes_this_frame_ += len;
     }
   }
+}
+
+void StereoPipeline::set_strips(const std::vector<RowRange>& strips) {
+  if (strips == schedule_.strips) return;
+  // make_schedule checks the strips and refuses the baseline pipeline; the history moves in
+  // the next frame's denoising, from history_strips_ to the new strips.
+  schedule_ = make_schedule(options_.pipeline, devices_.size(), height_, options_.denoise, strips);
 }
 
 void StereoPipeline::denoise(const StageWork& work, const std::array<CameraParams, 2>& cams) {
@@ -372,10 +410,22 @@ void StereoPipeline::denoise(const StageWork& work, const std::array<CameraParam
     auto svgf = [&](int d) -> SvgfDenoiser& { return *buffers_[d].svgf[e]; };
     const CameraParams prev = prev_cams_ ? (*prev_cams_)[e] : cams[e];
     const auto& o = options_.svgf;
-    if (halo) {
-      exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).history_illum_prev(); }, strip, o.temporal_rows + 1);
-      exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).history_moments_prev(); }, strip, o.temporal_rows + 1);
+    // Last frame's history lives with last frame's strips. The temporal pass reads it within
+    // temporal_rows of each pixel (halo seams) or within the strip (otherwise): fetch those
+    // rows from whichever device holds them — the neighbours' halo rows, and, when the strips
+    // moved, the rows this device took over (with their G-buffer, which the history test reads).
+    const std::vector<RowRange>& held = history_strips_[e].empty() ? strip : history_strips_[e];
+    const bool moved = held != strip;
+    const std::vector<RowRange> history_rows = widen(strip, halo ? o.temporal_rows + 1 : 0);
+    if (halo || moved) {
+      exchange_rows([&](int d) -> const cl::Buffer& { return svgf(d).history_illum_prev(); }, held, history_rows,
+                    sizeof(cl_float4), &DeviceBuffers::staging_halo);
+      exchange_rows([&](int d) -> const cl::Buffer& { return svgf(d).history_moments_prev(); }, held, history_rows,
+                    sizeof(cl_float4), &DeviceBuffers::staging_halo);
     }
+    if (moved)
+      exchange_rows([&](int d) -> const cl::Buffer& { return buffers_[d].gbuffer_prev[e]; }, held, history_rows,
+                    sizeof(GBufferTexel), &DeviceBuffers::staging_gbuffer);
     for (int d = 0; d < n; ++d)
       svgf(d).temporal(buffers_[d].radiance[e], buffers_[d].albedo[e], buffers_[d].gbuffer[e], buffers_[d].gbuffer_prev[e], prev, strip[d],
                        readable(d));

@@ -76,6 +76,14 @@ class StereoPipeline {
 
   const FrameSchedule& schedule() const { return schedule_; }
 
+  // Each device's strip (device i owns strips()[i] in proposed and mono), top to bottom.
+  const std::vector<RowRange>& strips() const { return schedule_.strips; }
+  // Moves the strip boundaries for the frames rendered from now on (dynamic load balancing).
+  // The images stay bit-identical to one device's: the next frame first sends the rows whose
+  // owner changed — their SVGF history and last frame's G-buffer — to their new owner.
+  // Throws std::invalid_argument for the baseline pipeline or strips check_strips refuses.
+  void set_strips(const std::vector<RowRange>& strips);
+
   // What the control loop tunes, for the frames rendered from now on. Throws
   // std::invalid_argument outside what the pipeline was built for (spp >= 1, bounces within
   // the kernel's limit, 1 <= iterations <= the iterations it was constructed with, since the
@@ -85,6 +93,9 @@ class StereoPipeline {
   // A frame's cost as the control loop splits it: the slowest device's time in the stages
   // each parameter drives, and the rest of the wall time.
   static FrameCost frame_cost(const FrameStats& stats);
+  // Each device's busy time in a frame: its stages' device time, strip and halo transfers left
+  // out (they follow the strip borders, not the rows). What the strip balancer equalises.
+  static std::vector<double> device_busy_ms(const FrameStats& stats, int devices);
 
   // Renders frame `frame` at camera-path time `time_s`. The finished images are on the owner
   // device afterwards; fetch them with images().
@@ -103,6 +114,13 @@ class StereoPipeline {
   std::vector<GBufferTexel> gbuffer_of(int eye);
 
  private:
+  // A device's host-mapped buffer for rows leaving it to a neighbour, and the copies that
+  // still read it (the next exchange through it waits for them).
+  struct HaloStaging {
+    cl::Buffer buffer;
+    std::vector<cl::Event> readers;
+  };
+
   struct DeviceBuffers {
     std::array<cl::Buffer, 2> radiance;  // float4, full frame
     std::array<cl::Buffer, 2> albedo;    // float4, full frame: mean primary albedo of the
@@ -118,8 +136,9 @@ class StereoPipeline {
     // halo rows leaving this device (with the copies still reading it).
     std::array<cl::Buffer, 2> gbuffer_prev;
     std::array<std::unique_ptr<SvgfDenoiser>, 2> svgf;
-    cl::Buffer staging_halo;
-    std::vector<cl::Event> staging_halo_readers;
+    HaloStaging staging_halo;     // float4 rows
+    HaloStaging staging_gbuffer;  // GBufferTexel rows of last frame's G-buffer when strips move
+                                  // (allocated on the first move)
   };
 
   // Kernel launchers; each records its event under (stage, device).
@@ -141,6 +160,15 @@ class StereoPipeline {
   // that other devices own, through the owners' host-mapped staging buffers.
   template <typename BufferOf>
   void exchange_halo(BufferOf buffer, const std::vector<RowRange>& strip, unsigned radius);
+  // The general form: copies into each device's `buffer(d)` the rows of `needed[d]` that
+  // another device `src` holds (`owned[src]`; the owned ranges are disjoint), `texel` bytes per
+  // pixel, through the source's `staging` buffer. With owned = last frame's strips and needed
+  // = this frame's, it moves history to the new owner of rows whose strip changed.
+  template <typename BufferOf>
+  void exchange_rows(BufferOf buffer, const std::vector<RowRange>& owned, const std::vector<RowRange>& needed,
+                     std::size_t texel, HaloStaging DeviceBuffers::*staging);
+  // `strip` widened by `radius` rows each side, clipped to the image.
+  std::vector<RowRange> widen(const std::vector<RowRange>& strip, unsigned radius) const;
   // Rows beyond its strip that each device's G-buffer covers, so that every pass of a halo
   // exchange finds normals and depths of the rows it reads without transferring them.
   unsigned gbuffer_margin() const;
@@ -158,6 +186,9 @@ class StereoPipeline {
   std::vector<cl::Event> owner_waits_;                                // cross-device dependencies
   std::size_t bytes_this_frame_ = 0;
   std::optional<std::array<CameraParams, 2>> prev_cams_;
+  // Per eye, the strips whose rows of SVGF history (and last G-buffer) each device holds: the
+  // strips it denoised last frame. Empty before the first denoised frame.
+  std::array<std::vector<RowRange>, 2> history_strips_;
   std::uint64_t nonfinite_total_ = 0;
 };
 

@@ -90,8 +90,32 @@ StageWork work(Stage s, int devices, unsigned height, const std::vector<std::vec
 
 }  // namespace
 
-FrameSchedule make_schedule(PipelineKind pipeline, int devices, unsigned height, bool denoise) {
+bool has_movable_strips(PipelineKind pipeline) { return pipeline != PipelineKind::Baseline; }
+
+void check_strips(const std::vector<RowRange>& strips, int devices, unsigned height) {
+  if (strips.size() != static_cast<std::size_t>(devices))
+    throw std::invalid_argument("strips: " + std::to_string(strips.size()) + " strip(s) for " + std::to_string(devices) +
+                                " device(s)");
+  unsigned row = 0;
+  for (std::size_t i = 0; i < strips.size(); ++i) {
+    if (strips[i].begin != row || strips[i].end <= strips[i].begin || strips[i].end > height)
+      throw std::invalid_argument("strips: strip " + std::to_string(i) + " [" + std::to_string(strips[i].begin) + ", " +
+                                  std::to_string(strips[i].end) + ") must start at row " + std::to_string(row) +
+                                  ", hold at least one row and end within the " + std::to_string(height) + " rows");
+    row = strips[i].end;
+  }
+  if (row != height)
+    throw std::invalid_argument("strips: they end at row " + std::to_string(row) + " of " + std::to_string(height));
+}
+
+FrameSchedule make_schedule(PipelineKind pipeline, int devices, unsigned height, bool denoise,
+                            const std::vector<RowRange>& strips) {
   if (devices < 1) throw std::invalid_argument("make_schedule: at least one device");
+  if (!strips.empty()) {
+    if (!has_movable_strips(pipeline))
+      throw std::invalid_argument(std::string("the ") + to_string(pipeline) + " pipeline's strips cannot be moved");
+    check_strips(strips, devices, height);
+  }
   FrameSchedule fs;
   fs.pipeline = pipeline;
   fs.devices = devices;
@@ -101,7 +125,7 @@ FrameSchedule make_schedule(PipelineKind pipeline, int devices, unsigned height,
 
   const std::vector<std::vector<RowRange>> none(devices);
   // Each device's own strip (proposed and mono): N contiguous strips, round-robin.
-  fs.strips = split_rows(height, static_cast<unsigned>(devices));
+  fs.strips = strips.empty() ? split_rows(height, static_cast<unsigned>(devices)) : strips;
   std::vector<std::vector<RowRange>> own(devices);
   for (int i = 0; i < devices; ++i) {
     fs.strip_device.push_back(i % devices);

@@ -33,6 +33,7 @@ const char* stage_name(Stage s);
 struct RowRange {
   unsigned begin = 0, end = 0;
   unsigned size() const { return end - begin; }
+  bool operator==(const RowRange&) const = default;
 };
 
 struct Workload {
@@ -80,6 +81,18 @@ std::vector<unsigned> bit_reversed_order(unsigned n);
 // With `denoise`, stages 6 (SVGF, both eyes) and 7 follow hole filling: proposed and mono on
 // every device for its strip (1/N, 1/N), baseline on the owner (1, 1); mono then also builds
 // the G-buffer SVGF needs.
-FrameSchedule make_schedule(PipelineKind pipeline, int devices, unsigned height, bool denoise = false);
+// `strips` (proposed and mono only): the per-device strips to use instead of the even split,
+// strip i on device i — what a load balancer moves between frames. They must be contiguous,
+// top to bottom, cover every row once and give each device at least one row
+// (std::invalid_argument otherwise; check_strips says why).
+FrameSchedule make_schedule(PipelineKind pipeline, int devices, unsigned height, bool denoise = false,
+                            const std::vector<RowRange>& strips = {});
+
+// Whether a pipeline's strips can move between frames: proposed and mono give each device one
+// strip of every per-pixel stage; baseline's many shuffled strips are balanced by construction.
+bool has_movable_strips(PipelineKind pipeline);
+// Throws std::invalid_argument unless `strips` are `devices` contiguous non-empty ranges
+// covering [0, height) in order.
+void check_strips(const std::vector<RowRange>& strips, int devices, unsigned height);
 
 }  // namespace px
