@@ -2,6 +2,7 @@
 
 #include "app/output_dir.h"
 #include "app/scene_setup.h"
+#include "cluster/cluster.h"
 #include "control/strip_balancer.h"
 #include "image/image_io.h"
 #include "image/image_metrics.h"
@@ -154,9 +155,21 @@ int run_render(const RenderCommand& cmd) {
   if (dynamic_strips && !has_movable_strips(opt.pipeline))
     throw std::invalid_argument("--balance dynamic needs the proposed or mono pipeline (baseline already spreads path "
                                 "tracing over many shuffled strips and runs the rest on one device)");
+  // Under mpirun every rank runs this with the same flags: each drives its own --devices N, the
+  // frame is split over all ranks' devices, and rank 0 owns the frame and writes every file.
+  Cluster& cluster = Cluster::world();
+  const bool distributed = cluster.distributed();
+  const bool root = cluster.rank() == 0;
+  opt.cluster = &cluster;
   if (cmd.explain) {
+    if (!root) return 0;
     // The schedule depends only on pipeline, device count, height and denoising: no scene needed.
-    std::printf("%s", make_schedule(opt.pipeline, cmd.devices.count, cmd.height, opt.denoise).explain().c_str());
+    std::printf("%s", make_schedule(opt.pipeline, cmd.devices.count * cluster.size(), cmd.height, opt.denoise)
+                          .explain()
+                          .c_str());
+    if (distributed)
+      std::printf("MPI: %d ranks x %d device(s); rank r drives devices %d*r .. %d*r+%d\n", cluster.size(),
+                  cmd.devices.count, cmd.devices.count, cmd.devices.count, cmd.devices.count - 1);
     if (dynamic_strips)
       std::printf("balance: dynamic — the strips above are the starting split; between frames each boundary moves "
                   "up to %u rows toward equal measured device time\n",
@@ -164,38 +177,103 @@ int run_render(const RenderCommand& cmd) {
     return 0;
   }
   install_interrupt_handlers();
-  const OutputDir out_dir(cmd.out, cmd.overwrite, is_render_frame_file);
   // The report and the timeline are streamed frame by frame into their (temporary) files, so a
   // long run holds no per-frame records: before, every command's span was kept as a JSON tree
   // whether or not a timeline was asked for (~130 KB per frame with 2 denoising devices).
   // Opening them now also refuses an unwritable path before any rendering.
+  std::optional<OutputDir> out_dir;
   std::optional<AtomicFileWriter> report_file, timeline_file;
   bool first_report_frame = true, first_trace_event = true;
-  if (!cmd.report.empty()) {
-    report_file.emplace(cmd.report);
-    report_file->write("{\n  \"frames\": [");
+  std::optional<LoadedScene> loaded;
+  std::optional<DeviceSet> device_set;
+  std::optional<DeviceScene> device_scene;
+  std::optional<StereoPipeline> pipeline_slot;
+  auto setup = [&] {
+    if (root) {
+      out_dir.emplace(cmd.out, cmd.overwrite, is_render_frame_file);
+      if (!cmd.report.empty()) {
+        report_file.emplace(cmd.report);
+        report_file->write("{\n  \"frames\": [");
+      }
+      if (!cmd.timeline.empty()) timeline_file.emplace(cmd.timeline);
+    }
+    // Every rank loads the scene itself (the scene is replicated, not sent).
+    loaded.emplace(load_and_build(cmd.scene, !root));
+    device_set.emplace(cmd.devices.create());
+    if (root) print_device_set(*device_set);
+    device_scene.emplace(*device_set, loaded->scene, loaded->bvh);
+    pipeline_slot.emplace(*device_set, *device_scene, loaded->scene, cmd.width, cmd.height, opt);
+  };
+  if (!distributed) {
+    setup();
+  } else {
+    // A rank that cannot start (a scene path missing on its node, no OpenCL device) must stop
+    // every rank with its reason, not leave the others waiting for its messages.
+    std::string why;
+    try {
+      setup();
+    } catch (const cl::Error& e) {
+      why = std::string("OpenCL: ") + describe(e);
+    } catch (const std::exception& e) {
+      why = e.what();
+    }
+    const auto failed = cluster.failures(why.empty(), why);
+    if (!failed.empty()) {
+      cluster.mark_orderly_exit();
+      if (!root) return 1;  // rank 0 says why, for every rank
+      std::string all = std::to_string(failed.size()) + " of " + std::to_string(cluster.size()) +
+                        " MPI ranks could not start, so none renders:";
+      for (const auto& f : failed) all += "\n  " + f;
+      throw std::runtime_error(all);
+    }
+    if (root)
+      std::fprintf(stderr, "[mpi] %d ranks x %d device(s) = %d devices; rank 0 owns the frame and writes the files\n",
+                   cluster.size(), cmd.devices.count, pipeline_slot->layout().count());
   }
-  if (!cmd.timeline.empty()) timeline_file.emplace(cmd.timeline);
-  auto loaded = load_and_build(cmd.scene);
-  auto devices = cmd.devices.create();
-  print_device_set(devices);
-  DeviceScene device_scene(devices, loaded.scene, loaded.bvh);
-  StereoPipeline pipeline(devices, device_scene, loaded.scene, cmd.width, cmd.height, opt);
+  DeviceSet& devices = *device_set;
+  StereoPipeline& pipeline = *pipeline_slot;
+  const int all_devices = pipeline.layout().count();
   std::optional<StripBalancer> balancer;
-  if (dynamic_strips && devices.size() > 1) {
-    if (cmd.height < static_cast<unsigned>(devices.size()))
+  if (dynamic_strips && all_devices > 1) {
+    if (cmd.height < static_cast<unsigned>(all_devices))
       throw std::invalid_argument("--balance dynamic needs at least one row per device");
     StripBalancer::Options b;
     b.max_step_rows = cmd.balance_step;
-    balancer.emplace(cmd.height, devices.size(), b);
+    balancer.emplace(cmd.height, all_devices, b);
   }
-  std::fprintf(stderr, "[render] %u frame(s), %ux%u per eye, %u spp, %u bounces, pipeline %s, denoise %s\n", cmd.frames,
-               cmd.width, cmd.height, opt.trace.spp, opt.trace.bounces, cmd.pipeline.c_str(),
-               opt.denoise ? ("SVGF, seams " + cmd.seams).c_str() : "off");
-  if (interrupted()) {
-    std::printf("interrupted by %s before the first frame: nothing written\n", interrupt_signal_name());
-    return interrupt_exit_code();
-  }
+  if (root)
+    std::fprintf(stderr, "[render] %u frame(s), %ux%u per eye, %u spp, %u bounces, pipeline %s, denoise %s\n",
+                 cmd.frames, cmd.width, cmd.height, opt.trace.spp, opt.trace.bounces, cmd.pipeline.c_str(),
+                 opt.denoise ? ("SVGF, seams " + cmd.seams).c_str() : "off");
+  // Whether to render the next frame, and with what. Under MPI, rank 0 decides (its interrupt,
+  // its control loop's quality, its balancer's strips) and every rank follows.
+  auto next_frame_agreed = [&]() -> bool {
+    if (!distributed) return !interrupted();
+    std::vector<std::uint32_t> order(4 + static_cast<std::size_t>(all_devices), 0);
+    if (root) {
+      const FrameQuality q = pipeline.quality();
+      order[0] = interrupted() ? 1u : 0u;
+      order[1] = q.spp;
+      order[2] = q.bounces;
+      order[3] = q.svgf_iterations;
+      if (balancer)
+        for (int d = 0; d < all_devices; ++d) order[4 + d] = pipeline.strips()[d].size();
+    }
+    cluster.broadcast(order.data(), order.size() * sizeof(std::uint32_t));
+    if (!root && order[0] == 0) {
+      pipeline.set_quality({order[1], order[2], order[3]});
+      if (balancer) {
+        std::vector<RowRange> next;
+        unsigned row = 0;
+        for (int d = 0; d < all_devices; ++d) {
+          next.push_back({row, row + order[4 + d]});
+          row += order[4 + d];
+        }
+        pipeline.set_strips(next);
+      }
+    }
+    return order[0] == 0;
+  };
   // Chrome trace events: one track (tid) per device, one slice per OpenCL command. Device
   // clocks are made relative to the run's first command; devices that do not share a clock
   // (separate GPUs) are only comparable within their own track.
@@ -223,12 +301,21 @@ int run_render(const RenderCommand& cmd) {
   unsigned done = 0;
   // Every frame's camera is checked before the first is rendered: a bad one fails the run now.
   for (unsigned f = 0; f < cmd.frames; ++f)
-    check_camera(loaded.scene, static_cast<float>(f) / cmd.fps, "frame " + std::to_string(f));
+    check_camera(loaded->scene, static_cast<float>(f) / cmd.fps, "frame " + std::to_string(f));
   std::optional<double> predicted_ms;  // the control loop's prediction for the coming frame
   for (unsigned f = 0; f < cmd.frames; ++f) {
+    if (!next_frame_agreed()) {
+      if (f > 0) break;
+      if (root) std::printf("interrupted by %s before the first frame: nothing written\n", interrupt_signal_name());
+      return interrupt_exit_code();
+    }
     const FrameQuality quality = pipeline.quality();
     const std::vector<RowRange> strips = pipeline.strips();
     const FrameStats st = pipeline.render(f, static_cast<float>(f) / cmd.fps);
+    if (!root) {  // rank 0 holds the frame, decides the next and writes everything
+      done = f + 1;
+      continue;
+    }
     const std::optional<double> predicted_this_frame = predicted_ms;
     // Frame 0 compiles the kernels (seconds on PoCL): it says nothing about the frame time.
     if (controller && f > 0) {
@@ -239,7 +326,7 @@ int run_render(const RenderCommand& cmd) {
     if (balancer && f > 0) {
       std::vector<unsigned> rows;
       for (const RowRange& r : strips) rows.push_back(r.size());
-      rows = balancer->update(rows, StereoPipeline::device_busy_ms(st, devices.size()));
+      rows = balancer->update(rows, StereoPipeline::device_busy_ms(st, all_devices));
       std::vector<RowRange> next;
       unsigned row = 0;
       for (unsigned r : rows) {
@@ -255,10 +342,10 @@ int run_render(const RenderCommand& cmd) {
     try {
       for (int e = 0; e < 2; ++e) {
         const std::string name = prefix + (e == 0 ? "left" : "right");
-        write_exr(out_dir.file(name + ".exr"), eyes[e]);
-        write_png(out_dir.file(name + ".png"), eyes[e].width, eyes[e].height, png[e]);
+        write_exr(out_dir->file(name + ".exr"), eyes[e]);
+        write_png(out_dir->file(name + ".png"), eyes[e].width, eyes[e].height, png[e]);
       }
-      write_png(out_dir.file(prefix + "stereo.png"), 2 * eyes[0].width, eyes[0].height,
+      write_png(out_dir->file(prefix + "stereo.png"), 2 * eyes[0].width, eyes[0].height,
                 side_by_side(png[0], png[1], eyes[0].width, eyes[0].height));
     } catch (const ImageError& e) {
       // Say what is usable: the frames before this one are complete.
@@ -310,6 +397,9 @@ int run_render(const RenderCommand& cmd) {
                          nlohmann::json{{"frame", f}, {"wall_ms", st.wall_ms}, {"stages", stages},
                                         {"right_pixels", st.right_pixels}, {"reprojected", st.reprojected},
                                         {"bytes_transferred", st.bytes_transferred}, {"strips", strip_rows},
+                                        {"mpi", distributed ? nlohmann::json{{"bytes_sent", st.mpi_bytes},
+                                                                             {"ms", st.mpi_ms}}
+                                                            : nlohmann::json(nullptr)},
                                         {"spp", quality.spp},
                                         {"bounces", quality.bounces},
                                         {"svgf_iterations", opt.denoise ? quality.svgf_iterations : 0u},
@@ -318,8 +408,10 @@ int run_render(const RenderCommand& cmd) {
                              .dump());
       first_report_frame = false;
     }
-    if (interrupted()) break;
+    // Under MPI the next frame's agreement stops every rank together.
+    if (!distributed && interrupted()) break;
   }
+  if (!root) return 0;
   // The first frame compiles the kernels (seconds on PoCL): Hz over the frames after it says
   // what the pipeline sustains; with one frame there is nothing else to measure.
   const unsigned hz_frames = done > 1 ? done - 1 : done;
@@ -333,7 +425,8 @@ int run_render(const RenderCommand& cmd) {
     const nlohmann::json r = {{"schema", "parallax-render-report/1"},
                         {"scene", cmd.scene},
                         {"pipeline", cmd.pipeline},
-                        {"devices", devices.size()},
+                        {"devices", all_devices},
+                        {"ranks", cluster.size()},
                         {"device_mode", to_string(devices.mode())},
                         {"width", cmd.width},
                         {"height", cmd.height},

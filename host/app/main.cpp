@@ -2,6 +2,7 @@
 // one. No rendering logic lives here.
 #include "app/commands.h"
 #include "app/guarded_main.h"
+#include "cluster/cluster.h"
 
 #include <CLI/CLI.hpp>
 
@@ -140,7 +141,15 @@ int main(int argc, char** argv) {
       ->capture_default_str();
 
   CLI11_PARSE(app, argc, argv);
-  return px::run_guarded([&]() -> int {
+  // Joins the MPI job when started by mpirun (a no-op otherwise).
+  px::Cluster& cluster = px::Cluster::world();
+  const int rc = px::run_guarded([&]() -> int {
+    if (cluster.distributed() && !render_cmd->parsed() && !demo_cmd->parsed()) {
+      cluster.mark_orderly_exit();
+      if (cluster.rank() == 0)
+        throw std::invalid_argument("only `render` (and `demo`) run across MPI ranks; run this command without mpirun");
+      return 1;
+    }
     if (devices_cmd->parsed()) return px::run_devices(devices_choice);
     if (preview_cmd->parsed()) return px::run_preview(preview);
     if (render_cmd->parsed()) return px::run_render(render);
@@ -162,4 +171,11 @@ int main(int argc, char** argv) {
     }
     return 0;
   });
+  // A rank that failed alone (mid-frame) would leave the others waiting for its messages:
+  // end the whole job. Failures every rank agreed on exit normally.
+  if (rc != 0 && cluster.distributed() && !cluster.orderly_exit()) {
+    std::fprintf(stderr, "error: MPI rank %d failed; stopping all %d ranks\n", cluster.rank(), cluster.size());
+    cluster.abort(rc);
+  }
+  return rc;
 }

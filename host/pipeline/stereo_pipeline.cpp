@@ -35,12 +35,14 @@ SeamMode parse_seam_mode(const std::string& text) {
 StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene,
                                unsigned width, unsigned height, Options options)
     : devices_(devices),
+      cluster_(options.cluster && options.cluster->distributed() ? options.cluster : nullptr),
+      layout_{cluster_ ? cluster_->rank() : 0, cluster_ ? cluster_->size() : 1, devices.size()},
       device_scene_(device_scene),
       scene_(scene),
       width_(width),
       height_(height),
       options_(options),
-      schedule_(make_schedule(options.pipeline, devices.size(), height, options.denoise)),
+      schedule_(make_schedule(options.pipeline, layout_.count(), height, options.denoise)),
       max_svgf_iterations_(options.svgf.iterations) {
   if (width == 0 || height == 0 || width > 65535 || height > 65535)
     throw std::invalid_argument("image size must be between 1 and 65535 per side");
@@ -49,8 +51,12 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
     throw std::invalid_argument("bounces must be at most " + std::to_string(PathTracer::kMaxBounces));
   const std::size_t pixels = static_cast<std::size_t>(width) * height;
   const auto& ctx = devices.context();
-  for (int d = 0; d < devices.size(); ++d) {
+  for (int d = 0; d < layout_.count(); ++d) {
     DeviceBuffers b;
+    if (!local(d)) {  // another rank's device: nothing of it lives here
+      buffers_.push_back(std::move(b));
+      continue;
+    }
     for (int e = 0; e < 2; ++e) {
       b.radiance[e] = device_buffer(ctx, pixels * sizeof(cl_float4));
       b.albedo[e] = device_buffer(ctx, pixels * sizeof(cl_float4));
@@ -64,7 +70,7 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
       if (options_.svgf.iterations < 1) throw std::invalid_argument("SVGF needs at least one a-trous iteration");
       for (int e = 0; e < 2; ++e) {
         b.gbuffer_prev[e] = device_buffer(ctx, pixels * sizeof(GBufferTexel));
-        b.svgf[e] = std::make_unique<SvgfDenoiser>(devices, d, width, height, options_.svgf);
+        b.svgf[e] = std::make_unique<SvgfDenoiser>(devices, layout_.local_index(d), width, height, options_.svgf);
       }
       b.staging_halo.buffer = cl::Buffer(ctx, CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR, pixels * sizeof(cl_float4));
     }
@@ -114,7 +120,7 @@ void StereoPipeline::record(Stage stage, int device, const cl::Event& e) { event
 
 void StereoPipeline::enqueue(int d, cl::Kernel& k, std::size_t items, Stage stage) {
   cl::Event e;
-  devices_.devices()[d].queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(items, kLocalSize)),
+  queue(d).enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(items, kLocalSize)),
                                                    cl::NDRange(kLocalSize), nullptr, &e);
   record(stage, d, e);
 }
@@ -133,7 +139,7 @@ void StereoPipeline::path_trace(int d, int eye, RowRange rows, const CameraParam
   k.setArg(2, buffers_[d].nonfinite);
   k.setArg(3, fp);
   k.setArg(4, cam);
-  device_scene_.on(d).bind(k, 5);
+  device_scene_.on(layout_.local_index(d)).bind(k, 5);
   enqueue(d, k, static_cast<std::size_t>(rows.size()) * width_, stage);
 }
 
@@ -144,13 +150,13 @@ void StereoPipeline::gbuffer(int d, int eye, RowRange rows, const CameraParams& 
   k.setArg(1, static_cast<cl_uint>(rows.begin));
   k.setArg(2, static_cast<cl_uint>(rows.size()));
   k.setArg(3, cam);
-  device_scene_.on(d).bind(k, 4);
+  device_scene_.on(layout_.local_index(d)).bind(k, 4);
   enqueue(d, k, static_cast<std::size_t>(rows.size()) * width_, Stage::GBuffer);
 }
 
 void StereoPipeline::reproject(int d, RowRange rows, const CameraParams& left_cam) {
   if (rows.size() == 0) return;
-  auto& q = devices_.devices()[d].queue;
+  auto& q = queue(d);
   const cl_uint zero = 0;
   q.enqueueFillBuffer(buffers_[d].hole_count, zero, 0, sizeof(cl_uint));
   cl::Kernel k(devices_.program("pipeline/reproject.cl"), "reproject");
@@ -181,7 +187,7 @@ void StereoPipeline::fill_holes(int d, RowRange rows, const CameraParams& right_
   k.setArg(4, b.hole_count);
   k.setArg(5, fp);
   k.setArg(6, right_cam);
-  device_scene_.on(d).bind(k, 7);
+  device_scene_.on(layout_.local_index(d)).bind(k, 7);
   // Sized for the worst case (every pixel a hole): the hole count lives on the device, so no
   // host round trip is needed between reprojection and hole filling.
   enqueue(d, k, static_cast<std::size_t>(rows.size()) * width_, Stage::HoleFill);
@@ -201,28 +207,57 @@ void StereoPipeline::tonemap(int d, int eye, RowRange rows) {
 
 void StereoPipeline::transfer(int d, int eye, RowRange rows, bool radiance, bool rgba) {
   const int owner = schedule_.tree.root;
-  if (d == owner || rows.size() == 0) return;
-  auto& child_q = devices_.devices()[d].queue;
-  auto& owner_q = devices_.devices()[owner].queue;
+  if (d == owner || rows.size() == 0 || (!local(d) && !local(owner))) return;
   const std::size_t pixels = static_cast<std::size_t>(width_) * height_;
   const std::size_t first = static_cast<std::size_t>(rows.begin) * width_, count = static_cast<std::size_t>(rows.size()) * width_;
-  auto hop = [&](const cl::Buffer& src, const cl::Buffer& staging, const cl::Buffer& dst, std::size_t texel) {
-    cl::Event to_host, to_owner;
-    const std::size_t staged = (static_cast<std::size_t>(eye) * pixels + first) * texel;
-    child_q.enqueueCopyBuffer(src, staging, first * texel, staged, count * texel, nullptr, &to_host);
-    std::vector<cl::Event> wait{to_host};
-    owner_q.enqueueCopyBuffer(staging, dst, staged, first * texel, count * texel, &wait, &to_owner);
-    record(Stage::Transfer, d, to_host);
-    record(Stage::Transfer, owner, to_owner);
-    bytes_this_frame_ += count * texel;
+  auto hop = [&](const cl::Buffer& src, cl::Buffer DeviceBuffers::*staging, const cl::Buffer& dst, std::size_t texel) {
+    // Each eye has its own half of the staging buffer, and every row range travels once a
+    // frame: no two copies share staging bytes.
+    copy_rows(d, src, owner, dst, first * texel, count * texel,
+              [&]() -> const cl::Buffer& { return buffers_[d].*staging; },
+              (static_cast<std::size_t>(eye) * pixels + first) * texel, nullptr);
   };
   if (radiance) {
-    hop(buffers_[d].radiance[eye], buffers_[d].staging_radiance, buffers_[owner].radiance[eye], sizeof(cl_float4));
+    hop(buffers_[d].radiance[eye], &DeviceBuffers::staging_radiance, buffers_[owner].radiance[eye], sizeof(cl_float4));
     // The owner denoises transferred radiance (baseline), which needs its albedo alongside.
     if (options_.denoise && schedule_.pipeline == PipelineKind::Baseline)
-      hop(buffers_[d].albedo[eye], buffers_[d].staging_albedo, buffers_[owner].albedo[eye], sizeof(cl_float4));
+      hop(buffers_[d].albedo[eye], &DeviceBuffers::staging_albedo, buffers_[owner].albedo[eye], sizeof(cl_float4));
   }
-  if (rgba) hop(buffers_[d].rgba[eye], buffers_[d].staging_rgba, buffers_[owner].rgba[eye], sizeof(cl_uchar4));
+  if (rgba) hop(buffers_[d].rgba[eye], &DeviceBuffers::staging_rgba, buffers_[owner].rgba[eye], sizeof(cl_uchar4));
+}
+
+template <typename StagingOf>
+void StereoPipeline::copy_rows(int from, const cl::Buffer& src, int to, const cl::Buffer& dst, std::size_t offset,
+                               std::size_t bytes, StagingOf staging, std::size_t staging_offset,
+                               std::vector<cl::Event>* readers) {
+  if (local(from) && local(to)) {
+    const cl::Buffer& st = staging();
+    cl::Event out, in;
+    std::vector<cl::Event> wait = readers ? *readers : std::vector<cl::Event>{};
+    queue(from).enqueueCopyBuffer(src, st, offset, staging_offset, bytes, wait.empty() ? nullptr : &wait, &out);
+    std::vector<cl::Event> after{out};
+    queue(to).enqueueCopyBuffer(st, dst, staging_offset, offset, bytes, &after, &in);
+    if (readers) *readers = {in};
+    record(Stage::Transfer, from, out);
+    record(Stage::Transfer, to, in);
+    bytes_this_frame_ += bytes;
+  } else if (local(from)) {
+    // To another rank: read the rows (waiting for the commands that write them), then send.
+    auto& host = message_rows_.emplace_back(bytes);
+    cl::Event out;
+    queue(from).enqueueReadBuffer(src, CL_TRUE, offset, bytes, host.data(), nullptr, &out);
+    record(Stage::Transfer, from, out);
+    cluster_->send(layout_.rank_of(to), host.data(), bytes);
+  } else if (local(to)) {
+    // From another rank: the message arrives in schedule order; write it behind the commands
+    // already queued on `to` (the host copy lives until the frame is finished).
+    auto& host = message_rows_.emplace_back(bytes);
+    cluster_->recv(layout_.rank_of(from), host.data(), bytes);
+    cl::Event in;
+    queue(to).enqueueWriteBuffer(dst, CL_FALSE, offset, bytes, host.data(), nullptr, &in);
+    record(Stage::Transfer, to, in);
+    bytes_this_frame_ += bytes;
+  }
 }
 
 FrameStats StereoPipeline::render(unsigned frame, float time_s) {
@@ -230,24 +265,29 @@ FrameStats StereoPipeline::render(unsigned frame, float time_s) {
   const auto t0 = clock_type::now();
   events_.clear();
   bytes_this_frame_ = 0;
+  if (cluster_) cluster_->reset_traffic();
   // Stage 1, scene update: this frame's camera constants, passed to every launch.
   const Camera centre = evaluate_camera(scene_, time_s);
   const std::array<CameraParams, 2> cams = {
       make_eye_camera(centre, Eye::Left, scene_.ipd_units(), width_, height_),
       make_eye_camera(centre, Eye::Right, scene_.ipd_units(), width_, height_)};
   const cl_uint zero = 0;
-  for (int d = 0; d < devices_.size(); ++d) {
-    devices_.devices()[d].queue.enqueueFillBuffer(buffers_[d].nonfinite, zero, 0, sizeof(cl_uint));
-    devices_.devices()[d].queue.enqueueFillBuffer(buffers_[d].hole_count, zero, 0, sizeof(cl_uint));
+  const int n = layout_.count();
+  for (int d = 0; d < n; ++d) {
+    if (!local(d)) continue;
+    queue(d).enqueueFillBuffer(buffers_[d].nonfinite, zero, 0, sizeof(cl_uint));
+    queue(d).enqueueFillBuffer(buffers_[d].hole_count, zero, 0, sizeof(cl_uint));
   }
 
-  const int n = devices_.size();
   for (const StageWork& work : schedule_.stages) {
     if (work.stage == Stage::Denoise) {
       denoise(work, cams);
       continue;
     }
     for (int d = 0; d < n; ++d) {
+      // Another rank's device: it runs there; only transfers involve this rank (transfer()
+      // sends or receives when one end is here).
+      if (!local(d) && work.stage != Stage::Transfer) continue;
       for (const RowRange& r : work.left_rows[d]) {
         switch (work.stage) {
           case Stage::PathTraceLeft: path_trace(d, 0, r, cams[0], frame, Stage::PathTraceLeft); break;
@@ -283,9 +323,12 @@ FrameStats StereoPipeline::render(unsigned frame, float time_s) {
     }
   }
   devices_.finish_all();
+  if (cluster_) cluster_->wait_sends();
+  message_rows_.clear();
   if (options_.denoise) {
     // Stage 7: this frame's G-buffers and SVGF history become the previous frame's.
     for (auto& b : buffers_) {
+      if (!b.svgf[0]) continue;  // another rank's device
       for (int e = 0; e < 2; ++e) {
         std::swap(b.gbuffer[e], b.gbuffer_prev[e]);
         b.svgf[e]->end_frame();
@@ -314,19 +357,45 @@ FrameStats StereoPipeline::render(unsigned frame, float time_s) {
                            e.getProfilingInfo<CL_PROFILING_COMMAND_END>()});
   }
   for (auto& [key, ms] : sums) stats.stages.push_back({key.first, key.second, ms});
-  stats.bytes_transferred = bytes_this_frame_;
   stats.right_pixels = static_cast<std::size_t>(width_) * height_;
   const StageWork* fill = schedule_.find(Stage::HoleFill);
-  std::size_t holes = 0;
+  std::uint64_t holes = 0, bad_total = 0;
   for (int d = 0; d < n; ++d) {
+    if (!local(d)) continue;
     cl_uint count = 0, bad = 0;
-    auto& q = devices_.devices()[d].queue;
+    auto& q = queue(d);
     q.enqueueReadBuffer(buffers_[d].nonfinite, CL_FALSE, 0, sizeof(cl_uint), &bad);
     if (fill) q.enqueueReadBuffer(buffers_[d].hole_count, CL_FALSE, 0, sizeof(cl_uint), &count);
     q.finish();
     holes += count;  // one reprojection launch per device and frame at most, in either pipeline
-    nonfinite_total_ += bad;
+    bad_total += bad;
   }
+  std::uint64_t bytes = bytes_this_frame_;
+  if (cluster_) {
+    // Rank 0 reports the whole frame: every rank's counts, stage times and traffic.
+    holes = cluster_->sum(holes);
+    bad_total = cluster_->sum(bad_total);
+    bytes = cluster_->sum(bytes);
+    std::vector<double> mine;
+    for (const StageTiming& t : stats.stages) mine.insert(mine.end(), {double(int(t.stage)), double(t.device), t.ms});
+    const std::vector<double> all_stages = cluster_->gather(mine);
+    std::vector<double> traffic(cluster_->bytes_sent_to().begin(), cluster_->bytes_sent_to().end());
+    traffic.push_back(cluster_->mpi_ms());
+    const std::vector<double> all_traffic = cluster_->gather(traffic);
+    if (cluster_->rank() == 0) {
+      stats.stages.clear();
+      for (std::size_t i = 0; i + 2 < all_stages.size(); i += 3)
+        stats.stages.push_back({static_cast<Stage>(int(all_stages[i])), int(all_stages[i + 1]), all_stages[i + 2]});
+      const int ranks = cluster_->size();
+      for (int r = 0; r < ranks; ++r) {
+        const double* row = all_traffic.data() + static_cast<std::size_t>(r) * (ranks + 1);
+        stats.mpi_bytes.emplace_back(row, row + ranks);
+        stats.mpi_ms.push_back(row[ranks]);
+      }
+    }
+  }
+  nonfinite_total_ += bad_total;
+  stats.bytes_transferred = bytes;
   stats.reprojected = fill ? stats.right_pixels - holes : 0;
   return stats;
 }
@@ -360,31 +429,27 @@ template <typename BufferOf>
 void StereoPipeline::exchange_rows(BufferOf buffer, const std::vector<RowRange>& owned,
                                    const std::vector<RowRange>& needed, std::size_t texel,
                                    HaloStaging DeviceBuffers::*staging) {
-  const int n = devices_.size();
+  const int n = layout_.count();
   for (int d = 0; d < n; ++d) {
     if (needed[d].size() == 0) continue;
     for (int src = 0; src < n; ++src) {
-      if (src == d || owned[src].size() == 0) continue;
+      if (src == d || owned[src].size() == 0 || (!local(d) && !local(src))) continue;
       // The owned ranges are disjoint, so this never overwrites rows d holds itself.
       const unsigned a = std::max(needed[d].begin, owned[src].begin), b = std::min(needed[d].end, owned[src].end);
       if (a >= b) continue;
       const std::size_t off = static_cast<std::size_t>(a) * width_ * texel;
       const std::size_t len = static_cast<std::size_t>(b - a) * width_ * texel;
       HaloStaging& st = buffers_[src].*staging;
-      if (!st.buffer())
-        st.buffer = cl::Buffer(devices_.context(), CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR,
-                               static_cast<std::size_t>(width_) * height_ * texel);
-      cl::Event out, in;
-      // The staging rows may still be read by an earlier exchange's copy-in: wait for it.
-      std::vector<cl::Event> wait = st.readers;
-      devices_.devices()[src].queue.enqueueCopyBuffer(buffer(src), st.buffer, off, off, len,
-                                                      wait.empty() ? nullptr : &wait, &out);
-      std::vector<cl::Event> after{out};
-      devices_.devices()[d].queue.enqueueCopyBuffer(st.buffer, buffer(d), off, off, len, &after, &in);
-      st.readers = {in};
-      record(Stage::Transfer, src, out);
-      record(Stage::Transfer, d, in);
-      bytes_this_frame_ += len;
+      // Another rank's device has no buffer here: copy_rows only touches the local end.
+      static const cl::Buffer none;
+      copy_rows(src, local(src) ? buffer(src) : none, d, local(d) ? buffer(d) : none, off, len,
+                [&]() -> const cl::Buffer& {
+                  if (!st.buffer())
+                    st.buffer = cl::Buffer(devices_.context(), CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR,
+                                           static_cast<std::size_t>(width_) * height_ * texel);
+                  return st.buffer;
+                },
+                off, &st.readers);
     }
   }
 }
@@ -393,11 +458,11 @@ void StereoPipeline::set_strips(const std::vector<RowRange>& strips) {
   if (strips == schedule_.strips) return;
   // make_schedule checks the strips and refuses the baseline pipeline; the history moves in
   // the next frame's denoising, from history_strips_ to the new strips.
-  schedule_ = make_schedule(options_.pipeline, devices_.size(), height_, options_.denoise, strips);
+  schedule_ = make_schedule(options_.pipeline, layout_.count(), height_, options_.denoise, strips);
 }
 
 void StereoPipeline::denoise(const StageWork& work, const std::array<CameraParams, 2>& cams) {
-  const int n = devices_.size();
+  const int n = layout_.count();
   const bool halo = options_.seams == SeamMode::Halo;
   const RowRange image{0, height_};
   for (int e = 0; e < 2; ++e) {
@@ -427,23 +492,27 @@ void StereoPipeline::denoise(const StageWork& work, const std::array<CameraParam
       exchange_rows([&](int d) -> const cl::Buffer& { return buffers_[d].gbuffer_prev[e]; }, held, history_rows,
                     sizeof(GBufferTexel), &DeviceBuffers::staging_gbuffer);
     for (int d = 0; d < n; ++d)
-      svgf(d).temporal(buffers_[d].radiance[e], buffers_[d].albedo[e], buffers_[d].gbuffer[e], buffers_[d].gbuffer_prev[e], prev, strip[d],
+      if (local(d))
+        svgf(d).temporal(buffers_[d].radiance[e], buffers_[d].albedo[e], buffers_[d].gbuffer[e], buffers_[d].gbuffer_prev[e], prev, strip[d],
                        readable(d));
     if (halo) {
       exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).illum(); }, strip, 3);
       exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).moments(); }, strip, gbuffer_margin());
     }
-    for (int d = 0; d < n; ++d) svgf(d).variance(buffers_[d].gbuffer[e], strip[d], readable(d));
+    for (int d = 0; d < n; ++d)
+      if (local(d)) svgf(d).variance(buffers_[d].gbuffer[e], strip[d], readable(d));
     for (unsigned i = 0; i < o.iterations; ++i) {
       if (halo) exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).illum(); }, strip, 2u << i);
-      for (int d = 0; d < n; ++d) svgf(d).atrous(i, buffers_[d].gbuffer[e], strip[d], readable(d));
+      for (int d = 0; d < n; ++d)
+        if (local(d)) svgf(d).atrous(i, buffers_[d].gbuffer[e], strip[d], readable(d));
     }
-    for (int d = 0; d < n; ++d) svgf(d).remodulate(buffers_[d].radiance[e], buffers_[d].albedo[e], strip[d]);
+    for (int d = 0; d < n; ++d)
+      if (local(d)) svgf(d).remodulate(buffers_[d].radiance[e], buffers_[d].albedo[e], strip[d]);
     if (options_.seams == SeamMode::Bilateral && n > 1) {
       exchange_halo([&](int d) -> const cl::Buffer& { return buffers_[d].radiance[e]; }, strip,
                     options_.seam_band + 2);
       for (int d = 0; d < n; ++d) {
-        if (strip[d].size() == 0) continue;
+        if (strip[d].size() == 0 || !local(d)) continue;
         const int above = strip[d].begin > 0 ? static_cast<int>(strip[d].begin) : -1;
         const int below = strip[d].end < height_ ? static_cast<int>(strip[d].end) : -1;
         svgf(d).seam_filter(buffers_[d].radiance[e], buffers_[d].gbuffer[e], strip[d], image, above, below,
@@ -451,7 +520,8 @@ void StereoPipeline::denoise(const StageWork& work, const std::array<CameraParam
       }
     }
     for (int d = 0; d < n; ++d)
-      for (auto& [stage, ev] : svgf(d).take_events()) record(stage, d, ev);
+      if (local(d))
+        for (auto& [stage, ev] : svgf(d).take_events()) record(stage, d, ev);
   }
 }
 
@@ -459,9 +529,9 @@ std::vector<std::uint8_t> StereoPipeline::hole_mask() {
   std::vector<std::uint8_t> mask(static_cast<std::size_t>(width_) * height_, 0);
   const StageWork* fill = schedule_.find(Stage::HoleFill);
   if (!fill) return mask;
-  for (int d = 0; d < devices_.size(); ++d) {
-    if (fill->right_rows[d].empty()) continue;
-    auto& q = devices_.devices()[d].queue;
+  for (int d = 0; d < layout_.count(); ++d) {
+    if (fill->right_rows[d].empty() || !local(d)) continue;
+    auto& q = queue(d);
     cl_uint count = 0;
     q.enqueueReadBuffer(buffers_[d].hole_count, CL_TRUE, 0, sizeof(cl_uint), &count);
     std::vector<cl_uint> list(count);
@@ -475,10 +545,11 @@ std::vector<GBufferTexel> StereoPipeline::gbuffer_of(int eye) {
   std::vector<GBufferTexel> out(static_cast<std::size_t>(width_) * height_);
   const StageWork* g = schedule_.find(Stage::GBuffer);
   if (!g) return out;
-  for (int d = 0; d < devices_.size(); ++d)
+  for (int d = 0; d < layout_.count(); ++d)
     for (const RowRange& r : eye == 0 ? g->left_rows[d] : g->right_rows[d]) {
+      if (!local(d)) continue;
       const std::size_t first = static_cast<std::size_t>(r.begin) * width_, count = static_cast<std::size_t>(r.size()) * width_;
-      devices_.devices()[d].queue.enqueueReadBuffer(buffers_[d].gbuffer[eye], CL_TRUE, first * sizeof(GBufferTexel),
+      queue(d).enqueueReadBuffer(buffers_[d].gbuffer[eye], CL_TRUE, first * sizeof(GBufferTexel),
                                                     count * sizeof(GBufferTexel), out.data() + first);
     }
   return out;
@@ -486,7 +557,8 @@ std::vector<GBufferTexel> StereoPipeline::gbuffer_of(int eye) {
 
 std::array<ImageRGB, 2> StereoPipeline::radiance() {
   const std::size_t pixels = static_cast<std::size_t>(width_) * height_;
-  auto& q = devices_.devices()[schedule_.tree.root].queue;
+  if (!holds_frame()) throw std::logic_error("only rank 0 holds the finished frame");
+  auto& q = queue(schedule_.tree.root);
   std::array<ImageRGB, 2> out;
   for (int e = 0; e < 2; ++e) {
     std::vector<cl_float4> px(pixels);
@@ -502,7 +574,8 @@ std::array<ImageRGB, 2> StereoPipeline::radiance() {
 
 std::array<std::vector<std::uint8_t>, 2> StereoPipeline::rgba8() {
   const std::size_t pixels = static_cast<std::size_t>(width_) * height_;
-  auto& q = devices_.devices()[schedule_.tree.root].queue;
+  if (!holds_frame()) throw std::logic_error("only rank 0 holds the finished frame");
+  auto& q = queue(schedule_.tree.root);
   std::array<std::vector<std::uint8_t>, 2> out;
   for (int e = 0; e < 2; ++e) {
     out[e].resize(pixels * 4);

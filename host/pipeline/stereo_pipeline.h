@@ -8,6 +8,7 @@
 #pragma once
 
 #include "cl/device_set.h"
+#include "cluster/cluster.h"
 #include "control/frame_time_controller.h"
 #include "denoise/svgf_denoiser.h"
 #include "image/image_io.h"
@@ -17,6 +18,7 @@
 #include "render/stereo_camera.h"
 
 #include <array>
+#include <deque>
 #include <map>
 #include <memory>
 #include <optional>
@@ -45,6 +47,10 @@ struct FrameStats {
   std::size_t right_pixels = 0;         // right-eye pixels in the frame
   std::size_t reprojected = 0;          // of those, reprojected from the left eye
   std::size_t bytes_transferred = 0;    // child -> host -> owner, both hops counted once
+  // Across MPI ranks (on rank 0, for every rank; empty in one process): bytes each rank sent
+  // to each rank ([from][to]) and each rank's host time in MPI calls.
+  std::vector<std::vector<std::uint64_t>> mpi_bytes;
+  std::vector<double> mpi_ms;
 };
 
 // How denoising treats the borders between devices' strips.
@@ -69,6 +75,10 @@ class StereoPipeline {
     SvgfDenoiser::Options svgf;
     SeamMode seams = SeamMode::Halo;
     unsigned seam_band = 4;  // rows each side of a seam the bilateral seam filter touches
+    // The MPI job this pipeline is one rank of (nullptr: this process alone). Every rank drives
+    // its DeviceSet's N devices as global devices rank*N .. rank*N+N-1 and must construct the
+    // pipeline with the same options; rank 0 holds the owner and the finished frame.
+    Cluster* cluster = nullptr;
   };
 
   StereoPipeline(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene, unsigned width,
@@ -101,14 +111,19 @@ class StereoPipeline {
   // device afterwards; fetch them with images().
   FrameStats render(unsigned frame, float time_s);
 
-  // Linear radiance of both eyes from the owner (blocking read).
+  // Devices of the whole frame (over all ranks) and which of them this process drives.
+  const DeviceLayout& layout() const { return layout_; }
+  // Whether this process holds the finished frame (rank 0; always true in one process).
+  bool holds_frame() const { return layout_.is_local(schedule_.tree.root); }
+
+  // Linear radiance of both eyes from the owner (blocking read). Only where holds_frame().
   std::array<ImageRGB, 2> radiance();
   // Tonemapped RGBA8 of both eyes from the owner (blocking read).
   std::array<std::vector<std::uint8_t>, 2> rgba8();
 
   std::uint64_t nonfinite_paths() const { return nonfinite_total_; }
 
-  // Inspection (tests, debugging): gathered from whichever device owns each row at the stage.
+  // Inspection (tests, debugging; one process): gathered from whichever device owns each row.
   // Per right-eye pixel: 1 if the last frame filled it by path tracing (a hole), else 0.
   std::vector<std::uint8_t> hole_mask();
   std::vector<GBufferTexel> gbuffer_of(int eye);
@@ -152,6 +167,16 @@ class StereoPipeline {
   void transfer(int d, int eye, RowRange rows, bool radiance, bool rgba);
 
   void record(Stage stage, int device, const cl::Event& e);
+  // Global device d (layout_) on this process: its queue and its index in devices_.
+  bool local(int d) const { return layout_.is_local(d); }
+  cl::CommandQueue& queue(int d) { return devices_.devices()[layout_.local_index(d)].queue; }
+  // Copies `bytes` at `offset` of device `from`'s buffer `src` into device `to`'s `dst` at the
+  // same offset, whichever ranks they are on. Within a process through `staging()` (`from`'s
+  // host-mapped buffer, at `staging_offset`; `readers`, if given, are the copies still reading
+  // it, waited for and replaced); between processes as an MPI message. Records the events.
+  template <typename StagingOf>
+  void copy_rows(int from, const cl::Buffer& src, int to, const cl::Buffer& dst, std::size_t offset,
+                 std::size_t bytes, StagingOf staging, std::size_t staging_offset, std::vector<cl::Event>* readers);
   // Launches `k` over `items` work-items (rounded up to kLocalSize) on device d and records it.
   void enqueue(int d, cl::Kernel& k, std::size_t items, Stage stage);
   // Stage 6-7 for every device at once (passes interleave with halo exchanges).
@@ -175,6 +200,9 @@ class StereoPipeline {
   FrameParams frame_params(int eye, RowRange rows, unsigned frame) const;
 
   DeviceSet& devices_;
+  Cluster* cluster_;
+  DeviceLayout layout_;
+  std::deque<std::vector<unsigned char>> message_rows_;  // host copies of this frame's MPI messages
   const DeviceScene& device_scene_;
   const Scene& scene_;
   unsigned width_, height_;
