@@ -5,8 +5,8 @@
 // of build_bvh with splits, `medium` (binned SAH) of build_bvh without.
 //
 // Scenes: any scene spec load_scene accepts (cornell, atrium, a file), and `slivers`: N long
-// thin triangles all crossing the unit cube (issue 14: a user's file of ~101k overlapping
-// slivers took 14 s to build). The builds of one scene are interleaved, round after round, so
+// thin triangles all crossing the unit cube (a user's file of ~101k overlapping slivers once
+// took 14 s to build). The builds of one scene are interleaved, round after round, so
 // load from other processes on a shared machine hits them alike; medians are printed.
 //
 //   build/bench_bvh_build --scene cornell --scene atrium --scene slivers --slivers 101000 --repeats 5

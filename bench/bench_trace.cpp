@@ -1,6 +1,6 @@
 // bench_trace: the OpenCL traversal kernel against Embree's rtcIntersect1 on identical ray
-// sets, side by side in one process (DESIGN.md section 7: Embree on the same rays is the
-// physical limit for traversal on a CPU, so the kernel's rate is reported as a ratio to it).
+// sets, side by side in one process (Embree on the same rays is the practical limit for
+// single-ray traversal on a CPU, so the kernel's rate is reported as a ratio to it).
 //
 // Ray sets: (1) primary rays of the scene camera's left eye, in image order (coherent);
 // (2) one bounce: cosine-distributed diffuse rays from the primary hits, leaving from the

@@ -90,7 +90,7 @@ check "explain shows the denoise stage" 0 "denoise" -- "$bin" render --explain -
 check "compare gives PSNR" 0 "psnr_db" -- "$bin" compare "$tmp/r_proposed/frame_0000_left.exr" "$tmp/r_mono/frame_0000_left.exr"
 check "reference shows progress" 0 "reference_" -- "$bin" reference --scene cornell --width 16 --height 9 --spp 8 --pass-spp 4 --out "$tmp/ref"
 
-# --- nothing lost, nothing mixed (issue 14) ---
+# --- nothing lost, nothing mixed ---
 ok() { passes=$((passes + 1)); echo "ok   $1"; }
 bad() { fails=$((fails + 1)); echo "FAIL $1"; }
 # wait_for FILE PID: until FILE exists or PID has exited (no time limit is asserted; ctest's

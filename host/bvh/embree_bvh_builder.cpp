@@ -383,7 +383,7 @@ void split_primitive(const RTCBuildPrimitive* primitive, unsigned int dim, float
 // primitive at every bin plane its box crosses (up to 15 planes on each of 3 axes), at every node
 // where the best object split leaves overlapping children, whether or not a spatial split is
 // then taken. On ordinary scenes that is ~70 calls per triangle (atrium: 38M calls for 551k
-// triangles). On overlapping slivers (issue 14) every node overlaps and every sliver crosses
+// triangles). On overlapping slivers every node overlaps and every sliver crosses
 // most planes: ~530 calls per triangle, 54M for 101k triangles, 12 s against 1.7 s for Embree's
 // own spatial-split build of the same triangles, while the splits gain ~10% SAH. So a build may
 // spend at most BvhBuildOptions::split_calls_per_triangle (default 96, ~1.4x atrium's need)

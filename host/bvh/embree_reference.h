@@ -1,6 +1,6 @@
 // Embree's own ray tracer over the same triangles, used two ways: as the speed reference the
-// benchmark divides the kernel's rays/s by (DESIGN.md section 7: rtcIntersect1 is the physical
-// limit for traversal on a CPU), and as an independent second code path in tests.
+// benchmark divides the kernel's rays/s by (rtcIntersect1 is the practical limit
+// for single-ray traversal on a CPU), and as an independent second code path in tests.
 #pragma once
 
 #include "scene/scene.h"

@@ -65,7 +65,7 @@ SeamMode parse_seam_mode(const std::string& text);  // "independent", "bilateral
 
 class StereoPipeline {
  public:
-  static constexpr std::size_t kLocalSize = 64;
+  static constexpr std::size_t kLocalSize = PX_PIPELINE_LOCAL_SIZE;  // reprojection needs exactly this
 
   struct Options {
     PipelineKind pipeline = PipelineKind::Proposed;

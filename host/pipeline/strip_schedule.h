@@ -13,15 +13,16 @@ enum class PipelineKind { Proposed, Baseline, Mono };
 const char* to_string(PipelineKind p);
 PipelineKind parse_pipeline(const std::string& text);  // "proposed", "baseline", "mono"
 
-// Stage numbers follow the paper (DESIGN.md section 3).
+// Stage numbers follow the stereo paper's pipeline (1 scene update ... 11 output), so reports
+// and tables can be set beside its figures; 12 is ours (mono's full right-eye trace).
 enum class Stage : int {
   SceneUpdate = 1,
   PathTraceLeft = 2,
   GBuffer = 3,
   Reproject = 4,
   HoleFill = 5,
-  Denoise = 6,         // reserved: SVGF (issue 5)
-  RecordPrevious = 7,  // reserved
+  Denoise = 6,         // SVGF, both eyes
+  RecordPrevious = 7,  // this frame's G-buffer and history become the previous frame's
   Tonemap = 8,
   Transfer = 9,
   Stitch = 10,

@@ -63,22 +63,35 @@ inline int px_window_misses(const global GBufferTexel* g, int x, int y, uint wid
  * for reprojected pixels (holes get 0 and are filled by stage 5); the albedo is the
  * demodulation albedo SVGF divides by, resampled with the same weights as the radiance so
  * that the two stay consistent. holes/hole_count: the compacted list of hole pixel indices
- * (hole_count must be zero before the launch). */
+ * (hole_count must be zero before the launch).
+ *
+ * The hole list keeps scanline order within each work-group: the group's holes are counted
+ * with a prefix sum in local memory and written to one contiguous range reserved with a
+ * single atomic_add. Stage 5 then traces neighbouring pixels in neighbouring work-items
+ * (coherent primary rays and memory) instead of the scattered order per-item atomic_inc gave.
+ * Ranges of different groups still land in whatever order the groups finish. */
+#define PX_REPROJECT_GROUP PX_PIPELINE_LOCAL_SIZE
+__attribute__((reqd_work_group_size(PX_REPROJECT_GROUP, 1, 1)))
 kernel void reproject(global float4* right_radiance, global float4* right_albedo, global uint* holes,
                       volatile global uint* hole_count, const global float4* left_radiance,
                       const global float4* left_albedo, const global GBufferTexel* left_g,
                       const global GBufferTexel* right_g, uint row0, uint rows, CameraParams left_cam) {
-  const uint gid = get_global_id(0);
+  local uint scan[PX_REPROJECT_GROUP];
+  local uint group_base;
+  const uint gid = get_global_id(0), lid = get_local_id(0);
   const uint width = left_cam.width, height = left_cam.height;
-  if (gid >= rows * width) return;
-  const uint i = row0 * width + gid;
+  /* No early return: every work-item of the group takes part in the prefix sum below. */
+  const int active = gid < rows * width;
+  const uint i = row0 * width + (active ? gid : 0u);
   const int px = (int)(i % width), py = (int)(i / width);
   const uint row_start = (uint)py * width;
   const global GBufferTexel* g = right_g + i;
   float4 result = (float4)(0.0f, 0.0f, 0.0f, 0.0f);
   float4 albedo = (float4)(0.0f, 0.0f, 0.0f, 0.0f);
   int ok = 0;
-  if (g->material_class == PX_CLASS_MISS) {
+  if (!active) {
+    /* outside the launch's rows: neither written nor a hole */
+  } else if (g->material_class == PX_CLASS_MISS) {
     /* The environment is at infinity: zero disparity, and with parallel eyes the same pixel
      * looks in the same direction, so the left eye's estimate for that pixel is exact reuse —
      * provided neither footprint holds anything but the environment. */
@@ -136,7 +149,21 @@ kernel void reproject(global float4* right_radiance, global float4* right_albedo
       }
     }
   }
-  right_radiance[i] = result;
-  right_albedo[i] = albedo;
-  if (!ok) holes[atomic_inc(hole_count)] = i;
+  if (active) {
+    right_radiance[i] = result;
+    right_albedo[i] = albedo;
+  }
+  /* Inclusive prefix sum of the hole flags (Hillis-Steele, log2(64) = 6 steps). */
+  const uint hole = active && !ok ? 1u : 0u;
+  scan[lid] = hole;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  for (uint offset = 1; offset < PX_REPROJECT_GROUP; offset <<= 1) {
+    const uint add = lid >= offset ? scan[lid - offset] : 0u;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    scan[lid] += add;
+    barrier(CLK_LOCAL_MEM_FENCE);
+  }
+  if (lid == PX_REPROJECT_GROUP - 1) group_base = scan[lid] ? atomic_add(hole_count, scan[lid]) : 0u;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  if (hole) holes[group_base + scan[lid] - 1u] = i;
 }
