@@ -1,6 +1,7 @@
 #include "app/commands.h"
 
 #include "app/output_dir.h"
+#include "app/render_setup.h"
 #include "app/scene_setup.h"
 #include "image/image_io.h"
 #include "image/image_metrics.h"
@@ -29,11 +30,6 @@ using clock_type = std::chrono::steady_clock;
 
 double ms_since(clock_type::time_point t0) {
   return std::chrono::duration<double, std::milli>(clock_type::now() - t0).count();
-}
-
-void print_device_set(const DeviceSet& set) {
-  std::fprintf(stderr, "[devices] %d on '%s' (%s):\n", set.size(), set.platform_name().c_str(), to_string(set.mode()));
-  for (const auto& d : set.devices()) std::fprintf(stderr, "  %d: %s\n", d.index, d.description.c_str());
 }
 
 std::string frame_name(unsigned frame, const char* what) {
@@ -125,30 +121,10 @@ int run_preview(const PreviewCommand& cmd) {
 }
 
 int run_render(const RenderCommand& cmd) {
-  if (cmd.trace.spp == 0) throw std::invalid_argument("--spp must be at least 1");
   if (cmd.frames == 0) throw std::invalid_argument("--frames must be at least 1");
-  if (!(cmd.fps > 0.0f)) throw std::invalid_argument("--fps must be positive");
-  StereoPipeline::Options opt;
-  opt.pipeline = parse_pipeline(cmd.pipeline);
-  opt.trace = cmd.trace;
-  opt.trace.light_sampling = parse_light_sampling(cmd.light_sampling);
-  opt.exposure = cmd.exposure;
-  opt.denoise = !cmd.no_denoise;
-  opt.svgf = cmd.svgf;
-  opt.seams = parse_seam_mode(cmd.seams);
-  // The control loop, when asked for: limits from the command line (the starting bounces and
-  // iterations are the most it may use; spp may rise to --max-spp).
-  std::optional<FrameTimeController> controller;
-  if (!cmd.target_ms.empty()) {
-    FrameTimeController::Options c;
-    std::tie(c.lo_ms, c.hi_ms) = FrameTimeController::parse_window(cmd.target_ms);
-    if (opt.trace.bounces == 0) throw std::invalid_argument("--target-ms needs --bounces of at least 1");
-    c.spp = {1, std::max(cmd.max_spp, opt.trace.spp)};
-    c.bounces = {1, opt.trace.bounces};
-    // Without denoising the iterations cost nothing and stay where they are.
-    c.svgf_iterations = {opt.denoise ? 1u : opt.svgf.iterations, opt.svgf.iterations};
-    controller.emplace(c);
-  }
+  PipelineConfig config = make_pipeline_config(cmd);
+  const StereoPipeline::Options& opt = config.options;
+  std::optional<FrameTimeController>& controller = config.controller;
   if (cmd.explain) {
     // The schedule depends only on pipeline, device count, height and denoising: no scene needed.
     std::printf("%s", make_schedule(opt.pipeline, cmd.devices.count, cmd.height, opt.denoise).explain().c_str());
@@ -167,11 +143,11 @@ int run_render(const RenderCommand& cmd) {
     report_file->write("{\n  \"frames\": [");
   }
   if (!cmd.timeline.empty()) timeline_file.emplace(cmd.timeline);
-  auto loaded = load_and_build(cmd.scene);
-  auto devices = cmd.devices.create();
-  print_device_set(devices);
-  DeviceScene device_scene(devices, loaded.scene, loaded.bvh);
-  StereoPipeline pipeline(devices, device_scene, loaded.scene, cmd.width, cmd.height, opt);
+  RenderSession session(cmd, opt);
+  const LoadedScene& loaded = session.loaded;
+  DeviceSet& devices = session.devices;
+  StereoPipeline& pipeline = session.pipeline;
+  StageSummary summary;
   std::fprintf(stderr, "[render] %u frame(s), %ux%u per eye, %u spp, %u bounces, pipeline %s, denoise %s\n", cmd.frames,
                cmd.width, cmd.height, opt.trace.spp, opt.trace.bounces, cmd.pipeline.c_str(),
                opt.denoise ? ("SVGF, seams " + cmd.seams).c_str() : "off");
@@ -236,6 +212,7 @@ int run_render(const RenderCommand& cmd) {
                                   : std::string("no frame was completed")) + ")");
     }
     done = f + 1;
+    summary.add(st);
     if (f == 0) first_frame_ms = st.wall_ms;
     makespan_ms += st.wall_ms;
     reprojected += st.reprojected;
@@ -323,6 +300,29 @@ int run_render(const RenderCommand& cmd) {
     timeline_file->commit();
     std::fprintf(stderr, "[render] timeline written to %s (open in chrome://tracing or ui.perfetto.dev)\n",
                  cmd.timeline.c_str());
+  }
+  // The one-screen summary on stdout: what ran, how fast, where the time went, where the files are.
+  if (done > 0) {
+    const FrameQuality q = pipeline.quality();
+    std::printf("\n== render summary ==\n");
+    std::printf("%s: pipeline %s, %d device(s) (%s), %ux%u per eye, %u spp, %u bounces, denoise %s%s\n",
+                loaded.scene.name.c_str(), cmd.pipeline.c_str(), devices.size(), to_string(devices.mode()), cmd.width,
+                cmd.height, q.spp, q.bounces,
+                opt.denoise ? ("SVGF " + std::to_string(q.svgf_iterations) + " iterations, seams " + cmd.seams).c_str()
+                            : "off",
+                controller ? (" (last frame's; control loop " + cmd.target_ms + " ms)").c_str() : "");
+    if (done > 1)
+      std::printf("%.1f Hz over frames 1-%u (frame 0 took %.0f ms: it includes kernel compilation)\n", hz, done - 1,
+                  first_frame_ms);
+    else
+      std::printf("%.1f Hz (one frame, including kernel compilation)\n", hz);
+    std::printf("median device time per stage%s:\n%s", done > 1 ? " (frames after the first)" : "",
+                summary.table(1).c_str());
+    std::printf("files:\n  %s/frame_NNNN_{left,right}.{exr,png}, frame_NNNN_stereo.png (NNNN = 0000-%04u)\n",
+                cmd.out.c_str(), done - 1);
+    if (report_file) std::printf("  report:   %s\n", cmd.report.c_str());
+    if (timeline_file) std::printf("  timeline: %s\n", cmd.timeline.c_str());
+    std::printf("\n");
   }
   if (stopped) {
     std::printf("interrupted by %s after %u of %u frame(s): wrote frames 0-%u to %s "

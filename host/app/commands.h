@@ -49,6 +49,15 @@ struct RenderCommand {
   DeviceChoice devices;
 };
 
+// The live viewer: `render`'s scene, pipeline, quality, devices and control loop (its
+// frames / out / report / timeline are unused), shown in a window as frames finish.
+struct ViewCommand {
+  RenderCommand render;
+  unsigned frames = 0;       // stop after this many frames (0: run until the window closes)
+  std::string screenshot;    // PNG of the window content when the viewer stops ("" = none)
+  float move_speed = 0.0f;   // fly-through speed, scene units per second (0: from the scene size)
+};
+
 struct ReferenceCommand {
   std::string scene = "cornell";
   unsigned width = 640, height = 360;
@@ -72,5 +81,8 @@ int run_preview(const PreviewCommand& cmd);
 int run_render(const RenderCommand& cmd);
 int run_reference(const ReferenceCommand& cmd);
 int run_compare(const CompareCommand& cmd);
+// Defined in viewer/live_viewer.cpp, which only the parallax executable compiles (GLFW +
+// OpenGL stay out of the core library).
+int run_view(const ViewCommand& cmd);
 
 }  // namespace px

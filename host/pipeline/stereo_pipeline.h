@@ -89,6 +89,9 @@ class StereoPipeline {
   // Renders frame `frame` at camera-path time `time_s`. The finished images are on the owner
   // device afterwards; fetch them with images().
   FrameStats render(unsigned frame, float time_s);
+  // The same with the centre camera given (a viewer's fly-through camera) instead of taken
+  // from the scene's camera path.
+  FrameStats render(unsigned frame, const Camera& centre);
 
   // Linear radiance of both eyes from the owner (blocking read).
   std::array<ImageRGB, 2> radiance();
