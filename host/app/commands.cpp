@@ -3,6 +3,7 @@
 #include "app/output_dir.h"
 #include "app/render_setup.h"
 #include "app/scene_setup.h"
+#include "app/video_writer.h"
 #include "image/image_io.h"
 #include "image/image_metrics.h"
 #include "io/atomic_file.h"
@@ -143,6 +144,8 @@ int run_render(const RenderCommand& cmd) {
     report_file->write("{\n  \"frames\": [");
   }
   if (!cmd.timeline.empty()) timeline_file.emplace(cmd.timeline);
+  std::optional<VideoWriter> video;
+  if (!cmd.video.empty()) video.emplace(cmd.video, 2 * cmd.width, cmd.height, cmd.fps);
   RenderSession session(cmd, opt);
   const LoadedScene& loaded = session.loaded;
   DeviceSet& devices = session.devices;
@@ -203,8 +206,9 @@ int run_render(const RenderCommand& cmd) {
         write_exr(out_dir.file(name + ".exr"), eyes[e]);
         write_png(out_dir.file(name + ".png"), eyes[e].width, eyes[e].height, png[e]);
       }
-      write_png(out_dir.file(prefix + "stereo.png"), 2 * eyes[0].width, eyes[0].height,
-                side_by_side(png[0], png[1], eyes[0].width, eyes[0].height));
+      const auto stereo = side_by_side(png[0], png[1], eyes[0].width, eyes[0].height);
+      write_png(out_dir.file(prefix + "stereo.png"), 2 * eyes[0].width, eyes[0].height, stereo);
+      if (video) video->write_frame(stereo);
     } catch (const ImageError& e) {
       // Say what is usable: the frames before this one are complete.
       throw std::runtime_error(std::string(e.what()) + " (frame " + std::to_string(f) + "; " +
@@ -295,6 +299,10 @@ int run_render(const RenderCommand& cmd) {
     report_file->commit();
     std::fprintf(stderr, "[render] report written to %s\n", cmd.report.c_str());
   }
+  if (video) {
+    video->commit();
+    std::fprintf(stderr, "[render] video written to %s\n", cmd.video.c_str());
+  }
   if (timeline_file) {
     timeline_file->write("\n]}\n");
     timeline_file->commit();
@@ -322,6 +330,7 @@ int run_render(const RenderCommand& cmd) {
                 cmd.out.c_str(), done - 1);
     if (report_file) std::printf("  report:   %s\n", cmd.report.c_str());
     if (timeline_file) std::printf("  timeline: %s\n", cmd.timeline.c_str());
+    if (video) std::printf("  video:    %s (left | right, %g fps)\n", cmd.video.c_str(), double(cmd.fps));
     std::printf("\n");
   }
   if (stopped) {

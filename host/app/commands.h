@@ -44,6 +44,7 @@ struct RenderCommand {
   std::string seams = "halo";
   std::string report;          // JSON report path ("" = none)
   std::string timeline;        // Chrome trace / Perfetto JSON path ("" = none)
+  std::string video;           // left|right side by side through ffmpeg ("" = none)
   std::string target_ms;       // control-loop window "LO:HI" ("" = off: fixed quality)
   unsigned max_spp = 64;       // control loop: the most spp it may raise to
   DeviceChoice devices;

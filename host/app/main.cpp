@@ -108,6 +108,9 @@ int main(int argc, char** argv) {
   render_cmd->add_option("--report", render.report,
                          "write a JSON report: per frame, stage and device the device time (OpenCL profiling), "
                          "wall time, reprojected share, bytes transferred; makespan and Hz");
+  render_cmd->add_option("--video", render.video,
+                         "also encode the frames, left and right eye side by side, as an H.264 video (.mp4, .mkv "
+                         "or .mov) at --fps, through the ffmpeg program (Debian package ffmpeg)");
   render_cmd->add_flag("--overwrite", render.overwrite, "allow writing into a non-empty output directory");
 
   px::ViewCommand view;
