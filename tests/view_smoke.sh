@@ -32,6 +32,8 @@ check "view without a display is a clear error" 1 "no display.*xvfb" -- \
 check "view refuses a screenshot that is not PNG" 1 "\.png" -- \
   env -u DISPLAY -u WAYLAND_DISPLAY "$bin" view --frames 1 --screenshot "$tmp/shot.jpg"
 check "view refuses a bad control window" 1 "LO:HI" -- "$bin" view --target-ms 20:11
+check "view refuses a screenshot in a missing folder" 1 "does not exist" -- \
+  env -u DISPLAY -u WAYLAND_DISPLAY "$bin" view --frames 1 --screenshot "$tmp/no/such/shot.png"
 
 if ! command -v xvfb-run >/dev/null 2>&1; then
   echo "skip: xvfb-run is not installed (Debian package xvfb): the windowed checks need it"

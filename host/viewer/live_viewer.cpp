@@ -20,6 +20,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <exception>
+#include <filesystem>
 #include <mutex>
 #include <optional>
 #include <stdexcept>
@@ -266,6 +267,10 @@ int run_view(const ViewCommand& cmd) {
   if (!cmd.screenshot.empty()) {
     const std::string ext = cmd.screenshot.size() >= 4 ? cmd.screenshot.substr(cmd.screenshot.size() - 4) : "";
     if (ext != ".png" && ext != ".PNG") throw std::invalid_argument("--screenshot must name a .png file");
+    const std::filesystem::path parent = std::filesystem::path(cmd.screenshot).parent_path();
+    if (!parent.empty() && !std::filesystem::is_directory(parent))
+      throw std::invalid_argument("--screenshot " + cmd.screenshot + ": folder " + parent.string() +
+                                  " does not exist");
   }
   GlfwSession glfw;
   install_interrupt_handlers();
