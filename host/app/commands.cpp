@@ -151,6 +151,7 @@ int run_render(const RenderCommand& cmd) {
   DeviceSet& devices = session.devices;
   StereoPipeline& pipeline = session.pipeline;
   StageSummary summary;
+  FrameQuality last_quality = pipeline.quality();  // the quality of the last frame rendered
   std::fprintf(stderr, "[render] %u frame(s), %ux%u per eye, %u spp, %u bounces, pipeline %s, denoise %s\n", cmd.frames,
                cmd.width, cmd.height, opt.trace.spp, opt.trace.bounces, cmd.pipeline.c_str(),
                opt.denoise ? ("SVGF, seams " + cmd.seams).c_str() : "off");
@@ -189,6 +190,7 @@ int run_render(const RenderCommand& cmd) {
   std::optional<double> predicted_ms;  // the control loop's prediction for the coming frame
   for (unsigned f = 0; f < cmd.frames; ++f) {
     const FrameQuality quality = pipeline.quality();
+    last_quality = quality;
     const FrameStats st = pipeline.render(f, static_cast<float>(f) / cmd.fps);
     const std::optional<double> predicted_this_frame = predicted_ms;
     // Frame 0 compiles the kernels (seconds on PoCL): it says nothing about the frame time.
@@ -311,7 +313,7 @@ int run_render(const RenderCommand& cmd) {
   }
   // The one-screen summary on stdout: what ran, how fast, where the time went, where the files are.
   if (done > 0) {
-    const FrameQuality q = pipeline.quality();
+    const FrameQuality& q = last_quality;
     std::printf("\n== render summary ==\n");
     std::printf("%s: pipeline %s, %d device(s) (%s), %ux%u per eye, %u spp, %u bounces, denoise %s%s\n",
                 loaded.scene.name.c_str(), cmd.pipeline.c_str(), devices.size(), to_string(devices.mode()), cmd.width,
