@@ -205,6 +205,7 @@ class StereoSurface {
                       reinterpret_cast<const void*>(std::uintptr_t{0}));
       glTexSubImage2D(GL_TEXTURE_2D, 0, GLint(width_), 0, GLsizei(width_), GLsizei(height_), GL_RGBA,
                       GL_UNSIGNED_BYTE, reinterpret_cast<const void*>(std::uintptr_t{eye_bytes}));
+      has_image_ = true;
     }
     glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
   }
@@ -216,6 +217,7 @@ class StereoSurface {
     glViewport(0, 0, fb_w, fb_h);
     glClearColor(0.1f, 0.1f, 0.1f, 1.0f);
     glClear(GL_COLOR_BUFFER_BIT);
+    if (!has_image_) return;  // before the first frame (kernels compiling): the texture is undefined
     const double src_w = 2.0 * width_, src_h = height_;
     const double scale = std::min(fb_w / src_w, fb_h / src_h);
     const int w = int(std::lround(src_w * scale)), h = int(std::lround(src_h * scale));
@@ -230,6 +232,7 @@ class StereoSurface {
   GLuint texture_ = 0, fbo_ = 0;
   GLuint pbo_[2] = {0, 0};
   int next_ = 0;
+  bool has_image_ = false;
 };
 
 // The back buffer (just drawn, not yet swapped) as a PNG: rows flipped to top-down.
