@@ -205,5 +205,23 @@ yes '{"a":' | head -n 70000 | tr -d '\n' >"$tmp/deep.body"
 { printf '{"generator": "cornell", "generator_params": '; cat "$tmp/deep.body"; printf '1'; yes '}' | head -n 70000 | tr -d '\n'; printf '}'; } >"$tmp/deep.json"
 check "deeply nested scene file is a clear error" 1 "nested deeper" -- "$bin" preview --scene "$tmp/deep.json" --out "$tmp/deep"
 
+# --- the end-of-run summary and --video ---
+check "render ends with a per-stage summary" 0 "path trace left +[0-9.]+ ms +[0-9.]+ ms" -- "$bin" render --scene cornell \
+  --width 16 --height 9 --frames 2 --out "$tmp/sum"
+check "render --video refuses an unknown container" 1 "\.mp4, \.mkv or \.mov" -- "$bin" render --scene cornell \
+  --width 16 --height 9 --out "$tmp/v_bad" --video "$tmp/v.avi"
+check "render --video without ffmpeg names the package" 1 "package ffmpeg" -- env PATH=/nonexistent "$bin" render \
+  --scene cornell --width 16 --height 9 --out "$tmp/v_none" --video "$tmp/v_none.mp4"
+if command -v ffmpeg >/dev/null && command -v ffprobe >/dev/null; then
+  check "render --video encodes the frames" 0 "video: .*v\.mp4" -- "$bin" render --scene cornell --width 17 --height 9 \
+    --frames 3 --out "$tmp/v" --video "$tmp/v.mp4"
+  probe="$(ffprobe -v error -show_entries stream=width,height,nb_frames -of compact "$tmp/v.mp4" 2>&1)"
+  # 2 x 17 wide (padded to even for H.264), 3 frames.
+  if grep -q "width=34|height=10|nb_frames=3" <<<"$probe"; then ok "video holds 3 side-by-side frames"
+  else bad "video stream is not 34x10 with 3 frames: $probe"; fi
+else
+  echo "skip: render --video encoding (ffmpeg not installed)"
+fi
+
 echo "$passes passed, $fails failed"
 [ "$fails" -eq 0 ]

@@ -1,7 +1,9 @@
 #include "app/commands.h"
 
 #include "app/output_dir.h"
+#include "app/render_setup.h"
 #include "app/scene_setup.h"
+#include "app/video_writer.h"
 #include "cluster/cluster.h"
 #include "control/strip_balancer.h"
 #include "image/image_io.h"
@@ -31,11 +33,6 @@ using clock_type = std::chrono::steady_clock;
 
 double ms_since(clock_type::time_point t0) {
   return std::chrono::duration<double, std::milli>(clock_type::now() - t0).count();
-}
-
-void print_device_set(const DeviceSet& set) {
-  std::fprintf(stderr, "[devices] %d on '%s' (%s):\n", set.size(), set.platform_name().c_str(), to_string(set.mode()));
-  for (const auto& d : set.devices()) std::fprintf(stderr, "  %d: %s\n", d.index, d.description.c_str());
 }
 
 std::string frame_name(unsigned frame, const char* what) {
@@ -127,30 +124,10 @@ int run_preview(const PreviewCommand& cmd) {
 }
 
 int run_render(const RenderCommand& cmd) {
-  if (cmd.trace.spp == 0) throw std::invalid_argument("--spp must be at least 1");
   if (cmd.frames == 0) throw std::invalid_argument("--frames must be at least 1");
-  if (!(cmd.fps > 0.0f)) throw std::invalid_argument("--fps must be positive");
-  StereoPipeline::Options opt;
-  opt.pipeline = parse_pipeline(cmd.pipeline);
-  opt.trace = cmd.trace;
-  opt.trace.light_sampling = parse_light_sampling(cmd.light_sampling);
-  opt.exposure = cmd.exposure;
-  opt.denoise = !cmd.no_denoise;
-  opt.svgf = cmd.svgf;
-  opt.seams = parse_seam_mode(cmd.seams);
-  // The control loop, when asked for: limits from the command line (the starting bounces and
-  // iterations are the most it may use; spp may rise to --max-spp).
-  std::optional<FrameTimeController> controller;
-  if (!cmd.target_ms.empty()) {
-    FrameTimeController::Options c;
-    std::tie(c.lo_ms, c.hi_ms) = FrameTimeController::parse_window(cmd.target_ms);
-    if (opt.trace.bounces == 0) throw std::invalid_argument("--target-ms needs --bounces of at least 1");
-    c.spp = {1, std::max(cmd.max_spp, opt.trace.spp)};
-    c.bounces = {1, opt.trace.bounces};
-    // Without denoising the iterations cost nothing and stay where they are.
-    c.svgf_iterations = {opt.denoise ? 1u : opt.svgf.iterations, opt.svgf.iterations};
-    controller.emplace(c);
-  }
+  PipelineConfig config = make_pipeline_config(cmd);
+  StereoPipeline::Options& opt = config.options;
+  std::optional<FrameTimeController>& controller = config.controller;
   const bool dynamic_strips = cmd.balance == "dynamic";
   if (dynamic_strips && !has_movable_strips(opt.pipeline))
     throw std::invalid_argument("--balance dynamic needs the proposed or mono pipeline (baseline already spreads path "
@@ -188,6 +165,7 @@ int run_render(const RenderCommand& cmd) {
   std::optional<DeviceSet> device_set;
   std::optional<DeviceScene> device_scene;
   std::optional<StereoPipeline> pipeline_slot;
+  std::optional<VideoWriter> video;
   auto setup = [&] {
     if (root) {
       out_dir.emplace(cmd.out, cmd.overwrite, is_render_frame_file);
@@ -196,6 +174,7 @@ int run_render(const RenderCommand& cmd) {
         report_file->write("{\n  \"frames\": [");
       }
       if (!cmd.timeline.empty()) timeline_file.emplace(cmd.timeline);
+      if (!cmd.video.empty()) video.emplace(cmd.video, 2 * cmd.width, cmd.height, cmd.fps);
     }
     // Every rank loads the scene itself (the scene is replicated, not sent).
     loaded.emplace(load_and_build(cmd.scene, !root));
@@ -232,6 +211,8 @@ int run_render(const RenderCommand& cmd) {
   }
   DeviceSet& devices = *device_set;
   StereoPipeline& pipeline = *pipeline_slot;
+  StageSummary summary;
+  FrameQuality last_quality = pipeline.quality();  // the quality of the last frame rendered
   const int all_devices = pipeline.layout().count();
   std::optional<StripBalancer> balancer;
   if (dynamic_strips && all_devices > 1) {
@@ -310,6 +291,7 @@ int run_render(const RenderCommand& cmd) {
       return interrupt_exit_code();
     }
     const FrameQuality quality = pipeline.quality();
+    last_quality = quality;
     const std::vector<RowRange> strips = pipeline.strips();
     const FrameStats st = pipeline.render(f, static_cast<float>(f) / cmd.fps);
     if (!root) {  // rank 0 holds the frame, decides the next and writes everything
@@ -345,8 +327,9 @@ int run_render(const RenderCommand& cmd) {
         write_exr(out_dir->file(name + ".exr"), eyes[e]);
         write_png(out_dir->file(name + ".png"), eyes[e].width, eyes[e].height, png[e]);
       }
-      write_png(out_dir->file(prefix + "stereo.png"), 2 * eyes[0].width, eyes[0].height,
-                side_by_side(png[0], png[1], eyes[0].width, eyes[0].height));
+      const auto stereo = side_by_side(png[0], png[1], eyes[0].width, eyes[0].height);
+      write_png(out_dir->file(prefix + "stereo.png"), 2 * eyes[0].width, eyes[0].height, stereo);
+      if (video) video->write_frame(stereo);
     } catch (const ImageError& e) {
       // Say what is usable: the frames before this one are complete.
       throw std::runtime_error(std::string(e.what()) + " (frame " + std::to_string(f) + "; " +
@@ -354,6 +337,7 @@ int run_render(const RenderCommand& cmd) {
                                   : std::string("no frame was completed")) + ")");
     }
     done = f + 1;
+    summary.add(st);
     if (f == 0) first_frame_ms = st.wall_ms;
     makespan_ms += st.wall_ms;
     reprojected += st.reprojected;
@@ -451,11 +435,45 @@ int run_render(const RenderCommand& cmd) {
     report_file->commit();
     std::fprintf(stderr, "[render] report written to %s\n", cmd.report.c_str());
   }
+  if (video) {
+    video->commit();
+    std::fprintf(stderr, "[render] video written to %s\n", cmd.video.c_str());
+  }
   if (timeline_file) {
     timeline_file->write("\n]}\n");
     timeline_file->commit();
     std::fprintf(stderr, "[render] timeline written to %s (open in chrome://tracing or ui.perfetto.dev)\n",
                  cmd.timeline.c_str());
+  }
+  // The one-screen summary on stdout: what ran, how fast, where the time went, where the files are.
+  if (done > 0) {
+    const FrameQuality& q = last_quality;
+    std::printf("\n== render summary ==\n");
+    std::printf("%s: pipeline %s, %d device(s) (%s%s), %ux%u per eye, %u spp, %u bounces, denoise %s%s\n",
+                loaded->scene.name.c_str(), cmd.pipeline.c_str(), all_devices, to_string(devices.mode()),
+                distributed ? (", " + std::to_string(cluster.size()) + " MPI ranks").c_str() : "", cmd.width,
+                cmd.height, q.spp, q.bounces,
+                opt.denoise ? ("SVGF " + std::to_string(q.svgf_iterations) + " iterations, seams " + cmd.seams).c_str()
+                            : "off",
+                controller ? (" (last frame's; control loop " + cmd.target_ms + " ms)").c_str() : "");
+    if (done > 1)
+      std::printf("%.1f Hz over frames 1-%u (frame 0 took %.0f ms: it includes kernel compilation)\n", hz, done - 1,
+                  first_frame_ms);
+    else
+      std::printf("%.1f Hz (one frame, including kernel compilation)\n", hz);
+    std::printf("median device time per stage%s:\n%s", done > 1 ? " (frames after the first)" : "",
+                summary.table(1).c_str());
+    if (balancer) {
+      std::printf("strips at the end (rows per device):");
+      for (const RowRange& r : pipeline.strips()) std::printf(" %u", r.size());
+      std::printf("\n");
+    }
+    std::printf("files:\n  %s/frame_NNNN_{left,right}.{exr,png}, frame_NNNN_stereo.png (NNNN = 0000-%04u)\n",
+                cmd.out.c_str(), done - 1);
+    if (report_file) std::printf("  report:   %s\n", cmd.report.c_str());
+    if (timeline_file) std::printf("  timeline: %s\n", cmd.timeline.c_str());
+    if (video) std::printf("  video:    %s (left | right, %g fps)\n", cmd.video.c_str(), double(cmd.fps));
+    std::printf("\n");
   }
   if (stopped) {
     std::printf("interrupted by %s after %u of %u frame(s): wrote frames 0-%u to %s "

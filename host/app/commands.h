@@ -44,11 +44,21 @@ struct RenderCommand {
   std::string seams = "halo";
   std::string report;          // JSON report path ("" = none)
   std::string timeline;        // Chrome trace / Perfetto JSON path ("" = none)
+  std::string video;           // left|right side by side through ffmpeg ("" = none)
   std::string target_ms;       // control-loop window "LO:HI" ("" = off: fixed quality)
   unsigned max_spp = 64;       // control loop: the most spp it may raise to
   std::string balance = "static";  // "dynamic": strip boundaries follow the measured device times
   unsigned balance_step = 8;   // dynamic balance: most rows a boundary moves per frame
   DeviceChoice devices;
+};
+
+// The live viewer: `render`'s scene, pipeline, quality, devices and control loop (its
+// frames / out / report / timeline are unused), shown in a window as frames finish.
+struct ViewCommand {
+  RenderCommand render;
+  unsigned frames = 0;       // stop after this many frames (0: run until the window closes)
+  std::string screenshot;    // PNG of the window content when the viewer stops ("" = none)
+  float move_speed = 0.0f;   // fly-through speed, scene units per second (0: from the scene size)
 };
 
 struct ReferenceCommand {
@@ -74,5 +84,8 @@ int run_preview(const PreviewCommand& cmd);
 int run_render(const RenderCommand& cmd);
 int run_reference(const ReferenceCommand& cmd);
 int run_compare(const CompareCommand& cmd);
+// Defined in viewer/live_viewer.cpp, which only the parallax executable compiles (GLFW +
+// OpenGL stay out of the core library).
+int run_view(const ViewCommand& cmd);
 
 }  // namespace px

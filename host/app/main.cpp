@@ -32,6 +32,48 @@ void add_size_flags(CLI::App* cmd, unsigned& width, unsigned& height) {
 const char* kSceneHelp = "scene: a JSON scene file (scenes/*.json), an OBJ file, or a built-in name "
                          "(cornell, cornell-glossy, atrium)";
 
+// What `render` and `view` share: scene, size, pipeline, quality, denoising, the control loop
+// and the devices.
+void add_pipeline_flags(CLI::App* cmd, px::RenderCommand& r) {
+  cmd->add_option("--scene", r.scene, kSceneHelp)->capture_default_str();
+  cmd->add_option("--pipeline", r.pipeline,
+                  "proposed: every stage on every device for its strip; baseline: Tauray-style, path "
+                  "tracing distributed, the rest on the owner; mono: both eyes fully path traced")
+      ->check(CLI::IsMember({"mono", "proposed", "baseline"}))
+      ->capture_default_str();
+  add_size_flags(cmd, r.width, r.height);
+  cmd->add_option("--fps", r.fps, "frame rate: frame f is at time f / fps on the camera path")->capture_default_str();
+  cmd->add_option("--spp", r.trace.spp, "samples per pixel")->check(CLI::Range(1u, 1u << 20))->capture_default_str();
+  cmd->add_option("--bounces", r.trace.bounces, "maximum path length in bounces")->check(CLI::Range(0u, px::PathTracer::kMaxBounces))->capture_default_str();
+  cmd->add_option("--rr-start", r.trace.rr_start_bounce, "Russian roulette from this bounce on")->capture_default_str();
+  cmd->add_option("--light-sampling", r.light_sampling,
+                  "mis (NEE + BSDF sampling, power heuristic), nee (next-event only), bsdf (BSDF sampling only)")
+      ->check(CLI::IsMember({"mis", "nee", "bsdf"}))
+      ->capture_default_str();
+  cmd->add_option("--seed", r.trace.seed, "seed of the sample streams")->capture_default_str();
+  cmd->add_option("--exposure", r.exposure, "scale applied before the sRGB PNG encoding")->capture_default_str();
+  cmd->add_flag("--no-denoise", r.no_denoise, "skip SVGF (stages 6-7): write the noisy images");
+  cmd->add_option("--svgf-iterations", r.svgf.iterations, "a-trous iterations")->check(CLI::Range(1u, 8u))->capture_default_str();
+  cmd->add_option("--sigma-l", r.svgf.sigma_l, "SVGF luminance edge-stopping (paper 4, Tauray 10, stereo paper 32)")->capture_default_str();
+  cmd->add_option("--sigma-z", r.svgf.sigma_z, "SVGF depth edge-stopping (paper 1, stereo paper 128)")->capture_default_str();
+  cmd->add_option("--sigma-n", r.svgf.sigma_n, "SVGF normal edge-stopping exponent (paper 128, stereo paper 4)")->capture_default_str();
+  cmd->add_option("--alpha", r.svgf.alpha, "temporal blend floor for colour")->check(CLI::Range(0.0f, 1.0f))->capture_default_str();
+  cmd->add_option("--alpha-moments", r.svgf.alpha_moments, "temporal blend floor for moments")->check(CLI::Range(0.0f, 1.0f))->capture_default_str();
+  cmd->add_option("--seams", r.seams,
+                  "strip borders when denoising: halo (exchange neighbour rows; N devices = 1 device), "
+                  "independent (each strip alone), bilateral (independent + seam-band filter)")
+      ->check(CLI::IsMember({"halo", "independent", "bilateral"}))
+      ->capture_default_str();
+  cmd->add_option("--target-ms", r.target_ms,
+                  "hold the stereo frame time inside LO:HI ms (the paper's window is 11:20) by tuning spp, "
+                  "bounces and SVGF iterations between frames; --spp, --bounces and --svgf-iterations are "
+                  "the starting values, and bounces and iterations never rise above them (off by default)");
+  cmd->add_option("--max-spp", r.max_spp, "with --target-ms: the most samples per pixel the loop may use")
+      ->check(CLI::Range(1u, 1048576u))
+      ->capture_default_str();
+  add_device_flags(cmd, r.devices);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -56,52 +98,17 @@ int main(int argc, char** argv) {
   auto* render_cmd = app.add_subcommand(
       "render", "path trace a stereo animation; writes per frame and eye a linear EXR and an sRGB PNG, plus a "
                 "side-by-side stereo PNG (frame_NNNN_{left,right}.{exr,png}, frame_NNNN_stereo.png)");
-  render_cmd->add_option("--scene", render.scene, kSceneHelp)->capture_default_str();
-  render_cmd->add_option("--pipeline", render.pipeline,
-                         "proposed: every stage on every device for its strip; baseline: Tauray-style, path "
-                         "tracing distributed, the rest on the owner; mono: both eyes fully path traced")
-      ->check(CLI::IsMember({"mono", "proposed", "baseline"}))
-      ->capture_default_str();
-  add_size_flags(render_cmd, render.width, render.height);
+  add_pipeline_flags(render_cmd, render);
   render_cmd->add_option("--frames", render.frames, "frames to render along the camera path")->check(CLI::Range(1u, 100000u))->capture_default_str();
-  render_cmd->add_option("--fps", render.fps, "frame rate: frame f is at time f / fps on the camera path")->capture_default_str();
-  render_cmd->add_option("--spp", render.trace.spp, "samples per pixel")->check(CLI::Range(1u, 1u << 20))->capture_default_str();
-  render_cmd->add_option("--bounces", render.trace.bounces, "maximum path length in bounces")->check(CLI::Range(0u, px::PathTracer::kMaxBounces))->capture_default_str();
-  render_cmd->add_option("--rr-start", render.trace.rr_start_bounce, "Russian roulette from this bounce on")->capture_default_str();
-  render_cmd->add_option("--light-sampling", render.light_sampling,
-                         "mis (NEE + BSDF sampling, power heuristic), nee (next-event only), bsdf (BSDF sampling only)")
-      ->check(CLI::IsMember({"mis", "nee", "bsdf"}))
-      ->capture_default_str();
-  render_cmd->add_option("--seed", render.trace.seed, "seed of the sample streams")->capture_default_str();
-  render_cmd->add_option("--exposure", render.exposure, "scale applied before the sRGB PNG encoding")->capture_default_str();
   render_cmd->add_option("--timeline", render.timeline,
                          "write a Chrome trace / Perfetto JSON: one track per device, one slice per OpenCL command "
                          "(from profiling events)");
-  render_cmd->add_flag("--no-denoise", render.no_denoise, "skip SVGF (stages 6-7): write the noisy images");
-  render_cmd->add_option("--svgf-iterations", render.svgf.iterations, "a-trous iterations")->check(CLI::Range(1u, 8u))->capture_default_str();
-  render_cmd->add_option("--sigma-l", render.svgf.sigma_l, "SVGF luminance edge-stopping (paper 4, Tauray 10, stereo paper 32)")->capture_default_str();
-  render_cmd->add_option("--sigma-z", render.svgf.sigma_z, "SVGF depth edge-stopping (paper 1, stereo paper 128)")->capture_default_str();
-  render_cmd->add_option("--sigma-n", render.svgf.sigma_n, "SVGF normal edge-stopping exponent (paper 128, stereo paper 4)")->capture_default_str();
-  render_cmd->add_option("--alpha", render.svgf.alpha, "temporal blend floor for colour")->check(CLI::Range(0.0f, 1.0f))->capture_default_str();
-  render_cmd->add_option("--alpha-moments", render.svgf.alpha_moments, "temporal blend floor for moments")->check(CLI::Range(0.0f, 1.0f))->capture_default_str();
-  render_cmd->add_option("--seams", render.seams,
-                         "strip borders when denoising: halo (exchange neighbour rows; N devices = 1 device), "
-                         "independent (each strip alone), bilateral (independent + seam-band filter)")
-      ->check(CLI::IsMember({"halo", "independent", "bilateral"}))
-      ->capture_default_str();
   render_cmd->add_option("--out", render.out, "output directory")->capture_default_str();
   render_cmd->add_flag("--explain", render.explain,
                        "print the schedule (stage x device workload pairs, dependency tree) and exit");
   render_cmd->add_option("--report", render.report,
                          "write a JSON report: per frame, stage and device the device time (OpenCL profiling), "
                          "wall time, reprojected share, bytes transferred; makespan and Hz");
-  render_cmd->add_option("--target-ms", render.target_ms,
-                         "hold the stereo frame time inside LO:HI ms (the paper's window is 11:20) by tuning spp, "
-                         "bounces and SVGF iterations between frames; --spp, --bounces and --svgf-iterations are "
-                         "the starting values, and bounces and iterations never rise above them (off by default)");
-  render_cmd->add_option("--max-spp", render.max_spp, "with --target-ms: the most samples per pixel the loop may use")
-      ->check(CLI::Range(1u, 1048576u))
-      ->capture_default_str();
   render_cmd->add_option("--balance", render.balance,
                          "strip boundaries between devices: static (even split) or dynamic (moved between frames "
                          "toward equal measured device time; images stay identical; proposed and mono pipelines)")
@@ -111,8 +118,26 @@ int main(int argc, char** argv) {
                          "with --balance dynamic: the most rows a strip boundary moves per frame")
       ->check(CLI::Range(1u, 65535u))
       ->capture_default_str();
+  render_cmd->add_option("--video", render.video,
+                         "also encode the frames, left and right eye side by side, as an H.264 video (.mp4, .mkv "
+                         "or .mov) at --fps, through the ffmpeg program (Debian package ffmpeg)");
   render_cmd->add_flag("--overwrite", render.overwrite, "allow writing into a non-empty output directory");
-  add_device_flags(render_cmd, render.devices);
+
+  px::ViewCommand view;
+  auto* view_cmd = app.add_subcommand(
+      "view", "live viewer: a window showing both eyes side by side as frames finish, rendered like `render` "
+              "(same pipelines, devices, quality and control-loop flags). Keys: W/A/S/D move, Q/E down/up, "
+              "drag with the left mouse button to look around, Space returns to the scene's camera path, "
+              "Esc quits");
+  add_pipeline_flags(view_cmd, view.render);
+  view_cmd->add_option("--frames", view.frames, "stop after N frames (0: run until the window is closed or Esc)")
+      ->capture_default_str();
+  view_cmd->add_option("--screenshot", view.screenshot,
+                       "when the viewer stops, save the window content (both eyes side by side) as this PNG");
+  view_cmd->add_option("--move-speed", view.move_speed,
+                       "fly-through speed in scene units per second (0: a quarter of the scene's size)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
 
   px::ReferenceCommand reference;
   auto* reference_cmd = app.add_subcommand(
@@ -153,6 +178,7 @@ int main(int argc, char** argv) {
     if (devices_cmd->parsed()) return px::run_devices(devices_choice);
     if (preview_cmd->parsed()) return px::run_preview(preview);
     if (render_cmd->parsed()) return px::run_render(render);
+    if (view_cmd->parsed()) return px::run_view(view);
     if (reference_cmd->parsed()) return px::run_reference(reference);
     if (compare_cmd->parsed()) return px::run_compare(compare);
     if (demo_cmd->parsed()) {

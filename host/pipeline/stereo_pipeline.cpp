@@ -261,13 +261,16 @@ void StereoPipeline::copy_rows(int from, const cl::Buffer& src, int to, const cl
 }
 
 FrameStats StereoPipeline::render(unsigned frame, float time_s) {
+  return render(frame, evaluate_camera(scene_, time_s));
+}
+
+FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
   using clock_type = std::chrono::steady_clock;
   const auto t0 = clock_type::now();
   events_.clear();
   bytes_this_frame_ = 0;
   if (cluster_) cluster_->reset_traffic();
   // Stage 1, scene update: this frame's camera constants, passed to every launch.
-  const Camera centre = evaluate_camera(scene_, time_s);
   const std::array<CameraParams, 2> cams = {
       make_eye_camera(centre, Eye::Left, scene_.ipd_units(), width_, height_),
       make_eye_camera(centre, Eye::Right, scene_.ipd_units(), width_, height_)};

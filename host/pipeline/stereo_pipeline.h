@@ -110,6 +110,9 @@ class StereoPipeline {
   // Renders frame `frame` at camera-path time `time_s`. The finished images are on the owner
   // device afterwards; fetch them with images().
   FrameStats render(unsigned frame, float time_s);
+  // The same with the centre camera given (a viewer's fly-through camera) instead of taken
+  // from the scene's camera path.
+  FrameStats render(unsigned frame, const Camera& centre);
 
   // Devices of the whole frame (over all ranks) and which of them this process drives.
   const DeviceLayout& layout() const { return layout_; }

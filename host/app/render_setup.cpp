@@ -1,0 +1,112 @@
+#include "app/render_setup.h"
+
+#include <algorithm>
+#include <cstdio>
+
+namespace px {
+namespace {
+
+DeviceSet create_devices(const DeviceChoice& choice) {
+  auto set = choice.create();
+  print_device_set(set);
+  return set;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  const std::size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + mid, v.end());
+  if (v.size() % 2) return v[mid];
+  const double upper = v[mid];
+  return 0.5 * (upper + *std::max_element(v.begin(), v.begin() + mid));
+}
+
+}  // namespace
+
+PipelineConfig make_pipeline_config(const RenderCommand& cmd) {
+  if (cmd.trace.spp == 0) throw std::invalid_argument("--spp must be at least 1");
+  if (!(cmd.fps > 0.0f)) throw std::invalid_argument("--fps must be positive");
+  PipelineConfig cfg;
+  auto& opt = cfg.options;
+  opt.pipeline = parse_pipeline(cmd.pipeline);
+  opt.trace = cmd.trace;
+  opt.trace.light_sampling = parse_light_sampling(cmd.light_sampling);
+  opt.exposure = cmd.exposure;
+  opt.denoise = !cmd.no_denoise;
+  opt.svgf = cmd.svgf;
+  opt.seams = parse_seam_mode(cmd.seams);
+  // The control loop, when asked for: limits from the command line (the starting bounces and
+  // iterations are the most it may use; spp may rise to --max-spp).
+  if (!cmd.target_ms.empty()) {
+    FrameTimeController::Options c;
+    std::tie(c.lo_ms, c.hi_ms) = FrameTimeController::parse_window(cmd.target_ms);
+    if (opt.trace.bounces == 0) throw std::invalid_argument("--target-ms needs --bounces of at least 1");
+    c.spp = {1, std::max(cmd.max_spp, opt.trace.spp)};
+    c.bounces = {1, opt.trace.bounces};
+    // Without denoising the iterations cost nothing and stay where they are.
+    c.svgf_iterations = {opt.denoise ? 1u : opt.svgf.iterations, opt.svgf.iterations};
+    cfg.controller.emplace(c);
+  }
+  return cfg;
+}
+
+void print_device_set(const DeviceSet& set) {
+  std::fprintf(stderr, "[devices] %d on '%s' (%s):\n", set.size(), set.platform_name().c_str(), to_string(set.mode()));
+  for (const auto& d : set.devices()) std::fprintf(stderr, "  %d: %s\n", d.index, d.description.c_str());
+}
+
+RenderSession::RenderSession(const RenderCommand& cmd, const StereoPipeline::Options& options)
+    : loaded(load_and_build(cmd.scene)),
+      devices(create_devices(cmd.devices)),
+      device_scene(devices, loaded.scene, loaded.bvh),
+      pipeline(devices, device_scene, loaded.scene, cmd.width, cmd.height, options) {}
+
+std::map<Stage, double> slowest_device_ms(const FrameStats& stats) {
+  std::map<Stage, double> out;
+  for (const auto& s : stats.stages) out[s.stage] = std::max(out[s.stage], s.ms);
+  return out;
+}
+
+std::optional<std::pair<Stage, double>> slowest_stage(const FrameStats& stats) {
+  std::optional<std::pair<Stage, double>> best;
+  for (const auto& [stage, ms] : slowest_device_ms(stats))
+    if (!best || ms > best->second) best = {stage, ms};
+  return best;
+}
+
+void StageSummary::add(const FrameStats& stats) {
+  const std::size_t index = wall_ms_.size();
+  std::map<Stage, double> total;
+  for (const auto& s : stats.stages) total[s.stage] += s.ms;
+  for (const auto& [stage, ms] : slowest_device_ms(stats)) {
+    // A stage missing from earlier frames counts 0 ms there.
+    slowest_[stage].resize(index, 0.0);
+    total_[stage].resize(index, 0.0);
+    slowest_[stage].push_back(ms);
+    total_[stage].push_back(total[stage]);
+  }
+  wall_ms_.push_back(stats.wall_ms);
+  for (auto* m : {&slowest_, &total_})
+    for (auto& [stage, v] : *m) v.resize(wall_ms_.size(), 0.0);
+}
+
+std::string StageSummary::table(std::size_t skip) const {
+  if (wall_ms_.empty()) return "";
+  if (skip >= wall_ms_.size()) skip = 0;
+  auto tail = [skip](const std::vector<double>& v) { return std::vector<double>(v.begin() + skip, v.end()); };
+  std::string out;
+  char line[160];
+  std::snprintf(line, sizeof line, "  %-18s %14s %14s\n", "stage", "slowest device", "all devices");
+  out += line;
+  for (const auto& [stage, v] : slowest_) {
+    std::snprintf(line, sizeof line, "  %-18s %11.2f ms %11.2f ms\n", stage_name(stage), median(tail(v)),
+                  median(tail(total_.at(stage))));
+    out += line;
+  }
+  std::snprintf(line, sizeof line, "  %-18s %11.2f ms   (host, first enqueue to last command)\n", "frame wall",
+                median(tail(wall_ms_)));
+  out += line;
+  return out;
+}
+
+}  // namespace px
