@@ -60,6 +60,16 @@ if timeout 300 "${mpi[@]}" -np 2 "$bin" "${common[@]}" --devices 2 --pipeline ba
   same_pixels "mpirun -np 2 --devices 2 --pipeline baseline" "$tmp/one_baseline" "$tmp/base"
 else bad "mpirun -np 2 --devices 2 baseline failed"; tail -20 "$tmp/base.log"; fi
 
+# --no-exr: finished strips travel as RGBA8 alone; the PNGs equal one process's byte for byte.
+if timeout 300 "${mpi[@]}" -np 2 "$bin" "${common[@]}" --devices 1 --no-exr --out "$tmp/png" >"$tmp/png.log" 2>&1; then
+  same=1
+  for f in 0000 0001 0002; do for e in left right; do
+    cmp -s "$tmp/one/frame_${f}_$e.png" "$tmp/png/frame_${f}_$e.png" || same=0
+  done; done
+  if [ "$same" -eq 1 ] && ! ls "$tmp/png" | grep -q '\.exr$'; then ok "mpirun -np 2 --no-exr: PNGs equal one process, no EXR"
+  else bad "mpirun -np 2 --no-exr: PNGs differ or EXRs written"; fi
+else bad "mpirun -np 2 --no-exr failed"; tail -20 "$tmp/png.log"; fi
+
 # Only rank 0 writes: no other rank touched the output folder (nothing but frame files there).
 if [ "$(ls "$tmp/np2" | grep -cv '^frame_')" -eq 0 ]; then ok "only frame files in the output"; else bad "stray files in output"; fi
 

@@ -138,6 +138,7 @@ int run_render(const RenderCommand& cmd) {
   const bool distributed = cluster.distributed();
   const bool root = cluster.rank() == 0;
   opt.cluster = &cluster;
+  opt.gather_radiance = !cmd.no_exr;
   if (cmd.explain) {
     if (!root) return 0;
     // The schedule depends only on pipeline, device count, height and denoising: no scene needed.
@@ -317,18 +318,26 @@ int run_render(const RenderCommand& cmd) {
       }
       pipeline.set_strips(next);
     }
-    auto eyes = pipeline.radiance();
-    require_finite(eyes, "frame " + std::to_string(f));
+    if (st.nonfinite_pixels > 0)
+      throw std::runtime_error("frame " + std::to_string(f) + ": " + std::to_string(st.nonfinite_pixels) +
+                               " pixels are NaN or infinite (not written). The scene's coordinates or camera are "
+                               "probably beyond what 32-bit floats resolve: scale or recentre it");
+    std::array<ImageRGB, 2> eyes;
+    if (!cmd.no_exr) {
+      eyes = pipeline.radiance();
+      require_finite(eyes, "frame " + std::to_string(f));
+    }
     auto png = pipeline.rgba8();
     const std::string prefix = frame_name(f, "");
+    const int w = static_cast<int>(cmd.width), h = static_cast<int>(cmd.height);
     try {
       for (int e = 0; e < 2; ++e) {
         const std::string name = prefix + (e == 0 ? "left" : "right");
-        write_exr(out_dir->file(name + ".exr"), eyes[e]);
-        write_png(out_dir->file(name + ".png"), eyes[e].width, eyes[e].height, png[e]);
+        if (!cmd.no_exr) write_exr(out_dir->file(name + ".exr"), eyes[e]);
+        write_png(out_dir->file(name + ".png"), w, h, png[e]);
       }
-      const auto stereo = side_by_side(png[0], png[1], eyes[0].width, eyes[0].height);
-      write_png(out_dir->file(prefix + "stereo.png"), 2 * eyes[0].width, eyes[0].height, stereo);
+      const auto stereo = side_by_side(png[0], png[1], w, h);
+      write_png(out_dir->file(prefix + "stereo.png"), 2 * w, h, stereo);
       if (video) video->write_frame(stereo);
     } catch (const ImageError& e) {
       // Say what is usable: the frames before this one are complete.
@@ -445,6 +454,7 @@ int run_render(const RenderCommand& cmd) {
     std::fprintf(stderr, "[render] timeline written to %s (open in chrome://tracing or ui.perfetto.dev)\n",
                  cmd.timeline.c_str());
   }
+  const char* eye_files = cmd.no_exr ? "png" : "{exr,png}";
   // The one-screen summary on stdout: what ran, how fast, where the time went, where the files are.
   if (done > 0) {
     const FrameQuality& q = last_quality;
@@ -468,8 +478,8 @@ int run_render(const RenderCommand& cmd) {
       for (const RowRange& r : pipeline.strips()) std::printf(" %u", r.size());
       std::printf("\n");
     }
-    std::printf("files:\n  %s/frame_NNNN_{left,right}.{exr,png}, frame_NNNN_stereo.png (NNNN = 0000-%04u)\n",
-                cmd.out.c_str(), done - 1);
+    std::printf("files:\n  %s/frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png (NNNN = 0000-%04u)\n",
+                cmd.out.c_str(), eye_files, done - 1);
     if (report_file) std::printf("  report:   %s\n", cmd.report.c_str());
     if (timeline_file) std::printf("  timeline: %s\n", cmd.timeline.c_str());
     if (video) std::printf("  video:    %s (left | right, %g fps)\n", cmd.video.c_str(), double(cmd.fps));
@@ -477,13 +487,13 @@ int run_render(const RenderCommand& cmd) {
   }
   if (stopped) {
     std::printf("interrupted by %s after %u of %u frame(s): wrote frames 0-%u to %s "
-                "(frame_NNNN_{left,right}.{exr,png}, frame_NNNN_stereo.png), every file complete%s\n",
-                interrupt_signal_name(), done, cmd.frames, done - 1, cmd.out.c_str(),
+                "(frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png), every file complete%s\n",
+                interrupt_signal_name(), done, cmd.frames, done - 1, cmd.out.c_str(), eye_files,
                 report_file ? "; the report covers those frames" : "");
     return interrupt_exit_code();
   }
-  std::printf("wrote %u frame(s) to %s (frame_NNNN_{left,right}.{exr,png}, frame_NNNN_stereo.png); %.1f Hz %s\n",
-              cmd.frames, cmd.out.c_str(), hz,
+  std::printf("wrote %u frame(s) to %s (frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png); %.1f Hz %s\n",
+              cmd.frames, cmd.out.c_str(), eye_files, hz,
               done > 1 ? "over the frames after the first (which includes kernel compilation)"
                        : "(one frame, including kernel compilation)");
   // A signal after the last frame: every frame is written, but the exit status still says so.

@@ -40,6 +40,7 @@ struct RenderCommand {
   bool overwrite = false;
   bool explain = false;        // print the schedule (stage x device workload pairs, tree)
   bool no_denoise = false;
+  bool no_exr = false;         // PNGs only: finished strips travel as RGBA8 alone
   SvgfDenoiser::Options svgf;
   std::string seams = "halo";
   std::string report;          // JSON report path ("" = none)

@@ -109,6 +109,9 @@ int main(int argc, char** argv) {
   render_cmd->add_option("--report", render.report,
                          "write a JSON report: per frame, stage and device the device time (OpenCL profiling), "
                          "wall time, reprojected share, bytes transferred; makespan and Hz");
+  render_cmd->add_flag("--no-exr", render.no_exr,
+                       "write PNGs only: finished strips then travel to the owner as RGBA8 alone (4 bytes a pixel "
+                       "instead of 20; what a display needs, as in the paper)");
   render_cmd->add_option("--balance", render.balance,
                          "strip boundaries between devices: static (even split) or dynamic (moved between frames "
                          "toward equal measured device time; images stay identical; proposed and mono pipelines)")

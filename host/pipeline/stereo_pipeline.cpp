@@ -66,6 +66,7 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
     b.holes = device_buffer(ctx, pixels * sizeof(cl_uint));
     b.hole_count = device_buffer(ctx, sizeof(cl_uint));
     b.nonfinite = device_buffer(ctx, sizeof(cl_uint));
+    b.nonfinite_pixels = device_buffer(ctx, sizeof(cl_uint));
     if (options_.denoise) {
       if (options_.svgf.iterations < 1) throw std::invalid_argument("SVGF needs at least one a-trous iteration");
       for (int e = 0; e < 2; ++e) {
@@ -202,6 +203,7 @@ void StereoPipeline::tonemap(int d, int eye, RowRange rows) {
   k.setArg(2, first);
   k.setArg(3, count);
   k.setArg(4, options_.exposure);
+  k.setArg(5, buffers_[d].nonfinite_pixels);
   enqueue(d, k, count, Stage::Tonemap);
 }
 
@@ -279,6 +281,7 @@ FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
   for (int d = 0; d < n; ++d) {
     if (!local(d)) continue;
     queue(d).enqueueFillBuffer(buffers_[d].nonfinite, zero, 0, sizeof(cl_uint));
+    queue(d).enqueueFillBuffer(buffers_[d].nonfinite_pixels, zero, 0, sizeof(cl_uint));
     queue(d).enqueueFillBuffer(buffers_[d].hole_count, zero, 0, sizeof(cl_uint));
   }
 
@@ -303,7 +306,8 @@ FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
           // Baseline transfers the left radiance (before the owner's G-buffer); the others
           // transfer finished images.
           case Stage::Transfer:
-            transfer(d, 0, r, true, schedule_.pipeline != PipelineKind::Baseline);
+            transfer(d, 0, r, schedule_.pipeline == PipelineKind::Baseline || options_.gather_radiance,
+                     schedule_.pipeline != PipelineKind::Baseline);
             break;
           default: break;
         }
@@ -319,7 +323,7 @@ FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
           case Stage::Reproject: reproject(d, r, cams[0]); break;
           case Stage::HoleFill: fill_holes(d, r, cams[1], frame); break;
           case Stage::Tonemap: tonemap(d, 1, r); break;
-          case Stage::Transfer: transfer(d, 1, r, true, true); break;
+          case Stage::Transfer: transfer(d, 1, r, options_.gather_radiance, true); break;
           default: break;
         }
       }
@@ -362,22 +366,25 @@ FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
   for (auto& [key, ms] : sums) stats.stages.push_back({key.first, key.second, ms});
   stats.right_pixels = static_cast<std::size_t>(width_) * height_;
   const StageWork* fill = schedule_.find(Stage::HoleFill);
-  std::uint64_t holes = 0, bad_total = 0;
+  std::uint64_t holes = 0, bad_total = 0, bad_pixels = 0;
   for (int d = 0; d < n; ++d) {
     if (!local(d)) continue;
-    cl_uint count = 0, bad = 0;
+    cl_uint count = 0, bad = 0, bad_px = 0;
     auto& q = queue(d);
     q.enqueueReadBuffer(buffers_[d].nonfinite, CL_FALSE, 0, sizeof(cl_uint), &bad);
+    q.enqueueReadBuffer(buffers_[d].nonfinite_pixels, CL_FALSE, 0, sizeof(cl_uint), &bad_px);
     if (fill) q.enqueueReadBuffer(buffers_[d].hole_count, CL_FALSE, 0, sizeof(cl_uint), &count);
     q.finish();
     holes += count;  // one reprojection launch per device and frame at most, in either pipeline
     bad_total += bad;
+    bad_pixels += bad_px;
   }
   std::uint64_t bytes = bytes_this_frame_;
   if (cluster_) {
     // Rank 0 reports the whole frame: every rank's counts, stage times and traffic.
     holes = cluster_->sum(holes);
     bad_total = cluster_->sum(bad_total);
+    bad_pixels = cluster_->sum(bad_pixels);
     bytes = cluster_->sum(bytes);
     std::vector<double> mine;
     for (const StageTiming& t : stats.stages) mine.insert(mine.end(), {double(int(t.stage)), double(t.device), t.ms});
@@ -399,6 +406,7 @@ FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
   }
   nonfinite_total_ += bad_total;
   stats.bytes_transferred = bytes;
+  stats.nonfinite_pixels = bad_pixels;
   stats.reprojected = fill ? stats.right_pixels - holes : 0;
   return stats;
 }
@@ -559,6 +567,8 @@ std::vector<GBufferTexel> StereoPipeline::gbuffer_of(int eye) {
 }
 
 std::array<ImageRGB, 2> StereoPipeline::radiance() {
+  if (!options_.gather_radiance && layout_.count() > 1)
+    throw std::logic_error("radiance(): the pipeline gathers RGBA8 only (Options::gather_radiance is off)");
   const std::size_t pixels = static_cast<std::size_t>(width_) * height_;
   if (!holds_frame()) throw std::logic_error("only rank 0 holds the finished frame");
   auto& q = queue(schedule_.tree.root);

@@ -47,6 +47,7 @@ struct FrameStats {
   std::size_t right_pixels = 0;         // right-eye pixels in the frame
   std::size_t reprojected = 0;          // of those, reprojected from the left eye
   std::size_t bytes_transferred = 0;    // child -> host -> owner, both hops counted once
+  std::size_t nonfinite_pixels = 0;     // tonemapped pixels whose radiance was NaN / infinite
   // Across MPI ranks (on rank 0, for every rank; empty in one process): bytes each rank sent
   // to each rank ([from][to]) and each rank's host time in MPI calls.
   std::vector<std::vector<std::uint64_t>> mpi_bytes;
@@ -79,6 +80,10 @@ class StereoPipeline {
     // its DeviceSet's N devices as global devices rank*N .. rank*N+N-1 and must construct the
     // pipeline with the same options; rank 0 holds the owner and the finished frame.
     Cluster* cluster = nullptr;
+    // Whether finished strips carry their float radiance to the owner as well as RGBA8 (for
+    // radiance(), e.g. EXR files). Off: RGBA8 alone travels (4 instead of 20 bytes a pixel),
+    // what a display needs, and radiance() is unavailable.
+    bool gather_radiance = true;
   };
 
   StereoPipeline(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene, unsigned width,
@@ -148,6 +153,7 @@ class StereoPipeline {
     cl::Buffer holes;                    // uint, full frame (worst case: every pixel a hole)
     cl::Buffer hole_count;               // uint
     cl::Buffer nonfinite;                // uint
+    cl::Buffer nonfinite_pixels;         // uint, counted by the tonemap
     // Host-mapped staging for strips travelling to the owner (children only).
     cl::Buffer staging_radiance, staging_albedo, staging_rgba;
     // Denoising: last frame's G-buffers, one SVGF state per eye, and host-mapped staging for
