@@ -107,7 +107,7 @@ int run_devices(const DeviceChoice& choice) {
 int run_preview(const PreviewCommand& cmd) {
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite);
-  auto loaded = load_and_build(cmd.scene);
+  auto loaded = load_and_build(cmd.scene, false, cmd.sky);
   auto devices = cmd.devices.create();
   print_device_set(devices);
   DeviceScene device_scene(devices, loaded.scene, loaded.bvh);
@@ -167,7 +167,7 @@ int run_render(const RenderCommand& cmd) {
     report_file->write("{\n  \"frames\": [");
   }
   if (!cmd.timeline.empty()) timeline_file.emplace(cmd.timeline);
-  auto loaded = load_and_build(cmd.scene);
+  auto loaded = load_and_build(cmd.scene, false, cmd.sky);
   auto devices = cmd.devices.create();
   print_device_set(devices);
   DeviceScene device_scene(devices, loaded.scene, loaded.bvh);
@@ -343,7 +343,7 @@ int run_render(const RenderCommand& cmd) {
 int run_reference(const ReferenceCommand& cmd) {
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite);
-  auto loaded = load_and_build(cmd.scene);
+  auto loaded = load_and_build(cmd.scene, false, cmd.sky);
   auto devices = cmd.devices.create();
   print_device_set(devices);
   DeviceScene device_scene(devices, loaded.scene, loaded.bvh);

@@ -6,6 +6,7 @@
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <map>
 
 namespace {
 
@@ -28,8 +29,19 @@ void add_size_flags(CLI::App* cmd, unsigned& width, unsigned& height) {
   cmd->add_option("--height", height, "height of each eye in pixels")->check(CLI::Range(1u, 16384u))->capture_default_str();
 }
 
-const char* kSceneHelp = "scene: a JSON scene file (scenes/*.json), an OBJ file, or a built-in name "
-                         "(cornell, cornell-glossy, atrium)";
+const char* kSceneHelp = "scene: a JSON scene file (scenes/*.json), an OBJ, glTF 2.0 (.gltf) or binary glTF (.glb) "
+                         "file, or a built-in name (cornell, cornell-glossy, atrium)";
+
+void add_sky_flag(CLI::App* cmd, px::SkyMode& sky) {
+  static const std::map<std::string, px::SkyMode> kModes = {
+      {"auto", px::SkyMode::kAuto}, {"on", px::SkyMode::kOn}, {"off", px::SkyMode::kOff}};
+  cmd->add_option("--sky", sky,
+                  "default sky environment: auto (only for a scene without any light: no emitter, sun or sky), "
+                  "on (also beside the scene's own lights, unless it has a sky), off (never; an unlit scene "
+                  "renders black)")
+      ->transform(CLI::CheckedTransformer(kModes, CLI::ignore_case))
+      ->default_str("auto");
+}
 
 }  // namespace
 
@@ -45,6 +57,7 @@ int main(int argc, char** argv) {
   px::PreviewCommand preview;
   auto* preview_cmd = app.add_subcommand("preview", "shaded primary hits of both eyes (a quick geometry/framing check)");
   preview_cmd->add_option("--scene", preview.scene, kSceneHelp)->capture_default_str();
+  add_sky_flag(preview_cmd, preview.sky);
   add_size_flags(preview_cmd, preview.width, preview.height);
   preview_cmd->add_option("--time", preview.time_s, "time on the camera path, seconds")->capture_default_str();
   preview_cmd->add_option("--out", preview.out, "output directory")->capture_default_str();
@@ -56,6 +69,7 @@ int main(int argc, char** argv) {
       "render", "path trace a stereo animation; writes per frame and eye a linear EXR and an sRGB PNG, plus a "
                 "side-by-side stereo PNG (frame_NNNN_{left,right}.{exr,png}, frame_NNNN_stereo.png)");
   render_cmd->add_option("--scene", render.scene, kSceneHelp)->capture_default_str();
+  add_sky_flag(render_cmd, render.sky);
   render_cmd->add_option("--pipeline", render.pipeline,
                          "proposed: every stage on every device for its strip; baseline: Tauray-style, path "
                          "tracing distributed, the rest on the owner; mono: both eyes fully path traced")
@@ -109,6 +123,7 @@ int main(int argc, char** argv) {
       "reference", "progressive converged render of both eyes (ground truth for error figures): "
                    "reference_{left,right}.exr");
   reference_cmd->add_option("--scene", reference.scene, kSceneHelp)->capture_default_str();
+  add_sky_flag(reference_cmd, reference.sky);
   add_size_flags(reference_cmd, reference.width, reference.height);
   reference_cmd->add_option("--spp", reference.spp, "total samples per pixel")->check(CLI::Range(1u, 1u << 24))->capture_default_str();
   reference_cmd->add_option("--pass-spp", reference.pass_spp, "samples per progressive pass")->check(CLI::Range(1u, 4096u))->capture_default_str();
