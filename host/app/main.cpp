@@ -6,7 +6,6 @@
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
-#include <map>
 
 namespace {
 
@@ -33,13 +32,15 @@ const char* kSceneHelp = "scene: a JSON scene file (scenes/*.json), an OBJ, glTF
                          "file, or a built-in name (cornell, cornell-glossy, atrium)";
 
 void add_sky_flag(CLI::App* cmd, px::SkyMode& sky) {
-  static const std::map<std::string, px::SkyMode> kModes = {
-      {"auto", px::SkyMode::kAuto}, {"on", px::SkyMode::kOn}, {"off", px::SkyMode::kOff}};
-  cmd->add_option("--sky", sky,
-                  "default sky environment: auto (only for a scene without any light: no emitter, sun or sky), "
-                  "on (also beside the scene's own lights, unless it has a sky), off (never; an unlit scene "
-                  "renders black)")
-      ->transform(CLI::CheckedTransformer(kModes, CLI::ignore_case))
+  cmd->add_option_function<std::string>(
+         "--sky",
+         [&sky](const std::string& v) {
+           sky = v == "on" ? px::SkyMode::kOn : v == "off" ? px::SkyMode::kOff : px::SkyMode::kAuto;
+         },
+         "default sky environment: auto (only for a scene without any light: no emitter, sun or sky), "
+         "on (also beside the scene's own lights, unless it has a sky), off (never; an unlit scene "
+         "renders black)")
+      ->check(CLI::IsMember({"auto", "on", "off"}))
       ->default_str("auto");
 }
 

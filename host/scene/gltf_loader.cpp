@@ -483,6 +483,8 @@ class Converter {
       const tinygltf::Sampler& s = model_.samplers[std::size_t(t.sampler)];
       if (s.wrapS != TINYGLTF_TEXTURE_WRAP_REPEAT || s.wrapT != TINYGLTF_TEXTURE_WRAP_REPEAT)
         unsupported_.add("sampler wrap modes other than REPEAT", mat);
+      if (s.magFilter == TINYGLTF_TEXTURE_FILTER_NEAREST)
+        unsupported_.add("NEAREST magnification filter (textures are filtered bilinearly)", mat);
     }
     if (t.source < 0 || std::size_t(t.source) >= model_.images.size()) {
       scene_.stats.warnings.push_back(path_ + ": material '" + mat + "': " + what + " texture " +
