@@ -413,6 +413,12 @@ TEST(GltfLoader, UnsupportedFeaturesAreNamedInOneWarningLine) {
   for (const char* feature : {"line primitives", "alphaMode BLEND", "KHR_lights_punctual", "wrap modes", "occlusionTexture"})
     EXPECT_EQ(count_warnings_containing(s, feature), 1) << feature;
   EXPECT_EQ(count_warnings_containing(s, "missing.png"), 1);
+  // An embedded image that is no image loses its texture, with a warning; the file loads.
+  g.doc["images"][0] = {{"uri", "data:image/png;base64," + base64("not a png at all")}};
+  const Scene junk = load_gltf(write_embedded(dir, "junk_image.gltf", g).string());
+  EXPECT_EQ(junk.triangles.size(), 3u);
+  EXPECT_EQ(count_warnings_containing(junk, "cannot decode image 0"), 1);
+  EXPECT_EQ(junk.materials[0].diffuse_texture, -1);
 }
 
 TEST(GltfLoader, BadInputsAreRefusedWithAMessageNamingTheFile) {
@@ -446,6 +452,13 @@ TEST(GltfLoader, BadInputsAreRefusedWithAMessageNamingTheFile) {
     Gltf g = make_mesh(kPos, kIdx);
     g.doc["nodes"][0]["children"] = {0};
     expect_refused("cycle.gltf", g, "reached twice");
+  }
+  {
+    // A chain of 1000 nodes: refused before it could exhaust the stack.
+    Gltf g = make_mesh(kPos, kIdx);
+    g.doc["nodes"] = json::array();
+    for (int i = 0; i < 1000; ++i) g.doc["nodes"].push_back(i + 1 < 1000 ? json{{"children", {i + 1}}} : json{{"mesh", 0}});
+    expect_refused("chain.gltf", g, "deeper than");
   }
   {
     Gltf g = make_mesh(kPos, kIdx);

@@ -1,5 +1,6 @@
 // glTF 2.0 loading (.gltf with external or data-URI buffers, and binary .glb): tinygltf (the
-// Debian shared library) parses the file and decodes images; this file validates and converts.
+// Debian shared library) parses the file, OpenImageIO decodes its images; this file validates
+// and converts.
 //
 // tinygltf trusts the file's numbers: an accessor or buffer view reaching past its buffer, an
 // index beyond the vertex count, a node hierarchy with a cycle, or JSON nested deep enough to
@@ -27,6 +28,8 @@
 #include "scene/primitives.h"
 #include "scene/scene_loader.h"
 
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imageio.h>
 #include <tiny_gltf.h>
 
 #include <glm/gtc/quaternion.hpp>
@@ -173,23 +176,63 @@ std::string one_line(const std::string& text) {
   return out;
 }
 
-// Images stb cannot decode (KTX2, WebP...) lose their texture, with a warning, instead of
-// failing the whole file.
+// Images are decoded by OpenImageIO from memory (as the OBJ path's textures are), into float
+// RGBA kept in tinygltf's Image (bits 32). An image it cannot decode (KTX2, WebP...) or one
+// too large loses its texture, with a warning, instead of failing the whole file.
 struct ImageLoadLog {
   std::vector<std::string> failed;
 };
 
-bool load_image_lenient(tinygltf::Image* image, const int index, std::string* err, std::string* warn, int w,
-                        int h, const unsigned char* bytes, int size, void* user) {
-  std::string local_err;
-  if (tinygltf::LoadImageData(image, index, &local_err, warn, w, h, bytes, size, nullptr)) return true;
+// The file name OpenImageIO picks its reader by.
+std::string image_name_for(const tinygltf::Image& image, const unsigned char* bytes, int size) {
+  if (size >= 8 && std::memcmp(bytes, "\x89PNG", 4) == 0) return "image.png";
+  if (size >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF) return "image.jpg";
+  if (image.mimeType == "image/png") return "image.png";
+  if (image.mimeType == "image/jpeg") return "image.jpg";
+  const std::string ext = fs::path(image.uri).extension().string();
+  return "image" + (ext.empty() ? std::string(".png") : ext);
+}
+
+std::string decode_image(tinygltf::Image* image, const unsigned char* bytes, int size) {
+  if (size <= 0) return "empty image";
+  OIIO::Filesystem::IOMemReader memory(bytes, std::size_t(size));
+  OIIO::ImageSpec config;
+  config.attribute("oiio:UnassociatedAlpha", 1);  // straight alpha, as stored: cut-outs are tested, not blended
+  // The proxy goes in the configuration: OpenImageIO 2.4's open(name, config, proxy) still
+  // looks for the file by name.
+  void* proxy = &memory;
+  config.attribute("oiio:ioproxy", OIIO::TypeDesc::PTR, &proxy);
+  auto in = OIIO::ImageInput::open(image_name_for(*image, bytes, size), &config);
+  if (!in) return OIIO::geterror();
+  const OIIO::ImageSpec spec = in->spec();
+  const int w = spec.width, h = spec.height, nc = spec.nchannels;
+  if (w <= 0 || h <= 0 || nc <= 0 || spec.depth > 1) return "not a 2D image";
+  // 8192 x 8192 as float RGBA is already 1 GiB per device copy.
+  if (std::size_t(w) * std::size_t(h) > (std::size_t(1) << 26)) return "image larger than 8192 x 8192";
+  std::vector<float> pixels(std::size_t(w) * std::size_t(h) * std::size_t(nc));
+  if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, pixels.data())) return in->geterror();
+  in->close();
+  image->width = w;
+  image->height = h;
+  image->component = nc;
+  image->bits = 32;
+  image->pixel_type = TINYGLTF_COMPONENT_TYPE_FLOAT;
+  image->image.resize(pixels.size() * sizeof(float));
+  std::memcpy(image->image.data(), pixels.data(), image->image.size());
+  return {};
+}
+
+bool load_image_lenient(tinygltf::Image* image, const int index, std::string*, std::string*, int, int,
+                        const unsigned char* bytes, int size, void* user) {
+  const std::string error = decode_image(image, bytes, size);
+  if (error.empty()) return true;
   auto* log = static_cast<ImageLoadLog*>(user);
-  log->failed.push_back("image " + std::to_string(index) +
-                        (image->name.empty() ? "" : " '" + image->name + "'") +
-                        (image->mimeType.empty() ? "" : " (" + image->mimeType + ")"));
+  std::string what = one_line(error);
+  if (what.size() > 160) what = what.substr(0, 160) + "...";
+  log->failed.push_back("image " + std::to_string(index) + (image->name.empty() ? "" : " '" + image->name + "'") +
+                        " (" + what + ")");
   image->image.clear();
   image->width = image->height = image->component = -1;
-  (void)err;
   return true;
 }
 
@@ -342,21 +385,20 @@ float srgb_to_linear(float c) {
   return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
 }
 
-// An image as linear RGBA floats (sRGB decoded when `srgb`), or false when it has no pixels.
+// An image as linear RGBA floats (sRGB decoded when `srgb`: glTF's colour textures are sRGB
+// whatever their bit depth), or false when it has no pixels.
 bool image_pixels(const tinygltf::Image& img, bool srgb, Texture& tex) {
-  if (img.width <= 0 || img.height <= 0 || img.component <= 0 || (img.bits != 8 && img.bits != 16)) return false;
-  const std::size_t n = std::size_t(img.width) * std::size_t(img.height);
-  const std::size_t nc = std::size_t(img.component), bytes = std::size_t(img.bits / 8);
-  if (img.image.size() < n * nc * bytes) return false;
+  if (img.width <= 0 || img.height <= 0 || img.component <= 0 || img.bits != 32) return false;
+  const std::size_t n = std::size_t(img.width) * std::size_t(img.height), nc = std::size_t(img.component);
+  if (img.image.size() < n * nc * sizeof(float)) return false;
+  const float* px = reinterpret_cast<const float*>(img.image.data());
   tex.width = img.width;
   tex.height = img.height;
   tex.rgba.assign(n * 4, 1.0f);
+  auto finite01 = [](float v) { return std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f; };
   for (std::size_t i = 0; i < n; ++i) {
     float v[4] = {0.0f, 0.0f, 0.0f, 1.0f};
-    for (std::size_t c = 0; c < nc && c < 4; ++c) {
-      const unsigned char* p = &img.image[(i * nc + c) * bytes];
-      v[c] = bytes == 1 ? p[0] / 255.0f : float(std::uint16_t(p[0] | (p[1] << 8))) / 65535.0f;
-    }
+    for (std::size_t c = 0; c < nc && c < 4; ++c) v[c] = finite01(px[i * nc + c]);
     if (nc < 3) {  // grey (+ alpha)
       v[3] = nc == 2 ? v[1] : 1.0f;
       v[1] = v[2] = v[0];
@@ -424,7 +466,7 @@ class Converter {
         if (!child[i]) roots.push_back(int(i));
     }
     visited_.assign(model_.nodes.size(), 0);
-    for (int r : roots) visit(r, glm::dmat4(1.0), "scene");
+    for (int r : roots) visit(r, glm::dmat4(1.0), "scene", 0);
     if (has_camera) *has_camera = camera_found_;
     if (!model_.animations.empty()) unsupported_.add("animations (" + std::to_string(model_.animations.size()) + ")");
   }
@@ -435,7 +477,7 @@ class Converter {
     if (!failed_images_.empty()) {
       std::string list;
       for (const std::string& f : failed_images_) list += (list.empty() ? "" : ", ") + f;
-      scene_.stats.warnings.push_back(path_ + ": cannot decode " + list + "; textures using it are ignored");
+      scene_.stats.warnings.push_back(path_ + ": cannot decode " + list + "; textures using them are ignored");
     }
     if (const std::string line = unsupported_.line(path_); !line.empty()) scene_.stats.warnings.push_back(line);
   }
@@ -642,9 +684,15 @@ class Converter {
     return m;
   }
 
-  void visit(int index, const glm::dmat4& parent, const std::string& from) {
+  // Node chains are followed by recursion: bounded, so a file cannot overflow the stack.
+  static constexpr int kMaxNodeDepth = 256;
+
+  void visit(int index, const glm::dmat4& parent, const std::string& from, int depth) {
     if (index < 0 || std::size_t(index) >= model_.nodes.size())
       read_.fail(from + " names node " + std::to_string(index) + ", which does not exist");
+    if (depth >= kMaxNodeDepth)
+      read_.fail("node hierarchy deeper than " + std::to_string(kMaxNodeDepth) + " levels (at node " +
+                 std::to_string(index) + ")");
     const std::string where = "node " + std::to_string(index);
     if (visited_[std::size_t(index)])
       read_.fail(where + " is reached twice in the node hierarchy (a cycle or a shared child)");
@@ -658,7 +706,7 @@ class Converter {
     if (n.camera >= 0) camera(n.camera, world, where);
     if (n.mesh >= 0) mesh(n.mesh, world, where);
     for (const auto& [ext, value] : n.extensions) unsupported_.add("node extension " + ext, where);
-    for (int c : n.children) visit(c, world, where);
+    for (int c : n.children) visit(c, world, where, depth + 1);
   }
 
   void camera(int index, const glm::dmat4& world, const std::string& where) {
