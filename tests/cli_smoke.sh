@@ -222,6 +222,24 @@ if command -v ffmpeg >/dev/null && command -v ffprobe >/dev/null; then
 else
   echo "skip: render --video encoding (ffmpeg not installed)"
 fi
+# glTF: a one-triangle file without any light renders, lit by the default sky (said once);
+# --sky off says it stays black; a bad file names itself and exits 1; --sky checks its value.
+# The buffer: the float positions (0 0 0) (1 0 0) (0 1 0), base64.
+cat >"$tmp/tri.gltf" <<'EOF'
+{"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+ "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+ "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}],
+ "bufferViews": [{"buffer": 0, "byteLength": 36}],
+ "buffers": [{"byteLength": 36, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}]}
+EOF
+check "a lightless glTF is lit by the default sky" 0 "lit by a default sky" -- "$bin" preview --scene "$tmp/tri.gltf" \
+  --width 16 --height 8 --out "$tmp/gltf"
+check "--sky off leaves it unlit, and says so" 0 "will be black" -- "$bin" preview --scene "$tmp/tri.gltf" --sky off \
+  --width 16 --height 8 --out "$tmp/gltf_off"
+sed 's/"count": 3/"count": 30/' "$tmp/tri.gltf" >"$tmp/bad.gltf"
+check "a glTF accessor past its buffer is a clear error" 1 "bad\.gltf.*accessor 0" -- "$bin" preview --scene "$tmp/bad.gltf" \
+  --out "$tmp/gltf_bad"
+check "an unknown --sky value is refused" 1 "sky" -- "$bin" preview --scene "$tmp/tri.gltf" --sky bright --out "$tmp/gltf_sky"
 
 echo "$passes passed, $fails failed"
 [ "$fails" -eq 0 ]

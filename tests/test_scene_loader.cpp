@@ -601,16 +601,27 @@ TEST(SceneFile, SpecResolution) {
   TempDir dir;
   const fs::path txt = dir.write("mesh.txt", "v 0 0 0\n");
   EXPECT_NE(error_of([&] { load_scene(txt.string()); }).find("mesh.txt"), std::string::npos);
-  // An OBJ given directly is framed and has no lights (and says so).
+  // An OBJ given directly is framed and has no lights: it gets the default sky (and says so),
+  // unless asked not to (then it says the image will be black).
   const fs::path obj = dir.write("tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
   const Scene s = load_scene(obj.string());
   EXPECT_FALSE(s.sun.enabled);
-  EXPECT_FALSE(s.sky.enabled);
+  EXPECT_TRUE(s.sky.enabled);
+  EXPECT_EQ(s.sky.zenith, default_sky().zenith);
   EXPECT_GT(s.camera.position.z, 0.0f);
   EXPECT_TRUE(any_warning_contains(s, "no light"));
-  // The same mesh with a sky from a scene file is lit: no warning.
+  EXPECT_TRUE(any_warning_contains(s, "default sky"));
+  const Scene unlit = load_scene(obj.string(), SkyMode::kOff);
+  EXPECT_FALSE(unlit.sky.enabled);
+  EXPECT_TRUE(any_warning_contains(unlit, "will be black"));
+  // The same mesh with a sky from a scene file is lit: no warning, and its own sky is kept.
   const fs::path json = dir.write("lit.json", R"({"mesh": "tri.obj", "sky": {"zenith": [1, 1, 1]}})");
   EXPECT_FALSE(any_warning_contains(load_scene(json.string()), "no light"));
+  EXPECT_EQ(load_scene(json.string(), SkyMode::kOn).sky.zenith, glm::vec3(1.0f));
+  // --sky on adds the default sky beside a scene's emitters.
+  const Scene cornell = load_scene("cornell", SkyMode::kOn);
+  EXPECT_TRUE(cornell.sky.enabled);
+  EXPECT_FALSE(load_scene("cornell").sky.enabled);
 }
 
 // Hostile nesting is refused with a message, not a stack overflow (70,000 levels crashed the

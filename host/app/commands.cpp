@@ -106,7 +106,7 @@ int run_devices(const DeviceChoice& choice) {
 int run_preview(const PreviewCommand& cmd) {
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite);
-  auto loaded = load_and_build(cmd.scene);
+  auto loaded = load_and_build(cmd.scene, false, cmd.sky);
   auto devices = cmd.devices.create();
   print_device_set(devices);
   DeviceScene device_scene(devices, loaded.scene, loaded.bvh);
@@ -178,7 +178,7 @@ int run_render(const RenderCommand& cmd) {
       if (!cmd.video.empty()) video.emplace(cmd.video, 2 * cmd.width, cmd.height, cmd.fps);
     }
     // Every rank loads the scene itself (the scene is replicated, not sent).
-    loaded.emplace(load_and_build(cmd.scene, !root));
+    loaded.emplace(load_and_build(cmd.scene, !root, cmd.sky));
     device_set.emplace(cmd.devices.create());
     if (root) print_device_set(*device_set);
     device_scene.emplace(*device_set, loaded->scene, loaded->bvh);
@@ -504,7 +504,7 @@ int run_render(const RenderCommand& cmd) {
 int run_reference(const ReferenceCommand& cmd) {
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite);
-  auto loaded = load_and_build(cmd.scene);
+  auto loaded = load_and_build(cmd.scene, false, cmd.sky);
   auto devices = cmd.devices.create();
   print_device_set(devices);
   DeviceScene device_scene(devices, loaded.scene, loaded.bvh);

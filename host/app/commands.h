@@ -6,6 +6,7 @@
 #include "cl/device_set.h"
 #include "denoise/svgf_denoiser.h"
 #include "render/path_tracer.h"
+#include "scene/scene_loader.h"
 
 #include <string>
 
@@ -20,6 +21,7 @@ struct DeviceChoice {
 
 struct PreviewCommand {
   std::string scene = "cornell";
+  SkyMode sky = SkyMode::kAuto;  // light for scenes without any (see load_scene)
   unsigned width = 640, height = 360;
   float time_s = 0.0f;
   std::string out = "out/preview";
@@ -29,6 +31,7 @@ struct PreviewCommand {
 
 struct RenderCommand {
   std::string scene = "cornell";
+  SkyMode sky = SkyMode::kAuto;  // light for scenes without any (see load_scene)
   std::string pipeline = "proposed";
   unsigned width = 640, height = 360;
   unsigned frames = 1;
@@ -64,6 +67,7 @@ struct ViewCommand {
 
 struct ReferenceCommand {
   std::string scene = "cornell";
+  SkyMode sky = SkyMode::kAuto;  // light for scenes without any (see load_scene)
   unsigned width = 640, height = 360;
   unsigned spp = 4096;
   unsigned pass_spp = 16;      // samples per progressive pass

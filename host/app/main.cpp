@@ -29,13 +29,27 @@ void add_size_flags(CLI::App* cmd, unsigned& width, unsigned& height) {
   cmd->add_option("--height", height, "height of each eye in pixels")->check(CLI::Range(1u, 16384u))->capture_default_str();
 }
 
-const char* kSceneHelp = "scene: a JSON scene file (scenes/*.json), an OBJ file, or a built-in name "
-                         "(cornell, cornell-glossy, atrium)";
+const char* kSceneHelp = "scene: a JSON scene file (scenes/*.json), an OBJ, glTF 2.0 (.gltf) or binary glTF (.glb) "
+                         "file, or a built-in name (cornell, cornell-glossy, atrium)";
+
+void add_sky_flag(CLI::App* cmd, px::SkyMode& sky) {
+  cmd->add_option_function<std::string>(
+         "--sky",
+         [&sky](const std::string& v) {
+           sky = v == "on" ? px::SkyMode::kOn : v == "off" ? px::SkyMode::kOff : px::SkyMode::kAuto;
+         },
+         "default sky environment: auto (only for a scene without any light: no emitter, sun or sky), "
+         "on (also beside the scene's own lights, unless it has a sky), off (never; an unlit scene "
+         "renders black)")
+      ->check(CLI::IsMember({"auto", "on", "off"}))
+      ->default_str("auto");
+}
 
 // What `render` and `view` share: scene, size, pipeline, quality, denoising, the control loop
 // and the devices.
 void add_pipeline_flags(CLI::App* cmd, px::RenderCommand& r) {
   cmd->add_option("--scene", r.scene, kSceneHelp)->capture_default_str();
+  add_sky_flag(cmd, r.sky);
   cmd->add_option("--pipeline", r.pipeline,
                   "proposed: every stage on every device for its strip; baseline: Tauray-style, path "
                   "tracing distributed, the rest on the owner; mono: both eyes fully path traced")
@@ -88,6 +102,7 @@ int main(int argc, char** argv) {
   px::PreviewCommand preview;
   auto* preview_cmd = app.add_subcommand("preview", "shaded primary hits of both eyes (a quick geometry/framing check)");
   preview_cmd->add_option("--scene", preview.scene, kSceneHelp)->capture_default_str();
+  add_sky_flag(preview_cmd, preview.sky);
   add_size_flags(preview_cmd, preview.width, preview.height);
   preview_cmd->add_option("--time", preview.time_s, "time on the camera path, seconds")->capture_default_str();
   preview_cmd->add_option("--out", preview.out, "output directory")->capture_default_str();
@@ -147,6 +162,7 @@ int main(int argc, char** argv) {
       "reference", "progressive converged render of both eyes (ground truth for error figures): "
                    "reference_{left,right}.exr");
   reference_cmd->add_option("--scene", reference.scene, kSceneHelp)->capture_default_str();
+  add_sky_flag(reference_cmd, reference.sky);
   add_size_flags(reference_cmd, reference.width, reference.height);
   reference_cmd->add_option("--spp", reference.spp, "total samples per pixel")->check(CLI::Range(1u, 1u << 24))->capture_default_str();
   reference_cmd->add_option("--pass-spp", reference.pass_spp, "samples per progressive pass")->check(CLI::Range(1u, 4096u))->capture_default_str();

@@ -56,7 +56,7 @@ void print_device_set(const DeviceSet& set) {
 }
 
 RenderSession::RenderSession(const RenderCommand& cmd, const StereoPipeline::Options& options)
-    : loaded(load_and_build(cmd.scene)),
+    : loaded(load_and_build(cmd.scene, false, cmd.sky)),
       devices(create_devices(cmd.devices)),
       device_scene(devices, loaded.scene, loaded.bvh),
       pipeline(devices, device_scene, loaded.scene, cmd.width, cmd.height, options) {}

@@ -7,12 +7,12 @@
 
 namespace px {
 
-LoadedScene load_and_build(const std::string& spec, bool quiet) {
+LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
   using clock = std::chrono::steady_clock;
   LoadedScene out;
   auto t0 = clock::now();
   if (!quiet) std::fprintf(stderr, "[scene] loading %s ...\n", spec.c_str());
-  out.scene = load_scene(spec);
+  out.scene = load_scene(spec, sky);
   const auto& st = out.scene.stats;
   auto t1 = clock::now();
   if (!quiet) {

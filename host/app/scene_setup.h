@@ -4,6 +4,7 @@
 
 #include "bvh/flat_bvh.h"
 #include "scene/scene.h"
+#include "scene/scene_loader.h"
 
 #include <string>
 
@@ -15,6 +16,6 @@ struct LoadedScene {
 };
 
 // Throws SceneError / std::runtime_error with a user-facing message on failure.
-LoadedScene load_and_build(const std::string& spec, bool quiet = false);
+LoadedScene load_and_build(const std::string& spec, bool quiet = false, SkyMode sky = SkyMode::kAuto);
 
 }  // namespace px

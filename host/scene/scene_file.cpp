@@ -57,19 +57,37 @@ bool has_light(const Scene& scene) {
                      [](const Material& m) { return m.is_emissive(); });
 }
 
-Scene load_obj_framed(const std::string& path) {
-  Scene scene = load_obj(path);
+bool is_mesh_extension(const std::string& ext) { return ext == ".obj" || ext == ".gltf" || ext == ".glb"; }
+
+// An OBJ or glTF (by extension), with a camera: a glTF's own, else framed on the geometry.
+Scene load_mesh_framed(const std::string& path) {
+  const std::string ext = lower(fs::path(path).extension().string());
+  bool has_camera = false;
+  Scene scene = ext == ".obj" ? load_obj(path) : load_gltf(path, &has_camera);
   // Before framing: a camera framed on out-of-range geometry overflows, and the error would
   // then be about the camera, not the vertices.
   check_coordinate_range(scene, path, /*warn=*/false);  // load_scene warns, once
-  scene.camera = frame_bounds(scene);
+  if (!has_camera) scene.camera = frame_bounds(scene);
   return scene;
 }
 
-void warn_if_unlit(Scene& scene, const std::string& path) {
-  if (!has_light(scene))
-    scene.stats.warnings.push_back(path + ": no light source (no emissive material, sun or sky); "
-                                          "the image will be black");
+// What load_scene does about light, in one warning line when it changes or misses something.
+void apply_sky_mode(Scene& scene, const std::string& source, SkyMode mode) {
+  if (mode == SkyMode::kOn) {
+    if (scene.sky.enabled) return;  // the scene's own sky stays
+    scene.sky = default_sky();
+    scene.stats.warnings.push_back(source + ": lit by the default sky (--sky on)");
+    return;
+  }
+  if (has_light(scene)) return;
+  if (mode == SkyMode::kOff) {
+    scene.stats.warnings.push_back(source + ": no light source (no emissive material, sun or sky) and --sky off; "
+                                            "the image will be black");
+    return;
+  }
+  scene.sky = default_sky();
+  scene.stats.warnings.push_back(source + ": no light source (no emissive material, sun or sky); lit by a default "
+                                          "sky instead (--sky off keeps it unlit)");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -230,7 +248,7 @@ Scene load_scene_file(const std::string& path) {
   // The base scene: a mesh or a generator, exactly one.
   const bool has_mesh = doc.contains("mesh"), has_generator = doc.contains("generator");
   if (has_mesh == has_generator)
-    throw SceneError(path + ": needs exactly one of 'mesh' (an OBJ path) or 'generator' (" +
+    throw SceneError(path + ": needs exactly one of 'mesh' (an OBJ, glTF or GLB path) or 'generator' (" +
                      builtin_list() + ")");
   if (doc.contains("generator_params") && !has_generator)
     r.fail("generator_params", "only allowed together with 'generator'");
@@ -239,8 +257,10 @@ Scene load_scene_file(const std::string& path) {
     const std::string mesh = r.string(doc["mesh"], "mesh");
     if (mesh.empty()) r.fail("mesh", "must not be empty");
     const fs::path mesh_path = fs::path(path).parent_path() / mesh;
+    if (!is_mesh_extension(lower(mesh_path.extension().string())))
+      r.fail("mesh", "'" + mesh + "' is not an .obj, .gltf or .glb file");
     try {
-      scene = load_obj_framed(mesh_path.string());
+      scene = load_mesh_framed(mesh_path.string());
     } catch (const SceneError& e) {
       r.fail("mesh", e.what());
     }
@@ -349,7 +369,6 @@ Scene load_scene_file(const std::string& path) {
     if (sky.contains("horizon")) scene.sky.horizon = r.non_negative_vec3(sky["horizon"], "sky.horizon");
     if (sky.contains("ground")) scene.sky.ground = r.non_negative_vec3(sky["ground"], "sky.ground");
   }
-  warn_if_unlit(scene, path);
   return scene;
 }
 
@@ -361,6 +380,15 @@ bool is_plain_file(const fs::path& p) {
 Scene load_scene_unchecked(const std::string& spec);
 
 }  // namespace
+
+Sky default_sky() {
+  Sky sky;
+  sky.enabled = true;
+  sky.zenith = {0.55f, 0.65f, 0.85f};
+  sky.horizon = {0.95f, 0.95f, 0.95f};
+  sky.ground = {0.3f, 0.28f, 0.26f};
+  return sky;
+}
 
 void check_coordinate_range(Scene& scene, const std::string& source, bool warn) {
   char value[32];
@@ -404,9 +432,10 @@ void check_coordinate_range(Scene& scene, const std::string& source, bool warn) 
   }
 }
 
-Scene load_scene(const std::string& spec) {
+Scene load_scene(const std::string& spec, SkyMode sky) {
   Scene scene = load_scene_unchecked(spec);
   check_coordinate_range(scene, spec);
+  apply_sky_mode(scene, spec, sky);
   return scene;
 }
 
@@ -417,18 +446,14 @@ Scene load_scene_unchecked(const std::string& spec) {
   const std::string ext = lower(p.extension().string());
   if (is_plain_file(p)) {
     if (ext == ".json") return load_scene_file(spec);
-    if (ext == ".obj") {
-      Scene scene = load_obj_framed(spec);
-      warn_if_unlit(scene, spec);
-      return scene;
-    }
-    throw SceneError("scene '" + spec + "': unsupported file type (expected a .json scene file or an .obj)");
+    if (is_mesh_extension(ext)) return load_mesh_framed(spec);
+    throw SceneError("scene '" + spec + "': unsupported file type (expected a .json scene file, an .obj, .gltf or .glb)");
   }
   const auto& names = builtin_scene_names();
   if (std::find(names.begin(), names.end(), spec) != names.end()) return make_builtin_scene(spec);
   std::error_code ec;
   if (fs::exists(p, ec)) throw SceneError("scene '" + spec + "': not a regular file");
-  if (ext == ".json" || ext == ".obj")
+  if (ext == ".json" || is_mesh_extension(ext))
     throw SceneError("scene file '" + spec + "' not found");
   throw SceneError("unknown scene '" + spec + "': no such file, and not a built-in scene (" +
                    builtin_list() + ")");

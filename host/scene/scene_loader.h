@@ -11,10 +11,16 @@ namespace px {
 
 // `spec` is one of:
 //   - a path to a scene JSON file (scenes/*.json; format documented in scenes/README.md),
-//   - a path to an .obj file (camera framed on its bounding box, no sun/sky),
+//   - a path to an .obj, .gltf or .glb file (camera: a glTF's first perspective camera, else
+//     framed on the bounding box),
 //   - the name of a built-in generator: "cornell", "cornell-glossy", "atrium".
-// Whatever the source, the scene's coordinates are then checked (check_coordinate_range).
-Scene load_scene(const std::string& spec);
+// Whatever the source, the scene's coordinates are then checked (check_coordinate_range), and
+// light is seen to by `sky` (one warning line says what was done):
+//   kAuto: a scene without any light (no emitter, sun or sky) gets default_sky();
+//   kOn:   a scene without a sky of its own gets default_sky(), whatever else lights it;
+//   kOff:  nothing is added (an unlit scene renders black, and the warning says so).
+enum class SkyMode { kAuto, kOn, kOff };
+Scene load_scene(const std::string& spec, SkyMode sky = SkyMode::kAuto);
 
 // Largest coordinate magnitude (vertices, camera, camera path) parallax traces. Rays are traced
 // in 32-bit floats: intersection tests multiply up to three coordinates, so beyond ~1e12 they
@@ -32,6 +38,19 @@ void check_coordinate_range(Scene& scene, const std::string& source, bool warn =
 // falls back to a default material for a missing MTL / unknown material (with a warning).
 // Refuses (SceneError): unreadable file, out-of-range indices, no triangles left.
 Scene load_obj(const std::string& path);
+
+// Loads a glTF 2.0 file (.gltf with external / data-URI buffers, or binary .glb; the kind is
+// told by the content) into triangles, materials and textures (mapping in gltf_loader.cpp).
+// The default scene's node hierarchy is flattened into world space. When the file has a
+// perspective camera on a node, the first one becomes scene.camera and *has_camera is set.
+// Features it does not render are named in one warning line. Refuses (SceneError naming the
+// file): unreadable or malformed files, missing buffers, accessors or buffer views out of
+// bounds, indices out of range, unsupported required extensions, no triangles left.
+Scene load_gltf(const std::string& path, bool* has_camera = nullptr);
+
+// The environment load_scene gives a scene without any light (no emitter, sun or sky): a
+// soft grey-blue sky, bright enough to show the geometry at the default exposure.
+Sky default_sky();
 
 // Built-in scenes, written from their published dimensions / procedurally.
 // `params` are generator options from the scene file ({} = defaults).

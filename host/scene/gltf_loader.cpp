@@ -1,0 +1,945 @@
+// glTF 2.0 loading (.gltf with external or data-URI buffers, and binary .glb): tinygltf (the
+// Debian shared library) parses the file, OpenImageIO decodes its images; this file validates
+// and converts.
+//
+// tinygltf trusts the file's numbers: an accessor or buffer view reaching past its buffer, an
+// index beyond the vertex count, a node hierarchy with a cycle, or JSON nested deep enough to
+// overflow its recursive value conversion would read out of bounds or crash. So:
+//   - before tinygltf sees the file, a pre-scan bounds the JSON nesting depth and checks that
+//     every buffer view lies inside its buffer's declared byteLength (image decoding reads
+//     through buffer views without checking);
+//   - every accessor read here is checked against the bytes actually loaded, every index
+//     against the vertex count, and the node walk refuses nodes reached twice.
+//
+// Material mapping onto the renderer's model (scene.h):
+//   baseColorFactor (+ baseColorTexture)  -> diffuse (+ diffuse_texture), scaled by 1 - metallic
+//   metallicFactor                        -> specular = mix(0.04, base colour, metallic)
+//                                            (a mostly metallic material's specular is also
+//                                            tinted by the base colour texture)
+//   roughnessFactor                       -> GGX alpha = roughness^2 (0 = perfect mirror)
+//   alphaMode MASK + alphaCutoff          -> an alpha cut-out texture (the OBJ map_d path)
+//   emissiveFactor x KHR_materials_emissive_strength -> emission (an emissive texture, which
+//                                            the renderer cannot vary across a surface, is
+//                                            averaged to one colour)
+//   normalTexture                         -> normal_texture, normal_scale
+//   KHR_materials_transmission >= 0.5     -> smooth dielectric, index from KHR_materials_ior
+//   doubleSided                           -> emitters light both faces
+// Everything else the file asks for is named in one warning line.
+#include "scene/primitives.h"
+#include "scene/scene_loader.h"
+
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imageio.h>
+#include <tiny_gltf.h>
+
+#include <glm/gtc/quaternion.hpp>
+#include <glm/gtc/type_ptr.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <numbers>
+#include <set>
+#include <sstream>
+
+namespace px {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+constexpr std::size_t kMaxJsonDepth = 128;
+constexpr std::uint32_t kGlbMagic = 0x46546C67;      // "glTF"
+constexpr std::uint32_t kGlbJsonChunk = 0x4E4F534A;  // "JSON"
+
+std::uint32_t read_u32(const std::string& bytes, std::size_t at) {
+  std::uint32_t v = 0;
+  for (int i = 3; i >= 0; --i) v = (v << 8) | std::uint8_t(bytes[at + std::size_t(i)]);
+  return v;
+}
+
+std::string read_binary_file(const std::string& path) {
+  std::error_code ec;
+  const fs::file_status st = fs::status(path, ec);
+  if (ec || !fs::exists(st)) throw SceneError("cannot open glTF file '" + path + "': no such file");
+  if (!fs::is_regular_file(st)) throw SceneError("cannot open glTF file '" + path + "': not a regular file");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw SceneError("cannot open glTF file '" + path + "': " + std::strerror(errno));
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) throw SceneError("cannot read glTF file '" + path + "'");
+  std::string bytes = std::move(ss).str();
+  // tinygltf takes the length as an unsigned int.
+  if (bytes.size() >= (std::size_t(1) << 31)) throw SceneError(path + ": glTF file larger than 2 GiB");
+  return bytes;
+}
+
+// Depth of nesting only: values are not kept.
+class DepthScan : public nlohmann::json_sax<json> {
+ public:
+  bool null() override { return true; }
+  bool boolean(bool) override { return true; }
+  bool number_integer(number_integer_t) override { return true; }
+  bool number_unsigned(number_unsigned_t) override { return true; }
+  bool number_float(number_float_t, const string_t&) override { return true; }
+  bool string(string_t&) override { return true; }
+  bool binary(binary_t&) override { return true; }
+  bool key(string_t&) override { return true; }
+  bool start_object(std::size_t) override { return open(); }
+  bool start_array(std::size_t) override { return open(); }
+  bool end_object() override { return --depth_, true; }
+  bool end_array() override { return --depth_, true; }
+  bool parse_error(std::size_t, const std::string&, const nlohmann::detail::exception& e) override {
+    error = e.what();
+    return false;
+  }
+  bool too_deep = false;
+  std::string error;
+
+ private:
+  bool open() {
+    if (++depth_ > kMaxJsonDepth) too_deep = true;
+    return !too_deep;
+  }
+  std::size_t depth_ = 0;
+};
+
+bool non_negative_integer(const json& v, std::uint64_t& out) {
+  if (v.is_number_unsigned()) {
+    out = v.get<std::uint64_t>();
+    return true;
+  }
+  if (v.is_number_integer() && v.get<std::int64_t>() >= 0) {
+    out = std::uint64_t(v.get<std::int64_t>());
+    return true;
+  }
+  return false;
+}
+
+// The checks tinygltf does not make before it reads through the document's numbers.
+void prescan_json(const std::string& text, const std::string& path) {
+  DepthScan scan;
+  json::sax_parse(text, &scan, json::input_format_t::json, /*strict=*/true);
+  if (scan.too_deep)
+    throw SceneError(path + ": JSON nested deeper than " + std::to_string(kMaxJsonDepth) + " levels");
+  if (!scan.error.empty()) {
+    std::string what = scan.error;
+    if (const std::size_t close = what.find("] "); what.rfind("[json.", 0) == 0 && close != std::string::npos)
+      what = what.substr(close + 2);
+    throw SceneError(path + ": invalid glTF JSON: " + what);
+  }
+  const json doc = json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (!doc.is_object()) throw SceneError(path + ": invalid glTF: the document must be a JSON object");
+  std::vector<std::uint64_t> buffer_length;
+  if (auto it = doc.find("buffers"); it != doc.end() && it->is_array())
+    for (const json& b : *it) {
+      std::uint64_t n = 0;
+      const bool ok = b.is_object() && b.contains("byteLength") && non_negative_integer(b["byteLength"], n);
+      buffer_length.push_back(ok ? n : 0);
+    }
+  if (auto it = doc.find("bufferViews"); it != doc.end() && it->is_array())
+    for (std::size_t i = 0; i < it->size(); ++i) {
+      const json& v = (*it)[i];
+      const std::string name = "bufferViews[" + std::to_string(i) + "]";
+      if (!v.is_object()) throw SceneError(path + ": " + name + " is not an object");
+      std::uint64_t buffer = 0, offset = 0, length = 0;
+      if (!v.contains("buffer") || !non_negative_integer(v["buffer"], buffer) || buffer >= buffer_length.size())
+        throw SceneError(path + ": " + name + " names no existing buffer");
+      if (v.contains("byteOffset") && !non_negative_integer(v["byteOffset"], offset))
+        throw SceneError(path + ": " + name + ".byteOffset is not a non-negative integer");
+      if (!v.contains("byteLength") || !non_negative_integer(v["byteLength"], length))
+        throw SceneError(path + ": " + name + ".byteLength is missing or not a non-negative integer");
+      if (offset > buffer_length[buffer] || length > buffer_length[buffer] - offset)
+        throw SceneError(path + ": " + name + " (bytes " + std::to_string(offset) + " + " + std::to_string(length) +
+                         ") reaches past the end of buffer " + std::to_string(buffer) + " (" +
+                         std::to_string(buffer_length[buffer]) + " bytes)");
+    }
+}
+
+// tinygltf's messages, one per line, joined for a one-line error.
+std::string one_line(const std::string& text) {
+  std::string out;
+  std::istringstream lines(text);
+  std::string line;
+  while (std::getline(lines, line)) {
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+    if (line.empty()) continue;
+    out += (out.empty() ? "" : "; ") + line;
+  }
+  return out;
+}
+
+// Images are decoded by OpenImageIO from memory (as the OBJ path's textures are), into float
+// RGBA kept in tinygltf's Image (bits 32). An image it cannot decode (KTX2, WebP...) or one
+// too large loses its texture, with a warning, instead of failing the whole file.
+struct ImageLoadLog {
+  std::vector<std::string> failed;
+};
+
+// The file name OpenImageIO picks its reader by.
+std::string image_name_for(const tinygltf::Image& image, const unsigned char* bytes, int size) {
+  if (size >= 8 && std::memcmp(bytes, "\x89PNG", 4) == 0) return "image.png";
+  if (size >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF) return "image.jpg";
+  if (image.mimeType == "image/png") return "image.png";
+  if (image.mimeType == "image/jpeg") return "image.jpg";
+  const std::string ext = fs::path(image.uri).extension().string();
+  return "image" + (ext.empty() ? std::string(".png") : ext);
+}
+
+std::string decode_image(tinygltf::Image* image, const unsigned char* bytes, int size) {
+  if (size <= 0) return "empty image";
+  OIIO::Filesystem::IOMemReader memory(bytes, std::size_t(size));
+  OIIO::ImageSpec config;
+  config.attribute("oiio:UnassociatedAlpha", 1);  // straight alpha, as stored: cut-outs are tested, not blended
+  // The proxy goes in the configuration: OpenImageIO 2.4's open(name, config, proxy) still
+  // looks for the file by name.
+  void* proxy = &memory;
+  config.attribute("oiio:ioproxy", OIIO::TypeDesc::PTR, &proxy);
+  auto in = OIIO::ImageInput::open(image_name_for(*image, bytes, size), &config);
+  if (!in) return OIIO::geterror();
+  const OIIO::ImageSpec spec = in->spec();
+  const int w = spec.width, h = spec.height, nc = spec.nchannels;
+  if (w <= 0 || h <= 0 || nc <= 0 || spec.depth > 1) return "not a 2D image";
+  // 8192 x 8192 as float RGBA is already 1 GiB per device copy.
+  if (std::size_t(w) * std::size_t(h) > (std::size_t(1) << 26)) return "image larger than 8192 x 8192";
+  std::vector<float> pixels(std::size_t(w) * std::size_t(h) * std::size_t(nc));
+  if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, pixels.data())) return in->geterror();
+  in->close();
+  image->width = w;
+  image->height = h;
+  image->component = nc;
+  image->bits = 32;
+  image->pixel_type = TINYGLTF_COMPONENT_TYPE_FLOAT;
+  image->image.resize(pixels.size() * sizeof(float));
+  std::memcpy(image->image.data(), pixels.data(), image->image.size());
+  return {};
+}
+
+bool load_image_lenient(tinygltf::Image* image, const int index, std::string*, std::string*, int, int,
+                        const unsigned char* bytes, int size, void* user) {
+  const std::string error = decode_image(image, bytes, size);
+  if (error.empty()) return true;
+  auto* log = static_cast<ImageLoadLog*>(user);
+  std::string what = one_line(error);
+  if (what.size() > 160) what = what.substr(0, 160) + "...";
+  log->failed.push_back("image " + std::to_string(index) + (image->name.empty() ? "" : " '" + image->name + "'") +
+                        " (" + what + ")");
+  image->image.clear();
+  image->width = image->height = image->component = -1;
+  return true;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Accessors.
+
+class Reader {
+ public:
+  Reader(const tinygltf::Model& model, std::string path) : model_(model), path_(std::move(path)) {}
+
+  [[noreturn]] void fail(const std::string& what) const { throw SceneError(path_ + ": " + what); }
+
+  // Elements of accessor `index` as up to 4 floats each (integer components converted as the
+  // spec says: normalized -> [0, 1] / [-1, 1], else the plain value). `types` lists the
+  // accepted TINYGLTF_TYPE_*; `what` names the accessor in errors.
+  std::vector<glm::vec4> floats(int index, std::initializer_list<int> types, const std::string& what,
+                                bool allow_integer) const {
+    const tinygltf::Accessor& a = accessor(index, what);
+    if (std::find(types.begin(), types.end(), a.type) == types.end())
+      fail(what + " (accessor " + std::to_string(index) + ") has an unexpected element type");
+    const int nc = tinygltf::GetNumComponentsInType(std::uint32_t(a.type));
+    if (a.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT && !allow_integer)
+      fail(what + " (accessor " + std::to_string(index) + ") must hold floats");
+    std::vector<glm::vec4> out(a.count, glm::vec4(0.0f));
+    for_each_element(a, index, what, [&](std::size_t i, const unsigned char* p) {
+      for (int c = 0; c < nc && c < 4; ++c) out[i][c] = component(a, p, c);
+    });
+    return out;
+  }
+
+  std::vector<std::uint32_t> indices(int index, const std::string& what) const {
+    const tinygltf::Accessor& a = accessor(index, what);
+    if (a.type != TINYGLTF_TYPE_SCALAR ||
+        (a.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
+         a.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+         a.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT))
+      fail(what + " (accessor " + std::to_string(index) + ") must be unsigned integer scalars");
+    std::vector<std::uint32_t> out(a.count, 0);
+    for_each_element(a, index, what, [&](std::size_t i, const unsigned char* p) {
+      switch (a.componentType) {
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: out[i] = p[0]; break;
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
+          std::uint16_t v;
+          std::memcpy(&v, p, 2);
+          out[i] = v;
+          break;
+        }
+        default: std::memcpy(&out[i], p, 4);
+      }
+    });
+    return out;
+  }
+
+  std::size_t count(int index, const std::string& what) const { return accessor(index, what).count; }
+
+ private:
+  const tinygltf::Accessor& accessor(int index, const std::string& what) const {
+    if (index < 0 || std::size_t(index) >= model_.accessors.size())
+      fail(what + " names accessor " + std::to_string(index) + ", which does not exist");
+    const tinygltf::Accessor& a = model_.accessors[std::size_t(index)];
+    if (a.sparse.isSparse)
+      fail(what + " (accessor " + std::to_string(index) + ") is sparse, which parallax does not support");
+    // Bounded before anything is allocated for it: an accessor with a buffer view is checked
+    // against its bytes later (every element takes at least one), one without is all zeros.
+    std::size_t limit = std::size_t(1) << 24;
+    if (a.bufferView >= 0) {
+      limit = 0;
+      for (const tinygltf::Buffer& b : model_.buffers) limit += b.data.size();
+    }
+    if (a.count > limit)
+      fail(what + " (accessor " + std::to_string(index) + ") claims " + std::to_string(a.count) +
+           " elements, more than its data can hold");
+    return a;
+  }
+
+  static float component(const tinygltf::Accessor& a, const unsigned char* p, int c) {
+    switch (a.componentType) {
+      case TINYGLTF_COMPONENT_TYPE_FLOAT: {
+        float v;
+        std::memcpy(&v, p + 4 * c, 4);
+        return v;
+      }
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return a.normalized ? p[c] / 255.0f : float(p[c]);
+      case TINYGLTF_COMPONENT_TYPE_BYTE: {
+        const float v = float(std::int8_t(p[c]));
+        return a.normalized ? std::max(v / 127.0f, -1.0f) : v;
+      }
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
+        std::uint16_t v;
+        std::memcpy(&v, p + 2 * c, 2);
+        return a.normalized ? v / 65535.0f : float(v);
+      }
+      case TINYGLTF_COMPONENT_TYPE_SHORT: {
+        std::int16_t v;
+        std::memcpy(&v, p + 2 * c, 2);
+        return a.normalized ? std::max(v / 32767.0f, -1.0f) : float(v);
+      }
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: {
+        std::uint32_t v;
+        std::memcpy(&v, p + 4 * c, 4);
+        return float(v);
+      }
+      default: return 0.0f;
+    }
+  }
+
+  // Calls visit(i, pointer to element i) after checking every byte read lies in the buffer.
+  // An accessor without a buffer view is all zeros (the spec's rule): visit is not called.
+  template <typename F>
+  void for_each_element(const tinygltf::Accessor& a, int index, const std::string& what, F&& visit) const {
+    const std::string name = what + " (accessor " + std::to_string(index) + ")";
+    const int csize = tinygltf::GetComponentSizeInBytes(std::uint32_t(a.componentType));
+    const int nc = tinygltf::GetNumComponentsInType(std::uint32_t(a.type));
+    if (csize <= 0 || nc <= 0) fail(name + " has an invalid component or element type");
+    if (a.count == 0) return;
+    if (a.bufferView < 0) return;
+    if (std::size_t(a.bufferView) >= model_.bufferViews.size())
+      fail(name + " names buffer view " + std::to_string(a.bufferView) + ", which does not exist");
+    const tinygltf::BufferView& view = model_.bufferViews[std::size_t(a.bufferView)];
+    if (view.buffer < 0 || std::size_t(view.buffer) >= model_.buffers.size())
+      fail(name + ": its buffer view names no existing buffer");
+    const std::vector<unsigned char>& data = model_.buffers[std::size_t(view.buffer)].data;
+    const std::uint64_t elem = std::uint64_t(csize) * std::uint64_t(nc);
+    const std::uint64_t stride = view.byteStride == 0 ? elem : view.byteStride;
+    if (stride < elem) fail(name + ": byteStride " + std::to_string(view.byteStride) + " is smaller than an element");
+    // In 64 bits none of these overflows: count and stride are below 2^32 or refused first.
+    if (a.count > data.size() || stride > 252 + elem)
+      fail(name + ": " + std::to_string(a.count) + " elements do not fit in its buffer view");
+    const std::uint64_t view_end = std::uint64_t(view.byteOffset) + view.byteLength;
+    if (view.byteOffset > data.size() || view_end > data.size())
+      fail(name + ": its buffer view reaches past the end of buffer " + std::to_string(view.buffer) + " (" +
+           std::to_string(data.size()) + " bytes loaded)");
+    if (a.byteOffset > view.byteLength ||
+        std::uint64_t(a.byteOffset) + (a.count - 1) * stride + elem > view.byteLength)
+      fail(name + ": " + std::to_string(a.count) + " elements from byte " + std::to_string(a.byteOffset) +
+           " reach past the end of its buffer view (" + std::to_string(view.byteLength) + " bytes)");
+    const unsigned char* base = data.data() + view.byteOffset + a.byteOffset;
+    for (std::size_t i = 0; i < a.count; ++i) visit(i, base + i * stride);
+  }
+
+  const tinygltf::Model& model_;
+  std::string path_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Textures.
+
+float srgb_to_linear(float c) {
+  c = std::clamp(c, 0.0f, 1.0f);
+  return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
+}
+
+// An image as linear RGBA floats (sRGB decoded when `srgb`: glTF's colour textures are sRGB
+// whatever their bit depth), or false when it has no pixels.
+bool image_pixels(const tinygltf::Image& img, bool srgb, Texture& tex) {
+  if (img.width <= 0 || img.height <= 0 || img.component <= 0 || img.bits != 32) return false;
+  const std::size_t n = std::size_t(img.width) * std::size_t(img.height), nc = std::size_t(img.component);
+  if (img.image.size() < n * nc * sizeof(float)) return false;
+  const float* px = reinterpret_cast<const float*>(img.image.data());
+  tex.width = img.width;
+  tex.height = img.height;
+  tex.rgba.assign(n * 4, 1.0f);
+  auto finite01 = [](float v) { return std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f; };
+  for (std::size_t i = 0; i < n; ++i) {
+    float v[4] = {0.0f, 0.0f, 0.0f, 1.0f};
+    for (std::size_t c = 0; c < nc && c < 4; ++c) v[c] = finite01(px[i * nc + c]);
+    if (nc < 3) {  // grey (+ alpha)
+      v[3] = nc == 2 ? v[1] : 1.0f;
+      v[1] = v[2] = v[0];
+    }
+    for (int c = 0; c < 3; ++c) tex.rgba[4 * i + std::size_t(c)] = srgb ? srgb_to_linear(v[c]) : v[c];
+    tex.rgba[4 * i + 3] = v[3];
+  }
+  return true;
+}
+
+// What the file asks for but is not rendered, gathered into one warning line.
+class Unsupported {
+ public:
+  void add(const std::string& feature, const std::string& where = "") {
+    auto [it, inserted] = features_.try_emplace(feature);
+    if (inserted) order_.push_back(feature);
+    if (!where.empty() && std::find(it->second.begin(), it->second.end(), where) == it->second.end())
+      it->second.push_back(where);
+  }
+  std::string line(const std::string& path) const {
+    if (order_.empty()) return {};
+    std::string out = path + ": ignored glTF features (not rendered):";
+    for (std::size_t i = 0; i < order_.size(); ++i) {
+      const auto& where = features_.at(order_[i]);
+      out += (i ? ", " : " ") + order_[i];
+      if (where.empty()) continue;
+      out += " (";
+      const std::size_t shown = std::min<std::size_t>(where.size(), 3);
+      for (std::size_t k = 0; k < shown; ++k) out += (k ? ", " : "") + where[k];
+      if (where.size() > shown) out += ", +" + std::to_string(where.size() - shown) + " more";
+      out += ")";
+    }
+    return out;
+  }
+
+ private:
+  std::vector<std::string> order_;
+  std::map<std::string, std::vector<std::string>> features_;
+};
+
+class Converter {
+ public:
+  Converter(const tinygltf::Model& model, std::string path, Scene& scene)
+      : model_(model), path_(std::move(path)), scene_(scene), read_(model_, path_) {}
+
+  void materials() {
+    for (std::size_t i = 0; i < model_.materials.size(); ++i) scene_.materials.push_back(material(i));
+  }
+
+  void geometry(bool* has_camera) {
+    std::vector<int> roots;
+    if (!model_.scenes.empty()) {
+      int s = model_.defaultScene;
+      if (s < 0 || std::size_t(s) >= model_.scenes.size()) s = 0;
+      roots = model_.scenes[std::size_t(s)].nodes;
+      if (model_.scenes.size() > 1)
+        unsupported_.add("scenes other than the default (" + std::to_string(model_.scenes.size() - 1) + ")");
+    } else {
+      // No scene: every node that is no other node's child is a root.
+      std::vector<char> child(model_.nodes.size(), 0);
+      for (const tinygltf::Node& n : model_.nodes)
+        for (int c : n.children)
+          if (c >= 0 && std::size_t(c) < child.size()) child[std::size_t(c)] = 1;
+      for (std::size_t i = 0; i < model_.nodes.size(); ++i)
+        if (!child[i]) roots.push_back(int(i));
+    }
+    visited_.assign(model_.nodes.size(), 0);
+    for (int r : roots) visit(r, glm::dmat4(1.0), "scene", 0);
+    if (has_camera) *has_camera = camera_found_;
+    if (!model_.animations.empty()) unsupported_.add("animations (" + std::to_string(model_.animations.size()) + ")");
+  }
+
+  void finish() {
+    for (const std::string& e : model_.extensionsUsed)
+      if (!handled_extension(e)) unsupported_.add("extension " + e);
+    if (!failed_images_.empty()) {
+      std::string list;
+      for (const std::string& f : failed_images_) list += (list.empty() ? "" : ", ") + f;
+      scene_.stats.warnings.push_back(path_ + ": cannot decode " + list + "; textures using them are ignored");
+    }
+    if (const std::string line = unsupported_.line(path_); !line.empty()) scene_.stats.warnings.push_back(line);
+  }
+
+  static bool handled_extension(const std::string& e) {
+    return e == "KHR_materials_emissive_strength" || e == "KHR_materials_transmission" || e == "KHR_materials_ior";
+  }
+
+  std::vector<std::string> failed_images_;
+
+ private:
+  // --- materials -----------------------------------------------------------------------------
+
+  static double number_in(const tinygltf::ExtensionMap& ext, const std::string& name, const std::string& key,
+                          double fallback) {
+    const auto it = ext.find(name);
+    if (it == ext.end() || !it->second.IsObject() || !it->second.Has(key)) return fallback;
+    const tinygltf::Value& v = it->second.Get(key);
+    return v.IsNumber() || v.IsInt() ? v.GetNumberAsDouble() : fallback;
+  }
+
+  static float finite_clamped(double v, float lo, float hi, float fallback) {
+    return std::isfinite(v) ? std::clamp(float(v), lo, hi) : fallback;
+  }
+
+  // The image behind texture `index`, or null (with a warning when the reason is not already
+  // given elsewhere). `what` names the slot, `mat` the material.
+  const tinygltf::Image* texture_image(const tinygltf::TextureInfo& info, const std::string& what,
+                                       const std::string& mat) {
+    return texture_image(info.index, info.texCoord, info.extensions, what, mat);
+  }
+  const tinygltf::Image* texture_image(int index, int tex_coord, const tinygltf::ExtensionMap& ext,
+                                       const std::string& what, const std::string& mat) {
+    if (index < 0) return nullptr;
+    if (std::size_t(index) >= model_.textures.size()) {
+      scene_.stats.warnings.push_back(path_ + ": material '" + mat + "': " + what + " names texture " +
+                                      std::to_string(index) + ", which does not exist; ignoring it");
+      return nullptr;
+    }
+    const tinygltf::Texture& t = model_.textures[std::size_t(index)];
+    if (tex_coord != 0) unsupported_.add("texCoord sets other than TEXCOORD_0", mat);
+    if (ext.count("KHR_texture_transform")) unsupported_.add("KHR_texture_transform", mat);
+    for (const auto& [name, value] : t.extensions) unsupported_.add("texture extension " + name, mat);
+    if (t.sampler >= 0 && std::size_t(t.sampler) < model_.samplers.size()) {
+      const tinygltf::Sampler& s = model_.samplers[std::size_t(t.sampler)];
+      if (s.wrapS != TINYGLTF_TEXTURE_WRAP_REPEAT || s.wrapT != TINYGLTF_TEXTURE_WRAP_REPEAT)
+        unsupported_.add("sampler wrap modes other than REPEAT", mat);
+      if (s.magFilter == TINYGLTF_TEXTURE_FILTER_NEAREST)
+        unsupported_.add("NEAREST magnification filter (textures are filtered bilinearly)", mat);
+    }
+    if (t.source < 0 || std::size_t(t.source) >= model_.images.size()) {
+      scene_.stats.warnings.push_back(path_ + ": material '" + mat + "': " + what + " texture " +
+                                      std::to_string(index) + " has no image; ignoring it");
+      return nullptr;
+    }
+    const tinygltf::Image& img = model_.images[std::size_t(t.source)];
+    if (img.image.empty() || img.width <= 0 || img.height <= 0) {
+      // Undecodable images are listed once by finish(); a missing file is said here.
+      if (!img.uri.empty() && img.uri.rfind("data:", 0) != 0)
+        scene_.stats.warnings.push_back(path_ + ": material '" + mat + "': " + what + " image '" + img.uri +
+                                        "' not found or unreadable; ignoring it");
+      return nullptr;
+    }
+    return &img;
+  }
+
+  int colour_texture(const tinygltf::Image* img, bool srgb) {
+    if (!img) return -1;
+    const auto key = std::make_pair(img, srgb);
+    if (auto it = cache_.find(key); it != cache_.end()) return it->second;
+    Texture tex;
+    tex.path = img->uri.rfind("data:", 0) == 0 ? path_ + " (embedded image)" : img->uri;
+    if (tex.path.empty()) tex.path = path_ + " (image '" + img->name + "')";
+    if (!image_pixels(*img, srgb, tex)) return cache_[key] = -1;
+    scene_.textures.push_back(std::move(tex));
+    return cache_[key] = int(scene_.textures.size()) - 1;
+  }
+
+  Material material(std::size_t index) {
+    const tinygltf::Material& m = model_.materials[index];
+    Material out;
+    out.name = m.name.empty() ? "material " + std::to_string(index) : m.name;
+    const std::string& name = out.name;
+    const tinygltf::PbrMetallicRoughness& pbr = m.pbrMetallicRoughness;
+
+    glm::vec4 base(1.0f);
+    for (std::size_t c = 0; c < 4 && c < pbr.baseColorFactor.size(); ++c)
+      base[int(c)] = finite_clamped(pbr.baseColorFactor[c], 0.0f, 1.0f, 1.0f);
+    const float metallic = finite_clamped(pbr.metallicFactor, 0.0f, 1.0f, 1.0f);
+    const float roughness = finite_clamped(pbr.roughnessFactor, 0.0f, 1.0f, 1.0f);
+    const tinygltf::Image* base_image = texture_image(pbr.baseColorTexture, "baseColorTexture", name);
+    const int base_texture = colour_texture(base_image, /*srgb=*/true);
+
+    const glm::vec3 rgb(base);
+    out.diffuse = rgb * (1.0f - metallic);
+    out.diffuse_texture = base_texture;
+    out.specular = glm::mix(glm::vec3(0.04f), rgb, metallic);
+    if (metallic >= 0.5f) out.specular_texture = base_texture;
+    out.roughness = roughness * roughness;
+    if (pbr.metallicRoughnessTexture.index >= 0) unsupported_.add("metallicRoughnessTexture (factors used)", name);
+
+    // Transmission: a smooth dielectric (the renderer's glass has no roughness or tint texture).
+    const double transmission = number_in(m.extensions, "KHR_materials_transmission", "transmissionFactor", 0.0);
+    if (transmission >= 0.5) {
+      out.dielectric = true;
+      const double ior = number_in(m.extensions, "KHR_materials_ior", "ior", 1.5);
+      out.ior = std::isfinite(ior) && ior >= 1.0 && ior <= 10.0 ? float(ior) : 1.5f;
+      out.transmission = rgb;
+      if (roughness > 0.0f) unsupported_.add("rough transmission (rendered smooth)", name);
+    } else if (transmission > 0.0) {
+      unsupported_.add("KHR_materials_transmission below 0.5 (rendered opaque)", name);
+    }
+
+    // Emission.
+    glm::vec3 emissive(0.0f);
+    for (std::size_t c = 0; c < 3 && c < m.emissiveFactor.size(); ++c)
+      emissive[int(c)] = finite_clamped(m.emissiveFactor[c], 0.0f, 1.0f, 0.0f);
+    const double strength = number_in(m.extensions, "KHR_materials_emissive_strength", "emissiveStrength", 1.0);
+    emissive *= std::isfinite(strength) && strength >= 0.0 ? float(std::min(strength, 1e30)) : 1.0f;
+    if (const tinygltf::Image* img = texture_image(m.emissiveTexture, "emissiveTexture", name)) {
+      Texture tex;
+      if (image_pixels(*img, /*srgb=*/true, tex)) {
+        glm::dvec3 sum(0.0);
+        for (std::size_t i = 0; i < tex.rgba.size(); i += 4) sum += glm::dvec3(tex.rgba[i], tex.rgba[i + 1], tex.rgba[i + 2]);
+        emissive *= glm::vec3(sum / double(tex.rgba.size() / 4));
+        unsupported_.add("emissiveTexture (averaged to one colour)", name);
+      }
+    }
+    out.emission = emissive;
+    out.two_sided = m.doubleSided;
+
+    // Normal map.
+    if (const tinygltf::Image* img = texture_image(m.normalTexture.index, m.normalTexture.texCoord,
+                                                   m.normalTexture.extensions, "normalTexture", name)) {
+      out.normal_texture = colour_texture(img, /*srgb=*/false);
+      out.normal_scale = finite_clamped(m.normalTexture.scale, 0.0f, 10.0f, 1.0f);
+    }
+    if (m.occlusionTexture.index >= 0) unsupported_.add("occlusionTexture (a path tracer computes occlusion)", name);
+
+    // Alpha.
+    if (m.alphaMode == "MASK") {
+      const float cutoff = finite_clamped(m.alphaCutoff, 0.0f, 1.0f, 0.5f);
+      out.alpha_texture = mask_texture(base_image, base[3], cutoff, name);
+    } else if (m.alphaMode == "BLEND") {
+      unsupported_.add("alphaMode BLEND (rendered opaque)", name);
+    }
+    for (const auto& [ext, value] : m.extensions)
+      if (!handled_extension(ext)) unsupported_.add("material extension " + ext, name);
+    return out;
+  }
+
+  // The cut-out texture of an alpha-masked material. The renderer cuts out where the
+  // (bilinearly filtered) texture's alpha is below 0.5, so alpha = base factor x texel alpha
+  // is remapped piecewise linearly to put the material's cutoff at 0.5.
+  int mask_texture(const tinygltf::Image* img, float factor, float cutoff, const std::string& mat) {
+    auto remap = [cutoff](float a) {
+      if (cutoff <= 0.0f) return 1.0f;
+      if (a < cutoff) return 0.5f * a / cutoff;
+      return cutoff >= 1.0f ? 1.0f : 0.5f + 0.5f * (a - cutoff) / (1.0f - cutoff);
+    };
+    Texture tex;
+    if (!img || !image_pixels(*img, /*srgb=*/false, tex)) {
+      if (factor >= cutoff) return -1;  // nothing is cut out
+      tex.width = tex.height = 1;
+      tex.rgba.assign(4, 1.0f);
+    }
+    tex.path = path_ + " (alpha mask of material '" + mat + "')";
+    for (std::size_t i = 0; i < tex.rgba.size(); i += 4) {
+      const float a = remap(std::clamp(tex.rgba[i + 3] * factor, 0.0f, 1.0f));
+      tex.rgba[i] = tex.rgba[i + 1] = tex.rgba[i + 2] = tex.rgba[i + 3] = a;
+    }
+    scene_.textures.push_back(std::move(tex));
+    return int(scene_.textures.size()) - 1;
+  }
+
+  // --- nodes and meshes ----------------------------------------------------------------------
+
+  glm::dmat4 local_transform(const tinygltf::Node& n, const std::string& where) const {
+    if (n.matrix.size() == 16) {
+      glm::dmat4 m;
+      for (int i = 0; i < 16; ++i) glm::value_ptr(m)[i] = n.matrix[std::size_t(i)];  // column-major, as glTF
+      return m;
+    }
+    if (!n.matrix.empty()) read_.fail(where + ": matrix must have 16 numbers");
+    glm::dvec3 t(0.0), s(1.0);
+    glm::dquat r(1.0, 0.0, 0.0, 0.0);
+    if (n.translation.size() == 3) t = glm::dvec3(n.translation[0], n.translation[1], n.translation[2]);
+    else if (!n.translation.empty()) read_.fail(where + ": translation must have 3 numbers");
+    if (n.scale.size() == 3) s = glm::dvec3(n.scale[0], n.scale[1], n.scale[2]);
+    else if (!n.scale.empty()) read_.fail(where + ": scale must have 3 numbers");
+    if (n.rotation.size() == 4) {
+      r = glm::dquat(n.rotation[3], n.rotation[0], n.rotation[1], n.rotation[2]);  // glTF stores x, y, z, w
+      const double len = glm::length(r);
+      if (!(len > 0.0) || !std::isfinite(len)) read_.fail(where + ": rotation is not a usable quaternion");
+      r /= len;
+    } else if (!n.rotation.empty()) {
+      read_.fail(where + ": rotation must have 4 numbers");
+    }
+    glm::dmat4 m = glm::mat4_cast(r);
+    m[0] *= s.x;
+    m[1] *= s.y;
+    m[2] *= s.z;
+    m[3] = glm::dvec4(t, 1.0);
+    return m;
+  }
+
+  // Node chains are followed by recursion: bounded, so a file cannot overflow the stack.
+  static constexpr int kMaxNodeDepth = 256;
+
+  void visit(int index, const glm::dmat4& parent, const std::string& from, int depth) {
+    if (index < 0 || std::size_t(index) >= model_.nodes.size())
+      read_.fail(from + " names node " + std::to_string(index) + ", which does not exist");
+    if (depth >= kMaxNodeDepth)
+      read_.fail("node hierarchy deeper than " + std::to_string(kMaxNodeDepth) + " levels (at node " +
+                 std::to_string(index) + ")");
+    const std::string where = "node " + std::to_string(index);
+    if (visited_[std::size_t(index)])
+      read_.fail(where + " is reached twice in the node hierarchy (a cycle or a shared child)");
+    visited_[std::size_t(index)] = 1;
+    const tinygltf::Node& n = model_.nodes[std::size_t(index)];
+    const glm::dmat4 world = parent * local_transform(n, where);
+    for (int c = 0; c < 4; ++c)
+      for (int r = 0; r < 4; ++r)
+        if (!std::isfinite(world[c][r])) read_.fail(where + ": its transform is not finite");
+    if (n.skin >= 0) unsupported_.add("skins", where);
+    if (n.camera >= 0) camera(n.camera, world, where);
+    if (n.mesh >= 0) mesh(n.mesh, world, where);
+    for (const auto& [ext, value] : n.extensions) unsupported_.add("node extension " + ext, where);
+    for (int c : n.children) visit(c, world, where, depth + 1);
+  }
+
+  void camera(int index, const glm::dmat4& world, const std::string& where) {
+    if (std::size_t(index) >= model_.cameras.size())
+      read_.fail(where + " names camera " + std::to_string(index) + ", which does not exist");
+    const tinygltf::Camera& c = model_.cameras[std::size_t(index)];
+    if (c.type != "perspective") {
+      unsupported_.add("orthographic cameras", where);
+      return;
+    }
+    if (camera_found_) return;  // the first perspective camera is the view
+    const double yfov = c.perspective.yfov;
+    if (!(yfov > 0.0 && yfov < std::numbers::pi)) {
+      scene_.stats.warnings.push_back(path_ + ": camera " + std::to_string(index) +
+                                      " has an unusable yfov; framing the scene instead");
+      return;
+    }
+    const glm::dvec3 pos(world * glm::dvec4(0, 0, 0, 1));
+    const glm::dvec3 fwd = glm::dvec3(world * glm::dvec4(0, 0, -1, 0));
+    const glm::dvec3 up = glm::dvec3(world * glm::dvec4(0, 1, 0, 0));
+    const double fl = glm::length(fwd);
+    if (!(fl > 0.0) || !(glm::length(glm::cross(fwd, up)) > 0.0)) {
+      scene_.stats.warnings.push_back(path_ + ": camera " + std::to_string(index) +
+                                      " has a degenerate orientation; framing the scene instead");
+      return;
+    }
+    scene_.camera.position = glm::vec3(pos);
+    scene_.camera.target = glm::vec3(pos + fwd / fl);
+    scene_.camera.up = glm::vec3(glm::normalize(up));
+    scene_.camera.vfov_deg = float(glm::degrees(yfov));
+    camera_found_ = true;
+  }
+
+  std::uint32_t default_material() {
+    if (default_material_ < 0) {
+      // A primitive without a material: the same grey as an OBJ face without one.
+      Material grey;
+      grey.name = "default";
+      grey.diffuse = glm::vec3(0.7f);
+      scene_.materials.push_back(grey);
+      default_material_ = int(scene_.materials.size()) - 1;
+    }
+    return std::uint32_t(default_material_);
+  }
+
+  void mesh(int index, const glm::dmat4& world, const std::string& where) {
+    if (std::size_t(index) >= model_.meshes.size())
+      read_.fail(where + " names mesh " + std::to_string(index) + ", which does not exist");
+    const tinygltf::Mesh& mesh = model_.meshes[std::size_t(index)];
+    const glm::dmat3 linear(world);
+    const glm::dmat3 normal_matrix = glm::transpose(glm::inverse(linear));
+    // A mirroring transform turns the winding around; the front face must stay the front.
+    const bool flip = glm::determinant(linear) < 0.0;
+    for (std::size_t pi = 0; pi < mesh.primitives.size(); ++pi) {
+      const tinygltf::Primitive& prim = mesh.primitives[pi];
+      const std::string what = "mesh " + std::to_string(index) + " primitive " + std::to_string(pi);
+      if (!prim.targets.empty()) unsupported_.add("morph targets", "mesh " + std::to_string(index));
+      for (const auto& [ext, value] : prim.extensions) unsupported_.add("primitive extension " + ext, what);
+      const int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
+      if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP &&
+          mode != TINYGLTF_MODE_TRIANGLE_FAN) {
+        unsupported_.add(mode == TINYGLTF_MODE_POINTS ? "point primitives" : "line primitives", what);
+        continue;
+      }
+      const auto pos_it = prim.attributes.find("POSITION");
+      if (pos_it == prim.attributes.end()) read_.fail(what + " has no POSITION attribute");
+      const std::vector<glm::vec4> positions = read_.floats(pos_it->second, {TINYGLTF_TYPE_VEC3}, what + " POSITION", false);
+      std::vector<glm::vec4> normals, uvs;
+      if (auto it = prim.attributes.find("NORMAL"); it != prim.attributes.end()) {
+        normals = read_.floats(it->second, {TINYGLTF_TYPE_VEC3}, what + " NORMAL", false);
+        if (normals.size() != positions.size()) read_.fail(what + ": NORMAL and POSITION counts differ");
+      }
+      if (auto it = prim.attributes.find("TEXCOORD_0"); it != prim.attributes.end()) {
+        uvs = read_.floats(it->second, {TINYGLTF_TYPE_VEC2}, what + " TEXCOORD_0", true);
+        if (uvs.size() != positions.size()) read_.fail(what + ": TEXCOORD_0 and POSITION counts differ");
+      }
+      for (const auto& [attr, acc] : prim.attributes)
+        if (attr.rfind("JOINTS_", 0) == 0 || attr.rfind("WEIGHTS_", 0) == 0) unsupported_.add("skins", what);
+        else if (attr.rfind("COLOR_", 0) == 0) unsupported_.add("vertex colours", what);
+
+      std::vector<std::uint32_t> idx;
+      if (prim.indices >= 0) {
+        idx = read_.indices(prim.indices, what + " indices");
+        for (std::size_t i = 0; i < idx.size(); ++i)
+          if (idx[i] >= positions.size())
+            read_.fail(what + ": index " + std::to_string(idx[i]) + " (at " + std::to_string(i) +
+                       ") is out of range (" + std::to_string(positions.size()) + " vertices)");
+      } else {
+        idx.resize(positions.size());
+        for (std::size_t i = 0; i < idx.size(); ++i) idx[i] = std::uint32_t(i);
+      }
+      std::vector<std::array<std::uint32_t, 3>> tris;
+      if (mode == TINYGLTF_MODE_TRIANGLES) {
+        for (std::size_t i = 0; i + 2 < idx.size(); i += 3) tris.push_back({idx[i], idx[i + 1], idx[i + 2]});
+      } else if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
+        for (std::size_t i = 0; i + 2 < idx.size(); ++i)
+          tris.push_back(i % 2 == 0 ? std::array{idx[i], idx[i + 1], idx[i + 2]}
+                                    : std::array{idx[i + 1], idx[i], idx[i + 2]});
+      } else {
+        for (std::size_t i = 1; i + 1 < idx.size(); ++i) tris.push_back({idx[0], idx[i], idx[i + 1]});
+      }
+
+      std::uint32_t material;
+      if (prim.material >= 0 && std::size_t(prim.material) < model_.materials.size())
+        material = std::uint32_t(prim.material);
+      else {
+        if (prim.material >= 0)
+          scene_.stats.warnings.push_back(path_ + ": " + what + " names material " + std::to_string(prim.material) +
+                                          ", which does not exist; using a default grey");
+        material = default_material();
+      }
+
+      // Positions in world space once per vertex; non-finite ones drop their triangles.
+      std::vector<glm::vec3> world_pos(positions.size());
+      for (std::size_t v = 0; v < positions.size(); ++v) world_pos[v] = glm::vec3(world * glm::dvec4(glm::dvec3(glm::vec3(positions[v])), 1.0));
+      for (const auto& t : tris) {
+        SceneTriangle tri;
+        tri.material = material;
+        const std::uint32_t order[3] = {t[0], flip ? t[2] : t[1], flip ? t[1] : t[2]};
+        bool finite = true;
+        for (int c = 0; c < 3; ++c) {
+          const glm::vec3& p = world_pos[order[c]];
+          finite &= std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
+          tri.p[c] = p;
+        }
+        if (!finite) {
+          ++scene_.stats.dropped_nonfinite;
+          continue;
+        }
+        if (is_degenerate(tri)) {
+          ++scene_.stats.dropped_degenerate;
+          continue;
+        }
+        const glm::vec3 ng = geometric_normal(tri);
+        if (ng == glm::vec3(0.0f)) {
+          ++scene_.stats.dropped_nonfinite;
+          continue;
+        }
+        for (int c = 0; c < 3; ++c) {
+          glm::vec3 n = ng;
+          if (!normals.empty()) {
+            const glm::vec3 wn(normal_matrix * glm::dvec3(glm::vec3(normals[order[c]])));
+            const float len = glm::length(wn);
+            if (len > 0.0f && std::isfinite(len)) n = wn / len;
+          }
+          tri.n[c] = n;
+          glm::vec2 uv(0.0f);
+          if (!uvs.empty()) {
+            const glm::vec4& a = uvs[order[c]];
+            // glTF's v runs down the image, the renderer's (OBJ's) up.
+            if (std::isfinite(a.x) && std::isfinite(a.y)) uv = glm::vec2(a.x, 1.0f - a.y);
+          }
+          tri.uv[c] = uv;
+        }
+        scene_.triangles.push_back(tri);
+      }
+    }
+  }
+
+  const tinygltf::Model& model_;
+  std::string path_;
+  Scene& scene_;
+  Reader read_;
+  Unsupported unsupported_;
+  std::map<std::pair<const tinygltf::Image*, bool>, int> cache_;
+  std::vector<char> visited_;
+  int default_material_ = -1;
+  bool camera_found_ = false;
+};
+
+}  // namespace
+
+Scene load_gltf(const std::string& path, bool* has_camera) {
+  if (has_camera) *has_camera = false;
+  const std::string bytes = read_binary_file(path);
+  const bool binary = bytes.size() >= 4 && read_u32(bytes, 0) == kGlbMagic;
+  std::string json_text;
+  if (binary) {
+    if (bytes.size() < 20) throw SceneError(path + ": truncated GLB file (" + std::to_string(bytes.size()) + " bytes)");
+    const std::uint32_t chunk_length = read_u32(bytes, 12), chunk_type = read_u32(bytes, 16);
+    if (chunk_type != kGlbJsonChunk) throw SceneError(path + ": invalid GLB: the first chunk is not JSON");
+    if (chunk_length > bytes.size() - 20)
+      throw SceneError(path + ": invalid GLB: the JSON chunk reaches past the end of the file");
+    json_text = bytes.substr(20, chunk_length);
+  } else {
+    json_text = bytes;
+  }
+  prescan_json(json_text, path);
+
+  tinygltf::TinyGLTF loader;
+  ImageLoadLog images;
+  loader.SetImageLoader(&load_image_lenient, &images);
+  tinygltf::Model model;
+  std::string err, warn;
+  const std::string base_dir = fs::absolute(fs::path(path)).parent_path().string();
+  const bool ok =
+      binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(bytes.data()),
+                                           unsigned(bytes.size()), base_dir)
+             : loader.LoadASCIIFromString(&model, &err, &warn, bytes.data(), unsigned(bytes.size()), base_dir);
+  if (!ok) {
+    const std::string why = one_line(err);
+    throw SceneError(path + ": cannot load glTF: " + (why.empty() ? "unknown error" : why));
+  }
+
+  Scene scene;
+  scene.name = fs::path(path).stem().string();
+  // Required extensions change what the data means; without them the scene would be wrong.
+  for (const std::string& e : model.extensionsRequired)
+    if (!Converter::handled_extension(e))
+      throw SceneError(path + ": requires glTF extension " + e + ", which parallax does not support");
+  // tinygltf's warnings that matter (missing image files) are reported per material below.
+  Converter convert(model, path, scene);
+  convert.failed_images_ = images.failed;
+  convert.materials();
+  convert.geometry(has_camera);
+  convert.finish();
+
+  if (scene.stats.dropped_degenerate > 0)
+    scene.stats.warnings.push_back(path + ": dropped " + std::to_string(scene.stats.dropped_degenerate) +
+                                   " degenerate (zero-area) triangles");
+  if (scene.stats.dropped_nonfinite > 0)
+    scene.stats.warnings.push_back(path + ": dropped " + std::to_string(scene.stats.dropped_nonfinite) +
+                                   " triangles with non-finite coordinates");
+  if (scene.triangles.empty())
+    throw SceneError(path + ": no triangles (the default scene has no triangle meshes, or all were "
+                            "degenerate or non-finite)");
+  if (scene.materials.empty()) {
+    Material grey;
+    grey.name = "default";
+    grey.diffuse = glm::vec3(0.7f);
+    scene.materials.push_back(grey);
+  }
+  return scene;
+}
+
+}  // namespace px
