@@ -1,11 +1,18 @@
 #include "app/scene_setup.h"
 
+#include "bvh/bvh_cache.h"
 #include "scene/scene_loader.h"
 
 #include <chrono>
 #include <cstdio>
+#include <optional>
 
 namespace px {
+
+namespace {
+// Below this a BVH builds in well under the time it takes to read it back.
+constexpr std::size_t kBvhCacheMinTriangles = 20000;
+}  // namespace
 
 LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
   using clock = std::chrono::steady_clock;
@@ -22,19 +29,47 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
     // Dropped triangles are reported once, by the loader's warnings (which name the file).
     for (const auto& w : st.warnings) std::fprintf(stderr, "[scene] warning: %s\n", w.c_str());
   }
-  out.bvh = build_bvh(out.scene.triangles);
+  // Large scenes go through the disk cache (small ones build faster than a file is read).
+  const BvhBuildOptions build_options;
+  const bool cacheable = out.scene.triangles.size() >= kBvhCacheMinTriangles;
+  const BvhCache cache(cacheable ? BvhCache::default_dir() : std::string());
+  const auto t2 = clock::now();
+  std::optional<FlatBvh> cached = cache.load(out.scene.triangles, build_options);
+  const bool from_cache = cached.has_value();
+  out.bvh = from_cache ? std::move(*cached) : build_bvh(out.scene.triangles, build_options);
   const auto& bs = out.bvh.stats;
   if (!quiet)
-    std::fprintf(stderr, "[bvh] %zu nodes, %zu leaf triangles, depth %d, SAH %.1f (%.0f ms)%s\n", bs.nodes,
-                 bs.leaf_triangles, bs.depth, bs.sah_cost, bs.build_ms,
+    std::fprintf(stderr, "[bvh] %zu nodes, %zu leaf triangles, depth %d, SAH %.1f (%s)%s\n", bs.nodes,
+                 bs.leaf_triangles, bs.depth, bs.sah_cost,
+                 from_cache ? ("read from the cache in " +
+                               std::to_string(static_cast<long>(
+                                   std::chrono::duration<double, std::milli>(clock::now() - t2).count())) +
+                               " ms; built in " + std::to_string(static_cast<long>(bs.build_ms)) + " ms")
+                                  .c_str()
+                            : (std::to_string(static_cast<long>(bs.build_ms)) + " ms").c_str(),
                  bs.split_budget_exceeded ? "; spatial splits stopped at their budget (heavily overlapping "
                                             "triangles): binned SAH instead"
                                           : "");
   auto check = validate_bvh(out.bvh, out.scene.triangles);
+  if (!check.ok && from_cache) {
+    // A cached file that passed its checksum but not the validator (a builder bug fixed since,
+    // with the same sources hash?): rebuild rather than fail.
+    if (!quiet) std::fprintf(stderr, "[bvh] the cached BVH failed validation: rebuilding\n");
+    out.bvh = build_bvh(out.scene.triangles, build_options);
+    check = validate_bvh(out.bvh, out.scene.triangles);
+    cached.reset();
+  }
   if (!check.ok) {
     std::string msg = "internal error: BVH failed validation:";
     for (const auto& e : check.errors) msg += "\n  " + e;
     throw std::runtime_error(msg);
+  }
+  if (cacheable && !from_cache) {
+    std::string why;
+    const std::string path = cache.store(out.bvh, out.scene.triangles, build_options, &why);
+    if (!quiet && !path.empty()) std::fprintf(stderr, "[bvh] cached in %s for the next run\n", path.c_str());
+    if (!quiet && path.empty() && !BvhCache::default_dir().empty())
+      std::fprintf(stderr, "[bvh] warning: could not cache the BVH (%s)\n", why.c_str());
   }
   return out;
 }

@@ -1,0 +1,162 @@
+#include "bvh/bvh_cache.h"
+
+#include "io/atomic_file.h"
+
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+
+namespace px {
+
+namespace {
+
+constexpr char kMagic[8] = {'P', 'X', 'B', 'V', 'H', 'C', '0', '1'};
+constexpr std::uint32_t kFormatVersion = 1;
+#ifndef PX_BVH_BUILDER_SHA
+#define PX_BVH_BUILDER_SHA "unknown"
+#endif
+// SHA-1 of the builder's sources (set by CMake): a rebuilt builder never reads an old file.
+constexpr const char* kBuilderSha = PX_BVH_BUILDER_SHA;
+
+struct Fnv1a {
+  std::uint64_t h = 1469598103934665603ull;
+  void bytes(const void* data, std::size_t n) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (std::size_t i = 0; i < n; ++i) {
+      h ^= p[i];
+      h *= 1099511628211ull;
+    }
+  }
+  template <typename T>
+  void value(const T& v) {
+    bytes(&v, sizeof v);
+  }
+};
+
+// Fixed-size header (all fields 8 bytes wide: no padding, same on every platform we build for).
+struct Header {
+  char magic[8];
+  std::uint64_t format, node_size, triangle_size, key;
+  std::uint64_t scene_triangles, nodes, triangles;
+  std::uint64_t depth, split_budget_exceeded, split_calls;
+  double build_ms, sah_cost;
+};
+
+std::uint64_t payload_checksum(const Header& h, const FlatBvh& bvh) {
+  Fnv1a f;
+  f.value(h);
+  f.bytes(bvh.nodes.data(), bvh.nodes.size() * sizeof(BvhNode));
+  f.bytes(bvh.triangles.data(), bvh.triangles.size() * sizeof(BvhTriangle));
+  return f.h;
+}
+
+}  // namespace
+
+std::uint64_t bvh_input_hash(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options) {
+  Fnv1a f;
+  f.value(kFormatVersion);
+  f.bytes(kBuilderSha, std::strlen(kBuilderSha));
+  f.value(static_cast<std::uint64_t>(sizeof(BvhNode)));
+  f.value(static_cast<std::uint64_t>(sizeof(BvhTriangle)));
+  f.value(static_cast<std::uint8_t>(options.spatial_splits));
+  f.value(options.max_leaf_size);
+  f.value(options.split_calls_per_triangle);
+  f.value(static_cast<std::uint64_t>(triangles.size()));
+  for (const SceneTriangle& t : triangles) {
+    f.bytes(t.p, sizeof t.p);
+    f.value(t.material);
+  }
+  return f.h;
+}
+
+std::string BvhCache::default_dir() {
+  if (const char* off = std::getenv("PARALLAX_BVH_CACHE"); off && std::string(off) == "off") return "";
+  if (const char* d = std::getenv("PARALLAX_CACHE_DIR"); d && *d) return d;
+  if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) return std::string(x) + "/parallax";
+  if (const char* home = std::getenv("HOME"); home && *home) return std::string(home) + "/.cache/parallax";
+  return "";
+}
+
+std::string BvhCache::path_for(std::uint64_t key) const {
+  char name[40];
+  std::snprintf(name, sizeof name, "bvh-%016llx.bin", static_cast<unsigned long long>(key));
+  return dir_ + "/" + name;
+}
+
+std::optional<FlatBvh> BvhCache::load(const std::vector<SceneTriangle>& triangles,
+                                      const BvhBuildOptions& options) const {
+  if (dir_.empty()) return std::nullopt;
+  const std::uint64_t key = bvh_input_hash(triangles, options);
+  std::ifstream in(path_for(key), std::ios::binary);
+  if (!in) return std::nullopt;
+  Header h{};
+  if (!in.read(reinterpret_cast<char*>(&h), sizeof h)) return std::nullopt;
+  if (std::memcmp(h.magic, kMagic, sizeof kMagic) != 0 || h.format != kFormatVersion ||
+      h.node_size != sizeof(BvhNode) || h.triangle_size != sizeof(BvhTriangle) || h.key != key ||
+      h.scene_triangles != triangles.size())
+    return std::nullopt;
+  // Bound the sizes before allocating: a leaf triangle list is at most a few times the scene
+  // (spatial splits), a binary tree has fewer nodes than leaf triangles.
+  if (h.nodes == 0 || h.triangles == 0 || h.triangles > 16 * triangles.size() + 16 || h.nodes > 2 * h.triangles + 1)
+    return std::nullopt;
+  FlatBvh bvh;
+  bvh.nodes.resize(h.nodes);
+  bvh.triangles.resize(h.triangles);
+  std::uint64_t checksum = 0;
+  if (!in.read(reinterpret_cast<char*>(bvh.nodes.data()), h.nodes * sizeof(BvhNode)) ||
+      !in.read(reinterpret_cast<char*>(bvh.triangles.data()), h.triangles * sizeof(BvhTriangle)) ||
+      !in.read(reinterpret_cast<char*>(&checksum), sizeof checksum) || in.peek() != std::ifstream::traits_type::eof())
+    return std::nullopt;
+  if (checksum != payload_checksum(h, bvh)) return std::nullopt;
+  bvh.stats.scene_triangles = h.scene_triangles;
+  bvh.stats.leaf_triangles = h.triangles;
+  bvh.stats.nodes = h.nodes;
+  bvh.stats.depth = static_cast<int>(h.depth);
+  bvh.stats.split_budget_exceeded = h.split_budget_exceeded != 0;
+  bvh.stats.split_calls = h.split_calls;
+  bvh.stats.build_ms = h.build_ms;
+  bvh.stats.sah_cost = h.sah_cost;
+  return bvh;
+}
+
+std::string BvhCache::store(const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles,
+                            const BvhBuildOptions& options, std::string* why) const {
+  if (dir_.empty()) {
+    if (why) *why = "no cache folder";
+    return "";
+  }
+  try {
+    std::filesystem::create_directories(dir_);
+    Header h{};
+    std::memcpy(h.magic, kMagic, sizeof kMagic);
+    h.format = kFormatVersion;
+    h.node_size = sizeof(BvhNode);
+    h.triangle_size = sizeof(BvhTriangle);
+    h.key = bvh_input_hash(triangles, options);
+    h.scene_triangles = triangles.size();
+    h.nodes = bvh.nodes.size();
+    h.triangles = bvh.triangles.size();
+    h.depth = static_cast<std::uint64_t>(bvh.stats.depth);
+    h.split_budget_exceeded = bvh.stats.split_budget_exceeded;
+    h.split_calls = bvh.stats.split_calls;
+    h.build_ms = bvh.stats.build_ms;
+    h.sah_cost = bvh.stats.sah_cost;
+    const std::uint64_t checksum = payload_checksum(h, bvh);
+    const std::string path = path_for(h.key);
+    AtomicFileWriter out(path);
+    out.write({reinterpret_cast<const char*>(&h), sizeof h});
+    out.write({reinterpret_cast<const char*>(bvh.nodes.data()), bvh.nodes.size() * sizeof(BvhNode)});
+    out.write({reinterpret_cast<const char*>(bvh.triangles.data()), bvh.triangles.size() * sizeof(BvhTriangle)});
+    out.write({reinterpret_cast<const char*>(&checksum), sizeof checksum});
+    out.commit();
+    return path;
+  } catch (const std::exception& e) {
+    if (why) *why = e.what();
+    return "";
+  }
+}
+
+}  // namespace px
