@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <string>
 
 namespace px {
 
@@ -25,8 +26,12 @@ LoadedScene load_and_build(const std::string& spec, bool quiet) {
   out.bvh = build_bvh(out.scene.triangles);
   const auto& bs = out.bvh.stats;
   if (!quiet)
-    std::fprintf(stderr, "[bvh] %zu nodes, %zu leaf triangles, depth %d, SAH %.1f (%.0f ms)%s\n", bs.nodes,
+    std::fprintf(stderr, "[bvh] %zu nodes, %zu leaf triangles, depth %d, SAH %.1f (%.0f ms)%s%s\n", bs.nodes,
                  bs.leaf_triangles, bs.depth, bs.sah_cost, bs.build_ms,
+                 bvh_layout() == BvhLayout::Binary ? ""
+                 : (std::string("; traversed as ") + to_string(bvh_layout()) + ", " +
+                    std::to_string(bvh_layout() == BvhLayout::Wide4 ? out.bvh.nodes4.size() : out.bvh.nodes8.size()) +
+                    " nodes").c_str(),
                  bs.split_budget_exceeded ? "; spatial splits stopped at their budget (heavily overlapping "
                                             "triangles): binned SAH instead"
                                           : "");
