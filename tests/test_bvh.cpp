@@ -716,7 +716,9 @@ void expect_wide_tree_sound(const std::vector<Node>& nodes, const FlatBvh& bvh, 
       for (std::uint32_t k = 0; k < n.count[i]; ++k) ++refs[n.child[i] + k];
     }
   for (std::size_t i = 0; i < refs.size(); ++i) EXPECT_EQ(refs[i], 1) << "entry " << i;
-  if (bvh.triangles.size() > 64) EXPECT_GT(double(used) / double(slots), 0.6) << "slots mostly filled";
+  if (bvh.triangles.size() > 64) {
+    EXPECT_GT(double(used) / double(slots), 0.6) << "slots mostly filled";
+  }
 }
 
 TEST(WideBvh, CollapsedTreesValidateWithAndWithoutSplits) {

@@ -267,6 +267,9 @@ void validate_tree(const Nodes& tree, const FlatBvh& bvh, const std::vector<Scen
         if (count[side] > PX_BVH_MAX_LEAF_SIZE)
           report.error(tree.name, "leaf under node ", e.node, " holds ", count[side],
                        " triangles, more than PX_BVH_MAX_LEAF_SIZE");
+        if (wide && index[side] >= kWideIndexLimit)
+          report.error(tree.name, "leaf under node ", e.node, " starts at triangle ", index[side],
+                       ", past the wide layout's index limit");
         const std::uint64_t first = index[side];
         if (first + count[side] > tri_count) {
           report.error(tree.name, "leaf under node ", e.node, " references triangles ", first, "..",

@@ -67,6 +67,10 @@ struct FlatBvh {
   BvhBuildStats stats;
 };
 
+// Largest triangle or node index + 1 the wide layouts allow (the kernels pack a leaf's first
+// triangle and count into one word).
+constexpr std::uint32_t kWideIndexLimit = 1u << 29;
+
 // Fills bvh.nodes4 (width 4) or bvh.nodes8 (width 8) from the binary nodes: every wide node is
 // a binary node whose children are replaced, largest surface area first, by their own
 // children until it has `width` of them or only leaves. Returns the time taken in ms.

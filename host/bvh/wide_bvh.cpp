@@ -140,6 +140,9 @@ BvhLayout parse_bvh_layout(const std::string& name) {
 double collapse_bvh(FlatBvh& bvh, int width) {
   const auto start = std::chrono::steady_clock::now();
   if (bvh.nodes.empty()) throw std::invalid_argument("collapse_bvh: the BVH has no nodes");
+  // The wide closest-hit traversal packs a leaf into one stack word (first | count << 29).
+  if (bvh.triangles.size() >= kWideIndexLimit || bvh.nodes.size() >= kWideIndexLimit)
+    throw std::runtime_error("BVH: too many triangles for the wide layout (2^29 leaf entries at most)");
   if (width == 4) {
     bvh.nodes4.clear();
     bvh.nodes4.reserve(bvh.nodes.size() / 2 + 1);

@@ -52,7 +52,7 @@ typedef struct BvhNode {
   uint right_count;
 } BvhNode;
 
-/* Wide BVH nodes (the default traversal layout; PX_BVH_WIDTH selects it, see below). The same
+/* Wide BVH nodes (Bvh8Node is the default traversal layout; PX_BVH_WIDTH selects, see below). The same
  * tree as the binary one, collapsed: each wide node stands for a binary node and takes as
  * children up to W of its binary descendants (leaves are the binary leaves, so the triangle
  * array is shared). Children are stored structure-of-arrays, one W-float row per box plane, so

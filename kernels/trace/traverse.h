@@ -1,11 +1,12 @@
-/* BVH traversal over the 64-byte binary nodes of shared/types.h: closest hit and any hit.
+/* BVH traversal: closest hit and any hit, over the node layout PX_BVH_WIDTH selects
+ * (shared/types.h): the 64-byte binary nodes (2) or the 4- / 8-wide SoA nodes.
  *
- * One node fetch tests both child boxes. Leaf children are intersected right away (their
- * triangles are contiguous in leaf order); interior children are visited near-first with the
- * far one pushed. The stack is private and bounded: the host builds trees no deeper than
- * PX_BVH_MAX_DEPTH and each level pushes at most one entry, so PX_BVH_STACK_SIZE never
- * overflows (the validator checks the depth). No barriers: on PoCL a traversal kernel is a
- * plain loop per work-item. */
+ * Binary: one node fetch tests both child boxes. Leaf children are intersected right away
+ * (their triangles are contiguous in leaf order); interior children are visited near-first
+ * with the far one pushed. The stack is private and bounded: the host builds trees no deeper
+ * than PX_BVH_MAX_DEPTH and each level pushes at most one entry, so PX_BVH_STACK_SIZE never
+ * overflows (the validator checks the depth). Wide: see the section below. No barriers: on
+ * PoCL a traversal kernel is a plain loop per work-item. */
 #ifndef PARALLAX_TRAVERSE_H
 #define PARALLAX_TRAVERSE_H
 
@@ -132,9 +133,8 @@ inline int px_trace_any(const SceneView* scene, float3 org, float3 dir, float tm
  * child boxes with W-wide vector ops inside the work-item. The ray's octant picks, per axis,
  * which plane row is the near one, so the slab test needs no min/max swap: same arithmetic as
  * px_intersect_box ((plane - org) * inv_dir, far distance widened by PX_BOX_FAR_SCALE), so it is
- * just as conservative. Hit leaf children are intersected at once; hit interior children go on
- * a private stack with their entry distance, sorted so the nearest is visited next, and a
- * popped entry farther than the closest hit so far is dropped. */
+ * just as conservative. Any hit: leaves are intersected as soon as their box is hit, interior
+ * children pushed in any order. Closest hit: see below. */
 #define PXW PX_BVH_WIDTH
 #define PXW_NODE_FLOATS (8 * PXW)
 #define PXW_STACK PX_WBVH_STACK_SIZE(PXW)
@@ -205,6 +205,11 @@ inline uint px_wide_boxes(const global float* node, const WideRay* w, float tmin
 
 inline uint px_lowest_bit(uint m) { return 31u - clz(m & (0u - m)); }
 
+/* Closest hit. Stack entries are nodes or leaves (a leaf as its first triangle | count << 29;
+ * collapse_bvh keeps indices below 2^29), each with its entry distance: every hit child of a
+ * node is pushed, sorted so the nearest is on top, so leaves are intersected near-first as
+ * well and a far leaf is dropped once a nearer hit has cut best.t below its entry. The stack
+ * bound is that of PX_WBVH_STACK_SIZE: a node pops one entry and pushes at most W. */
 inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
   const global float* nodes = (const global float*)scene->nodes;
   Hit best;
@@ -218,25 +223,25 @@ inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir,
   uint stack_node[PXW_STACK];
   float stack_t[PXW_STACK];
   int sp = 0;
-  uint node_index = 0;
+  uint entry = 0;
   for (;;) {
-    const global float* node = nodes + (size_t)node_index * PXW_NODE_FLOATS;
-    const global uint* child = (const global uint*)(node + 6 * PXW);
-    const global uint* count = (const global uint*)(node + 7 * PXW);
-    pxw_float enter_v;
-    uint mask = px_wide_boxes(node, &wray, tmin, best.t, &enter_v);
-    float enter[PXW];
-    pxw_vstore(enter_v, 0, enter);
-    const int base = sp;
-    while (mask != 0u) {
-      const uint i = px_lowest_bit(mask);
-      mask &= mask - 1u;
-      const uint c = count[i];
-      if (c > 0u) {
-        px_intersect_leaf(scene, child[i], c, &shear, tmin, &best);
-      } else if (sp < PXW_STACK) {
-        /* Insert keeping this node's entries sorted, nearest on top. */
+    if (entry >> 29) {
+      px_intersect_leaf(scene, entry & 0x1fffffffu, entry >> 29, &shear, tmin, &best);
+    } else {
+      const global float* node = nodes + (size_t)entry * PXW_NODE_FLOATS;
+      const global uint* child = (const global uint*)(node + 6 * PXW);
+      const global uint* count = (const global uint*)(node + 7 * PXW);
+      pxw_float enter_v;
+      uint mask = px_wide_boxes(node, &wray, tmin, best.t, &enter_v);
+      float enter[PXW];
+      pxw_vstore(enter_v, 0, enter);
+      const int base = sp;
+      while (mask != 0u) {
+        const uint i = px_lowest_bit(mask);
+        mask &= mask - 1u;
         const float t = enter[i];
+        const uint e = child[i] | (count[i] << 29);
+        if (sp >= PXW_STACK) break; /* unreachable for validated trees */
         int j = sp++;
         while (j > base && stack_t[j - 1] < t) {
           stack_t[j] = stack_t[j - 1];
@@ -244,15 +249,14 @@ inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir,
           --j;
         }
         stack_t[j] = t;
-        stack_node[j] = child[i];
+        stack_node[j] = e;
       }
     }
-    /* Next: the nearest pending node not beyond the closest hit (leaf hits may have cut it). */
     int found = 0;
     while (sp > 0) {
       --sp;
       if (stack_t[sp] <= best.t) {
-        node_index = stack_node[sp];
+        entry = stack_node[sp];
         found = 1;
         break;
       }
@@ -261,7 +265,6 @@ inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir,
   }
   return best;
 }
-
 /* 1 when anything blocks the ray within [tmin, tmax) (shadow rays). */
 inline int px_trace_any(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
   const global float* nodes = (const global float*)scene->nodes;
