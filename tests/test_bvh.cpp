@@ -747,6 +747,51 @@ TEST(WideBvh, OneTriangleScene) {
   EXPECT_TRUE(validate_bvh(bvh, tris).ok);
 }
 
+// The device form (types.h BvhLeafBlock): the wide nodes, then one block per leaf holding its
+// triangles structure-of-arrays; leaf slots point at their blocks in 16-byte units.
+TEST(WideBvh, DeviceFormHoldsEveryLeafAsABlock) {
+  const auto tris = random_soup(1500, 63);
+  FlatBvh bvh = build_bvh(tris, with_splits(false));
+  collapse_bvh(bvh, 8);
+  bvh.triangles[5].flags = PX_TRI_ALPHA_TESTED;
+  const std::vector<std::uint32_t> words = device_wide_nodes(bvh, BvhLayout::Wide8);
+  const std::size_t node_units = bvh.nodes8.size() * sizeof(Bvh8Node) / 16;
+  std::size_t leaves = 0;
+  std::vector<int> refs(bvh.triangles.size(), 0);
+  for (std::size_t n = 0; n < bvh.nodes8.size(); ++n) {
+    Bvh8Node dev;
+    std::memcpy(&dev, words.data() + n * sizeof(Bvh8Node) / 4, sizeof dev);
+    for (int i = 0; i < 8; ++i) {
+      const Bvh8Node& host = bvh.nodes8[n];
+      EXPECT_EQ(dev.count[i], host.count[i]);
+      if (host.count[i] == 0) {
+        EXPECT_EQ(dev.child[i], host.child[i]) << "interior slots keep their node index";
+        continue;
+      }
+      ++leaves;
+      ASSERT_GE(dev.child[i], node_units);
+      ASSERT_LE((dev.child[i] * 16 + sizeof(BvhLeafBlock)) / 4, words.size());
+      BvhLeafBlock b;
+      std::memcpy(&b, words.data() + dev.child[i] * 4, sizeof b);
+      EXPECT_EQ(b.first, host.child[i]);
+      EXPECT_EQ(b.count, host.count[i]);
+      std::uint32_t flags = 0;
+      for (std::uint32_t j = 0; j < 4; ++j) {
+        const BvhTriangle& t = bvh.triangles[b.first + (j < b.count ? j : 0)];
+        if (j < b.count) flags |= t.flags, ++refs[b.first + j];
+        for (int k = 0; k < 3; ++k) {
+          EXPECT_EQ(b.v[k][j], t.v0[k]);
+          EXPECT_EQ(b.v[3 + k][j], t.v1[k]);
+          EXPECT_EQ(b.v[6 + k][j], t.v2[k]);
+        }
+      }
+      EXPECT_EQ(b.flags, flags);
+    }
+  }
+  EXPECT_EQ(words.size() * 4, bvh.nodes8.size() * sizeof(Bvh8Node) + leaves * sizeof(BvhLeafBlock));
+  for (std::size_t i = 0; i < refs.size(); ++i) EXPECT_EQ(refs[i], 1) << "entry " << i;
+}
+
 TEST(WideBvh, ValidatorDetectsCorruptWideNodes) {
   const auto tris = random_soup(2000, 62);
   FlatBvh bvh = build_bvh(tris, with_splits(false));

@@ -6,6 +6,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -155,6 +156,59 @@ double collapse_bvh(FlatBvh& bvh, int width) {
     throw std::invalid_argument("collapse_bvh: width must be 4 or 8");
   }
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+namespace {
+
+template <int W, typename Node>
+std::vector<std::uint32_t> device_form(const std::vector<Node>& nodes, const std::vector<BvhTriangle>& tris) {
+  static_assert(sizeof(Node) % 16 == 0 && sizeof(BvhLeafBlock) % 16 == 0);
+  if (nodes.empty()) throw std::invalid_argument("device_wide_nodes: the wide nodes are not built");
+  std::size_t leaves = 0;
+  for (const Node& n : nodes)
+    for (int i = 0; i < W; ++i) leaves += n.count[i] > 0 ? 1 : 0;
+  const std::size_t node_words = nodes.size() * sizeof(Node) / 4;
+  const std::size_t total_units = (nodes.size() * sizeof(Node) + leaves * sizeof(BvhLeafBlock)) / 16;
+  if (total_units >= kWideIndexLimit)
+    throw std::runtime_error("BVH: wide node buffer too large for 29-bit leaf offsets");
+  std::vector<Node> out_nodes = nodes;
+  std::vector<BvhLeafBlock> blocks(leaves);
+  std::size_t next = 0;
+  for (Node& n : out_nodes)
+    for (int i = 0; i < W; ++i) {
+      if (n.count[i] == 0) continue;
+      const std::uint32_t first = n.child[i], count = n.count[i];
+      if (count > 4 || first + std::uint64_t{count} > tris.size())
+        throw std::runtime_error("BVH: leaf out of range in the wide layout");
+      BvhLeafBlock& b = blocks[next];
+      b.first = first;
+      b.count = count;
+      b.flags = 0;
+      b.pad = 0;
+      for (std::uint32_t j = 0; j < 4; ++j) {
+        const BvhTriangle& t = tris[first + (j < count ? j : 0)];
+        if (j < count) b.flags |= t.flags;
+        for (int k = 0; k < 3; ++k) {
+          b.v[k][j] = t.v0[k];
+          b.v[3 + k][j] = t.v1[k];
+          b.v[6 + k][j] = t.v2[k];
+        }
+      }
+      n.child[i] = static_cast<std::uint32_t>((nodes.size() * sizeof(Node) + next * sizeof(BvhLeafBlock)) / 16);
+      ++next;
+    }
+  std::vector<std::uint32_t> words(node_words + leaves * sizeof(BvhLeafBlock) / 4);
+  std::memcpy(words.data(), out_nodes.data(), out_nodes.size() * sizeof(Node));
+  if (leaves > 0) std::memcpy(words.data() + node_words, blocks.data(), blocks.size() * sizeof(BvhLeafBlock));
+  return words;
+}
+
+}  // namespace
+
+std::vector<std::uint32_t> device_wide_nodes(const FlatBvh& bvh, BvhLayout layout) {
+  if (layout == BvhLayout::Wide4) return device_form<4>(bvh.nodes4, bvh.triangles);
+  if (layout == BvhLayout::Wide8) return device_form<8>(bvh.nodes8, bvh.triangles);
+  throw std::invalid_argument("device_wide_nodes: not a wide layout");
 }
 
 void ensure_layout(FlatBvh& bvh, BvhLayout layout) {

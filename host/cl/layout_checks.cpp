@@ -23,6 +23,9 @@ static_assert(offsetof(Bvh4Node, hi_y) == 48 && offsetof(Bvh4Node, lo_z) == 64);
 static_assert(offsetof(Bvh4Node, hi_z) == 80 && offsetof(Bvh4Node, child) == 96);
 static_assert(offsetof(Bvh4Node, count) == 112);
 
+static_assert(sizeof(BvhLeafBlock) == 160 && offsetof(BvhLeafBlock, first) == 144);
+static_assert(offsetof(BvhLeafBlock, count) == 148 && offsetof(BvhLeafBlock, flags) == 152);
+
 static_assert(sizeof(BvhTriangle) == 48);
 static_assert(offsetof(BvhTriangle, prim) == 12 && offsetof(BvhTriangle, v1) == 16);
 static_assert(offsetof(BvhTriangle, flags) == 28 && offsetof(BvhTriangle, v2) == 32);

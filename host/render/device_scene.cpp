@@ -142,6 +142,8 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, const FlatBvh& 
   const BvhLayout layout = bvh_layout();
   layout_ = layout;
   ensure_layout(flagged, layout);
+  const std::vector<std::uint32_t> wide_words =
+      layout == BvhLayout::Binary ? std::vector<std::uint32_t>{} : device_wide_nodes(flagged, layout);
   const auto& triangles = flagged.triangles;
   const auto shading = make_triangle_shading(scene);
   const auto materials = make_gpu_materials(scene);
@@ -163,8 +165,8 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, const FlatBvh& 
     DeviceSceneBuffers b;
     switch (layout) {
       case BvhLayout::Binary: b.nodes = upload(devices.context(), dev.queue, flagged.nodes, bytes); break;
-      case BvhLayout::Wide4: b.nodes = upload(devices.context(), dev.queue, flagged.nodes4, bytes); break;
-      case BvhLayout::Wide8: b.nodes = upload(devices.context(), dev.queue, flagged.nodes8, bytes); break;
+      case BvhLayout::Wide4:
+      case BvhLayout::Wide8: b.nodes = upload(devices.context(), dev.queue, wide_words, bytes); break;
     }
     b.triangles = upload(devices.context(), dev.queue, triangles, bytes);
     b.shading = upload(devices.context(), dev.queue, shading, bytes);

@@ -99,6 +99,27 @@ typedef struct Bvh8Node {
   uint count[8];
 } Bvh8Node;
 
+/* Leaf block of the wide layouts, 160 bytes: the (at most 4) triangles of one leaf as
+ * structure-of-arrays, so the watertight test runs on all of them with float4 ops. Device form
+ * only: DeviceScene appends one block per leaf after the wide nodes in the node buffer and
+ * points the leaf slot's `child` at its block, in 16-byte units from the buffer's start (the
+ * host's Bvh4Node / Bvh8Node keep the first triangle index, as the binary nodes do).
+ *
+ *     0..143  v[9][4]  rows v0.x v0.y v0.z v1.x v1.y v1.z v2.x v2.y v2.z; lane j = triangle
+ *                      first + j; lanes >= count repeat lane 0
+ *   144..147  first    leaf-order index (BvhTriangle array) of lane 0's triangle
+ *   148..151  count    triangles in the leaf, 1..4
+ *   152..155  flags    OR of the triangles' PX_TRI_* bits (alpha-tested leaves take the
+ *                      one-by-one path)
+ *   156..159  pad */
+typedef struct BvhLeafBlock {
+  float v[9][4];
+  uint first;
+  uint count;
+  uint flags;
+  uint pad;
+} BvhLeafBlock;
+
 /* Which node layout the scene's node buffer holds and the traversal reads: 2 (BvhNode), 4
  * (Bvh4Node) or 8 (Bvh8Node). The host passes -DPX_BVH_WIDTH=N to every kernel build and
  * uploads the matching nodes (host/bvh/flat_bvh.h: bvh_layout_width()). */

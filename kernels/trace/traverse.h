@@ -205,8 +205,64 @@ inline uint px_wide_boxes(const global float* node, const WideRay* w, float tmin
 
 inline uint px_lowest_bit(uint m) { return 31u - clz(m & (0u - m)); }
 
-/* Closest hit. Stack entries are nodes or leaves (a leaf as its first triangle | count << 29;
- * collapse_bvh keeps indices below 2^29), each with its entry distance: every hit child of a
+/* Intersects the leaf whose BvhLeafBlock starts at `block` (types.h): the watertight test of
+ * px_intersect_triangle_mem on all four lanes at once, the same operations in the same order,
+ * so each lane computes exactly what the one-triangle test would. Where any lane's edge
+ * function is exactly zero (a ray through an edge or vertex, decided in double precision
+ * there), and for alpha-tested leaves, the leaf is intersected triangle by triangle instead.
+ * Among hit lanes the nearest wins (the lowest lane on equal t). Returns 1 on any hit. */
+inline int px_intersect_block(const SceneView* scene, const global float* block, const RayShear* s,
+                              float tmin, Hit* best) {
+  const global uint* header = (const global uint*)(block + 36);
+  const uint first = header[0], count = header[1];
+  if (header[2] & PX_TRI_ALPHA_TESTED) return px_intersect_leaf(scene, first, count, s, tmin, best);
+  const float ox = px_axis(s->org, s->kx), oy = px_axis(s->org, s->ky), oz = px_axis(s->org, s->kz);
+  const int kx = 4 * s->kx, ky = 4 * s->ky, kz = 4 * s->kz;
+  const float4 az = vload4(0, block + kz) - oz;
+  const float4 bz = vload4(0, block + 12 + kz) - oz;
+  const float4 cz = vload4(0, block + 24 + kz) - oz;
+  const float4 ax = (vload4(0, block + kx) - ox) - s->sx * az;
+  const float4 ay = (vload4(0, block + ky) - oy) - s->sy * az;
+  const float4 bx = (vload4(0, block + 12 + kx) - ox) - s->sx * bz;
+  const float4 by = (vload4(0, block + 12 + ky) - oy) - s->sy * bz;
+  const float4 cx = (vload4(0, block + 24 + kx) - ox) - s->sx * cz;
+  const float4 cy = (vload4(0, block + 24 + ky) - oy) - s->sy * cz;
+  float4 eu = cx * by - cy * bx;
+  float4 ev = ax * cy - ay * cx;
+  float4 ew = bx * ay - by * ax;
+  if (any((eu == 0.0f) | (ev == 0.0f) | (ew == 0.0f)))
+    return px_intersect_leaf(scene, first, count, s, tmin, best);
+  int4 ok = !(((eu < 0.0f) | (ev < 0.0f) | (ew < 0.0f)) & ((eu > 0.0f) | (ev > 0.0f) | (ew > 0.0f)));
+  float4 det = eu + ev + ew;
+  ok &= det != 0.0f;
+  float4 tt = eu * (s->sz * az) + ev * (s->sz * bz) + ew * (s->sz * cz);
+  const int4 flip = det < 0.0f;
+  det = select(det, -det, flip);
+  tt = select(tt, -tt, flip);
+  ev = select(ev, -ev, flip);
+  ew = select(ew, -ew, flip);
+  ok &= (tt >= tmin * det) & (tt < best->t * det);
+  ok &= (int4)(0, 1, 2, 3) < (int4)((int)count);
+  if (!any(ok)) return 0;
+  const float4 inv = 1.0f / det;
+  float t_l[4], u_l[4], v_l[4];
+  int ok_l[4];
+  vstore4(tt * inv, 0, t_l);
+  vstore4(ev * inv, 0, u_l);
+  vstore4(ew * inv, 0, v_l);
+  vstore4(ok, 0, ok_l);
+  int lane = -1;
+  for (int j = 0; j < 4; ++j)
+    if (ok_l[j] && (lane < 0 || t_l[j] < t_l[lane])) lane = j;
+  best->t = t_l[lane];
+  best->u = u_l[lane];
+  best->v = v_l[lane];
+  best->prim = first + (uint)lane;
+  return 1;
+}
+
+/* Closest hit. Stack entries are nodes or leaves (a leaf as its block's offset in 16-byte
+ * units | count << 29; DeviceScene keeps offsets below 2^29), each with its entry distance: every hit child of a
  * node is pushed, sorted so the nearest is on top, so leaves are intersected near-first as
  * well and a far leaf is dropped once a nearer hit has cut best.t below its entry. The stack
  * bound is that of PX_WBVH_STACK_SIZE: a node pops one entry and pushes at most W. */
@@ -226,7 +282,7 @@ inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir,
   uint entry = 0;
   for (;;) {
     if (entry >> 29) {
-      px_intersect_leaf(scene, entry & 0x1fffffffu, entry >> 29, &shear, tmin, &best);
+      px_intersect_block(scene, nodes + (size_t)(entry & 0x1fffffffu) * 4, &shear, tmin, &best);
     } else {
       const global float* node = nodes + (size_t)entry * PXW_NODE_FLOATS;
       const global uint* child = (const global uint*)(node + 6 * PXW);
@@ -265,6 +321,7 @@ inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir,
   }
   return best;
 }
+
 /* 1 when anything blocks the ray within [tmin, tmax) (shadow rays). */
 inline int px_trace_any(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
   const global float* nodes = (const global float*)scene->nodes;
@@ -286,7 +343,7 @@ inline int px_trace_any(const SceneView* scene, float3 org, float3 dir, float tm
       const uint c = count[i];
       if (c > 0u) {
         scratch.t = tmax;
-        if (px_intersect_leaf(scene, child[i], c, &shear, tmin, &scratch)) return 1;
+        if (px_intersect_block(scene, nodes + (size_t)child[i] * 4, &shear, tmin, &scratch)) return 1;
       } else if (sp < PXW_STACK) {
         stack_node[sp++] = child[i];
       }
