@@ -66,6 +66,7 @@ struct Row {
   std::string scene;
   std::size_t triangles = 0;
   double split_ms = 0, binned_ms = 0, high_ms = 0, medium_ms = 0, unbounded_ms = 0;
+  double collapse_ms = 0;  // the share of split_ms spent collapsing to the wide layout
   px::BvhBuildStats split, binned, unbounded;
 };
 
@@ -79,7 +80,7 @@ Row measure(const std::string& name, const std::vector<px::SceneTriangle>& tris,
   binned_options.spatial_splits = false;
   px::BvhBuildOptions unbounded_options = split_options;
   unbounded_options.split_calls_per_triangle = 0;
-  std::vector<double> split_ms, binned_ms, high_ms, medium_ms, unbounded_ms;
+  std::vector<double> split_ms, binned_ms, high_ms, medium_ms, unbounded_ms, collapse_ms;
   for (int r = 0; r < repeats; ++r) {
     if (with_unbounded) {
       const px::FlatBvh unbounded = px::build_bvh(tris, unbounded_options);
@@ -88,6 +89,7 @@ Row measure(const std::string& name, const std::vector<px::SceneTriangle>& tris,
     }
     const px::FlatBvh split = px::build_bvh(tris, split_options);
     split_ms.push_back(split.stats.build_ms);
+    collapse_ms.push_back(split.stats.collapse_ms);
     row.split = split.stats;
     const px::FlatBvh binned = px::build_bvh(tris, binned_options);
     binned_ms.push_back(binned.stats.build_ms);
@@ -103,6 +105,7 @@ Row measure(const std::string& name, const std::vector<px::SceneTriangle>& tris,
   row.high_ms = median(high_ms);
   row.medium_ms = median(medium_ms);
   row.unbounded_ms = median(unbounded_ms);
+  row.collapse_ms = median(collapse_ms);
   return row;
 }
 
@@ -153,6 +156,11 @@ int main(int argc, char** argv) {
                 "high (spatial splits) / medium (binned SAH); refs/tri = leaf references per scene "
                 "triangle with spatial splits; calls/tri = split-callback calls per triangle of the (last) spatial-split attempt; fallback = binned: the split budget ran out and build_bvh rebuilt with binned SAH (so px split includes the cancelled attempt)\n",
                 repeats);
+    std::printf("\nBVH layout %s: px split/binned include collapsing the binary tree into it:\n",
+                px::to_string(px::bvh_layout()));
+    for (const auto& r : rows)
+      std::printf("%-10s collapse %.2f ms of px split %.1f ms (%.1f%%)\n", r.scene.c_str(), r.collapse_ms,
+                  r.split_ms, r.split_ms > 0 ? 100.0 * r.collapse_ms / r.split_ms : 0.0);
     if (unbounded) {
       std::printf("\n%-10s %12s %12s %10s %11s %11s\n", "scene", "unbounded ms", "bounded ms",
                   "emb high", "unbnd/high", "bound/high");

@@ -7,7 +7,11 @@
 // kernels' offset origins (incoherent). Each is timed `--repeats` times; medians are printed.
 // Alpha cut-outs are off on both sides, so both trace exactly the same geometry.
 //
+// With several --layout values, each BVH node layout gets its own row, timed interleaved with
+// the others and with Embree in the same process.
+//
 //   build/bench_trace --scene atrium --width 640 --height 360 --devices 1 --repeats 7 [--csv F]
+//   build/bench_trace --layout binary --layout wide4 --layout wide8
 #include "app/guarded_main.h"
 #include "app/scene_setup.h"
 #include "bench_common.h"
@@ -25,6 +29,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <memory>
 #include <random>
 #include <thread>
 
@@ -94,40 +99,53 @@ std::vector<px::Ray> bounce_rays(const px::Scene& scene, const std::vector<px::R
 }
 
 struct Row {
-  std::string scene, set;
+  std::string scene, set, layout;
   std::size_t rays = 0;
   double kernel_mrays = 0, kernel_wall_mrays = 0, embree_mrays = 0, embree1_mrays = 0;
   int mismatches = 0;
 };
 
-Row measure(const std::string& scene_name, const std::string& set_name, const std::vector<px::Ray>& rays,
-            px::RayBatchTracer& tracer, const px::EmbreeReference& embree, int repeats, int threads) {
-  Row row{scene_name, set_name, rays.size()};
-  std::vector<double> k_ms, kw_ms, e_ms, e1_ms;
-  std::vector<px::Hit> khits, ehits;
-  khits = tracer.closest(rays);  // warm-up: kernel compilation, first-touch of buffers
+// One tracer per BVH layout, all on the same rays; every repeat times each layout and Embree
+// back to back, so machine noise hits them alike.
+std::vector<Row> measure(const std::string& scene_name, const std::string& set_name, const std::vector<px::Ray>& rays,
+                         std::vector<px::RayBatchTracer*>& tracers, const std::vector<px::BvhLayout>& layouts,
+                         const px::EmbreeReference& embree, int repeats, int threads) {
+  const std::size_t n = tracers.size();
+  std::vector<std::vector<double>> k_ms(n), kw_ms(n);
+  std::vector<double> e_ms, e1_ms;
+  std::vector<std::vector<px::Hit>> khits(n);
+  std::vector<px::Hit> ehits;
+  for (std::size_t l = 0; l < n; ++l) khits[l] = tracers[l]->closest(rays);  // warm-up
   for (int i = 0; i < repeats; ++i) {
+    for (std::size_t l = 0; l < n; ++l) {
+      auto t0 = clock_type::now();
+      khits[l] = tracers[l]->closest(rays);
+      kw_ms[l].push_back(std::chrono::duration<double, std::milli>(clock_type::now() - t0).count());
+      k_ms[l].push_back(tracers[l]->last_kernel_ms());
+    }
     auto t0 = clock_type::now();
-    khits = tracer.closest(rays);
-    kw_ms.push_back(std::chrono::duration<double, std::milli>(clock_type::now() - t0).count());
-    k_ms.push_back(tracer.last_kernel_ms());
-    t0 = clock_type::now();
     embree.intersect_all(rays, ehits, threads);
     e_ms.push_back(std::chrono::duration<double, std::milli>(clock_type::now() - t0).count());
     t0 = clock_type::now();
     embree.intersect_all(rays, ehits, 1);
     e1_ms.push_back(std::chrono::duration<double, std::milli>(clock_type::now() - t0).count());
   }
-  for (std::size_t i = 0; i < rays.size(); ++i)
-    if ((khits[i].prim == PX_NO_HIT) != (ehits[i].prim == PX_NO_HIT) ||
-        (khits[i].prim != ehits[i].prim && std::abs(khits[i].t - ehits[i].t) > 1e-4f * std::max(1.0f, ehits[i].t)))
-      ++row.mismatches;
   const double mr = static_cast<double>(rays.size()) * 1e-3;  // rays/ms -> Mrays/s
-  row.kernel_mrays = mr / median(k_ms);
-  row.kernel_wall_mrays = mr / median(kw_ms);
-  row.embree_mrays = mr / median(e_ms);
-  row.embree1_mrays = mr / median(e1_ms);
-  return row;
+  std::vector<Row> rows;
+  for (std::size_t l = 0; l < n; ++l) {
+    Row row{scene_name, set_name, px::to_string(layouts[l]), rays.size()};
+    for (std::size_t i = 0; i < rays.size(); ++i)
+      if ((khits[l][i].prim == PX_NO_HIT) != (ehits[i].prim == PX_NO_HIT) ||
+          (khits[l][i].prim != ehits[i].prim &&
+           std::abs(khits[l][i].t - ehits[i].t) > 1e-4f * std::max(1.0f, ehits[i].t)))
+        ++row.mismatches;
+    row.kernel_mrays = mr / median(k_ms[l]);
+    row.kernel_wall_mrays = mr / median(kw_ms[l]);
+    row.embree_mrays = mr / median(e_ms);
+    row.embree1_mrays = mr / median(e1_ms);
+    rows.push_back(row);
+  }
+  return rows;
 }
 
 }  // namespace
@@ -139,6 +157,7 @@ int main(int argc, char** argv) {
   int devices = 1, repeats = 7;
   int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   std::string csv;
+  std::vector<std::string> layout_names{px::to_string(px::bvh_layout())};
   app.add_option("--scene", scenes, "scenes to measure (repeatable)")->capture_default_str();
   app.add_option("--width", width)->capture_default_str();
   app.add_option("--height", height)->capture_default_str();
@@ -146,11 +165,16 @@ int main(int argc, char** argv) {
   app.add_option("--repeats", repeats, "timed repetitions (median reported)")->check(CLI::Range(1, 1000))->capture_default_str();
   app.add_option("--threads", threads, "Embree threads (std::thread chunks)")->capture_default_str();
   app.add_option("--csv", csv, "also write the table as CSV");
+  app.add_option("--layout", layout_names, "BVH node layouts to trace, side by side (binary, wide4, wide8; repeatable)")
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   return px::run_guarded([&]() -> int {
     std::vector<Row> rows;
+    std::vector<px::BvhLayout> layouts;
+    for (const auto& l : layout_names) layouts.push_back(px::parse_bvh_layout(l));
     for (const auto& name : scenes) {
+      px::set_bvh_layout(layouts[0]);
       auto loaded = px::load_and_build(name);
       // Pure geometry on both sides: Embree's reference has no alpha-test filter, so the kernel's
       // cut-outs are switched off too (they are tested in test_trace_kernels).
@@ -159,20 +183,33 @@ int main(int argc, char** argv) {
       auto set = px::DeviceSet::create({devices, px::DeviceMode::Auto, ""});
       std::fprintf(stderr, "[bench] %d device(s), %s mode: %s\n", set.size(), px::to_string(set.mode()),
                    set.devices()[0].description.c_str());
-      px::DeviceScene ds(set, loaded.scene, loaded.bvh);
-      px::RayBatchTracer tracer(set, ds);
+      // The layout is process-wide: each DeviceScene uploads, and each tracer builds its
+      // kernels for, the layout current at its construction.
+      std::vector<std::unique_ptr<px::DeviceScene>> scenes_per_layout;
+      std::vector<std::unique_ptr<px::RayBatchTracer>> tracer_storage;
+      std::vector<px::RayBatchTracer*> tracers;
+      for (px::BvhLayout layout : layouts) {
+        px::set_bvh_layout(layout);
+        scenes_per_layout.push_back(std::make_unique<px::DeviceScene>(set, loaded.scene, loaded.bvh));
+        tracer_storage.push_back(std::make_unique<px::RayBatchTracer>(set, *scenes_per_layout.back()));
+        tracers.push_back(tracer_storage.back().get());
+        tracers.back()->closest(primary_rays(loaded.scene, 8, 8));  // builds this layout's kernels now
+      }
+      px::set_bvh_layout(layouts[0]);
       auto primary = primary_rays(loaded.scene, width, height);
-      auto phits = tracer.closest(primary);
-      auto bounce = bounce_rays(loaded.scene, primary, phits, tracer);
-      rows.push_back(measure(name, "primary", primary, tracer, embree, repeats, threads));
-      rows.push_back(measure(name, "diffuse-bounce", bounce, tracer, embree, repeats, threads));
+      auto phits = tracers[0]->closest(primary);
+      auto bounce = bounce_rays(loaded.scene, primary, phits, *tracers[0]);
+      for (auto& r : measure(name, "primary", primary, tracers, layouts, embree, repeats, threads)) rows.push_back(r);
+      for (auto& r : measure(name, "diffuse-bounce", bounce, tracers, layouts, embree, repeats, threads))
+        rows.push_back(r);
     }
-    std::printf("\n%-10s %-15s %9s %12s %12s %12s %12s %8s %6s\n", "scene", "rays", "count", "kernel", "kernel+io",
-                "embree", "embree-1t", "ratio", "diff");
-    std::printf("%-10s %-15s %9s %12s %12s %12s %12s %8s %6s\n", "", "", "", "Mrays/s", "Mrays/s",
+    std::printf("\n%-10s %-15s %-7s %9s %12s %12s %12s %12s %8s %6s\n", "scene", "rays", "layout", "count", "kernel",
+                "kernel+io", "embree", "embree-1t", "ratio", "diff");
+    std::printf("%-10s %-15s %-7s %9s %12s %12s %12s %12s %8s %6s\n", "", "", "", "", "Mrays/s", "Mrays/s",
                 ("Mrays/s " + std::to_string(threads) + "t").c_str(), "Mrays/s", "k/e", "");
     for (const auto& r : rows)
-      std::printf("%-10s %-15s %9zu %12.2f %12.2f %12.2f %12.2f %8.3f %6d\n", r.scene.c_str(), r.set.c_str(), r.rays,
+      std::printf("%-10s %-15s %-7s %9zu %12.2f %12.2f %12.2f %12.2f %8.3f %6d\n", r.scene.c_str(), r.set.c_str(),
+                  r.layout.c_str(), r.rays,
                   r.kernel_mrays, r.kernel_wall_mrays, r.embree_mrays, r.embree1_mrays, r.kernel_mrays / r.embree_mrays,
                   r.mismatches);
     std::printf("\nmedians of %d runs; kernel = device time from profiling events, kernel+io = host wall time "
@@ -181,9 +218,9 @@ int main(int argc, char** argv) {
                 repeats, threads);
     if (!csv.empty()) {
       std::ofstream out(csv);
-      out << "scene,rays,count,kernel_mrays,kernel_io_mrays,embree_mrays,embree_1t_mrays,ratio,mismatches\n";
+      out << "scene,rays,layout,count,kernel_mrays,kernel_io_mrays,embree_mrays,embree_1t_mrays,ratio,mismatches\n";
       for (const auto& r : rows)
-        out << r.scene << ',' << r.set << ',' << r.rays << ',' << r.kernel_mrays << ',' << r.kernel_wall_mrays << ','
+        out << r.scene << ',' << r.set << ',' << r.layout << ',' << r.rays << ',' << r.kernel_mrays << ',' << r.kernel_wall_mrays << ','
             << r.embree_mrays << ',' << r.embree1_mrays << ',' << r.kernel_mrays / r.embree_mrays << ','
             << r.mismatches << '\n';
     }

@@ -697,6 +697,144 @@ TEST_F(ValidatorDetects, ManyErrorsAreCapped) {
   EXPECT_NE(v.errors.back().find("more"), std::string::npos) << v.errors.back();
 }
 
+// ---------------------------------------------------------------------------------------------
+// Wide layouts (types.h: Bvh4Node, Bvh8Node): the binary tree collapsed, checked by the same
+// validator.
+
+template <typename Node>
+void expect_wide_tree_sound(const std::vector<Node>& nodes, const FlatBvh& bvh, int width) {
+  ASSERT_FALSE(nodes.empty());
+  EXPECT_LE(nodes.size(), bvh.nodes.size()) << "every wide node is a binary node";
+  // Leaf slots cover the triangle entries exactly once, as the binary leaves do.
+  std::vector<int> refs(bvh.triangles.size(), 0);
+  std::size_t slots = 0, used = 0;
+  for (const Node& n : nodes)
+    for (int i = 0; i < width; ++i) {
+      ++slots;
+      if (n.lo_x[i] > n.hi_x[i]) continue;
+      ++used;
+      for (std::uint32_t k = 0; k < n.count[i]; ++k) ++refs[n.child[i] + k];
+    }
+  for (std::size_t i = 0; i < refs.size(); ++i) EXPECT_EQ(refs[i], 1) << "entry " << i;
+  if (bvh.triangles.size() > 64) {
+    EXPECT_GT(double(used) / double(slots), 0.6) << "slots mostly filled";
+  }
+}
+
+TEST(WideBvh, CollapsedTreesValidateWithAndWithoutSplits) {
+  for (bool splits : {false, true}) {
+    const auto tris = random_soup(3000, 91);
+    FlatBvh bvh = build_bvh(tris, with_splits(splits));
+    collapse_bvh(bvh, 4);
+    collapse_bvh(bvh, 8);
+    const BvhValidation v = validate_bvh(bvh, tris);
+    EXPECT_TRUE(v.ok) << (v.errors.empty() ? "" : v.errors.front());
+    expect_wide_tree_sound(bvh.nodes4, bvh, 4);
+    expect_wide_tree_sound(bvh.nodes8, bvh, 8);
+  }
+}
+
+TEST(WideBvh, OneTriangleScene) {
+  std::vector<SceneTriangle> tris;
+  append_triangle(tris, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, 0);
+  FlatBvh bvh = build_bvh(tris, with_splits(false));
+  collapse_bvh(bvh, 4);
+  collapse_bvh(bvh, 8);
+  ASSERT_EQ(bvh.nodes4.size(), 1u);
+  ASSERT_EQ(bvh.nodes8.size(), 1u);
+  EXPECT_EQ(bvh.nodes8[0].count[0], 1u);
+  EXPECT_GT(bvh.nodes8[0].lo_x[1], bvh.nodes8[0].hi_x[1]) << "unused slots are absent";
+  EXPECT_TRUE(validate_bvh(bvh, tris).ok);
+}
+
+// The device form (types.h BvhLeafBlock): the wide nodes, then one block per leaf holding its
+// triangles structure-of-arrays; leaf slots point at their blocks in 16-byte units.
+TEST(WideBvh, DeviceFormHoldsEveryLeafAsABlock) {
+  const auto tris = random_soup(1500, 63);
+  FlatBvh bvh = build_bvh(tris, with_splits(false));
+  collapse_bvh(bvh, 8);
+  bvh.triangles[5].flags = PX_TRI_ALPHA_TESTED;
+  const std::vector<std::uint32_t> words = device_wide_nodes(bvh, BvhLayout::Wide8);
+  const std::size_t node_units = bvh.nodes8.size() * sizeof(Bvh8Node) / 16;
+  std::size_t leaves = 0;
+  std::vector<int> refs(bvh.triangles.size(), 0);
+  for (std::size_t n = 0; n < bvh.nodes8.size(); ++n) {
+    Bvh8Node dev;
+    std::memcpy(&dev, words.data() + n * sizeof(Bvh8Node) / 4, sizeof dev);
+    for (int i = 0; i < 8; ++i) {
+      const Bvh8Node& host = bvh.nodes8[n];
+      EXPECT_EQ(dev.count[i], host.count[i]);
+      if (host.count[i] == 0) {
+        EXPECT_EQ(dev.child[i], host.child[i]) << "interior slots keep their node index";
+        continue;
+      }
+      ++leaves;
+      ASSERT_GE(dev.child[i], node_units);
+      ASSERT_LE((dev.child[i] * 16 + sizeof(BvhLeafBlock)) / 4, words.size());
+      BvhLeafBlock b;
+      std::memcpy(&b, words.data() + dev.child[i] * 4, sizeof b);
+      EXPECT_EQ(b.first, host.child[i]);
+      EXPECT_EQ(b.count, host.count[i]);
+      std::uint32_t flags = 0;
+      for (std::uint32_t j = 0; j < 4; ++j) {
+        const BvhTriangle& t = bvh.triangles[b.first + (j < b.count ? j : 0)];
+        if (j < b.count) flags |= t.flags, ++refs[b.first + j];
+        for (int k = 0; k < 3; ++k) {
+          EXPECT_EQ(b.v[k][j], t.v0[k]);
+          EXPECT_EQ(b.v[3 + k][j], t.v1[k]);
+          EXPECT_EQ(b.v[6 + k][j], t.v2[k]);
+        }
+      }
+      EXPECT_EQ(b.flags, flags);
+    }
+  }
+  EXPECT_EQ(words.size() * 4, bvh.nodes8.size() * sizeof(Bvh8Node) + leaves * sizeof(BvhLeafBlock));
+  for (std::size_t i = 0; i < refs.size(); ++i) EXPECT_EQ(refs[i], 1) << "entry " << i;
+}
+
+TEST(WideBvh, ValidatorDetectsCorruptWideNodes) {
+  const auto tris = random_soup(2000, 62);
+  FlatBvh bvh = build_bvh(tris, with_splits(false));
+  collapse_bvh(bvh, 8);
+  ASSERT_TRUE(validate_bvh(bvh, tris).ok);
+  // A leaf slot and an interior slot of the root's subtree.
+  std::uint32_t leaf_node = ~0u, inner_node = ~0u;
+  int leaf_slot = -1, inner_slot = -1;
+  for (std::uint32_t n = 0; n < bvh.nodes8.size(); ++n)
+    for (int i = 0; i < 8; ++i) {
+      if (bvh.nodes8[n].lo_x[i] > bvh.nodes8[n].hi_x[i]) continue;
+      if (leaf_slot < 0 && bvh.nodes8[n].count[i] >= 2) leaf_node = n, leaf_slot = i;
+      if (inner_slot < 0 && n > 0 && bvh.nodes8[n].count[i] == 0) inner_node = n, inner_slot = i;
+    }
+  ASSERT_GE(leaf_slot, 0);
+  ASSERT_GE(inner_slot, 0);
+  auto expect_invalid = [&](const FlatBvh& bad, const char* what) {
+    const BvhValidation v = validate_bvh(bad, tris);
+    EXPECT_FALSE(v.ok) << what;
+    ASSERT_FALSE(v.errors.empty()) << what;
+    EXPECT_NE(v.errors.front().find("wide8"), std::string::npos) << v.errors.front();
+  };
+  FlatBvh shrunk = bvh;
+  Bvh8Node& s = shrunk.nodes8[leaf_node];
+  s.hi_y[leaf_slot] = 0.5f * (s.lo_y[leaf_slot] + s.hi_y[leaf_slot]);
+  expect_invalid(shrunk, "leaf box no longer contains its triangles");
+  FlatBvh inner = bvh;
+  Bvh8Node& in = inner.nodes8[inner_node];
+  in.lo_z[inner_slot] = 0.5f * (in.lo_z[inner_slot] + in.hi_z[inner_slot]);
+  expect_invalid(inner, "inner box no longer contains its children");
+  FlatBvh dropped = bvh;
+  dropped.nodes8[leaf_node].count[leaf_slot] -= 1;
+  expect_invalid(dropped, "a triangle entry is no longer referenced");
+  FlatBvh cycle = bvh;
+  cycle.nodes8[inner_node].child[inner_slot] = inner_node;
+  expect_invalid(cycle, "child points at its own node");
+  FlatBvh absent = bvh;
+  Bvh8Node& a = absent.nodes8[leaf_node];
+  a.lo_x[leaf_slot] = a.lo_y[leaf_slot] = a.lo_z[leaf_slot] = std::numeric_limits<float>::max();
+  a.hi_x[leaf_slot] = a.hi_y[leaf_slot] = a.hi_z[leaf_slot] = -std::numeric_limits<float>::max();
+  expect_invalid(absent, "an unused slot that still holds a leaf");
+}
+
 TEST(Validator, DetectsUncoveredSplitTriangle) {
   // With spatial splits a triangle spans several leaves; moving one of them away must be
   // caught even though the triangle is still referenced.

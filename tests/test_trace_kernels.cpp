@@ -44,6 +44,20 @@ struct TraceFixture {
   }
 };
 
+// Every trace test runs once per BVH node layout (binary, 4-wide, 8-wide): the layout is
+// process-wide, so the fixture sets it before the test builds its tree and device scene.
+class TraceKernels : public ::testing::TestWithParam<BvhLayout> {
+ protected:
+  void SetUp() override {
+    saved_ = bvh_layout();
+    set_bvh_layout(GetParam());
+  }
+  void TearDown() override { set_bvh_layout(saved_); }
+
+ private:
+  BvhLayout saved_ = BvhLayout::Binary;
+};
+
 DeviceSet& one_device() {
   static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
   return set;
@@ -151,7 +165,7 @@ void expect_matches_brute_force(const std::vector<SceneTriangle>& tris, const st
   EXPECT_LE(ambiguous, static_cast<int>(rays.size()) / 100) << "too many ambiguous rays";
 }
 
-TEST(TraceKernels, ClosestHitMatchesBruteForceOnRandomSoup) {
+TEST_P(TraceKernels, ClosestHitMatchesBruteForceOnRandomSoup) {
   for (bool splits : {false, true}) {
     TraceFixture f(one_device(), scene_from(random_soup(3000, 7)), splits);
     auto rays = random_rays(f.scene.triangles, 3000, 11);
@@ -159,13 +173,13 @@ TEST(TraceKernels, ClosestHitMatchesBruteForceOnRandomSoup) {
   }
 }
 
-TEST(TraceKernels, ClosestHitMatchesBruteForceOnCornell) {
+TEST_P(TraceKernels, ClosestHitMatchesBruteForceOnCornell) {
   TraceFixture f(one_device(), make_builtin_scene("cornell"));
   auto rays = random_rays(f.scene.triangles, 4000, 3);
   expect_matches_brute_force(f.scene.triangles, rays, f.tracer->closest(rays));
 }
 
-TEST(TraceKernels, ClosestHitMatchesBruteForceOnAtrium) {
+TEST_P(TraceKernels, ClosestHitMatchesBruteForceOnAtrium) {
   // Reduced detail keeps the O(rays x triangles) reference affordable; the full-size atrium is
   // checked against Embree below.
   TraceFixture f(one_device(), make_builtin_scene("atrium", {{"detail", 0.05}}));
@@ -174,7 +188,7 @@ TEST(TraceKernels, ClosestHitMatchesBruteForceOnAtrium) {
   expect_matches_brute_force(f.scene.triangles, rays, f.tracer->closest(rays));
 }
 
-TEST(TraceKernels, ClosestHitMatchesEmbreeOnFullAtrium) {
+TEST_P(TraceKernels, ClosestHitMatchesEmbreeOnFullAtrium) {
   TraceFixture f(one_device(), make_builtin_scene("atrium"));
   EmbreeReference embree(f.scene.triangles);
   auto rays = random_rays(f.scene.triangles, 20000, 9);
@@ -192,7 +206,7 @@ TEST(TraceKernels, ClosestHitMatchesEmbreeOnFullAtrium) {
   EXPECT_LE(disagree, 5) << "of " << rays.size();
 }
 
-TEST(TraceKernels, TinyScenesWithAOneLeafTree) {
+TEST_P(TraceKernels, TinyScenesWithAOneLeafTree) {
   // A scene that fits one leaf has a root with an absent child (inverted box): traversal must
   // skip it rather than take it for an interior node (which once looped forever).
   for (int count : {1, 2, 3}) {
@@ -211,7 +225,7 @@ TEST(TraceKernels, TinyScenesWithAOneLeafTree) {
   }
 }
 
-TEST(TraceKernels, AnyHitAgreesWithClosestHit) {
+TEST_P(TraceKernels, AnyHitAgreesWithClosestHit) {
   TraceFixture f(one_device(), scene_from(random_soup(2000, 21)));
   auto rays = random_rays(f.scene.triangles, 3000, 22);
   // Half the rays get a finite tmax so occlusion is decided by the interval, not just hit/miss.
@@ -263,19 +277,19 @@ void expect_watertight(const std::vector<SceneTriangle>& mesh, glm::vec3 inside)
   EXPECT_EQ(misses, 0) << "of " << rays.size() << " rays";
 }
 
-TEST(TraceKernels, WatertightIcosphere) {
+TEST_P(TraceKernels, WatertightIcosphere) {
   std::vector<SceneTriangle> m;
   append_icosphere(m, glm::vec3(0.3f, -0.2f, 0.1f), 1.7f, 3, 0);
   expect_watertight(m, glm::vec3(0.3f, -0.2f, 0.1f));
 }
 
-TEST(TraceKernels, WatertightCube) {
+TEST_P(TraceKernels, WatertightCube) {
   std::vector<SceneTriangle> m;
   append_box(m, glm::vec3(-1.0f), glm::vec3(1.0f, 2.0f, 0.5f), 0);
   expect_watertight(m, glm::vec3(0.1f, 0.2f, -0.1f));
 }
 
-TEST(TraceKernels, WatertightCornellRoom) {
+TEST_P(TraceKernels, WatertightCornellRoom) {
   // The Cornell room is closed but for its front (z = 0, towards the camera). From a point
   // inside, a ray aimed at any vertex, edge midpoint or centroid of a wall (corners where three
   // walls meet included) must end on a surface. (Aiming at the blocks' convex corners from
@@ -304,7 +318,7 @@ TEST(TraceKernels, WatertightCornellRoom) {
   EXPECT_EQ(misses, 0) << "of " << rays.size();
 }
 
-TEST(TraceKernels, AxisAlignedAndGrazingRays) {
+TEST_P(TraceKernels, AxisAlignedAndGrazingRays) {
   std::vector<SceneTriangle> m;
   append_box(m, glm::vec3(-1.0f), glm::vec3(1.0f), 0);
   TraceFixture f(one_device(), scene_from(m));
@@ -342,7 +356,7 @@ TEST(TraceKernels, AxisAlignedAndGrazingRays) {
   EXPECT_FLOAT_EQ(c[0].t, 1.0f);
 }
 
-TEST(TraceKernels, DegenerateTrianglesAreNeverHit) {
+TEST_P(TraceKernels, DegenerateTrianglesAreNeverHit) {
   std::vector<SceneTriangle> m;
   append_box(m, glm::vec3(-1.0f), glm::vec3(1.0f), 0);
   const std::uint32_t first_degenerate = static_cast<std::uint32_t>(m.size());
@@ -370,7 +384,7 @@ TEST(TraceKernels, DegenerateTrianglesAreNeverHit) {
 
 // Secondary rays leave from the offset hit point. At 1e5 and 1e6 units a fixed epsilon would be
 // far below one ULP; the ULP-space offset must still keep rays off their own surface.
-TEST(TraceKernels, NoSelfIntersectionFarFromOrigin) {
+TEST_P(TraceKernels, NoSelfIntersectionFarFromOrigin) {
   for (float offset : {0.0f, 1e5f, 1e6f}) {
     const float scale = offset >= 1e6f ? 100.0f : 10.0f;  // keep triangles many ULPs wide
     const glm::vec3 shift(offset, -0.5f * offset, 0.25f * offset);
@@ -419,7 +433,7 @@ TEST(TraceKernels, NoSelfIntersectionFarFromOrigin) {
   }
 }
 
-TEST(TraceKernels, AlphaCutoutsPassThroughTransparentTexels) {
+TEST_P(TraceKernels, AlphaCutoutsPassThroughTransparentTexels) {
   Scene s;
   s.materials.resize(2);
   Texture alpha;
@@ -459,7 +473,7 @@ TEST(TraceKernels, AlphaCutoutsPassThroughTransparentTexels) {
 
 // The image (here: the hit list) must not depend on how many devices shared the work, nor on
 // how those devices were made.
-TEST(TraceKernels, SameHitsWithOneTwoAndFourDevices) {
+TEST_P(TraceKernels, SameHitsWithOneTwoAndFourDevices) {
   Scene s = make_builtin_scene("cornell-glossy");
   auto rays = random_rays(s.triangles, 5000, 77);
   std::vector<Hit> reference;
@@ -478,6 +492,12 @@ TEST(TraceKernels, SameHitsWithOneTwoAndFourDevices) {
         << count << " devices (" << to_string(set.mode()) << ") differ from 1 device";
   }
 }
+
+INSTANTIATE_TEST_SUITE_P(Layouts, TraceKernels,
+                         ::testing::Values(BvhLayout::Binary, BvhLayout::Wide4, BvhLayout::Wide8),
+                         [](const ::testing::TestParamInfo<BvhLayout>& info) {
+                           return std::string(to_string(info.param));
+                         });
 
 }  // namespace
 }  // namespace px

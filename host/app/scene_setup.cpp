@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdio>
 #include <optional>
+#include <string>
 
 namespace px {
 
@@ -37,9 +38,12 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
   std::optional<FlatBvh> cached = cache.load(out.scene.triangles, build_options);
   const bool from_cache = cached.has_value();
   out.bvh = from_cache ? std::move(*cached) : build_bvh(out.scene.triangles, build_options);
+  // The cache holds the binary tree; the wide nodes the kernels traverse are collapsed from it
+  // (a few percent of a build), so that the validator below checks them too.
+  if (from_cache) ensure_layout(out.bvh, bvh_layout());
   const auto& bs = out.bvh.stats;
   if (!quiet)
-    std::fprintf(stderr, "[bvh] %zu nodes, %zu leaf triangles, depth %d, SAH %.1f (%s)%s\n", bs.nodes,
+    std::fprintf(stderr, "[bvh] %zu nodes, %zu leaf triangles, depth %d, SAH %.1f (%s)%s%s\n", bs.nodes,
                  bs.leaf_triangles, bs.depth, bs.sah_cost,
                  from_cache ? ("read from the cache in " +
                                std::to_string(static_cast<long>(
@@ -47,6 +51,10 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
                                " ms; built in " + std::to_string(static_cast<long>(bs.build_ms)) + " ms")
                                   .c_str()
                             : (std::to_string(static_cast<long>(bs.build_ms)) + " ms").c_str(),
+                 bvh_layout() == BvhLayout::Binary ? ""
+                 : (std::string("; traversed as ") + to_string(bvh_layout()) + ", " +
+                    std::to_string(bvh_layout() == BvhLayout::Wide4 ? out.bvh.nodes4.size() : out.bvh.nodes8.size()) +
+                    " nodes").c_str(),
                  bs.split_budget_exceeded ? "; spatial splits stopped at their budget (heavily overlapping "
                                             "triangles): binned SAH instead"
                                           : "");
@@ -56,6 +64,7 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
     // with the same sources hash?): rebuild rather than fail.
     if (!quiet) std::fprintf(stderr, "[bvh] the cached BVH failed validation: rebuilding\n");
     out.bvh = build_bvh(out.scene.triangles, build_options);
+    ensure_layout(out.bvh, bvh_layout());
     check = validate_bvh(out.bvh, out.scene.triangles);
     cached.reset();
   }

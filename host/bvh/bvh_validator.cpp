@@ -137,16 +137,60 @@ constexpr double kSamples[][3] = {{1, 0, 0},         {0, 1, 0},         {0, 0, 1
                                   {1. / 3, 1. / 3, 1. / 3}, {0.6, 0.2, 0.2}, {0.2, 0.6, 0.2},
                                   {0.2, 0.2, 0.6}};
 
-}  // namespace
+// One child slot of a node, whatever the layout.
+struct ChildSlot {
+  const float* lo;  // 3 floats (binary layout) ...
+  const float* hi;
+  float lo_copy[3], hi_copy[3];  // ... or gathered from the wide layout's rows
+  std::uint32_t index, count;
+};
 
-BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles) {
-  Report report;
-  if (bvh.nodes.empty()) {
-    report.error("the BVH has no nodes");
-    return report.finish();
+struct BinaryNodes {
+  static constexpr int kWidth = 2;
+  const std::vector<BvhNode>& nodes;
+  const char* name = "";
+  std::size_t size() const { return nodes.size(); }
+  ChildSlot slot(std::size_t n, int side) const {
+    const BvhNode& node = nodes[n];
+    ChildSlot c;
+    c.lo = side == 0 ? node.lmin : node.rmin;
+    c.hi = side == 0 ? node.lmax : node.rmax;
+    c.index = side == 0 ? node.left : node.right;
+    c.count = side == 0 ? node.left_count : node.right_count;
+    return c;
   }
+  static const char* side_name(int side) { return side == 0 ? "left" : "right"; }
+};
 
-  const std::size_t node_count = bvh.nodes.size();
+template <int W, typename Node>
+struct WideNodes {
+  static constexpr int kWidth = W;
+  const std::vector<Node>& nodes;
+  const char* name;
+  std::size_t size() const { return nodes.size(); }
+  ChildSlot slot(std::size_t n, int i) const {
+    const Node& node = nodes[n];
+    ChildSlot c;
+    c.lo_copy[0] = node.lo_x[i], c.lo_copy[1] = node.lo_y[i], c.lo_copy[2] = node.lo_z[i];
+    c.hi_copy[0] = node.hi_x[i], c.hi_copy[1] = node.hi_y[i], c.hi_copy[2] = node.hi_z[i];
+    c.lo = c.lo_copy;
+    c.hi = c.hi_copy;
+    c.index = node.child[i];
+    c.count = node.count[i];
+    return c;
+  }
+  static const char* side_name(int side) {
+    static const char* names[8] = {"slot 0", "slot 1", "slot 2", "slot 3",
+                                   "slot 4", "slot 5", "slot 6", "slot 7"};
+    return names[side];
+  }
+};
+
+template <typename Nodes>
+void validate_tree(const Nodes& tree, const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles,
+                   Report& report) {
+  const bool wide = Nodes::kWidth > 2;
+  const std::size_t node_count = tree.size();
   const std::size_t tri_count = bvh.triangles.size();
   std::vector<std::uint8_t> node_seen(node_count, 0);
   std::vector<std::uint32_t> entry_refs(tri_count, 0);  // leaves covering each triangle entry
@@ -168,28 +212,38 @@ BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>&
     const Entry e = stack.back();
     stack.pop_back();
     if (node_seen[e.node]) {
-      report.error("node ", e.node, " is reached more than once (cycle or shared subtree)");
+      report.error(tree.name, "node ", e.node, " is reached more than once (cycle or shared subtree)");
       continue;
     }
     node_seen[e.node] = 1;
-    const BvhNode& node = bvh.nodes[e.node];
-    const float* lo[2] = {node.lmin, node.rmin};
-    const float* hi[2] = {node.lmax, node.rmax};
-    const std::uint32_t index[2] = {node.left, node.right};
-    const std::uint32_t count[2] = {node.left_count, node.right_count};
-    const char* side_name[2] = {"left", "right"};
+    const char* side_name[Nodes::kWidth];
+    const float* lo[Nodes::kWidth];
+    const float* hi[Nodes::kWidth];
+    std::uint32_t index[Nodes::kWidth], count[Nodes::kWidth];
+    ChildSlot slots[Nodes::kWidth];
+    for (int side = 0; side < Nodes::kWidth; ++side) {
+      slots[side] = tree.slot(e.node, side);
+      // Wide slots were gathered into the slot's own arrays: point at the stored copy.
+      lo[side] = wide ? slots[side].lo_copy : slots[side].lo;
+      hi[side] = wide ? slots[side].hi_copy : slots[side].hi;
+      index[side] = slots[side].index;
+      count[side] = slots[side].count;
+      side_name[side] = Nodes::side_name(side);
+    }
     int present = 0;
 
-    for (int side = 0; side < 2; ++side) {
+    for (int side = 0; side < Nodes::kWidth; ++side) {
       if (has_nan(lo[side], hi[side])) {
-        report.error("node ", e.node, " ", side_name[side], " box has NaN");
+        report.error(tree.name, "node ", e.node, " ", side_name[side], " box has NaN");
         continue;
       }
       if (is_absent(lo[side], hi[side])) {
-        // Only the root of a one-leaf scene may have an absent child, and only with count 0.
-        if (e.node != 0 || count[side] != 0)
-          report.error("node ", e.node, " ", side_name[side],
-                       " child is absent (inverted box); only the root's may be");
+        // Binary: only the root of a one-leaf scene may have an absent child, and only with
+        // count 0. Wide: any node may have unused slots, with child 0 and count 0.
+        if (wide ? (count[side] != 0 || index[side] != 0) : (e.node != 0 || count[side] != 0))
+          report.error(tree.name, "node ", e.node, " ", side_name[side],
+                       wide ? " slot is unused (inverted box) but has a child or count"
+                            : " child is absent (inverted box); only the root's may be");
         continue;
       }
       ++present;
@@ -198,24 +252,27 @@ BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>&
       bool inverted = false;
       for (int k = 0; k < 3; ++k) inverted |= box.lo[k] > box.hi[k];
       if (inverted) {
-        report.error("node ", e.node, " ", side_name[side], " box is inverted on some axis");
+        report.error(tree.name, "node ", e.node, " ", side_name[side], " box is inverted on some axis");
         continue;
       }
       if (e.has_box && !contains(e.box, box, tolerance(e.box, nullptr)))
-        report.error("node ", e.node, " ", side_name[side],
+        report.error(tree.name, "node ", e.node, " ", side_name[side],
                      " box is not inside the box its parent stores for it");
 
       const int child_depth = e.depth + 1;
       if (count[side] > 0) {
         if (child_depth > PX_BVH_MAX_DEPTH)
-          report.error("leaf under node ", e.node, " at depth ", child_depth,
+          report.error(tree.name, "leaf under node ", e.node, " at depth ", child_depth,
                        " exceeds PX_BVH_MAX_DEPTH ", PX_BVH_MAX_DEPTH);
         if (count[side] > PX_BVH_MAX_LEAF_SIZE)
-          report.error("leaf under node ", e.node, " holds ", count[side],
+          report.error(tree.name, "leaf under node ", e.node, " holds ", count[side],
                        " triangles, more than PX_BVH_MAX_LEAF_SIZE");
+        if (wide && index[side] >= kWideIndexLimit)
+          report.error(tree.name, "leaf under node ", e.node, " starts at triangle ", index[side],
+                       ", past the wide layout's index limit");
         const std::uint64_t first = index[side];
         if (first + count[side] > tri_count) {
-          report.error("leaf under node ", e.node, " references triangles ", first, "..",
+          report.error(tree.name, "leaf under node ", e.node, " references triangles ", first, "..",
                        first + count[side] - 1, " but there are ", tri_count);
           continue;
         }
@@ -225,7 +282,7 @@ BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>&
           ++entry_refs[i];
           const BvhTriangle& t = bvh.triangles[i];
           if (t.prim >= triangles.size()) {
-            report.error("triangle entry ", i, " has prim ", t.prim, " but the scene has ",
+            report.error(tree.name, "triangle entry ", i, " has prim ", t.prim, " but the scene has ",
                          triangles.size());
             continue;
           }
@@ -234,31 +291,31 @@ BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>&
           for (int k = 0; k < 3; ++k)
             same = same && t.v0[k] == s.p[0][k] && t.v1[k] == s.p[1][k] && t.v2[k] == s.p[2][k];
           if (!same)
-            report.error("triangle entry ", i, " does not match scene triangle ", t.prim,
+            report.error(tree.name, "triangle entry ", i, " does not match scene triangle ", t.prim,
                          " (vertices or material)");
           references.emplace_back(t.prim, box_index);
         }
       } else {
         if (index[side] == 0 || index[side] >= node_count) {
-          report.error("node ", e.node, " ", side_name[side], " child index ", index[side],
+          report.error(tree.name, "node ", e.node, " ", side_name[side], " child index ", index[side],
                        index[side] == 0 ? " points at the root" : " is out of range");
           continue;
         }
         stack.push_back({index[side], child_depth, box, true});
       }
     }
-    if (present == 0) report.error("node ", e.node, " has no children");
+    if (present == 0) report.error(tree.name, "node ", e.node, " has no children");
   }
 
   std::size_t unreached = 0, first_unreached = 0;
   for (std::size_t i = node_count; i-- > 0;)
     if (!node_seen[i]) ++unreached, first_unreached = i;
   if (unreached > 0)
-    report.error(unreached, " nodes are not reachable from the root (first: ", first_unreached,
+    report.error(tree.name, unreached, " nodes are not reachable from the root (first: ", first_unreached,
                  ")");
   for (std::size_t i = 0; i < tri_count; ++i)
     if (entry_refs[i] != 1)
-      report.error("triangle entry ", i, " is in ", entry_refs[i], " leaves (expected 1)");
+      report.error(tree.name, "triangle entry ", i, " is in ", entry_refs[i], " leaves (expected 1)");
 
   // Per scene triangle: referenced at all; a single leaf box must contain the whole triangle;
   // with several (spatial splits), each must overlap it and together they must cover it.
@@ -269,19 +326,19 @@ BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>&
     while (r < references.size() && references[r].first == prim) ++r;
     const SceneTriangle& tri = triangles[prim];
     if (r == begin) {
-      report.error("scene triangle ", prim, " is not referenced by any leaf");
+      report.error(tree.name, "scene triangle ", prim, " is not referenced by any leaf");
       continue;
     }
     if (r - begin == 1) {
       const Box& box = leaf_boxes[references[begin].second];
       if (!contains(box, triangle_box(tri), tolerance(box, &tri)))
-        report.error("scene triangle ", prim, " is not inside the box of its leaf");
+        report.error(tree.name, "scene triangle ", prim, " is not inside the box of its leaf");
       continue;
     }
     for (std::size_t j = begin; j < r; ++j) {
       const Box& box = leaf_boxes[references[j].second];
       if (!triangle_overlaps_box(tri, box, tolerance(box, &tri)))
-        report.error("scene triangle ", prim, " does not overlap the box of a leaf holding it");
+        report.error(tree.name, "scene triangle ", prim, " does not overlap the box of a leaf holding it");
     }
     for (const auto& w : kSamples) {
       const Vec3d p = {w[0] * tri.p[0].x + w[1] * tri.p[1].x + w[2] * tri.p[2].x,
@@ -293,13 +350,26 @@ BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>&
         covered = contains_point(box, p, tolerance(box, &tri));
       }
       if (!covered) {
-        report.error("scene triangle ", prim, ": point (", p.x, ", ", p.y, ", ", p.z,
+        report.error(tree.name, "scene triangle ", prim, ": point (", p.x, ", ", p.y, ", ", p.z,
                      ") lies in none of its ", r - begin, " leaf boxes");
         break;
       }
     }
   }
   // References to prims >= triangles.size() were reported above and never enter this list.
+}
+
+}  // namespace
+
+BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles) {
+  Report report;
+  if (bvh.nodes.empty()) {
+    report.error("the BVH has no nodes");
+    return report.finish();
+  }
+  validate_tree(BinaryNodes{bvh.nodes}, bvh, triangles, report);
+  if (!bvh.nodes4.empty()) validate_tree(WideNodes<4, Bvh4Node>{bvh.nodes4, "wide4 "}, bvh, triangles, report);
+  if (!bvh.nodes8.empty()) validate_tree(WideNodes<8, Bvh8Node>{bvh.nodes8, "wide8 "}, bvh, triangles, report);
   return report.finish();
 }
 

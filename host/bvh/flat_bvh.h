@@ -28,7 +28,8 @@ struct BvhBuildStats {
   std::size_t leaf_triangles = 0;  // > scene_triangles when spatial splits duplicated some
   std::size_t nodes = 0;
   int depth = 0;                   // root = depth 1... leaves included as a level below nodes
-  double build_ms = 0.0;
+  double build_ms = 0.0;           // includes collapse_ms
+  double collapse_ms = 0.0;        // binary -> wide nodes (0 for the binary layout)
   double sah_cost = 0.0;           // SAH cost of the flattened tree (traversal 1, intersection 1)
   // Spatial splits are bounded in work: a build may call the split callback at most
   // split_call_budget(scene_triangles) times; past that it is redone with binned SAH
@@ -44,11 +45,44 @@ struct BvhBuildStats {
 std::uint64_t split_call_budget(std::size_t triangles,
                                 std::uint32_t calls_per_triangle = BvhBuildOptions{}.split_calls_per_triangle);
 
+// The node layout the kernels traverse: the binary nodes, or the same tree collapsed into
+// 4- or 8-wide nodes (types.h: Bvh4Node, Bvh8Node). Process-wide, because every kernel build
+// must agree with the uploaded nodes (DeviceSet passes -DPX_BVH_WIDTH, DeviceScene uploads the
+// matching array). Default: kDefaultBvhLayout, or the environment variable PX_BVH_LAYOUT
+// (binary | wide4 | wide8) read at the first call.
+enum class BvhLayout { Binary = 2, Wide4 = 4, Wide8 = 8 };
+BvhLayout bvh_layout();
+void set_bvh_layout(BvhLayout layout);  // for benches and tests; before kernels are built
+inline int bvh_layout_width(BvhLayout layout) { return static_cast<int>(layout); }
+const char* to_string(BvhLayout layout);
+BvhLayout parse_bvh_layout(const std::string& name);  // throws std::invalid_argument
+
 struct FlatBvh {
   std::vector<BvhNode> nodes;          // nodes[0] is the root; never empty for a built BVH
   std::vector<BvhTriangle> triangles;  // leaf order; BvhTriangle::prim indexes the scene
+  // The same tree collapsed to wide nodes (empty unless built: collapse_bvh); leaves index
+  // `triangles` exactly as the binary leaves do.
+  std::vector<Bvh4Node> nodes4;
+  std::vector<Bvh8Node> nodes8;
   BvhBuildStats stats;
 };
+
+// Largest triangle or node index + 1 the wide layouts allow (the kernels pack a leaf's first
+// triangle and count into one word).
+constexpr std::uint32_t kWideIndexLimit = 1u << 29;
+
+// Fills bvh.nodes4 (width 4) or bvh.nodes8 (width 8) from the binary nodes: every wide node is
+// a binary node whose children are replaced, largest surface area first, by their own
+// children until it has `width` of them or only leaves. Returns the time taken in ms.
+double collapse_bvh(FlatBvh& bvh, int width);
+
+// The node buffer the kernels read for a wide layout: the wide nodes followed by one
+// BvhLeafBlock per leaf (types.h), leaf slots pointing at their blocks. Reads the triangles'
+// flags, so call it after set_triangle_flags. Throws if the wide nodes are absent.
+std::vector<std::uint32_t> device_wide_nodes(const FlatBvh& bvh, BvhLayout layout);
+
+// Makes sure `bvh` carries the nodes of `layout` (collapsing if needed).
+void ensure_layout(FlatBvh& bvh, BvhLayout layout);
 
 // Builds with Embree's rtcBuildBVH (SAH, maxBranchingFactor 2, maxDepth PX_BVH_MAX_DEPTH) and
 // flattens the result. Throws std::runtime_error on an empty input or an Embree error.
@@ -68,6 +102,8 @@ struct BvhValidation {
 // boxes contain their triangles' clipped extent — for spatial splits, the triangle's overlap
 // with the box must be non-empty); indices in range; depth <= PX_BVH_MAX_DEPTH; no node reached
 // twice; leaf sizes <= PX_BVH_MAX_LEAF_SIZE.
+// Wide nodes present (nodes4 / nodes8) are checked the same way: every triangle entry in
+// exactly one leaf, child boxes inside the box the parent stores, depth, unused slots absent.
 BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles);
 
 }  // namespace px

@@ -1,5 +1,6 @@
 #include "cl/device_set.h"
 
+#include "bvh/flat_bvh.h"
 #include "cl/kernel_sources.h"
 
 #include <algorithm>
@@ -170,7 +171,12 @@ DeviceSet DeviceSet::create(const DeviceOptions& options) {
 }
 
 const cl::Program& DeviceSet::program(const std::string& path, const std::string& extra_options) {
-  const std::string key = path + "|" + extra_options;
+  // Every kernel is built for the BVH layout DeviceScene uploads (flat_bvh.h: bvh_layout()),
+  // unless the caller names one (DeviceScene::kernel_options()).
+  const bool names_layout = extra_options.find("-DPX_BVH_WIDTH=") != std::string::npos;
+  const std::string layout_define =
+      names_layout ? "" : "-DPX_BVH_WIDTH=" + std::to_string(bvh_layout_width(bvh_layout()));
+  const std::string key = path + "|" + layout_define + "|" + extra_options;
   auto it = programs_.find(key);
   if (it != programs_.end()) return it->second;
 
@@ -178,7 +184,7 @@ const cl::Program& DeviceSet::program(const std::string& path, const std::string
   cl::Program program(context_, source);
   // No fast-relaxed-math: the box test relies on IEEE infinities and the watertight triangle
   // test on exact signs. Single-precision constants guard against a stray unsuffixed literal.
-  const std::string opts = "-cl-std=CL1.2 -cl-single-precision-constant " + extra_options;
+  const std::string opts = "-cl-std=CL1.2 -cl-single-precision-constant " + layout_define + " " + extra_options;
   try {
     program.build(unique_devices_, opts.c_str());
   } catch (const cl::Error& e) {

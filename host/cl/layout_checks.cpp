@@ -12,6 +12,20 @@ static_assert(offsetof(BvhNode, left_count) == 28 && offsetof(BvhNode, rmin) == 
 static_assert(offsetof(BvhNode, right) == 44 && offsetof(BvhNode, rmax) == 48);
 static_assert(offsetof(BvhNode, right_count) == 60);
 
+static_assert(sizeof(Bvh8Node) == 256);
+static_assert(offsetof(Bvh8Node, hi_x) == 32 && offsetof(Bvh8Node, lo_y) == 64);
+static_assert(offsetof(Bvh8Node, hi_y) == 96 && offsetof(Bvh8Node, lo_z) == 128);
+static_assert(offsetof(Bvh8Node, hi_z) == 160 && offsetof(Bvh8Node, child) == 192);
+static_assert(offsetof(Bvh8Node, count) == 224);
+static_assert(sizeof(Bvh4Node) == 128);
+static_assert(offsetof(Bvh4Node, hi_x) == 16 && offsetof(Bvh4Node, lo_y) == 32);
+static_assert(offsetof(Bvh4Node, hi_y) == 48 && offsetof(Bvh4Node, lo_z) == 64);
+static_assert(offsetof(Bvh4Node, hi_z) == 80 && offsetof(Bvh4Node, child) == 96);
+static_assert(offsetof(Bvh4Node, count) == 112);
+
+static_assert(sizeof(BvhLeafBlock) == 160 && offsetof(BvhLeafBlock, first) == 144);
+static_assert(offsetof(BvhLeafBlock, count) == 148 && offsetof(BvhLeafBlock, flags) == 152);
+
 static_assert(sizeof(BvhTriangle) == 48);
 static_assert(offsetof(BvhTriangle, prim) == 12 && offsetof(BvhTriangle, v1) == 16);
 static_assert(offsetof(BvhTriangle, flags) == 28 && offsetof(BvhTriangle, v2) == 32);

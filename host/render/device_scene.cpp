@@ -137,6 +137,13 @@ void fill_light_params(const Scene& scene, std::size_t light_count, FrameParams&
 DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, const FlatBvh& bvh) {
   FlatBvh flagged = bvh;
   set_triangle_flags(flagged, triangle_flags(scene));
+  // The nodes of the layout the kernels are built for (DeviceSet::program), collapsed here if
+  // the caller's tree does not carry them.
+  const BvhLayout layout = bvh_layout();
+  layout_ = layout;
+  ensure_layout(flagged, layout);
+  const std::vector<std::uint32_t> wide_words =
+      layout == BvhLayout::Binary ? std::vector<std::uint32_t>{} : device_wide_nodes(flagged, layout);
   const auto& triangles = flagged.triangles;
   const auto shading = make_triangle_shading(scene);
   const auto materials = make_gpu_materials(scene);
@@ -156,7 +163,11 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, const FlatBvh& 
   for (auto& dev : devices.devices()) {
     std::size_t bytes = 0;
     DeviceSceneBuffers b;
-    b.nodes = upload(devices.context(), dev.queue, bvh.nodes, bytes);
+    switch (layout) {
+      case BvhLayout::Binary: b.nodes = upload(devices.context(), dev.queue, flagged.nodes, bytes); break;
+      case BvhLayout::Wide4:
+      case BvhLayout::Wide8: b.nodes = upload(devices.context(), dev.queue, wide_words, bytes); break;
+    }
     b.triangles = upload(devices.context(), dev.queue, triangles, bytes);
     b.shading = upload(devices.context(), dev.queue, shading, bytes);
     b.materials = upload(devices.context(), dev.queue, materials, bytes);

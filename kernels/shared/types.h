@@ -56,6 +56,85 @@ typedef struct BvhNode {
   uint right_count;
 } BvhNode;
 
+/* Wide BVH nodes (Bvh8Node is the default traversal layout; PX_BVH_WIDTH selects, see below). The same
+ * tree as the binary one, collapsed: each wide node stands for a binary node and takes as
+ * children up to W of its binary descendants (leaves are the binary leaves, so the triangle
+ * array is shared). Children are stored structure-of-arrays, one W-float row per box plane, so
+ * the slab test of all W children is six vector loads and a few vector ops in one work-item;
+ * a ray reads the near plane rows of its octant first (the row order below lets it pick "lo"
+ * or "hi" of an axis by adding W floats).
+ *
+ * Bvh8Node, 256 bytes (4 cache lines):           Bvh4Node, 128 bytes (2 cache lines):
+ *     0..31  lo_x[8]   child boxes' min x             0..15  lo_x[4]
+ *    32..63  hi_x[8]   child boxes' max x            16..31  hi_x[4]
+ *    64..95  lo_y[8]                                 32..47  lo_y[4]
+ *    96..127 hi_y[8]                                 48..63  hi_y[4]
+ *   128..159 lo_z[8]                                 64..79  lo_z[4]
+ *   160..191 hi_z[8]                                 80..95  hi_z[4]
+ *   192..223 child[8]  node index, or first         96..111  child[4]
+ *                      triangle index if count > 0
+ *   224..255 count[8]  0 = interior child, else     112..127 count[4]
+ *                      triangles in the leaf
+ *
+ * Unused slots (a node with fewer than W children) are absent children as in BvhNode: inverted
+ * box (lo = +FLT_MAX, hi = -FLT_MAX on every axis), child 0, count 0; they are never entered.
+ * Every wide node is a binary node of the source tree, so the wide tree is no deeper than the
+ * binary one (<= PX_BVH_MAX_DEPTH, re-checked by the validator). Nodes are in depth-first
+ * order. */
+typedef struct Bvh4Node {
+  float lo_x[4];
+  float hi_x[4];
+  float lo_y[4];
+  float hi_y[4];
+  float lo_z[4];
+  float hi_z[4];
+  uint child[4];
+  uint count[4];
+} Bvh4Node;
+
+typedef struct Bvh8Node {
+  float lo_x[8];
+  float hi_x[8];
+  float lo_y[8];
+  float hi_y[8];
+  float lo_z[8];
+  float hi_z[8];
+  uint child[8];
+  uint count[8];
+} Bvh8Node;
+
+/* Leaf block of the wide layouts, 160 bytes: the (at most 4) triangles of one leaf as
+ * structure-of-arrays, so the watertight test runs on all of them with float4 ops. Device form
+ * only: DeviceScene appends one block per leaf after the wide nodes in the node buffer and
+ * points the leaf slot's `child` at its block, in 16-byte units from the buffer's start (the
+ * host's Bvh4Node / Bvh8Node keep the first triangle index, as the binary nodes do).
+ *
+ *     0..143  v[9][4]  rows v0.x v0.y v0.z v1.x v1.y v1.z v2.x v2.y v2.z; lane j = triangle
+ *                      first + j; lanes >= count repeat lane 0
+ *   144..147  first    leaf-order index (BvhTriangle array) of lane 0's triangle
+ *   148..151  count    triangles in the leaf, 1..4
+ *   152..155  flags    OR of the triangles' PX_TRI_* bits (alpha-tested leaves take the
+ *                      one-by-one path)
+ *   156..159  pad */
+typedef struct BvhLeafBlock {
+  float v[9][4];
+  uint first;
+  uint count;
+  uint flags;
+  uint pad;
+} BvhLeafBlock;
+
+/* Which node layout the scene's node buffer holds and the traversal reads: 2 (BvhNode), 4
+ * (Bvh4Node) or 8 (Bvh8Node). The host passes -DPX_BVH_WIDTH=N to every kernel build and
+ * uploads the matching nodes (host/bvh/flat_bvh.h: bvh_layout_width()). */
+#if defined(__OPENCL_C_VERSION__) && !defined(PX_BVH_WIDTH)
+#define PX_BVH_WIDTH 2
+#endif
+
+/* Wide traversal stack: a node pushes at most W - 1 entries net (it continues into one hit
+ * child), nodes are at most PX_BVH_MAX_DEPTH - 1 deep, plus the W - 1 of the last push. */
+#define PX_WBVH_STACK_SIZE(w) (((w) - 1) * PX_BVH_MAX_DEPTH + 1)
+
 /* Triangle as traversal reads it, 48 bytes, stored in leaf order (with spatial splits a
  * scene triangle may appear in several leaves, so this array can be longer than the scene).
  *

@@ -1,11 +1,12 @@
-/* BVH traversal over the 64-byte binary nodes of shared/types.h: closest hit and any hit.
+/* BVH traversal: closest hit and any hit, over the node layout PX_BVH_WIDTH selects
+ * (shared/types.h): the 64-byte binary nodes (2) or the 4- / 8-wide SoA nodes.
  *
- * One node fetch tests both child boxes. Leaf children are intersected right away (their
- * triangles are contiguous in leaf order); interior children are visited near-first with the
- * far one pushed. The stack is private and bounded: the host builds trees no deeper than
- * PX_BVH_MAX_DEPTH and each level pushes at most one entry, so PX_BVH_STACK_SIZE never
- * overflows (the validator checks the depth). No barriers: on PoCL a traversal kernel is a
- * plain loop per work-item. */
+ * Binary: one node fetch tests both child boxes. Leaf children are intersected right away
+ * (their triangles are contiguous in leaf order); interior children are visited near-first
+ * with the far one pushed. The stack is private and bounded: the host builds trees no deeper
+ * than PX_BVH_MAX_DEPTH and each level pushes at most one entry, so PX_BVH_STACK_SIZE never
+ * overflows (the validator checks the depth). Wide: see the section below. No barriers: on
+ * PoCL a traversal kernel is a plain loop per work-item. */
 #ifndef PARALLAX_TRAVERSE_H
 #define PARALLAX_TRAVERSE_H
 
@@ -33,6 +34,8 @@ inline int px_intersect_leaf(const SceneView* scene, uint first, uint count,
   }
   return any;
 }
+
+#if PX_BVH_WIDTH == 2
 
 /* Closest hit along the ray within [tmin, tmax). hit.prim is the index into scene->tris (leaf
  * order, so the caller can read the vertices), PX_NO_HIT on a miss. */
@@ -82,13 +85,6 @@ inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir,
   return best;
 }
 
-/* Closest hit with hit.prim the scene triangle index (BvhTriangle::prim). */
-inline Hit px_trace_closest(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
-  Hit h = px_trace_closest_leaf(scene, org, dir, tmin, tmax);
-  if (h.prim != PX_NO_HIT) h.prim = scene->tris[h.prim].prim;
-  return h;
-}
-
 /* 1 when anything blocks the ray within [tmin, tmax) (shadow rays). */
 inline int px_trace_any(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
   const global BvhNode* nodes = scene->nodes;
@@ -128,6 +124,243 @@ inline int px_trace_any(const SceneView* scene, float3 org, float3 dir, float tm
     }
   }
   return 0;
+}
+
+#else
+
+/* ---------------------------------------------------------------------------------------
+ * Wide traversal over Bvh4Node / Bvh8Node (PX_BVH_WIDTH 4 or 8). One node fetch tests all W
+ * child boxes with W-wide vector ops inside the work-item. The ray's octant picks, per axis,
+ * which plane row is the near one, so the slab test needs no min/max swap: same arithmetic as
+ * px_intersect_box ((plane - org) * inv_dir, far distance widened by PX_BOX_FAR_SCALE), so it is
+ * just as conservative. Any hit: leaves are intersected as soon as their box is hit, interior
+ * children pushed in any order. Closest hit: see below. */
+#define PXW PX_BVH_WIDTH
+#define PXW_NODE_FLOATS (8 * PXW)
+#define PXW_STACK PX_WBVH_STACK_SIZE(PXW)
+#if PXW == 8
+typedef float8 pxw_float;
+typedef int8 pxw_int;
+#define pxw_vload vload8
+#define pxw_vstore vstore8
+/* Bit i set when lane i is true (a comparison result: all bits set or none). */
+inline uint pxw_mask(pxw_int m) {
+  const int8 b = m & (int8)(1, 2, 4, 8, 16, 32, 64, 128);
+  const int4 h = b.lo | b.hi;
+  const int2 q = h.lo | h.hi;
+  return (uint)(q.x | q.y);
+}
+#elif PXW == 4
+typedef float4 pxw_float;
+typedef int4 pxw_int;
+#define pxw_vload vload4
+#define pxw_vstore vstore4
+inline uint pxw_mask(pxw_int m) {
+  const int4 b = m & (int4)(1, 2, 4, 8);
+  const int2 q = b.lo | b.hi;
+  return (uint)(q.x | q.y);
+}
+#else
+#error "PX_BVH_WIDTH must be 2, 4 or 8"
+#endif
+
+/* Per-ray constants of the wide box test. */
+typedef struct WideRay {
+  pxw_float ox, oy, oz, ix, iy, iz;
+  uint near_x, near_y, near_z, far_x, far_y, far_z; /* plane row offsets in floats */
+} WideRay;
+
+inline WideRay px_make_wide_ray(float3 org, float3 inv_dir) {
+  WideRay w;
+  w.ox = (pxw_float)(org.x);
+  w.oy = (pxw_float)(org.y);
+  w.oz = (pxw_float)(org.z);
+  w.ix = (pxw_float)(inv_dir.x);
+  w.iy = (pxw_float)(inv_dir.y);
+  w.iz = (pxw_float)(inv_dir.z);
+  /* Rows: lo_x, hi_x, lo_y, hi_y, lo_z, hi_z. A negative inverse direction enters at hi. */
+  w.near_x = inv_dir.x < 0.0f ? PXW : 0u;
+  w.far_x = PXW - w.near_x;
+  w.near_y = inv_dir.y < 0.0f ? 3u * PXW : 2u * PXW;
+  w.far_y = 5u * PXW - w.near_y;
+  w.near_z = inv_dir.z < 0.0f ? 5u * PXW : 4u * PXW;
+  w.far_z = 9u * PXW - w.near_z;
+  return w;
+}
+
+/* Slab test of all W children of `node`: entry distances in *t_enter; returns the hit mask. */
+inline uint px_wide_boxes(const global float* node, const WideRay* w, float tmin, float tmax,
+                          pxw_float* t_enter) {
+  const pxw_float tnx = (pxw_vload(0, node + w->near_x) - w->ox) * w->ix;
+  const pxw_float tny = (pxw_vload(0, node + w->near_y) - w->oy) * w->iy;
+  const pxw_float tnz = (pxw_vload(0, node + w->near_z) - w->oz) * w->iz;
+  const pxw_float tfx = (pxw_vload(0, node + w->far_x) - w->ox) * w->ix;
+  const pxw_float tfy = (pxw_vload(0, node + w->far_y) - w->oy) * w->iy;
+  const pxw_float tfz = (pxw_vload(0, node + w->far_z) - w->oz) * w->iz;
+  const pxw_float enter = fmax(fmax(tnx, tny), fmax(tnz, (pxw_float)(tmin)));
+  const pxw_float leave = fmin(fmin(tfx, tfy), fmin(tfz, (pxw_float)(tmax))) * PX_BOX_FAR_SCALE;
+  *t_enter = enter;
+  return pxw_mask(enter <= leave);
+}
+
+inline uint px_lowest_bit(uint m) { return 31u - clz(m & (0u - m)); }
+
+/* Intersects the leaf whose BvhLeafBlock starts at `block` (types.h): the watertight test of
+ * px_intersect_triangle_mem on all four lanes at once, the same operations in the same order,
+ * so each lane computes exactly what the one-triangle test would. Where any lane's edge
+ * function is exactly zero (a ray through an edge or vertex, decided in double precision
+ * there), and for alpha-tested leaves, the leaf is intersected triangle by triangle instead.
+ * Among hit lanes the nearest wins (the lowest lane on equal t). Returns 1 on any hit. */
+inline int px_intersect_block(const SceneView* scene, const global float* block, const RayShear* s,
+                              float tmin, Hit* best) {
+  const global uint* header = (const global uint*)(block + 36);
+  const uint first = header[0], count = header[1];
+  if (header[2] & PX_TRI_ALPHA_TESTED) return px_intersect_leaf(scene, first, count, s, tmin, best);
+  const float ox = px_axis(s->org, s->kx), oy = px_axis(s->org, s->ky), oz = px_axis(s->org, s->kz);
+  const int kx = 4 * s->kx, ky = 4 * s->ky, kz = 4 * s->kz;
+  const float4 az = vload4(0, block + kz) - oz;
+  const float4 bz = vload4(0, block + 12 + kz) - oz;
+  const float4 cz = vload4(0, block + 24 + kz) - oz;
+  const float4 ax = (vload4(0, block + kx) - ox) - s->sx * az;
+  const float4 ay = (vload4(0, block + ky) - oy) - s->sy * az;
+  const float4 bx = (vload4(0, block + 12 + kx) - ox) - s->sx * bz;
+  const float4 by = (vload4(0, block + 12 + ky) - oy) - s->sy * bz;
+  const float4 cx = (vload4(0, block + 24 + kx) - ox) - s->sx * cz;
+  const float4 cy = (vload4(0, block + 24 + ky) - oy) - s->sy * cz;
+  float4 eu = cx * by - cy * bx;
+  float4 ev = ax * cy - ay * cx;
+  float4 ew = bx * ay - by * ax;
+  if (any((eu == 0.0f) | (ev == 0.0f) | (ew == 0.0f)))
+    return px_intersect_leaf(scene, first, count, s, tmin, best);
+  int4 ok = !(((eu < 0.0f) | (ev < 0.0f) | (ew < 0.0f)) & ((eu > 0.0f) | (ev > 0.0f) | (ew > 0.0f)));
+  float4 det = eu + ev + ew;
+  ok &= det != 0.0f;
+  float4 tt = eu * (s->sz * az) + ev * (s->sz * bz) + ew * (s->sz * cz);
+  const int4 flip = det < 0.0f;
+  det = select(det, -det, flip);
+  tt = select(tt, -tt, flip);
+  ev = select(ev, -ev, flip);
+  ew = select(ew, -ew, flip);
+  ok &= (tt >= tmin * det) & (tt < best->t * det);
+  ok &= (int4)(0, 1, 2, 3) < (int4)((int)count);
+  if (!any(ok)) return 0;
+  const float4 inv = 1.0f / det;
+  float t_l[4], u_l[4], v_l[4];
+  int ok_l[4];
+  vstore4(tt * inv, 0, t_l);
+  vstore4(ev * inv, 0, u_l);
+  vstore4(ew * inv, 0, v_l);
+  vstore4(ok, 0, ok_l);
+  int lane = -1;
+  for (int j = 0; j < 4; ++j)
+    if (ok_l[j] && (lane < 0 || t_l[j] < t_l[lane])) lane = j;
+  best->t = t_l[lane];
+  best->u = u_l[lane];
+  best->v = v_l[lane];
+  best->prim = first + (uint)lane;
+  return 1;
+}
+
+/* Closest hit. Stack entries are nodes or leaves (a leaf as its block's offset in 16-byte
+ * units | count << 29; DeviceScene keeps offsets below 2^29), each with its entry distance: every hit child of a
+ * node is pushed, sorted so the nearest is on top, so leaves are intersected near-first as
+ * well and a far leaf is dropped once a nearer hit has cut best.t below its entry. The stack
+ * bound is that of PX_WBVH_STACK_SIZE: a node pops one entry and pushes at most W. */
+inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
+  const global float* nodes = (const global float*)scene->nodes;
+  Hit best;
+  best.t = tmax;
+  best.u = 0.0f;
+  best.v = 0.0f;
+  best.prim = PX_NO_HIT;
+  const RayShear shear = px_make_shear(org, dir);
+  const WideRay wray = px_make_wide_ray(org, px_safe_inverse(dir));
+
+  uint stack_node[PXW_STACK];
+  float stack_t[PXW_STACK];
+  int sp = 0;
+  uint entry = 0;
+  for (;;) {
+    if (entry >> 29) {
+      px_intersect_block(scene, nodes + (size_t)(entry & 0x1fffffffu) * 4, &shear, tmin, &best);
+    } else {
+      const global float* node = nodes + (size_t)entry * PXW_NODE_FLOATS;
+      const global uint* child = (const global uint*)(node + 6 * PXW);
+      const global uint* count = (const global uint*)(node + 7 * PXW);
+      pxw_float enter_v;
+      uint mask = px_wide_boxes(node, &wray, tmin, best.t, &enter_v);
+      float enter[PXW];
+      pxw_vstore(enter_v, 0, enter);
+      const int base = sp;
+      while (mask != 0u) {
+        const uint i = px_lowest_bit(mask);
+        mask &= mask - 1u;
+        const float t = enter[i];
+        const uint e = child[i] | (count[i] << 29);
+        if (sp >= PXW_STACK) break; /* unreachable for validated trees */
+        int j = sp++;
+        while (j > base && stack_t[j - 1] < t) {
+          stack_t[j] = stack_t[j - 1];
+          stack_node[j] = stack_node[j - 1];
+          --j;
+        }
+        stack_t[j] = t;
+        stack_node[j] = e;
+      }
+    }
+    int found = 0;
+    while (sp > 0) {
+      --sp;
+      if (stack_t[sp] <= best.t) {
+        entry = stack_node[sp];
+        found = 1;
+        break;
+      }
+    }
+    if (!found) break;
+  }
+  return best;
+}
+
+/* 1 when anything blocks the ray within [tmin, tmax) (shadow rays). */
+inline int px_trace_any(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
+  const global float* nodes = (const global float*)scene->nodes;
+  const RayShear shear = px_make_shear(org, dir);
+  const WideRay wray = px_make_wide_ray(org, px_safe_inverse(dir));
+  uint stack_node[PXW_STACK];
+  int sp = 0;
+  uint node_index = 0;
+  Hit scratch;
+  for (;;) {
+    const global float* node = nodes + (size_t)node_index * PXW_NODE_FLOATS;
+    const global uint* child = (const global uint*)(node + 6 * PXW);
+    const global uint* count = (const global uint*)(node + 7 * PXW);
+    pxw_float enter_v;
+    uint mask = px_wide_boxes(node, &wray, tmin, tmax, &enter_v);
+    while (mask != 0u) {
+      const uint i = px_lowest_bit(mask);
+      mask &= mask - 1u;
+      const uint c = count[i];
+      if (c > 0u) {
+        scratch.t = tmax;
+        if (px_intersect_block(scene, nodes + (size_t)child[i] * 4, &shear, tmin, &scratch)) return 1;
+      } else if (sp < PXW_STACK) {
+        stack_node[sp++] = child[i];
+      }
+    }
+    if (sp == 0) break;
+    node_index = stack_node[--sp];
+  }
+  return 0;
+}
+
+#endif /* PX_BVH_WIDTH */
+
+/* Closest hit with hit.prim the scene triangle index (BvhTriangle::prim). */
+inline Hit px_trace_closest(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
+  Hit h = px_trace_closest_leaf(scene, org, dir, tmin, tmax);
+  if (h.prim != PX_NO_HIT) h.prim = scene->tris[h.prim].prim;
+  return h;
 }
 
 #endif

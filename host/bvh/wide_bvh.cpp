@@ -1,0 +1,219 @@
+// collapse_bvh(): the binary tree of build_bvh collapsed into 4- or 8-wide nodes (layout in
+// kernels/shared/types.h), and the process-wide choice of the layout the kernels traverse.
+#include "bvh/flat_bvh.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdlib>
+#include <cstring>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace px {
+
+namespace {
+
+// The layout the kernels traverse unless PX_BVH_LAYOUT or set_bvh_layout() says otherwise.
+constexpr BvhLayout kDefaultBvhLayout = BvhLayout::Wide8;
+
+std::atomic<int> g_layout{0};  // 0: not chosen yet
+
+struct ChildRef {
+  float lo[3], hi[3];
+  std::uint32_t index;  // binary node, or first triangle of a leaf
+  std::uint32_t count;  // 0 = interior
+  double half_area() const {
+    const double dx = double(hi[0]) - lo[0], dy = double(hi[1]) - lo[1], dz = double(hi[2]) - lo[2];
+    return dx * dy + dy * dz + dz * dx;
+  }
+};
+
+bool absent(const float* lo, const float* hi) {
+  return lo[0] > hi[0] && lo[1] > hi[1] && lo[2] > hi[2];
+}
+
+// The present children of binary node `n`, appended to `out`.
+template <typename Out>
+void binary_children(const BvhNode& n, Out& out, int& size) {
+  const float* lo[2] = {n.lmin, n.rmin};
+  const float* hi[2] = {n.lmax, n.rmax};
+  const std::uint32_t index[2] = {n.left, n.right};
+  const std::uint32_t count[2] = {n.left_count, n.right_count};
+  for (int side = 0; side < 2; ++side) {
+    if (absent(lo[side], hi[side])) continue;
+    ChildRef& c = out[size++];
+    for (int k = 0; k < 3; ++k) c.lo[k] = lo[side][k], c.hi[k] = hi[side][k];
+    c.index = index[side];
+    c.count = count[side];
+  }
+}
+
+template <int W, typename Node>
+class Collapser {
+ public:
+  Collapser(const FlatBvh& bvh, std::vector<Node>& out) : bvh_(bvh), out_(out) {}
+
+  // Emits the wide node standing for binary node `b` (and its subtree); returns its index.
+  std::uint32_t emit(std::uint32_t b) {
+    ChildRef children[W];
+    int size = 0;
+    binary_children(bvh_.nodes[b], children, size);
+    // Open the interior child with the largest surface area (the one rays enter most often)
+    // until the node is full or holds only leaves.
+    while (size < W) {
+      int best = -1;
+      double best_area = -1.0;
+      for (int i = 0; i < size; ++i)
+        if (children[i].count == 0 && children[i].half_area() > best_area) {
+          best = i;
+          best_area = children[i].half_area();
+        }
+      if (best < 0) break;
+      const std::uint32_t opened = children[best].index;
+      children[best] = children[--size];
+      binary_children(bvh_.nodes[opened], children, size);
+    }
+
+    const auto index = static_cast<std::uint32_t>(out_.size());
+    out_.emplace_back();
+    for (int i = 0; i < W; ++i) {
+      const bool used = i < size;
+      // Depth-first: the first interior child's subtree follows its parent in memory.
+      const std::uint32_t child =
+          !used ? 0u : (children[i].count > 0 ? children[i].index : emit(children[i].index));
+      Node& node = out_[index];  // emit() may have reallocated
+      const float big = std::numeric_limits<float>::max();
+      node.lo_x[i] = used ? children[i].lo[0] : big;
+      node.lo_y[i] = used ? children[i].lo[1] : big;
+      node.lo_z[i] = used ? children[i].lo[2] : big;
+      node.hi_x[i] = used ? children[i].hi[0] : -big;
+      node.hi_y[i] = used ? children[i].hi[1] : -big;
+      node.hi_z[i] = used ? children[i].hi[2] : -big;
+      node.child[i] = child;
+      node.count[i] = used ? children[i].count : 0u;
+    }
+    return index;
+  }
+
+ private:
+  const FlatBvh& bvh_;
+  std::vector<Node>& out_;
+};
+
+BvhLayout layout_from_environment() {
+  const char* env = std::getenv("PX_BVH_LAYOUT");
+  if (!env || !*env) return kDefaultBvhLayout;
+  return parse_bvh_layout(env);
+}
+
+}  // namespace
+
+BvhLayout bvh_layout() {
+  int v = g_layout.load();
+  if (v == 0) {
+    v = static_cast<int>(layout_from_environment());
+    int expected = 0;
+    if (!g_layout.compare_exchange_strong(expected, v)) v = expected;
+  }
+  return static_cast<BvhLayout>(v);
+}
+
+void set_bvh_layout(BvhLayout layout) { g_layout.store(static_cast<int>(layout)); }
+
+const char* to_string(BvhLayout layout) {
+  switch (layout) {
+    case BvhLayout::Binary: return "binary";
+    case BvhLayout::Wide4: return "wide4";
+    case BvhLayout::Wide8: return "wide8";
+  }
+  return "?";
+}
+
+BvhLayout parse_bvh_layout(const std::string& name) {
+  if (name == "binary" || name == "2") return BvhLayout::Binary;
+  if (name == "wide4" || name == "4") return BvhLayout::Wide4;
+  if (name == "wide8" || name == "8") return BvhLayout::Wide8;
+  throw std::invalid_argument("unknown BVH layout '" + name + "' (binary, wide4 or wide8)");
+}
+
+double collapse_bvh(FlatBvh& bvh, int width) {
+  const auto start = std::chrono::steady_clock::now();
+  if (bvh.nodes.empty()) throw std::invalid_argument("collapse_bvh: the BVH has no nodes");
+  // The wide closest-hit traversal packs a leaf into one stack word (first | count << 29).
+  if (bvh.triangles.size() >= kWideIndexLimit || bvh.nodes.size() >= kWideIndexLimit)
+    throw std::runtime_error("BVH: too many triangles for the wide layout (2^29 leaf entries at most)");
+  if (width == 4) {
+    bvh.nodes4.clear();
+    bvh.nodes4.reserve(bvh.nodes.size() / 2 + 1);
+    Collapser<4, Bvh4Node>(bvh, bvh.nodes4).emit(0);
+  } else if (width == 8) {
+    bvh.nodes8.clear();
+    bvh.nodes8.reserve(bvh.nodes.size() / 4 + 1);
+    Collapser<8, Bvh8Node>(bvh, bvh.nodes8).emit(0);
+  } else {
+    throw std::invalid_argument("collapse_bvh: width must be 4 or 8");
+  }
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+namespace {
+
+template <int W, typename Node>
+std::vector<std::uint32_t> device_form(const std::vector<Node>& nodes, const std::vector<BvhTriangle>& tris) {
+  static_assert(sizeof(Node) % 16 == 0 && sizeof(BvhLeafBlock) % 16 == 0);
+  if (nodes.empty()) throw std::invalid_argument("device_wide_nodes: the wide nodes are not built");
+  std::size_t leaves = 0;
+  for (const Node& n : nodes)
+    for (int i = 0; i < W; ++i) leaves += n.count[i] > 0 ? 1 : 0;
+  const std::size_t node_words = nodes.size() * sizeof(Node) / 4;
+  const std::size_t total_units = (nodes.size() * sizeof(Node) + leaves * sizeof(BvhLeafBlock)) / 16;
+  if (total_units >= kWideIndexLimit)
+    throw std::runtime_error("BVH: wide node buffer too large for 29-bit leaf offsets");
+  std::vector<Node> out_nodes = nodes;
+  std::vector<BvhLeafBlock> blocks(leaves);
+  std::size_t next = 0;
+  for (Node& n : out_nodes)
+    for (int i = 0; i < W; ++i) {
+      if (n.count[i] == 0) continue;
+      const std::uint32_t first = n.child[i], count = n.count[i];
+      if (count > 4 || first + std::uint64_t{count} > tris.size())
+        throw std::runtime_error("BVH: leaf out of range in the wide layout");
+      BvhLeafBlock& b = blocks[next];
+      b.first = first;
+      b.count = count;
+      b.flags = 0;
+      b.pad = 0;
+      for (std::uint32_t j = 0; j < 4; ++j) {
+        const BvhTriangle& t = tris[first + (j < count ? j : 0)];
+        if (j < count) b.flags |= t.flags;
+        for (int k = 0; k < 3; ++k) {
+          b.v[k][j] = t.v0[k];
+          b.v[3 + k][j] = t.v1[k];
+          b.v[6 + k][j] = t.v2[k];
+        }
+      }
+      n.child[i] = static_cast<std::uint32_t>((nodes.size() * sizeof(Node) + next * sizeof(BvhLeafBlock)) / 16);
+      ++next;
+    }
+  std::vector<std::uint32_t> words(node_words + leaves * sizeof(BvhLeafBlock) / 4);
+  std::memcpy(words.data(), out_nodes.data(), out_nodes.size() * sizeof(Node));
+  if (leaves > 0) std::memcpy(words.data() + node_words, blocks.data(), blocks.size() * sizeof(BvhLeafBlock));
+  return words;
+}
+
+}  // namespace
+
+std::vector<std::uint32_t> device_wide_nodes(const FlatBvh& bvh, BvhLayout layout) {
+  if (layout == BvhLayout::Wide4) return device_form<4>(bvh.nodes4, bvh.triangles);
+  if (layout == BvhLayout::Wide8) return device_form<8>(bvh.nodes8, bvh.triangles);
+  throw std::invalid_argument("device_wide_nodes: not a wide layout");
+}
+
+void ensure_layout(FlatBvh& bvh, BvhLayout layout) {
+  if (layout == BvhLayout::Wide4 && bvh.nodes4.empty()) collapse_bvh(bvh, 4);
+  if (layout == BvhLayout::Wide8 && bvh.nodes8.empty()) collapse_bvh(bvh, 8);
+}
+
+}  // namespace px
