@@ -26,6 +26,7 @@
 //   doubleSided                           -> emitters light both faces
 // Everything else the file asks for is named in one warning line.
 #include "scene/primitives.h"
+#include "scene/scene_file_bytes.h"
 #include "scene/scene_loader.h"
 
 #include <OpenImageIO/filesystem.h>
@@ -66,16 +67,7 @@ std::uint32_t read_u32(const std::string& bytes, std::size_t at) {
 }
 
 std::string read_binary_file(const std::string& path) {
-  std::error_code ec;
-  const fs::file_status st = fs::status(path, ec);
-  if (ec || !fs::exists(st)) throw SceneError("cannot open glTF file '" + path + "': no such file");
-  if (!fs::is_regular_file(st)) throw SceneError("cannot open glTF file '" + path + "': not a regular file");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw SceneError("cannot open glTF file '" + path + "': " + std::strerror(errno));
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) throw SceneError("cannot read glTF file '" + path + "'");
-  std::string bytes = std::move(ss).str();
+  std::string bytes = read_scene_file_bytes(path, "glTF");
   // tinygltf takes the length as an unsigned int.
   if (bytes.size() >= (std::size_t(1) << 31)) throw SceneError(path + ": glTF file larger than 2 GiB");
   return bytes;

@@ -12,6 +12,7 @@
 // tinyobjloader is then asked not to triangulate; polygons are ear-clipped here.
 #include "scene/mtl_statements.h"
 #include "scene/primitives.h"
+#include "scene/scene_file_bytes.h"
 #include "scene/scene_loader.h"
 
 #include <OpenImageIO/imageio.h>
@@ -39,21 +40,9 @@ namespace fs = std::filesystem;
 namespace {
 
 // ---------------------------------------------------------------------------------------------
-// Reading and line splitting with tinyobjloader's rules: "\n", "\r\n" and a lone "\r" end a
+// Line splitting with tinyobjloader's rules: "\n", "\r\n" and a lone "\r" end a
 // line; a NUL ends its content (tinyobjloader parses through c_str()).
 
-std::string read_text_file(const std::string& path) {
-  std::error_code ec;
-  const fs::file_status st = fs::status(path, ec);
-  if (ec || !fs::exists(st)) throw SceneError("cannot open OBJ file '" + path + "': no such file");
-  if (!fs::is_regular_file(st)) throw SceneError("cannot open OBJ file '" + path + "': not a regular file");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw SceneError("cannot open OBJ file '" + path + "': " + std::strerror(errno));
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) throw SceneError("cannot read OBJ file '" + path + "'");
-  return std::move(ss).str();
-}
 
 template <typename F>
 void for_each_line(std::string_view text, F&& visit) {
@@ -671,7 +660,7 @@ glm::vec3 normalized_or(glm::vec3 n, glm::vec3 fallback) {
 }  // namespace
 
 Scene load_obj(const std::string& path) {
-  const std::string text = read_text_file(path);
+  const std::string text = read_scene_file_bytes(path, "OBJ");
   const ObjPrescan scan = prescan_obj(text, path);
 
   Scene scene;
