@@ -597,6 +597,14 @@ TEST(SvgfDistributed, StripsMovingEveryFrameKeepImagesBitIdentical) {
     const auto reference = run_with_strips(cornell(), kind, 1, one_device, w, h);
     for (const auto* strips : {&two, &three}) {
       const int n = static_cast<int>(strips->front().size());
+      // Where the CPU has fewer compute units than devices, the devices are queues on one
+      // OpenCL device, and PoCL 3.1 can abort (pocl_release_dlhandle_cache) when such queues
+      // run kernels whose launch sizes change between frames; render refuses dynamic strips
+      // there. Three devices with moving strips are covered by tests/mpi_render.sh (3 ranks).
+      if (DeviceSet::create({n, DeviceMode::Auto, ""}).mode() == DeviceMode::SharedQueues) {
+        std::printf("[ skipped  ] %d devices would be shared queues here\n", n);
+        continue;
+      }
       const auto moved = run_with_strips(cornell(), kind, n, *strips, w, h);
       for (std::size_t f = 0; f < reference.size(); ++f)
         for (int e = 0; e < 2; ++e)

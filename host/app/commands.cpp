@@ -181,6 +181,13 @@ int run_render(const RenderCommand& cmd) {
     loaded.emplace(load_and_build(cmd.scene, !root, cmd.sky));
     device_set.emplace(cmd.devices.create());
     if (root) print_device_set(*device_set);
+    // Queues sharing one device run on the same compute units: there is no per-device speed to
+    // balance, and PoCL 3.1 can abort (pocl_release_dlhandle_cache) when such queues run
+    // kernels whose launch sizes change from frame to frame.
+    if (dynamic_strips && device_set->mode() == DeviceMode::SharedQueues && device_set->size() > 1)
+      throw std::invalid_argument("--balance dynamic: the " + std::to_string(device_set->size()) +
+                                  " devices are queues on one OpenCL device (it has fewer compute units than "
+                                  "devices), so there is nothing to balance; use --balance static or fewer --devices");
     device_scene.emplace(*device_set, loaded->scene, loaded->bvh);
     pipeline_slot.emplace(*device_set, *device_scene, loaded->scene, cmd.width, cmd.height, opt);
   };
