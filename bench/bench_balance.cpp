@@ -107,16 +107,7 @@ int main(int argc, char** argv) {
         images[m] = p.radiance();
         const std::vector<double> busy = px::StereoPipeline::device_busy_ms(st, set.size());
         if (m == 1 && f + 1 >= warmup) {
-          std::vector<unsigned> rows;
-          for (const auto& r : strips) rows.push_back(r.size());
-          rows = balancer.update(rows, busy);
-          std::vector<px::RowRange> next;
-          unsigned row = 0;
-          for (unsigned r : rows) {
-            next.push_back({row, row + r});
-            row += r;
-          }
-          p.set_strips(next);
+          p.set_strips(px::strips_from_sizes(balancer.update(px::strip_sizes(strips), busy)));
         }
         if (f < warmup) continue;
         ModeResult& r = results[m];

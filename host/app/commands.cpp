@@ -251,15 +251,7 @@ int run_render(const RenderCommand& cmd) {
     cluster.broadcast(order.data(), order.size() * sizeof(std::uint32_t));
     if (!root && order[0] == 0) {
       pipeline.set_quality({order[1], order[2], order[3]});
-      if (balancer) {
-        std::vector<RowRange> next;
-        unsigned row = 0;
-        for (int d = 0; d < all_devices; ++d) {
-          next.push_back({row, row + order[4 + d]});
-          row += order[4 + d];
-        }
-        pipeline.set_strips(next);
-      }
+      if (balancer) pipeline.set_strips(strips_from_sizes({order.begin() + 4, order.end()}));
     }
     return order[0] == 0;
   };
@@ -314,16 +306,8 @@ int run_render(const RenderCommand& cmd) {
     }
     // Frame 0's times include kernel compilation: the balancer starts from frame 1's.
     if (balancer && f > 0) {
-      std::vector<unsigned> rows;
-      for (const RowRange& r : strips) rows.push_back(r.size());
-      rows = balancer->update(rows, StereoPipeline::device_busy_ms(st, all_devices));
-      std::vector<RowRange> next;
-      unsigned row = 0;
-      for (unsigned r : rows) {
-        next.push_back({row, row + r});
-        row += r;
-      }
-      pipeline.set_strips(next);
+      pipeline.set_strips(strips_from_sizes(
+          balancer->update(strip_sizes(strips), StereoPipeline::device_busy_ms(st, all_devices))));
     }
     if (st.nonfinite_pixels > 0)
       throw std::runtime_error("frame " + std::to_string(f) + ": " + std::to_string(st.nonfinite_pixels) +

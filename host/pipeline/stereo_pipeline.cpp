@@ -345,13 +345,7 @@ FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
     }
     prev_cams_ = cams;
     if (const StageWork* dn = schedule_.find(Stage::Denoise))
-      for (int e = 0; e < 2; ++e) {
-        history_strips_[e].assign(n, RowRange{});
-        for (int d = 0; d < n; ++d) {
-          const auto& rows = e == 0 ? dn->left_rows[d] : dn->right_rows[d];
-          if (!rows.empty()) history_strips_[e][d] = {rows.front().begin, rows.back().end};
-        }
-      }
+      for (int e = 0; e < 2; ++e) history_strips_[e] = device_spans(*dn, e);
   }
 
   FrameStats stats;
@@ -477,11 +471,7 @@ void StereoPipeline::denoise(const StageWork& work, const std::array<CameraParam
   const bool halo = options_.seams == SeamMode::Halo;
   const RowRange image{0, height_};
   for (int e = 0; e < 2; ++e) {
-    std::vector<RowRange> strip(n);
-    for (int d = 0; d < n; ++d) {
-      const auto& rows = e == 0 ? work.left_rows[d] : work.right_rows[d];
-      if (!rows.empty()) strip[d] = {rows.front().begin, rows.back().end};
-    }
+    const std::vector<RowRange> strip = device_spans(work, e);
     auto readable = [&](int d) { return halo ? image : strip[d]; };
     auto svgf = [&](int d) -> SvgfDenoiser& { return *buffers_[d].svgf[e]; };
     const CameraParams prev = prev_cams_ ? (*prev_cams_)[e] : cams[e];

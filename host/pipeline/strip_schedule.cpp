@@ -53,6 +53,30 @@ std::vector<RowRange> split_rows(unsigned height, unsigned strips) {
   return out;
 }
 
+std::vector<unsigned> strip_sizes(const std::vector<RowRange>& strips) {
+  std::vector<unsigned> sizes;
+  for (const RowRange& r : strips) sizes.push_back(r.size());
+  return sizes;
+}
+
+std::vector<RowRange> strips_from_sizes(const std::vector<unsigned>& sizes) {
+  std::vector<RowRange> strips;
+  unsigned row = 0;
+  for (unsigned n : sizes) {
+    strips.push_back({row, row + n});
+    row += n;
+  }
+  return strips;
+}
+
+std::vector<RowRange> device_spans(const StageWork& work, int eye) {
+  const auto& per_device = eye == 0 ? work.left_rows : work.right_rows;
+  std::vector<RowRange> spans(per_device.size());
+  for (std::size_t d = 0; d < per_device.size(); ++d)
+    if (!per_device[d].empty()) spans[d] = {per_device[d].front().begin, per_device[d].back().end};
+  return spans;
+}
+
 std::vector<unsigned> bit_reversed_order(unsigned n) {
   unsigned bits = 0;
   while ((1u << bits) < n) ++bits;

@@ -68,6 +68,14 @@ struct FrameSchedule {
   std::string explain() const;
 };
 
+// Row counts of contiguous strips, and contiguous strips from row 0 with these row counts
+// (what the strip balancer works on, and what it hands back).
+std::vector<unsigned> strip_sizes(const std::vector<RowRange>& strips);
+std::vector<RowRange> strips_from_sizes(const std::vector<unsigned>& sizes);
+// Per device, the range from its first to its last row of `eye` (0 left, 1 right) in `work`
+// (empty where it has none).
+std::vector<RowRange> device_spans(const StageWork& work, int eye);
+
 // N contiguous full-width strips (sizes differ by at most one row, remainders to the top).
 std::vector<RowRange> split_rows(unsigned height, unsigned strips);
 
