@@ -2,6 +2,7 @@
 // own integrals, its three estimators against each other, and its determinism.
 #include "bvh/flat_bvh.h"
 #include "cl/device_set.h"
+#include "cl/launch.h"
 #include "render/device_scene.h"
 #include "render/path_tracer.h"
 #include "scene/primitives.h"
@@ -158,7 +159,7 @@ ProbeResult probe_samples(const BsdfCase& c, std::uint32_t count) {
   k.setArg(2, count);
   set_case_args(k, c);
   k.setArg(8, static_cast<cl_uint>(17));
-  q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(count, 64)), cl::NDRange(64));
+  q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(count)), cl::NDRange(kLocalSize));
   ProbeResult r;
   r.sample.resize(count);
   r.sample2.resize(count);
@@ -179,7 +180,7 @@ std::vector<cl_float4> probe_eval(const BsdfCase& c, const std::vector<cl_float4
   k.setArg(1, out);
   k.setArg(2, count);
   set_case_args(k, c);
-  q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(count, 64)), cl::NDRange(64));
+  q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(count)), cl::NDRange(kLocalSize));
   std::vector<cl_float4> r(count);
   q.enqueueReadBuffer(out, CL_TRUE, 0, count * sizeof(cl_float4), r.data());
   return r;

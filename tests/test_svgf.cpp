@@ -3,6 +3,7 @@
 // disocclusion), and the distributed properties (halo = bit-identical for any device count;
 // independent seams differ only near seams; denoising brings Cornell closer to a reference).
 #include "app/scene_setup.h"
+#include "cl/launch.h"
 #include "denoise/svgf_denoiser.h"
 #include "image/image_metrics.h"
 #include "pipeline/stereo_pipeline.h"
@@ -73,8 +74,8 @@ TEST(Svgf, AtrousMatchesHostImplementation) {
     cl::Buffer out(one_device().context(), CL_MEM_READ_WRITE, n * sizeof(cl_float4));
     cl::Kernel k(one_device().program("denoise/svgf.cl"), "svgf_atrous");
     k.setArg(0, out); k.setArg(1, bi); k.setArg(2, bm); k.setArg(3, bg); k.setArg(4, p);
-    one_device().devices()[0].queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(p.rows * w, 64)),
-                                                         cl::NDRange(64));
+    one_device().devices()[0].queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(p.rows * w)),
+                                                         cl::NDRange(kLocalSize));
     auto got = download<cl_float4>(out, n);
     // Host version of the same filter, written from the SVGF paper's formulas.
     auto readable = [&](int y) { return y >= static_cast<int>(p.lo_row) && y < static_cast<int>(p.hi_row) && y < static_cast<int>(h) && y >= 0; };

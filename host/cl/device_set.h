@@ -70,8 +70,4 @@ class DeviceSet {
 // (type, compute units, memory, partition support). For `parallax devices`.
 std::string describe_platforms();
 
-// Rounds `n` up to a multiple of `local` (global sizes must be multiples of the explicit
-// local size in OpenCL 1.2).
-inline std::size_t round_up(std::size_t n, std::size_t local) { return (n + local - 1) / local * local; }
-
 }  // namespace px

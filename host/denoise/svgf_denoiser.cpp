@@ -1,5 +1,7 @@
 #include "denoise/svgf_denoiser.h"
 
+#include "cl/launch.h"
+
 namespace px {
 
 SvgfDenoiser::SvgfDenoiser(DeviceSet& devices, int device, unsigned width, unsigned height, const Options& options)
@@ -39,11 +41,8 @@ SvgfParams SvgfDenoiser::params(RowRange rows, RowRange readable, unsigned step)
 }
 
 void SvgfDenoiser::launch(cl::Kernel& k, RowRange rows, Stage stage) {
-  cl::Event e;
-  devices_.devices()[device_].queue.enqueueNDRangeKernel(
-      k, cl::NullRange, cl::NDRange(round_up(static_cast<std::size_t>(rows.size()) * width_, kLocalSize)),
-      cl::NDRange(kLocalSize), nullptr, &e);
-  events_.push_back({stage, e});
+  events_.push_back({stage, launch_1d(devices_.devices()[device_].queue, k,
+                                      static_cast<std::size_t>(rows.size()) * width_)});
 }
 
 void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& albedo, const cl::Buffer& gbuf,

@@ -5,15 +5,14 @@
 #pragma once
 
 #include "cl/device_set.h"
-#include "pipeline/strip_schedule.h"
+#include "image/row_range.h"
+#include "pipeline/stage.h"
 #include "shared/types.h"
 
 namespace px {
 
 class SvgfDenoiser {
  public:
-  static constexpr std::size_t kLocalSize = 64;
-
   struct Options {
     unsigned iterations = 5;    // a-trous steps (spacing 1, 2, 4, ...)
     float sigma_l = 4.0f;       // luminance edge-stopping (SVGF paper default)

@@ -1,6 +1,7 @@
 #include "pipeline/stereo_pipeline.h"
 
-#include "trace/ray_batch_tracer.h"
+#include "cl/launch.h"
+#include "cl/profiling.h"
 
 #include <algorithm>
 #include <chrono>
@@ -120,10 +121,7 @@ std::vector<double> StereoPipeline::device_busy_ms(const FrameStats& stats, int 
 void StereoPipeline::record(Stage stage, int device, const cl::Event& e) { events_.push_back({{stage, device}, e}); }
 
 void StereoPipeline::enqueue(int d, cl::Kernel& k, std::size_t items, Stage stage) {
-  cl::Event e;
-  queue(d).enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(items, kLocalSize)),
-                                                   cl::NDRange(kLocalSize), nullptr, &e);
-  record(stage, d, e);
+  record(stage, d, launch_1d(queue(d), k, items));
 }
 
 FrameParams StereoPipeline::frame_params(int eye, RowRange rows, unsigned frame) const {
@@ -134,14 +132,9 @@ FrameParams StereoPipeline::frame_params(int eye, RowRange rows, unsigned frame)
 void StereoPipeline::path_trace(int d, int eye, RowRange rows, const CameraParams& cam, unsigned frame, Stage stage) {
   if (rows.size() == 0) return;
   const FrameParams fp = frame_params(eye, rows, frame);
-  cl::Kernel k(devices_.program("pathtrace/path_trace.cl"), "path_trace");
-  k.setArg(0, buffers_[d].radiance[eye]);
-  k.setArg(1, buffers_[d].albedo[eye]);
-  k.setArg(2, buffers_[d].nonfinite);
-  k.setArg(3, fp);
-  k.setArg(4, cam);
-  device_scene_.on(layout_.local_index(d)).bind(k, 5);
-  enqueue(d, k, static_cast<std::size_t>(rows.size()) * width_, stage);
+  record(stage, d,
+         PathTracer::launch(queue(d), devices_.program("pathtrace/path_trace.cl"), device_scene_.on(layout_.local_index(d)),
+                            {buffers_[d].radiance[eye], buffers_[d].albedo[eye], buffers_[d].nonfinite}, fp, cam, width_));
 }
 
 void StereoPipeline::gbuffer(int d, int eye, RowRange rows, const CameraParams& cam) {

@@ -66,8 +66,6 @@ SeamMode parse_seam_mode(const std::string& text);  // "independent", "bilateral
 
 class StereoPipeline {
  public:
-  static constexpr std::size_t kLocalSize = PX_PIPELINE_LOCAL_SIZE;  // reprojection needs exactly this
-
   struct Options {
     PipelineKind pipeline = PipelineKind::Proposed;
     PathTracer::Options trace;
@@ -186,7 +184,7 @@ class StereoPipeline {
   template <typename StagingOf>
   void copy_rows(int from, const cl::Buffer& src, int to, const cl::Buffer& dst, std::size_t offset,
                  std::size_t bytes, StagingOf staging, std::size_t staging_offset, std::vector<cl::Event>* readers);
-  // Launches `k` over `items` work-items (rounded up to kLocalSize) on device d and records it.
+  // Launches `k` over `items` work-items (cl/launch.h) on device d and records it.
   void enqueue(int d, cl::Kernel& k, std::size_t items, Stage stage);
   // Stage 6-7 for every device at once (passes interleave with halo exchanges).
   void denoise(const StageWork& work, const std::array<CameraParams, 2>& cams);

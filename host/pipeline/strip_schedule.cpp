@@ -22,37 +22,6 @@ PipelineKind parse_pipeline(const std::string& text) {
   throw std::invalid_argument("unknown pipeline '" + text + "' (expected proposed, baseline or mono)");
 }
 
-const char* stage_name(Stage s) {
-  switch (s) {
-    case Stage::SceneUpdate: return "scene update";
-    case Stage::PathTraceLeft: return "path trace left";
-    case Stage::GBuffer: return "g-buffer";
-    case Stage::Reproject: return "reprojection";
-    case Stage::HoleFill: return "hole filling";
-    case Stage::Denoise: return "denoise";
-    case Stage::RecordPrevious: return "record previous";
-    case Stage::Tonemap: return "tonemap";
-    case Stage::Transfer: return "transfer";
-    case Stage::Stitch: return "stitch";
-    case Stage::Output: return "output";
-    case Stage::PathTraceRight: return "path trace right";
-  }
-  return "?";
-}
-
-std::vector<RowRange> split_rows(unsigned height, unsigned strips) {
-  if (strips == 0) throw std::invalid_argument("split_rows: zero strips");
-  std::vector<RowRange> out(strips);
-  const unsigned base = height / strips, extra = height % strips;
-  unsigned row = 0;
-  for (unsigned i = 0; i < strips; ++i) {
-    out[i].begin = row;
-    row += base + (i < extra ? 1 : 0);
-    out[i].end = row;
-  }
-  return out;
-}
-
 std::vector<unsigned> strip_sizes(const std::vector<RowRange>& strips) {
   std::vector<unsigned> sizes;
   for (const RowRange& r : strips) sizes.push_back(r.size());

@@ -4,6 +4,9 @@
 // to the owner at the root). The pipelines are built from this data, never from ad-hoc logic.
 #pragma once
 
+#include "image/row_range.h"
+#include "pipeline/stage.h"
+
 #include <string>
 #include <vector>
 
@@ -12,30 +15,6 @@ namespace px {
 enum class PipelineKind { Proposed, Baseline, Mono };
 const char* to_string(PipelineKind p);
 PipelineKind parse_pipeline(const std::string& text);  // "proposed", "baseline", "mono"
-
-// Stage numbers follow the stereo paper's pipeline (1 scene update ... 11 output), so reports
-// and tables can be set beside its figures; 12 is ours (mono's full right-eye trace).
-enum class Stage : int {
-  SceneUpdate = 1,
-  PathTraceLeft = 2,
-  GBuffer = 3,
-  Reproject = 4,
-  HoleFill = 5,
-  Denoise = 6,         // SVGF, both eyes
-  RecordPrevious = 7,  // this frame's G-buffer and history become the previous frame's
-  Tonemap = 8,
-  Transfer = 9,
-  Stitch = 10,
-  Output = 11,
-  PathTraceRight = 12,  // mono pipeline only: the right eye path traced in full
-};
-const char* stage_name(Stage s);
-
-struct RowRange {
-  unsigned begin = 0, end = 0;
-  unsigned size() const { return end - begin; }
-  bool operator==(const RowRange&) const = default;
-};
 
 struct Workload {
   double left = 0.0, right = 0.0;  // shares of each eye's rows, in [0, 1]
@@ -75,9 +54,6 @@ std::vector<RowRange> strips_from_sizes(const std::vector<unsigned>& sizes);
 // Per device, the range from its first to its last row of `eye` (0 left, 1 right) in `work`
 // (empty where it has none).
 std::vector<RowRange> device_spans(const StageWork& work, int eye);
-
-// N contiguous full-width strips (sizes differ by at most one row, remainders to the top).
-std::vector<RowRange> split_rows(unsigned height, unsigned strips);
 
 // Bit-reversal permutation of 0..n-1 for n a power of two (Tauray's "shuffled strips").
 std::vector<unsigned> bit_reversed_order(unsigned n);

@@ -1,6 +1,7 @@
 #include "render/path_tracer.h"
 
-#include "trace/ray_batch_tracer.h"
+#include "cl/launch.h"
+#include "cl/profiling.h"
 
 #include <stdexcept>
 
@@ -30,6 +31,19 @@ FrameParams PathTracer::frame_params(const Scene& scene, std::size_t light_count
   return fp;
 }
 
+cl::Event PathTracer::launch(const cl::CommandQueue& queue, const cl::Program& program,
+                             const DeviceSceneBuffers& scene, const Targets& out, const FrameParams& params,
+                             const CameraParams& camera, unsigned width) {
+  cl::Kernel k(program, "path_trace");
+  k.setArg(0, out.radiance);
+  k.setArg(1, out.albedo);
+  k.setArg(2, out.nonfinite);
+  k.setArg(3, params);
+  k.setArg(4, camera);
+  scene.bind(k, 5);
+  return launch_1d(queue, k, static_cast<std::size_t>(params.rows) * width);
+}
+
 std::array<ImageRGB, 2> PathTracer::render_stereo(float time_s, std::uint32_t frame, unsigned width,
                                                   unsigned height, const Options& options,
                                                   std::uint32_t sample_offset) {
@@ -53,10 +67,11 @@ std::array<ImageRGB, 2> PathTracer::render_stereo(float time_s, std::uint32_t fr
   launches.reserve(2 * n);
   for (int e = 0; e < 2; ++e) {
     const CameraParams cam = make_eye_camera(centre, static_cast<Eye>(e), scene_.ipd_units(), width, height);
+    const std::vector<RowRange> strips = split_rows(height, static_cast<unsigned>(n));
     for (int d = 0; d < n; ++d) {
       Launch l;
-      l.row0 = height * d / n;
-      l.rows = height * (d + 1) / n - l.row0;
+      l.row0 = strips[d].begin;
+      l.rows = strips[d].size();
       l.eye = e;
       l.device = d;
       if (l.rows == 0) continue;
@@ -74,15 +89,7 @@ std::array<ImageRGB, 2> PathTracer::render_stereo(float time_s, std::uint32_t fr
                              const_cast<cl_uint*>(&zero));
       const FrameParams fp =
           frame_params(scene_, device_scene_.light_count(), options, e, l.row0, l.rows, frame, sample_offset);
-      cl::Kernel k(program, "path_trace");
-      k.setArg(0, l.out);
-      k.setArg(1, l.albedo);
-      k.setArg(2, l.counter);
-      k.setArg(3, fp);
-      k.setArg(4, cam);
-      device_scene_.on(d).bind(k, 5);
-      dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(pixels, kLocalSize)),
-                                     cl::NDRange(kLocalSize), nullptr, &l.done);
+      l.done = launch(dev.queue, program, device_scene_.on(d), {l.out, l.albedo, l.counter}, fp, cam, width);
       l.pixels.resize(pixels);
       launches.push_back(std::move(l));
     }

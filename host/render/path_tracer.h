@@ -5,6 +5,7 @@
 
 #include "cl/device_set.h"
 #include "image/image_io.h"
+#include "image/row_range.h"
 #include "render/device_scene.h"
 #include "render/stereo_camera.h"
 
@@ -18,7 +19,6 @@ LightSampling parse_light_sampling(const std::string& text);  // "mis", "nee", "
 
 class PathTracer {
  public:
-  static constexpr std::size_t kLocalSize = 64;
   static constexpr unsigned kMaxBounces = PX_MAX_BOUNCES_LIMIT;
 
   struct Options {
@@ -32,6 +32,18 @@ class PathTracer {
   // Everything but buffers that a path_trace / path_trace_list launch needs.
   static FrameParams frame_params(const Scene& scene, std::size_t light_count, const Options& options, int eye,
                                   unsigned row0, unsigned rows, std::uint32_t frame, std::uint32_t sample_offset = 0);
+
+  // The one launch of the path_trace kernel, shared by render_stereo and the pipeline's path
+  // tracing stage: `rows` of eye `eye` into the full-frame float4 `radiance` and `albedo`
+  // buffers (absolute pixel indices; only those rows are written), dropped non-finite paths
+  // counted into `nonfinite` (uint). Returns the launch's event.
+  struct Targets {
+    const cl::Buffer& radiance;
+    const cl::Buffer& albedo;
+    const cl::Buffer& nonfinite;
+  };
+  static cl::Event launch(const cl::CommandQueue& queue, const cl::Program& program, const DeviceSceneBuffers& scene,
+                          const Targets& out, const FrameParams& params, const CameraParams& camera, unsigned width);
 
   PathTracer(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene)
       : devices_(devices), device_scene_(device_scene), scene_(scene) {}

@@ -1,5 +1,7 @@
 #include "render/preview_renderer.h"
 
+#include "cl/launch.h"
+
 namespace px {
 
 std::array<ImageRGB, 2> PreviewRenderer::render(const Scene& scene, float time_s, unsigned width,
@@ -28,8 +30,7 @@ std::array<ImageRGB, 2> PreviewRenderer::render(const Scene& scene, float time_s
       k.setArg(2, static_cast<cl_uint>(row1 - row0));
       k.setArg(3, cam);
       b.bind(k, 4);
-      dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(pixels, kLocalSize)),
-                                     cl::NDRange(kLocalSize));
+      launch_1d(dev.queue, k, pixels);
       dev.queue.enqueueReadBuffer(out, CL_FALSE, 0, pixels * 3 * sizeof(float),
                                   img.rgb.data() + static_cast<std::size_t>(row0) * width * 3);
       keep.push_back(out);

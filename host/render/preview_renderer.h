@@ -13,7 +13,6 @@ namespace px {
 
 class PreviewRenderer {
  public:
-  static constexpr std::size_t kLocalSize = 64;
   PreviewRenderer(DeviceSet& devices, const DeviceScene& scene) : devices_(devices), scene_(scene) {}
 
   // Both eyes of the scene at `time_s`.

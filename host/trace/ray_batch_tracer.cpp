@@ -1,14 +1,11 @@
 #include "trace/ray_batch_tracer.h"
 
+#include "cl/launch.h"
+#include "cl/profiling.h"
+
 #include <algorithm>
 
 namespace px {
-
-double event_ms(const cl::Event& e) {
-  const auto start = e.getProfilingInfo<CL_PROFILING_COMMAND_START>();
-  const auto end = e.getProfilingInfo<CL_PROFILING_COMMAND_END>();
-  return end > start ? static_cast<double>(end - start) * 1e-6 : 0.0;
-}
 
 RayBatchTracer::RayBatchTracer(DeviceSet& devices, const DeviceScene& scene)
     : devices_(devices), scene_(scene) {}
@@ -42,8 +39,7 @@ std::vector<Out> RayBatchTracer::run(const char* kernel_name, const std::vector<
     k.setArg(1, c.out);
     k.setArg(2, static_cast<cl_uint>(c.count));
     buffers.bind(k, 3);
-    dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(c.count, kLocalSize)),
-                                   cl::NDRange(kLocalSize), nullptr, &c.done);
+    c.done = launch_1d(dev.queue, k, c.count);
     dev.queue.enqueueReadBuffer(c.out, CL_FALSE, 0, c.count * sizeof(Out), out.data() + c.first);
   }
   for (std::size_t d = 0; d < n; ++d) {
@@ -82,8 +78,7 @@ std::vector<glm::vec3> RayBatchTracer::offset_origins(const std::vector<glm::vec
   k.setArg(1, bn);
   k.setArg(2, bo);
   k.setArg(3, static_cast<cl_uint>(count));
-  dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(count, kLocalSize)),
-                                 cl::NDRange(kLocalSize));
+  launch_1d(dev.queue, k, count);
   dev.queue.enqueueReadBuffer(bo, CL_TRUE, 0, count * sizeof(cl_float4), out.data());
   for (std::size_t i = 0; i < count; ++i) result[i] = {out[i].s[0], out[i].s[1], out[i].s[2]};
   return result;

@@ -15,10 +15,6 @@ namespace px {
 
 class RayBatchTracer {
  public:
-  // Explicit local size (PoCL compiles one work-group function per local size; 64 suits both
-  // CPU and GPU for a traversal kernel).
-  static constexpr std::size_t kLocalSize = 64;
-
   RayBatchTracer(DeviceSet& devices, const DeviceScene& scene);
 
   std::vector<Hit> closest(const std::vector<Ray>& rays);
@@ -40,8 +36,5 @@ class RayBatchTracer {
   const DeviceScene& scene_;
   double last_kernel_ms_ = 0.0;
 };
-
-// Milliseconds between an event's CL_PROFILING_COMMAND_START and _END.
-double event_ms(const cl::Event& e);
 
 }  // namespace px

@@ -70,7 +70,7 @@ inline int px_window_misses(const global GBufferTexel* g, int x, int y, uint wid
  * single atomic_add. Stage 5 then traces neighbouring pixels in neighbouring work-items
  * (coherent primary rays and memory) instead of the scattered order per-item atomic_inc gave.
  * Ranges of different groups still land in whatever order the groups finish. */
-#define PX_REPROJECT_GROUP PX_PIPELINE_LOCAL_SIZE
+#define PX_REPROJECT_GROUP PX_LOCAL_SIZE
 __attribute__((reqd_work_group_size(PX_REPROJECT_GROUP, 1, 1)))
 kernel void reproject(global float4* right_radiance, global float4* right_albedo, global uint* holes,
                       volatile global uint* hole_count, const global float4* left_radiance,

@@ -20,9 +20,9 @@ typedef std::uint32_t uint;
 /* Deepest BVH the kernels can traverse. The host asks Embree for at most this depth
  * (RTCBuildArguments::maxDepth) and the validator re-checks it; the traversal stack holds
  * PX_BVH_STACK_SIZE entries, which covers a depth-first walk of such a tree. */
-/* Work-items per work-group of the pipeline's kernels (host launches and kernels that use
+/* Work-items per work-group of every kernel launch (host/cl/launch.h; kernels that use
  * local memory, e.g. reprojection's hole compaction, must agree). */
-#define PX_PIPELINE_LOCAL_SIZE 64
+#define PX_LOCAL_SIZE 64
 
 #define PX_BVH_MAX_DEPTH 40
 #define PX_BVH_STACK_SIZE 48

@@ -1,0 +1,26 @@
+// The stages of a stereo frame, numbered after the stereo paper's pipeline (1 scene update ...
+// 11 output) so reports and tables can be set beside its figures; 12 is ours (mono's full
+// right-eye trace). Stages 1, 7, 10 and 11 are host work in this renderer (the camera constants,
+// swapping last frame's buffers, the owner's image being whole once every strip arrived, the
+// file writes), so no schedule lists them and no device time is recorded under them.
+#pragma once
+
+namespace px {
+
+enum class Stage : int {
+  SceneUpdate = 1,
+  PathTraceLeft = 2,
+  GBuffer = 3,
+  Reproject = 4,
+  HoleFill = 5,
+  Denoise = 6,  // SVGF, both eyes
+  RecordPrevious = 7,
+  Tonemap = 8,
+  Transfer = 9,  // strips to the owner, halo rows and history between neighbours
+  Stitch = 10,
+  Output = 11,
+  PathTraceRight = 12,  // mono pipeline only: the right eye path traced in full
+};
+const char* stage_name(Stage s);
+
+}  // namespace px
