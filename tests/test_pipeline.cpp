@@ -10,6 +10,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
 #include <memory>
 #include <set>
@@ -71,6 +72,65 @@ TEST(StripSchedule, BaselineRunsEverythingAfterTransferOnTheOwner) {
   for (int d = 0; d < 3; ++d) EXPECT_GT(fs.find(Stage::PathTraceLeft)->per_device[d].left, 0.2);
 }
 
+// ---- operations ----
+
+// The rows of `eye` the operations of `stage` cover, counted per row.
+std::vector<int> coverage(const std::vector<Operation>& ops, Stage stage, int eye, unsigned h) {
+  std::vector<int> seen(h, 0);
+  for (const Operation& op : ops)
+    if (op.stage == stage && op.eye == eye)
+      for (unsigned y = op.rows.begin; y < op.rows.end; ++y) seen[y]++;
+  return seen;
+}
+
+TEST(Operations, CoverEveryScheduledRowOnceAndWaitOnlyOnEarlierOperations) {
+  for (auto kind : {PipelineKind::Proposed, PipelineKind::Baseline, PipelineKind::Mono})
+    for (bool denoise : {false, true})
+      for (int n = 1; n <= 4; ++n) {
+        const unsigned h = 37, margin = 5;
+        const FrameSchedule fs = make_schedule(kind, n, h, denoise);
+        const std::vector<Operation> ops = make_operations(fs, margin);
+        const std::string what = std::string(to_string(kind)) + (denoise ? " denoised" : "") + " n=" + std::to_string(n);
+        for (const StageWork& w : fs.stages)
+          for (int eye = 0; eye < 2; ++eye) {
+            // Independently of make_operations: the rows the schedule gives this stage and eye.
+            std::vector<int> want(h, 0), want_device(h, -1);
+            for (int d = 0; d < n; ++d)
+              for (const RowRange& r : eye == 0 ? w.left_rows[d] : w.right_rows[d])
+                for (unsigned y = r.begin; y < r.end; ++y) want[y]++, want_device[y] = d;
+            const std::vector<int> got = coverage(ops, w.stage, eye, h);
+            for (unsigned y = 0; y < h; ++y) {
+              if (w.stage == Stage::Transfer) {
+                // The owner's rows stay where they are; every other scheduled row travels once.
+                ASSERT_EQ(got[y], want[y] && want_device[y] != fs.tree.root ? 1 : 0) << what << " row " << y;
+              } else if (w.stage == Stage::GBuffer) {
+                // Each device's G-buffer also covers `margin` rows beyond its strip.
+                bool near = false;
+                for (unsigned z = y > margin ? y - margin : 0; z <= std::min(h - 1, y + margin); ++z) near |= want[z] > 0;
+                ASSERT_EQ(got[y] > 0, near) << what << " g-buffer row " << y;
+              } else {
+                ASSERT_EQ(got[y], want[y]) << what << " " << stage_name(w.stage) << " eye " << eye << " row " << y;
+              }
+            }
+          }
+        std::vector<long> last(n, -1);
+        for (std::size_t i = 0; i < ops.size(); ++i) {
+          const Operation& op = ops[i];
+          for (std::size_t a : op.after) ASSERT_LT(a, i) << what;
+          // Queue order: the previous operation on the device is always among the waits.
+          if (last[op.device] >= 0)
+            ASSERT_NE(std::find(op.after.begin(), op.after.end(), static_cast<std::size_t>(last[op.device])), op.after.end())
+                << what << " op " << i;
+          last[op.device] = static_cast<long>(i);
+          if (op.stage == Stage::Transfer) {
+            EXPECT_EQ(op.to, fs.tree.root) << what;
+            EXPECT_NE(op.device, fs.tree.root) << what;
+            EXPECT_NE(op.payload, TransferPayload::None) << what;
+          }
+        }
+      }
+}
+
 // ---- pipeline runs ----
 
 struct PipelineRun {
@@ -127,6 +187,34 @@ TEST(StereoPipeline, BaselineGivesTheSameImagesAsProposed) {
   EXPECT_TRUE(same_bits(proposed.radiance[0], baseline.radiance[0]));
   EXPECT_TRUE(same_bits(proposed.radiance[1], baseline.radiance[1]));
   EXPECT_GT(baseline.stats.bytes_transferred, 0u);
+}
+
+TEST(StereoPipeline, EveryOperationIsExecutedAndTimed) {
+  // Each operation's stage shows device time on its device (a transfer: on both ends), and no
+  // stage shows time that no operation accounts for.
+  const auto& scene = glossy_cornell();
+  for (auto kind : {PipelineKind::Proposed, PipelineKind::Baseline, PipelineKind::Mono}) {
+    DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+    DeviceScene ds(set, scene.scene, scene.bvh);
+    StereoPipeline::Options opt;
+    opt.pipeline = kind;
+    opt.trace.bounces = 2;
+    StereoPipeline p(set, ds, scene.scene, 24, 17, opt);
+    const std::vector<Operation> ops = p.operations();
+    const FrameStats stats = p.render(0, 0.0f);
+    std::set<std::pair<int, int>> expected, timed;
+    for (const Operation& op : ops) {
+      expected.insert({static_cast<int>(op.stage), op.device});
+      if (op.stage == Stage::Transfer) expected.insert({static_cast<int>(op.stage), op.to});
+      if (op.stage == Stage::Denoise) expected.insert({static_cast<int>(Stage::RecordPrevious), op.device});
+    }
+    for (const StageTiming& t : stats.stages) timed.insert({static_cast<int>(t.stage), t.device});
+    // Halo exchanges of the denoiser are transfers between neighbours that no transfer
+    // operation names.
+    if (kind != PipelineKind::Baseline)
+      for (int d = 0; d < 2; ++d) expected.insert({static_cast<int>(Stage::Transfer), d});
+    EXPECT_EQ(timed, expected) << to_string(kind);
+  }
 }
 
 TEST(StereoPipeline, HolesAreExactlyThePathTracedRightPixels) {

@@ -4,7 +4,7 @@
 // independent seams differ only near seams; denoising brings Cornell closer to a reference).
 #include "app/scene_setup.h"
 #include "cl/launch.h"
-#include "denoise/svgf_denoiser.h"
+#include "pipeline/stages/svgf_denoiser.h"
 #include "image/image_metrics.h"
 #include "pipeline/stereo_pipeline.h"
 #include "render/stereo_camera.h"

@@ -142,9 +142,10 @@ int run_render(const RenderCommand& cmd) {
   if (cmd.explain) {
     if (!root) return 0;
     // The schedule depends only on pipeline, device count, height and denoising: no scene needed.
-    std::printf("%s", make_schedule(opt.pipeline, cmd.devices.count * cluster.size(), cmd.height, opt.denoise)
-                          .explain()
-                          .c_str());
+    const FrameSchedule schedule =
+        make_schedule(opt.pipeline, cmd.devices.count * cluster.size(), cmd.height, opt.denoise);
+    std::printf("%s\n%s", schedule.explain().c_str(),
+                explain_operations(make_operations(schedule, StereoPipeline::gbuffer_margin(schedule, opt))).c_str());
     if (distributed)
       std::printf("MPI: %d ranks x %d device(s); rank r drives devices %d*r .. %d*r+%d\n", cluster.size(),
                   cmd.devices.count, cmd.devices.count, cmd.devices.count, cmd.devices.count - 1);

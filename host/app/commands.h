@@ -4,7 +4,7 @@
 #pragma once
 
 #include "cl/device_set.h"
-#include "denoise/svgf_denoiser.h"
+#include "pipeline/stages/svgf_denoiser.h"
 #include "render/path_tracer.h"
 #include "scene/scene_loader.h"
 

@@ -120,7 +120,7 @@ int main(int argc, char** argv) {
                          "(from profiling events)");
   render_cmd->add_option("--out", render.out, "output directory")->capture_default_str();
   render_cmd->add_flag("--explain", render.explain,
-                       "print the schedule (stage x device workload pairs, dependency tree) and exit");
+                       "print the schedule (stage x device workload pairs, dependency tree) and the operations a frame runs, and exit");
   render_cmd->add_option("--report", render.report,
                          "write a JSON report: per frame, stage and device the device time (OpenCL profiling), "
                          "wall time, reprojected share, bytes transferred; makespan and Hz");

@@ -1,30 +1,15 @@
 #include "pipeline/stereo_pipeline.h"
 
-#include "cl/launch.h"
 #include "cl/profiling.h"
+#include "pipeline/stages/gbuffer_stage.h"
+#include "pipeline/stages/hole_fill_stage.h"
+#include "pipeline/stages/reproject_stage.h"
 
 #include <algorithm>
 #include <chrono>
 #include <stdexcept>
 
 namespace px {
-
-namespace {
-
-cl::Buffer device_buffer(const cl::Context& ctx, std::size_t bytes) {
-  return cl::Buffer(ctx, CL_MEM_READ_WRITE, std::max<std::size_t>(bytes, 16));
-}
-
-}  // namespace
-
-const char* to_string(SeamMode m) {
-  switch (m) {
-    case SeamMode::Independent: return "independent";
-    case SeamMode::Bilateral: return "bilateral";
-    case SeamMode::Halo: return "halo";
-  }
-  return "?";
-}
 
 SeamMode parse_seam_mode(const std::string& text) {
   if (text == "independent") return SeamMode::Independent;
@@ -38,63 +23,66 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
     : devices_(devices),
       cluster_(options.cluster && options.cluster->distributed() ? options.cluster : nullptr),
       layout_{cluster_ ? cluster_->rank() : 0, cluster_ ? cluster_->size() : 1, devices.size()},
-      device_scene_(device_scene),
       scene_(scene),
       width_(width),
       height_(height),
       options_(options),
       schedule_(make_schedule(options.pipeline, layout_.count(), height, options.denoise)),
-      max_svgf_iterations_(options.svgf.iterations) {
+      images_(layout_.count()),
+      transfer_(devices, layout_, cluster_, width, height, log_),
+      env_{devices, layout_, device_scene, scene, width, height, images_, log_, transfer_} {
   if (width == 0 || height == 0 || width > 65535 || height > 65535)
     throw std::invalid_argument("image size must be between 1 and 65535 per side");
-  if (options.trace.spp == 0) throw std::invalid_argument("spp must be at least 1");
-  if (options.trace.bounces > PathTracer::kMaxBounces)
-    throw std::invalid_argument("bounces must be at most " + std::to_string(PathTracer::kMaxBounces));
-  const std::size_t pixels = static_cast<std::size_t>(width) * height;
-  const auto& ctx = devices.context();
-  for (int d = 0; d < layout_.count(); ++d) {
-    DeviceBuffers b;
-    if (!local(d)) {  // another rank's device: nothing of it lives here
-      buffers_.push_back(std::move(b));
-      continue;
-    }
-    for (int e = 0; e < 2; ++e) {
-      b.radiance[e] = device_buffer(ctx, pixels * sizeof(cl_float4));
-      b.albedo[e] = device_buffer(ctx, pixels * sizeof(cl_float4));
-      b.gbuffer[e] = device_buffer(ctx, pixels * sizeof(GBufferTexel));
-      b.rgba[e] = device_buffer(ctx, pixels * sizeof(cl_uchar4));
-    }
-    b.holes = device_buffer(ctx, pixels * sizeof(cl_uint));
-    b.hole_count = device_buffer(ctx, sizeof(cl_uint));
-    b.nonfinite = device_buffer(ctx, sizeof(cl_uint));
-    b.nonfinite_pixels = device_buffer(ctx, sizeof(cl_uint));
-    if (options_.denoise) {
-      if (options_.svgf.iterations < 1) throw std::invalid_argument("SVGF needs at least one a-trous iteration");
-      for (int e = 0; e < 2; ++e) {
-        b.gbuffer_prev[e] = device_buffer(ctx, pixels * sizeof(GBufferTexel));
-        b.svgf[e] = std::make_unique<SvgfDenoiser>(devices, layout_.local_index(d), width, height, options_.svgf);
-      }
-      b.staging_halo.buffer = cl::Buffer(ctx, CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR, pixels * sizeof(cl_float4));
-    }
-    if (d != schedule_.tree.root) {
-      // Both eyes side by side in one host-allocated buffer per kind.
-      b.staging_radiance = cl::Buffer(ctx, CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR, 2 * pixels * sizeof(cl_float4));
-      b.staging_albedo = cl::Buffer(ctx, CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR, 2 * pixels * sizeof(cl_float4));
-      b.staging_rgba = cl::Buffer(ctx, CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR, 2 * pixels * sizeof(cl_uchar4));
-    }
-    buffers_.push_back(std::move(b));
+  for (int d = 0; d < layout_.count(); ++d)
+    if (local(d)) images_[d] = FrameImages::allocate(devices.context(), width, height);
+  path_trace_ = std::make_unique<PathTraceStage>(env_, options.trace);
+  gbuffer_ = std::make_unique<GBufferStage>(env_);
+  reproject_ = std::make_unique<ReprojectStage>(env_);
+  hole_fill_ = std::make_unique<HoleFillStage>(env_, *path_trace_);
+  if (options.denoise) denoise_ = std::make_unique<DenoiseStage>(env_, denoise_options(options));
+  tonemap_ = std::make_unique<TonemapStage>(env_, TonemapStage::Options{options.exposure});
+  transfer_stage_ = std::make_unique<TransferStage>(
+      env_, TransferStage::Options{options.gather_radiance, options.denoise});
+  for (const StageWork& w : schedule_.stages) unit(w.stage);  // every scheduled stage has a unit
+  set_quality(quality());                                     // the one check of spp and bounces
+}
+
+DenoiseStage::Options StereoPipeline::denoise_options(const Options& o) { return {o.svgf, o.seams, o.seam_band}; }
+
+StageUnit& StereoPipeline::unit(Stage stage) {
+  StageUnit* u = nullptr;
+  switch (stage) {
+    case Stage::PathTraceLeft:
+    case Stage::PathTraceRight: u = path_trace_.get(); break;
+    case Stage::GBuffer: u = gbuffer_.get(); break;
+    case Stage::Reproject: u = reproject_.get(); break;
+    case Stage::HoleFill: u = hole_fill_.get(); break;
+    case Stage::Denoise: u = denoise_.get(); break;
+    case Stage::Tonemap: u = tonemap_.get(); break;
+    case Stage::Transfer: u = transfer_stage_.get(); break;
+    default: break;
   }
+  if (!u) throw std::logic_error(std::string("no unit runs the scheduled stage '") + stage_name(stage) + "'");
+  return *u;
+}
+
+unsigned StereoPipeline::gbuffer_margin(const FrameSchedule& schedule, const Options& options) {
+  unsigned margin = 0;
+  for (const StageWork& w : schedule.stages) {
+    if (w.stage == Stage::Reproject) margin = std::max(margin, ReprojectStage::gbuffer_rows_read());
+    if (w.stage == Stage::Denoise) margin = std::max(margin, DenoiseStage::gbuffer_rows_read(denoise_options(options)));
+  }
+  return margin;
 }
 
 void StereoPipeline::set_quality(const FrameQuality& q) {
   if (q.spp == 0) throw std::invalid_argument("spp must be at least 1");
   if (q.bounces > PathTracer::kMaxBounces)
     throw std::invalid_argument("bounces must be at most " + std::to_string(PathTracer::kMaxBounces));
-  if (options_.denoise && (q.svgf_iterations < 1 || q.svgf_iterations > max_svgf_iterations_))
-    throw std::invalid_argument("SVGF iterations must be within [1, " + std::to_string(max_svgf_iterations_) + "]");
-  options_.trace.spp = q.spp;
-  options_.trace.bounces = q.bounces;
-  if (options_.denoise) options_.svgf.iterations = q.svgf_iterations;
+  if (denoise_) denoise_->set_iterations(q.svgf_iterations);  // checks the range
+  path_trace_->options().spp = options_.trace.spp = q.spp;
+  path_trace_->options().bounces = options_.trace.bounces = q.bounces;
+  if (denoise_) options_.svgf.iterations = q.svgf_iterations;
 }
 
 FrameQuality StereoPipeline::quality() const {
@@ -118,143 +106,6 @@ std::vector<double> StereoPipeline::device_busy_ms(const FrameStats& stats, int 
   return ms;
 }
 
-void StereoPipeline::record(Stage stage, int device, const cl::Event& e) { events_.push_back({{stage, device}, e}); }
-
-void StereoPipeline::enqueue(int d, cl::Kernel& k, std::size_t items, Stage stage) {
-  record(stage, d, launch_1d(queue(d), k, items));
-}
-
-FrameParams StereoPipeline::frame_params(int eye, RowRange rows, unsigned frame) const {
-  return PathTracer::frame_params(scene_, device_scene_.light_count(), options_.trace, eye, rows.begin, rows.size(),
-                                  frame);
-}
-
-void StereoPipeline::path_trace(int d, int eye, RowRange rows, const CameraParams& cam, unsigned frame, Stage stage) {
-  if (rows.size() == 0) return;
-  const FrameParams fp = frame_params(eye, rows, frame);
-  record(stage, d,
-         PathTracer::launch(queue(d), devices_.program("pathtrace/path_trace.cl"), device_scene_.on(layout_.local_index(d)),
-                            {buffers_[d].radiance[eye], buffers_[d].albedo[eye], buffers_[d].nonfinite}, fp, cam, width_));
-}
-
-void StereoPipeline::gbuffer(int d, int eye, RowRange rows, const CameraParams& cam) {
-  if (rows.size() == 0) return;
-  cl::Kernel k(devices_.program("pipeline/gbuffer.cl"), "gbuffer");
-  k.setArg(0, buffers_[d].gbuffer[eye]);
-  k.setArg(1, static_cast<cl_uint>(rows.begin));
-  k.setArg(2, static_cast<cl_uint>(rows.size()));
-  k.setArg(3, cam);
-  device_scene_.on(layout_.local_index(d)).bind(k, 4);
-  enqueue(d, k, static_cast<std::size_t>(rows.size()) * width_, Stage::GBuffer);
-}
-
-void StereoPipeline::reproject(int d, RowRange rows, const CameraParams& left_cam) {
-  if (rows.size() == 0) return;
-  auto& q = queue(d);
-  const cl_uint zero = 0;
-  q.enqueueFillBuffer(buffers_[d].hole_count, zero, 0, sizeof(cl_uint));
-  cl::Kernel k(devices_.program("pipeline/reproject.cl"), "reproject");
-  auto& b = buffers_[d];
-  k.setArg(0, b.radiance[1]);
-  k.setArg(1, b.albedo[1]);
-  k.setArg(2, b.holes);
-  k.setArg(3, b.hole_count);
-  k.setArg(4, b.radiance[0]);
-  k.setArg(5, b.albedo[0]);
-  k.setArg(6, b.gbuffer[0]);
-  k.setArg(7, b.gbuffer[1]);
-  k.setArg(8, static_cast<cl_uint>(rows.begin));
-  k.setArg(9, static_cast<cl_uint>(rows.size()));
-  k.setArg(10, left_cam);
-  enqueue(d, k, static_cast<std::size_t>(rows.size()) * width_, Stage::Reproject);
-}
-
-void StereoPipeline::fill_holes(int d, RowRange rows, const CameraParams& right_cam, unsigned frame) {
-  if (rows.size() == 0) return;
-  const FrameParams fp = frame_params(1, rows, frame);
-  auto& b = buffers_[d];
-  cl::Kernel k(devices_.program("pathtrace/path_trace.cl"), "path_trace_list");
-  k.setArg(0, b.radiance[1]);
-  k.setArg(1, b.albedo[1]);
-  k.setArg(2, b.nonfinite);
-  k.setArg(3, b.holes);
-  k.setArg(4, b.hole_count);
-  k.setArg(5, fp);
-  k.setArg(6, right_cam);
-  device_scene_.on(layout_.local_index(d)).bind(k, 7);
-  // Sized for the worst case (every pixel a hole): the hole count lives on the device, so no
-  // host round trip is needed between reprojection and hole filling.
-  enqueue(d, k, static_cast<std::size_t>(rows.size()) * width_, Stage::HoleFill);
-}
-
-void StereoPipeline::tonemap(int d, int eye, RowRange rows) {
-  if (rows.size() == 0) return;
-  const cl_uint first = rows.begin * width_, count = rows.size() * width_;
-  cl::Kernel k(devices_.program("pipeline/tonemap.cl"), "tonemap");
-  k.setArg(0, buffers_[d].rgba[eye]);
-  k.setArg(1, buffers_[d].radiance[eye]);
-  k.setArg(2, first);
-  k.setArg(3, count);
-  k.setArg(4, options_.exposure);
-  k.setArg(5, buffers_[d].nonfinite_pixels);
-  enqueue(d, k, count, Stage::Tonemap);
-}
-
-void StereoPipeline::transfer(int d, int eye, RowRange rows, bool radiance, bool rgba) {
-  const int owner = schedule_.tree.root;
-  if (d == owner || rows.size() == 0 || (!local(d) && !local(owner))) return;
-  const std::size_t pixels = static_cast<std::size_t>(width_) * height_;
-  const std::size_t first = static_cast<std::size_t>(rows.begin) * width_, count = static_cast<std::size_t>(rows.size()) * width_;
-  auto hop = [&](const cl::Buffer& src, cl::Buffer DeviceBuffers::*staging, const cl::Buffer& dst, std::size_t texel) {
-    // Each eye has its own half of the staging buffer, and every row range travels once a
-    // frame: no two copies share staging bytes.
-    copy_rows(d, src, owner, dst, first * texel, count * texel,
-              [&]() -> const cl::Buffer& { return buffers_[d].*staging; },
-              (static_cast<std::size_t>(eye) * pixels + first) * texel, nullptr);
-  };
-  if (radiance) {
-    hop(buffers_[d].radiance[eye], &DeviceBuffers::staging_radiance, buffers_[owner].radiance[eye], sizeof(cl_float4));
-    // The owner denoises transferred radiance (baseline), which needs its albedo alongside.
-    if (options_.denoise && schedule_.pipeline == PipelineKind::Baseline)
-      hop(buffers_[d].albedo[eye], &DeviceBuffers::staging_albedo, buffers_[owner].albedo[eye], sizeof(cl_float4));
-  }
-  if (rgba) hop(buffers_[d].rgba[eye], &DeviceBuffers::staging_rgba, buffers_[owner].rgba[eye], sizeof(cl_uchar4));
-}
-
-template <typename StagingOf>
-void StereoPipeline::copy_rows(int from, const cl::Buffer& src, int to, const cl::Buffer& dst, std::size_t offset,
-                               std::size_t bytes, StagingOf staging, std::size_t staging_offset,
-                               std::vector<cl::Event>* readers) {
-  if (local(from) && local(to)) {
-    const cl::Buffer& st = staging();
-    cl::Event out, in;
-    std::vector<cl::Event> wait = readers ? *readers : std::vector<cl::Event>{};
-    queue(from).enqueueCopyBuffer(src, st, offset, staging_offset, bytes, wait.empty() ? nullptr : &wait, &out);
-    std::vector<cl::Event> after{out};
-    queue(to).enqueueCopyBuffer(st, dst, staging_offset, offset, bytes, &after, &in);
-    if (readers) *readers = {in};
-    record(Stage::Transfer, from, out);
-    record(Stage::Transfer, to, in);
-    bytes_this_frame_ += bytes;
-  } else if (local(from)) {
-    // To another rank: read the rows (waiting for the commands that write them), then send.
-    auto& host = message_rows_.emplace_back(bytes);
-    cl::Event out;
-    queue(from).enqueueReadBuffer(src, CL_TRUE, offset, bytes, host.data(), nullptr, &out);
-    record(Stage::Transfer, from, out);
-    cluster_->send(layout_.rank_of(to), host.data(), bytes);
-  } else if (local(to)) {
-    // From another rank: the message arrives in schedule order; write it behind the commands
-    // already queued on `to` (the host copy lives until the frame is finished).
-    auto& host = message_rows_.emplace_back(bytes);
-    cluster_->recv(layout_.rank_of(from), host.data(), bytes);
-    cl::Event in;
-    queue(to).enqueueWriteBuffer(dst, CL_FALSE, offset, bytes, host.data(), nullptr, &in);
-    record(Stage::Transfer, to, in);
-    bytes_this_frame_ += bytes;
-  }
-}
-
 FrameStats StereoPipeline::render(unsigned frame, float time_s) {
   return render(frame, evaluate_camera(scene_, time_s));
 }
@@ -262,93 +113,43 @@ FrameStats StereoPipeline::render(unsigned frame, float time_s) {
 FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
   using clock_type = std::chrono::steady_clock;
   const auto t0 = clock_type::now();
-  events_.clear();
-  bytes_this_frame_ = 0;
+  log_.clear();
+  transfer_.reset_bytes();
   if (cluster_) cluster_->reset_traffic();
   // Stage 1, scene update: this frame's camera constants, passed to every launch.
-  const std::array<CameraParams, 2> cams = {
-      make_eye_camera(centre, Eye::Left, scene_.ipd_units(), width_, height_),
-      make_eye_camera(centre, Eye::Right, scene_.ipd_units(), width_, height_)};
-  const cl_uint zero = 0;
+  const FrameInputs in{frame,
+                       {make_eye_camera(centre, Eye::Left, scene_.ipd_units(), width_, height_),
+                        make_eye_camera(centre, Eye::Right, scene_.ipd_units(), width_, height_)}};
   const int n = layout_.count();
-  for (int d = 0; d < n; ++d) {
-    if (!local(d)) continue;
-    queue(d).enqueueFillBuffer(buffers_[d].nonfinite, zero, 0, sizeof(cl_uint));
-    queue(d).enqueueFillBuffer(buffers_[d].nonfinite_pixels, zero, 0, sizeof(cl_uint));
-    queue(d).enqueueFillBuffer(buffers_[d].hole_count, zero, 0, sizeof(cl_uint));
-  }
+  for (int d = 0; d < n; ++d)
+    if (local(d)) images_[d].zero_counters(queue(d));
 
-  for (const StageWork& work : schedule_.stages) {
-    if (work.stage == Stage::Denoise) {
-      denoise(work, cams);
-      continue;
-    }
-    for (int d = 0; d < n; ++d) {
-      // Another rank's device: it runs there; only transfers involve this rank (transfer()
-      // sends or receives when one end is here).
-      if (!local(d) && work.stage != Stage::Transfer) continue;
-      for (const RowRange& r : work.left_rows[d]) {
-        switch (work.stage) {
-          case Stage::PathTraceLeft: path_trace(d, 0, r, cams[0], frame, Stage::PathTraceLeft); break;
-          case Stage::GBuffer: {
-            const unsigned m = gbuffer_margin();
-            gbuffer(d, 0, {r.begin > m ? r.begin - m : 0u, std::min(height_, r.end + m)}, cams[0]);
-            break;
-          }
-          case Stage::Tonemap: tonemap(d, 0, r); break;
-          // Baseline transfers the left radiance (before the owner's G-buffer); the others
-          // transfer finished images.
-          case Stage::Transfer:
-            transfer(d, 0, r, schedule_.pipeline == PipelineKind::Baseline || options_.gather_radiance,
-                     schedule_.pipeline != PipelineKind::Baseline);
-            break;
-          default: break;
-        }
-      }
-      for (const RowRange& r : work.right_rows[d]) {
-        switch (work.stage) {
-          case Stage::PathTraceRight: path_trace(d, 1, r, cams[1], frame, Stage::PathTraceRight); break;
-          case Stage::GBuffer: {
-            const unsigned m = gbuffer_margin();
-            gbuffer(d, 1, {r.begin > m ? r.begin - m : 0u, std::min(height_, r.end + m)}, cams[1]);
-            break;
-          }
-          case Stage::Reproject: reproject(d, r, cams[0]); break;
-          case Stage::HoleFill: fill_holes(d, r, cams[1], frame); break;
-          case Stage::Tonemap: tonemap(d, 1, r); break;
-          case Stage::Transfer: transfer(d, 1, r, options_.gather_radiance, true); break;
-          default: break;
-        }
-      }
-    }
+  // The executor: each run of consecutive operations of one stage goes to that stage's unit.
+  const std::vector<Operation> ops = operations();
+  for (std::size_t i = 0; i < ops.size();) {
+    std::vector<const Operation*> batch;
+    std::size_t j = i;
+    for (; j < ops.size() && ops[j].stage == ops[i].stage; ++j) batch.push_back(&ops[j]);
+    unit(ops[i].stage).run(batch, in);
+    i = j;
   }
   devices_.finish_all();
-  if (cluster_) cluster_->wait_sends();
-  message_rows_.clear();
-  if (options_.denoise) {
-    // Stage 7: this frame's G-buffers and SVGF history become the previous frame's.
-    for (auto& b : buffers_) {
-      if (!b.svgf[0]) continue;  // another rank's device
-      for (int e = 0; e < 2; ++e) {
-        std::swap(b.gbuffer[e], b.gbuffer_prev[e]);
-        b.svgf[e]->end_frame();
-      }
-      b.staging_halo.readers.clear();
-      b.staging_gbuffer.readers.clear();
-    }
-    prev_cams_ = cams;
-    if (const StageWork* dn = schedule_.find(Stage::Denoise))
-      for (int e = 0; e < 2; ++e) history_strips_[e] = device_spans(*dn, e);
-  }
+  transfer_.end_frame();
+  // Stage 7: what a unit keeps for the next frame becomes the previous frame's (SVGF history
+  // and G-buffer).
+  for (StageUnit* u : std::initializer_list<StageUnit*>{path_trace_.get(), gbuffer_.get(), reproject_.get(),
+                                                        hole_fill_.get(), denoise_.get(), tonemap_.get(),
+                                                        transfer_stage_.get()})
+    if (u) u->end_frame(in);
 
   FrameStats stats;
   stats.frame = frame;
   stats.wall_ms = std::chrono::duration<double, std::milli>(clock_type::now() - t0).count();
   std::map<std::pair<Stage, int>, double> sums;
-  for (auto& [key, e] : events_) {
-    sums[key] += event_ms(e);
-    stats.spans.push_back({key.first, key.second, e.getProfilingInfo<CL_PROFILING_COMMAND_START>(),
-                           e.getProfilingInfo<CL_PROFILING_COMMAND_END>()});
+  for (const EventLog::Entry& entry : log_.entries()) {
+    sums[{entry.stage, entry.device}] += event_ms(entry.event);
+    stats.spans.push_back({entry.stage, entry.device, entry.event.getProfilingInfo<CL_PROFILING_COMMAND_START>(),
+                           entry.event.getProfilingInfo<CL_PROFILING_COMMAND_END>()});
   }
   for (auto& [key, ms] : sums) stats.stages.push_back({key.first, key.second, ms});
   stats.right_pixels = static_cast<std::size_t>(width_) * height_;
@@ -358,15 +159,15 @@ FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
     if (!local(d)) continue;
     cl_uint count = 0, bad = 0, bad_px = 0;
     auto& q = queue(d);
-    q.enqueueReadBuffer(buffers_[d].nonfinite, CL_FALSE, 0, sizeof(cl_uint), &bad);
-    q.enqueueReadBuffer(buffers_[d].nonfinite_pixels, CL_FALSE, 0, sizeof(cl_uint), &bad_px);
-    if (fill) q.enqueueReadBuffer(buffers_[d].hole_count, CL_FALSE, 0, sizeof(cl_uint), &count);
+    q.enqueueReadBuffer(images_[d].nonfinite_paths, CL_FALSE, 0, sizeof(cl_uint), &bad);
+    q.enqueueReadBuffer(images_[d].nonfinite_pixels, CL_FALSE, 0, sizeof(cl_uint), &bad_px);
+    if (fill) q.enqueueReadBuffer(images_[d].hole_count, CL_FALSE, 0, sizeof(cl_uint), &count);
     q.finish();
     holes += count;  // one reprojection launch per device and frame at most, in either pipeline
     bad_total += bad;
     bad_pixels += bad_px;
   }
-  std::uint64_t bytes = bytes_this_frame_;
+  std::uint64_t bytes = transfer_.bytes_this_frame();
   if (cluster_) {
     // Rank 0 reports the whole frame: every rank's counts, stage times and traffic.
     holes = cluster_->sum(holes);
@@ -398,125 +199,11 @@ FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
   return stats;
 }
 
-unsigned StereoPipeline::gbuffer_margin() const {
-  // Reprojection checks the 3x3 neighbourhood of every pixel it touches: one row beyond the
-  // strip, in both eyes.
-  const unsigned reprojection = schedule_.find(Stage::Reproject) ? 1u : 0u;
-  if (!options_.denoise || options_.seams == SeamMode::Independent) return reprojection;
-  if (options_.seams == SeamMode::Bilateral) return std::max(reprojection, options_.seam_band + 3);
-  // Halo: the widest read of any pass: a-trous taps at 2 * 2^(iterations-1), history taps at
-  // temporal_rows + 1, the variance estimate at 3; plus one row for the depth gradient.
-  const unsigned atrous = 2u << (options_.svgf.iterations - 1);
-  return std::max({atrous, options_.svgf.temporal_rows + 1, 3u}) + 1;
-}
-
-std::vector<RowRange> StereoPipeline::widen(const std::vector<RowRange>& strip, unsigned radius) const {
-  std::vector<RowRange> out(strip.size());
-  for (std::size_t d = 0; d < strip.size(); ++d)
-    if (strip[d].size() > 0)
-      out[d] = {strip[d].begin > radius ? strip[d].begin - radius : 0u, std::min(height_, strip[d].end + radius)};
-  return out;
-}
-
-template <typename BufferOf>
-void StereoPipeline::exchange_halo(BufferOf buffer, const std::vector<RowRange>& strip, unsigned radius) {
-  exchange_rows(buffer, strip, widen(strip, radius), sizeof(cl_float4), &DeviceBuffers::staging_halo);
-}
-
-template <typename BufferOf>
-void StereoPipeline::exchange_rows(BufferOf buffer, const std::vector<RowRange>& owned,
-                                   const std::vector<RowRange>& needed, std::size_t texel,
-                                   HaloStaging DeviceBuffers::*staging) {
-  const int n = layout_.count();
-  for (int d = 0; d < n; ++d) {
-    if (needed[d].size() == 0) continue;
-    for (int src = 0; src < n; ++src) {
-      if (src == d || owned[src].size() == 0 || (!local(d) && !local(src))) continue;
-      // The owned ranges are disjoint, so this never overwrites rows d holds itself.
-      const unsigned a = std::max(needed[d].begin, owned[src].begin), b = std::min(needed[d].end, owned[src].end);
-      if (a >= b) continue;
-      const std::size_t off = static_cast<std::size_t>(a) * width_ * texel;
-      const std::size_t len = static_cast<std::size_t>(b - a) * width_ * texel;
-      HaloStaging& st = buffers_[src].*staging;
-      // Another rank's device has no buffer here: copy_rows only touches the local end.
-      static const cl::Buffer none;
-      copy_rows(src, local(src) ? buffer(src) : none, d, local(d) ? buffer(d) : none, off, len,
-                [&]() -> const cl::Buffer& {
-                  if (!st.buffer())
-                    st.buffer = cl::Buffer(devices_.context(), CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR,
-                                           static_cast<std::size_t>(width_) * height_ * texel);
-                  return st.buffer;
-                },
-                off, &st.readers);
-    }
-  }
-}
-
 void StereoPipeline::set_strips(const std::vector<RowRange>& strips) {
   if (strips == schedule_.strips) return;
-  // make_schedule checks the strips and refuses the baseline pipeline; the history moves in
-  // the next frame's denoising, from history_strips_ to the new strips.
+  // make_schedule checks the strips and refuses the baseline pipeline; the history moves to the
+  // new strips in the next frame's denoising (DenoiseStage).
   schedule_ = make_schedule(options_.pipeline, layout_.count(), height_, options_.denoise, strips);
-}
-
-void StereoPipeline::denoise(const StageWork& work, const std::array<CameraParams, 2>& cams) {
-  const int n = layout_.count();
-  const bool halo = options_.seams == SeamMode::Halo;
-  const RowRange image{0, height_};
-  for (int e = 0; e < 2; ++e) {
-    const std::vector<RowRange> strip = device_spans(work, e);
-    auto readable = [&](int d) { return halo ? image : strip[d]; };
-    auto svgf = [&](int d) -> SvgfDenoiser& { return *buffers_[d].svgf[e]; };
-    const CameraParams prev = prev_cams_ ? (*prev_cams_)[e] : cams[e];
-    const auto& o = options_.svgf;
-    // Last frame's history lives with last frame's strips. The temporal pass reads it within
-    // temporal_rows of each pixel (halo seams) or within the strip (otherwise): fetch those
-    // rows from whichever device holds them — the neighbours' halo rows, and, when the strips
-    // moved, the rows this device took over (with their G-buffer, which the history test reads).
-    const std::vector<RowRange>& held = history_strips_[e].empty() ? strip : history_strips_[e];
-    const bool moved = held != strip;
-    const std::vector<RowRange> history_rows = widen(strip, halo ? o.temporal_rows + 1 : 0);
-    if (halo || moved) {
-      exchange_rows([&](int d) -> const cl::Buffer& { return svgf(d).history_illum_prev(); }, held, history_rows,
-                    sizeof(cl_float4), &DeviceBuffers::staging_halo);
-      exchange_rows([&](int d) -> const cl::Buffer& { return svgf(d).history_moments_prev(); }, held, history_rows,
-                    sizeof(cl_float4), &DeviceBuffers::staging_halo);
-    }
-    if (moved)
-      exchange_rows([&](int d) -> const cl::Buffer& { return buffers_[d].gbuffer_prev[e]; }, held, history_rows,
-                    sizeof(GBufferTexel), &DeviceBuffers::staging_gbuffer);
-    for (int d = 0; d < n; ++d)
-      if (local(d))
-        svgf(d).temporal(buffers_[d].radiance[e], buffers_[d].albedo[e], buffers_[d].gbuffer[e], buffers_[d].gbuffer_prev[e], prev, strip[d],
-                       readable(d));
-    if (halo) {
-      exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).illum(); }, strip, 3);
-      exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).moments(); }, strip, gbuffer_margin());
-    }
-    for (int d = 0; d < n; ++d)
-      if (local(d)) svgf(d).variance(buffers_[d].gbuffer[e], strip[d], readable(d));
-    for (unsigned i = 0; i < o.iterations; ++i) {
-      if (halo) exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).illum(); }, strip, 2u << i);
-      for (int d = 0; d < n; ++d)
-        if (local(d)) svgf(d).atrous(i, buffers_[d].gbuffer[e], strip[d], readable(d));
-    }
-    for (int d = 0; d < n; ++d)
-      if (local(d)) svgf(d).remodulate(buffers_[d].radiance[e], buffers_[d].albedo[e], strip[d]);
-    if (options_.seams == SeamMode::Bilateral && n > 1) {
-      exchange_halo([&](int d) -> const cl::Buffer& { return buffers_[d].radiance[e]; }, strip,
-                    options_.seam_band + 2);
-      for (int d = 0; d < n; ++d) {
-        if (strip[d].size() == 0 || !local(d)) continue;
-        const int above = strip[d].begin > 0 ? static_cast<int>(strip[d].begin) : -1;
-        const int below = strip[d].end < height_ ? static_cast<int>(strip[d].end) : -1;
-        svgf(d).seam_filter(buffers_[d].radiance[e], buffers_[d].gbuffer[e], strip[d], image, above, below,
-                            static_cast<int>(options_.seam_band));
-      }
-    }
-    for (int d = 0; d < n; ++d)
-      if (local(d))
-        for (auto& [stage, ev] : svgf(d).take_events()) record(stage, d, ev);
-  }
 }
 
 std::vector<std::uint8_t> StereoPipeline::hole_mask() {
@@ -527,9 +214,9 @@ std::vector<std::uint8_t> StereoPipeline::hole_mask() {
     if (fill->right_rows[d].empty() || !local(d)) continue;
     auto& q = queue(d);
     cl_uint count = 0;
-    q.enqueueReadBuffer(buffers_[d].hole_count, CL_TRUE, 0, sizeof(cl_uint), &count);
+    q.enqueueReadBuffer(images_[d].hole_count, CL_TRUE, 0, sizeof(cl_uint), &count);
     std::vector<cl_uint> list(count);
-    if (count) q.enqueueReadBuffer(buffers_[d].holes, CL_TRUE, 0, count * sizeof(cl_uint), list.data());
+    if (count) q.enqueueReadBuffer(images_[d].holes, CL_TRUE, 0, count * sizeof(cl_uint), list.data());
     for (cl_uint p : list) mask.at(p) = 1;
   }
   return mask;
@@ -543,7 +230,7 @@ std::vector<GBufferTexel> StereoPipeline::gbuffer_of(int eye) {
     for (const RowRange& r : eye == 0 ? g->left_rows[d] : g->right_rows[d]) {
       if (!local(d)) continue;
       const std::size_t first = static_cast<std::size_t>(r.begin) * width_, count = static_cast<std::size_t>(r.size()) * width_;
-      queue(d).enqueueReadBuffer(buffers_[d].gbuffer[eye], CL_TRUE, first * sizeof(GBufferTexel),
+      queue(d).enqueueReadBuffer(images_[d].gbuffer[eye], CL_TRUE, first * sizeof(GBufferTexel),
                                                     count * sizeof(GBufferTexel), out.data() + first);
     }
   return out;
@@ -558,7 +245,7 @@ std::array<ImageRGB, 2> StereoPipeline::radiance() {
   std::array<ImageRGB, 2> out;
   for (int e = 0; e < 2; ++e) {
     std::vector<cl_float4> px(pixels);
-    q.enqueueReadBuffer(buffers_[schedule_.tree.root].radiance[e], CL_TRUE, 0, pixels * sizeof(cl_float4), px.data());
+    q.enqueueReadBuffer(images_[schedule_.tree.root].radiance[e], CL_TRUE, 0, pixels * sizeof(cl_float4), px.data());
     out[e].width = static_cast<int>(width_);
     out[e].height = static_cast<int>(height_);
     out[e].rgb.resize(pixels * 3);
@@ -575,7 +262,7 @@ std::array<std::vector<std::uint8_t>, 2> StereoPipeline::rgba8() {
   std::array<std::vector<std::uint8_t>, 2> out;
   for (int e = 0; e < 2; ++e) {
     out[e].resize(pixels * 4);
-    q.enqueueReadBuffer(buffers_[schedule_.tree.root].rgba[e], CL_TRUE, 0, pixels * 4, out[e].data());
+    q.enqueueReadBuffer(images_[schedule_.tree.root].rgba[e], CL_TRUE, 0, pixels * 4, out[e].data());
   }
   return out;
 }

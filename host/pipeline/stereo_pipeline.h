@@ -1,24 +1,28 @@
-// Runs one FrameSchedule per frame: every stage is a kernel enqueued on the queue of each
-// device that has work in it (rows from the schedule), dependencies between devices are
-// cl_events, and finished strips travel child -> owner through host-mapped staging buffers
-// (CL_MEM_ALLOC_HOST_PTR: device -> host memory -> device, no peer-to-peer).
-//
-// Every device keeps full-frame buffers and writes only its own rows, so a pixel's index is
-// the same everywhere and a strip transfer is one contiguous byte range.
+// Wires the stage units (pipeline/stages/) to a FrameSchedule and runs it: each frame the
+// schedule becomes a list of operations (pipeline/operation.h), and each run of consecutive
+// operations of one stage goes to that stage's unit. The pipeline knows no stage's buffers,
+// kernels or halo radii; what differs between proposed, baseline and mono is the schedule's
+// table (pipeline/strip_schedule.cpp).
 #pragma once
 
 #include "cl/device_set.h"
 #include "cluster/cluster.h"
 #include "control/frame_time_controller.h"
-#include "denoise/svgf_denoiser.h"
 #include "image/image_io.h"
+#include "pipeline/event_log.h"
+#include "pipeline/frame_images.h"
+#include "pipeline/operation.h"
+#include "pipeline/row_transfer.h"
+#include "pipeline/stages/denoise_stage.h"
+#include "pipeline/stages/path_trace_stage.h"
+#include "pipeline/stages/stage_unit.h"
+#include "pipeline/stages/tonemap_stage.h"
+#include "pipeline/stages/transfer_stage.h"
 #include "pipeline/strip_schedule.h"
 #include "render/device_scene.h"
-#include "render/path_tracer.h"
 #include "render/stereo_camera.h"
 
 #include <array>
-#include <deque>
 #include <map>
 #include <memory>
 #include <optional>
@@ -54,14 +58,6 @@ struct FrameStats {
   std::vector<double> mpi_ms;
 };
 
-// How denoising treats the borders between devices' strips.
-enum class SeamMode {
-  Independent,  // each strip filtered alone (the paper): seams visible
-  Bilateral,    // independent, then the paper's bilateral filter in a band around each seam
-  Halo,         // neighbours' rows copied in before every pass that reads across a border:
-                // the N-device image equals the 1-device image
-};
-const char* to_string(SeamMode m);
 SeamMode parse_seam_mode(const std::string& text);  // "independent", "bilateral", "halo"
 
 class StereoPipeline {
@@ -88,6 +84,11 @@ class StereoPipeline {
                  unsigned height, Options options);
 
   const FrameSchedule& schedule() const { return schedule_; }
+  // The operations the next frame runs (the schedule with this frame's G-buffer margins).
+  std::vector<Operation> operations() const { return make_operations(schedule_, gbuffer_margin(schedule_, options_)); }
+  // The rows beyond its strip that each G-buffer pass of `schedule` covers: the most any
+  // scheduled stage declares it reads (a static gbuffer_rows_read of its unit).
+  static unsigned gbuffer_margin(const FrameSchedule& schedule, const Options& options);
 
   // Each device's strip (device i owns strips()[i] in proposed and mono), top to bottom.
   const std::vector<RowRange>& strips() const { return schedule_.strips; }
@@ -135,95 +136,31 @@ class StereoPipeline {
   std::vector<GBufferTexel> gbuffer_of(int eye);
 
  private:
-  // A device's host-mapped buffer for rows leaving it to a neighbour, and the copies that
-  // still read it (the next exchange through it waits for them).
-  struct HaloStaging {
-    cl::Buffer buffer;
-    std::vector<cl::Event> readers;
-  };
+  // The unit that runs `stage`'s operations (std::logic_error if the schedule names a stage no
+  // unit runs).
+  StageUnit& unit(Stage stage);
 
-  struct DeviceBuffers {
-    std::array<cl::Buffer, 2> radiance;  // float4, full frame
-    std::array<cl::Buffer, 2> albedo;    // float4, full frame: mean primary albedo of the
-                                         // samples behind `radiance` (SVGF demodulates by it)
-    std::array<cl::Buffer, 2> gbuffer;   // GBufferTexel, full frame
-    std::array<cl::Buffer, 2> rgba;      // uchar4, full frame
-    cl::Buffer holes;                    // uint, full frame (worst case: every pixel a hole)
-    cl::Buffer hole_count;               // uint
-    cl::Buffer nonfinite;                // uint
-    cl::Buffer nonfinite_pixels;         // uint, counted by the tonemap
-    // Host-mapped staging for strips travelling to the owner (children only).
-    cl::Buffer staging_radiance, staging_albedo, staging_rgba;
-    // Denoising: last frame's G-buffers, one SVGF state per eye, and host-mapped staging for
-    // halo rows leaving this device (with the copies still reading it).
-    std::array<cl::Buffer, 2> gbuffer_prev;
-    std::array<std::unique_ptr<SvgfDenoiser>, 2> svgf;
-    HaloStaging staging_halo;     // float4 rows
-    HaloStaging staging_gbuffer;  // GBufferTexel rows of last frame's G-buffer when strips move
-                                  // (allocated on the first move)
-  };
-
-  // Kernel launchers; each records its event under (stage, device).
-  void path_trace(int d, int eye, RowRange rows, const CameraParams& cam, unsigned frame, Stage stage);
-  void gbuffer(int d, int eye, RowRange rows, const CameraParams& cam);
-  void reproject(int d, RowRange rows, const CameraParams& left_cam);
-  void fill_holes(int d, RowRange rows, const CameraParams& right_cam, unsigned frame);
-  void tonemap(int d, int eye, RowRange rows);
-  // Copies rows of `eye` (radiance with its albedo, and/or rgba) from device d to the owner via
-  // d's staging buffers.
-  void transfer(int d, int eye, RowRange rows, bool radiance, bool rgba);
-
-  void record(Stage stage, int device, const cl::Event& e);
-  // Global device d (layout_) on this process: its queue and its index in devices_.
+  static DenoiseStage::Options denoise_options(const Options& options);
   bool local(int d) const { return layout_.is_local(d); }
   cl::CommandQueue& queue(int d) { return devices_.devices()[layout_.local_index(d)].queue; }
-  // Copies `bytes` at `offset` of device `from`'s buffer `src` into device `to`'s `dst` at the
-  // same offset, whichever ranks they are on. Within a process through `staging()` (`from`'s
-  // host-mapped buffer, at `staging_offset`; `readers`, if given, are the copies still reading
-  // it, waited for and replaced); between processes as an MPI message. Records the events.
-  template <typename StagingOf>
-  void copy_rows(int from, const cl::Buffer& src, int to, const cl::Buffer& dst, std::size_t offset,
-                 std::size_t bytes, StagingOf staging, std::size_t staging_offset, std::vector<cl::Event>* readers);
-  // Launches `k` over `items` work-items (cl/launch.h) on device d and records it.
-  void enqueue(int d, cl::Kernel& k, std::size_t items, Stage stage);
-  // Stage 6-7 for every device at once (passes interleave with halo exchanges).
-  void denoise(const StageWork& work, const std::array<CameraParams, 2>& cams);
-  // Copies into each device's `buffer(d)` the rows within `radius` of its strip `strip[d]`
-  // that other devices own, through the owners' host-mapped staging buffers.
-  template <typename BufferOf>
-  void exchange_halo(BufferOf buffer, const std::vector<RowRange>& strip, unsigned radius);
-  // The general form: copies into each device's `buffer(d)` the rows of `needed[d]` that
-  // another device `src` holds (`owned[src]`; the owned ranges are disjoint), `texel` bytes per
-  // pixel, through the source's `staging` buffer. With owned = last frame's strips and needed
-  // = this frame's, it moves history to the new owner of rows whose strip changed.
-  template <typename BufferOf>
-  void exchange_rows(BufferOf buffer, const std::vector<RowRange>& owned, const std::vector<RowRange>& needed,
-                     std::size_t texel, HaloStaging DeviceBuffers::*staging);
-  // `strip` widened by `radius` rows each side, clipped to the image.
-  std::vector<RowRange> widen(const std::vector<RowRange>& strip, unsigned radius) const;
-  // Rows beyond its strip that each device's G-buffer covers, so that every pass of a halo
-  // exchange finds normals and depths of the rows it reads without transferring them.
-  unsigned gbuffer_margin() const;
-  FrameParams frame_params(int eye, RowRange rows, unsigned frame) const;
 
   DeviceSet& devices_;
   Cluster* cluster_;
   DeviceLayout layout_;
-  std::deque<std::vector<unsigned char>> message_rows_;  // host copies of this frame's MPI messages
-  const DeviceScene& device_scene_;
   const Scene& scene_;
   unsigned width_, height_;
   Options options_;
   FrameSchedule schedule_;
-  unsigned max_svgf_iterations_;  // the halo margins and exchanges are sized for up to these
-  std::vector<DeviceBuffers> buffers_;
-  std::vector<std::pair<std::pair<Stage, int>, cl::Event>> events_;  // this frame's, for timing
-  std::vector<cl::Event> owner_waits_;                                // cross-device dependencies
-  std::size_t bytes_this_frame_ = 0;
-  std::optional<std::array<CameraParams, 2>> prev_cams_;
-  // Per eye, the strips whose rows of SVGF history (and last G-buffer) each device holds: the
-  // strips it denoised last frame. Empty before the first denoised frame.
-  std::array<std::vector<RowRange>, 2> history_strips_;
+  std::vector<FrameImages> images_;     // per device of the frame; empty entries for other ranks
+  EventLog log_;
+  RowTransfer transfer_;
+  StageEnv env_;
+  // The stage units (only what the options need: no SVGF state without denoising).
+  std::unique_ptr<PathTraceStage> path_trace_;
+  std::unique_ptr<StageUnit> gbuffer_, reproject_, hole_fill_;
+  std::unique_ptr<DenoiseStage> denoise_;
+  std::unique_ptr<TonemapStage> tonemap_;
+  std::unique_ptr<TransferStage> transfer_stage_;
   std::uint64_t nonfinite_total_ = 0;
 };
 

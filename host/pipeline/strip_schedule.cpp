@@ -1,5 +1,6 @@
 #include "pipeline/strip_schedule.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <sstream>
 #include <stdexcept>
@@ -81,6 +82,52 @@ StageWork work(Stage s, int devices, unsigned height, const std::vector<std::vec
   return w;
 }
 
+// Which rows of an eye each device processes in a stage (strip_schedule.h describes them).
+enum class Split { None, Own, Shuffled, Owner };
+
+struct StageRow {
+  Stage stage;
+  Split left, right;
+  bool denoise_only = false;
+  TransferPayload payload = TransferPayload::None;
+};
+
+// The pipelines. Adding a stage to one is adding a row here and its unit under stages/.
+const std::vector<StageRow>& pipeline_table(PipelineKind pipeline) {
+  static const std::vector<StageRow> proposed = {
+      {Stage::PathTraceLeft, Split::Own, Split::None},
+      {Stage::GBuffer, Split::Own, Split::Own},
+      {Stage::Reproject, Split::None, Split::Own},
+      {Stage::HoleFill, Split::None, Split::Own},
+      {Stage::Denoise, Split::Own, Split::Own, true},
+      {Stage::Tonemap, Split::Own, Split::Own},
+      {Stage::Transfer, Split::Own, Split::Own, false, TransferPayload::FinishedImage},
+  };
+  static const std::vector<StageRow> baseline = {
+      {Stage::PathTraceLeft, Split::Shuffled, Split::None},
+      {Stage::Transfer, Split::Shuffled, Split::None, false, TransferPayload::LinearRadiance},
+      {Stage::GBuffer, Split::Owner, Split::Owner},
+      {Stage::Reproject, Split::None, Split::Owner},
+      {Stage::HoleFill, Split::None, Split::Owner},
+      {Stage::Denoise, Split::Owner, Split::Owner, true},
+      {Stage::Tonemap, Split::Owner, Split::Owner},
+  };
+  static const std::vector<StageRow> mono = {
+      {Stage::PathTraceLeft, Split::Own, Split::None},
+      {Stage::PathTraceRight, Split::None, Split::Own},
+      {Stage::GBuffer, Split::Own, Split::Own, true},
+      {Stage::Denoise, Split::Own, Split::Own, true},
+      {Stage::Tonemap, Split::Own, Split::Own},
+      {Stage::Transfer, Split::Own, Split::Own, false, TransferPayload::FinishedImage},
+  };
+  switch (pipeline) {
+    case PipelineKind::Proposed: return proposed;
+    case PipelineKind::Baseline: return baseline;
+    case PipelineKind::Mono: return mono;
+  }
+  return proposed;
+}
+
 }  // namespace
 
 bool has_movable_strips(PipelineKind pipeline) { return pipeline != PipelineKind::Baseline; }
@@ -126,62 +173,36 @@ FrameSchedule make_schedule(PipelineKind pipeline, int devices, unsigned height,
   }
   std::vector<std::vector<RowRange>> owner_all(devices);
   owner_all[fs.tree.root].push_back({0, height});
-
-  switch (pipeline) {
-    case PipelineKind::Proposed:
-      fs.stages.push_back(work(Stage::PathTraceLeft, devices, height, own, none));
-      fs.stages.push_back(work(Stage::GBuffer, devices, height, own, own));
-      fs.stages.push_back(work(Stage::Reproject, devices, height, none, own));
-      fs.stages.push_back(work(Stage::HoleFill, devices, height, none, own));
-      if (denoise) {
-        fs.stages.push_back(work(Stage::Denoise, devices, height, own, own));
-        fs.stages.push_back(work(Stage::RecordPrevious, devices, height, own, own));
-      }
-      fs.stages.push_back(work(Stage::Tonemap, devices, height, own, own));
-      fs.stages.push_back(work(Stage::Transfer, devices, height, own, own));
-      fs.stages.push_back(work(Stage::Stitch, devices, height, owner_all, owner_all));
-      break;
-    case PipelineKind::Baseline: {
-      // Tauray-style: path tracing balanced over many small strips in bit-reversed order.
-      unsigned n = 1;
-      while (n < 4u * static_cast<unsigned>(devices)) n <<= 1;
-      n = std::min(n, std::max(1u, height));
-      while (n & (n - 1)) n &= n - 1;  // a power of two not above the height
-      auto small = split_rows(height, n);
-      auto order = bit_reversed_order(n);
-      fs.strips.clear();
-      fs.strip_device.clear();
-      std::vector<std::vector<RowRange>> shuffled(devices);
-      for (unsigned i = 0; i < n; ++i) {
-        fs.strips.push_back(small[order[i]]);
-        fs.strip_device.push_back(static_cast<int>(i % devices));
-        shuffled[i % devices].push_back(small[order[i]]);
-      }
-      fs.stages.push_back(work(Stage::PathTraceLeft, devices, height, shuffled, none));
-      fs.stages.push_back(work(Stage::Transfer, devices, height, shuffled, none));
-      fs.stages.push_back(work(Stage::Stitch, devices, height, owner_all, none));
-      fs.stages.push_back(work(Stage::GBuffer, devices, height, owner_all, owner_all));
-      fs.stages.push_back(work(Stage::Reproject, devices, height, none, owner_all));
-      fs.stages.push_back(work(Stage::HoleFill, devices, height, none, owner_all));
-      if (denoise) {
-        fs.stages.push_back(work(Stage::Denoise, devices, height, owner_all, owner_all));
-        fs.stages.push_back(work(Stage::RecordPrevious, devices, height, owner_all, owner_all));
-      }
-      fs.stages.push_back(work(Stage::Tonemap, devices, height, owner_all, owner_all));
-      break;
+  std::vector<std::vector<RowRange>> shuffled(devices);
+  if (pipeline == PipelineKind::Baseline) {
+    // Tauray-style: path tracing balanced over many small strips in bit-reversed order.
+    unsigned n = 1;
+    while (n < 4u * static_cast<unsigned>(devices)) n <<= 1;
+    n = std::min(n, std::max(1u, height));
+    while (n & (n - 1)) n &= n - 1;  // a power of two not above the height
+    auto small = split_rows(height, n);
+    auto order = bit_reversed_order(n);
+    fs.strips.clear();
+    fs.strip_device.clear();
+    for (unsigned i = 0; i < n; ++i) {
+      fs.strips.push_back(small[order[i]]);
+      fs.strip_device.push_back(static_cast<int>(i % devices));
+      shuffled[i % devices].push_back(small[order[i]]);
     }
-    case PipelineKind::Mono:
-      fs.stages.push_back(work(Stage::PathTraceLeft, devices, height, own, none));
-      fs.stages.push_back(work(Stage::PathTraceRight, devices, height, none, own));
-      if (denoise) {
-        fs.stages.push_back(work(Stage::GBuffer, devices, height, own, own));
-        fs.stages.push_back(work(Stage::Denoise, devices, height, own, own));
-        fs.stages.push_back(work(Stage::RecordPrevious, devices, height, own, own));
-      }
-      fs.stages.push_back(work(Stage::Tonemap, devices, height, own, own));
-      fs.stages.push_back(work(Stage::Transfer, devices, height, own, own));
-      fs.stages.push_back(work(Stage::Stitch, devices, height, owner_all, owner_all));
-      break;
+  }
+  auto rows_of = [&](Split split) -> const std::vector<std::vector<RowRange>>& {
+    switch (split) {
+      case Split::Own: return own;
+      case Split::Shuffled: return shuffled;
+      case Split::Owner: return owner_all;
+      case Split::None: break;
+    }
+    return none;
+  };
+  for (const StageRow& row : pipeline_table(pipeline)) {
+    if (row.denoise_only && !denoise) continue;
+    fs.stages.push_back(work(row.stage, devices, height, rows_of(row.left), rows_of(row.right)));
+    fs.stages.back().payload = row.payload;
   }
   return fs;
 }
@@ -216,7 +237,7 @@ std::string FrameSchedule::explain() const {
     out << " <- children";
     for (int c : tree.children) out << " " << c;
   }
-  if (!find(Stage::Denoise)) out << "\n(denoising off: stages 6-7 would follow hole filling)";
+  if (!find(Stage::Denoise)) out << "\n(denoising off: stage 6 would follow hole filling)";
   out << "\n";
   return out.str();
 }

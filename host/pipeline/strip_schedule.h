@@ -20,11 +20,20 @@ struct Workload {
   double left = 0.0, right = 0.0;  // shares of each eye's rows, in [0, 1]
 };
 
+// What a transfer stage carries to the owner.
+enum class TransferPayload {
+  None,
+  FinishedImage,   // tonemapped RGBA8, plus the linear radiance where the owner keeps it (EXR)
+  LinearRadiance,  // radiance to be finished on the owner (baseline), with its albedo when the
+                   // owner denoises
+};
+
 struct StageWork {
   Stage stage;
   std::vector<Workload> per_device;                  // indexed by device
   std::vector<std::vector<RowRange>> left_rows;      // per device: rows of the left eye
   std::vector<std::vector<RowRange>> right_rows;     // per device: rows of the right eye
+  TransferPayload payload = TransferPayload::None;   // Stage::Transfer only
 };
 
 // Owner at the root, every other device its child: strips travel child -> owner.
@@ -58,14 +67,17 @@ std::vector<RowRange> device_spans(const StageWork& work, int eye);
 // Bit-reversal permutation of 0..n-1 for n a power of two (Tauray's "shuffled strips").
 std::vector<unsigned> bit_reversed_order(unsigned n);
 
-// proposed: N strips, strip i on device i; PT (1/N, 0), G-buffer/reproject... (1/N, 1/N),
-//   hole filling (0, 1/N), tonemap (1/N, 1/N); transfer of finished strips to the owner.
-// baseline: left-eye path tracing over 4N (rounded up to a power of two) shuffled strips dealt
-//   round-robin; everything after the transfer on the owner alone: (1, 1) there, (0, 0) elsewhere.
-// mono: both eyes path traced on N strips, tonemapped, transferred.
-// With `denoise`, stages 6 (SVGF, both eyes) and 7 follow hole filling: proposed and mono on
-// every device for its strip (1/N, 1/N), baseline on the owner (1, 1); mono then also builds
-// the G-buffer SVGF needs.
+// The three pipelines are tables (strip_schedule.cpp): per stage, which rows of each eye every
+// device processes —
+//   own      each device its own contiguous strip (an even split, or `strips`);
+//   shuffled 4N (rounded up to a power of two) small strips in bit-reversed order, dealt
+//            round-robin (Tauray's load balancing of path tracing);
+//   owner    the whole image on the owner (device 0), nothing elsewhere.
+// proposed: PT (own, -), G-buffer (own, own), reprojection and hole filling (-, own), [SVGF
+//   (own, own)], tonemap (own, own), transfer of finished strips to the owner.
+// baseline: PT (shuffled, -), transfer of the left radiance, then everything on the owner.
+// mono: PT left (own, -), PT right (-, own), [G-buffer, SVGF], tonemap, transfer.
+// Bracketed stages are scheduled only with `denoise`.
 // `strips` (proposed and mono only): the per-device strips to use instead of the even split,
 // strip i on device i — what a load balancer moves between frames. They must be contiguous,
 // top to bottom, cover every row once and give each device at least one row

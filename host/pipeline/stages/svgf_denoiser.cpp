@@ -1,4 +1,4 @@
-#include "denoise/svgf_denoiser.h"
+#include "pipeline/stages/svgf_denoiser.h"
 
 #include "cl/launch.h"
 

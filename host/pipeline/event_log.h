@@ -1,0 +1,28 @@
+// The OpenCL events of one frame's commands, each under the stage and device it ran for: what
+// FrameStats' per-stage timings and the timeline are made from. Every stage unit records here.
+#pragma once
+
+#include "cl/cl_error.h"
+#include "pipeline/stage.h"
+
+#include <utility>
+#include <vector>
+
+namespace px {
+
+class EventLog {
+ public:
+  struct Entry {
+    Stage stage;
+    int device;
+    cl::Event event;
+  };
+  void record(Stage stage, int device, const cl::Event& e) { entries_.push_back({stage, device, e}); }
+  const std::vector<Entry>& entries() const { return entries_; }
+  void clear() { entries_.clear(); }
+
+ private:
+  std::vector<Entry> entries_;
+};
+
+}  // namespace px

@@ -1,0 +1,138 @@
+#include "pipeline/stages/denoise_stage.h"
+
+#include <algorithm>
+#include <stdexcept>
+
+namespace px {
+
+const char* to_string(SeamMode m) {
+  switch (m) {
+    case SeamMode::Independent: return "independent";
+    case SeamMode::Bilateral: return "bilateral";
+    case SeamMode::Halo: return "halo";
+  }
+  return "?";
+}
+
+DenoiseStage::DenoiseStage(StageEnv& env, const Options& options)
+    : StageUnit(env), options_(options), max_iterations_(options.svgf.iterations), dev_(env.layout.count()) {
+  if (options.svgf.iterations < 1) throw std::invalid_argument("SVGF needs at least one a-trous iteration");
+  const std::size_t pixels = static_cast<std::size_t>(env.width) * env.height;
+  for (int d = 0; d < env.layout.count(); ++d) {
+    if (!env.local(d)) continue;  // another rank's device: nothing of it lives here
+    for (int e = 0; e < 2; ++e) {
+      dev_[d].gbuffer_prev[e] = cl::Buffer(env.devices.context(), CL_MEM_READ_WRITE, pixels * sizeof(GBufferTexel));
+      dev_[d].svgf[e] =
+          std::make_unique<SvgfDenoiser>(env.devices, env.layout.local_index(d), env.width, env.height, options.svgf);
+    }
+  }
+}
+
+void DenoiseStage::set_iterations(unsigned n) {
+  if (n < 1 || n > max_iterations_)
+    throw std::invalid_argument("SVGF iterations must be within [1, " + std::to_string(max_iterations_) + "]");
+  options_.svgf.iterations = n;
+}
+
+unsigned DenoiseStage::gbuffer_rows_read(const Options& o) {
+  switch (o.seams) {
+    case SeamMode::Independent: return 0;
+    case SeamMode::Bilateral: return o.seam_band + 3;
+    case SeamMode::Halo: break;
+  }
+  const unsigned atrous = 2u << (o.svgf.iterations - 1);
+  return std::max({atrous, o.svgf.temporal_rows + 1, 3u}) + 1;
+}
+
+void DenoiseStage::run(const std::vector<const Operation*>& ops, const FrameInputs& in) {
+  for (int e = 0; e < 2; ++e) {
+    std::vector<RowRange> strip(env_.layout.count());
+    for (const Operation* op : ops)
+      if (op->eye == e) strip[op->device] = op->rows;
+    denoise_eye(e, strip, in);
+    frame_strips_[e] = strip;
+  }
+}
+
+void DenoiseStage::denoise_eye(int e, const std::vector<RowRange>& strip, const FrameInputs& in) {
+  const int n = env_.layout.count();
+  const bool halo = options_.seams == SeamMode::Halo;
+  const RowRange image{0, env_.height};
+  auto readable = [&](int d) { return halo ? image : strip[d]; };
+  auto svgf = [&](int d) -> SvgfDenoiser& { return *dev_[d].svgf[e]; };
+  auto halo_staging = [&](int d) -> StagingBuffer& { return dev_[d].halo; };
+  auto widened = [&](unsigned radius) {
+    std::vector<RowRange> out(strip.size());
+    for (std::size_t d = 0; d < strip.size(); ++d) out[d] = widen(strip[d], radius, env_.height);
+    return out;
+  };
+  // Copies into each device the rows within `radius` of its strip that its neighbours own.
+  auto exchange_halo = [&](const RowTransfer::BufferOf& buffer, unsigned radius) {
+    env_.transfer.exchange(buffer, strip, widened(radius), sizeof(cl_float4), halo_staging);
+  };
+  const CameraParams prev = prev_cams_ ? (*prev_cams_)[e] : in.cams[e];
+  const auto& o = options_.svgf;
+  // Last frame's history lives with last frame's strips. The temporal pass reads it within
+  // temporal_rows of each pixel (halo seams) or within the strip (otherwise): fetch those rows
+  // from whichever device holds them — the neighbours' halo rows, and, when the strips moved,
+  // the rows this device took over (with their G-buffer, which the history test reads).
+  const std::vector<RowRange>& held = history_strips_[e].empty() ? strip : history_strips_[e];
+  const bool moved = held != strip;
+  const std::vector<RowRange> history_rows = widened(halo ? o.temporal_rows + 1 : 0);
+  if (halo || moved) {
+    env_.transfer.exchange([&](int d) -> const cl::Buffer& { return svgf(d).history_illum_prev(); }, held,
+                           history_rows, sizeof(cl_float4), halo_staging);
+    env_.transfer.exchange([&](int d) -> const cl::Buffer& { return svgf(d).history_moments_prev(); }, held,
+                           history_rows, sizeof(cl_float4), halo_staging);
+  }
+  if (moved)
+    env_.transfer.exchange([&](int d) -> const cl::Buffer& { return dev_[d].gbuffer_prev[e]; }, held, history_rows,
+                           sizeof(GBufferTexel), [&](int d) -> StagingBuffer& { return dev_[d].gbuffer; });
+  for (int d = 0; d < n; ++d)
+    if (env_.local(d))
+      svgf(d).temporal(env_.images[d].radiance[e], env_.images[d].albedo[e], env_.images[d].gbuffer[e],
+                       dev_[d].gbuffer_prev[e], prev, strip[d], readable(d));
+  if (halo) {
+    exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).illum(); }, 3);
+    exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).moments(); }, gbuffer_rows_read(options_));
+  }
+  for (int d = 0; d < n; ++d)
+    if (env_.local(d)) svgf(d).variance(env_.images[d].gbuffer[e], strip[d], readable(d));
+  for (unsigned i = 0; i < o.iterations; ++i) {
+    if (halo) exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).illum(); }, 2u << i);
+    for (int d = 0; d < n; ++d)
+      if (env_.local(d)) svgf(d).atrous(i, env_.images[d].gbuffer[e], strip[d], readable(d));
+  }
+  for (int d = 0; d < n; ++d)
+    if (env_.local(d)) svgf(d).remodulate(env_.images[d].radiance[e], env_.images[d].albedo[e], strip[d]);
+  if (options_.seams == SeamMode::Bilateral && n > 1) {
+    exchange_halo([&](int d) -> const cl::Buffer& { return env_.images[d].radiance[e]; }, options_.seam_band + 2);
+    for (int d = 0; d < n; ++d) {
+      if (strip[d].size() == 0 || !env_.local(d)) continue;
+      const int above = strip[d].begin > 0 ? static_cast<int>(strip[d].begin) : -1;
+      const int below = strip[d].end < env_.height ? static_cast<int>(strip[d].end) : -1;
+      svgf(d).seam_filter(env_.images[d].radiance[e], env_.images[d].gbuffer[e], strip[d], image, above, below,
+                          static_cast<int>(options_.seam_band));
+    }
+  }
+  for (int d = 0; d < n; ++d)
+    if (env_.local(d))
+      for (auto& [stage, ev] : svgf(d).take_events()) env_.log.record(stage, d, ev);
+}
+
+void DenoiseStage::end_frame(const FrameInputs& in) {
+  // This frame's G-buffers and SVGF history become the previous frame's.
+  for (auto& dev : dev_) {
+    if (!dev.svgf[0]) continue;  // another rank's device
+    for (int e = 0; e < 2; ++e) {
+      std::swap(env_.images[&dev - dev_.data()].gbuffer[e], dev.gbuffer_prev[e]);
+      dev.svgf[e]->end_frame();
+    }
+    dev.halo.readers.clear();
+    dev.gbuffer.readers.clear();
+  }
+  prev_cams_ = in.cams;
+  history_strips_ = frame_strips_;
+}
+
+}  // namespace px

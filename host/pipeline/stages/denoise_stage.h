@@ -1,0 +1,69 @@
+// Stage 6: SVGF on both eyes, every device for its own strip, passes in step across devices.
+// The unit owns each device's filter state (SvgfDenoiser per eye), last frame's G-buffer and
+// history, and decides which rows cross strip borders:
+//   - halo seams: before every pass that reads beyond the strip, the neighbours' rows within
+//     that pass's reach are copied in, so N devices give the 1-device image bit for bit;
+//   - history follows the strips: when a boundary moved since last frame, the rows a device
+//     took over bring their colour and moment history and last frame's G-buffer with them.
+#pragma once
+
+#include "pipeline/stages/stage_unit.h"
+#include "pipeline/stages/svgf_denoiser.h"
+
+#include <memory>
+#include <optional>
+#include <string>
+
+namespace px {
+
+// How denoising treats the borders between devices' strips.
+enum class SeamMode {
+  Independent,  // each strip filtered alone (the paper): seams visible
+  Bilateral,    // independent, then the paper's bilateral filter in a band around each seam
+  Halo,         // neighbours' rows copied in before every pass that reads across a border:
+                // the N-device image equals the 1-device image
+};
+const char* to_string(SeamMode m);
+
+class DenoiseStage : public StageUnit {
+ public:
+  struct Options {
+    SvgfDenoiser::Options svgf;
+    SeamMode seams = SeamMode::Halo;
+    unsigned seam_band = 4;  // rows each side of a seam the bilateral seam filter touches
+  };
+  // Throws std::invalid_argument for fewer than one a-trous iteration.
+  DenoiseStage(StageEnv& env, const Options& options);
+
+  // The widest read of this frame's G-buffer beyond the strip. Halo seams: a-trous taps at
+  // 2 * 2^(iterations-1), history taps at temporal_rows + 1, the variance estimate at 3, plus
+  // one row for the depth gradient; bilateral seams: the band plus the filter's 3 rows;
+  // independent: nothing beyond the strip.
+  static unsigned gbuffer_rows_read(const Options& options);
+  void run(const std::vector<const Operation*>& ops, const FrameInputs& in) override;
+  void end_frame(const FrameInputs& in) override;
+
+  // The control loop's knob: 1 <= n <= the iterations the unit was built with (its halo
+  // margins were sized for those); std::invalid_argument otherwise.
+  void set_iterations(unsigned n);
+  unsigned iterations() const { return options_.svgf.iterations; }
+
+ private:
+  void denoise_eye(int e, const std::vector<RowRange>& strip, const FrameInputs& in);
+
+  struct PerDevice {
+    std::array<cl::Buffer, 2> gbuffer_prev;  // last frame's G-buffer (swapped with this frame's)
+    std::array<std::unique_ptr<SvgfDenoiser>, 2> svgf;
+    StagingBuffer halo;     // float4 rows leaving the device
+    StagingBuffer gbuffer;  // GBufferTexel rows of last frame's G-buffer when strips move
+  };
+  Options options_;
+  unsigned max_iterations_;
+  std::vector<PerDevice> dev_;
+  // Per eye, the rows whose history each device holds (the strips it denoised last frame; empty
+  // before the first frame) and the strips of the frame being denoised.
+  std::array<std::vector<RowRange>, 2> history_strips_, frame_strips_;
+  std::optional<std::array<CameraParams, 2>> prev_cams_;
+};
+
+}  // namespace px

@@ -1,0 +1,20 @@
+#include "pipeline/stages/gbuffer_stage.h"
+
+#include "cl/launch.h"
+
+namespace px {
+
+void GBufferStage::run(const std::vector<const Operation*>& ops, const FrameInputs& in) {
+  for (const Operation* op : ops) {
+    if (!env_.local(op->device)) continue;
+    cl::Kernel k(env_.devices.program("pipeline/gbuffer.cl"), "gbuffer");
+    k.setArg(0, env_.images[op->device].gbuffer[op->eye]);
+    k.setArg(1, static_cast<cl_uint>(op->rows.begin));
+    k.setArg(2, static_cast<cl_uint>(op->rows.size()));
+    k.setArg(3, in.cams[op->eye]);
+    env_.scene_on(op->device).bind(k, 4);
+    env_.log.record(Stage::GBuffer, op->device, launch_1d(env_.queue(op->device), k, env_.pixels(op->rows)));
+  }
+}
+
+}  // namespace px

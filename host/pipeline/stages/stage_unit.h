@@ -1,0 +1,65 @@
+// A pipeline stage as a unit: it owns the buffers only it uses, keeps its options, binds its
+// kernels' arguments and records the events of its commands. A stage that reads this frame's
+// G-buffer beyond its own rows declares how far (a static `gbuffer_rows_read`): every G-buffer
+// pass covers the largest such margin, so no G-buffer row ever travels between devices. StereoPipeline builds one unit per stage and runs the schedule's operations
+// through them (pipeline/operation.h) without knowing what any stage does.
+#pragma once
+
+#include "cl/device_set.h"
+#include "cluster/cluster.h"
+#include "pipeline/event_log.h"
+#include "pipeline/frame_images.h"
+#include "pipeline/operation.h"
+#include "pipeline/row_transfer.h"
+#include "render/device_scene.h"
+#include "scene/scene.h"
+#include "shared/types.h"
+
+#include <array>
+#include <vector>
+
+namespace px {
+
+// What every unit works with, owned by the pipeline. `images` has one entry per device of the
+// whole frame (all ranks); only this process's devices (layout.is_local) have buffers.
+struct StageEnv {
+  DeviceSet& devices;
+  const DeviceLayout& layout;
+  const DeviceScene& device_scene;
+  const Scene& scene;
+  unsigned width, height;
+  std::vector<FrameImages>& images;
+  EventLog& log;
+  RowTransfer& transfer;
+
+  bool local(int d) const { return layout.is_local(d); }
+  cl::CommandQueue& queue(int d) const { return devices.devices()[layout.local_index(d)].queue; }
+  const DeviceSceneBuffers& scene_on(int d) const { return device_scene.on(layout.local_index(d)); }
+  std::size_t pixels(RowRange rows) const { return static_cast<std::size_t>(rows.size()) * width; }
+};
+
+// Per frame: its number (selects the sample stream) and both eyes' cameras (stage 1's output).
+struct FrameInputs {
+  unsigned frame = 0;
+  std::array<CameraParams, 2> cams;
+};
+
+class StageUnit {
+ public:
+  explicit StageUnit(StageEnv& env) : env_(env) {}
+  virtual ~StageUnit() = default;
+  StageUnit(const StageUnit&) = delete;
+  StageUnit& operator=(const StageUnit&) = delete;
+
+  // Enqueues `ops` (this stage's consecutive operations of the frame, every device's, this
+  // rank's or not: a unit skips devices that are not local, except where it exchanges rows
+  // with them).
+  virtual void run(const std::vector<const Operation*>& ops, const FrameInputs& in) = 0;
+  // After every queue finished the frame (history becomes last frame's).
+  virtual void end_frame(const FrameInputs&) {}
+
+ protected:
+  StageEnv& env_;
+};
+
+}  // namespace px
