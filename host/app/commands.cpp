@@ -1,5 +1,6 @@
 #include "app/commands.h"
 
+#include "app/frame_report.h"
 #include "app/output_dir.h"
 #include "app/render_setup.h"
 #include "app/scene_setup.h"
@@ -15,8 +16,6 @@
 #include "render/reference_render.h"
 #include "render/stereo_camera.h"
 #include "pipeline/stereo_pipeline.h"
-
-#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -155,13 +154,11 @@ int run_render(const RenderCommand& cmd) {
     return 0;
   }
   install_interrupt_handlers();
-  // The report and the timeline are streamed frame by frame into their (temporary) files, so a
-  // long run holds no per-frame records: before, every command's span was kept as a JSON tree
-  // whether or not a timeline was asked for (~130 KB per frame with 2 denoising devices).
-  // Opening them now also refuses an unwritable path before any rendering.
+  // The report and the timeline are opened before anything renders, so that an unwritable path
+  // fails at once.
   std::optional<OutputDir> out_dir;
-  std::optional<AtomicFileWriter> report_file, timeline_file;
-  bool first_report_frame = true, first_trace_event = true;
+  std::optional<RenderReport> report;
+  std::optional<RenderTimeline> timeline;
   std::optional<LoadedScene> loaded;
   std::optional<DeviceSet> device_set;
   std::optional<DeviceScene> device_scene;
@@ -170,11 +167,8 @@ int run_render(const RenderCommand& cmd) {
   auto setup = [&] {
     if (root) {
       out_dir.emplace(cmd.out, cmd.overwrite, is_render_frame_file);
-      if (!cmd.report.empty()) {
-        report_file.emplace(cmd.report);
-        report_file->write("{\n  \"frames\": [");
-      }
-      if (!cmd.timeline.empty()) timeline_file.emplace(cmd.timeline);
+      if (!cmd.report.empty()) report.emplace(cmd, opt, cluster.size());
+      if (!cmd.timeline.empty()) timeline.emplace(cmd.timeline);
       if (!cmd.video.empty()) video.emplace(cmd.video, 2 * cmd.width, cmd.height, cmd.fps);
     }
     // Every rank loads the scene itself (the scene is replicated, not sent).
@@ -255,30 +249,8 @@ int run_render(const RenderCommand& cmd) {
     }
     return order[0] == 0;
   };
-  // Chrome trace events: one track (tid) per device, one slice per OpenCL command. Device
-  // clocks are made relative to the run's first command; devices that do not share a clock
-  // (separate GPUs) are only comparable within their own track.
-  // Events are gathered per frame and written with one write() (a frame has ~100 commands).
-  std::string trace_chunk;
-  auto trace_event = [&](const nlohmann::json& event) {
-    trace_chunk += first_trace_event ? "\n" : ",\n";
-    trace_chunk += event.dump();
-    first_trace_event = false;
-  };
-  auto flush_trace = [&] {
-    timeline_file->write(trace_chunk);
-    trace_chunk.clear();
-  };
-  std::uint64_t trace_origin = 0;
-  if (timeline_file) {
-    timeline_file->write("{\"displayTimeUnit\": \"ms\", \"traceEvents\": [");
-    for (int d = 0; d < devices.size(); ++d)
-      trace_event({{"name", "thread_name"}, {"ph", "M"}, {"pid", 0}, {"tid", d},
-                   {"args", {{"name", "device " + std::to_string(d) + ": " + devices.devices()[d].description}}}});
-    flush_trace();
-  }
-  double makespan_ms = 0.0, first_frame_ms = 0.0;
-  std::size_t reprojected = 0, right_pixels = 0, bytes = 0;
+  if (timeline) timeline->name_devices(devices);
+  RenderTotals totals;  // over the frames written (on rank 0)
   unsigned done = 0;
   // Every frame's camera is checked before the first is rendered: a bad one fails the run now.
   for (unsigned f = 0; f < cmd.frames; ++f)
@@ -338,11 +310,7 @@ int run_render(const RenderCommand& cmd) {
     }
     done = f + 1;
     summary.add(st);
-    if (f == 0) first_frame_ms = st.wall_ms;
-    makespan_ms += st.wall_ms;
-    reprojected += st.reprojected;
-    right_pixels += st.right_pixels;
-    bytes += st.bytes_transferred;
+    totals.add(st);
     std::fprintf(stderr, "[render] frame %u/%u: %.0f ms%s, %.1f%% of the right eye reprojected", f + 1, cmd.frames,
                  st.wall_ms, f == 0 ? " (includes kernel compilation)" : "",
                  st.right_pixels ? 100.0 * st.reprojected / st.right_pixels : 0.0);
@@ -357,91 +325,27 @@ int run_render(const RenderCommand& cmd) {
       std::fprintf(stderr, " rows");
     }
     std::fputc('\n', stderr);
-    if (timeline_file) {
-      if (trace_origin == 0 && !st.spans.empty())
-        trace_origin = std::min_element(st.spans.begin(), st.spans.end(), [](const StageSpan& a, const StageSpan& b) {
-                         return a.start_ns < b.start_ns;
-                       })->start_ns;
-      for (const auto& sp : st.spans) {
-        const double ts = (static_cast<double>(sp.start_ns) - static_cast<double>(trace_origin)) * 1e-3;
-        trace_event({{"name", stage_name(sp.stage)}, {"cat", "frame " + std::to_string(f)}, {"ph", "X"}, {"pid", 0},
-                     {"tid", sp.device}, {"ts", ts}, {"dur", static_cast<double>(sp.end_ns - sp.start_ns) * 1e-3}});
-      }
-      flush_trace();
-    }
-    if (report_file) {
-      nlohmann::json strip_rows = nlohmann::json::array();  // [row0, rows] per device
-      for (const RowRange& r : strips) strip_rows.push_back({r.begin, r.size()});
-      nlohmann::json stages = nlohmann::json::array();
-      for (const auto& s : st.stages)
-        stages.push_back({{"stage", static_cast<int>(s.stage)}, {"name", stage_name(s.stage)}, {"device", s.device},
-                          {"device_ms", s.ms}});
-      // One line per frame.
-      report_file->write((first_report_frame ? "\n    " : ",\n    ") +
-                         nlohmann::json{{"frame", f}, {"wall_ms", st.wall_ms}, {"stages", stages},
-                                        {"right_pixels", st.right_pixels}, {"reprojected", st.reprojected},
-                                        {"bytes_transferred", st.bytes_transferred}, {"strips", strip_rows},
-                                        {"mpi", distributed ? nlohmann::json{{"bytes_sent", st.mpi_bytes},
-                                                                             {"ms", st.mpi_ms}}
-                                                            : nlohmann::json(nullptr)},
-                                        {"spp", quality.spp},
-                                        {"bounces", quality.bounces},
-                                        {"svgf_iterations", opt.denoise ? quality.svgf_iterations : 0u},
-                                        {"predicted_ms", predicted_this_frame ? nlohmann::json(*predicted_this_frame)
-                                                                              : nlohmann::json(nullptr)}}
-                             .dump());
-      first_report_frame = false;
-    }
+    if (timeline) timeline->add_frame(f, st);
+    if (report) report->add_frame(f, st, strips, quality, predicted_this_frame);
     // Under MPI the next frame's agreement stops every rank together.
     if (!distributed && interrupted()) break;
   }
   if (!root) return 0;
-  // The first frame compiles the kernels (seconds on PoCL): Hz over the frames after it says
-  // what the pipeline sustains; with one frame there is nothing else to measure.
-  const unsigned hz_frames = done > 1 ? done - 1 : done;
-  const double hz_ms = done > 1 ? makespan_ms - first_frame_ms : makespan_ms;
-  const double hz = hz_ms > 0 ? 1000.0 * hz_frames / hz_ms : 0.0;
+  const double hz = totals.hz();
   if (pipeline.nonfinite_paths() > 0)
     std::fprintf(stderr, "[render] warning: %llu paths had non-finite radiance and were dropped\n",
                  static_cast<unsigned long long>(pipeline.nonfinite_paths()));
   const bool stopped = done < cmd.frames;
-  if (report_file) {
-    const nlohmann::json r = {{"schema", "parallax-render-report/1"},
-                        {"scene", cmd.scene},
-                        {"pipeline", cmd.pipeline},
-                        {"devices", all_devices},
-                        {"ranks", cluster.size()},
-                        {"device_mode", to_string(devices.mode())},
-                        {"width", cmd.width},
-                        {"height", cmd.height},
-                        {"spp", opt.trace.spp},
-                        {"bounces", opt.trace.bounces},
-                        {"denoise", opt.denoise},
-                        {"seams", cmd.seams},
-                        {"balance", cmd.balance},
-                        {"target_ms", cmd.target_ms.empty() ? nlohmann::json(nullptr) : nlohmann::json(cmd.target_ms)},
-                        {"frames_requested", cmd.frames},
-                        {"frames_done", done},
-                        {"interrupted", stopped},
-                        {"makespan_ms", makespan_ms},
-                        {"first_frame_ms", first_frame_ms},
-                        {"hz", hz},
-                        {"hz_frames", hz_frames},
-                        {"reprojected_share", right_pixels ? double(reprojected) / right_pixels : 0.0},
-                        {"bytes_transferred", bytes},
-                        {"nonfinite_paths", pipeline.nonfinite_paths()}};
-    // The summary's members follow the frames: "{\n  ...\n}" minus its opening brace.
-    report_file->write("\n  ],\n" + r.dump(2).substr(2) + "\n");
-    report_file->commit();
+  if (report) {
+    report->finish(totals, all_devices, devices.mode(), pipeline.nonfinite_paths());
     std::fprintf(stderr, "[render] report written to %s\n", cmd.report.c_str());
   }
   if (video) {
     video->commit();
     std::fprintf(stderr, "[render] video written to %s\n", cmd.video.c_str());
   }
-  if (timeline_file) {
-    timeline_file->write("\n]}\n");
-    timeline_file->commit();
+  if (timeline) {
+    timeline->finish();
     std::fprintf(stderr, "[render] timeline written to %s (open in chrome://tracing or ui.perfetto.dev)\n",
                  cmd.timeline.c_str());
   }
@@ -459,7 +363,7 @@ int run_render(const RenderCommand& cmd) {
                 controller ? (" (last frame's; control loop " + cmd.target_ms + " ms)").c_str() : "");
     if (done > 1)
       std::printf("%.1f Hz over frames 1-%u (frame 0 took %.0f ms: it includes kernel compilation)\n", hz, done - 1,
-                  first_frame_ms);
+                  totals.first_frame_ms);
     else
       std::printf("%.1f Hz (one frame, including kernel compilation)\n", hz);
     std::printf("median device time per stage%s:\n%s", done > 1 ? " (frames after the first)" : "",
@@ -471,8 +375,8 @@ int run_render(const RenderCommand& cmd) {
     }
     std::printf("files:\n  %s/frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png (NNNN = 0000-%04u)\n",
                 cmd.out.c_str(), eye_files, done - 1);
-    if (report_file) std::printf("  report:   %s\n", cmd.report.c_str());
-    if (timeline_file) std::printf("  timeline: %s\n", cmd.timeline.c_str());
+    if (report) std::printf("  report:   %s\n", cmd.report.c_str());
+    if (timeline) std::printf("  timeline: %s\n", cmd.timeline.c_str());
     if (video) std::printf("  video:    %s (left | right, %g fps)\n", cmd.video.c_str(), double(cmd.fps));
     std::printf("\n");
   }
@@ -480,7 +384,7 @@ int run_render(const RenderCommand& cmd) {
     std::printf("interrupted by %s after %u of %u frame(s): wrote frames 0-%u to %s "
                 "(frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png), every file complete%s\n",
                 interrupt_signal_name(), done, cmd.frames, done - 1, cmd.out.c_str(), eye_files,
-                report_file ? "; the report covers those frames" : "");
+                report ? "; the report covers those frames" : "");
     return interrupt_exit_code();
   }
   std::printf("wrote %u frame(s) to %s (frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png); %.1f Hz %s\n",
