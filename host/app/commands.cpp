@@ -92,11 +92,11 @@ void write_stereo(const OutputDir& dir, const std::string& prefix, const std::ar
 
 }  // namespace
 
-DeviceSet DeviceChoice::create() const { return DeviceSet::create({count, parse_device_mode(mode), platform}); }
+DeviceOptions DeviceChoice::options() const { return {count, parse_device_mode(mode), platform}; }
 
 int run_devices(const DeviceChoice& choice) {
   std::printf("%s", describe_platforms().c_str());
-  auto set = choice.create();
+  auto set = DeviceSet::create(choice.options());
   std::printf("--devices %d gives (%s mode):\n", set.size(), to_string(set.mode()));
   for (const auto& d : set.devices()) std::printf("  %d: %s\n", d.index, d.description.c_str());
   return 0;
@@ -105,15 +105,13 @@ int run_devices(const DeviceChoice& choice) {
 int run_preview(const PreviewCommand& cmd) {
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite);
-  auto loaded = load_and_build(cmd.scene, false, cmd.sky);
-  auto devices = cmd.devices.create();
-  print_device_set(devices);
-  DeviceScene device_scene(devices, loaded.scene, loaded.bvh);
-  PreviewRenderer renderer(devices, device_scene);
+  SceneOnDevices on_devices(cmd.scene, cmd.devices.options(), false, cmd.sky);
+  print_device_set(on_devices.devices);
+  PreviewRenderer renderer(on_devices.devices, on_devices.device_scene);
   std::fprintf(stderr, "[preview] %ux%u per eye, t = %.2f s ...\n", cmd.width, cmd.height, cmd.time_s);
-  check_camera(loaded.scene, cmd.time_s, "preview");
+  check_camera(on_devices.loaded.scene, cmd.time_s, "preview");
   auto t0 = clock_type::now();
-  auto eyes = renderer.render(loaded.scene, cmd.time_s, cmd.width, cmd.height);
+  auto eyes = renderer.render(on_devices.loaded.scene, cmd.time_s, cmd.width, cmd.height);
   std::fprintf(stderr, "[preview] done in %.0f ms (first run includes kernel compilation)\n", ms_since(t0));
   require_finite(eyes, "preview");
   write_stereo(out_dir, "", eyes, 1.0f);
@@ -159,9 +157,7 @@ int run_render(const RenderCommand& cmd) {
   std::optional<OutputDir> out_dir;
   std::optional<RenderReport> report;
   std::optional<RenderTimeline> timeline;
-  std::optional<LoadedScene> loaded;
-  std::optional<DeviceSet> device_set;
-  std::optional<DeviceScene> device_scene;
+  std::optional<SceneOnDevices> on_devices;
   std::optional<StereoPipeline> pipeline_slot;
   std::optional<VideoWriter> video;
   auto setup = [&] {
@@ -172,18 +168,18 @@ int run_render(const RenderCommand& cmd) {
       if (!cmd.video.empty()) video.emplace(cmd.video, 2 * cmd.width, cmd.height, cmd.fps);
     }
     // Every rank loads the scene itself (the scene is replicated, not sent).
-    loaded.emplace(load_and_build(cmd.scene, !root, cmd.sky));
-    device_set.emplace(cmd.devices.create());
-    if (root) print_device_set(*device_set);
+    on_devices.emplace(cmd.scene, cmd.devices.options(), !root, cmd.sky);
+    const DeviceSet& set = on_devices->devices;
+    if (root) print_device_set(set);
     // Queues sharing one device run on the same compute units: there is no per-device speed to
     // balance, and PoCL 3.1 can abort (pocl_release_dlhandle_cache) when such queues run
     // kernels whose launch sizes change from frame to frame.
-    if (dynamic_strips && device_set->mode() == DeviceMode::SharedQueues && device_set->size() > 1)
-      throw std::invalid_argument("--balance dynamic: the " + std::to_string(device_set->size()) +
+    if (dynamic_strips && set.mode() == DeviceMode::SharedQueues && set.size() > 1)
+      throw std::invalid_argument("--balance dynamic: the " + std::to_string(set.size()) +
                                   " devices are queues on one OpenCL device (it has fewer compute units than "
                                   "devices), so there is nothing to balance; use --balance static or fewer --devices");
-    device_scene.emplace(*device_set, loaded->scene, loaded->bvh);
-    pipeline_slot.emplace(*device_set, *device_scene, loaded->scene, cmd.width, cmd.height, opt);
+    pipeline_slot.emplace(on_devices->devices, on_devices->device_scene, on_devices->loaded.scene, cmd.width,
+                          cmd.height, opt);
   };
   if (!distributed) {
     setup();
@@ -211,7 +207,8 @@ int run_render(const RenderCommand& cmd) {
       std::fprintf(stderr, "[mpi] %d ranks x %d device(s) = %d devices; rank 0 owns the frame and writes the files\n",
                    cluster.size(), cmd.devices.count, pipeline_slot->layout().count());
   }
-  DeviceSet& devices = *device_set;
+  const DeviceSet& devices = on_devices->devices;
+  const Scene& scene = on_devices->loaded.scene;
   StereoPipeline& pipeline = *pipeline_slot;
   StageSummary summary;
   FrameQuality last_quality = pipeline.quality();  // the quality of the last frame rendered
@@ -254,7 +251,7 @@ int run_render(const RenderCommand& cmd) {
   unsigned done = 0;
   // Every frame's camera is checked before the first is rendered: a bad one fails the run now.
   for (unsigned f = 0; f < cmd.frames; ++f)
-    check_camera(loaded->scene, static_cast<float>(f) / cmd.fps, "frame " + std::to_string(f));
+    check_camera(scene, static_cast<float>(f) / cmd.fps, "frame " + std::to_string(f));
   std::optional<double> predicted_ms;  // the control loop's prediction for the coming frame
   for (unsigned f = 0; f < cmd.frames; ++f) {
     if (!next_frame_agreed()) {
@@ -355,7 +352,7 @@ int run_render(const RenderCommand& cmd) {
     const FrameQuality& q = last_quality;
     std::printf("\n== render summary ==\n");
     std::printf("%s: pipeline %s, %d device(s) (%s%s), %ux%u per eye, %u spp, %u bounces, denoise %s%s\n",
-                loaded->scene.name.c_str(), cmd.pipeline.c_str(), all_devices, to_string(devices.mode()),
+                scene.name.c_str(), cmd.pipeline.c_str(), all_devices, to_string(devices.mode()),
                 distributed ? (", " + std::to_string(cluster.size()) + " MPI ranks").c_str() : "", cmd.width,
                 cmd.height, q.spp, q.bounces,
                 opt.denoise ? ("SVGF " + std::to_string(q.svgf_iterations) + " iterations, seams " + cmd.seams).c_str()
@@ -399,16 +396,15 @@ int run_render(const RenderCommand& cmd) {
 int run_reference(const ReferenceCommand& cmd) {
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite);
-  auto loaded = load_and_build(cmd.scene, false, cmd.sky);
-  auto devices = cmd.devices.create();
-  print_device_set(devices);
-  DeviceScene device_scene(devices, loaded.scene, loaded.bvh);
-  PathTracer tracer(devices, device_scene, loaded.scene);
+  SceneOnDevices on_devices(cmd.scene, cmd.devices.options(), false, cmd.sky);
+  print_device_set(on_devices.devices);
+  const Scene& scene = on_devices.loaded.scene;
+  PathTracer tracer(on_devices.devices, on_devices.device_scene, scene);
   ReferenceOptions opt;
   opt.spp = cmd.spp;
   opt.pass_spp = cmd.pass_spp;
   opt.bounces = cmd.bounces;
-  check_camera(loaded.scene, static_cast<float>(cmd.frame) / cmd.fps, "reference frame " + std::to_string(cmd.frame));
+  check_camera(scene, static_cast<float>(cmd.frame) / cmd.fps, "reference frame " + std::to_string(cmd.frame));
   // Ctrl-C stops after the pass in flight and writes the average of the passes done.
   opt.stop = [] { return interrupted(); };
   unsigned spp_done = 0;

@@ -16,7 +16,7 @@ struct DeviceChoice {
   int count = 1;
   std::string mode = "auto";
   std::string platform;
-  DeviceSet create() const;
+  DeviceOptions options() const;
 };
 
 struct PreviewCommand {

@@ -6,12 +6,6 @@
 namespace px {
 namespace {
 
-DeviceSet create_devices(const DeviceChoice& choice) {
-  auto set = choice.create();
-  print_device_set(set);
-  return set;
-}
-
 double median(std::vector<double> v) {
   if (v.empty()) return 0.0;
   const std::size_t mid = v.size() / 2;
@@ -56,10 +50,10 @@ void print_device_set(const DeviceSet& set) {
 }
 
 RenderSession::RenderSession(const RenderCommand& cmd, const StereoPipeline::Options& options)
-    : loaded(load_and_build(cmd.scene, false, cmd.sky)),
-      devices(create_devices(cmd.devices)),
-      device_scene(devices, loaded.scene, loaded.bvh),
-      pipeline(devices, device_scene, loaded.scene, cmd.width, cmd.height, options) {}
+    : SceneOnDevices(cmd.scene, cmd.devices.options(), false, cmd.sky),
+      pipeline(devices, device_scene, loaded.scene, cmd.width, cmd.height, options) {
+  print_device_set(devices);
+}
 
 std::map<Stage, double> slowest_device_ms(const FrameStats& stats) {
   std::map<Stage, double> out;

@@ -26,12 +26,9 @@ PipelineConfig make_pipeline_config(const RenderCommand& cmd);
 void print_device_set(const DeviceSet& set);
 
 // Scene, BVH, devices and the stereo pipeline of a RenderCommand, built in that order with
-// progress on stderr (members in dependency order: each refers to those before it).
-struct RenderSession {
+// progress on stderr (the pipeline refers to the scene and devices it is built on).
+struct RenderSession : SceneOnDevices {
   RenderSession(const RenderCommand& cmd, const StereoPipeline::Options& options);
-  LoadedScene loaded;
-  DeviceSet devices;
-  DeviceScene device_scene;
   StereoPipeline pipeline;
 };
 
