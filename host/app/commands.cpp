@@ -1,5 +1,6 @@
 #include "app/commands.h"
 
+#include "app/cli_enums.h"
 #include "app/frame_report.h"
 #include "app/output_dir.h"
 #include "app/render_setup.h"
@@ -92,7 +93,7 @@ void write_stereo(const OutputDir& dir, const std::string& prefix, const std::ar
 
 }  // namespace
 
-DeviceOptions DeviceChoice::options() const { return {count, parse_device_mode(mode), platform}; }
+DeviceOptions DeviceChoice::options() const { return {count, mode, platform}; }
 
 int run_devices(const DeviceChoice& choice) {
   std::printf("%s", describe_platforms().c_str());
@@ -125,7 +126,7 @@ int run_render(const RenderCommand& cmd) {
   PipelineConfig config = make_pipeline_config(cmd);
   StereoPipeline::Options& opt = config.options;
   std::optional<FrameTimeController>& controller = config.controller;
-  const bool dynamic_strips = cmd.balance == "dynamic";
+  const bool dynamic_strips = cmd.balance == StripBalance::Dynamic;
   if (dynamic_strips && !has_movable_strips(opt.pipeline))
     throw std::invalid_argument("--balance dynamic needs the proposed or mono pipeline (baseline already spreads path "
                                 "tracing over many shuffled strips and runs the rest on one device)");
@@ -223,8 +224,8 @@ int run_render(const RenderCommand& cmd) {
   }
   if (root)
     std::fprintf(stderr, "[render] %u frame(s), %ux%u per eye, %u spp, %u bounces, pipeline %s, denoise %s\n",
-                 cmd.frames, cmd.width, cmd.height, opt.trace.spp, opt.trace.bounces, cmd.pipeline.c_str(),
-                 opt.denoise ? ("SVGF, seams " + cmd.seams).c_str() : "off");
+                 cmd.frames, cmd.width, cmd.height, opt.trace.spp, opt.trace.bounces,
+                 cli_word(cmd.pipeline).c_str(), opt.denoise ? ("SVGF, seams " + cli_word(cmd.seams)).c_str() : "off");
   // Whether to render the next frame, and with what. Under MPI, rank 0 decides (its interrupt,
   // its control loop's quality, its balancer's strips) and every rank follows.
   auto next_frame_agreed = [&]() -> bool {
@@ -352,10 +353,10 @@ int run_render(const RenderCommand& cmd) {
     const FrameQuality& q = last_quality;
     std::printf("\n== render summary ==\n");
     std::printf("%s: pipeline %s, %d device(s) (%s%s), %ux%u per eye, %u spp, %u bounces, denoise %s%s\n",
-                scene.name.c_str(), cmd.pipeline.c_str(), all_devices, to_string(devices.mode()),
+                scene.name.c_str(), cli_word(cmd.pipeline).c_str(), all_devices, to_string(devices.mode()),
                 distributed ? (", " + std::to_string(cluster.size()) + " MPI ranks").c_str() : "", cmd.width,
                 cmd.height, q.spp, q.bounces,
-                opt.denoise ? ("SVGF " + std::to_string(q.svgf_iterations) + " iterations, seams " + cmd.seams).c_str()
+                opt.denoise ? ("SVGF " + std::to_string(q.svgf_iterations) + " iterations, seams " + cli_word(cmd.seams)).c_str()
                             : "off",
                 controller ? (" (last frame's; control loop " + cmd.target_ms + " ms)").c_str() : "");
     if (done > 1)

@@ -1,5 +1,7 @@
 #include "app/frame_report.h"
 
+#include "app/cli_enums.h"
+
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -53,7 +55,7 @@ void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode de
   const nlohmann::json r = {
       {"schema", "parallax-render-report/1"},
       {"scene", cmd_.scene},
-      {"pipeline", cmd_.pipeline},
+      {"pipeline", cli_word(cmd_.pipeline)},
       {"devices", devices},
       {"ranks", ranks_},
       {"device_mode", to_string(device_mode)},
@@ -62,8 +64,8 @@ void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode de
       {"spp", options_.trace.spp},
       {"bounces", options_.trace.bounces},
       {"denoise", options_.denoise},
-      {"seams", cmd_.seams},
-      {"balance", cmd_.balance},
+      {"seams", cli_word(cmd_.seams)},
+      {"balance", cli_word(cmd_.balance)},
       {"target_ms", cmd_.target_ms.empty() ? nlohmann::json(nullptr) : nlohmann::json(cmd_.target_ms)},
       {"frames_requested", cmd_.frames},
       {"frames_done", totals.frames},

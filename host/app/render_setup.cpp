@@ -22,13 +22,12 @@ PipelineConfig make_pipeline_config(const RenderCommand& cmd) {
   if (!(cmd.fps > 0.0f)) throw std::invalid_argument("--fps must be positive");
   PipelineConfig cfg;
   auto& opt = cfg.options;
-  opt.pipeline = parse_pipeline(cmd.pipeline);
+  opt.pipeline = cmd.pipeline;
   opt.trace = cmd.trace;
-  opt.trace.light_sampling = parse_light_sampling(cmd.light_sampling);
   opt.exposure = cmd.exposure;
   opt.denoise = !cmd.no_denoise;
   opt.svgf = cmd.svgf;
-  opt.seams = parse_seam_mode(cmd.seams);
+  opt.seams = cmd.seams;
   // The control loop, when asked for: limits from the command line (the starting bounces and
   // iterations are the most it may use; spp may rise to --max-spp).
   if (!cmd.target_ms.empty()) {
