@@ -18,7 +18,6 @@ double median(std::vector<double> v) {
 }  // namespace
 
 PipelineConfig make_pipeline_config(const RenderCommand& cmd) {
-  if (cmd.trace.spp == 0) throw std::invalid_argument("--spp must be at least 1");
   if (!(cmd.fps > 0.0f)) throw std::invalid_argument("--fps must be positive");
   PipelineConfig cfg;
   auto& opt = cfg.options;

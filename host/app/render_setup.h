@@ -16,7 +16,8 @@
 namespace px {
 
 // The pipeline options and, with --target-ms, the control loop. Throws std::invalid_argument
-// for inconsistent flags (spp 0, bad window, ...).
+// for inconsistent flags (a bad --target-ms window, ...). The ranges of single flags
+// (--spp, --bounces) are checked where the flags are read (main.cpp) and again by the pipeline.
 struct PipelineConfig {
   StereoPipeline::Options options;
   std::optional<FrameTimeController> controller;
