@@ -10,15 +10,12 @@
 #include "control/strip_balancer.h"
 #include "image/image_io.h"
 #include "image/image_metrics.h"
-#include "io/atomic_file.h"
 #include "io/interrupt.h"
-#include "render/device_scene.h"
 #include "render/preview_renderer.h"
 #include "render/reference_render.h"
 #include "render/stereo_camera.h"
 #include "pipeline/stereo_pipeline.h"
 
-#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -89,6 +86,30 @@ void write_stereo(const OutputDir& dir, const std::string& prefix, const std::ar
   }
   write_png(dir.file(prefix + "stereo.png"), 2 * eyes[0].width, eyes[0].height,
             side_by_side(png[0], png[1], eyes[0].width, eyes[0].height));
+}
+
+// Frame `f` of `render`: per eye an EXR (unless --no-exr: `eyes` is then unused) and a PNG,
+// the side-by-side stereo PNG, and the video's next frame.
+void write_render_frame(const RenderCommand& cmd, const OutputDir& dir, unsigned f,
+                        const std::array<ImageRGB, 2>& eyes, const std::array<std::vector<std::uint8_t>, 2>& png,
+                        VideoWriter* video) {
+  const std::string prefix = frame_name(f, "");
+  const int w = static_cast<int>(cmd.width), h = static_cast<int>(cmd.height);
+  try {
+    for (int e = 0; e < 2; ++e) {
+      const std::string name = prefix + (e == 0 ? "left" : "right");
+      if (!cmd.no_exr) write_exr(dir.file(name + ".exr"), eyes[e]);
+      write_png(dir.file(name + ".png"), w, h, png[e]);
+    }
+    const auto stereo = side_by_side(png[0], png[1], w, h);
+    write_png(dir.file(prefix + "stereo.png"), 2 * w, h, stereo);
+    if (video) video->write_frame(stereo);
+  } catch (const ImageError& e) {
+    // Say what is usable: the frames before this one are complete.
+    throw std::runtime_error(std::string(e.what()) + " (frame " + std::to_string(f) + "; " +
+                             (f ? "frames 0-" + std::to_string(f - 1) + " in " + cmd.out + " are complete"
+                                : std::string("no frame was completed")) + ")");
+  }
 }
 
 }  // namespace
@@ -288,24 +309,7 @@ int run_render(const RenderCommand& cmd) {
       eyes = pipeline.radiance();
       require_finite(eyes, "frame " + std::to_string(f));
     }
-    auto png = pipeline.rgba8();
-    const std::string prefix = frame_name(f, "");
-    const int w = static_cast<int>(cmd.width), h = static_cast<int>(cmd.height);
-    try {
-      for (int e = 0; e < 2; ++e) {
-        const std::string name = prefix + (e == 0 ? "left" : "right");
-        if (!cmd.no_exr) write_exr(out_dir->file(name + ".exr"), eyes[e]);
-        write_png(out_dir->file(name + ".png"), w, h, png[e]);
-      }
-      const auto stereo = side_by_side(png[0], png[1], w, h);
-      write_png(out_dir->file(prefix + "stereo.png"), 2 * w, h, stereo);
-      if (video) video->write_frame(stereo);
-    } catch (const ImageError& e) {
-      // Say what is usable: the frames before this one are complete.
-      throw std::runtime_error(std::string(e.what()) + " (frame " + std::to_string(f) + "; " +
-                               (f ? "frames 0-" + std::to_string(f - 1) + " in " + cmd.out + " are complete"
-                                  : std::string("no frame was completed")) + ")");
-    }
+    write_render_frame(cmd, *out_dir, f, eyes, pipeline.rgba8(), video ? &*video : nullptr);
     done = f + 1;
     summary.add(st);
     totals.add(st);
