@@ -1,7 +1,7 @@
 // The words the command line accepts for each enum-valued flag, and the word of each value.
 // main.cpp turns the words into enums once, as it reads the flags (app/commands.h holds the
-// enums); reports and summaries print the same words back. The benches read their flags with
-// the same tables.
+// enums); reports and summaries print the same words back. A bench that takes one of these
+// flags is to read it with the same tables.
 #pragma once
 
 #include "app/commands.h"

@@ -46,7 +46,7 @@ struct RenderCommand {
   unsigned frames = 1;
   float fps = 30.0f;           // camera-path time of frame f is f / fps
   float exposure = 1.0f;       // PNG preview scale
-  PathTracer::Options trace;  // light_sampling included
+  PathTracer::Options trace;   // --spp, --bounces, --light-sampling, ...
   std::string out = "out/render";
   bool overwrite = false;
   bool explain = false;        // print the schedule (stage x device workload pairs, tree)
