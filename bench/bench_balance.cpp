@@ -79,10 +79,11 @@ int main(int argc, char** argv) {
     csv << '\n';
   }
   return px::run_guarded([&]() -> int {
-    auto loaded = px::load_and_build(scene);
-    auto set = px::DeviceSet::create({devices, px::DeviceMode::Auto, ""});
+    px::SceneOnDevices on_devices(scene, {devices, px::DeviceMode::Auto, ""});
+    const px::LoadedScene& loaded = on_devices.loaded;
+    px::DeviceSet& set = on_devices.devices;
+    const px::DeviceScene& ds = on_devices.device_scene;
     std::fprintf(stderr, "[bench] %s: %d devices (%s)\n", scene.c_str(), set.size(), px::to_string(set.mode()));
-    px::DeviceScene ds(set, loaded.scene, loaded.bvh);
     px::StereoPipeline::Options opt;
     opt.trace.spp = spp;
     opt.trace.bounces = bounces;

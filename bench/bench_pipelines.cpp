@@ -85,14 +85,15 @@ int main(int argc, char** argv) {
   }
   return px::run_guarded([&]() -> int {
     for (const auto& name : scenes) {
-      auto loaded = px::load_and_build(name);
-      auto set = px::DeviceSet::create({devices, px::DeviceMode::Auto, ""});
+      px::SceneOnDevices on_devices(name, {devices, px::DeviceMode::Auto, ""});
+      const px::Scene& scene = on_devices.loaded.scene;
+      px::DeviceSet& set = on_devices.devices;
+      const px::DeviceScene& ds = on_devices.device_scene;
       std::fprintf(stderr, "[bench] %s: %d devices (%s)\n", name.c_str(), set.size(), px::to_string(set.mode()));
-      px::DeviceScene ds(set, loaded.scene, loaded.bvh);
 
       std::array<px::ImageRGB, 2> reference;
       if (ref_spp > 0) {
-        px::PathTracer tracer(set, ds, loaded.scene);
+        px::PathTracer tracer(set, ds, scene);
         px::ReferenceOptions ref_opt;
         ref_opt.spp = ref_spp;
         ref_opt.bounces = bounces;
@@ -105,7 +106,7 @@ int main(int argc, char** argv) {
         opt.pipeline = kind;
         opt.trace.spp = spp;
         opt.trace.bounces = bounces;
-        px::StereoPipeline pipeline(set, ds, loaded.scene, width, height, opt);
+        px::StereoPipeline pipeline(set, ds, scene, width, height, opt);
         PipelineResult r;
         r.name = px::to_string(kind);
         r.owner = pipeline.schedule().tree.root;

@@ -87,13 +87,12 @@ int main(int argc, char** argv) {
   }
 
   return px::run_guarded([&]() -> int {
-    auto loaded = px::load_and_build(scene);
+    const px::LoadedScene loaded = px::load_and_build(scene);
     // references[f]: converged image of frame f (only the last one without --per-frame-csv).
     std::vector<std::array<px::ImageRGB, 2>> references(frames);
     {
-      auto set = px::DeviceSet::create({devices, px::DeviceMode::Auto, ""});
-      px::DeviceScene ds(set, loaded.scene, loaded.bvh);
-      px::PathTracer tracer(set, ds, loaded.scene);
+      px::SceneOnDevices on_devices(loaded, {devices, px::DeviceMode::Auto, ""});
+      px::PathTracer tracer(on_devices.devices, on_devices.device_scene, on_devices.loaded.scene);
       px::ReferenceOptions ro;
       ro.spp = ref_spp;
       ro.bounces = bounces;
@@ -147,15 +146,16 @@ int main(int argc, char** argv) {
                               {"bilateral", devices, px::SeamMode::Bilateral},
                               {"halo", devices, px::SeamMode::Halo}};
     for (const Config& c : configs) {
-      auto set = px::DeviceSet::create({c.devices, px::DeviceMode::Auto, ""});
-      px::DeviceScene ds(set, loaded.scene, loaded.bvh);
+      // Fresh devices for every mode (the scene is loaded once and copied).
+      px::SceneOnDevices on_devices(loaded, {c.devices, px::DeviceMode::Auto, ""});
       px::StereoPipeline::Options opt;
       opt.pipeline = px::PipelineKind::Proposed;
       opt.trace.spp = spp;
       opt.trace.bounces = bounces;
       opt.seams = c.mode;
       opt.svgf.iterations = iterations;
-      px::StereoPipeline pipeline(set, ds, loaded.scene, width, height, opt);
+      px::StereoPipeline pipeline(on_devices.devices, on_devices.device_scene, on_devices.loaded.scene, width, height,
+                                  opt);
       ModeResult r;
       r.name = c.name;
       r.devices = c.devices;

@@ -7,9 +7,7 @@
 #include "app/guarded_main.h"
 #include "app/scene_setup.h"
 #include "bench_common.h"
-#include "cl/device_set.h"
 #include "image/image_metrics.h"
-#include "render/device_scene.h"
 #include "render/path_tracer.h"
 #include "render/reference_render.h"
 
@@ -51,10 +49,8 @@ int main(int argc, char** argv) {
   std::vector<Row> rows;
   const int rc = px::run_guarded([&]() -> int {
     for (const auto& name : scenes) {
-      auto loaded = px::load_and_build(name);
-      auto set = px::DeviceSet::create({devices, px::DeviceMode::Auto, ""});
-      px::DeviceScene ds(set, loaded.scene, loaded.bvh);
-      px::PathTracer tracer(set, ds, loaded.scene);
+      px::SceneOnDevices on_devices(name, {devices, px::DeviceMode::Auto, ""});
+      px::PathTracer tracer(on_devices.devices, on_devices.device_scene, on_devices.loaded.scene);
       px::PathTracer::Options opt;
       opt.bounces = bounces;
       px::ReferenceOptions ref_opt;

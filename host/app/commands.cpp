@@ -1,5 +1,7 @@
 #include "app/commands.h"
 
+#include "app/cli_enums.h"
+#include "app/frame_report.h"
 #include "app/output_dir.h"
 #include "app/render_setup.h"
 #include "app/scene_setup.h"
@@ -8,17 +10,12 @@
 #include "control/strip_balancer.h"
 #include "image/image_io.h"
 #include "image/image_metrics.h"
-#include "io/atomic_file.h"
 #include "io/interrupt.h"
-#include "render/device_scene.h"
 #include "render/preview_renderer.h"
 #include "render/reference_render.h"
 #include "render/stereo_camera.h"
 #include "pipeline/stereo_pipeline.h"
 
-#include <nlohmann/json.hpp>
-
-#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -91,13 +88,37 @@ void write_stereo(const OutputDir& dir, const std::string& prefix, const std::ar
             side_by_side(png[0], png[1], eyes[0].width, eyes[0].height));
 }
 
+// Frame `f` of `render`: per eye an EXR (unless --no-exr: `eyes` is then unused) and a PNG,
+// the side-by-side stereo PNG, and the video's next frame.
+void write_render_frame(const RenderCommand& cmd, const OutputDir& dir, unsigned f,
+                        const std::array<ImageRGB, 2>& eyes, const std::array<std::vector<std::uint8_t>, 2>& png,
+                        VideoWriter* video) {
+  const std::string prefix = frame_name(f, "");
+  const int w = static_cast<int>(cmd.width), h = static_cast<int>(cmd.height);
+  try {
+    for (int e = 0; e < 2; ++e) {
+      const std::string name = prefix + (e == 0 ? "left" : "right");
+      if (!cmd.no_exr) write_exr(dir.file(name + ".exr"), eyes[e]);
+      write_png(dir.file(name + ".png"), w, h, png[e]);
+    }
+    const auto stereo = side_by_side(png[0], png[1], w, h);
+    write_png(dir.file(prefix + "stereo.png"), 2 * w, h, stereo);
+    if (video) video->write_frame(stereo);
+  } catch (const ImageError& e) {
+    // Say what is usable: the frames before this one are complete.
+    throw std::runtime_error(std::string(e.what()) + " (frame " + std::to_string(f) + "; " +
+                             (f ? "frames 0-" + std::to_string(f - 1) + " in " + cmd.out + " are complete"
+                                : std::string("no frame was completed")) + ")");
+  }
+}
+
 }  // namespace
 
-DeviceSet DeviceChoice::create() const { return DeviceSet::create({count, parse_device_mode(mode), platform}); }
+DeviceOptions DeviceChoice::options() const { return {count, mode, platform}; }
 
 int run_devices(const DeviceChoice& choice) {
   std::printf("%s", describe_platforms().c_str());
-  auto set = choice.create();
+  auto set = DeviceSet::create(choice.options());
   std::printf("--devices %d gives (%s mode):\n", set.size(), to_string(set.mode()));
   for (const auto& d : set.devices()) std::printf("  %d: %s\n", d.index, d.description.c_str());
   return 0;
@@ -106,15 +127,13 @@ int run_devices(const DeviceChoice& choice) {
 int run_preview(const PreviewCommand& cmd) {
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite);
-  auto loaded = load_and_build(cmd.scene, false, cmd.sky);
-  auto devices = cmd.devices.create();
-  print_device_set(devices);
-  DeviceScene device_scene(devices, loaded.scene, loaded.bvh);
-  PreviewRenderer renderer(devices, device_scene);
+  SceneOnDevices on_devices(cmd.scene, cmd.devices.options(), false, cmd.sky);
+  print_device_set(on_devices.devices);
+  PreviewRenderer renderer(on_devices.devices, on_devices.device_scene);
   std::fprintf(stderr, "[preview] %ux%u per eye, t = %.2f s ...\n", cmd.width, cmd.height, cmd.time_s);
-  check_camera(loaded.scene, cmd.time_s, "preview");
+  check_camera(on_devices.loaded.scene, cmd.time_s, "preview");
   auto t0 = clock_type::now();
-  auto eyes = renderer.render(loaded.scene, cmd.time_s, cmd.width, cmd.height);
+  auto eyes = renderer.render(on_devices.loaded.scene, cmd.time_s, cmd.width, cmd.height);
   std::fprintf(stderr, "[preview] done in %.0f ms (first run includes kernel compilation)\n", ms_since(t0));
   require_finite(eyes, "preview");
   write_stereo(out_dir, "", eyes, 1.0f);
@@ -128,7 +147,7 @@ int run_render(const RenderCommand& cmd) {
   PipelineConfig config = make_pipeline_config(cmd);
   StereoPipeline::Options& opt = config.options;
   std::optional<FrameTimeController>& controller = config.controller;
-  const bool dynamic_strips = cmd.balance == "dynamic";
+  const bool dynamic_strips = cmd.balance == StripBalance::Dynamic;
   if (dynamic_strips && !has_movable_strips(opt.pipeline))
     throw std::invalid_argument("--balance dynamic needs the proposed or mono pipeline (baseline already spreads path "
                                 "tracing over many shuffled strips and runs the rest on one device)");
@@ -156,41 +175,34 @@ int run_render(const RenderCommand& cmd) {
     return 0;
   }
   install_interrupt_handlers();
-  // The report and the timeline are streamed frame by frame into their (temporary) files, so a
-  // long run holds no per-frame records: before, every command's span was kept as a JSON tree
-  // whether or not a timeline was asked for (~130 KB per frame with 2 denoising devices).
-  // Opening them now also refuses an unwritable path before any rendering.
+  // The report and the timeline are opened before anything renders, so that an unwritable path
+  // fails at once.
   std::optional<OutputDir> out_dir;
-  std::optional<AtomicFileWriter> report_file, timeline_file;
-  bool first_report_frame = true, first_trace_event = true;
-  std::optional<LoadedScene> loaded;
-  std::optional<DeviceSet> device_set;
-  std::optional<DeviceScene> device_scene;
+  std::optional<RenderReport> report;
+  std::optional<RenderTimeline> timeline;
+  std::optional<SceneOnDevices> on_devices;
   std::optional<StereoPipeline> pipeline_slot;
   std::optional<VideoWriter> video;
   auto setup = [&] {
     if (root) {
       out_dir.emplace(cmd.out, cmd.overwrite, is_render_frame_file);
-      if (!cmd.report.empty()) {
-        report_file.emplace(cmd.report);
-        report_file->write("{\n  \"frames\": [");
-      }
-      if (!cmd.timeline.empty()) timeline_file.emplace(cmd.timeline);
+      if (!cmd.report.empty()) report.emplace(cmd, opt, cluster.size());
+      if (!cmd.timeline.empty()) timeline.emplace(cmd.timeline);
       if (!cmd.video.empty()) video.emplace(cmd.video, 2 * cmd.width, cmd.height, cmd.fps);
     }
     // Every rank loads the scene itself (the scene is replicated, not sent).
-    loaded.emplace(load_and_build(cmd.scene, !root, cmd.sky));
-    device_set.emplace(cmd.devices.create());
-    if (root) print_device_set(*device_set);
+    on_devices.emplace(cmd.scene, cmd.devices.options(), !root, cmd.sky);
+    const DeviceSet& set = on_devices->devices;
+    if (root) print_device_set(set);
     // Queues sharing one device run on the same compute units: there is no per-device speed to
     // balance, and PoCL 3.1 can abort (pocl_release_dlhandle_cache) when such queues run
     // kernels whose launch sizes change from frame to frame.
-    if (dynamic_strips && device_set->mode() == DeviceMode::SharedQueues && device_set->size() > 1)
-      throw std::invalid_argument("--balance dynamic: the " + std::to_string(device_set->size()) +
+    if (dynamic_strips && set.mode() == DeviceMode::SharedQueues && set.size() > 1)
+      throw std::invalid_argument("--balance dynamic: the " + std::to_string(set.size()) +
                                   " devices are queues on one OpenCL device (it has fewer compute units than "
                                   "devices), so there is nothing to balance; use --balance static or fewer --devices");
-    device_scene.emplace(*device_set, loaded->scene, loaded->bvh);
-    pipeline_slot.emplace(*device_set, *device_scene, loaded->scene, cmd.width, cmd.height, opt);
+    pipeline_slot.emplace(on_devices->devices, on_devices->device_scene, on_devices->loaded.scene, cmd.width,
+                          cmd.height, opt);
   };
   if (!distributed) {
     setup();
@@ -218,7 +230,8 @@ int run_render(const RenderCommand& cmd) {
       std::fprintf(stderr, "[mpi] %d ranks x %d device(s) = %d devices; rank 0 owns the frame and writes the files\n",
                    cluster.size(), cmd.devices.count, pipeline_slot->layout().count());
   }
-  DeviceSet& devices = *device_set;
+  const DeviceSet& devices = on_devices->devices;
+  const Scene& scene = on_devices->loaded.scene;
   StereoPipeline& pipeline = *pipeline_slot;
   StageSummary summary;
   FrameQuality last_quality = pipeline.quality();  // the quality of the last frame rendered
@@ -233,8 +246,8 @@ int run_render(const RenderCommand& cmd) {
   }
   if (root)
     std::fprintf(stderr, "[render] %u frame(s), %ux%u per eye, %u spp, %u bounces, pipeline %s, denoise %s\n",
-                 cmd.frames, cmd.width, cmd.height, opt.trace.spp, opt.trace.bounces, cmd.pipeline.c_str(),
-                 opt.denoise ? ("SVGF, seams " + cmd.seams).c_str() : "off");
+                 cmd.frames, cmd.width, cmd.height, opt.trace.spp, opt.trace.bounces,
+                 cli_word(cmd.pipeline).c_str(), opt.denoise ? ("SVGF, seams " + cli_word(cmd.seams)).c_str() : "off");
   // Whether to render the next frame, and with what. Under MPI, rank 0 decides (its interrupt,
   // its control loop's quality, its balancer's strips) and every rank follows.
   auto next_frame_agreed = [&]() -> bool {
@@ -256,34 +269,12 @@ int run_render(const RenderCommand& cmd) {
     }
     return order[0] == 0;
   };
-  // Chrome trace events: one track (tid) per device, one slice per OpenCL command. Device
-  // clocks are made relative to the run's first command; devices that do not share a clock
-  // (separate GPUs) are only comparable within their own track.
-  // Events are gathered per frame and written with one write() (a frame has ~100 commands).
-  std::string trace_chunk;
-  auto trace_event = [&](const nlohmann::json& event) {
-    trace_chunk += first_trace_event ? "\n" : ",\n";
-    trace_chunk += event.dump();
-    first_trace_event = false;
-  };
-  auto flush_trace = [&] {
-    timeline_file->write(trace_chunk);
-    trace_chunk.clear();
-  };
-  std::uint64_t trace_origin = 0;
-  if (timeline_file) {
-    timeline_file->write("{\"displayTimeUnit\": \"ms\", \"traceEvents\": [");
-    for (int d = 0; d < devices.size(); ++d)
-      trace_event({{"name", "thread_name"}, {"ph", "M"}, {"pid", 0}, {"tid", d},
-                   {"args", {{"name", "device " + std::to_string(d) + ": " + devices.devices()[d].description}}}});
-    flush_trace();
-  }
-  double makespan_ms = 0.0, first_frame_ms = 0.0;
-  std::size_t reprojected = 0, right_pixels = 0, bytes = 0;
+  if (timeline) timeline->name_devices(devices);
+  RenderTotals totals;  // over the frames written (on rank 0)
   unsigned done = 0;
   // Every frame's camera is checked before the first is rendered: a bad one fails the run now.
   for (unsigned f = 0; f < cmd.frames; ++f)
-    check_camera(loaded->scene, static_cast<float>(f) / cmd.fps, "frame " + std::to_string(f));
+    check_camera(scene, static_cast<float>(f) / cmd.fps, "frame " + std::to_string(f));
   std::optional<double> predicted_ms;  // the control loop's prediction for the coming frame
   for (unsigned f = 0; f < cmd.frames; ++f) {
     if (!next_frame_agreed()) {
@@ -319,31 +310,10 @@ int run_render(const RenderCommand& cmd) {
       eyes = pipeline.radiance();
       require_finite(eyes, "frame " + std::to_string(f));
     }
-    auto png = pipeline.rgba8();
-    const std::string prefix = frame_name(f, "");
-    const int w = static_cast<int>(cmd.width), h = static_cast<int>(cmd.height);
-    try {
-      for (int e = 0; e < 2; ++e) {
-        const std::string name = prefix + (e == 0 ? "left" : "right");
-        if (!cmd.no_exr) write_exr(out_dir->file(name + ".exr"), eyes[e]);
-        write_png(out_dir->file(name + ".png"), w, h, png[e]);
-      }
-      const auto stereo = side_by_side(png[0], png[1], w, h);
-      write_png(out_dir->file(prefix + "stereo.png"), 2 * w, h, stereo);
-      if (video) video->write_frame(stereo);
-    } catch (const ImageError& e) {
-      // Say what is usable: the frames before this one are complete.
-      throw std::runtime_error(std::string(e.what()) + " (frame " + std::to_string(f) + "; " +
-                               (f ? "frames 0-" + std::to_string(f - 1) + " in " + cmd.out + " are complete"
-                                  : std::string("no frame was completed")) + ")");
-    }
+    write_render_frame(cmd, *out_dir, f, eyes, pipeline.rgba8(), video ? &*video : nullptr);
     done = f + 1;
     summary.add(st);
-    if (f == 0) first_frame_ms = st.wall_ms;
-    makespan_ms += st.wall_ms;
-    reprojected += st.reprojected;
-    right_pixels += st.right_pixels;
-    bytes += st.bytes_transferred;
+    totals.add(st);
     std::fprintf(stderr, "[render] frame %u/%u: %.0f ms%s, %.1f%% of the right eye reprojected", f + 1, cmd.frames,
                  st.wall_ms, f == 0 ? " (includes kernel compilation)" : "",
                  st.right_pixels ? 100.0 * st.reprojected / st.right_pixels : 0.0);
@@ -358,91 +328,27 @@ int run_render(const RenderCommand& cmd) {
       std::fprintf(stderr, " rows");
     }
     std::fputc('\n', stderr);
-    if (timeline_file) {
-      if (trace_origin == 0 && !st.spans.empty())
-        trace_origin = std::min_element(st.spans.begin(), st.spans.end(), [](const StageSpan& a, const StageSpan& b) {
-                         return a.start_ns < b.start_ns;
-                       })->start_ns;
-      for (const auto& sp : st.spans) {
-        const double ts = (static_cast<double>(sp.start_ns) - static_cast<double>(trace_origin)) * 1e-3;
-        trace_event({{"name", stage_name(sp.stage)}, {"cat", "frame " + std::to_string(f)}, {"ph", "X"}, {"pid", 0},
-                     {"tid", sp.device}, {"ts", ts}, {"dur", static_cast<double>(sp.end_ns - sp.start_ns) * 1e-3}});
-      }
-      flush_trace();
-    }
-    if (report_file) {
-      nlohmann::json strip_rows = nlohmann::json::array();  // [row0, rows] per device
-      for (const RowRange& r : strips) strip_rows.push_back({r.begin, r.size()});
-      nlohmann::json stages = nlohmann::json::array();
-      for (const auto& s : st.stages)
-        stages.push_back({{"stage", static_cast<int>(s.stage)}, {"name", stage_name(s.stage)}, {"device", s.device},
-                          {"device_ms", s.ms}});
-      // One line per frame.
-      report_file->write((first_report_frame ? "\n    " : ",\n    ") +
-                         nlohmann::json{{"frame", f}, {"wall_ms", st.wall_ms}, {"stages", stages},
-                                        {"right_pixels", st.right_pixels}, {"reprojected", st.reprojected},
-                                        {"bytes_transferred", st.bytes_transferred}, {"strips", strip_rows},
-                                        {"mpi", distributed ? nlohmann::json{{"bytes_sent", st.mpi_bytes},
-                                                                             {"ms", st.mpi_ms}}
-                                                            : nlohmann::json(nullptr)},
-                                        {"spp", quality.spp},
-                                        {"bounces", quality.bounces},
-                                        {"svgf_iterations", opt.denoise ? quality.svgf_iterations : 0u},
-                                        {"predicted_ms", predicted_this_frame ? nlohmann::json(*predicted_this_frame)
-                                                                              : nlohmann::json(nullptr)}}
-                             .dump());
-      first_report_frame = false;
-    }
+    if (timeline) timeline->add_frame(f, st);
+    if (report) report->add_frame(f, st, strips, quality, predicted_this_frame);
     // Under MPI the next frame's agreement stops every rank together.
     if (!distributed && interrupted()) break;
   }
   if (!root) return 0;
-  // The first frame compiles the kernels (seconds on PoCL): Hz over the frames after it says
-  // what the pipeline sustains; with one frame there is nothing else to measure.
-  const unsigned hz_frames = done > 1 ? done - 1 : done;
-  const double hz_ms = done > 1 ? makespan_ms - first_frame_ms : makespan_ms;
-  const double hz = hz_ms > 0 ? 1000.0 * hz_frames / hz_ms : 0.0;
+  const double hz = totals.hz();
   if (pipeline.nonfinite_paths() > 0)
     std::fprintf(stderr, "[render] warning: %llu paths had non-finite radiance and were dropped\n",
                  static_cast<unsigned long long>(pipeline.nonfinite_paths()));
   const bool stopped = done < cmd.frames;
-  if (report_file) {
-    const nlohmann::json r = {{"schema", "parallax-render-report/1"},
-                        {"scene", cmd.scene},
-                        {"pipeline", cmd.pipeline},
-                        {"devices", all_devices},
-                        {"ranks", cluster.size()},
-                        {"device_mode", to_string(devices.mode())},
-                        {"width", cmd.width},
-                        {"height", cmd.height},
-                        {"spp", opt.trace.spp},
-                        {"bounces", opt.trace.bounces},
-                        {"denoise", opt.denoise},
-                        {"seams", cmd.seams},
-                        {"balance", cmd.balance},
-                        {"target_ms", cmd.target_ms.empty() ? nlohmann::json(nullptr) : nlohmann::json(cmd.target_ms)},
-                        {"frames_requested", cmd.frames},
-                        {"frames_done", done},
-                        {"interrupted", stopped},
-                        {"makespan_ms", makespan_ms},
-                        {"first_frame_ms", first_frame_ms},
-                        {"hz", hz},
-                        {"hz_frames", hz_frames},
-                        {"reprojected_share", right_pixels ? double(reprojected) / right_pixels : 0.0},
-                        {"bytes_transferred", bytes},
-                        {"nonfinite_paths", pipeline.nonfinite_paths()}};
-    // The summary's members follow the frames: "{\n  ...\n}" minus its opening brace.
-    report_file->write("\n  ],\n" + r.dump(2).substr(2) + "\n");
-    report_file->commit();
+  if (report) {
+    report->finish(totals, all_devices, devices.mode(), pipeline.nonfinite_paths());
     std::fprintf(stderr, "[render] report written to %s\n", cmd.report.c_str());
   }
   if (video) {
     video->commit();
     std::fprintf(stderr, "[render] video written to %s\n", cmd.video.c_str());
   }
-  if (timeline_file) {
-    timeline_file->write("\n]}\n");
-    timeline_file->commit();
+  if (timeline) {
+    timeline->finish();
     std::fprintf(stderr, "[render] timeline written to %s (open in chrome://tracing or ui.perfetto.dev)\n",
                  cmd.timeline.c_str());
   }
@@ -452,15 +358,15 @@ int run_render(const RenderCommand& cmd) {
     const FrameQuality& q = last_quality;
     std::printf("\n== render summary ==\n");
     std::printf("%s: pipeline %s, %d device(s) (%s%s), %ux%u per eye, %u spp, %u bounces, denoise %s%s\n",
-                loaded->scene.name.c_str(), cmd.pipeline.c_str(), all_devices, to_string(devices.mode()),
+                scene.name.c_str(), cli_word(cmd.pipeline).c_str(), all_devices, to_string(devices.mode()),
                 distributed ? (", " + std::to_string(cluster.size()) + " MPI ranks").c_str() : "", cmd.width,
                 cmd.height, q.spp, q.bounces,
-                opt.denoise ? ("SVGF " + std::to_string(q.svgf_iterations) + " iterations, seams " + cmd.seams).c_str()
+                opt.denoise ? ("SVGF " + std::to_string(q.svgf_iterations) + " iterations, seams " + cli_word(cmd.seams)).c_str()
                             : "off",
                 controller ? (" (last frame's; control loop " + cmd.target_ms + " ms)").c_str() : "");
     if (done > 1)
       std::printf("%.1f Hz over frames 1-%u (frame 0 took %.0f ms: it includes kernel compilation)\n", hz, done - 1,
-                  first_frame_ms);
+                  totals.first_frame_ms);
     else
       std::printf("%.1f Hz (one frame, including kernel compilation)\n", hz);
     std::printf("median device time per stage%s:\n%s", done > 1 ? " (frames after the first)" : "",
@@ -472,8 +378,8 @@ int run_render(const RenderCommand& cmd) {
     }
     std::printf("files:\n  %s/frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png (NNNN = 0000-%04u)\n",
                 cmd.out.c_str(), eye_files, done - 1);
-    if (report_file) std::printf("  report:   %s\n", cmd.report.c_str());
-    if (timeline_file) std::printf("  timeline: %s\n", cmd.timeline.c_str());
+    if (report) std::printf("  report:   %s\n", cmd.report.c_str());
+    if (timeline) std::printf("  timeline: %s\n", cmd.timeline.c_str());
     if (video) std::printf("  video:    %s (left | right, %g fps)\n", cmd.video.c_str(), double(cmd.fps));
     std::printf("\n");
   }
@@ -481,7 +387,7 @@ int run_render(const RenderCommand& cmd) {
     std::printf("interrupted by %s after %u of %u frame(s): wrote frames 0-%u to %s "
                 "(frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png), every file complete%s\n",
                 interrupt_signal_name(), done, cmd.frames, done - 1, cmd.out.c_str(), eye_files,
-                report_file ? "; the report covers those frames" : "");
+                report ? "; the report covers those frames" : "");
     return interrupt_exit_code();
   }
   std::printf("wrote %u frame(s) to %s (frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png); %.1f Hz %s\n",
@@ -496,16 +402,15 @@ int run_render(const RenderCommand& cmd) {
 int run_reference(const ReferenceCommand& cmd) {
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite);
-  auto loaded = load_and_build(cmd.scene, false, cmd.sky);
-  auto devices = cmd.devices.create();
-  print_device_set(devices);
-  DeviceScene device_scene(devices, loaded.scene, loaded.bvh);
-  PathTracer tracer(devices, device_scene, loaded.scene);
+  SceneOnDevices on_devices(cmd.scene, cmd.devices.options(), false, cmd.sky);
+  print_device_set(on_devices.devices);
+  const Scene& scene = on_devices.loaded.scene;
+  PathTracer tracer(on_devices.devices, on_devices.device_scene, scene);
   ReferenceOptions opt;
   opt.spp = cmd.spp;
   opt.pass_spp = cmd.pass_spp;
   opt.bounces = cmd.bounces;
-  check_camera(loaded.scene, static_cast<float>(cmd.frame) / cmd.fps, "reference frame " + std::to_string(cmd.frame));
+  check_camera(scene, static_cast<float>(cmd.frame) / cmd.fps, "reference frame " + std::to_string(cmd.frame));
   // Ctrl-C stops after the pass in flight and writes the average of the passes done.
   opt.stop = [] { return interrupted(); };
   unsigned spp_done = 0;

@@ -1,10 +1,12 @@
-// The subcommands of the parallax binary. main.cpp parses flags into these option structs;
-// each run_* function does the work, prints progress on stderr and results on stdout, and
-// throws on failure (main turns that into a message and exit code 1).
+// The subcommands of the parallax binary. main.cpp parses flags into these option structs
+// (words become enums there, through app/cli_enums.h); each run_* function does the work,
+// prints progress on stderr and results on stdout, and throws on failure (main turns that into
+// a message and exit code 1).
 #pragma once
 
 #include "cl/device_set.h"
-#include "pipeline/stages/svgf_denoiser.h"
+#include "pipeline/stereo_pipeline.h"
+#include "pipeline/strip_schedule.h"
 #include "render/path_tracer.h"
 #include "scene/scene_loader.h"
 
@@ -14,9 +16,9 @@ namespace px {
 
 struct DeviceChoice {
   int count = 1;
-  std::string mode = "auto";
+  DeviceMode mode = DeviceMode::Auto;
   std::string platform;
-  DeviceSet create() const;
+  DeviceOptions options() const;
 };
 
 struct PreviewCommand {
@@ -29,29 +31,34 @@ struct PreviewCommand {
   DeviceChoice devices;
 };
 
+// How strip boundaries between devices are chosen (render --balance).
+enum class StripBalance {
+  Static,   // an even split, kept
+  Dynamic,  // moved between frames toward equal measured device time
+};
+
 struct RenderCommand {
   std::string scene = "cornell";
   SkyMode sky = SkyMode::kAuto;  // light for scenes without any (see load_scene)
-  std::string pipeline = "proposed";
+  PipelineKind pipeline = PipelineKind::Proposed;
   unsigned width = 640, height = 360;
   unsigned frames = 1;
   float fps = 30.0f;           // camera-path time of frame f is f / fps
   float exposure = 1.0f;       // PNG preview scale
-  PathTracer::Options trace;
-  std::string light_sampling = "mis";
+  PathTracer::Options trace;   // --spp, --bounces, --light-sampling, ...
   std::string out = "out/render";
   bool overwrite = false;
   bool explain = false;        // print the schedule (stage x device workload pairs, tree)
   bool no_denoise = false;
   bool no_exr = false;         // PNGs only: finished strips travel as RGBA8 alone
   SvgfDenoiser::Options svgf;
-  std::string seams = "halo";
+  SeamMode seams = SeamMode::Halo;
   std::string report;          // JSON report path ("" = none)
   std::string timeline;        // Chrome trace / Perfetto JSON path ("" = none)
   std::string video;           // left|right side by side through ffmpeg ("" = none)
   std::string target_ms;       // control-loop window "LO:HI" ("" = off: fixed quality)
   unsigned max_spp = 64;       // control loop: the most spp it may raise to
-  std::string balance = "static";  // "dynamic": strip boundaries follow the measured device times
+  StripBalance balance = StripBalance::Static;
   unsigned balance_step = 8;   // dynamic balance: most rows a boundary moves per frame
   DeviceChoice devices;
 };

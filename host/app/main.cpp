@@ -1,5 +1,6 @@
 // parallax command line: parses flags into the command structs of app/commands.h and runs
 // one. No rendering logic lives here.
+#include "app/cli_enums.h"
 #include "app/commands.h"
 #include "app/guarded_main.h"
 #include "cluster/cluster.h"
@@ -10,15 +11,30 @@
 
 namespace {
 
+// A flag that takes one of the words of `words` (app/cli_enums.h) and stores the enum value it
+// stands for; the help lists the words in the table's order and shows the word of `value`'s
+// starting value as the default, as it does for a text flag.
+template <typename Enum>
+CLI::Option* add_word_option(CLI::App* cmd, const std::string& name, Enum& value, const px::WordTable<Enum>& words,
+                             const std::string& help) {
+  // transform() puts each validator before those added earlier, so IsMember runs first: an
+  // unknown word is refused with the words accepted ("--seams: wobbly not in {halo,...}"),
+  // not with CheckedTransformer's message, which lists the enum's numbers too. A known word is
+  // then turned into the value; the transformer's own description stays out of the help.
+  return cmd->add_option(name, value, help)
+      ->type_name("TEXT")
+      ->transform(CLI::CheckedTransformer(words).description(""))
+      ->transform(CLI::IsMember(words))
+      ->default_str(px::cli_word(value));
+}
+
 void add_device_flags(CLI::App* cmd, px::DeviceChoice& d) {
   cmd->add_option("--devices", d.count, "number of OpenCL devices the frame is split across")
       ->check(CLI::Range(1, 64))
       ->capture_default_str();
-  cmd->add_option("--device-mode", d.mode,
+  add_word_option(cmd, "--device-mode", d.mode, px::device_mode_words(),
                   "how N devices are made: auto (sub-devices of one CPU/GPU while it has enough compute "
-                  "units, else the platform's devices, else N queues on one device), subdevices, platform, queues")
-      ->check(CLI::IsMember({"auto", "subdevices", "platform", "queues"}))
-      ->capture_default_str();
+                  "units, else the platform's devices, else N queues on one device), subdevices, platform, queues");
   cmd->add_option("--platform", d.platform,
                   "substring of the OpenCL platform name (default: $PARALLAX_PLATFORM, else the first platform "
                   "with a GPU, else the first)");
@@ -33,16 +49,10 @@ const char* kSceneHelp = "scene: a JSON scene file (scenes/*.json), an OBJ, glTF
                          "file, or a built-in name (cornell, cornell-glossy, atrium)";
 
 void add_sky_flag(CLI::App* cmd, px::SkyMode& sky) {
-  cmd->add_option_function<std::string>(
-         "--sky",
-         [&sky](const std::string& v) {
-           sky = v == "on" ? px::SkyMode::kOn : v == "off" ? px::SkyMode::kOff : px::SkyMode::kAuto;
-         },
-         "default sky environment: auto (only for a scene without any light: no emitter, sun or sky), "
-         "on (also beside the scene's own lights, unless it has a sky), off (never; an unlit scene "
-         "renders black)")
-      ->check(CLI::IsMember({"auto", "on", "off"}))
-      ->default_str("auto");
+  add_word_option(cmd, "--sky", sky, px::sky_words(),
+                  "default sky environment: auto (only for a scene without any light: no emitter, sun or sky), "
+                  "on (also beside the scene's own lights, unless it has a sky), off (never; an unlit scene "
+                  "renders black)");
 }
 
 // What `render` and `view` share: scene, size, pipeline, quality, denoising, the control loop
@@ -50,20 +60,16 @@ void add_sky_flag(CLI::App* cmd, px::SkyMode& sky) {
 void add_pipeline_flags(CLI::App* cmd, px::RenderCommand& r) {
   cmd->add_option("--scene", r.scene, kSceneHelp)->capture_default_str();
   add_sky_flag(cmd, r.sky);
-  cmd->add_option("--pipeline", r.pipeline,
+  add_word_option(cmd, "--pipeline", r.pipeline, px::pipeline_words(),
                   "proposed: every stage on every device for its strip; baseline: Tauray-style, path "
-                  "tracing distributed, the rest on the owner; mono: both eyes fully path traced")
-      ->check(CLI::IsMember({"mono", "proposed", "baseline"}))
-      ->capture_default_str();
+                  "tracing distributed, the rest on the owner; mono: both eyes fully path traced");
   add_size_flags(cmd, r.width, r.height);
   cmd->add_option("--fps", r.fps, "frame rate: frame f is at time f / fps on the camera path")->capture_default_str();
   cmd->add_option("--spp", r.trace.spp, "samples per pixel")->check(CLI::Range(1u, 1u << 20))->capture_default_str();
   cmd->add_option("--bounces", r.trace.bounces, "maximum path length in bounces")->check(CLI::Range(0u, px::PathTracer::kMaxBounces))->capture_default_str();
   cmd->add_option("--rr-start", r.trace.rr_start_bounce, "Russian roulette from this bounce on")->capture_default_str();
-  cmd->add_option("--light-sampling", r.light_sampling,
-                  "mis (NEE + BSDF sampling, power heuristic), nee (next-event only), bsdf (BSDF sampling only)")
-      ->check(CLI::IsMember({"mis", "nee", "bsdf"}))
-      ->capture_default_str();
+  add_word_option(cmd, "--light-sampling", r.trace.light_sampling, px::light_sampling_words(),
+                  "mis (NEE + BSDF sampling, power heuristic), nee (next-event only), bsdf (BSDF sampling only)");
   cmd->add_option("--seed", r.trace.seed, "seed of the sample streams")->capture_default_str();
   cmd->add_option("--exposure", r.exposure, "scale applied before the sRGB PNG encoding")->capture_default_str();
   cmd->add_flag("--no-denoise", r.no_denoise, "skip SVGF (stages 6-7): write the noisy images");
@@ -73,11 +79,9 @@ void add_pipeline_flags(CLI::App* cmd, px::RenderCommand& r) {
   cmd->add_option("--sigma-n", r.svgf.sigma_n, "SVGF normal edge-stopping exponent (paper 128, stereo paper 4)")->capture_default_str();
   cmd->add_option("--alpha", r.svgf.alpha, "temporal blend floor for colour")->check(CLI::Range(0.0f, 1.0f))->capture_default_str();
   cmd->add_option("--alpha-moments", r.svgf.alpha_moments, "temporal blend floor for moments")->check(CLI::Range(0.0f, 1.0f))->capture_default_str();
-  cmd->add_option("--seams", r.seams,
+  add_word_option(cmd, "--seams", r.seams, px::seam_mode_words(),
                   "strip borders when denoising: halo (exchange neighbour rows; N devices = 1 device), "
-                  "independent (each strip alone), bilateral (independent + seam-band filter)")
-      ->check(CLI::IsMember({"halo", "independent", "bilateral"}))
-      ->capture_default_str();
+                  "independent (each strip alone), bilateral (independent + seam-band filter)");
   cmd->add_option("--target-ms", r.target_ms,
                   "hold the stereo frame time inside LO:HI ms (the paper's window is 11:20) by tuning spp, "
                   "bounces and SVGF iterations between frames; --spp, --bounces and --svgf-iterations are "
@@ -127,11 +131,9 @@ int main(int argc, char** argv) {
   render_cmd->add_flag("--no-exr", render.no_exr,
                        "write PNGs only: finished strips then travel to the owner as RGBA8 alone (4 bytes a pixel "
                        "instead of 20; what a display needs, as in the paper)");
-  render_cmd->add_option("--balance", render.balance,
-                         "strip boundaries between devices: static (even split) or dynamic (moved between frames "
-                         "toward equal measured device time; images stay identical; proposed and mono pipelines)")
-      ->check(CLI::IsMember({"static", "dynamic"}))
-      ->capture_default_str();
+  add_word_option(render_cmd, "--balance", render.balance, px::balance_words(),
+                  "strip boundaries between devices: static (even split) or dynamic (moved between frames "
+                  "toward equal measured device time; images stay identical; proposed and mono pipelines)");
   render_cmd->add_option("--balance-step", render.balance_step,
                          "with --balance dynamic: the most rows a strip boundary moves per frame")
       ->check(CLI::Range(1u, 65535u))

@@ -6,12 +6,6 @@
 namespace px {
 namespace {
 
-DeviceSet create_devices(const DeviceChoice& choice) {
-  auto set = choice.create();
-  print_device_set(set);
-  return set;
-}
-
 double median(std::vector<double> v) {
   if (v.empty()) return 0.0;
   const std::size_t mid = v.size() / 2;
@@ -24,17 +18,15 @@ double median(std::vector<double> v) {
 }  // namespace
 
 PipelineConfig make_pipeline_config(const RenderCommand& cmd) {
-  if (cmd.trace.spp == 0) throw std::invalid_argument("--spp must be at least 1");
   if (!(cmd.fps > 0.0f)) throw std::invalid_argument("--fps must be positive");
   PipelineConfig cfg;
   auto& opt = cfg.options;
-  opt.pipeline = parse_pipeline(cmd.pipeline);
+  opt.pipeline = cmd.pipeline;
   opt.trace = cmd.trace;
-  opt.trace.light_sampling = parse_light_sampling(cmd.light_sampling);
   opt.exposure = cmd.exposure;
   opt.denoise = !cmd.no_denoise;
   opt.svgf = cmd.svgf;
-  opt.seams = parse_seam_mode(cmd.seams);
+  opt.seams = cmd.seams;
   // The control loop, when asked for: limits from the command line (the starting bounces and
   // iterations are the most it may use; spp may rise to --max-spp).
   if (!cmd.target_ms.empty()) {
@@ -56,10 +48,10 @@ void print_device_set(const DeviceSet& set) {
 }
 
 RenderSession::RenderSession(const RenderCommand& cmd, const StereoPipeline::Options& options)
-    : loaded(load_and_build(cmd.scene, false, cmd.sky)),
-      devices(create_devices(cmd.devices)),
-      device_scene(devices, loaded.scene, loaded.bvh),
-      pipeline(devices, device_scene, loaded.scene, cmd.width, cmd.height, options) {}
+    : SceneOnDevices(cmd.scene, cmd.devices.options(), false, cmd.sky),
+      pipeline(devices, device_scene, loaded.scene, cmd.width, cmd.height, options) {
+  print_device_set(devices);
+}
 
 std::map<Stage, double> slowest_device_ms(const FrameStats& stats) {
   std::map<Stage, double> out;

@@ -16,7 +16,8 @@
 namespace px {
 
 // The pipeline options and, with --target-ms, the control loop. Throws std::invalid_argument
-// for inconsistent flags (spp 0, bad window, ...).
+// for inconsistent flags (a bad --target-ms window, ...). The ranges of single flags
+// (--spp, --bounces) are checked where the flags are read (main.cpp) and again by the pipeline.
 struct PipelineConfig {
   StereoPipeline::Options options;
   std::optional<FrameTimeController> controller;
@@ -26,12 +27,9 @@ PipelineConfig make_pipeline_config(const RenderCommand& cmd);
 void print_device_set(const DeviceSet& set);
 
 // Scene, BVH, devices and the stereo pipeline of a RenderCommand, built in that order with
-// progress on stderr (members in dependency order: each refers to those before it).
-struct RenderSession {
+// progress on stderr (the pipeline refers to the scene and devices it is built on).
+struct RenderSession : SceneOnDevices {
   RenderSession(const RenderCommand& cmd, const StereoPipeline::Options& options);
-  LoadedScene loaded;
-  DeviceSet devices;
-  DeviceScene device_scene;
   StereoPipeline pipeline;
 };
 

@@ -83,4 +83,12 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
   return out;
 }
 
+SceneOnDevices::SceneOnDevices(const std::string& spec, const DeviceOptions& device_options, bool quiet, SkyMode sky)
+    : SceneOnDevices(load_and_build(spec, quiet, sky), device_options) {}
+
+SceneOnDevices::SceneOnDevices(LoadedScene scene, const DeviceOptions& device_options)
+    : loaded(std::move(scene)),
+      devices(DeviceSet::create(device_options)),
+      device_scene(devices, loaded.scene, loaded.bvh) {}
+
 }  // namespace px

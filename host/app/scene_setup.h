@@ -1,8 +1,11 @@
-// What every command does before it renders: load the scene, report what the loader repaired,
-// build and validate the BVH, all with progress on stderr.
+// What every command and bench does before it renders: load the scene, report what the loader
+// repaired, build and validate the BVH, all with progress on stderr; then make the devices and
+// upload the scene to them.
 #pragma once
 
 #include "bvh/flat_bvh.h"
+#include "cl/device_set.h"
+#include "render/device_scene.h"
 #include "scene/scene.h"
 #include "scene/scene_loader.h"
 
@@ -17,5 +20,22 @@ struct LoadedScene {
 
 // Throws SceneError / std::runtime_error with a user-facing message on failure.
 LoadedScene load_and_build(const std::string& spec, bool quiet = false, SkyMode sky = SkyMode::kAuto);
+
+// A scene on a set of devices: loaded and its BVH built (load_and_build), the devices made
+// (DeviceSet::create), the scene uploaded to every one of them. Members in dependency order;
+// built in place and never moved, since what renders on them refers to `devices` and
+// `device_scene`. Says nothing about the devices: callers print them as they see fit.
+struct SceneOnDevices {
+  SceneOnDevices(const std::string& spec, const DeviceOptions& device_options, bool quiet = false,
+                 SkyMode sky = SkyMode::kAuto);
+  // A scene loaded before: a bench that runs one scene on several device sets loads it once.
+  SceneOnDevices(LoadedScene scene, const DeviceOptions& device_options);
+  SceneOnDevices(const SceneOnDevices&) = delete;
+  SceneOnDevices& operator=(const SceneOnDevices&) = delete;
+
+  LoadedScene loaded;
+  DeviceSet devices;
+  DeviceScene device_scene;
+};
 
 }  // namespace px

@@ -20,15 +20,6 @@ const char* to_string(DeviceMode mode) {
   return "?";
 }
 
-DeviceMode parse_device_mode(const std::string& text) {
-  if (text == "auto") return DeviceMode::Auto;
-  if (text == "subdevices") return DeviceMode::SubDevices;
-  if (text == "platform") return DeviceMode::PlatformDevices;
-  if (text == "queues") return DeviceMode::SharedQueues;
-  throw std::invalid_argument("unknown device mode '" + text +
-                              "' (expected auto, subdevices, platform or queues)");
-}
-
 namespace {
 
 std::vector<cl::Platform> all_platforms() {

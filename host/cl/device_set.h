@@ -19,8 +19,6 @@ namespace px {
 enum class DeviceMode { Auto, SubDevices, PlatformDevices, SharedQueues };
 
 const char* to_string(DeviceMode mode);
-// Parses "auto", "subdevices", "platform", "queues"; throws std::invalid_argument.
-DeviceMode parse_device_mode(const std::string& text);
 
 struct DeviceOptions {
   int count = 1;

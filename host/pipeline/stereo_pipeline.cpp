@@ -11,13 +11,6 @@
 
 namespace px {
 
-SeamMode parse_seam_mode(const std::string& text) {
-  if (text == "independent") return SeamMode::Independent;
-  if (text == "bilateral") return SeamMode::Bilateral;
-  if (text == "halo") return SeamMode::Halo;
-  throw std::invalid_argument("unknown seam mode '" + text + "' (expected independent, bilateral or halo)");
-}
-
 StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene,
                                unsigned width, unsigned height, Options options)
     : devices_(devices),

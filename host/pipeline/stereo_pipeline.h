@@ -58,8 +58,6 @@ struct FrameStats {
   std::vector<double> mpi_ms;
 };
 
-SeamMode parse_seam_mode(const std::string& text);  // "independent", "bilateral", "halo"
-
 class StereoPipeline {
  public:
   struct Options {

@@ -16,13 +16,6 @@ const char* to_string(PipelineKind p) {
   return "?";
 }
 
-PipelineKind parse_pipeline(const std::string& text) {
-  if (text == "proposed") return PipelineKind::Proposed;
-  if (text == "baseline") return PipelineKind::Baseline;
-  if (text == "mono") return PipelineKind::Mono;
-  throw std::invalid_argument("unknown pipeline '" + text + "' (expected proposed, baseline or mono)");
-}
-
 std::vector<unsigned> strip_sizes(const std::vector<RowRange>& strips) {
   std::vector<unsigned> sizes;
   for (const RowRange& r : strips) sizes.push_back(r.size());

@@ -14,7 +14,6 @@ namespace px {
 
 enum class PipelineKind { Proposed, Baseline, Mono };
 const char* to_string(PipelineKind p);
-PipelineKind parse_pipeline(const std::string& text);  // "proposed", "baseline", "mono"
 
 struct Workload {
   double left = 0.0, right = 0.0;  // shares of each eye's rows, in [0, 1]

@@ -7,13 +7,6 @@
 
 namespace px {
 
-LightSampling parse_light_sampling(const std::string& text) {
-  if (text == "mis") return LightSampling::Mis;
-  if (text == "nee") return LightSampling::Nee;
-  if (text == "bsdf") return LightSampling::Bsdf;
-  throw std::invalid_argument("unknown light sampling '" + text + "' (expected mis, nee or bsdf)");
-}
-
 FrameParams PathTracer::frame_params(const Scene& scene, std::size_t light_count, const Options& options, int eye,
                                      unsigned row0, unsigned rows, std::uint32_t frame, std::uint32_t sample_offset) {
   FrameParams fp{};

@@ -15,7 +15,6 @@
 namespace px {
 
 enum class LightSampling : std::uint32_t { Mis = PX_LIGHTS_MIS, Nee = PX_LIGHTS_NEE, Bsdf = PX_LIGHTS_BSDF };
-LightSampling parse_light_sampling(const std::string& text);  // "mis", "nee", "bsdf"
 
 class PathTracer {
  public:

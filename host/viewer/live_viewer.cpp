@@ -1,5 +1,6 @@
 #include "viewer/live_viewer.h"
 
+#include "app/cli_enums.h"
 #include "app/commands.h"
 #include "app/render_setup.h"
 #include "image/image_io.h"
@@ -280,8 +281,8 @@ int run_view(const ViewCommand& cmd) {
   RenderSession session(cmd.render, config.options);
   const unsigned w = cmd.render.width, h = cmd.render.height;
   std::fprintf(stderr, "[view] %ux%u per eye, %u spp, %u bounces, pipeline %s, denoise %s%s\n", w, h,
-               config.options.trace.spp, config.options.trace.bounces, cmd.render.pipeline.c_str(),
-               config.options.denoise ? ("SVGF, seams " + cmd.render.seams).c_str() : "off",
+               config.options.trace.spp, config.options.trace.bounces, cli_word(cmd.render.pipeline).c_str(),
+               config.options.denoise ? ("SVGF, seams " + cli_word(cmd.render.seams)).c_str() : "off",
                cmd.frames ? (", " + std::to_string(cmd.frames) + " frame(s)").c_str() : "");
 
   // A plain OpenGL context (compatibility profile): buffer objects and framebuffer blits are GL 3.0.

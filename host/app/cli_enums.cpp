@@ -1,0 +1,61 @@
+#include "app/cli_enums.h"
+
+#include <stdexcept>
+
+namespace px {
+namespace {
+
+template <typename Enum>
+const std::string& word_of(const WordTable<Enum>& words, Enum value) {
+  for (const auto& [word, v] : words)
+    if (v == value) return word;
+  // Every value has a word: a value without one is an enum that grew without its table.
+  throw std::logic_error("internal error: an enum value has no command-line word");
+}
+
+}  // namespace
+
+const WordTable<PipelineKind>& pipeline_words() {
+  static const WordTable<PipelineKind> words{
+      {"mono", PipelineKind::Mono}, {"proposed", PipelineKind::Proposed}, {"baseline", PipelineKind::Baseline}};
+  return words;
+}
+
+const WordTable<SeamMode>& seam_mode_words() {
+  static const WordTable<SeamMode> words{
+      {"halo", SeamMode::Halo}, {"independent", SeamMode::Independent}, {"bilateral", SeamMode::Bilateral}};
+  return words;
+}
+
+const WordTable<LightSampling>& light_sampling_words() {
+  static const WordTable<LightSampling> words{
+      {"mis", LightSampling::Mis}, {"nee", LightSampling::Nee}, {"bsdf", LightSampling::Bsdf}};
+  return words;
+}
+
+const WordTable<DeviceMode>& device_mode_words() {
+  static const WordTable<DeviceMode> words{{"auto", DeviceMode::Auto},
+                                           {"subdevices", DeviceMode::SubDevices},
+                                           {"platform", DeviceMode::PlatformDevices},
+                                           {"queues", DeviceMode::SharedQueues}};
+  return words;
+}
+
+const WordTable<StripBalance>& balance_words() {
+  static const WordTable<StripBalance> words{{"static", StripBalance::Static}, {"dynamic", StripBalance::Dynamic}};
+  return words;
+}
+
+const WordTable<SkyMode>& sky_words() {
+  static const WordTable<SkyMode> words{{"auto", SkyMode::kAuto}, {"on", SkyMode::kOn}, {"off", SkyMode::kOff}};
+  return words;
+}
+
+const std::string& cli_word(PipelineKind value) { return word_of(pipeline_words(), value); }
+const std::string& cli_word(SeamMode value) { return word_of(seam_mode_words(), value); }
+const std::string& cli_word(LightSampling value) { return word_of(light_sampling_words(), value); }
+const std::string& cli_word(DeviceMode value) { return word_of(device_mode_words(), value); }
+const std::string& cli_word(StripBalance value) { return word_of(balance_words(), value); }
+const std::string& cli_word(SkyMode value) { return word_of(sky_words(), value); }
+
+}  // namespace px

@@ -1,0 +1,124 @@
+#include "app/frame_report.h"
+
+#include "app/cli_enums.h"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+
+namespace px {
+
+void RenderTotals::add(const FrameStats& stats) {
+  if (frames == 0) first_frame_ms = stats.wall_ms;
+  ++frames;
+  makespan_ms += stats.wall_ms;
+  reprojected += stats.reprojected;
+  right_pixels += stats.right_pixels;
+  bytes_transferred += stats.bytes_transferred;
+}
+
+double RenderTotals::hz() const {
+  const double ms = frames > 1 ? makespan_ms - first_frame_ms : makespan_ms;
+  return ms > 0 ? 1000.0 * hz_frames() / ms : 0.0;
+}
+
+RenderReport::RenderReport(const RenderCommand& cmd, const StereoPipeline::Options& options, int ranks)
+    : cmd_(cmd), options_(options), ranks_(ranks), file_(cmd.report) {
+  file_.write("{\n  \"frames\": [");
+}
+
+void RenderReport::add_frame(unsigned frame, const FrameStats& st, const std::vector<RowRange>& strips,
+                             const FrameQuality& quality, std::optional<double> predicted_ms) {
+  nlohmann::json strip_rows = nlohmann::json::array();  // [row0, rows] per device
+  for (const RowRange& r : strips) strip_rows.push_back({r.begin, r.size()});
+  nlohmann::json stages = nlohmann::json::array();
+  for (const auto& s : st.stages)
+    stages.push_back({{"stage", static_cast<int>(s.stage)}, {"name", stage_name(s.stage)}, {"device", s.device},
+                      {"device_ms", s.ms}});
+  // One line per frame.
+  file_.write((first_frame_ ? "\n    " : ",\n    ") +
+              nlohmann::json{{"frame", frame}, {"wall_ms", st.wall_ms}, {"stages", stages},
+                             {"right_pixels", st.right_pixels}, {"reprojected", st.reprojected},
+                             {"bytes_transferred", st.bytes_transferred}, {"strips", strip_rows},
+                             {"mpi", ranks_ > 1 ? nlohmann::json{{"bytes_sent", st.mpi_bytes}, {"ms", st.mpi_ms}}
+                                                : nlohmann::json(nullptr)},
+                             {"spp", quality.spp},
+                             {"bounces", quality.bounces},
+                             {"svgf_iterations", options_.denoise ? quality.svgf_iterations : 0u},
+                             {"predicted_ms", predicted_ms ? nlohmann::json(*predicted_ms) : nlohmann::json(nullptr)}}
+                  .dump());
+  first_frame_ = false;
+}
+
+void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode device_mode,
+                          std::uint64_t nonfinite_paths) {
+  const nlohmann::json r = {
+      {"schema", "parallax-render-report/1"},
+      {"scene", cmd_.scene},
+      {"pipeline", cli_word(cmd_.pipeline)},
+      {"devices", devices},
+      {"ranks", ranks_},
+      {"device_mode", to_string(device_mode)},
+      {"width", cmd_.width},
+      {"height", cmd_.height},
+      {"spp", options_.trace.spp},
+      {"bounces", options_.trace.bounces},
+      {"denoise", options_.denoise},
+      {"seams", cli_word(cmd_.seams)},
+      {"balance", cli_word(cmd_.balance)},
+      {"target_ms", cmd_.target_ms.empty() ? nlohmann::json(nullptr) : nlohmann::json(cmd_.target_ms)},
+      {"frames_requested", cmd_.frames},
+      {"frames_done", totals.frames},
+      {"interrupted", totals.frames < cmd_.frames},
+      {"makespan_ms", totals.makespan_ms},
+      {"first_frame_ms", totals.first_frame_ms},
+      {"hz", totals.hz()},
+      {"hz_frames", totals.hz_frames()},
+      {"reprojected_share", totals.right_pixels ? double(totals.reprojected) / totals.right_pixels : 0.0},
+      {"bytes_transferred", totals.bytes_transferred},
+      {"nonfinite_paths", nonfinite_paths}};
+  // The summary's members follow the frames: "{\n  ...\n}" minus its opening brace.
+  file_.write("\n  ],\n" + r.dump(2).substr(2) + "\n");
+  file_.commit();
+}
+
+RenderTimeline::RenderTimeline(const std::string& path) : file_(path) {}
+
+void RenderTimeline::event(const nlohmann::json& e) {
+  chunk_ += first_event_ ? "\n" : ",\n";
+  chunk_ += e.dump();
+  first_event_ = false;
+}
+
+void RenderTimeline::flush() {
+  file_.write(chunk_);
+  chunk_.clear();
+}
+
+void RenderTimeline::name_devices(const DeviceSet& devices) {
+  file_.write("{\"displayTimeUnit\": \"ms\", \"traceEvents\": [");
+  for (int d = 0; d < devices.size(); ++d)
+    event({{"name", "thread_name"}, {"ph", "M"}, {"pid", 0}, {"tid", d},
+           {"args", {{"name", "device " + std::to_string(d) + ": " + devices.devices()[d].description}}}});
+  flush();
+}
+
+void RenderTimeline::add_frame(unsigned frame, const FrameStats& st) {
+  if (origin_ns_ == 0 && !st.spans.empty())
+    origin_ns_ = std::min_element(st.spans.begin(), st.spans.end(), [](const StageSpan& a, const StageSpan& b) {
+                   return a.start_ns < b.start_ns;
+                 })->start_ns;
+  for (const auto& sp : st.spans) {
+    const double ts = (static_cast<double>(sp.start_ns) - static_cast<double>(origin_ns_)) * 1e-3;
+    event({{"name", stage_name(sp.stage)}, {"cat", "frame " + std::to_string(frame)}, {"ph", "X"}, {"pid", 0},
+           {"tid", sp.device}, {"ts", ts}, {"dur", static_cast<double>(sp.end_ns - sp.start_ns) * 1e-3}});
+  }
+  flush();
+}
+
+void RenderTimeline::finish() {
+  file_.write("\n]}\n");
+  file_.commit();
+}
+
+}  // namespace px
