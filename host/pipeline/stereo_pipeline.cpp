@@ -4,6 +4,8 @@
 #include "pipeline/stages/gbuffer_stage.h"
 #include "pipeline/stages/hole_fill_stage.h"
 #include "pipeline/stages/reproject_stage.h"
+#include "pipeline/stages/tonemap_stage.h"
+#include "pipeline/stages/transfer_stage.h"
 
 #include <algorithm>
 #include <chrono>
@@ -28,14 +30,15 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
     throw std::invalid_argument("image size must be between 1 and 65535 per side");
   for (int d = 0; d < layout_.count(); ++d)
     if (local(d)) images_[d] = FrameImages::allocate(devices.context(), width, height);
-  path_trace_ = std::make_unique<PathTraceStage>(env_, options.trace);
-  gbuffer_ = std::make_unique<GBufferStage>(env_);
-  reproject_ = std::make_unique<ReprojectStage>(env_);
-  hole_fill_ = std::make_unique<HoleFillStage>(env_, *path_trace_);
-  if (options.denoise) denoise_ = std::make_unique<DenoiseStage>(env_, denoise_options(options));
-  tonemap_ = std::make_unique<TonemapStage>(env_, TonemapStage::Options{options.exposure});
-  transfer_stage_ = std::make_unique<TransferStage>(
-      env_, TransferStage::Options{options.gather_radiance, options.denoise});
+  // The units, each registered for the stages it runs (adding a stage: its unit here, its row
+  // in the pipelines' tables).
+  path_trace_ = &add_unit<PathTraceStage>({Stage::PathTraceLeft, Stage::PathTraceRight}, options.trace);
+  add_unit<GBufferStage>({Stage::GBuffer});
+  add_unit<ReprojectStage>({Stage::Reproject});
+  add_unit<HoleFillStage>({Stage::HoleFill}, *path_trace_);
+  if (options.denoise) denoise_ = &add_unit<DenoiseStage>({Stage::Denoise}, denoise_options(options));
+  add_unit<TonemapStage>({Stage::Tonemap}, TonemapStage::Options{options.exposure});
+  add_unit<TransferStage>({Stage::Transfer}, TransferStage::Options{options.gather_radiance, options.denoise});
   for (const StageWork& w : schedule_.stages) unit(w.stage);  // every scheduled stage has a unit
   set_quality(quality());                                     // the one check of spp and bounces
 }
@@ -43,20 +46,9 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
 DenoiseStage::Options StereoPipeline::denoise_options(const Options& o) { return {o.svgf, o.seams, o.seam_band}; }
 
 StageUnit& StereoPipeline::unit(Stage stage) {
-  StageUnit* u = nullptr;
-  switch (stage) {
-    case Stage::PathTraceLeft:
-    case Stage::PathTraceRight: u = path_trace_.get(); break;
-    case Stage::GBuffer: u = gbuffer_.get(); break;
-    case Stage::Reproject: u = reproject_.get(); break;
-    case Stage::HoleFill: u = hole_fill_.get(); break;
-    case Stage::Denoise: u = denoise_.get(); break;
-    case Stage::Tonemap: u = tonemap_.get(); break;
-    case Stage::Transfer: u = transfer_stage_.get(); break;
-    default: break;
-  }
-  if (!u) throw std::logic_error(std::string("no unit runs the scheduled stage '") + stage_name(stage) + "'");
-  return *u;
+  const auto it = unit_of_.find(stage);
+  if (it == unit_of_.end()) throw std::logic_error(std::string("no unit runs the scheduled stage '") + stage_name(stage) + "'");
+  return *it->second;
 }
 
 unsigned StereoPipeline::gbuffer_margin(const FrameSchedule& schedule, const Options& options) {
@@ -130,10 +122,7 @@ FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
   transfer_.end_frame();
   // Stage 7: what a unit keeps for the next frame becomes the previous frame's (SVGF history
   // and G-buffer).
-  for (StageUnit* u : std::initializer_list<StageUnit*>{path_trace_.get(), gbuffer_.get(), reproject_.get(),
-                                                        hole_fill_.get(), denoise_.get(), tonemap_.get(),
-                                                        transfer_stage_.get()})
-    if (u) u->end_frame(in);
+  for (const auto& u : units_) u->end_frame(in);
 
   FrameStats stats;
   stats.frame = frame;

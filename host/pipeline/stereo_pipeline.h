@@ -16,13 +16,12 @@
 #include "pipeline/stages/denoise_stage.h"
 #include "pipeline/stages/path_trace_stage.h"
 #include "pipeline/stages/stage_unit.h"
-#include "pipeline/stages/tonemap_stage.h"
-#include "pipeline/stages/transfer_stage.h"
 #include "pipeline/strip_schedule.h"
 #include "render/device_scene.h"
 #include "render/stereo_camera.h"
 
 #include <array>
+#include <initializer_list>
 #include <map>
 #include <memory>
 #include <optional>
@@ -137,6 +136,15 @@ class StereoPipeline {
   // The unit that runs `stage`'s operations (std::logic_error if the schedule names a stage no
   // unit runs).
   StageUnit& unit(Stage stage);
+  // Builds a unit of type U (constructed from the pipeline's StageEnv and `args`) for `stages`.
+  template <typename U, typename... Args>
+  U& add_unit(std::initializer_list<Stage> stages, Args&&... args) {
+    auto unit = std::make_unique<U>(env_, std::forward<Args>(args)...);
+    U& ref = *unit;
+    for (Stage s : stages) unit_of_[s] = &ref;
+    units_.push_back(std::move(unit));
+    return ref;
+  }
 
   static DenoiseStage::Options denoise_options(const Options& options);
   bool local(int d) const { return layout_.is_local(d); }
@@ -153,12 +161,12 @@ class StereoPipeline {
   EventLog log_;
   RowTransfer transfer_;
   StageEnv env_;
-  // The stage units (only what the options need: no SVGF state without denoising).
-  std::unique_ptr<PathTraceStage> path_trace_;
-  std::unique_ptr<StageUnit> gbuffer_, reproject_, hole_fill_;
-  std::unique_ptr<DenoiseStage> denoise_;
-  std::unique_ptr<TonemapStage> tonemap_;
-  std::unique_ptr<TransferStage> transfer_stage_;
+  // The stage units (only what the options need: no SVGF state without denoising), the unit
+  // of each stage, and the two the control loop tunes.
+  std::vector<std::unique_ptr<StageUnit>> units_;
+  std::map<Stage, StageUnit*> unit_of_;
+  PathTraceStage* path_trace_ = nullptr;
+  DenoiseStage* denoise_ = nullptr;
   std::uint64_t nonfinite_total_ = 0;
 };
 
