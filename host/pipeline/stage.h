@@ -1,8 +1,9 @@
 // The stages of a stereo frame, numbered after the stereo paper's pipeline (1 scene update ...
 // 11 output) so reports and tables can be set beside its figures; 12 is ours (mono's full
-// right-eye trace). Stages 1, 7, 10 and 11 are host work in this renderer (the camera constants,
-// swapping last frame's buffers, the owner's image being whole once every strip arrived, the
-// file writes), so no schedule lists them and no device time is recorded under them.
+// right-eye trace). No schedule lists stages 1, 7, 10 and 11: stage 1 is the host computing the
+// cameras, 10 is the owner's image being whole once every strip arrived, 11 the file writes, and
+// stage 7 happens inside the denoise unit (its SVGF history copies are timed under stage 7, the
+// G-buffer becoming last frame's is a handle swap).
 #pragma once
 
 namespace px {
