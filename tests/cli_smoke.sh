@@ -15,6 +15,16 @@ check() {  # check NAME EXPECTED_RC PATTERN -- command...
   local out rc
   out="$("$@" 2>&1)"
   rc=$?
+  # Under the sanitizer build, LeakSanitizer's own tracer now and then crashes at process exit
+  # while it stops PoCL's worker threads ("Tracer caught signal 11 ... LeakSanitizer has
+  # encountered a fatal error"): the tool failed, it found nothing, and it turned the exit status
+  # into 1 after the program had finished. A leak or an ASan/UBSan finding reads differently and
+  # still fails. For such a run only the leak check is inconclusive: judge it by its output.
+  if [ "$rc" -ne 0 ] && [ "$want_rc" -eq 0 ] && grep -q "LeakSanitizer has encountered a fatal error" <<<"$out" &&
+     ! grep -qE "detected memory leaks|ERROR: AddressSanitizer|runtime error:" <<<"$out"; then
+    echo "note $name: LeakSanitizer's tracer crashed at exit (no finding); leak check inconclusive for this run"
+    rc=0
+  fi
   if [ "$rc" -ne "$want_rc" ] && { [ "$want_rc" -ne 1 ] || [ "$rc" -eq 0 ]; }; then
     echo "FAIL $name: exit $rc, expected $want_rc"; echo "$out" | tail -5; fails=$((fails + 1)); return
   fi
