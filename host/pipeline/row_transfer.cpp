@@ -47,7 +47,6 @@ void RowTransfer::exchange(const BufferOf& buffer, const std::vector<RowRange>& 
                            const std::vector<RowRange>& needed, std::size_t texel, const StagingOf& staging) {
   const int n = layout_.count();
   const std::size_t frame_bytes = static_cast<std::size_t>(width_) * height_ * texel;
-  static const cl::Buffer none;  // stands for another rank's buffer, which is never touched
   for (int d = 0; d < n; ++d) {
     if (needed[d].size() == 0) continue;
     for (int src = 0; src < n; ++src) {
@@ -56,7 +55,7 @@ void RowTransfer::exchange(const BufferOf& buffer, const std::vector<RowRange>& 
       if (a >= b) continue;
       const std::size_t off = static_cast<std::size_t>(a) * width_ * texel;
       const std::size_t len = static_cast<std::size_t>(b - a) * width_ * texel;
-      copy(src, local(src) ? buffer(src) : none, d, local(d) ? buffer(d) : none, off, len, staging(src), frame_bytes,
+      copy(src, local(src) ? buffer(src) : absent(), d, local(d) ? buffer(d) : absent(), off, len, staging(src), frame_bytes,
            off, true);
     }
   }

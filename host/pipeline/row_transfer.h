@@ -57,6 +57,13 @@ class RowTransfer {
   std::size_t bytes_this_frame() const { return bytes_; }
   void reset_bytes() { bytes_ = 0; }
 
+  // What a caller passes for a buffer of another rank's device, which has no buffer here (copy
+  // and exchange never touch it).
+  static const cl::Buffer& absent() {
+    static const cl::Buffer none;
+    return none;
+  }
+
   bool local(int d) const { return layout_.is_local(d); }
   cl::CommandQueue& queue(int d) { return devices_.devices()[layout_.local_index(d)].queue; }
 

@@ -122,10 +122,11 @@ void DenoiseStage::denoise_eye(int e, const std::vector<RowRange>& strip, const 
 
 void DenoiseStage::end_frame(const FrameInputs& in) {
   // This frame's G-buffers and SVGF history become the previous frame's.
-  for (auto& dev : dev_) {
+  for (std::size_t d = 0; d < dev_.size(); ++d) {
+    PerDevice& dev = dev_[d];
     if (!dev.svgf[0]) continue;  // another rank's device
     for (int e = 0; e < 2; ++e) {
-      std::swap(env_.images[&dev - dev_.data()].gbuffer[e], dev.gbuffer_prev[e]);
+      std::swap(env_.images[d].gbuffer[e], dev.gbuffer_prev[e]);
       dev.svgf[e]->end_frame();
     }
     dev.halo.readers.clear();

@@ -8,9 +8,8 @@ void ReprojectStage::run(const std::vector<const Operation*>& ops, const FrameIn
   for (const Operation* op : ops) {
     if (!env_.local(op->device)) continue;
     const FrameImages& f = env_.images[op->device];
-    auto& q = env_.queue(op->device);
-    const cl_uint zero = 0;
-    q.enqueueFillBuffer(f.hole_count, zero, 0, sizeof(cl_uint));
+    // The hole count starts at zero (FrameImages::zero_counters, earlier on this queue); one
+    // reprojection per device and frame appends to it.
     cl::Kernel k(env_.devices.program("pipeline/reproject.cl"), "reproject");
     k.setArg(0, f.radiance[1]);
     k.setArg(1, f.albedo[1]);
@@ -23,7 +22,7 @@ void ReprojectStage::run(const std::vector<const Operation*>& ops, const FrameIn
     k.setArg(8, static_cast<cl_uint>(op->rows.begin));
     k.setArg(9, static_cast<cl_uint>(op->rows.size()));
     k.setArg(10, in.cams[0]);
-    env_.log.record(Stage::Reproject, op->device, launch_1d(q, k, env_.pixels(op->rows)));
+    env_.log.record(Stage::Reproject, op->device, launch_1d(env_.queue(op->device), k, env_.pixels(op->rows)));
   }
 }
 

@@ -12,9 +12,8 @@ void TransferStage::run(const std::vector<const Operation*>& ops, const FrameInp
     const bool finished = op->payload == TransferPayload::FinishedImage;
     const std::size_t first = static_cast<std::size_t>(op->rows.begin) * env_.width, count = env_.pixels(op->rows);
     auto hop = [&](std::array<cl::Buffer, 2> FrameImages::*image, StagingBuffer& staging, std::size_t texel) {
-      static const cl::Buffer none;  // another rank's device: RowTransfer never touches it
-      const cl::Buffer& src = env_.local(from) ? (env_.images[from].*image)[e] : none;
-      const cl::Buffer& dst = env_.local(to) ? (env_.images[to].*image)[e] : none;
+      const cl::Buffer& src = env_.local(from) ? (env_.images[from].*image)[e] : RowTransfer::absent();
+      const cl::Buffer& dst = env_.local(to) ? (env_.images[to].*image)[e] : RowTransfer::absent();
       env_.transfer.copy(from, src, to, dst, first * texel, count * texel, staging, 2 * pixels * texel,
                          (static_cast<std::size_t>(e) * pixels + first) * texel, false);
     };
