@@ -3,6 +3,8 @@
 // with Embree and against the path tracer's own values), and hole bookkeeping.
 #include "app/scene_setup.h"
 #include "bvh/embree_reference.h"
+#include "cl/launch.h"
+#include "image/srgb_thresholds.h"
 #include "pipeline/stereo_pipeline.h"
 #include "pipeline/strip_schedule.h"
 #include "scene/primitives.h"
@@ -11,7 +13,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <set>
 
@@ -437,6 +441,63 @@ TEST(StereoPipeline, ReprojectionEqualsPathTracingInExpectation) {
   EXPECT_GT(blocks, 50);
   // Reprojection adds the left estimate's own noise and a half-pixel resampling blur.
   EXPECT_LT(diff, 3.0 * noise + 1e-7) << "noise floor " << noise << " over " << blocks << " blocks";
+}
+
+// ---- stage 8 ----
+
+TEST(Tonemap, BytesAreTheCorrectlyRoundedSrgbEncodingAndNonFinitePixelsAreCounted) {
+  // The kernel's threshold search against the sRGB curve written out here in double precision:
+  // every byte must be round(255 * srgb(exposure * c)), values on both sides of every step.
+  auto srgb = [](double c) {
+    c = std::clamp(c, 0.0, 1.0);
+    return c <= 0.0031308 ? 12.92 * c : 1.055 * std::pow(c, 1.0 / 2.4) - 0.055;
+  };
+  auto inverse = [](double v) { return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4); };
+  std::vector<float> values;
+  for (int k = 1; k < 256; ++k) {
+    const float edge = static_cast<float>(inverse((k - 0.5) / 255.0));
+    float c = edge;
+    for (int s = 0; s < 4; ++s) c = std::nextafter(c, 0.0f);
+    for (int s = 0; s < 9; ++s, c = std::nextafter(c, 2.0f)) values.push_back(c);
+  }
+  for (int i = 0; i <= 4000; ++i) values.push_back(1.5f * static_cast<float>(i) / 4000.0f);
+  for (float v : {-1.0f, -0.0f, 0.0f, 1e-9f, 1.0f, 1.0000001f, 7.0f, 3e38f}) values.push_back(v);
+  const std::size_t finite = values.size();
+  const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
+  std::vector<cl_float4> pixels;
+  for (std::size_t i = 0; i < finite; ++i) pixels.push_back({{values[i], values[(i + 7) % finite], values[(i * 13) % finite], 1.0f}});
+  pixels.push_back({{inf, 0.5f, 0.5f, 1.0f}});
+  pixels.push_back({{0.5f, nan, 0.5f, 1.0f}});
+  pixels.push_back({{0.5f, 0.5f, -inf, 1.0f}});
+
+  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  const auto& queue = set.devices()[0].queue;
+  const auto n = static_cast<cl_uint>(pixels.size());
+  const auto table = srgb8_thresholds();
+  cl::Buffer radiance(set.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, n * sizeof(cl_float4), pixels.data());
+  cl::Buffer thresholds(set.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, sizeof(table),
+                        const_cast<float*>(table.data()));
+  cl::Buffer rgba(set.context(), CL_MEM_WRITE_ONLY, n * sizeof(cl_uchar4));
+  cl_uint zero = 0;
+  cl::Buffer bad(set.context(), CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, sizeof(cl_uint), &zero);
+  for (float exposure : {1.0f, 0.37f}) {
+    cl::Kernel k(set.program("pipeline/tonemap.cl"), "tonemap");
+    k.setArg(0, rgba); k.setArg(1, radiance); k.setArg(2, cl_uint(0)); k.setArg(3, n);
+    k.setArg(4, exposure); k.setArg(5, bad); k.setArg(6, thresholds);
+    launch_1d(queue, k, n);
+    std::vector<cl_uchar4> out(n);
+    queue.enqueueReadBuffer(rgba, CL_TRUE, 0, n * sizeof(cl_uchar4), out.data());
+    for (std::size_t i = 0; i < finite; ++i)
+      for (int c = 0; c < 3; ++c) {
+        const double v = static_cast<double>(exposure * pixels[i].s[c]);  // the kernel's float product
+        ASSERT_EQ(int(out[i].s[c]), int(std::lround(255.0 * srgb(v)))) << "value " << pixels[i].s[c] << " x " << exposure;
+      }
+    for (std::size_t i = finite; i < n; ++i)
+      for (int c = 0; c < 3; ++c) EXPECT_EQ(int(out[i].s[c]), 0) << "non-finite pixel " << i << " is written black";
+  }
+  cl_uint counted = 0;
+  queue.enqueueReadBuffer(bad, CL_TRUE, 0, sizeof(cl_uint), &counted);
+  EXPECT_EQ(counted, 2u * 3u);
 }
 
 }  // namespace

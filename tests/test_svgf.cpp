@@ -14,6 +14,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <random>
 
 namespace px {
@@ -62,12 +63,15 @@ TEST(Svgf, AtrousMatchesHostImplementation) {
     t.material_class = moments[i].s[3] != 0.0f ? PX_CLASS_DIFFUSE : PX_CLASS_MISS;
     g[i] = t;
   }
+  int isolated = 0;  // pixels that took the loose normal weights (the fallback must be exercised)
+  // The usual integer normal exponent (squarings) and a fractional one (the pow path).
+  for (float sigma_n : {128.0f, 2.5f}) {
+  SCOPED_TRACE("sigma_n " + std::to_string(sigma_n));
   SvgfParams p{};
-  p.sigma_l = 4.0f; p.sigma_z = 1.0f; p.sigma_n = 128.0f;
+  p.sigma_l = 4.0f; p.sigma_z = 1.0f; p.sigma_n = sigma_n;
   p.width = w; p.height = h;
   p.row0 = 3; p.rows = 20;   // a strip in the middle
   p.lo_row = 0; p.hi_row = 26;  // readable rows: reads beyond must be skipped
-  int isolated = 0;  // pixels that took the loose normal weights (the fallback must be exercised)
   for (unsigned step : {1u, 2u, 4u}) {
     p.step = step;
     auto bi = upload(illum), bm = upload(moments), bg = upload(g);
@@ -107,7 +111,7 @@ TEST(Svgf, AtrousMatchesHostImplementation) {
         // Twice: with the normal exponent 128, and with the loose exponent that an isolated
         // pixel (others' total weight < PX_SVGF_ISOLATED x its own) falls back to.
         double ws = 0, vs = 0, cs[3] = {0, 0, 0};
-        for (double sigma_n : {128.0, double(PX_SVGF_LOOSE_SIGMA_N)}) {
+        for (double exponent : {double(sigma_n), std::min(double(sigma_n), double(PX_SVGF_LOOSE_SIGMA_N))}) {
           ws = vs = cs[0] = cs[1] = cs[2] = 0;
           for (int ky = -2; ky <= 2; ++ky)
             for (int kx = -2; kx <= 2; ++kx) {
@@ -118,7 +122,7 @@ TEST(Svgf, AtrousMatchesHostImplementation) {
               double wt = hk[kx + 2] * hk[ky + 2];
               if (kx || ky) {
                 const glm::dvec3 n1(g[j].normal[0], g[j].normal[1], g[j].normal[2]);
-                const double wn = std::pow(std::max(0.0, glm::dot(n0, n1)), sigma_n);
+                const double wn = std::pow(std::max(0.0, glm::dot(n0, n1)), exponent);
                 const double wz = std::exp(-std::abs(g[i].depth - g[j].depth) /
                                            (1.0 * std::abs(gx * kx * step + gy * ky * step) + 1e-3 * g[i].depth + 1e-6));
                 const double wl = std::exp(-std::abs(lum(illum[i]) - lum(illum[j])) / (4.0 * std::sqrt(std::max(0.0, var)) + 1e-6));
@@ -129,9 +133,9 @@ TEST(Svgf, AtrousMatchesHostImplementation) {
               for (int c = 0; c < 3; ++c) cs[c] += wt * illum[j].s[c];
             }
           const double centre = hk[2] * hk[2];
-          if (sigma_n == 128.0) {
+          if (exponent == double(sigma_n)) {
             if (ws - centre >= PX_SVGF_ISOLATED * centre) break;  // not isolated: the strict result stands
-            ++isolated;
+            if (sigma_n == 128.0f) ++isolated;
           }
         }
         for (int c = 0; c < 3; ++c)
@@ -139,7 +143,41 @@ TEST(Svgf, AtrousMatchesHostImplementation) {
         ASSERT_NEAR(got[i].s[3], vs / (ws * ws), 2e-4 * (1e-3 + vs / (ws * ws))) << "variance at " << x << "," << y;
       }
   }
+  }
   EXPECT_GT(isolated, 10);
+}
+
+TEST(Svgf, FilterExpMatchesDoublePrecisionExp) {
+  // px_exp (kernels/math/exp.h), the filters' weight function, over its whole range and the
+  // values around its edges.
+  std::vector<float> x;
+  for (int i = 0; i <= 200000; ++i) x.push_back(-87.0f + 175.0f * static_cast<float>(i) / 200000.0f);
+  for (float v : {0.0f, -0.0f, 1e-30f, -1e-30f, 0.3465736f, -0.3465736f, 1.0f, -1.0f, -86.99f, 87.99f})
+    x.push_back(v);
+  const std::size_t n_ranged = x.size();
+  const float inf = std::numeric_limits<float>::infinity();
+  for (float v : {-87.5f, -100.0f, -1e30f, -inf, 88.5f, 1e30f, inf, std::numeric_limits<float>::quiet_NaN()})
+    x.push_back(v);
+  const auto n = static_cast<cl_uint>(x.size());
+  auto in = upload(x);
+  cl::Buffer out(one_device().context(), CL_MEM_READ_WRITE, n * sizeof(float));
+  cl::Kernel k(one_device().program("testing/math_probe.cl"), "probe_exp");
+  k.setArg(0, out); k.setArg(1, in); k.setArg(2, n);
+  launch_1d(one_device().devices()[0].queue, k, n);
+  const auto got = download<float>(out, n);
+  double worst = 0.0;
+  for (std::size_t i = 0; i < n_ranged; ++i) {
+    const double want = std::exp(static_cast<double>(x[i]));
+    const double rel = std::abs(got[i] - want) / want;
+    worst = std::max(worst, rel);
+    ASSERT_LT(rel, 4e-7) << "exp(" << x[i] << ") = " << got[i] << ", want " << want;
+  }
+  std::printf("[ measure  ] px_exp: worst relative error %.3g over [-87, 88]\n", worst);
+  for (std::size_t i = n_ranged; i < n; ++i) {
+    if (std::isnan(x[i])) EXPECT_TRUE(std::isnan(got[i]));
+    else if (x[i] < 0.0f) EXPECT_EQ(got[i], 0.0f) << "exp(" << x[i] << ")";
+    else EXPECT_EQ(got[i], inf) << "exp(" << x[i] << ")";
+  }
 }
 
 // ---- synthetic scenes through the full filter ----

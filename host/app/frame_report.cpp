@@ -110,7 +110,8 @@ void RenderTimeline::add_frame(unsigned frame, const FrameStats& st) {
                  })->start_ns;
   for (const auto& sp : st.spans) {
     const double ts = (static_cast<double>(sp.start_ns) - static_cast<double>(origin_ns_)) * 1e-3;
-    event({{"name", stage_name(sp.stage)}, {"cat", "frame " + std::to_string(frame)}, {"ph", "X"}, {"pid", 0},
+    const std::string name = sp.pass ? std::string(stage_name(sp.stage)) + ": " + sp.pass : stage_name(sp.stage);
+    event({{"name", name}, {"cat", "frame " + std::to_string(frame)}, {"ph", "X"}, {"pid", 0},
            {"tid", sp.device}, {"ts", ts}, {"dur", static_cast<double>(sp.end_ns - sp.start_ns) * 1e-3}});
   }
   flush();

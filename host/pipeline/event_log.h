@@ -16,8 +16,11 @@ class EventLog {
     Stage stage;
     int device;
     cl::Event event;
+    const char* pass = nullptr;  // which pass of a multi-pass stage (a static string), or none
   };
-  void record(Stage stage, int device, const cl::Event& e) { entries_.push_back({stage, device, e}); }
+  void record(Stage stage, int device, const cl::Event& e, const char* pass = nullptr) {
+    entries_.push_back({stage, device, e, pass});
+  }
   const std::vector<Entry>& entries() const { return entries_; }
   void clear() { entries_.clear(); }
 

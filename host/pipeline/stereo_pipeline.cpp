@@ -131,7 +131,7 @@ FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
   for (const EventLog::Entry& entry : log_.entries()) {
     sums[{entry.stage, entry.device}] += event_ms(entry.event);
     stats.spans.push_back({entry.stage, entry.device, entry.event.getProfilingInfo<CL_PROFILING_COMMAND_START>(),
-                           entry.event.getProfilingInfo<CL_PROFILING_COMMAND_END>()});
+                           entry.event.getProfilingInfo<CL_PROFILING_COMMAND_END>(), entry.pass});
   }
   for (auto& [key, ms] : sums) stats.stages.push_back({key.first, key.second, ms});
   stats.right_pixels = static_cast<std::size_t>(width_) * height_;

@@ -40,6 +40,7 @@ struct StageSpan {
   Stage stage;
   int device;
   std::uint64_t start_ns, end_ns;
+  const char* pass = nullptr;  // EventLog::Entry::pass: the timeline names the slice by it
 };
 
 struct FrameStats {

@@ -18,6 +18,7 @@
 #include "shared/types.h"
 #include "render/camera.h"
 #include "scene/scene_view.h"
+#include "math/exp.h"
 
 inline float px_lum(float3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
 
@@ -132,25 +133,38 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
   out_moments[i] = (float4)(m, len, 1.0f);
 }
 
-/* c^k for an integer k >= 0 by repeated squaring: log2(k) multiplications (7 for the usual 128).
- * PoCL's pown is a library call costing about as much as a whole a-trous tap. */
-inline float px_pow_int(float c, uint k) {
-  float r = 1.0f;
-  while (k != 0u) {
-    if (k & 1u) r *= c;
-    c *= c;
-    k >>= 1;
+/* cos^sigma_n: the exponent is almost always an integer (128, 4...): a few multiplications,
+ * where pow is a log and an exp (PoCL's pown and pow are library calls costing about as much as
+ * a whole a-trous tap). */
+inline int px_integer_exponent(float sigma_n) { return sigma_n >= 0.0f && sigma_n <= 1024.0f && floor(sigma_n) == sigma_n; }
+
+/* (c^k1, c^k2) for integers k1, k2 <= 1024 by repeated squaring, one chain of squares for both:
+ * log2(max(k1, k2)) multiplications (7 for the usual 128 and 4). Squares below 1e-10 are
+ * flushed to zero: such a weight cannot change a sum whose centre weight is 0.14, and subnormal
+ * products cost x86 CPUs a microcode assist each. */
+inline float2 px_pow_int2(float c, uint k1, uint k2) {
+  float2 r = (float2)(1.0f, 1.0f);
+  while ((k1 | k2) != 0u) {
+    if (k1 & 1u) r.x *= c;
+    if (k2 & 1u) r.y *= c;
+    c = c < 1e-10f ? 0.0f : c * c;
+    k1 >>= 1;
+    k2 >>= 1;
   }
   return r;
 }
 
-/* cos^sigma_n: the exponent is almost always an integer (128, 4...): a few multiplications,
- * where pow is a log and an exp. */
-inline float px_normal_weight(float c, float sigma_n) {
+/* The general case, kept out of line so that the filters' inlined tap code stays small. */
+__attribute__((noinline)) float2 px_pow2(float c, float e1, float e2) { return (float2)(pow(c, e1), pow(c, e2)); }
+
+/* (cos^e1, cos^e2) for a cosine c (negative: 0). */
+inline float2 px_normal_weights(float c, float e1, float e2) {
   c = fmax(0.0f, c);
-  const uint k = (uint)sigma_n;
-  return sigma_n >= 0.0f && (float)k == sigma_n && k <= 1024u ? px_pow_int(c, k) : pow(c, sigma_n);
+  if (px_integer_exponent(e1) && px_integer_exponent(e2)) return px_pow_int2(c, (uint)e1, (uint)e2);
+  return px_pow2(c, e1, e2);
 }
+
+inline float px_normal_weight(float c, float sigma_n) { return px_normal_weights(c, sigma_n, sigma_n).x; }
 
 /* Exponent of the depth edge-stopping weight between centre (depth z, gradient grad per pixel)
  * and a tap at pixel offset (dx, dy): w_z = exp(-this). */
@@ -164,17 +178,18 @@ inline float px_geometry_weight_x(const global GBufferTexel* a, float3 n, float 
                                   const SvgfParams* p, float extra) {
   if (!px_filtered_class(a->material_class)) return 0.0f;
   return px_normal_weight(dot(n, px_load3(a->normal)), p->sigma_n) *
-         exp(-(px_depth_term(a->depth, z, grad, dx, dy, p) + extra));
+         px_exp(-(px_depth_term(a->depth, z, grad, dx, dy, p) + extra));
 }
 
 /* The same weight twice: (strict, loose) = with the normal exponent sigma_n and with the loose
  * one used for isolated pixels (see svgf_atrous), sharing the depth and luminance terms. */
-inline float2 px_geometry_weights(const global GBufferTexel* a, float3 n, float z, float2 grad, float dx, float dy,
-                                  const SvgfParams* p, float extra) {
+__attribute__((always_inline)) inline float2 px_geometry_weights(const global GBufferTexel* a, float3 n, float z,
+                                                                  float2 grad, float dx, float dy, const SvgfParams* p,
+                                                                  float extra) {
   if (!px_filtered_class(a->material_class)) return (float2)(0.0f, 0.0f);
   const float c = dot(n, px_load3(a->normal));
-  const float rest = exp(-(px_depth_term(a->depth, z, grad, dx, dy, p) + extra));
-  return (float2)(px_normal_weight(c, p->sigma_n), px_normal_weight(c, fmin(p->sigma_n, PX_SVGF_LOOSE_SIGMA_N))) * rest;
+  const float rest = px_exp(-(px_depth_term(a->depth, z, grad, dx, dy, p) + extra));
+  return px_normal_weights(c, p->sigma_n, fmin(p->sigma_n, PX_SVGF_LOOSE_SIGMA_N)) * rest;
 }
 
 inline float px_geometry_weight(const global GBufferTexel* a, float3 n, float z, float2 grad, float dx, float dy,
@@ -367,10 +382,10 @@ kernel void seam_bilateral(global float4* out_color, const global float4* color,
       if (tx < 0 || tx >= (int)p.width) continue;
       const uint j = (uint)ty * p.width + (uint)tx;
       const float3 t = color[j].xyz;
-      float w = exp(-(float)(dx * dx + dy * dy) / 4.0f);
+      float w = px_exp(-(float)(dx * dx + dy * dy) / 4.0f);
       if (dx != 0 || dy != 0)
         w *= px_geometry_weight(gbuf + j, fc.n, fc.z, fc.grad, (float)dx, (float)dy, &p) *
-             exp(-fabs(fc.l - px_lum(t)) / (0.25f * fc.l + 1e-3f));
+             px_exp(-fabs(fc.l - px_lum(t)) / (0.25f * fc.l + 1e-3f));
       wsum += w;
       csum += w * t;
     }

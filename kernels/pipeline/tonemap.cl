@@ -1,14 +1,21 @@
-/* Stage 8: linear radiance -> 8-bit sRGB RGBA (exposure scale, clamp, sRGB transfer curve). */
-inline float px_srgb(float c) {
-  c = clamp(c, 0.0f, 1.0f);
-  return c <= 0.0031308f ? 12.92f * c : 1.055f * pow(c, 1.0f / 2.4f) - 0.055f;
+/* Stage 8: linear radiance -> 8-bit sRGB RGBA (exposure scale, clamp, sRGB transfer curve).
+ *
+ * The byte of a channel value c is the number of the 255 thresholds (host/image/
+ * srgb_thresholds.h: the linear values where the correctly rounded sRGB byte steps up) that are
+ * <= c, found by an eight-step binary search: the exact sRGB byte without a pow per channel. */
+
+inline uchar px_srgb8(float c, const global float* thresholds) {
+  uint v = 0u;
+#pragma unroll
+  for (uint step = 128u; step != 0u; step >>= 1) v = thresholds[v + step] <= c ? v + step : v;
+  return (uchar)v;
 }
 
 /* Pixels [first, first + count) of full-frame images. nonfinite_pixels counts pixels whose
  * radiance is NaN or infinite (written black): where only the RGBA8 image leaves the device,
  * this count is what stops a silently wrong image. */
 kernel void tonemap(global uchar4* out, const global float4* radiance, uint first, uint count, float exposure,
-                    volatile global uint* nonfinite_pixels) {
+                    volatile global uint* nonfinite_pixels, const global float* thresholds) {
   const uint gid = get_global_id(0);
   if (gid >= count) return;
   const uint i = first + gid;
@@ -17,6 +24,5 @@ kernel void tonemap(global uchar4* out, const global float4* radiance, uint firs
     atomic_inc(nonfinite_pixels);
     c = (float3)(0.0f, 0.0f, 0.0f);
   }
-  out[i] = (uchar4)((uchar)(px_srgb(c.x) * 255.0f + 0.5f), (uchar)(px_srgb(c.y) * 255.0f + 0.5f),
-                    (uchar)(px_srgb(c.z) * 255.0f + 0.5f), (uchar)255);
+  out[i] = (uchar4)(px_srgb8(c.x, thresholds), px_srgb8(c.y, thresholds), px_srgb8(c.z, thresholds), (uchar)255);
 }

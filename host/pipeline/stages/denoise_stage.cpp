@@ -117,7 +117,7 @@ void DenoiseStage::denoise_eye(int e, const std::vector<RowRange>& strip, const 
   }
   for (int d = 0; d < n; ++d)
     if (env_.local(d))
-      for (auto& [stage, ev] : svgf(d).take_events()) env_.log.record(stage, d, ev);
+      for (auto& e : svgf(d).take_events()) env_.log.record(e.stage, d, e.event, e.pass);
 }
 
 void DenoiseStage::end_frame(const FrameInputs& in) {

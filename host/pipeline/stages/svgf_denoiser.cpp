@@ -2,6 +2,8 @@
 
 #include "cl/launch.h"
 
+#include <iterator>
+
 namespace px {
 
 SvgfDenoiser::SvgfDenoiser(DeviceSet& devices, int device, unsigned width, unsigned height, const Options& options)
@@ -40,9 +42,20 @@ SvgfParams SvgfDenoiser::params(RowRange rows, RowRange readable, unsigned step)
   return p;
 }
 
-void SvgfDenoiser::launch(cl::Kernel& k, RowRange rows, Stage stage) {
-  events_.push_back({stage, launch_1d(devices_.devices()[device_].queue, k,
-                                      static_cast<std::size_t>(rows.size()) * width_)});
+namespace {
+
+// Timeline names of the a-trous passes (static strings: the event log keeps pointers).
+const char* atrous_pass_name(unsigned iteration) {
+  static const char* const names[] = {"a-trous 1", "a-trous 2", "a-trous 3", "a-trous 4",
+                                      "a-trous 5", "a-trous 6", "a-trous 7", "a-trous 8"};
+  return iteration < std::size(names) ? names[iteration] : "a-trous";
+}
+
+}  // namespace
+
+void SvgfDenoiser::launch(cl::Kernel& k, RowRange rows, const char* pass) {
+  events_.push_back({Stage::Denoise, launch_1d(devices_.devices()[device_].queue, k,
+                                               static_cast<std::size_t>(rows.size()) * width_), pass});
 }
 
 void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& albedo, const cl::Buffer& gbuf,
@@ -62,13 +75,13 @@ void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& albedo, c
   k.setArg(8, params(rows, readable, 1));
   k.setArg(9, prev_cam);
   k.setArg(10, static_cast<cl_uint>(have_history_));
-  launch(k, rows, Stage::Denoise);
+  launch(k, rows, "temporal");
   // The moments (with history length) are this frame's moment history as they stand.
   cl::Event e;
   const std::size_t off = static_cast<std::size_t>(rows.begin) * width_ * sizeof(cl_float4);
   const std::size_t len = static_cast<std::size_t>(rows.size()) * width_ * sizeof(cl_float4);
   devices_.devices()[device_].queue.enqueueCopyBuffer(moments_, hist_moments_[frame_parity_], off, off, len, nullptr, &e);
-  events_.push_back({Stage::RecordPrevious, e});
+  events_.push_back({Stage::RecordPrevious, e, "moment history"});
 }
 
 void SvgfDenoiser::variance(const cl::Buffer& gbuf, RowRange rows, RowRange readable) {
@@ -79,7 +92,7 @@ void SvgfDenoiser::variance(const cl::Buffer& gbuf, RowRange rows, RowRange read
   k.setArg(2, moments_);
   k.setArg(3, gbuf);
   k.setArg(4, params(rows, readable, 1));
-  launch(k, rows, Stage::Denoise);
+  launch(k, rows, "variance");
   current_ = 1 - current_;
 }
 
@@ -91,7 +104,7 @@ void SvgfDenoiser::atrous(unsigned iteration, const cl::Buffer& gbuf, RowRange r
   k.setArg(2, moments_);
   k.setArg(3, gbuf);
   k.setArg(4, params(rows, readable, 1u << iteration));
-  launch(k, rows, Stage::Denoise);
+  launch(k, rows, atrous_pass_name(iteration));
   current_ = 1 - current_;
   if (iteration == 0) {
     // The feedback tap: the first filtered iterate is next frame's colour history.
@@ -100,7 +113,7 @@ void SvgfDenoiser::atrous(unsigned iteration, const cl::Buffer& gbuf, RowRange r
     const std::size_t len = static_cast<std::size_t>(rows.size()) * width_ * sizeof(cl_float4);
     devices_.devices()[device_].queue.enqueueCopyBuffer(illum_[current_], hist_illum_[frame_parity_], off, off, len,
                                                         nullptr, &e);
-    events_.push_back({Stage::RecordPrevious, e});
+    events_.push_back({Stage::RecordPrevious, e, "colour history"});
   }
 }
 
@@ -112,7 +125,7 @@ void SvgfDenoiser::remodulate(const cl::Buffer& out_color, const cl::Buffer& alb
   k.setArg(2, moments_);
   k.setArg(3, albedo);
   k.setArg(4, params(rows, rows, 1));
-  launch(k, rows, Stage::Denoise);
+  launch(k, rows, "remodulate");
 }
 
 void SvgfDenoiser::seam_filter(const cl::Buffer& color, const cl::Buffer& gbuf, RowRange rows, RowRange readable,
@@ -127,12 +140,12 @@ void SvgfDenoiser::seam_filter(const cl::Buffer& color, const cl::Buffer& gbuf, 
   k.setArg(4, static_cast<cl_int>(seam_above));
   k.setArg(5, static_cast<cl_int>(seam_below));
   k.setArg(6, static_cast<cl_int>(band));
-  launch(k, rows, Stage::Denoise);
+  launch(k, rows, "seam filter");
   cl::Event e;
   const std::size_t off = static_cast<std::size_t>(rows.begin) * width_ * sizeof(cl_float4);
   const std::size_t len = static_cast<std::size_t>(rows.size()) * width_ * sizeof(cl_float4);
   devices_.devices()[device_].queue.enqueueCopyBuffer(scratch, color, off, off, len, nullptr, &e);
-  events_.push_back({Stage::Denoise, e});
+  events_.push_back({Stage::Denoise, e, "seam filter copy"});
 }
 
 void SvgfDenoiser::end_frame() {
@@ -140,8 +153,8 @@ void SvgfDenoiser::end_frame() {
   have_history_ = true;
 }
 
-std::vector<std::pair<Stage, cl::Event>> SvgfDenoiser::take_events() {
-  std::vector<std::pair<Stage, cl::Event>> out;
+std::vector<SvgfDenoiser::PassEvent> SvgfDenoiser::take_events() {
+  std::vector<PassEvent> out;
   out.swap(events_);
   return out;
 }

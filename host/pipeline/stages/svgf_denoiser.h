@@ -50,14 +50,19 @@ class SvgfDenoiser {
   const cl::Buffer& history_illum_prev() const { return hist_illum_[1 - frame_parity_]; }
   const cl::Buffer& history_moments_prev() const { return hist_moments_[1 - frame_parity_]; }
 
-  // Events of this frame's passes, by stage, for the timeline.
-  std::vector<std::pair<Stage, cl::Event>> take_events();
+  // Events of this frame's passes, by stage and pass name, for the timeline.
+  struct PassEvent {
+    Stage stage;
+    cl::Event event;
+    const char* pass;  // "temporal", "variance", "a-trous 1".., "remodulate", ...
+  };
+  std::vector<PassEvent> take_events();
 
   const Options& options() const { return options_; }
 
  private:
   SvgfParams params(RowRange rows, RowRange readable, unsigned step) const;
-  void launch(cl::Kernel& k, RowRange rows, Stage stage);
+  void launch(cl::Kernel& k, RowRange rows, const char* pass);
 
   DeviceSet& devices_;
   int device_;
@@ -70,7 +75,7 @@ class SvgfDenoiser {
   int current_ = 0;
   int frame_parity_ = 0;
   bool have_history_ = false;
-  std::vector<std::pair<Stage, cl::Event>> events_;
+  std::vector<PassEvent> events_;
 };
 
 }  // namespace px

@@ -1,8 +1,14 @@
 #include "pipeline/stages/tonemap_stage.h"
 
 #include "cl/launch.h"
+#include "image/srgb_thresholds.h"
 
 namespace px {
+
+TonemapStage::TonemapStage(StageEnv& env, const Options& options) : StageUnit(env), options_(options) {
+  auto table = srgb8_thresholds();
+  thresholds_ = cl::Buffer(env_.devices.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, sizeof(table), table.data());
+}
 
 void TonemapStage::run(const std::vector<const Operation*>& ops, const FrameInputs&) {
   for (const Operation* op : ops) {
@@ -16,6 +22,7 @@ void TonemapStage::run(const std::vector<const Operation*>& ops, const FrameInpu
     k.setArg(3, count);
     k.setArg(4, options_.exposure);
     k.setArg(5, f.nonfinite_pixels);
+    k.setArg(6, thresholds_);
     env_.log.record(Stage::Tonemap, op->device, launch_1d(env_.queue(op->device), k, count));
   }
 }

@@ -10,11 +10,12 @@ class TonemapStage : public StageUnit {
   struct Options {
     float exposure = 1.0f;  // scale applied before the sRGB encoding
   };
-  TonemapStage(StageEnv& env, const Options& options) : StageUnit(env), options_(options) {}
+  TonemapStage(StageEnv& env, const Options& options);
   void run(const std::vector<const Operation*>& ops, const FrameInputs& in) override;
 
  private:
   Options options_;
+  cl::Buffer thresholds_;  // srgb8_thresholds(), 256 floats, read by every device
 };
 
 }  // namespace px
