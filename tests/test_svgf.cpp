@@ -74,12 +74,18 @@ TEST(Svgf, AtrousMatchesHostImplementation) {
   p.lo_row = 0; p.hi_row = 26;  // readable rows: reads beyond must be skipped
   for (unsigned step : {1u, 2u, 4u}) {
     p.step = step;
-    auto bi = upload(illum), bm = upload(moments), bg = upload(g);
+    auto bi = upload(illum), bg = upload(g);
     cl::Buffer out(one_device().context(), CL_MEM_READ_WRITE, n * sizeof(cl_float4));
+    // The guide texels of every row, then the a-trous step reading them.
+    cl::Buffer guide(one_device().context(), CL_MEM_READ_WRITE, n * sizeof(cl_float4));
+    SvgfParams all = p;
+    all.row0 = 0; all.rows = h; all.lo_row = 0; all.hi_row = h;
+    cl::Kernel kg(one_device().program("denoise/svgf.cl"), "svgf_guide");
+    kg.setArg(0, guide); kg.setArg(1, bg); kg.setArg(2, all);
+    launch_1d(one_device().devices()[0].queue, kg, all.rows * w);
     cl::Kernel k(one_device().program("denoise/svgf.cl"), "svgf_atrous");
-    k.setArg(0, out); k.setArg(1, bi); k.setArg(2, bm); k.setArg(3, bg); k.setArg(4, p);
-    one_device().devices()[0].queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(p.rows * w)),
-                                                         cl::NDRange(kLocalSize));
+    k.setArg(0, out); k.setArg(1, bi); k.setArg(2, guide); k.setArg(3, p);
+    launch_1d(one_device().devices()[0].queue, k, p.rows * w);
     auto got = download<cl_float4>(out, n);
     // Host version of the same filter, written from the SVGF paper's formulas.
     auto readable = [&](int y) { return y >= static_cast<int>(p.lo_row) && y < static_cast<int>(p.hi_row) && y < static_cast<int>(h) && y >= 0; };
@@ -240,9 +246,10 @@ struct FilterRun {
       a.assign(g.size(), cl_float4{{0.5f, 0.5f, 0.5f, 1.0f}});
     albedo = upload(a);
     const RowRange all{0, view.h};
+    den.guide(gbuf, all);
     den.temporal(color, albedo, gbuf, prev_gbuf, view.cam, all, all);
-    den.variance(gbuf, all, all);
-    for (unsigned i = 0; i < den.options().iterations; ++i) den.atrous(i, gbuf, all, all);
+    den.variance(all, all);
+    for (unsigned i = 0; i < den.options().iterations; ++i) den.atrous(i, all, all);
     den.remodulate(out, albedo, all);
     auto result = download<cl_float4>(out, view.w * view.h);
     den.end_frame();

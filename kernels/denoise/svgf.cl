@@ -1,5 +1,7 @@
 /* Spatiotemporal variance-guided filtering (Schied et al., HPG 2017), one eye, rows
  * [p.row0, p.row0 + p.rows) of full-frame buffers. Passes, in order:
+ *   svgf_guide      the G-buffer rows the spatial passes read, reduced to a 16-byte guide
+ *                   texel per pixel (normal, signed depth);
  *   svgf_temporal   demodulate by albedo, reproject last frame's history through the previous
  *                   camera (2x2 bilinear taps, 3x3 fallback), accumulate colour and luminance
  *                   moments with alpha = max(alpha_min, 1/h);
@@ -13,7 +15,9 @@
  * result does not depend on how the image was split.
  *
  * Buffers: illum float4 (rgb illumination, w = variance); moments float4 (m1, m2, history
- * length, 1 if the pixel is filtered else 0). Background and emitters are not filtered: they
+ * length, 1 if the pixel is filtered else 0); guide float4 (shading normal, +depth where the
+ * filter smooths the pixel, -depth where not: one load per tap where the GBufferTexel was 48
+ * bytes, and the filtered flag without a second load from moments). Background and emitters are not filtered: they
  * pass through with their noisy colour and never serve as taps. */
 #include "shared/types.h"
 #include "render/camera.h"
@@ -172,40 +176,45 @@ inline float px_depth_term(float tap_depth, float z, float2 grad, float dx, floa
   return fabs(z - tap_depth) / (p->sigma_z * fabs(grad.x * dx + grad.y * dy) + 1e-3f * z + 1e-6f);
 }
 
-/* Normal and depth edge-stopping weight of a tap (0 for unfiltered taps), with an extra
- * exponent (the luminance term) folded into the same exp. */
-inline float px_geometry_weight_x(const global GBufferTexel* a, float3 n, float z, float2 grad, float dx, float dy,
-                                  const SvgfParams* p, float extra) {
-  if (!px_filtered_class(a->material_class)) return 0.0f;
-  return px_normal_weight(dot(n, px_load3(a->normal)), p->sigma_n) *
-         px_exp(-(px_depth_term(a->depth, z, grad, dx, dy, p) + extra));
+/* Guide texels (see svgf_guide): is the pixel one the filter smooths, and its depth. */
+inline int px_guide_filtered(float4 g) { return g.w > 0.0f; }
+inline float px_guide_depth(float4 g) { return fabs(g.w); }
+
+/* Normal and depth edge-stopping weight of a tap with guide texel `t` (0 for unfiltered taps),
+ * with an extra exponent (the luminance term) folded into the same exp. */
+inline float px_geometry_weight_x(float4 t, float3 n, float z, float2 grad, float dx, float dy, const SvgfParams* p,
+                                  float extra) {
+  if (!px_guide_filtered(t)) return 0.0f;
+  return px_normal_weight(dot(n, t.xyz), p->sigma_n) * px_exp(-(px_depth_term(t.w, z, grad, dx, dy, p) + extra));
 }
 
 /* The same weight twice: (strict, loose) = with the normal exponent sigma_n and with the loose
- * one used for isolated pixels (see svgf_atrous), sharing the depth and luminance terms. */
-__attribute__((always_inline)) inline float2 px_geometry_weights(const global GBufferTexel* a, float3 n, float z,
-                                                                  float2 grad, float dx, float dy, const SvgfParams* p,
-                                                                  float extra) {
-  if (!px_filtered_class(a->material_class)) return (float2)(0.0f, 0.0f);
-  const float c = dot(n, px_load3(a->normal));
-  const float rest = px_exp(-(px_depth_term(a->depth, z, grad, dx, dy, p) + extra));
-  return px_normal_weights(c, p->sigma_n, fmin(p->sigma_n, PX_SVGF_LOOSE_SIGMA_N)) * rest;
+ * one used for isolated pixels (see svgf_atrous), sharing the depth and luminance terms.
+ * Always inlined: PoCL's inliner otherwise leaves it a call per tap, with its arguments passed
+ * through the stack (27% of the a-trous pass's CPU time on cornell). */
+__attribute__((always_inline)) inline float2 px_geometry_weights(float4 t, float3 n, float z, float2 grad, float dx,
+                                                                  float dy, const SvgfParams* p, float extra) {
+  if (!px_guide_filtered(t)) return (float2)(0.0f, 0.0f);
+  const float rest = px_exp(-(px_depth_term(t.w, z, grad, dx, dy, p) + extra));
+  return px_normal_weights(dot(n, t.xyz), p->sigma_n, fmin(p->sigma_n, PX_SVGF_LOOSE_SIGMA_N)) * rest;
 }
 
-inline float px_geometry_weight(const global GBufferTexel* a, float3 n, float z, float2 grad, float dx, float dy,
-                                const SvgfParams* p) {
-  return px_geometry_weight_x(a, n, z, grad, dx, dy, p, 0.0f);
+inline float px_geometry_weight(float4 t, float3 n, float z, float2 grad, float dx, float dy, const SvgfParams* p) {
+  return px_geometry_weight_x(t, n, z, grad, dx, dy, p, 0.0f);
 }
 
 /* Screen-space depth gradient at pixel (x, y) from its readable neighbours (one-sided at the
  * edge of the readable rows or of the image). */
-inline float2 px_depth_gradient(const global GBufferTexel* g, int x, int y, const SvgfParams* p) {
+inline float2 px_depth_gradient(const global float4* guide, int x, int y, const SvgfParams* p) {
   const int xl = max(x - 1, 0), xr = min(x + 1, (int)p->width - 1);
   const int yu = px_row_readable(y - 1, p) && y > 0 ? y - 1 : y;
   const int yd = px_row_readable(y + 1, p) && y + 1 < (int)p->height ? y + 1 : y;
+  const uint w = p->width;
   float gx = 0.0f, gy = 0.0f;
-  if (xr > xl) gx = (g[(uint)y * p->width + (uint)xr].depth - g[(uint)y * p->width + (uint)xl].depth) / (float)(xr - xl);
-  if (yd > yu) gy = (g[(uint)yd * p->width + (uint)x].depth - g[(uint)yu * p->width + (uint)x].depth) / (float)(yd - yu);
+  if (xr > xl)
+    gx = (px_guide_depth(guide[(uint)y * w + (uint)xr]) - px_guide_depth(guide[(uint)y * w + (uint)xl])) / (float)(xr - xl);
+  if (yd > yu)
+    gy = (px_guide_depth(guide[(uint)yd * w + (uint)x]) - px_guide_depth(guide[(uint)yu * w + (uint)x])) / (float)(yd - yu);
   return (float2)(gx, gy);
 }
 
@@ -217,18 +226,30 @@ typedef struct FilterCentre {
   float l;      /* luminance of the value being filtered */
 } FilterCentre;
 
-inline FilterCentre px_filter_centre(const global GBufferTexel* gbuf, int x, int y, float3 value, const SvgfParams* p) {
-  const global GBufferTexel* g = gbuf + (uint)y * p->width + (uint)x;
+inline FilterCentre px_filter_centre(const global float4* guide, int x, int y, float3 value, const SvgfParams* p) {
+  const float4 g = guide[(uint)y * p->width + (uint)x];
   FilterCentre c;
-  c.n = px_load3(g->normal);
-  c.z = g->depth;
-  c.grad = px_depth_gradient(gbuf, x, y, p);
+  c.n = g.xyz;
+  c.z = px_guide_depth(g);
+  c.grad = px_depth_gradient(guide, x, y, p);
   c.l = px_lum(value);
   return c;
 }
 
+/* Guide texels of rows [p.row0, p.row0 + p.rows): every row the spatial passes of this frame
+ * read (the G-buffer's rows, margin included). The sign of w carries the material test that
+ * svgf_temporal makes (moments.w), so a tap needs no second load to know it. Depth is >= 0 for
+ * every pixel (0 for the sky: -0 here, not filtered), and exactly what the G-buffer holds. */
+kernel void svgf_guide(global float4* guide, const global GBufferTexel* gbuf, SvgfParams p) {
+  const uint gid = get_global_id(0);
+  if (gid >= p.rows * p.width) return;
+  const uint i = p.row0 * p.width + gid;
+  const global GBufferTexel* g = gbuf + i;
+  guide[i] = (float4)(px_load3(g->normal), px_filtered_class(g->material_class) ? g->depth : -g->depth);
+}
+
 kernel void svgf_variance(global float4* out_illum, const global float4* illum, const global float4* moments,
-                          const global GBufferTexel* gbuf, SvgfParams p) {
+                          const global float4* guide, SvgfParams p) {
   const uint gid = get_global_id(0);
   if (gid >= p.rows * p.width) return;
   const uint i = p.row0 * p.width + gid;
@@ -244,7 +265,7 @@ kernel void svgf_variance(global float4* out_illum, const global float4* illum, 
    * leave out exactly the rare bright samples that make a one-sample pixel noisy, call the
    * dark pixels around them noise-free, and the a-trous luminance test would then cut those
    * samples off as edges — energy lost, the image darker than its input. */
-  const FilterCentre fc = px_filter_centre(gbuf, x, y, c.xyz, &p);
+  const FilterCentre fc = px_filter_centre(guide, x, y, c.xyz, &p);
   /* Strict and loose normal weights side by side (.x, .y), as in svgf_atrous. */
   float2 wsum = (float2)(0.0f, 0.0f);
   float3 csum_strict = (float3)(0.0f, 0.0f, 0.0f), csum_loose = csum_strict;
@@ -259,7 +280,7 @@ kernel void svgf_variance(global float4* out_illum, const global float4* illum, 
       if (moments[j].w == 0.0f) continue;
       const float2 w = (dx == 0 && dy == 0)
                            ? (float2)(1.0f, 1.0f)
-                           : px_geometry_weights(gbuf + j, fc.n, fc.z, fc.grad, (float)dx, (float)dy, &p, 0.0f);
+                           : px_geometry_weights(guide[j], fc.n, fc.z, fc.grad, (float)dx, (float)dy, &p, 0.0f);
       wsum += w;
       csum_strict += w.x * illum[j].xyz;
       csum_loose += w.y * illum[j].xyz;
@@ -274,18 +295,18 @@ kernel void svgf_variance(global float4* out_illum, const global float4* illum, 
   out_illum[i] = (float4)(csum, var);
 }
 
-kernel void svgf_atrous(global float4* out_illum, const global float4* illum, const global float4* moments,
-                        const global GBufferTexel* gbuf, SvgfParams p) {
+kernel void svgf_atrous(global float4* out_illum, const global float4* illum, const global float4* guide,
+                        SvgfParams p) {
   const uint gid = get_global_id(0);
   if (gid >= p.rows * p.width) return;
   const uint i = p.row0 * p.width + gid;
   const int x = (int)(i % p.width), y = (int)(i / p.width);
   const float4 c = illum[i];
-  if (moments[i].w == 0.0f) {
+  if (!px_guide_filtered(guide[i])) {
     out_illum[i] = c;
     return;
   }
-  const FilterCentre fc = px_filter_centre(gbuf, x, y, c.xyz, &p);
+  const FilterCentre fc = px_filter_centre(guide, x, y, c.xyz, &p);
   /* Variance prefiltered with a 3x3 Gaussian: the luminance weight's scale. */
   float var = 0.0f, vw = 0.0f;
   for (int dy = -1; dy <= 1; ++dy) {
@@ -295,7 +316,7 @@ kernel void svgf_atrous(global float4* out_illum, const global float4* illum, co
       const int tx = x + dx;
       if (tx < 0 || tx >= (int)p.width) continue;
       const uint j = (uint)ty * p.width + (uint)tx;
-      if (moments[j].w == 0.0f) continue;
+      if (!px_guide_filtered(guide[j])) continue;
       const float k = (dx == 0 ? 0.5f : 0.25f) * (dy == 0 ? 0.5f : 0.25f);
       var += k * illum[j].w;
       vw += k;
@@ -320,11 +341,12 @@ kernel void svgf_atrous(global float4* out_illum, const global float4* illum, co
       const int tx = x + kx * step;
       if (tx < 0 || tx >= (int)p.width) continue;
       const uint j = (uint)ty * p.width + (uint)tx;
-      if (moments[j].w == 0.0f) continue;
+      const float4 g = guide[j];
+      if (!px_guide_filtered(g)) continue;
       const float4 t = illum[j];
       float2 w = (float2)(h[kx + 2] * h[ky + 2]);
       if (kx != 0 || ky != 0)
-        w *= px_geometry_weights(gbuf + j, fc.n, fc.z, fc.grad, (float)(kx * step), (float)(ky * step), &p,
+        w *= px_geometry_weights(g, fc.n, fc.z, fc.grad, (float)(kx * step), (float)(ky * step), &p,
                                  fabs(fc.l - px_lum(t.xyz)) / lum_scale);
       wsum += w;
       vsum += w * w * t.w;
@@ -358,7 +380,7 @@ kernel void svgf_remodulate(global float4* out_color, const global float4* illum
 /* The paper's optional seam filter ("--seams bilateral"): after independent per-strip
  * denoising, a 5x5 bilateral (normal, depth, luminance) blur of the rows within `band` rows of
  * a seam. Rows across the seam were copied in beforehand. */
-kernel void seam_bilateral(global float4* out_color, const global float4* color, const global GBufferTexel* gbuf,
+kernel void seam_bilateral(global float4* out_color, const global float4* color, const global float4* guide,
                            SvgfParams p, int seam_above, int seam_below, int band) {
   const uint gid = get_global_id(0);
   if (gid >= p.rows * p.width) return;
@@ -366,12 +388,11 @@ kernel void seam_bilateral(global float4* out_color, const global float4* color,
   const int x = (int)(i % p.width), y = (int)(i / p.width);
   const int near_above = seam_above >= 0 && abs(y - seam_above) < band;
   const int near_below = seam_below >= 0 && abs(y - seam_below) < band;
-  const global GBufferTexel* g = gbuf + i;
-  if (!(near_above || near_below) || !px_filtered_class(g->material_class)) {
+  if (!(near_above || near_below) || !px_guide_filtered(guide[i])) {
     out_color[i] = color[i];
     return;
   }
-  const FilterCentre fc = px_filter_centre(gbuf, x, y, color[i].xyz, &p);
+  const FilterCentre fc = px_filter_centre(guide, x, y, color[i].xyz, &p);
   float wsum = 0.0f;
   float3 csum = (float3)(0.0f, 0.0f, 0.0f);
   for (int dy = -2; dy <= 2; ++dy) {
@@ -384,7 +405,7 @@ kernel void seam_bilateral(global float4* out_color, const global float4* color,
       const float3 t = color[j].xyz;
       float w = px_exp(-(float)(dx * dx + dy * dy) / 4.0f);
       if (dx != 0 || dy != 0)
-        w *= px_geometry_weight(gbuf + j, fc.n, fc.z, fc.grad, (float)dx, (float)dy, &p) *
+        w *= px_geometry_weight(guide[j], fc.n, fc.z, fc.grad, (float)dx, (float)dy, &p) *
              px_exp(-fabs(fc.l - px_lum(t)) / (0.25f * fc.l + 1e-3f));
       wsum += w;
       csum += w * t;

@@ -88,20 +88,27 @@ void DenoiseStage::denoise_eye(int e, const std::vector<RowRange>& strip, const 
   if (moved)
     env_.transfer.exchange([&](int d) -> const cl::Buffer& { return dev_[d].gbuffer_prev[e]; }, held, history_rows,
                            sizeof(GBufferTexel), [&](int d) -> StagingBuffer& { return dev_[d].gbuffer; });
+  // The guide covers every G-buffer row the spatial passes read: the strip and the margin that
+  // gbuffer_rows_read declares (which the G-buffer stage computed).
+  const std::vector<RowRange> guided = widened(gbuffer_rows_read(options_));
+  for (int d = 0; d < n; ++d)
+    if (env_.local(d)) svgf(d).guide(env_.images[d].gbuffer[e], guided[d]);
   for (int d = 0; d < n; ++d)
     if (env_.local(d))
       svgf(d).temporal(env_.images[d].radiance[e], env_.images[d].albedo[e], env_.images[d].gbuffer[e],
                        dev_[d].gbuffer_prev[e], prev, strip[d], readable(d));
   if (halo) {
     exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).illum(); }, 3);
-    exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).moments(); }, gbuffer_rows_read(options_));
+    // Moments (with the filtered flag) are read within the variance pass's 7x7 window; farther
+    // taps learn the flag from the guide.
+    exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).moments(); }, 3);
   }
   for (int d = 0; d < n; ++d)
-    if (env_.local(d)) svgf(d).variance(env_.images[d].gbuffer[e], strip[d], readable(d));
+    if (env_.local(d)) svgf(d).variance(strip[d], readable(d));
   for (unsigned i = 0; i < o.iterations; ++i) {
     if (halo) exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).illum(); }, 2u << i);
     for (int d = 0; d < n; ++d)
-      if (env_.local(d)) svgf(d).atrous(i, env_.images[d].gbuffer[e], strip[d], readable(d));
+      if (env_.local(d)) svgf(d).atrous(i, strip[d], readable(d));
   }
   for (int d = 0; d < n; ++d)
     if (env_.local(d)) svgf(d).remodulate(env_.images[d].radiance[e], env_.images[d].albedo[e], strip[d]);
@@ -111,7 +118,7 @@ void DenoiseStage::denoise_eye(int e, const std::vector<RowRange>& strip, const 
       if (strip[d].size() == 0 || !env_.local(d)) continue;
       const int above = strip[d].begin > 0 ? static_cast<int>(strip[d].begin) : -1;
       const int below = strip[d].end < env_.height ? static_cast<int>(strip[d].end) : -1;
-      svgf(d).seam_filter(env_.images[d].radiance[e], env_.images[d].gbuffer[e], strip[d], image, above, below,
+      svgf(d).seam_filter(env_.images[d].radiance[e], strip[d], image, above, below,
                           static_cast<int>(options_.seam_band));
     }
   }

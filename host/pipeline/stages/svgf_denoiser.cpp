@@ -21,6 +21,17 @@ SvgfDenoiser::SvgfDenoiser(DeviceSet& devices, int device, unsigned width, unsig
   }
   moments_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, bytes);
   q.enqueueFillBuffer(moments_, zero, 0, bytes);
+  guide_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, bytes);
+  q.enqueueFillBuffer(guide_, zero, 0, bytes);  // rows never guided read as "not filtered"
+}
+
+void SvgfDenoiser::guide(const cl::Buffer& gbuf, RowRange rows) {
+  if (rows.size() == 0) return;
+  cl::Kernel k(devices_.program("denoise/svgf.cl"), "svgf_guide");
+  k.setArg(0, guide_);
+  k.setArg(1, gbuf);
+  k.setArg(2, params(rows, rows, 1));
+  launch(k, rows, "guide");
 }
 
 SvgfParams SvgfDenoiser::params(RowRange rows, RowRange readable, unsigned step) const {
@@ -84,26 +95,25 @@ void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& albedo, c
   events_.push_back({Stage::RecordPrevious, e, "moment history"});
 }
 
-void SvgfDenoiser::variance(const cl::Buffer& gbuf, RowRange rows, RowRange readable) {
+void SvgfDenoiser::variance(RowRange rows, RowRange readable) {
   if (rows.size() == 0) return;
   cl::Kernel k(devices_.program("denoise/svgf.cl"), "svgf_variance");
   k.setArg(0, illum_[1 - current_]);
   k.setArg(1, illum_[current_]);
   k.setArg(2, moments_);
-  k.setArg(3, gbuf);
+  k.setArg(3, guide_);
   k.setArg(4, params(rows, readable, 1));
   launch(k, rows, "variance");
   current_ = 1 - current_;
 }
 
-void SvgfDenoiser::atrous(unsigned iteration, const cl::Buffer& gbuf, RowRange rows, RowRange readable) {
+void SvgfDenoiser::atrous(unsigned iteration, RowRange rows, RowRange readable) {
   if (rows.size() == 0) return;
   cl::Kernel k(devices_.program("denoise/svgf.cl"), "svgf_atrous");
   k.setArg(0, illum_[1 - current_]);
   k.setArg(1, illum_[current_]);
-  k.setArg(2, moments_);
-  k.setArg(3, gbuf);
-  k.setArg(4, params(rows, readable, 1u << iteration));
+  k.setArg(2, guide_);
+  k.setArg(3, params(rows, readable, 1u << iteration));
   launch(k, rows, atrous_pass_name(iteration));
   current_ = 1 - current_;
   if (iteration == 0) {
@@ -128,14 +138,14 @@ void SvgfDenoiser::remodulate(const cl::Buffer& out_color, const cl::Buffer& alb
   launch(k, rows, "remodulate");
 }
 
-void SvgfDenoiser::seam_filter(const cl::Buffer& color, const cl::Buffer& gbuf, RowRange rows, RowRange readable,
-                               int seam_above, int seam_below, int band) {
+void SvgfDenoiser::seam_filter(const cl::Buffer& color, RowRange rows, RowRange readable, int seam_above,
+                               int seam_below, int band) {
   if (rows.size() == 0) return;
   cl::Kernel k(devices_.program("denoise/svgf.cl"), "seam_bilateral");
   const cl::Buffer& scratch = illum_[1 - current_];
   k.setArg(0, scratch);
   k.setArg(1, color);
-  k.setArg(2, gbuf);
+  k.setArg(2, guide_);
   k.setArg(3, params(rows, readable, 1));
   k.setArg(4, static_cast<cl_int>(seam_above));
   k.setArg(5, static_cast<cl_int>(seam_below));

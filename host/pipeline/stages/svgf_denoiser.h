@@ -26,20 +26,23 @@ class SvgfDenoiser {
 
   SvgfDenoiser(DeviceSet& devices, int device, unsigned width, unsigned height, const Options& options);
 
+  // Pass 0: the guide texels (normal, signed depth) of G-buffer rows `rows`, which must cover
+  // every row the spatial passes of this frame read: the strip and its readable margin.
+  void guide(const cl::Buffer& gbuf, RowRange rows);
   // Pass 1: demodulate `color` by `albedo` (float4, the path tracer's per-pixel mean primary
   // albedo), blend with history reprojected through `prev_cam`.
   void temporal(const cl::Buffer& color, const cl::Buffer& albedo, const cl::Buffer& gbuf, const cl::Buffer& prev_gbuf,
                 const CameraParams& prev_cam, RowRange rows, RowRange readable);
   // Pass 2: variance from moments (spatial estimate for short histories).
-  void variance(const cl::Buffer& gbuf, RowRange rows, RowRange readable);
+  void variance(RowRange rows, RowRange readable);
   // Pass 3+i: one a-trous step; iteration 0's output becomes next frame's colour history.
-  void atrous(unsigned iteration, const cl::Buffer& gbuf, RowRange rows, RowRange readable);
+  void atrous(unsigned iteration, RowRange rows, RowRange readable);
   // Last pass: remodulate by the same `albedo` into `out_color` (float4 radiance).
   void remodulate(const cl::Buffer& out_color, const cl::Buffer& albedo, RowRange rows);
   // The paper's bilateral seam filter on `color` (rows within `band` of a seam; -1 = none),
   // reading rows across the seam (exchanged beforehand).
-  void seam_filter(const cl::Buffer& color, const cl::Buffer& gbuf, RowRange rows, RowRange readable, int seam_above,
-                   int seam_below, int band);
+  void seam_filter(const cl::Buffer& color, RowRange rows, RowRange readable, int seam_above, int seam_below,
+                   int band);
   // Stage 7: this frame's history becomes the previous frame's (call once per frame, after all
   // devices finished reading the previous history).
   void end_frame();
@@ -70,6 +73,7 @@ class SvgfDenoiser {
   Options options_;
   cl::Buffer illum_[2];        // ping-pong filter buffers (rgb, variance)
   cl::Buffer moments_;         // (m1, m2, history length, filtered flag)
+  cl::Buffer guide_;           // (normal, +depth filtered / -depth not), from guide()
   cl::Buffer hist_illum_[2];   // colour history: [frame_parity_] written this frame
   cl::Buffer hist_moments_[2];
   int current_ = 0;
