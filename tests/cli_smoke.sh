@@ -49,7 +49,8 @@ check "--overwrite allows it" 0 "stereo.png" -- "$bin" preview --scene cornell -
 check "scene json from scenes/" 0 "stereo.png" -- "$bin" preview --scene "$src/scenes/cornell-glossy.json" --width 32 --height 16 --out "$tmp/j"
 
 check "render --explain prints the workload table" 0 "\(0\.250, 0\.000\)" -- "$bin" render --explain --devices 4 --height 720
-check "render --explain lists the operations with their waits" 0 "transfer +left +device 1 -> 0 +rows \[20, 40\) finished image +after" -- "$bin" render --explain --devices 2 --height 40
+check "render --explain lists the operations with their lanes and waits" 0 "transfer +left +device 1 -> 0 +side +rows \[20, 40\) finished image +after" -- "$bin" render --explain --devices 2 --height 40
+check "render --explain --no-overlap puts everything on the main queue" 0 "transfer +left +device 1 -> 0 +main +rows \[20, 40\)" -- "$bin" render --explain --devices 2 --height 40 --no-overlap
 check "unknown pipeline is refused" 1 "pipeline" -- "$bin" render --pipeline nope --out "$tmp/x"
 for p in proposed baseline mono; do
   check "render --pipeline $p" 0 "wrote 2 frame" -- "$bin" render --scene cornell --pipeline "$p" --width 32 --height 18 \

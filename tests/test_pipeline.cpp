@@ -93,8 +93,10 @@ TEST(Operations, CoverEveryScheduledRowOnceAndWaitOnlyOnEarlierOperations) {
       for (int n = 1; n <= 4; ++n) {
         const unsigned h = 37, margin = 5;
         const FrameSchedule fs = make_schedule(kind, n, h, denoise);
-        const std::vector<Operation> ops = make_operations(fs, margin);
-        const std::string what = std::string(to_string(kind)) + (denoise ? " denoised" : "") + " n=" + std::to_string(n);
+        for (bool side : {false, true}) {
+        const std::vector<Operation> ops = make_operations(fs, margin, side);
+        const std::string what = std::string(to_string(kind)) + (denoise ? " denoised" : "") + " n=" + std::to_string(n) +
+                                 (side ? " side lane" : "");
         for (const StageWork& w : fs.stages)
           for (int eye = 0; eye < 2; ++eye) {
             // Independently of make_operations: the rows the schedule gives this stage and eye.
@@ -117,19 +119,53 @@ TEST(Operations, CoverEveryScheduledRowOnceAndWaitOnlyOnEarlierOperations) {
               }
             }
           }
-        std::vector<long> last(n, -1);
+        std::vector<long> last(2 * n, -1);  // per (device, lane)
+        std::vector<std::set<std::size_t>> before(ops.size());  // everything an operation waits for, transitively
         for (std::size_t i = 0; i < ops.size(); ++i) {
           const Operation& op = ops[i];
-          for (std::size_t a : op.after) ASSERT_LT(a, i) << what;
-          // Queue order: the previous operation on the device is always among the waits.
-          if (last[op.device] >= 0)
-            ASSERT_NE(std::find(op.after.begin(), op.after.end(), static_cast<std::size_t>(last[op.device])), op.after.end())
+          ASSERT_EQ(op.lane, side && op.eye == 0 &&
+                                     (op.stage == Stage::Denoise || op.stage == Stage::Tonemap || op.stage == Stage::Transfer)
+                                 ? 1 : 0) << what << " op " << i;
+          for (std::size_t a : op.after) {
+            ASSERT_LT(a, i) << what;
+            before[i].insert(a);
+            before[i].insert(before[a].begin(), before[a].end());
+          }
+          // Queue order: the previous operation on the device's lane is always among the waits.
+          const long prev = last[2 * op.device + op.lane];
+          if (prev >= 0)
+            ASSERT_NE(std::find(op.after.begin(), op.after.end(), static_cast<std::size_t>(prev)), op.after.end())
                 << what << " op " << i;
-          last[op.device] = static_cast<long>(i);
+          last[2 * op.device + op.lane] = static_cast<long>(i);
           if (op.stage == Stage::Transfer) {
             EXPECT_EQ(op.to, fs.tree.root) << what;
             EXPECT_NE(op.device, fs.tree.root) << what;
             EXPECT_NE(op.payload, TransferPayload::None) << what;
+          }
+        }
+        // The hazards the side lane creates, checked on the stages themselves: the left eye's
+        // denoising rewrites left radiance in place, so it must come after every reprojection
+        // (which reads it) and every path tracing of the left eye on its device; tonemapping
+        // after denoising; a transfer after the tonemap of its rows.
+        for (std::size_t i = 0; i < ops.size(); ++i)
+          for (std::size_t j = 0; j < i; ++j) {
+            const Operation &a = ops[j], &b = ops[i];
+            const bool same_device = a.device == b.device;
+            auto must = [&](bool cond, const char* why) {
+              if (cond) ASSERT_TRUE(before[i].count(j)) << what << ": op " << i << " must wait for op " << j << " (" << why << ")";
+            };
+            must(same_device && b.stage == Stage::Denoise && b.eye == 0 &&
+                     (a.stage == Stage::Reproject || a.stage == Stage::PathTraceLeft),
+                 "denoising rewrites the radiance they read or write");
+            must(same_device && b.stage == Stage::Tonemap && a.stage == Stage::Denoise && a.eye == b.eye,
+                 "tonemap reads denoised radiance");
+            must(same_device && b.stage == Stage::Tonemap && a.stage == Stage::HoleFill && b.eye == 1,
+                 "tonemap reads the filled right eye");
+            must(same_device && b.stage == Stage::Transfer && a.stage == Stage::Tonemap && a.eye == b.eye,
+                 "a finished strip travels after its tonemap");
+            must(b.stage != Stage::Transfer && a.stage == Stage::Transfer && a.to == b.device && a.eye == b.eye &&
+                     b.stage != Stage::GBuffer,
+                 "what arrives is read after it arrived");
           }
         }
       }

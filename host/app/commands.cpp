@@ -158,13 +158,16 @@ int run_render(const RenderCommand& cmd) {
   const bool root = cluster.rank() == 0;
   opt.cluster = &cluster;
   opt.gather_radiance = !cmd.no_exr;
+  opt.overlap = !cmd.no_overlap;
   if (cmd.explain) {
     if (!root) return 0;
     // The schedule depends only on pipeline, device count, height and denoising: no scene needed.
     const FrameSchedule schedule =
         make_schedule(opt.pipeline, cmd.devices.count * cluster.size(), cmd.height, opt.denoise);
     std::printf("%s\n%s", schedule.explain().c_str(),
-                explain_operations(make_operations(schedule, StereoPipeline::gbuffer_margin(schedule, opt))).c_str());
+                explain_operations(make_operations(schedule, StereoPipeline::gbuffer_margin(schedule, opt),
+                                                  opt.overlap && !distributed))
+                    .c_str());
     if (distributed)
       std::printf("MPI: %d ranks x %d device(s); rank r drives devices %d*r .. %d*r+%d\n", cluster.size(),
                   cmd.devices.count, cmd.devices.count, cmd.devices.count, cmd.devices.count - 1);

@@ -51,6 +51,7 @@ struct RenderCommand {
   bool explain = false;        // print the schedule (stage x device workload pairs, tree)
   bool no_denoise = false;
   bool no_exr = false;         // PNGs only: finished strips travel as RGBA8 alone
+  bool no_overlap = false;     // one queue per device (no side queue for the left eye)
   SvgfDenoiser::Options svgf;
   SeamMode seams = SeamMode::Halo;
   std::string report;          // JSON report path ("" = none)

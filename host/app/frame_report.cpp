@@ -97,9 +97,13 @@ void RenderTimeline::flush() {
 
 void RenderTimeline::name_devices(const DeviceSet& devices) {
   file_.write("{\"displayTimeUnit\": \"ms\", \"traceEvents\": [");
-  for (int d = 0; d < devices.size(); ++d)
-    event({{"name", "thread_name"}, {"ph", "M"}, {"pid", 0}, {"tid", d},
+  // Two tracks per device: its main queue (tid 2d) and its side queue (2d + 1, queue_lanes.h).
+  for (int d = 0; d < devices.size(); ++d) {
+    event({{"name", "thread_name"}, {"ph", "M"}, {"pid", 0}, {"tid", 2 * d},
            {"args", {{"name", "device " + std::to_string(d) + ": " + devices.devices()[d].description}}}});
+    event({{"name", "thread_name"}, {"ph", "M"}, {"pid", 0}, {"tid", 2 * d + 1},
+           {"args", {{"name", "device " + std::to_string(d) + ": side queue"}}}});
+  }
   flush();
 }
 
@@ -112,7 +116,7 @@ void RenderTimeline::add_frame(unsigned frame, const FrameStats& st) {
     const double ts = (static_cast<double>(sp.start_ns) - static_cast<double>(origin_ns_)) * 1e-3;
     const std::string name = sp.pass ? std::string(stage_name(sp.stage)) + ": " + sp.pass : stage_name(sp.stage);
     event({{"name", name}, {"cat", "frame " + std::to_string(frame)}, {"ph", "X"}, {"pid", 0},
-           {"tid", sp.device}, {"ts", ts}, {"dur", static_cast<double>(sp.end_ns - sp.start_ns) * 1e-3}});
+           {"tid", 2 * sp.device + sp.lane}, {"ts", ts}, {"dur", static_cast<double>(sp.end_ns - sp.start_ns) * 1e-3}});
   }
   flush();
 }

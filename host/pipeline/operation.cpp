@@ -1,22 +1,88 @@
 #include "pipeline/operation.h"
 
 #include <cstdio>
+#include <map>
+#include <set>
 #include <sstream>
+#include <tuple>
 
 namespace px {
 
-std::vector<Operation> make_operations(const FrameSchedule& schedule, unsigned gbuffer_margin) {
+namespace {
+
+// The per-device images operations hand each other (FrameImages), per eye where they have one.
+enum class Image { Radiance, Albedo, GBuffer, Rgba, Holes };
+
+struct Access {
+  int device;
+  Image image;
+  int eye;  // -1: the hole list (right eye only, one per device)
+  bool write;
+};
+
+// What an operation reads and writes. Conservative where it is cheap to be: whole images, not
+// rows; a transfer touches every image its payload may carry, on both ends.
+std::vector<Access> accesses(const Operation& op) {
+  const int d = op.device, e = op.eye;
+  switch (op.stage) {
+    case Stage::PathTraceLeft:
+    case Stage::PathTraceRight:
+      return {{d, Image::Radiance, e, true}, {d, Image::Albedo, e, true}};
+    case Stage::GBuffer:
+      return {{d, Image::GBuffer, e, true}};
+    case Stage::Reproject:
+      return {{d, Image::Radiance, 0, false}, {d, Image::GBuffer, 0, false}, {d, Image::GBuffer, 1, false},
+              {d, Image::Radiance, 1, true},  {d, Image::Albedo, 1, true},   {d, Image::Holes, -1, true}};
+    case Stage::HoleFill:
+      return {{d, Image::Holes, -1, false}, {d, Image::Radiance, 1, true}, {d, Image::Albedo, 1, true}};
+    case Stage::Denoise:
+      // Its own strip, and (halo and bilateral seams) the neighbours' rows of the same images.
+      return {{d, Image::Radiance, e, true}, {d, Image::Albedo, e, false}, {d, Image::GBuffer, e, false}};
+    case Stage::Tonemap:
+      return {{d, Image::Radiance, e, false}, {d, Image::Rgba, e, true}};
+    case Stage::Transfer: {
+      std::vector<Access> a;
+      for (Image im : {Image::Radiance, Image::Albedo, Image::Rgba}) {
+        a.push_back({d, im, e, false});
+        a.push_back({op.to, im, e, true});
+      }
+      return a;
+    }
+    default:
+      return {};
+  }
+}
+
+// The same denoise operation's reach into device d's images (its halo rows).
+Operation neighbour(const Operation& op, int d) {
+  Operation n = op;
+  n.device = d;
+  return n;
+}
+
+}  // namespace
+
+bool on_side_lane(const Operation& op) {
+  return op.eye == 0 && (op.stage == Stage::Denoise || op.stage == Stage::Tonemap || op.stage == Stage::Transfer);
+}
+
+std::vector<Operation> make_operations(const FrameSchedule& schedule, unsigned gbuffer_margin, bool side_lane) {
   std::vector<Operation> ops;
   const int n = schedule.devices;
   auto add = [&](const StageWork& w, int eye, int d, RowRange rows) {
     if (rows.size() == 0) return;
-    Operation op{w.stage, eye, d, rows};
+    Operation op;
+    op.stage = w.stage;
+    op.eye = eye;
+    op.device = d;
+    op.rows = rows;
     if (w.stage == Stage::GBuffer) op.rows = widen(rows, gbuffer_margin, schedule.height);
     if (w.stage == Stage::Transfer) {
       if (d == schedule.tree.root) return;  // the owner's own rows are already in place
       op.to = schedule.tree.root;
       op.payload = w.payload;
     }
+    op.lane = side_lane && on_side_lane(op) ? 1 : 0;
     ops.push_back(op);
   };
   for (const StageWork& w : schedule.stages) {
@@ -32,17 +98,42 @@ std::vector<Operation> make_operations(const FrameSchedule& schedule, unsigned g
       for (const RowRange& r : w.right_rows[d]) add(w, 1, d, r);
     }
   }
-  // What each waits for: the previous operation on its device, and the transfers that arrived
-  // there since.
-  std::vector<long> last_on(n, -1);
-  std::vector<std::vector<std::size_t>> arrived(n);
+  // What each waits for (see the header): per image, its last writer and the readers since.
+  // A denoise operation of an eye also reaches into its neighbours' images (halo rows), so it
+  // touches that eye's images on every device.
+  struct Touches {
+    long writer = -1;
+    std::vector<std::size_t> readers;  // since the writer
+  };
+  std::map<std::tuple<int, int, int>, Touches> images;  // (device, image, eye)
+  std::map<std::pair<int, int>, long> last_on_lane;     // (device, lane)
   for (std::size_t i = 0; i < ops.size(); ++i) {
     Operation& op = ops[i];
-    if (last_on[op.device] >= 0) op.after.push_back(static_cast<std::size_t>(last_on[op.device]));
-    op.after.insert(op.after.end(), arrived[op.device].begin(), arrived[op.device].end());
-    arrived[op.device].clear();
-    last_on[op.device] = static_cast<long>(i);
-    if (op.stage == Stage::Transfer) arrived[op.to].push_back(i);
+    std::vector<Access> acc = accesses(op);
+    if (op.stage == Stage::Denoise)
+      for (int d = 0; d < n; ++d)
+        if (d != op.device)
+          for (const Access& a : accesses(neighbour(op, d))) acc.push_back(a);
+    std::set<std::size_t> after;
+    auto lane_it = last_on_lane.find({op.device, op.lane});
+    if (lane_it != last_on_lane.end()) after.insert(static_cast<std::size_t>(lane_it->second));
+    for (const Access& a : acc) {
+      Touches& t = images[{a.device, static_cast<int>(a.image), a.eye}];
+      if (t.writer >= 0) after.insert(static_cast<std::size_t>(t.writer));
+      if (a.write) after.insert(t.readers.begin(), t.readers.end());
+    }
+    for (const Access& a : acc) {
+      Touches& t = images[{a.device, static_cast<int>(a.image), a.eye}];
+      if (a.write) {
+        t.writer = static_cast<long>(i);
+        t.readers.clear();
+      } else {
+        t.readers.push_back(i);
+      }
+    }
+    after.erase(i);
+    op.after.assign(after.begin(), after.end());
+    last_on_lane[{op.device, op.lane}] = static_cast<long>(i);
   }
   return ops;
 }
@@ -55,8 +146,9 @@ std::string explain_operations(const std::vector<Operation>& operations) {
     const Operation& op = operations[i];
     std::string where = "device " + std::to_string(op.device);
     if (op.to >= 0) where += " -> " + std::to_string(op.to);
-    std::snprintf(line, sizeof line, "%4zu  %-17s %-5s %-14s rows [%u, %u)", i, stage_name(op.stage),
-                  op.eye == 0 ? "left" : "right", where.c_str(), op.rows.begin, op.rows.end);
+    std::snprintf(line, sizeof line, "%4zu  %-17s %-5s %-14s %-4s rows [%u, %u)", i, stage_name(op.stage),
+                  op.eye == 0 ? "left" : "right", where.c_str(), op.lane ? "side" : "main", op.rows.begin,
+                  op.rows.end);
     out << line;
     if (op.payload == TransferPayload::FinishedImage) out << " finished image";
     if (op.payload == TransferPayload::LinearRadiance) out << " linear radiance";

@@ -2,11 +2,18 @@
 // device with work, in enqueue order. StereoPipeline hands each stage unit its consecutive
 // operations and does nothing else per stage; `render --explain` prints the list.
 //
-// Dependencies. Each device has one in-order queue, so an operation waits for every earlier
-// operation on its device without being told; across devices the only data that moves is a
-// transfer's rows (and the halo rows a stage exchanges between its own passes), whose receiving
-// copy waits for the sending copy's event. `after` names these waits for reading: the earlier
-// operation on the same device, and the transfers that arrived at the device since.
+// Queues. Each device has two in-order queues, lanes (queue_lanes.h): the left eye's denoising,
+// tonemapping and transfer take the side lane, everything else the main lane, so that the left
+// eye is filtered while the right eye's holes are traced. (One lane when the side lane is off:
+// then the list is exactly the in-order sequence the queue runs.)
+//
+// Dependencies. An operation reads and writes per-device images (radiance, albedo, G-buffer and
+// RGBA8 per eye, the hole list); `after` lists, for every image it touches on any device, the
+// latest earlier operation touching that image there where either writes, plus the previous
+// operation on its own lane. Waits on the same lane of the same device are kept by the queue's
+// order; the executor turns the others into event waits (a barrier on the lane before the
+// operation). Within a transfer and within a denoise operation's halo exchanges, the receiving
+// copy waits for the sending copy's event.
 #pragma once
 
 #include "pipeline/strip_schedule.h"
@@ -24,6 +31,7 @@ struct Operation {
   RowRange rows;        // rows it writes (a G-buffer pass: with the margin its readers need)
   int to = -1;          // a transfer: the receiving device
   TransferPayload payload = TransferPayload::None;
+  int lane = 0;                    // QueueLanes::kMain or kSide
   std::vector<std::size_t> after;  // indices of the operations it waits for (see above)
 };
 
@@ -32,7 +40,11 @@ struct Operation {
 // Order: stage by stage as scheduled; within a stage device by device, left eye before right;
 // a denoise stage eye by eye (its passes run all devices of one eye in step, exchanging halo
 // rows between them).
-std::vector<Operation> make_operations(const FrameSchedule& schedule, unsigned gbuffer_margin);
+// `side_lane`: give the left eye's denoising, tonemapping and transfer the side lane.
+std::vector<Operation> make_operations(const FrameSchedule& schedule, unsigned gbuffer_margin, bool side_lane = true);
+
+// Whether operation `op` takes the side lane (when there is one).
+bool on_side_lane(const Operation& op);
 
 // One line per operation: index, stage, eye, device (-> receiver), rows, what it waits for.
 std::string explain_operations(const std::vector<Operation>& operations);

@@ -5,8 +5,8 @@
 namespace px {
 
 RowTransfer::RowTransfer(DeviceSet& devices, const DeviceLayout& layout, Cluster* cluster, unsigned width,
-                         unsigned height, EventLog& log)
-    : devices_(devices), layout_(layout), cluster_(cluster), width_(width), height_(height), log_(log) {}
+                         unsigned height, EventLog& log, QueueLanes& lanes)
+    : devices_(devices), layout_(layout), cluster_(cluster), width_(width), height_(height), log_(log), lanes_(lanes) {}
 
 void RowTransfer::copy(int from, const cl::Buffer& src, int to, const cl::Buffer& dst, std::size_t offset,
                        std::size_t bytes, StagingBuffer& staging, std::size_t staging_bytes,

@@ -12,6 +12,7 @@
 #include "cluster/cluster.h"
 #include "image/row_range.h"
 #include "pipeline/event_log.h"
+#include "pipeline/queue_lanes.h"
 
 #include <deque>
 #include <functional>
@@ -29,7 +30,7 @@ struct StagingBuffer {
 class RowTransfer {
  public:
   RowTransfer(DeviceSet& devices, const DeviceLayout& layout, Cluster* cluster, unsigned width, unsigned height,
-              EventLog& log);
+              EventLog& log, QueueLanes& lanes);
 
   // Copies `bytes` at `offset` of device `from`'s `src` into device `to`'s `dst` at the same
   // offset, whichever ranks they are on (a buffer of another rank's device is never touched).
@@ -65,7 +66,7 @@ class RowTransfer {
   }
 
   bool local(int d) const { return layout_.is_local(d); }
-  cl::CommandQueue& queue(int d) { return devices_.devices()[layout_.local_index(d)].queue; }
+  cl::CommandQueue& queue(int d) { return lanes_.queue(layout_.local_index(d)); }
 
  private:
   DeviceSet& devices_;
@@ -73,6 +74,7 @@ class RowTransfer {
   Cluster* cluster_;
   unsigned width_, height_;
   EventLog& log_;
+  QueueLanes& lanes_;  // transfers run on the lane the executor selected
   std::deque<std::vector<unsigned char>> message_rows_;  // host copies of this frame's MPI messages
   std::size_t bytes_ = 0;
 };

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <set>
 #include <stdexcept>
 
 namespace px {
@@ -24,8 +25,9 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
       options_(options),
       schedule_(make_schedule(options.pipeline, layout_.count(), height, options.denoise)),
       images_(layout_.count()),
-      transfer_(devices, layout_, cluster_, width, height, log_),
-      env_{devices, layout_, device_scene, scene, width, height, images_, log_, transfer_} {
+      lanes_(devices, options.overlap && !cluster_),
+      transfer_(devices, layout_, cluster_, width, height, log_, lanes_),
+      env_{devices, layout_, device_scene, scene, width, height, images_, log_, transfer_, lanes_} {
   if (width == 0 || height == 0 || width > 65535 || height > 65535)
     throw std::invalid_argument("image size must be between 1 and 65535 per side");
   for (int d = 0; d < layout_.count(); ++d)
@@ -109,16 +111,39 @@ FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
   for (int d = 0; d < n; ++d)
     if (local(d)) images_[d].zero_counters(queue(d));
 
-  // The executor: each run of consecutive operations of one stage goes to that stage's unit.
+  // The executor: each run of consecutive operations of one stage and lane goes to that stage's
+  // unit, on that lane. What an operation waits for on the other lane becomes a barrier on its
+  // lane: the markers enqueued after the batches it depends on.
   const std::vector<Operation> ops = operations();
+  std::vector<std::size_t> batch_of(ops.size());
+  std::vector<std::vector<cl::Event>> batch_done;  // per batch: a marker on every local device
   for (std::size_t i = 0; i < ops.size();) {
+    const int lane = ops[i].lane;
     std::vector<const Operation*> batch;
+    std::set<std::size_t> waits;  // batches on the other lane this one depends on
     std::size_t j = i;
-    for (; j < ops.size() && ops[j].stage == ops[i].stage; ++j) batch.push_back(&ops[j]);
+    for (; j < ops.size() && ops[j].stage == ops[i].stage && ops[j].lane == lane; ++j) {
+      batch.push_back(&ops[j]);
+      batch_of[j] = batch_done.size();
+      for (std::size_t a : ops[j].after)
+        if (ops[a].lane != lane) waits.insert(batch_of[a]);
+    }
+    if (!waits.empty()) {
+      std::vector<cl::Event> events;
+      for (std::size_t b : waits) events.insert(events.end(), batch_done[b].begin(), batch_done[b].end());
+      for (int d = 0; d < devices_.size(); ++d) lanes_.lane(d, lane).enqueueBarrierWithWaitList(&events);
+    }
+    lanes_.select(lane);
+    log_.set_lane(lanes_.selected());
     unit(ops[i].stage).run(batch, in);
+    lanes_.select(QueueLanes::kMain);
+    log_.set_lane(QueueLanes::kMain);
+    std::vector<cl::Event> done(static_cast<std::size_t>(devices_.size()));
+    for (int d = 0; d < devices_.size(); ++d) lanes_.lane(d, lane).enqueueMarkerWithWaitList(nullptr, &done[d]);
+    batch_done.push_back(std::move(done));
     i = j;
   }
-  devices_.finish_all();
+  lanes_.finish_all();
   transfer_.end_frame();
   // Stage 7: what a unit keeps for the next frame becomes the previous frame's (SVGF history
   // and G-buffer).
@@ -131,7 +156,7 @@ FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
   for (const EventLog::Entry& entry : log_.entries()) {
     sums[{entry.stage, entry.device}] += event_ms(entry.event);
     stats.spans.push_back({entry.stage, entry.device, entry.event.getProfilingInfo<CL_PROFILING_COMMAND_START>(),
-                           entry.event.getProfilingInfo<CL_PROFILING_COMMAND_END>(), entry.pass});
+                           entry.event.getProfilingInfo<CL_PROFILING_COMMAND_END>(), entry.pass, entry.lane});
   }
   for (auto& [key, ms] : sums) stats.stages.push_back({key.first, key.second, ms});
   stats.right_pixels = static_cast<std::size_t>(width_) * height_;

@@ -12,6 +12,7 @@
 #include "pipeline/event_log.h"
 #include "pipeline/frame_images.h"
 #include "pipeline/operation.h"
+#include "pipeline/queue_lanes.h"
 #include "pipeline/row_transfer.h"
 #include "pipeline/stages/denoise_stage.h"
 #include "pipeline/stages/path_trace_stage.h"
@@ -41,6 +42,7 @@ struct StageSpan {
   int device;
   std::uint64_t start_ns, end_ns;
   const char* pass = nullptr;  // EventLog::Entry::pass: the timeline names the slice by it
+  int lane = 0;                // QueueLanes lane: the timeline's track within the device
 };
 
 struct FrameStats {
@@ -76,6 +78,10 @@ class StereoPipeline {
     // radiance(), e.g. EXR files). Off: RGBA8 alone travels (4 instead of 20 bytes a pixel),
     // what a display needs, and radiance() is unavailable.
     bool gather_radiance = true;
+    // A side queue per device for the left eye's denoising, tonemapping and transfer, so that
+    // they overlap the right eye's reprojection and hole filling (queue_lanes.h). Images are
+    // identical either way. Off under MPI (one queue per device there).
+    bool overlap = true;
   };
 
   StereoPipeline(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene, unsigned width,
@@ -83,7 +89,9 @@ class StereoPipeline {
 
   const FrameSchedule& schedule() const { return schedule_; }
   // The operations the next frame runs (the schedule with this frame's G-buffer margins).
-  std::vector<Operation> operations() const { return make_operations(schedule_, gbuffer_margin(schedule_, options_)); }
+  std::vector<Operation> operations() const {
+    return make_operations(schedule_, gbuffer_margin(schedule_, options_), lanes_.has_side());
+  }
   // The rows beyond its strip that each G-buffer pass of `schedule` covers: the most any
   // scheduled stage declares it reads (a static gbuffer_rows_read of its unit).
   static unsigned gbuffer_margin(const FrameSchedule& schedule, const Options& options);
@@ -149,7 +157,7 @@ class StereoPipeline {
 
   static DenoiseStage::Options denoise_options(const Options& options);
   bool local(int d) const { return layout_.is_local(d); }
-  cl::CommandQueue& queue(int d) { return devices_.devices()[layout_.local_index(d)].queue; }
+  cl::CommandQueue& queue(int d) { return lanes_.lane(layout_.local_index(d), QueueLanes::kMain); }
 
   DeviceSet& devices_;
   Cluster* cluster_;
@@ -159,6 +167,7 @@ class StereoPipeline {
   Options options_;
   FrameSchedule schedule_;
   std::vector<FrameImages> images_;     // per device of the frame; empty entries for other ranks
+  QueueLanes lanes_;
   EventLog log_;
   RowTransfer transfer_;
   StageEnv env_;

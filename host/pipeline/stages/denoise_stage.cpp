@@ -23,7 +23,8 @@ DenoiseStage::DenoiseStage(StageEnv& env, const Options& options)
     for (int e = 0; e < 2; ++e) {
       dev_[d].gbuffer_prev[e] = cl::Buffer(env.devices.context(), CL_MEM_READ_WRITE, pixels * sizeof(GBufferTexel));
       dev_[d].svgf[e] =
-          std::make_unique<SvgfDenoiser>(env.devices, env.layout.local_index(d), env.width, env.height, options.svgf);
+          std::make_unique<SvgfDenoiser>(env.devices, env.layout.local_index(d), env.width, env.height, options.svgf,
+                                         &env.lanes);
     }
   }
 }
@@ -45,10 +46,16 @@ unsigned DenoiseStage::gbuffer_rows_read(const Options& o) {
 }
 
 void DenoiseStage::run(const std::vector<const Operation*>& ops, const FrameInputs& in) {
+  // The eyes these operations denoise (with the side lane, each eye comes as its own batch).
   for (int e = 0; e < 2; ++e) {
     std::vector<RowRange> strip(env_.layout.count());
+    bool any = false;
     for (const Operation* op : ops)
-      if (op->eye == e) strip[op->device] = op->rows;
+      if (op->eye == e) {
+        strip[op->device] = op->rows;
+        any = true;
+      }
+    if (!any) continue;
     denoise_eye(e, strip, in);
     frame_strips_[e] = strip;
   }
@@ -60,7 +67,7 @@ void DenoiseStage::denoise_eye(int e, const std::vector<RowRange>& strip, const 
   const RowRange image{0, env_.height};
   auto readable = [&](int d) { return halo ? image : strip[d]; };
   auto svgf = [&](int d) -> SvgfDenoiser& { return *dev_[d].svgf[e]; };
-  auto halo_staging = [&](int d) -> StagingBuffer& { return dev_[d].halo; };
+  auto halo_staging = [&](int d) -> StagingBuffer& { return dev_[d].halo[e]; };
   auto widened = [&](unsigned radius) {
     std::vector<RowRange> out(strip.size());
     for (std::size_t d = 0; d < strip.size(); ++d) out[d] = widen(strip[d], radius, env_.height);
@@ -87,7 +94,7 @@ void DenoiseStage::denoise_eye(int e, const std::vector<RowRange>& strip, const 
   }
   if (moved)
     env_.transfer.exchange([&](int d) -> const cl::Buffer& { return dev_[d].gbuffer_prev[e]; }, held, history_rows,
-                           sizeof(GBufferTexel), [&](int d) -> StagingBuffer& { return dev_[d].gbuffer; });
+                           sizeof(GBufferTexel), [&](int d) -> StagingBuffer& { return dev_[d].gbuffer[e]; });
   // The guide covers every G-buffer row the spatial passes read: the strip and the margin that
   // gbuffer_rows_read declares (which the G-buffer stage computed).
   const std::vector<RowRange> guided = widened(gbuffer_rows_read(options_));
@@ -136,8 +143,10 @@ void DenoiseStage::end_frame(const FrameInputs& in) {
       std::swap(env_.images[d].gbuffer[e], dev.gbuffer_prev[e]);
       dev.svgf[e]->end_frame();
     }
-    dev.halo.readers.clear();
-    dev.gbuffer.readers.clear();
+    for (int e = 0; e < 2; ++e) {
+      dev.halo[e].readers.clear();
+      dev.gbuffer[e].readers.clear();
+    }
   }
   prev_cams_ = in.cams;
   history_strips_ = frame_strips_;

@@ -54,8 +54,9 @@ class DenoiseStage : public StageUnit {
   struct PerDevice {
     std::array<cl::Buffer, 2> gbuffer_prev;  // last frame's G-buffer (swapped with this frame's)
     std::array<std::unique_ptr<SvgfDenoiser>, 2> svgf;
-    StagingBuffer halo;     // float4 rows leaving the device
-    StagingBuffer gbuffer;  // GBufferTexel rows of last frame's G-buffer when strips move
+    // Per eye (the eyes may be denoised at the same time, on different queue lanes):
+    std::array<StagingBuffer, 2> halo;     // float4 rows leaving the device
+    std::array<StagingBuffer, 2> gbuffer;  // GBufferTexel rows of last frame's G-buffer when strips move
   };
   Options options_;
   unsigned max_iterations_;

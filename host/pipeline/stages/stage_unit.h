@@ -10,6 +10,7 @@
 #include "pipeline/event_log.h"
 #include "pipeline/frame_images.h"
 #include "pipeline/operation.h"
+#include "pipeline/queue_lanes.h"
 #include "pipeline/row_transfer.h"
 #include "render/device_scene.h"
 #include "scene/scene.h"
@@ -31,9 +32,10 @@ struct StageEnv {
   std::vector<FrameImages>& images;
   EventLog& log;
   RowTransfer& transfer;
+  QueueLanes& lanes;  // queue(d) is the lane the executor selected
 
   bool local(int d) const { return layout.is_local(d); }
-  cl::CommandQueue& queue(int d) const { return devices.devices()[layout.local_index(d)].queue; }
+  cl::CommandQueue& queue(int d) const { return lanes.queue(layout.local_index(d)); }
   const DeviceSceneBuffers& scene_on(int d) const { return device_scene.on(layout.local_index(d)); }
   std::size_t pixels(RowRange rows) const { return static_cast<std::size_t>(rows.size()) * width; }
 };

@@ -6,8 +6,9 @@
 
 namespace px {
 
-SvgfDenoiser::SvgfDenoiser(DeviceSet& devices, int device, unsigned width, unsigned height, const Options& options)
-    : devices_(devices), device_(device), width_(width), height_(height), options_(options) {
+SvgfDenoiser::SvgfDenoiser(DeviceSet& devices, int device, unsigned width, unsigned height, const Options& options,
+                           QueueLanes* lanes)
+    : devices_(devices), device_(device), lanes_(lanes), width_(width), height_(height), options_(options) {
   const std::size_t bytes = static_cast<std::size_t>(width) * height * sizeof(cl_float4);
   const auto& ctx = devices.context();
   auto& q = devices.devices()[device].queue;
@@ -65,7 +66,7 @@ const char* atrous_pass_name(unsigned iteration) {
 }  // namespace
 
 void SvgfDenoiser::launch(cl::Kernel& k, RowRange rows, const char* pass) {
-  events_.push_back({Stage::Denoise, launch_1d(devices_.devices()[device_].queue, k,
+  events_.push_back({Stage::Denoise, launch_1d(queue(), k,
                                                static_cast<std::size_t>(rows.size()) * width_), pass});
 }
 
@@ -91,7 +92,7 @@ void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& albedo, c
   cl::Event e;
   const std::size_t off = static_cast<std::size_t>(rows.begin) * width_ * sizeof(cl_float4);
   const std::size_t len = static_cast<std::size_t>(rows.size()) * width_ * sizeof(cl_float4);
-  devices_.devices()[device_].queue.enqueueCopyBuffer(moments_, hist_moments_[frame_parity_], off, off, len, nullptr, &e);
+  queue().enqueueCopyBuffer(moments_, hist_moments_[frame_parity_], off, off, len, nullptr, &e);
   events_.push_back({Stage::RecordPrevious, e, "moment history"});
 }
 
@@ -121,7 +122,7 @@ void SvgfDenoiser::atrous(unsigned iteration, RowRange rows, RowRange readable) 
     cl::Event e;
     const std::size_t off = static_cast<std::size_t>(rows.begin) * width_ * sizeof(cl_float4);
     const std::size_t len = static_cast<std::size_t>(rows.size()) * width_ * sizeof(cl_float4);
-    devices_.devices()[device_].queue.enqueueCopyBuffer(illum_[current_], hist_illum_[frame_parity_], off, off, len,
+    queue().enqueueCopyBuffer(illum_[current_], hist_illum_[frame_parity_], off, off, len,
                                                         nullptr, &e);
     events_.push_back({Stage::RecordPrevious, e, "colour history"});
   }
@@ -154,7 +155,7 @@ void SvgfDenoiser::seam_filter(const cl::Buffer& color, RowRange rows, RowRange 
   cl::Event e;
   const std::size_t off = static_cast<std::size_t>(rows.begin) * width_ * sizeof(cl_float4);
   const std::size_t len = static_cast<std::size_t>(rows.size()) * width_ * sizeof(cl_float4);
-  devices_.devices()[device_].queue.enqueueCopyBuffer(scratch, color, off, off, len, nullptr, &e);
+  queue().enqueueCopyBuffer(scratch, color, off, off, len, nullptr, &e);
   events_.push_back({Stage::Denoise, e, "seam filter copy"});
 }
 

@@ -6,6 +6,7 @@
 
 #include "cl/device_set.h"
 #include "image/row_range.h"
+#include "pipeline/queue_lanes.h"
 #include "pipeline/stage.h"
 #include "shared/types.h"
 
@@ -24,7 +25,10 @@ class SvgfDenoiser {
     unsigned temporal_rows = 16;  // largest vertical history offset (rows) still accepted
   };
 
-  SvgfDenoiser(DeviceSet& devices, int device, unsigned width, unsigned height, const Options& options);
+  // `device` is a local device index; `lanes` (optional) the pipeline's queue lanes, whose
+  // selected lane the passes are enqueued on (without: the device's queue).
+  SvgfDenoiser(DeviceSet& devices, int device, unsigned width, unsigned height, const Options& options,
+               QueueLanes* lanes = nullptr);
 
   // Pass 0: the guide texels (normal, signed depth) of G-buffer rows `rows`, which must cover
   // every row the spatial passes of this frame read: the strip and its readable margin.
@@ -66,9 +70,11 @@ class SvgfDenoiser {
  private:
   SvgfParams params(RowRange rows, RowRange readable, unsigned step) const;
   void launch(cl::Kernel& k, RowRange rows, const char* pass);
+  cl::CommandQueue& queue() { return lanes_ ? lanes_->queue(device_) : devices_.devices()[device_].queue; }
 
   DeviceSet& devices_;
   int device_;
+  QueueLanes* lanes_;
   unsigned width_, height_;
   Options options_;
   cl::Buffer illum_[2];        // ping-pong filter buffers (rgb, variance)
