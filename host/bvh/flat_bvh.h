@@ -61,7 +61,7 @@ struct FlatBvh {
   std::vector<BvhNode> nodes;          // nodes[0] is the root; never empty for a built BVH
   std::vector<BvhTriangle> triangles;  // leaf order; BvhTriangle::prim indexes the scene
   // The same tree collapsed to wide nodes (empty unless built: collapse_bvh); leaves index
-  // `triangles` as the binary leaves do (a wide leaf may span several binary leaves).
+  // `triangles` exactly as the binary leaves do.
   std::vector<Bvh4Node> nodes4;
   std::vector<Bvh8Node> nodes8;
   BvhBuildStats stats;
@@ -73,10 +73,7 @@ constexpr std::uint32_t kWideIndexLimit = 1u << 29;
 
 // Fills bvh.nodes4 (width 4) or bvh.nodes8 (width 8) from the binary nodes: every wide node is
 // a binary node whose children are replaced, largest surface area first, by their own
-// children until it has `width` of them or only leaves. A binary subtree of at most
-// PX_BVH_MAX_LEAF_SIZE triangles, contiguous in leaf order, counts as one leaf (one leaf block
-// tests four triangles at once); where a node still has free slots, such merged leaves are
-// split back, largest first. Returns the time taken in ms.
+// children until it has `width` of them or only leaves. Returns the time taken in ms.
 double collapse_bvh(FlatBvh& bvh, int width);
 
 // The node buffer the kernels read for a wide layout: the wide nodes followed by one leaf

@@ -24,67 +24,19 @@ struct ChildRef {
   float lo[3], hi[3];
   std::uint32_t index;  // binary node, or first triangle of a leaf
   std::uint32_t count;  // 0 = interior
-  std::uint32_t merged; // a leaf standing for a small binary subtree: that binary node, else kNone
   double half_area() const {
     const double dx = double(hi[0]) - lo[0], dy = double(hi[1]) - lo[1], dz = double(hi[2]) - lo[2];
     return dx * dy + dy * dz + dz * dx;
   }
 };
 
-constexpr std::uint32_t kNone = 0xffffffffu;
-
 bool absent(const float* lo, const float* hi) {
   return lo[0] > hi[0] && lo[1] > hi[1] && lo[2] > hi[2];
 }
 
-// A triangle range [first, first + count) of the leaf-order array; count 0 = none.
-struct Range {
-  std::uint32_t first = 0, count = 0;
-};
-
-// Per binary node: its subtree's triangles as one range when they are contiguous in leaf order
-// and at most PX_BVH_MAX_LEAF_SIZE of them, else count 0. Such a subtree becomes one wide leaf:
-// the builder's leaves are small (mostly two triangles), and a leaf block tests four triangles
-// in one go, so two sibling leaves of two cost one block fetch instead of a wide node with two
-// leaf slots and then two blocks. The leaf's box is the subtree's box in its parent, so it
-// holds all of its triangles.
-std::vector<Range> small_subtrees(const FlatBvh& bvh) {
-  std::vector<Range> small(bvh.nodes.size());
-  // Children follow their parent in the binary array (depth-first), so a reverse sweep sees
-  // both children of a node before the node itself; check that rather than assume it.
-  for (std::size_t b = bvh.nodes.size(); b-- > 0;) {
-    const BvhNode& n = bvh.nodes[b];
-    Range side[2];
-    bool ok = true;
-    const std::uint32_t index[2] = {n.left, n.right};
-    const std::uint32_t count[2] = {n.left_count, n.right_count};
-    const bool present[2] = {!absent(n.lmin, n.lmax), !absent(n.rmin, n.rmax)};
-    for (int k = 0; k < 2 && ok; ++k) {
-      if (!present[k]) continue;
-      if (count[k] > 0) {
-        side[k] = {index[k], count[k]};
-      } else if (index[k] > b && index[k] < small.size()) {
-        side[k] = small[index[k]];
-        ok = side[k].count > 0;
-      } else {
-        ok = false;
-      }
-    }
-    if (!ok || !present[0] || !present[1]) continue;
-    const std::uint64_t total = std::uint64_t{side[0].count} + side[1].count;
-    if (total > PX_BVH_MAX_LEAF_SIZE) continue;
-    if (side[0].first + side[0].count == side[1].first)
-      small[b] = {side[0].first, static_cast<std::uint32_t>(total)};
-    else if (side[1].first + side[1].count == side[0].first)
-      small[b] = {side[1].first, static_cast<std::uint32_t>(total)};
-  }
-  return small;
-}
-
-// The present children of binary node `n`, appended to `out`; an interior child whose subtree
-// is small (small_subtrees) comes as a leaf.
+// The present children of binary node `n`, appended to `out`.
 template <typename Out>
-void binary_children(const BvhNode& n, const std::vector<Range>& small, Out& out, int& size) {
+void binary_children(const BvhNode& n, Out& out, int& size) {
   const float* lo[2] = {n.lmin, n.rmin};
   const float* hi[2] = {n.lmax, n.rmax};
   const std::uint32_t index[2] = {n.left, n.right};
@@ -95,26 +47,19 @@ void binary_children(const BvhNode& n, const std::vector<Range>& small, Out& out
     for (int k = 0; k < 3; ++k) c.lo[k] = lo[side][k], c.hi[k] = hi[side][k];
     c.index = index[side];
     c.count = count[side];
-    c.merged = kNone;
-    if (c.count == 0 && small[c.index].count > 0) {
-      const Range r = small[c.index];
-      c.merged = c.index;
-      c.index = r.first;
-      c.count = r.count;
-    }
   }
 }
 
 template <int W, typename Node>
 class Collapser {
  public:
-  Collapser(const FlatBvh& bvh, std::vector<Node>& out) : bvh_(bvh), small_(small_subtrees(bvh)), out_(out) {}
+  Collapser(const FlatBvh& bvh, std::vector<Node>& out) : bvh_(bvh), out_(out) {}
 
   // Emits the wide node standing for binary node `b` (and its subtree); returns its index.
   std::uint32_t emit(std::uint32_t b) {
     ChildRef children[W];
     int size = 0;
-    binary_children(bvh_.nodes[b], small_, children, size);
+    binary_children(bvh_.nodes[b], children, size);
     // Open the interior child with the largest surface area (the one rays enter most often)
     // until the node is full or holds only leaves.
     while (size < W) {
@@ -128,22 +73,7 @@ class Collapser {
       if (best < 0) break;
       const std::uint32_t opened = children[best].index;
       children[best] = children[--size];
-      binary_children(bvh_.nodes[opened], small_, children, size);
-    }
-    // Slots still free: split merged leaves back into their binary children, largest first
-    // (tighter boxes at no cost in the node's box test).
-    while (size < W) {
-      int best = -1;
-      double best_area = -1.0;
-      for (int i = 0; i < size; ++i)
-        if (children[i].merged != kNone && children[i].half_area() > best_area) {
-          best = i;
-          best_area = children[i].half_area();
-        }
-      if (best < 0) break;
-      const std::uint32_t opened = children[best].merged;
-      children[best] = children[--size];
-      binary_children(bvh_.nodes[opened], small_, children, size);
+      binary_children(bvh_.nodes[opened], children, size);
     }
 
     const auto index = static_cast<std::uint32_t>(out_.size());
@@ -169,7 +99,6 @@ class Collapser {
 
  private:
   const FlatBvh& bvh_;
-  const std::vector<Range> small_;
   std::vector<Node>& out_;
 };
 

@@ -58,9 +58,8 @@ typedef struct BvhNode {
 
 /* Wide BVH nodes (Bvh8Node is the default traversal layout; PX_BVH_WIDTH selects, see below). The same
  * tree as the binary one, collapsed: each wide node stands for a binary node and takes as
- * children up to W of its binary descendants. A leaf is a binary leaf, or a binary subtree whose
- * triangles are contiguous in leaf order and at most PX_BVH_MAX_LEAF_SIZE (its leaves merged
- * into one, with the subtree's box), so the triangle array is shared. Children are stored structure-of-arrays, one W-float row per box plane, so
+ * children up to W of its binary descendants (leaves are the binary leaves, so the triangle
+ * array is shared). Children are stored structure-of-arrays, one W-float row per box plane, so
  * the slab test of all W children is six vector loads and a few vector ops in one work-item;
  * a ray reads the near plane rows of its octant first (the row order below lets it pick "lo"
  * or "hi" of an axis by adding W floats).
