@@ -771,7 +771,11 @@ void expect_block(const Block& b, std::uint32_t first, std::uint32_t count, cons
 // structure-of-arrays (BvhLeafBlock2 for 1-2 triangles, BvhLeafBlock for 3-4), back to back in
 // node order; leaf slots point at their blocks in 16-byte units.
 TEST(WideBvh, DeviceFormHoldsEveryLeafAsABlock) {
-  const auto tris = random_soup(1500, 63);
+  auto tris = random_soup(1500, 63);
+  // Coincident triangles cannot be split apart, so these end up in leaves of 3 and 4: the soup
+  // alone gives leaves of 1 and 2 only.
+  for (int k = 0; k < 4; ++k) tris.push_back(make_triangle({150, 150, 150}, {151, 150, 150}, {150, 151, 150}, 0));
+  for (int k = 0; k < 3; ++k) tris.push_back(make_triangle({-50, -50, -50}, {-49, -50, -50}, {-50, -49, -50}, 1));
   FlatBvh bvh = build_bvh(tris, with_splits(false));
   collapse_bvh(bvh, 8);
   bvh.triangles[5].flags = PX_TRI_ALPHA_TESTED;
