@@ -76,10 +76,9 @@ constexpr std::uint32_t kWideIndexLimit = 1u << 29;
 // children until it has `width` of them or only leaves. Returns the time taken in ms.
 double collapse_bvh(FlatBvh& bvh, int width);
 
-// The node buffer the kernels read for a wide layout: the wide nodes followed by one leaf
-// block per leaf (types.h: BvhLeafBlock2 for 1-2 triangles, BvhLeafBlock for 3-4), leaf slots
-// pointing at their blocks. Reads the triangles' flags, so call it after set_triangle_flags.
-// Throws if the wide nodes are absent.
+// The node buffer the kernels read for a wide layout: the wide nodes followed by one
+// BvhLeafBlock per leaf (types.h), leaf slots pointing at their blocks. Reads the triangles'
+// flags, so call it after set_triangle_flags. Throws if the wide nodes are absent.
 std::vector<std::uint32_t> device_wide_nodes(const FlatBvh& bvh, BvhLayout layout);
 
 // Makes sure `bvh` carries the nodes of `layout` (collapsing if needed).

@@ -160,63 +160,46 @@ double collapse_bvh(FlatBvh& bvh, int width) {
 
 namespace {
 
-// Fills a leaf block of `Lanes` lanes (BvhLeafBlock: 4, BvhLeafBlock2: 2) with the `count`
-// triangles from `first`; lanes >= count repeat lane 0.
-template <int Lanes, typename Block>
-Block make_block(const std::vector<BvhTriangle>& tris, std::uint32_t first, std::uint32_t count) {
-  Block b{};
-  b.first = first;
-  b.count = count;
-  b.flags = 0;
-  for (std::uint32_t j = 0; j < Lanes; ++j) {
-    const BvhTriangle& t = tris[first + (j < count ? j : 0)];
-    if (j < count) b.flags |= t.flags;
-    for (int k = 0; k < 3; ++k) {
-      b.v[k][j] = t.v0[k];
-      b.v[3 + k][j] = t.v1[k];
-      b.v[6 + k][j] = t.v2[k];
-    }
-  }
-  return b;
-}
-
-// Bytes of the leaf block a leaf of `count` triangles takes (types.h).
-std::size_t block_bytes(std::uint32_t count) { return count <= 2 ? sizeof(BvhLeafBlock2) : sizeof(BvhLeafBlock); }
-
 template <int W, typename Node>
 std::vector<std::uint32_t> device_form(const std::vector<Node>& nodes, const std::vector<BvhTriangle>& tris) {
-  static_assert(sizeof(Node) % 16 == 0 && sizeof(BvhLeafBlock) % 16 == 0 && sizeof(BvhLeafBlock2) % 16 == 0);
+  static_assert(sizeof(Node) % 16 == 0 && sizeof(BvhLeafBlock) % 16 == 0);
   if (nodes.empty()) throw std::invalid_argument("device_wide_nodes: the wide nodes are not built");
-  std::size_t block_total = 0;
+  std::size_t leaves = 0;
   for (const Node& n : nodes)
-    for (int i = 0; i < W; ++i)
-      if (n.count[i] > 0) block_total += block_bytes(n.count[i]);
-  const std::size_t node_bytes = nodes.size() * sizeof(Node);
-  const std::size_t total_units = (node_bytes + block_total) / 16;
+    for (int i = 0; i < W; ++i) leaves += n.count[i] > 0 ? 1 : 0;
+  const std::size_t node_words = nodes.size() * sizeof(Node) / 4;
+  const std::size_t total_units = (nodes.size() * sizeof(Node) + leaves * sizeof(BvhLeafBlock)) / 16;
   if (total_units >= kWideIndexLimit)
     throw std::runtime_error("BVH: wide node buffer too large for 29-bit leaf offsets");
-  std::vector<std::uint32_t> words((node_bytes + block_total) / 4);
-  auto* bytes = reinterpret_cast<unsigned char*>(words.data());
-  std::size_t offset = node_bytes;  // next block, in bytes from the buffer's start
-  for (std::size_t ni = 0; ni < nodes.size(); ++ni) {
-    Node n = nodes[ni];
+  std::vector<Node> out_nodes = nodes;
+  std::vector<BvhLeafBlock> blocks(leaves);
+  std::size_t next = 0;
+  for (Node& n : out_nodes)
     for (int i = 0; i < W; ++i) {
       if (n.count[i] == 0) continue;
       const std::uint32_t first = n.child[i], count = n.count[i];
       if (count > 4 || first + std::uint64_t{count} > tris.size())
         throw std::runtime_error("BVH: leaf out of range in the wide layout");
-      if (count <= 2) {
-        const BvhLeafBlock2 b = make_block<2, BvhLeafBlock2>(tris, first, count);
-        std::memcpy(bytes + offset, &b, sizeof b);
-      } else {
-        const BvhLeafBlock b = make_block<4, BvhLeafBlock>(tris, first, count);
-        std::memcpy(bytes + offset, &b, sizeof b);
+      BvhLeafBlock& b = blocks[next];
+      b.first = first;
+      b.count = count;
+      b.flags = 0;
+      b.pad = 0;
+      for (std::uint32_t j = 0; j < 4; ++j) {
+        const BvhTriangle& t = tris[first + (j < count ? j : 0)];
+        if (j < count) b.flags |= t.flags;
+        for (int k = 0; k < 3; ++k) {
+          b.v[k][j] = t.v0[k];
+          b.v[3 + k][j] = t.v1[k];
+          b.v[6 + k][j] = t.v2[k];
+        }
       }
-      n.child[i] = static_cast<std::uint32_t>(offset / 16);
-      offset += block_bytes(count);
+      n.child[i] = static_cast<std::uint32_t>((nodes.size() * sizeof(Node) + next * sizeof(BvhLeafBlock)) / 16);
+      ++next;
     }
-    std::memcpy(bytes + ni * sizeof(Node), &n, sizeof n);
-  }
+  std::vector<std::uint32_t> words(node_words + leaves * sizeof(BvhLeafBlock) / 4);
+  std::memcpy(words.data(), out_nodes.data(), out_nodes.size() * sizeof(Node));
+  if (leaves > 0) std::memcpy(words.data() + node_words, blocks.data(), blocks.size() * sizeof(BvhLeafBlock));
   return words;
 }
 

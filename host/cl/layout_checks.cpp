@@ -25,8 +25,6 @@ static_assert(offsetof(Bvh4Node, count) == 112);
 
 static_assert(sizeof(BvhLeafBlock) == 160 && offsetof(BvhLeafBlock, first) == 144);
 static_assert(offsetof(BvhLeafBlock, count) == 148 && offsetof(BvhLeafBlock, flags) == 152);
-static_assert(sizeof(BvhLeafBlock2) == 96 && offsetof(BvhLeafBlock2, first) == 72);
-static_assert(offsetof(BvhLeafBlock2, count) == 76 && offsetof(BvhLeafBlock2, flags) == 80);
 
 static_assert(sizeof(BvhTriangle) == 48);
 static_assert(offsetof(BvhTriangle, prim) == 12 && offsetof(BvhTriangle, v1) == 16);

@@ -107,15 +107,12 @@ typedef struct Bvh8Node {
  * structure-of-arrays, so the watertight test runs on all of them with float4 ops. Device form
  * only: DeviceScene appends one block per leaf after the wide nodes in the node buffer and
  * points the leaf slot's `child` at its block, in 16-byte units from the buffer's start (the
- * host's Bvh4Node / Bvh8Node keep the first triangle index, as the binary nodes do). Leaves of
- * 3 or 4 triangles take this block, leaves of 1 or 2 the 96-byte BvhLeafBlock2 below (the
- * slot's count tells the kernel which); blocks follow each other in node order, each
- * 16-byte aligned.
+ * host's Bvh4Node / Bvh8Node keep the first triangle index, as the binary nodes do).
  *
  *     0..143  v[9][4]  rows v0.x v0.y v0.z v1.x v1.y v1.z v2.x v2.y v2.z; lane j = triangle
  *                      first + j; lanes >= count repeat lane 0
  *   144..147  first    leaf-order index (BvhTriangle array) of lane 0's triangle
- *   148..151  count    triangles in the leaf, 3..4
+ *   148..151  count    triangles in the leaf, 1..4
  *   152..155  flags    OR of the triangles' PX_TRI_* bits (alpha-tested leaves take the
  *                      one-by-one path)
  *   156..159  pad */
@@ -126,23 +123,6 @@ typedef struct BvhLeafBlock {
   uint flags;
   uint pad;
 } BvhLeafBlock;
-
-/* Two-lane leaf block, 96 bytes, for leaves of 1 or 2 triangles (most leaves: the builder's
- * leaves are mostly pairs), tested with float2 ops; two cache lines where a BvhLeafBlock
- * takes three.
- *
- *    0..71  v[9][2]  rows as in BvhLeafBlock, two lanes; lane 1 repeats lane 0 when count is 1
- *   72..75  first    leaf-order index of lane 0's triangle
- *   76..79  count    triangles in the leaf, 1..2
- *   80..83  flags    OR of the triangles' PX_TRI_* bits
- *   84..95  pad[3] */
-typedef struct BvhLeafBlock2 {
-  float v[9][2];
-  uint first;
-  uint count;
-  uint flags;
-  uint pad[3];
-} BvhLeafBlock2;
 
 /* Which node layout the scene's node buffer holds and the traversal reads: 2 (BvhNode), 4
  * (Bvh4Node) or 8 (Bvh8Node). The host passes -DPX_BVH_WIDTH=N to every kernel build and

@@ -186,15 +186,11 @@ inline pxw_float pxw_min(pxw_float a, pxw_float b) { return select(b, a, a < b);
 /* Prefetches the lines of a stack entry (node or leaf block, see px_trace_closest_leaf). */
 inline void px_prefetch_entry(const global float* nodes, uint e) {
   if (e >> 29) {
-    const global float* b = nodes + (size_t)(e & 0x1fffffffu) * 4; /* 16-aligned */
+    const global float* b = nodes + (size_t)(e & 0x1fffffffu) * 4; /* 160 bytes, 16-aligned */
     PX_PREFETCH(b);
     PX_PREFETCH(b + 16);
-    if ((e >> 29) > 2u) { /* BvhLeafBlock, 160 bytes */
-      PX_PREFETCH(b + 32);
-      PX_PREFETCH(b + 39);
-    } else { /* BvhLeafBlock2, 96 bytes */
-      PX_PREFETCH(b + 23);
-    }
+    PX_PREFETCH(b + 32);
+    PX_PREFETCH(b + 39);
   } else {
     const global float* n = nodes + (size_t)e * PXW_NODE_FLOATS;
     for (int k = 0; k < PXW_NODE_FLOATS; k += 16) PX_PREFETCH(n + k);
@@ -242,70 +238,16 @@ inline uint px_wide_boxes(const global float* node, const WideRay* w, float tmin
 
 inline uint px_lowest_bit(uint m) { return 31u - clz(m & (0u - m)); }
 
-/* px_intersect_block for a leaf of 1 or 2 triangles, whose BvhLeafBlock2 starts at `block`:
- * the same operations on two lanes (float2). */
-inline int px_intersect_block2(const SceneView* scene, const global float* block, uint count,
-                               const RayShear* s, float tmin, Hit* best) {
-  const global uint* header = (const global uint*)(block + 18);
-  const uint first = header[0];
-  if (header[2] & PX_TRI_ALPHA_TESTED) return px_intersect_leaf(scene, first, count, s, tmin, best);
-  const float ox = px_axis(s->org, s->kx), oy = px_axis(s->org, s->ky), oz = px_axis(s->org, s->kz);
-  const int kx = 2 * s->kx, ky = 2 * s->ky, kz = 2 * s->kz;
-  const float2 az = vload2(0, block + kz) - oz;
-  const float2 bz = vload2(0, block + 6 + kz) - oz;
-  const float2 cz = vload2(0, block + 12 + kz) - oz;
-  const float2 ax = (vload2(0, block + kx) - ox) - s->sx * az;
-  const float2 ay = (vload2(0, block + ky) - oy) - s->sy * az;
-  const float2 bx = (vload2(0, block + 6 + kx) - ox) - s->sx * bz;
-  const float2 by = (vload2(0, block + 6 + ky) - oy) - s->sy * bz;
-  const float2 cx = (vload2(0, block + 12 + kx) - ox) - s->sx * cz;
-  const float2 cy = (vload2(0, block + 12 + ky) - oy) - s->sy * cz;
-  float2 eu = cx * by - cy * bx;
-  float2 ev = ax * cy - ay * cx;
-  float2 ew = bx * ay - by * ax;
-  if (any((eu == 0.0f) | (ev == 0.0f) | (ew == 0.0f)))
-    return px_intersect_leaf(scene, first, count, s, tmin, best);
-  int2 ok = !(((eu < 0.0f) | (ev < 0.0f) | (ew < 0.0f)) & ((eu > 0.0f) | (ev > 0.0f) | (ew > 0.0f)));
-  float2 det = eu + ev + ew;
-  ok &= det != 0.0f;
-  float2 tt = eu * (s->sz * az) + ev * (s->sz * bz) + ew * (s->sz * cz);
-  const int2 flip = det < 0.0f;
-  det = select(det, -det, flip);
-  tt = select(tt, -tt, flip);
-  ev = select(ev, -ev, flip);
-  ew = select(ew, -ew, flip);
-  ok &= (tt >= tmin * det) & (tt < best->t * det);
-  ok &= (int2)(0, 1) < (int2)((int)count);
-  if (!any(ok)) return 0;
-  const float2 inv = 1.0f / det;
-  const float2 t2 = select((float2)(INFINITY), tt * inv, ok);
-  const float2 u2 = ev * inv, v2 = ew * inv;
-  if (t2.x <= t2.y) { /* the lower lane on equal t */
-    best->t = t2.x;
-    best->u = u2.x;
-    best->v = v2.x;
-    best->prim = first;
-  } else {
-    best->t = t2.y;
-    best->u = u2.y;
-    best->v = v2.y;
-    best->prim = first + 1u;
-  }
-  return 1;
-}
-
 /* Intersects the leaf whose BvhLeafBlock starts at `block` (types.h): the watertight test of
  * px_intersect_triangle_mem on all four lanes at once, the same operations in the same order,
  * so each lane computes exactly what the one-triangle test would. Where any lane's edge
  * function is exactly zero (a ray through an edge or vertex, decided in double precision
  * there), and for alpha-tested leaves, the leaf is intersected triangle by triangle instead.
  * Among hit lanes the nearest wins (the lowest lane on equal t). `count` is the leaf's triangle
- * count, which the caller has from the node (the block's own count field holds the same); a
- * count of 1 or 2 means the block is a BvhLeafBlock2 (px_intersect_block2).
+ * count, which the caller has from the node (the block's own count field holds the same).
  * Returns 1 on any hit. */
 inline int px_intersect_block(const SceneView* scene, const global float* block, uint count,
                               const RayShear* s, float tmin, Hit* best) {
-  if (count <= 2u) return px_intersect_block2(scene, block, count, s, tmin, best);
   const global uint* header = (const global uint*)(block + 36);
   const uint first = header[0];
   if (header[2] & PX_TRI_ALPHA_TESTED) return px_intersect_leaf(scene, first, count, s, tmin, best);
