@@ -164,6 +164,39 @@ inline uint pxw_mask(pxw_int m) {
 #error "PX_BVH_WIDTH must be 2, 4 or 8"
 #endif
 
+/* max / min as compare-and-select: one vmaxps / vminps each, where fmax / fmin also have to
+ * return the non-NaN operand (three instructions on x86). No operand here is NaN for a finite
+ * ray: the inverse direction is finite and non-zero (px_safe_inverse), so (plane - org) * inv is
+ * finite or +-inf, and tmin / tmax are not NaN; then both give the same value. */
+inline pxw_float pxw_max(pxw_float a, pxw_float b) { return select(b, a, a > b); }
+inline pxw_float pxw_min(pxw_float a, pxw_float b) { return select(b, a, a < b); }
+
+/* Software prefetch of the 64-byte line holding `p`. On PoCL's CPU devices (clang, x86-64)
+ * clang's __builtin_prefetch becomes a prefetcht0, which lets the misses of several children
+ * overlap; elsewhere OpenCL's prefetch(), a hint the implementation may ignore. */
+#if defined(__x86_64__) && defined(__has_builtin)
+#if __has_builtin(__builtin_prefetch)
+#define PX_PREFETCH(p) __builtin_prefetch(p)
+#endif
+#endif
+#ifndef PX_PREFETCH
+#define PX_PREFETCH(p) prefetch((p), 1)
+#endif
+
+/* Prefetches the lines of a stack entry (node or leaf block, see px_trace_closest_leaf). */
+inline void px_prefetch_entry(const global float* nodes, uint e) {
+  if (e >> 29) {
+    const global float* b = nodes + (size_t)(e & 0x1fffffffu) * 4; /* 160 bytes, 16-aligned */
+    PX_PREFETCH(b);
+    PX_PREFETCH(b + 16);
+    PX_PREFETCH(b + 32);
+    PX_PREFETCH(b + 39);
+  } else {
+    const global float* n = nodes + (size_t)e * PXW_NODE_FLOATS;
+    for (int k = 0; k < PXW_NODE_FLOATS; k += 16) PX_PREFETCH(n + k);
+  }
+}
+
 /* Per-ray constants of the wide box test. */
 typedef struct WideRay {
   pxw_float ox, oy, oz, ix, iy, iz;
@@ -197,8 +230,8 @@ inline uint px_wide_boxes(const global float* node, const WideRay* w, float tmin
   const pxw_float tfx = (pxw_vload(0, node + w->far_x) - w->ox) * w->ix;
   const pxw_float tfy = (pxw_vload(0, node + w->far_y) - w->oy) * w->iy;
   const pxw_float tfz = (pxw_vload(0, node + w->far_z) - w->oz) * w->iz;
-  const pxw_float enter = fmax(fmax(tnx, tny), fmax(tnz, (pxw_float)(tmin)));
-  const pxw_float leave = fmin(fmin(tfx, tfy), fmin(tfz, (pxw_float)(tmax))) * PX_BOX_FAR_SCALE;
+  const pxw_float enter = pxw_max(pxw_max(tnx, tny), pxw_max(tnz, (pxw_float)(tmin)));
+  const pxw_float leave = pxw_min(pxw_min(tfx, tfy), pxw_min(tfz, (pxw_float)(tmax))) * PX_BOX_FAR_SCALE;
   *t_enter = enter;
   return pxw_mask(enter <= leave);
 }
@@ -210,11 +243,13 @@ inline uint px_lowest_bit(uint m) { return 31u - clz(m & (0u - m)); }
  * so each lane computes exactly what the one-triangle test would. Where any lane's edge
  * function is exactly zero (a ray through an edge or vertex, decided in double precision
  * there), and for alpha-tested leaves, the leaf is intersected triangle by triangle instead.
- * Among hit lanes the nearest wins (the lowest lane on equal t). Returns 1 on any hit. */
-inline int px_intersect_block(const SceneView* scene, const global float* block, const RayShear* s,
-                              float tmin, Hit* best) {
+ * Among hit lanes the nearest wins (the lowest lane on equal t). `count` is the leaf's triangle
+ * count, which the caller has from the node (the block's own count field holds the same).
+ * Returns 1 on any hit. */
+inline int px_intersect_block(const SceneView* scene, const global float* block, uint count,
+                              const RayShear* s, float tmin, Hit* best) {
   const global uint* header = (const global uint*)(block + 36);
-  const uint first = header[0], count = header[1];
+  const uint first = header[0];
   if (header[2] & PX_TRI_ALPHA_TESTED) return px_intersect_leaf(scene, first, count, s, tmin, best);
   const float ox = px_axis(s->org, s->kx), oy = px_axis(s->org, s->ky), oz = px_axis(s->org, s->kz);
   const int kx = 4 * s->kx, ky = 4 * s->ky, kz = 4 * s->kz;
@@ -245,27 +280,44 @@ inline int px_intersect_block(const SceneView* scene, const global float* block,
   ok &= (int4)(0, 1, 2, 3) < (int4)((int)count);
   if (!any(ok)) return 0;
   const float4 inv = 1.0f / det;
-  float t_l[4], u_l[4], v_l[4];
-  int ok_l[4];
-  vstore4(tt * inv, 0, t_l);
-  vstore4(ev * inv, 0, u_l);
-  vstore4(ew * inv, 0, v_l);
-  vstore4(ok, 0, ok_l);
-  int lane = -1;
-  for (int j = 0; j < 4; ++j)
-    if (ok_l[j] && (lane < 0 || t_l[j] < t_l[lane])) lane = j;
-  best->t = t_l[lane];
-  best->u = u_l[lane];
-  best->v = v_l[lane];
-  best->prim = first + (uint)lane;
+  /* The nearest hit lane, the lowest on equal t, picked with vector selects (no private
+   * array to index). */
+  const float4 t4 = select((float4)(INFINITY), tt * inv, ok);
+  const float4 u4 = ev * inv, v4 = ew * inv;
+  const float tm = fmin(fmin(t4.x, t4.y), fmin(t4.z, t4.w));
+  float4 su = u4, sv = v4;
+  uint lane;
+  if (t4.x == tm) {
+    lane = 0u;
+  } else if (t4.y == tm) {
+    lane = 1u;
+    su.x = u4.y;
+    sv.x = v4.y;
+  } else if (t4.z == tm) {
+    lane = 2u;
+    su.x = u4.z;
+    sv.x = v4.z;
+  } else {
+    lane = 3u;
+    su.x = u4.w;
+    sv.x = v4.w;
+  }
+  best->t = tm;
+  best->u = su.x;
+  best->v = sv.x;
+  best->prim = first + lane;
   return 1;
 }
 
 /* Closest hit. Stack entries are nodes or leaves (a leaf as its block's offset in 16-byte
- * units | count << 29; DeviceScene keeps offsets below 2^29), each with its entry distance: every hit child of a
- * node is pushed, sorted so the nearest is on top, so leaves are intersected near-first as
- * well and a far leaf is dropped once a nearer hit has cut best.t below its entry. The stack
- * bound is that of PX_WBVH_STACK_SIZE: a node pops one entry and pushes at most W. */
+ * units | count << 29; DeviceScene keeps offsets below 2^29), each with its entry distance.
+ * Of a node's hit children the nearest is visited next without touching the stack (a single
+ * hit child, the common case deep in the tree, costs no stack traffic at all); the others are
+ * pushed sorted so the nearest is on top, so leaves are intersected near-first as well and a
+ * far entry is dropped once a nearer hit has cut best.t below its entry distance. Among equal
+ * entry distances the higher child slot goes first, as a stable sort of all hit children
+ * would pop them. The stack bound is that of PX_WBVH_STACK_SIZE: a node pops one entry and
+ * pushes at most W - 1. */
 inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
   const global float* nodes = (const global float*)scene->nodes;
   Hit best;
@@ -282,30 +334,52 @@ inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir,
   uint entry = 0;
   for (;;) {
     if (entry >> 29) {
-      px_intersect_block(scene, nodes + (size_t)(entry & 0x1fffffffu) * 4, &shear, tmin, &best);
+      px_intersect_block(scene, nodes + (size_t)(entry & 0x1fffffffu) * 4, entry >> 29, &shear, tmin, &best);
     } else {
       const global float* node = nodes + (size_t)entry * PXW_NODE_FLOATS;
       const global uint* child = (const global uint*)(node + 6 * PXW);
       const global uint* count = (const global uint*)(node + 7 * PXW);
+      PX_PREFETCH(child); /* read only after the box test: start its miss now */
       pxw_float enter_v;
       uint mask = px_wide_boxes(node, &wray, tmin, best.t, &enter_v);
-      float enter[PXW];
-      pxw_vstore(enter_v, 0, enter);
-      const int base = sp;
-      while (mask != 0u) {
-        const uint i = px_lowest_bit(mask);
+      if (mask != 0u) {
+        uint i = px_lowest_bit(mask);
         mask &= mask - 1u;
-        const float t = enter[i];
-        const uint e = child[i] | (count[i] << 29);
-        if (sp >= PXW_STACK) break; /* unreachable for validated trees */
-        int j = sp++;
-        while (j > base && stack_t[j - 1] < t) {
-          stack_t[j] = stack_t[j - 1];
-          stack_node[j] = stack_node[j - 1];
-          --j;
+        uint near_e = child[i] | (count[i] << 29);
+        if (mask == 0u) {
+          entry = near_e;
+          continue;
         }
-        stack_t[j] = t;
-        stack_node[j] = e;
+        float enter[PXW];
+        pxw_vstore(enter_v, 0, enter);
+        float near_t = enter[i];
+        const int base = sp;
+        while (mask != 0u) {
+          i = px_lowest_bit(mask);
+          mask &= mask - 1u;
+          float t = enter[i];
+          uint e = child[i] | (count[i] << 29);
+          if (t <= near_t) { /* the new child becomes the nearest; push the old one */
+            const float ft = near_t;
+            const uint fe = near_e;
+            near_t = t;
+            near_e = e;
+            t = ft;
+            e = fe;
+          }
+          px_prefetch_entry(nodes, e);
+          if (sp >= PXW_STACK) break; /* unreachable for validated trees */
+          int j = sp++;
+          while (j > base && stack_t[j - 1] < t) {
+            stack_t[j] = stack_t[j - 1];
+            stack_node[j] = stack_node[j - 1];
+            --j;
+          }
+          stack_t[j] = t;
+          stack_node[j] = e;
+        }
+        entry = near_e;
+        continue;
       }
     }
     int found = 0;
@@ -343,7 +417,7 @@ inline int px_trace_any(const SceneView* scene, float3 org, float3 dir, float tm
       const uint c = count[i];
       if (c > 0u) {
         scratch.t = tmax;
-        if (px_intersect_block(scene, nodes + (size_t)child[i] * 4, &shear, tmin, &scratch)) return 1;
+        if (px_intersect_block(scene, nodes + (size_t)child[i] * 4, c, &shear, tmin, &scratch)) return 1;
       } else if (sp < PXW_STACK) {
         stack_node[sp++] = child[i];
       }
