@@ -36,7 +36,8 @@ std::vector<Access> accesses(const Operation& op) {
     case Stage::HoleFill:
       return {{d, Image::Holes, -1, false}, {d, Image::Radiance, 1, true}, {d, Image::Albedo, 1, true}};
     case Stage::Denoise:
-      // Its own strip, and (halo and bilateral seams) the neighbours' rows of the same images.
+      // Its own strip. The halo rows it exchanges with its neighbours are read and written by
+      // commands on the neighbours' queues, by their own denoise operations of the same batch.
       return {{d, Image::Radiance, e, true}, {d, Image::Albedo, e, false}, {d, Image::GBuffer, e, false}};
     case Stage::Tonemap:
       return {{d, Image::Radiance, e, false}, {d, Image::Rgba, e, true}};
@@ -51,13 +52,6 @@ std::vector<Access> accesses(const Operation& op) {
     default:
       return {};
   }
-}
-
-// The same denoise operation's reach into device d's images (its halo rows).
-Operation neighbour(const Operation& op, int d) {
-  Operation n = op;
-  n.device = d;
-  return n;
 }
 
 }  // namespace
@@ -99,8 +93,6 @@ std::vector<Operation> make_operations(const FrameSchedule& schedule, unsigned g
     }
   }
   // What each waits for (see the header): per image, its last writer and the readers since.
-  // A denoise operation of an eye also reaches into its neighbours' images (halo rows), so it
-  // touches that eye's images on every device.
   struct Touches {
     long writer = -1;
     std::vector<std::size_t> readers;  // since the writer
@@ -109,11 +101,7 @@ std::vector<Operation> make_operations(const FrameSchedule& schedule, unsigned g
   std::map<std::pair<int, int>, long> last_on_lane;     // (device, lane)
   for (std::size_t i = 0; i < ops.size(); ++i) {
     Operation& op = ops[i];
-    std::vector<Access> acc = accesses(op);
-    if (op.stage == Stage::Denoise)
-      for (int d = 0; d < n; ++d)
-        if (d != op.device)
-          for (const Access& a : accesses(neighbour(op, d))) acc.push_back(a);
+    const std::vector<Access> acc = accesses(op);
     std::set<std::size_t> after;
     auto lane_it = last_on_lane.find({op.device, op.lane});
     if (lane_it != last_on_lane.end()) after.insert(static_cast<std::size_t>(lane_it->second));

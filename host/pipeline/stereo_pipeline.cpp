@@ -9,7 +9,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <set>
 #include <stdexcept>
 
 namespace px {
@@ -113,34 +112,45 @@ FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
 
   // The executor: each run of consecutive operations of one stage and lane goes to that stage's
   // unit, on that lane. What an operation waits for on the other lane becomes a barrier on its
-  // lane: the markers enqueued after the batches it depends on.
+  // device's lane (and its receiver's, for a transfer) before the batch: the markers enqueued on
+  // the waited-for operations' devices after their batches. Waits on the same lane are kept by
+  // the queues' order and the transfers' events.
   const std::vector<Operation> ops = operations();
+  const int local_n = devices_.size();  // lanes exist only in one process: global = local indices
   std::vector<std::size_t> batch_of(ops.size());
-  std::vector<std::vector<cl::Event>> batch_done;  // per batch: a marker on every local device
+  std::vector<std::vector<cl::Event>> done;  // per batch and device: a marker after the batch
   for (std::size_t i = 0; i < ops.size();) {
     const int lane = ops[i].lane;
     std::vector<const Operation*> batch;
-    std::set<std::size_t> waits;  // batches on the other lane this one depends on
+    std::vector<std::vector<cl::Event>> waits(static_cast<std::size_t>(local_n));  // per device
     std::size_t j = i;
     for (; j < ops.size() && ops[j].stage == ops[i].stage && ops[j].lane == lane; ++j) {
       batch.push_back(&ops[j]);
-      batch_of[j] = batch_done.size();
-      for (std::size_t a : ops[j].after)
-        if (ops[a].lane != lane) waits.insert(batch_of[a]);
+      batch_of[j] = done.size();
+      if (!lanes_.has_side()) continue;
+      for (std::size_t a : ops[j].after) {
+        if (ops[a].lane == lane) continue;
+        for (int at : {ops[a].device, ops[a].to})
+          if (at >= 0)
+            for (int on : {ops[j].device, ops[j].to})
+              if (on >= 0) waits[on].push_back(done[batch_of[a]][at]);
+      }
     }
-    if (!waits.empty()) {
-      std::vector<cl::Event> events;
-      for (std::size_t b : waits) events.insert(events.end(), batch_done[b].begin(), batch_done[b].end());
-      for (int d = 0; d < devices_.size(); ++d) lanes_.lane(d, lane).enqueueBarrierWithWaitList(&events);
-    }
+    for (int d = 0; d < local_n; ++d)
+      if (!waits[d].empty()) lanes_.lane(d, lane).enqueueBarrierWithWaitList(&waits[d]);
     lanes_.select(lane);
     log_.set_lane(lanes_.selected());
     unit(ops[i].stage).run(batch, in);
     lanes_.select(QueueLanes::kMain);
     log_.set_lane(QueueLanes::kMain);
-    std::vector<cl::Event> done(static_cast<std::size_t>(devices_.size()));
-    for (int d = 0; d < devices_.size(); ++d) lanes_.lane(d, lane).enqueueMarkerWithWaitList(nullptr, &done[d]);
-    batch_done.push_back(std::move(done));
+    std::vector<cl::Event> markers(static_cast<std::size_t>(local_n));
+    if (lanes_.has_side())
+      for (int d = 0; d < local_n; ++d) {
+        lanes_.lane(d, lane).enqueueMarkerWithWaitList(nullptr, &markers[d]);
+        // OpenCL requires a flush before another queue's commands may wait on these events.
+        lanes_.lane(d, lane).flush();
+      }
+    done.push_back(std::move(markers));
     i = j;
   }
   lanes_.finish_all();
