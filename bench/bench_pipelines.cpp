@@ -46,6 +46,7 @@ int main(int argc, char** argv) {
   int devices = 2;
   float fps = 30.0f;
   std::string csv, summary_csv, frames_csv;
+  bool compare_overlap = false;
   app.add_option("--scene", scenes)->capture_default_str();
   app.add_option("--width", width)->capture_default_str();
   app.add_option("--height", height)->capture_default_str();
@@ -59,6 +60,9 @@ int main(int argc, char** argv) {
   app.add_option("--csv", csv, "per stage and device medians as CSV (owner = 1 on the owner device)");
   app.add_option("--summary-csv", summary_csv, "per scene and pipeline: makespan, Hz, error vs the reference");
   app.add_option("--frames-csv", frames_csv, "per scene, pipeline and timed frame: wall ms");
+  app.add_flag("--compare-overlap", compare_overlap,
+               "also run proposed with one queue per device (render --no-overlap), as pipeline 'proposed-1q', "
+               "for the side queue's speed-up side by side");
   CLI11_PARSE(app, argc, argv);
   if (frames == 0 || width == 0 || height == 0 || devices < 1) {
     std::fprintf(stderr, "bench_pipelines: --frames, --width, --height and --devices must be positive\n");
@@ -101,14 +105,19 @@ int main(int argc, char** argv) {
       }
 
       std::vector<PipelineResult> results;
-      for (auto kind : {px::PipelineKind::Proposed, px::PipelineKind::Baseline, px::PipelineKind::Mono}) {
+      // Proposed, baseline and mono (results 0-2), then proposed on one queue per device.
+      std::vector<std::pair<px::PipelineKind, bool>> runs{
+          {px::PipelineKind::Proposed, true}, {px::PipelineKind::Baseline, true}, {px::PipelineKind::Mono, true}};
+      if (compare_overlap) runs.push_back({px::PipelineKind::Proposed, false});
+      for (auto [kind, overlap] : runs) {
         px::StereoPipeline::Options opt;
         opt.pipeline = kind;
         opt.trace.spp = spp;
         opt.trace.bounces = bounces;
+        opt.overlap = overlap;
         px::StereoPipeline pipeline(set, ds, scene, width, height, opt);
         PipelineResult r;
-        r.name = px::to_string(kind);
+        r.name = std::string(px::to_string(kind)) + (overlap ? "" : "-1q");
         r.owner = pipeline.schedule().tree.root;
         std::vector<double> frame_ms;
         double reprojected = 0;
@@ -137,10 +146,10 @@ int main(int argc, char** argv) {
 
       std::printf("\n== %s, %ux%u per eye, %u spp, %u bounces, %d devices (%s), %u frames after %u warm-up ==\n",
                   name.c_str(), width, height, spp, bounces, set.size(), px::to_string(set.mode()), frames, warmup);
-      std::printf("%-10s %12s %12s %8s %12s %10s %10s\n", "pipeline", "makespan ms", "median ms", "Hz", "reprojected",
+      std::printf("%-11s %12s %12s %8s %12s %10s %10s\n", "pipeline", "makespan ms", "median ms", "Hz", "reprojected",
                   "right PSNR", "right rMSE");
       for (const auto& r : results)
-        std::printf("%-10s %12.0f %12.1f %8.2f %11.1f%% %10.2f %10.4f\n", r.name.c_str(), r.makespan_ms,
+        std::printf("%-11s %12.0f %12.1f %8.2f %11.1f%% %10.2f %10.4f\n", r.name.c_str(), r.makespan_ms,
                     r.median_frame_ms, 1000.0 * frames / r.makespan_ms, 100.0 * r.reprojected, r.right_psnr,
                     r.right_rel_mse);
       if (summary_out)
@@ -151,6 +160,9 @@ int main(int argc, char** argv) {
                       << ref_spp << ',' << r.right_psnr << ',' << r.right_rel_mse << '\n';
       std::printf("speed-up proposed vs baseline: x%.2f (makespan ratio); proposed vs mono: x%.2f\n",
                   results[1].makespan_ms / results[0].makespan_ms, results[2].makespan_ms / results[0].makespan_ms);
+      if (compare_overlap)
+        std::printf("side queue: proposed vs proposed-1q: x%.2f (makespan ratio)\n",
+                    results[3].makespan_ms / results[0].makespan_ms);
       std::printf("\nmedian device ms per frame, by stage and device:\n%-22s", "stage");
       for (const auto& r : results)
         for (int d = 0; d < set.size(); ++d) std::printf(" %9s", (r.name.substr(0, 4) + "/d" + std::to_string(d)).c_str());

@@ -96,6 +96,30 @@ FrameStats StereoPipeline::render(unsigned frame, float time_s) {
   return render(frame, evaluate_camera(scene_, time_s));
 }
 
+namespace {
+
+// Selects a lane for what a unit enqueues (and records) until the scope ends, even by an
+// exception: the main lane is what everything outside the executor expects.
+class LaneScope {
+ public:
+  LaneScope(QueueLanes& lanes, EventLog& log, int lane) : lanes_(lanes), log_(log) {
+    lanes_.select(lane);
+    log_.set_lane(lanes_.selected());
+  }
+  ~LaneScope() {
+    lanes_.select(QueueLanes::kMain);
+    log_.set_lane(QueueLanes::kMain);
+  }
+  LaneScope(const LaneScope&) = delete;
+  LaneScope& operator=(const LaneScope&) = delete;
+
+ private:
+  QueueLanes& lanes_;
+  EventLog& log_;
+};
+
+}  // namespace
+
 FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
   using clock_type = std::chrono::steady_clock;
   const auto t0 = clock_type::now();
@@ -138,11 +162,10 @@ FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
     }
     for (int d = 0; d < local_n; ++d)
       if (!waits[d].empty()) lanes_.lane(d, lane).enqueueBarrierWithWaitList(&waits[d]);
-    lanes_.select(lane);
-    log_.set_lane(lanes_.selected());
-    unit(ops[i].stage).run(batch, in);
-    lanes_.select(QueueLanes::kMain);
-    log_.set_lane(QueueLanes::kMain);
+    {
+      const LaneScope on_lane(lanes_, log_, lane);
+      unit(ops[i].stage).run(batch, in);
+    }
     std::vector<cl::Event> markers(static_cast<std::size_t>(local_n));
     if (lanes_.has_side())
       for (int d = 0; d < local_n; ++d) {
