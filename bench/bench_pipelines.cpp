@@ -61,8 +61,8 @@ int main(int argc, char** argv) {
   app.add_option("--summary-csv", summary_csv, "per scene and pipeline: makespan, Hz, error vs the reference");
   app.add_option("--frames-csv", frames_csv, "per scene, pipeline and timed frame: wall ms");
   app.add_flag("--compare-overlap", compare_overlap,
-               "also run proposed with one queue per device (render --no-overlap), as pipeline 'proposed-1q', "
-               "for the side queue's speed-up side by side");
+               "run proposed with the side queue forced on (on CPUs it is off by default), and again with one "
+               "queue per device as pipeline 'proposed-1q', for the side queue's speed-up side by side");
   CLI11_PARSE(app, argc, argv);
   if (frames == 0 || width == 0 || height == 0 || devices < 1) {
     std::fprintf(stderr, "bench_pipelines: --frames, --width, --height and --devices must be positive\n");
@@ -106,9 +106,14 @@ int main(int argc, char** argv) {
 
       std::vector<PipelineResult> results;
       // Proposed, baseline and mono (results 0-2), then proposed on one queue per device.
-      std::vector<std::pair<px::PipelineKind, bool>> runs{
-          {px::PipelineKind::Proposed, true}, {px::PipelineKind::Baseline, true}, {px::PipelineKind::Mono, true}};
-      if (compare_overlap) runs.push_back({px::PipelineKind::Proposed, false});
+      // With --compare-overlap: proposed with the side queue forced on, and proposed-1q without.
+      std::vector<std::pair<px::PipelineKind, px::Overlap>> runs{{px::PipelineKind::Proposed, px::Overlap::Auto},
+                                                                 {px::PipelineKind::Baseline, px::Overlap::Auto},
+                                                                 {px::PipelineKind::Mono, px::Overlap::Auto}};
+      if (compare_overlap) {
+        runs[0].second = px::Overlap::On;
+        runs.push_back({px::PipelineKind::Proposed, px::Overlap::Off});
+      }
       for (auto [kind, overlap] : runs) {
         px::StereoPipeline::Options opt;
         opt.pipeline = kind;
@@ -117,7 +122,7 @@ int main(int argc, char** argv) {
         opt.overlap = overlap;
         px::StereoPipeline pipeline(set, ds, scene, width, height, opt);
         PipelineResult r;
-        r.name = std::string(px::to_string(kind)) + (overlap ? "" : "-1q");
+        r.name = std::string(px::to_string(kind)) + (overlap == px::Overlap::Off ? "-1q" : "");
         r.owner = pipeline.schedule().tree.root;
         std::vector<double> frame_ms;
         double reprojected = 0;

@@ -133,7 +133,8 @@ int main(int argc, char** argv) {
                        "instead of 20; what a display needs, as in the paper)");
   render_cmd->add_flag("--no-overlap", render.no_overlap,
                        "one command queue per device: the left eye's denoising, tonemapping and transfer no longer run "
-                       "on a side queue beside the right eye's reprojection and hole filling (images are identical)");
+                       "on a side queue beside the right eye's reprojection and hole filling (images are identical; "
+                       "the side queue is used only where a device is a GPU: on CPUs it measured slower)");
   add_word_option(render_cmd, "--balance", render.balance, px::balance_words(),
                   "strip boundaries between devices: static (even split) or dynamic (moved between frames "
                   "toward equal measured device time; images stay identical; proposed and mono pipelines)");

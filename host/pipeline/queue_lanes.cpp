@@ -2,6 +2,13 @@
 
 namespace px {
 
+bool wants_side_queue(Overlap overlap, const DeviceSet& devices) {
+  if (overlap != Overlap::Auto) return overlap == Overlap::On;
+  for (const ComputeDevice& d : devices.devices())
+    if (d.device.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) return true;
+  return false;
+}
+
 QueueLanes::QueueLanes(DeviceSet& devices, bool side) : devices_(devices) {
   if (!side) return;
   for (const ComputeDevice& d : devices.devices())

@@ -12,6 +12,15 @@
 
 namespace px {
 
+// Whether a pipeline uses the side queue. Auto: only where a device is a GPU. On PoCL's CPU
+// devices the side queue measured slower (bench_pipelines --compare-overlap, cornell 320x180,
+// 4 spp, one device of 2 compute units: x0.81-0.92): a kernel there already uses every core,
+// so running two at once only adds contention.
+enum class Overlap { Auto, On, Off };
+
+// The side queue's use for `overlap` on `devices`.
+bool wants_side_queue(Overlap overlap, const DeviceSet& devices);
+
 class QueueLanes {
  public:
   static constexpr int kMain = 0, kSide = 1;

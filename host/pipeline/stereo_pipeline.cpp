@@ -24,7 +24,7 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
       options_(options),
       schedule_(make_schedule(options.pipeline, layout_.count(), height, options.denoise)),
       images_(layout_.count()),
-      lanes_(devices, options.overlap && !cluster_),
+      lanes_(devices, !cluster_ && wants_side_queue(options.overlap, devices)),
       transfer_(devices, layout_, cluster_, width, height, log_, lanes_),
       env_{devices, layout_, device_scene, scene, width, height, images_, log_, transfer_, lanes_} {
   if (width == 0 || height == 0 || width > 65535 || height > 65535)

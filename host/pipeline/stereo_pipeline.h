@@ -79,9 +79,9 @@ class StereoPipeline {
     // what a display needs, and radiance() is unavailable.
     bool gather_radiance = true;
     // A side queue per device for the left eye's denoising, tonemapping and transfer, so that
-    // they overlap the right eye's reprojection and hole filling (queue_lanes.h). Images are
-    // identical either way. Off under MPI (one queue per device there).
-    bool overlap = true;
+    // they overlap the right eye's reprojection and hole filling (queue_lanes.h; Auto: on GPUs).
+    // Images are identical either way. Off under MPI (one queue per device there).
+    Overlap overlap = Overlap::Auto;
   };
 
   StereoPipeline(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene, unsigned width,
