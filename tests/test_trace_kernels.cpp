@@ -433,6 +433,58 @@ TEST_P(TraceKernels, NoSelfIntersectionFarFromOrigin) {
   }
 }
 
+// Hits count in the open interval (tmin, tmax), as in Embree. A ray that starts exactly on a
+// triangle (in its plane inside it, or at one of its vertices) computes t = +0 or -0 there;
+// with tmin = 0 a closed lower end made that a hit at distance zero, so such a ray never left
+// its surface. Offset origins hide this in the renderer, but not for every leaf layout.
+TEST_P(TraceKernels, RaysStartingOnATriangleDoNotHitItAtZeroDistance) {
+  // In the plane: a floor at z = 0 and a ceiling at z = 1 above it.
+  std::vector<SceneTriangle> planes;
+  append_triangle(planes, {-1.0f, -1.0f, 0.0f}, {3.0f, -1.0f, 0.0f}, {-1.0f, 3.0f, 0.0f}, 0);
+  append_triangle(planes, {-9.0f, -9.0f, 1.0f}, {27.0f, -9.0f, 1.0f}, {-9.0f, 27.0f, 1.0f}, 0);
+  {
+    TraceFixture f(one_device(), scene_from(planes));
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> in(-0.5f, 0.5f);
+    std::vector<Ray> rays;
+    for (int i = 0; i < 400; ++i) {
+      // z dominant: the shear then keeps the floor's z differences exactly 0, so t is exactly
+      // +-0 (with another dominant axis t is the rounding noise of a ray in the plane, ~1e-7
+      // either way, which is what offset origins exist for).
+      glm::vec3 d = random_unit(rng);
+      d.z = std::copysign(std::max(std::abs(d.z), 1.01f * std::max(std::abs(d.x), std::abs(d.y))), d.z);
+      rays.push_back(make_ray({in(rng), in(rng), 0.0f}, glm::normalize(d)));
+    }
+    auto hits = f.tracer->closest(rays);
+    auto occ = f.tracer->occluded(rays);
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+      const bool up = rays[i].dir[2] > 0.0f;
+      const auto ref = brute_force_closest(f.scene.triangles, rays[i]);
+      EXPECT_EQ(hits[i].prim, up ? 1u : PX_NO_HIT) << "ray " << i << " t=" << hits[i].t;
+      EXPECT_EQ(ref.prim, up ? 1u : PX_NO_HIT) << "reference, ray " << i;
+      EXPECT_EQ(static_cast<bool>(occ[i]), up) << "any hit, ray " << i;
+    }
+  }
+  // At a vertex: rays leave each vertex of a convex icosphere radially outwards and hit
+  // nothing; the vertex is on five or six triangles, every one of which computes t = 0.
+  std::vector<SceneTriangle> sphere;
+  const glm::vec3 centre(0.3f, -0.2f, 0.1f);
+  append_icosphere(sphere, centre, 1.5f, 2, 0);
+  TraceFixture f(one_device(), scene_from(sphere));
+  std::vector<Ray> rays;
+  for (const auto& t : sphere)
+    for (const auto& p : t.p) rays.push_back(make_ray(p, glm::normalize(p - centre)));
+  auto hits = f.tracer->closest(rays);
+  auto occ = f.tracer->occluded(rays);
+  int zero_hits = 0, blocked = 0;
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    zero_hits += hits[i].prim != PX_NO_HIT;
+    blocked += occ[i] != 0;
+  }
+  EXPECT_EQ(zero_hits, 0) << "of " << rays.size() << " rays from vertices";
+  EXPECT_EQ(blocked, 0) << "of " << rays.size() << " rays from vertices";
+}
+
 TEST_P(TraceKernels, AlphaCutoutsPassThroughTransparentTexels) {
   Scene s;
   s.materials.resize(2);

@@ -37,7 +37,7 @@ inline int px_intersect_leaf(const SceneView* scene, uint first, uint count,
 
 #if PX_BVH_WIDTH == 2
 
-/* Closest hit along the ray within [tmin, tmax). hit.prim is the index into scene->tris (leaf
+/* Closest hit along the ray within (tmin, tmax). hit.prim is the index into scene->tris (leaf
  * order, so the caller can read the vertices), PX_NO_HIT on a miss. */
 inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
   const global BvhNode* nodes = scene->nodes;
@@ -85,7 +85,7 @@ inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir,
   return best;
 }
 
-/* 1 when anything blocks the ray within [tmin, tmax) (shadow rays). */
+/* 1 when anything blocks the ray within (tmin, tmax) (shadow rays). */
 inline int px_trace_any(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
   const global BvhNode* nodes = scene->nodes;
   const RayShear shear = px_make_shear(org, dir);
@@ -276,7 +276,7 @@ inline int px_intersect_block(const SceneView* scene, const global float* block,
   tt = select(tt, -tt, flip);
   ev = select(ev, -ev, flip);
   ew = select(ew, -ew, flip);
-  ok &= (tt >= tmin * det) & (tt < best->t * det);
+  ok &= (tt > tmin * det) & (tt < best->t * det);
   ok &= (int4)(0, 1, 2, 3) < (int4)((int)count);
   if (!any(ok)) return 0;
   const float4 inv = 1.0f / det;
@@ -396,7 +396,7 @@ inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir,
   return best;
 }
 
-/* 1 when anything blocks the ray within [tmin, tmax) (shadow rays). */
+/* 1 when anything blocks the ray within (tmin, tmax) (shadow rays). */
 inline int px_trace_any(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
   const global float* nodes = (const global float*)scene->nodes;
   const RayShear shear = px_make_shear(org, dir);

@@ -46,7 +46,10 @@ inline RayShear px_make_shear(float3 org, float3 dir) {
   return s;
 }
 
-/* Returns 1 and sets *t, *u, *v (barycentrics of v1, v2) on a hit with tmin <= t < tmax.
+/* Returns 1 and sets *t, *u, *v (barycentrics of v1, v2) on a hit with tmin < t < tmax.
+ * The lower end is open, as in Embree: a ray whose origin lies exactly in a triangle's plane
+ * (t = +0 or -0 in float) must not hit that triangle at distance zero, which with tmin = 0 and
+ * a closed lower end it did whenever the edge functions put the origin inside it.
  * Vertices are read component-wise in the ray's permuted axis order straight from memory
  * (indexed loads), which is cheaper than permuting float3 values with selects. */
 inline int px_intersect_triangle_mem(const RayShear* s, const global float* v0, const global float* v1,
@@ -83,7 +86,7 @@ inline int px_intersect_triangle_mem(const RayShear* s, const global float* v0, 
     ev = -ev;
     ew = -ew;
   }
-  if (tt < tmin * det || tt >= tmax * det) return 0;
+  if (tt <= tmin * det || tt >= tmax * det) return 0;
   const float inv = 1.0f / det;
   *t = tt * inv;
   *u = ev * inv;

@@ -42,7 +42,7 @@ inline BruteHit brute_force_closest(const std::vector<SceneTriangle>& tris, cons
     const double v = glm::dot(d, qv) * inv;
     if (v < 0.0 || u + v > 1.0) continue;
     const double t = glm::dot(e2, qv) * inv;
-    if (t < r.tmin || t >= best.t) continue;
+    if (t <= r.tmin || t >= best.t) continue;  // (tmin, tmax), as the kernels
     best.t = t;
     best.prim = static_cast<std::uint32_t>(i);
     best.u = u;
