@@ -52,7 +52,9 @@ TEST(Svgf, AtrousMatchesHostImplementation) {
   for (std::size_t i = 0; i < n; ++i) {
     const int x = static_cast<int>(i % w), y = static_cast<int>(i / w);
     illum[i] = {{u(rng), u(rng), u(rng), 0.05f * u(rng)}};
-    moments[i] = {{0, 0, 4, (i % 17 == 0) ? 0.0f : 1.0f}};  // a few unfiltered pixels
+    // A few unfiltered pixels, every other one a silhouette pixel that borrows a neighbour's
+    // geometry (PX_SVGF_BORROWED).
+    moments[i] = {{0, 0, 4, (i % 17 == 0) ? ((i / 17) % 2 ? PX_SVGF_BORROWED : 0.0f) : 1.0f}};
     GBufferTexel t{};
     glm::vec3 nn = glm::normalize(glm::vec3(0.3f * std::sin(0.2f * x), 0.2f * std::cos(0.3f * y), 1.0f));
     if (x > 25) nn = glm::normalize(glm::vec3(1.0f, 0.0f, 0.3f));  // a crease
@@ -60,10 +62,11 @@ TEST(Svgf, AtrousMatchesHostImplementation) {
     if ((x * 7 + y * 3) % 23 == 0) nn = glm::normalize(glm::vec3(u(rng) - 0.5f, u(rng) - 0.5f, 1.0f));
     t.normal[0] = nn.x; t.normal[1] = nn.y; t.normal[2] = nn.z;
     t.depth = 2.0f + 0.01f * x + (y > 20 ? 1.0f : 0.0f);           // a depth step
-    t.material_class = moments[i].s[3] != 0.0f ? PX_CLASS_DIFFUSE : PX_CLASS_MISS;
+    t.material_class = moments[i].s[3] == 1.0f ? PX_CLASS_DIFFUSE : PX_CLASS_MISS;
     g[i] = t;
   }
   int isolated = 0;  // pixels that took the loose normal weights (the fallback must be exercised)
+  int borrowing = 0;  // silhouette pixels filtered with a neighbour's geometry
   // The usual integer normal exponent (squarings) and a fractional one (the pow path).
   for (float sigma_n : {128.0f, 2.5f}) {
   SCOPED_TRACE("sigma_n " + std::to_string(sigma_n));
@@ -74,7 +77,7 @@ TEST(Svgf, AtrousMatchesHostImplementation) {
   p.lo_row = 0; p.hi_row = 26;  // readable rows: reads beyond must be skipped
   for (unsigned step : {1u, 2u, 4u}) {
     p.step = step;
-    auto bi = upload(illum), bg = upload(g);
+    auto bi = upload(illum), bg = upload(g), bm = upload(moments);
     cl::Buffer out(one_device().context(), CL_MEM_READ_WRITE, n * sizeof(cl_float4));
     // The guide texels of every row, then the a-trous step reading them.
     cl::Buffer guide(one_device().context(), CL_MEM_READ_WRITE, n * sizeof(cl_float4));
@@ -84,36 +87,61 @@ TEST(Svgf, AtrousMatchesHostImplementation) {
     kg.setArg(0, guide); kg.setArg(1, bg); kg.setArg(2, all);
     launch_1d(one_device().devices()[0].queue, kg, all.rows * w);
     cl::Kernel k(one_device().program("denoise/svgf.cl"), "svgf_atrous");
-    k.setArg(0, out); k.setArg(1, bi); k.setArg(2, guide); k.setArg(3, p);
+    k.setArg(0, out); k.setArg(1, bi); k.setArg(2, guide); k.setArg(3, bm); k.setArg(4, p);
     launch_1d(one_device().devices()[0].queue, k, p.rows * w);
     auto got = download<cl_float4>(out, n);
     // Host version of the same filter, written from the SVGF paper's formulas.
     auto readable = [&](int y) { return y >= static_cast<int>(p.lo_row) && y < static_cast<int>(p.hi_row) && y < static_cast<int>(h) && y >= 0; };
     auto at = [&](int x, int y) { return static_cast<std::size_t>(y) * w + x; };
+    auto filtered = [&](std::size_t j) { return moments[j].s[3] == 1.0f; };
+    // The lender of a borrowing pixel: its filtered 8-neighbour of least depth in readable
+    // rows, the first in scan order on ties.
+    auto lender = [&](int x, int y) {
+      long best = -1;
+      float best_depth = std::numeric_limits<float>::infinity();
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int tx = x + dx, ty = y + dy;
+          if ((dx == 0 && dy == 0) || !readable(ty) || tx < 0 || tx >= static_cast<int>(w)) continue;
+          if (filtered(at(tx, ty)) && g[at(tx, ty)].depth < best_depth) {
+            best = static_cast<long>(at(tx, ty));
+            best_depth = g[at(tx, ty)].depth;
+          }
+        }
+      return best;
+    };
     for (unsigned y = p.row0; y < p.row0 + p.rows; ++y)
       for (unsigned x = 0; x < w; ++x) {
         const std::size_t i = at(x, y);
-        if (moments[i].s[3] == 0.0f) {
-          for (int c = 0; c < 4; ++c) ASSERT_EQ(got[i].s[c], illum[i].s[c]);
-          continue;
+        // The edge-stopping centre: the pixel itself, or a borrowing pixel's lender.
+        std::size_t ci = i;
+        if (!filtered(i)) {
+          const long lent = moments[i].s[3] == PX_SVGF_BORROWED ? lender(x, y) : -1;
+          if (lent < 0) {
+            for (int c = 0; c < 4; ++c) ASSERT_EQ(got[i].s[c], illum[i].s[c]);
+            continue;
+          }
+          ci = static_cast<std::size_t>(lent);
+          if (sigma_n == 128.0f) ++borrowing;
         }
-        // depth gradient: central differences, one-sided at the image/readable edge
-        const int xl = std::max<int>(x - 1, 0), xr = std::min<int>(x + 1, w - 1);
-        const int yu = readable(y - 1) ? y - 1 : y, yd = readable(y + 1) ? y + 1 : y;
-        const double gx = xr > xl ? (g[at(xr, y)].depth - g[at(xl, y)].depth) / double(xr - xl) : 0.0;
-        const double gy = yd > yu ? (g[at(x, yd)].depth - g[at(x, yu)].depth) / double(yd - yu) : 0.0;
+        const int cx = static_cast<int>(ci % w), cy = static_cast<int>(ci / w);
+        // depth gradient at the centre: central differences, one-sided at the image/readable edge
+        const int xl = std::max<int>(cx - 1, 0), xr = std::min<int>(cx + 1, w - 1);
+        const int yu = readable(cy - 1) ? cy - 1 : cy, yd = readable(cy + 1) ? cy + 1 : cy;
+        const double gx = xr > xl ? (g[at(xr, cy)].depth - g[at(xl, cy)].depth) / double(xr - xl) : 0.0;
+        const double gy = yd > yu ? (g[at(cx, yd)].depth - g[at(cx, yu)].depth) / double(yd - yu) : 0.0;
         double var = 0, vw = 0;
         for (int dy = -1; dy <= 1; ++dy)
           for (int dx = -1; dx <= 1; ++dx) {
             const int tx = x + dx, ty = y + dy;
-            if (!readable(ty) || tx < 0 || tx >= static_cast<int>(w) || moments[at(tx, ty)].s[3] == 0.0f) continue;
+            if (!readable(ty) || tx < 0 || tx >= static_cast<int>(w) || !filtered(at(tx, ty))) continue;
             const double kk = (dx == 0 ? 0.5 : 0.25) * (dy == 0 ? 0.5 : 0.25);
             var += kk * illum[at(tx, ty)].s[3];
             vw += kk;
           }
-        var /= vw;
+        var = vw > 0 ? var / vw : illum[i].s[3];
         const double hk[5] = {1 / 16.0, 1 / 4.0, 3 / 8.0, 1 / 4.0, 1 / 16.0};
-        const glm::dvec3 n0(g[i].normal[0], g[i].normal[1], g[i].normal[2]);
+        const glm::dvec3 n0(g[ci].normal[0], g[ci].normal[1], g[ci].normal[2]);
         // Twice: with the normal exponent 128, and with the loose exponent that an isolated
         // pixel (others' total weight < PX_SVGF_ISOLATED x its own) falls back to.
         double ws = 0, vs = 0, cs[3] = {0, 0, 0};
@@ -124,13 +152,13 @@ TEST(Svgf, AtrousMatchesHostImplementation) {
               const int tx = x + kx * step, ty = y + ky * step;
               if (!readable(ty) || tx < 0 || tx >= static_cast<int>(w)) continue;
               const std::size_t j = at(tx, ty);
-              if (moments[j].s[3] == 0.0f) continue;
+              if (!filtered(j) && (kx || ky)) continue;  // the centre is always a tap
               double wt = hk[kx + 2] * hk[ky + 2];
               if (kx || ky) {
                 const glm::dvec3 n1(g[j].normal[0], g[j].normal[1], g[j].normal[2]);
                 const double wn = std::pow(std::max(0.0, glm::dot(n0, n1)), exponent);
-                const double wz = std::exp(-std::abs(g[i].depth - g[j].depth) /
-                                           (1.0 * std::abs(gx * kx * step + gy * ky * step) + 1e-3 * g[i].depth + 1e-6));
+                const double wz = std::exp(-std::abs(g[ci].depth - g[j].depth) /
+                                           (1.0 * std::abs(gx * kx * step + gy * ky * step) + 1e-3 * g[ci].depth + 1e-6));
                 const double wl = std::exp(-std::abs(lum(illum[i]) - lum(illum[j])) / (4.0 * std::sqrt(std::max(0.0, var)) + 1e-6));
                 wt *= wn * wz * wl;
               }
@@ -151,6 +179,7 @@ TEST(Svgf, AtrousMatchesHostImplementation) {
   }
   }
   EXPECT_GT(isolated, 10);
+  EXPECT_GT(borrowing, 10);
 }
 
 TEST(Svgf, FilterExpMatchesDoublePrecisionExp) {
@@ -392,6 +421,51 @@ TEST(Svgf, PixelsWhoseNormalNoNeighbourSharesAreStillFiltered) {
   EXPECT_GT(black_in, 1000);
   EXPECT_LT(black_out, 0.002 * out.size());
   EXPECT_NEAR(sum / out.size(), 0.5, 0.05);
+}
+
+// A silhouette against the sky: pixels whose centre ray sees the sky (the G-buffer calls them
+// background) while their one jittered sample hit the surface and, like a third of samples
+// here, found no light. Passed through as background pixels they stayed black: a dotted
+// outline along every silhouette. Their albedo's w (the share of samples on a filtered
+// surface) says the sample hit the surface: they are filtered with a neighbour's geometry.
+// Pixels whose sample saw the sky still pass through untouched.
+TEST(Svgf, SilhouettePixelsWhoseSamplesHitTheSurfaceAreFilteredNotPassedThrough) {
+  FilterRun run;
+  const auto& v = run.view;
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  auto g = v.gbuffer([](unsigned, unsigned) { return std::pair{3.0f, glm::vec3(0, 0, -1)}; });
+  std::vector<cl_float4> c(g.size()), a(g.size(), cl_float4{{0.5f, 0.5f, 0.5f, 1.0f}});
+  const cl_float4 sky{{0.3f, 0.5f, 1.0f, 1.0f}};
+  const unsigned edge = 40;  // columns >= edge: the sky at the pixel centre
+  for (unsigned y = 0; y < v.h; ++y)
+    for (unsigned x = 0; x < v.w; ++x) {
+      const std::size_t i = y * v.w + x;
+      const float s = u(rng) < 0.7f ? 1.0f / 0.7f : 0.0f;  // illumination: mean 1
+      c[i] = {{0.5f * s, 0.5f * s, 0.5f * s, 1.0f}};
+      if (x < edge) continue;
+      g[i].material_class = PX_CLASS_MISS;
+      g[i].depth = 0.0f;
+      if (x == edge && y % 2 == 0) {
+        c[i] = {{0.0f, 0.0f, 0.0f, 1.0f}};  // the sample hit the surface and found no light
+      } else {
+        c[i] = sky;  // the sample saw the sky
+        a[i] = {{1.0f, 1.0f, 1.0f, 0.0f}};
+      }
+    }
+  const auto out = run.frame(g, c, a);
+  int lifted = 0;
+  for (unsigned y = 0; y < v.h; ++y)
+    for (unsigned x = edge; x < v.w; ++x) {
+      const std::size_t i = y * v.w + x;
+      if (x == edge && y % 2 == 0) {
+        EXPECT_NEAR(lum(out[i]), 0.5f, 0.2f) << "silhouette pixel " << x << "," << y;
+        lifted += lum(out[i]) > 0.25f;
+      } else {
+        for (int k = 0; k < 3; ++k) ASSERT_EQ(out[i].s[k], sky.s[k]) << "sky pixel " << x << "," << y;
+      }
+    }
+  EXPECT_EQ(lifted, static_cast<int>(v.h + 1) / 2);
 }
 
 TEST(Svgf, RareBrightSamplesKeepTheirEnergy) {

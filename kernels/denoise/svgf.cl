@@ -15,7 +15,8 @@
  * result does not depend on how the image was split.
  *
  * Buffers: illum float4 (rgb illumination, w = variance); moments float4 (m1, m2, history
- * length, 1 if the pixel is filtered else 0); guide float4 (shading normal, +depth where the
+ * length, w: 1 if the pixel is filtered, PX_SVGF_BORROWED for a silhouette pixel filtered with
+ * a neighbour's geometry, else 0); guide float4 (shading normal, +depth where the
  * filter smooths the pixel, -depth where not: one load per tap where the GBufferTexel was 48
  * bytes, and the filtered flag without a second load from moments). Background and emitters are not filtered: they
  * pass through with their noisy colour and never serve as taps. */
@@ -43,6 +44,34 @@ inline float3 px_demod_albedo(const global float4* albedo, uint i) {
 
 inline int px_row_readable(int y, const SvgfParams* p) { return y >= (int)p->lo_row && y < (int)p->hi_row; }
 
+/* Guide texels (see svgf_guide): is the pixel one the filter smooths, and its depth. */
+inline int px_guide_filtered(float4 g) { return g.w > 0.0f; }
+inline float px_guide_depth(float4 g) { return fabs(g.w); }
+
+/* The centre a PX_SVGF_BORROWED pixel (x, y) borrows: the index of its filtered 8-neighbour
+ * nearest to the camera (at a silhouette against the sky or a farther surface, the object its
+ * samples hit is the one in front), the first in scan order on equal depth; -1 if none. Reads
+ * only guide texels of readable rows, so the choice does not depend on how the image is split. */
+inline int px_borrowed_centre(const global float4* guide, int x, int y, const SvgfParams* p) {
+  int best = -1;
+  float best_depth = INFINITY;
+  for (int dy = -1; dy <= 1; ++dy) {
+    const int ty = y + dy;
+    if (ty < 0 || ty >= (int)p->height || !px_row_readable(ty, p)) continue;
+    for (int dx = -1; dx <= 1; ++dx) {
+      const int tx = x + dx;
+      if ((dx == 0 && dy == 0) || tx < 0 || tx >= (int)p->width) continue;
+      const int j = ty * (int)p->width + tx;
+      const float4 g = guide[j];
+      if (px_guide_filtered(g) && g.w < best_depth) {
+        best = j;
+        best_depth = g.w;
+      }
+    }
+  }
+  return best;
+}
+
 /* Is history texel `q` the same surface as the current pixel (world point pos, normal n,
  * distance `expected` from the previous camera)? */
 inline int px_history_matches(const global GBufferTexel* q, float3 n, float expected) {
@@ -53,20 +82,28 @@ inline int px_history_matches(const global GBufferTexel* q, float3 n, float expe
 kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, const global float4* color,
                           const global float4* albedo, const global GBufferTexel* gbuf, const global GBufferTexel* prev_gbuf,
                           const global float4* prev_illum, const global float4* prev_moments, SvgfParams p,
-                          CameraParams prev_cam, uint have_history) {
+                          CameraParams prev_cam, uint have_history, const global float4* guide) {
   const uint gid = get_global_id(0);
   if (gid >= p.rows * p.width) return;
   const uint i = p.row0 * p.width + gid;
   const int y = (int)(i / p.width);
   const global GBufferTexel* g = gbuf + i;
   const float3 c = color[i].xyz;
+  const float3 illum = c / px_demod_albedo(albedo, i);
+  const float l = px_lum(illum);
   if (!px_filtered_class(g->material_class)) {
+    /* A silhouette pixel whose samples mostly hit a filtered surface borrows a neighbour's
+     * geometry (PX_SVGF_BORROWED); it has no geometry of its own to match history with, so its
+     * history starts over every frame. */
+    if (albedo[i].w >= PX_SVGF_BORROW_COVERAGE && px_borrowed_centre(guide, (int)(i % p.width), y, &p) >= 0) {
+      out_illum[i] = (float4)(illum, 0.0f);
+      out_moments[i] = (float4)(l, l * l, 1.0f, PX_SVGF_BORROWED);
+      return;
+    }
     out_illum[i] = (float4)(c, 0.0f);
     out_moments[i] = (float4)(0.0f, 0.0f, 0.0f, 0.0f);
     return;
   }
-  const float3 illum = c / px_demod_albedo(albedo, i);
-  const float l = px_lum(illum);
 
   float3 hist = (float3)(0.0f, 0.0f, 0.0f);
   float2 hist_m = (float2)(0.0f, 0.0f);
@@ -176,9 +213,6 @@ inline float px_depth_term(float tap_depth, float z, float2 grad, float dx, floa
   return fabs(z - tap_depth) / (p->sigma_z * fabs(grad.x * dx + grad.y * dy) + 1e-3f * z + 1e-6f);
 }
 
-/* Guide texels (see svgf_guide): is the pixel one the filter smooths, and its depth. */
-inline int px_guide_filtered(float4 g) { return g.w > 0.0f; }
-inline float px_guide_depth(float4 g) { return fabs(g.w); }
 
 /* Normal and depth edge-stopping weight of a tap with guide texel `t` (0 for unfiltered taps),
  * with an extra exponent (the luminance term) folded into the same exp. */
@@ -236,6 +270,14 @@ inline FilterCentre px_filter_centre(const global float4* guide, int x, int y, f
   return c;
 }
 
+/* The edge-stopping centre of pixel (x, y) filtering `value`: its own guide texel, or for a
+ * borrowing pixel (`borrowed` = px_borrowed_centre) the lender's normal, depth and gradient. */
+inline FilterCentre px_filter_centre_at(const global float4* guide, int x, int y, int borrowed, float3 value,
+                                        const SvgfParams* p) {
+  if (borrowed < 0) return px_filter_centre(guide, x, y, value, p);
+  return px_filter_centre(guide, borrowed % (int)p->width, borrowed / (int)p->width, value, p);
+}
+
 /* Guide texels of rows [p.row0, p.row0 + p.rows): every row the spatial passes of this frame
  * read (the G-buffer's rows, margin included). The sign of w carries the material test that
  * svgf_temporal makes (moments.w), so a tap needs no second load to know it. Depth is >= 0 for
@@ -265,7 +307,12 @@ kernel void svgf_variance(global float4* out_illum, const global float4* illum, 
    * leave out exactly the rare bright samples that make a one-sample pixel noisy, call the
    * dark pixels around them noise-free, and the a-trous luminance test would then cut those
    * samples off as edges — energy lost, the image darker than its input. */
-  const FilterCentre fc = px_filter_centre(guide, x, y, c.xyz, &p);
+  const int borrowed = m.w == PX_SVGF_BORROWED ? px_borrowed_centre(guide, x, y, &p) : -1;
+  if (m.w == PX_SVGF_BORROWED && borrowed < 0) {
+    out_illum[i] = c;
+    return;
+  }
+  const FilterCentre fc = px_filter_centre_at(guide, x, y, borrowed, c.xyz, &p);
   /* Strict and loose normal weights side by side (.x, .y), as in svgf_atrous. */
   float2 wsum = (float2)(0.0f, 0.0f);
   float3 csum_strict = (float3)(0.0f, 0.0f, 0.0f), csum_loose = csum_strict;
@@ -296,17 +343,21 @@ kernel void svgf_variance(global float4* out_illum, const global float4* illum, 
 }
 
 kernel void svgf_atrous(global float4* out_illum, const global float4* illum, const global float4* guide,
-                        SvgfParams p) {
+                        const global float4* moments, SvgfParams p) {
   const uint gid = get_global_id(0);
   if (gid >= p.rows * p.width) return;
   const uint i = p.row0 * p.width + gid;
   const int x = (int)(i % p.width), y = (int)(i / p.width);
   const float4 c = illum[i];
+  int borrowed = -1;
   if (!px_guide_filtered(guide[i])) {
-    out_illum[i] = c;
-    return;
+    if (moments[i].w == PX_SVGF_BORROWED) borrowed = px_borrowed_centre(guide, x, y, &p);
+    if (borrowed < 0) {
+      out_illum[i] = c;
+      return;
+    }
   }
-  const FilterCentre fc = px_filter_centre(guide, x, y, c.xyz, &p);
+  const FilterCentre fc = px_filter_centre_at(guide, x, y, borrowed, c.xyz, &p);
   /* Variance prefiltered with a 3x3 Gaussian: the luminance weight's scale. */
   float var = 0.0f, vw = 0.0f;
   for (int dy = -1; dy <= 1; ++dy) {
@@ -342,7 +393,8 @@ kernel void svgf_atrous(global float4* out_illum, const global float4* illum, co
       if (tx < 0 || tx >= (int)p.width) continue;
       const uint j = (uint)ty * p.width + (uint)tx;
       const float4 g = guide[j];
-      if (!px_guide_filtered(g)) continue;
+      /* Unfiltered pixels are never taps; the centre always is (a borrowing one included). */
+      if (!px_guide_filtered(g) && (kx != 0 || ky != 0)) continue;
       const float4 t = illum[j];
       float2 w = (float2)(h[kx + 2] * h[ky + 2]);
       if (kx != 0 || ky != 0)
@@ -363,7 +415,8 @@ kernel void svgf_atrous(global float4* out_illum, const global float4* illum, co
 
 /* Back from illumination to radiance: multiply the albedo that demodulation divided out, so
  * that an unfiltered pixel comes back exactly as it went in.
- * Unfiltered pixels (background, emitters) already hold their colour. */
+ * Unfiltered pixels (background, emitters) already hold their colour; borrowing ones
+ * (PX_SVGF_BORROWED) take their own samples' albedo back, as filtered ones do. */
 kernel void svgf_remodulate(global float4* out_color, const global float4* illum, const global float4* moments,
                             const global float4* albedo, SvgfParams p) {
   const uint gid = get_global_id(0);

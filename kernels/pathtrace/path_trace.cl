@@ -20,10 +20,11 @@
 
 /* Radiance along one camera path. *primary_albedo receives the demodulation albedo of the
  * first vertex (px_demodulation_albedo; 1 where the ray escapes or meets an emitter, whose
- * radiance is its own "illumination"). */
+ * radiance is its own "illumination") and, in w, 1 where that vertex is a surface the denoiser
+ * filters (not an emitter, not the environment), else 0. */
 inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir,
-                            SampleKey key, float3* primary_albedo) {
-  *primary_albedo = (float3)(1.0f, 1.0f, 1.0f);
+                            SampleKey key, float4* primary_albedo) {
+  *primary_albedo = (float4)(1.0f, 1.0f, 1.0f, 0.0f);
   float3 radiance = (float3)(0.0f, 0.0f, 0.0f);
   float3 throughput = (float3)(1.0f, 1.0f, 1.0f);
   float prev_pdf = 0.0f;
@@ -87,7 +88,7 @@ inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float
     const float2 uv = px_interpolate_uv(sh, hit.u, hit.v);
     if (mat->normal_texture >= 0) ns = px_normal_mapped(scene, mat, sh, v0, v1, v2, uv, ns, wo);
     const Bsdf bsdf = px_material_bsdf(scene, mat, albedo, uv, outside);
-    if (bounce == 0u && !(mat->flags & PX_MAT_EMISSIVE)) *primary_albedo = px_demodulation_albedo(&bsdf);
+    if (bounce == 0u && !(mat->flags & PX_MAT_EMISSIVE)) *primary_albedo = (float4)(px_demodulation_albedo(&bsdf), 1.0f);
     const float3 origin = px_offset_ray_origin(p, ng);
     const float4 u_light = px_sample4(key, 1u + 2u * bounce);
     const float4 u_bsdf = px_sample4(key, 2u + 2u * bounce);
@@ -133,18 +134,20 @@ inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float
  * from the mean and counted in *nonfinite. Returns (rgb, finite sample count); *albedo gets
  * the mean primary demodulation albedo of the same (finite) paths, so that radiance / albedo
  * is the pixel's illumination even where the albedo varies inside the pixel (textures,
- * silhouettes, cut-outs). */
+ * silhouettes, cut-outs); its w is the fraction of those paths whose camera ray met a surface
+ * the denoiser filters (the pixel's coverage: SVGF filters a silhouette pixel whose centre
+ * misses the object but whose samples hit it). No finite path: (1, 1, 1, 0). */
 inline float4 px_render_pixel(const SceneView* scene, const FrameParams* fp, const CameraParams* cam,
                               uint x, uint y, volatile global uint* nonfinite, float4* albedo) {
   const float3 org = px_camera_origin(cam);
   float3 sum = (float3)(0.0f, 0.0f, 0.0f);
-  float3 albedo_sum = (float3)(0.0f, 0.0f, 0.0f);
+  float4 albedo_sum = (float4)(0.0f, 0.0f, 0.0f, 0.0f);
   uint good = 0;
   for (uint s = 0; s < fp->spp; ++s) {
     const SampleKey key = px_sample_key(x, y, fp->frame, fp->eye, fp->sample_offset + s, fp->seed);
     const float4 u = px_sample4(key, 0u);
     const float3 dir = px_camera_dir(cam, x, y, u.x, u.y);
-    float3 a;
+    float4 a;
     const float3 l = px_trace_path(scene, fp, org, dir, key, &a);
     if (isfinite(l.x) && isfinite(l.y) && isfinite(l.z)) {
       sum += l;
@@ -155,7 +158,7 @@ inline float4 px_render_pixel(const SceneView* scene, const FrameParams* fp, con
     }
   }
   const float inv = good > 0u ? 1.0f / (float)good : 0.0f;
-  *albedo = good > 0u ? (float4)(albedo_sum * inv, 1.0f) : (float4)(1.0f, 1.0f, 1.0f, 0.0f);
+  *albedo = good > 0u ? albedo_sum * inv : (float4)(1.0f, 1.0f, 1.0f, 0.0f);
   return (float4)(good > 0u ? sum / (float)good : sum, (float)good);
 }
 

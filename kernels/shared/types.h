@@ -158,7 +158,8 @@ typedef struct BvhTriangle {
 #define PX_TRI_ALPHA_TESTED 1u
 #define PX_TRI_EMISSIVE 2u
 
-/* A ray, 32 bytes. tmax bounds the search (closest hit and occlusion). */
+/* A ray, 32 bytes. Hits count in the open interval (tmin, tmax), closest hit and occlusion
+ * alike (tmin is exclusive as in Embree: a ray starting on a surface does not hit it at t = 0). */
 typedef struct Ray {
   float org[3];
   float tmin;
@@ -359,6 +360,14 @@ typedef struct GBufferTexel {
  * PX_SVGF_LOOSE_SIGMA_N instead (the stereo paper's sigma_n). */
 #define PX_SVGF_ISOLATED 0.25f
 #define PX_SVGF_LOOSE_SIGMA_N 4.0f
+/* SVGF moments.w: how the filter treats a pixel. 0: not filtered (environment, emitters),
+ * 1: filtered, PX_SVGF_BORROWED: a silhouette pixel whose centre ray misses every filtered
+ * surface while at least PX_SVGF_BORROW_COVERAGE of its own samples hit one (albedo.w). It is
+ * filtered as a receiver only, with the normal and depth of its nearest filtered 8-neighbour,
+ * and never serves as a tap or as history: passed through, its lone surface sample (at 1 spp
+ * often black) stood out along every silhouette against the sky. */
+#define PX_SVGF_BORROWED 2.0f
+#define PX_SVGF_BORROW_COVERAGE 0.5f
 /* The neighbours of a reprojected pixel (its footprint's surroundings) only need to lie on the
  * same continuous surface: a looser normal test, so that curved surfaces stay reprojectable. */
 #define PX_REPROJECT_NEIGHBOUR_MIN_COS 0.9f

@@ -87,6 +87,7 @@ void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& albedo, c
   k.setArg(8, params(rows, readable, 1));
   k.setArg(9, prev_cam);
   k.setArg(10, static_cast<cl_uint>(have_history_));
+  k.setArg(11, guide_);  // guide() has run: silhouette pixels look for a neighbour to borrow from
   launch(k, rows, "temporal");
   // The moments (with history length) are this frame's moment history as they stand.
   cl::Event e;
@@ -114,7 +115,8 @@ void SvgfDenoiser::atrous(unsigned iteration, RowRange rows, RowRange readable) 
   k.setArg(0, illum_[1 - current_]);
   k.setArg(1, illum_[current_]);
   k.setArg(2, guide_);
-  k.setArg(3, params(rows, readable, 1u << iteration));
+  k.setArg(3, moments_);
+  k.setArg(4, params(rows, readable, 1u << iteration));
   launch(k, rows, atrous_pass_name(iteration));
   current_ = 1 - current_;
   if (iteration == 0) {

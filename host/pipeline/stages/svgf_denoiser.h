@@ -33,8 +33,9 @@ class SvgfDenoiser {
   // Pass 0: the guide texels (normal, signed depth) of G-buffer rows `rows`, which must cover
   // every row the spatial passes of this frame read: the strip and its readable margin.
   void guide(const cl::Buffer& gbuf, RowRange rows);
-  // Pass 1: demodulate `color` by `albedo` (float4, the path tracer's per-pixel mean primary
-  // albedo), blend with history reprojected through `prev_cam`.
+  // Pass 1 (after guide()): demodulate `color` by `albedo` (float4, the path tracer's
+  // per-pixel mean primary albedo, w = the share of samples on filtered surfaces), blend with
+  // history reprojected through `prev_cam`.
   void temporal(const cl::Buffer& color, const cl::Buffer& albedo, const cl::Buffer& gbuf, const cl::Buffer& prev_gbuf,
                 const CameraParams& prev_cam, RowRange rows, RowRange readable);
   // Pass 2: variance from moments (spatial estimate for short histories).
