@@ -11,7 +11,8 @@
 // the others and with Embree in the same process.
 //
 //   build/bench_trace --scene atrium --width 640 --height 360 --devices 1 --repeats 7 [--csv F]
-//   build/bench_trace --layout binary --layout wide4 --layout wide8
+//   build/bench_trace --layout binary --layout wide4 --layout wide8 --layout cwbvh
+// Each layout's node memory (nodes, and the leaf blocks the wide layouts append) goes to stderr.
 #include "app/guarded_main.h"
 #include "app/scene_setup.h"
 #include "bench_common.h"
@@ -98,6 +99,17 @@ std::vector<px::Ray> bounce_rays(const px::Scene& scene, const std::vector<px::R
   return rays;
 }
 
+// Bytes of the nodes proper and of the leaf blocks in the node buffer `layout` uploads.
+std::pair<std::size_t, std::size_t> node_memory(const px::FlatBvh& bvh, px::BvhLayout layout) {
+  switch (layout) {
+    case px::BvhLayout::Binary: return {bvh.nodes.size() * sizeof(px::BvhNode), 0};
+    case px::BvhLayout::Wide4: return {bvh.nodes4.size() * sizeof(px::Bvh4Node), 0};
+    case px::BvhLayout::Wide8: return {bvh.nodes8.size() * sizeof(px::Bvh8Node), 0};
+    case px::BvhLayout::Compressed8: return {bvh.cnodes.size() * sizeof(px::CompressedBvh8Node), 0};
+  }
+  return {0, 0};
+}
+
 struct Row {
   std::string scene, set, layout;
   std::size_t rays = 0;
@@ -165,7 +177,7 @@ int main(int argc, char** argv) {
   app.add_option("--repeats", repeats, "timed repetitions (median reported)")->check(CLI::Range(1, 1000))->capture_default_str();
   app.add_option("--threads", threads, "Embree threads (std::thread chunks)")->capture_default_str();
   app.add_option("--csv", csv, "also write the table as CSV");
-  app.add_option("--layout", layout_names, "BVH node layouts to trace, side by side (binary, wide4, wide8; repeatable)")
+  app.add_option("--layout", layout_names, "BVH node layouts to trace, side by side (binary, wide4, wide8, cwbvh; repeatable)")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
@@ -190,6 +202,12 @@ int main(int argc, char** argv) {
       std::vector<px::RayBatchTracer*> tracers;
       for (px::BvhLayout layout : layouts) {
         px::set_bvh_layout(layout);
+        px::ensure_layout(loaded.bvh, layout);
+        auto [node_bytes, block_bytes] = node_memory(loaded.bvh, layout);
+        if (layout != px::BvhLayout::Binary)
+          block_bytes = px::device_wide_nodes(loaded.bvh, layout).size() * 4 - node_bytes;
+        std::fprintf(stderr, "[bench] %s %s: nodes %.1f KiB, leaf blocks %.1f KiB\n", name.c_str(),
+                     px::to_string(layout), node_bytes / 1024.0, block_bytes / 1024.0);
         scenes_per_layout.push_back(std::make_unique<px::DeviceScene>(set, loaded.scene, loaded.bvh));
         tracer_storage.push_back(std::make_unique<px::RayBatchTracer>(set, *scenes_per_layout.back()));
         tracers.push_back(tracer_storage.back().get());

@@ -835,6 +835,220 @@ TEST(WideBvh, ValidatorDetectsCorruptWideNodes) {
   expect_invalid(absent, "an unused slot that still holds a leaf");
 }
 
+// ---------------------------------------------------------------------------------------------
+// Compressed 8-wide layout (types.h: CompressedBvh8Node): nodes8 with quantized boxes.
+
+// Decodes a plane independently of the validator, in double: p + q * 2^(e - 127).
+double decoded_plane(const CompressedBvh8Node& n, int axis, unsigned q) {
+  return double(n.p[axis]) + double(q) * std::ldexp(1.0, int(n.e[axis]) - 127);
+}
+
+// Walks the compressed tree beside nodes8 and checks, per slot, what the builder promises: the
+// same children, each decoded box containing the exact Bvh8Node box, qlo / qhi the tightest
+// grid coordinates that do (a real rounding, not 0 / 255 everywhere), every plane a float.
+void expect_compressed_matches_wide8(const FlatBvh& bvh) {
+  ASSERT_FALSE(bvh.cnodes.empty());
+  EXPECT_EQ(bvh.cnodes.size(), bvh.nodes8.size()) << "the same nodes";
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> stack{{0u, 0u}};
+  std::size_t visited = 0, leaves = 0, tight = 0, planes = 0;
+  while (!stack.empty()) {
+    const auto [c, w] = stack.back();
+    stack.pop_back();
+    ++visited;
+    ASSERT_LT(c, bvh.cnodes.size());
+    const CompressedBvh8Node& n = bvh.cnodes[c];
+    const Bvh8Node& r = bvh.nodes8[w];
+    const std::uint8_t* qlo[3] = {n.qlo_x, n.qlo_y, n.qlo_z};
+    const std::uint8_t* qhi[3] = {n.qhi_x, n.qhi_y, n.qhi_z};
+    const float* rlo[3] = {r.lo_x, r.lo_y, r.lo_z};
+    const float* rhi[3] = {r.hi_x, r.hi_y, r.hi_z};
+    int interior = 0, leaf = 0;
+    for (int i = 0; i < 8; ++i) {
+      const bool used = !(r.lo_x[i] > r.hi_x[i]);
+      ASSERT_EQ(n.meta[i] != 0, used) << "node " << c << " slot " << i;
+      if (!used) continue;
+      const unsigned count = (n.meta[i] >> 3) & 7u, rank = n.meta[i] & 7u;
+      EXPECT_EQ(count, r.count[i]);
+      EXPECT_EQ((n.imask >> i) & 1u, count == 0 ? 1u : 0u);
+      for (int k = 0; k < 3; ++k) {
+        const double lo = decoded_plane(n, k, qlo[k][i]), hi = decoded_plane(n, k, qhi[k][i]);
+        EXPECT_LE(lo, double(rlo[k][i])) << "node " << c << " slot " << i << " axis " << k;
+        EXPECT_GE(hi, double(rhi[k][i])) << "node " << c << " slot " << i << " axis " << k;
+        EXPECT_EQ(double(float(lo)), lo) << "a plane that is not a float";
+        EXPECT_EQ(double(float(hi)), hi) << "a plane that is not a float";
+        // Tightest: one grid step further in would cut the exact box.
+        if (qlo[k][i] < 255) {
+          EXPECT_GT(decoded_plane(n, k, qlo[k][i] + 1u), double(rlo[k][i]));
+        }
+        if (qhi[k][i] > 0) {
+          EXPECT_LT(decoded_plane(n, k, qhi[k][i] - 1u), double(rhi[k][i]));
+        }
+        planes += 2;
+        tight += (qhi[k][i] - qlo[k][i] < 255) ? 2 : 0;
+      }
+      if (count == 0) {
+        EXPECT_EQ(rank, unsigned(interior++));
+        stack.push_back({n.child_base + rank, r.child[i]});
+      } else {
+        EXPECT_EQ(rank, unsigned(leaf++));
+        ASSERT_LT(n.leaf_base + rank, bvh.cleaf_first.size());
+        EXPECT_EQ(bvh.cleaf_first[n.leaf_base + rank], r.child[i]);
+        ++leaves;
+      }
+    }
+  }
+  EXPECT_EQ(visited, bvh.cnodes.size()) << "every node reached once";
+  EXPECT_EQ(leaves, bvh.cleaf_first.size());
+  EXPECT_GT(tight, planes / 2) << "most child boxes span less than their node's whole grid";
+}
+
+TEST(CompressedBvh, BuiltFromWide8ValidatesAndMatchesIt) {
+  for (bool splits : {false, true}) {
+    const auto tris = random_soup(3000, 93);
+    FlatBvh bvh = build_bvh(tris, with_splits(splits));
+    compress_bvh8(bvh);  // collapses nodes8 first
+    ASSERT_FALSE(bvh.nodes8.empty());
+    const BvhValidation v = validate_bvh(bvh, tris);
+    EXPECT_TRUE(v.ok) << (v.errors.empty() ? "" : v.errors.front());
+    expect_compressed_matches_wide8(bvh);
+  }
+}
+
+TEST(CompressedBvh, ExactFarFromTheOriginAndOnTinyOrFlatNodes) {
+  // Far from the origin: tiny nodes at 1e5 need a grid no finer than the floats there; a flat
+  // scene has zero extent on one axis; a microscopic one needs the smallest scales.
+  std::vector<std::vector<SceneTriangle>> scenes{random_soup(800, 7, 4.0f, 0.1f, 1.0e5f),
+                                                 random_soup(800, 8, 1.0e-12f, 1.0e-14f, 0.0f)};
+  // Flat at y = 3.7: zero extent, and a grid origin that must stay an exact float.
+  std::vector<SceneTriangle> flat;
+  for (int i = 0; i < 400; ++i)
+    flat.push_back(make_triangle({float(i), 3.7f, 0}, {float(i) + 1.0f, 3.7f, 0.5f}, {float(i), 3.7f, 1.0f}));
+  scenes.push_back(flat);
+  for (const auto& tris : scenes) {
+    FlatBvh bvh = build_bvh(tris, with_splits(false));
+    compress_bvh8(bvh);
+    const BvhValidation v = validate_bvh(bvh, tris);
+    EXPECT_TRUE(v.ok) << (v.errors.empty() ? "" : v.errors.front());
+    expect_compressed_matches_wide8(bvh);
+  }
+}
+
+TEST(CompressedBvh, LayoutNameAndKernelSwitch) {
+  EXPECT_EQ(parse_bvh_layout("cwbvh"), BvhLayout::Compressed8);
+  EXPECT_STREQ(to_string(BvhLayout::Compressed8), "cwbvh");
+  EXPECT_EQ(bvh_layout_width(BvhLayout::Compressed8), PX_BVH_COMPRESSED8);
+  EXPECT_THROW(parse_bvh_layout("cwbvh4"), std::invalid_argument);
+}
+
+TEST(CompressedBvh, OneTriangleScene) {
+  std::vector<SceneTriangle> tris;
+  append_triangle(tris, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, 0);
+  FlatBvh bvh = build_bvh(tris, with_splits(false));
+  compress_bvh8(bvh);
+  ASSERT_EQ(bvh.cnodes.size(), 1u);
+  ASSERT_EQ(bvh.cleaf_first.size(), 1u);
+  EXPECT_EQ(bvh.cnodes[0].meta[0], PX_CWBVH_META_USED | (1u << PX_CWBVH_META_COUNT_SHIFT));
+  EXPECT_EQ(bvh.cnodes[0].meta[1], 0u) << "unused slots are marked unused";
+  EXPECT_EQ(bvh.cnodes[0].imask, 0u);
+  EXPECT_TRUE(validate_bvh(bvh, tris).ok);
+}
+
+// Device form: the compressed nodes, then the leaf blocks in cleaf_first order, so a node's
+// leaves are contiguous blocks from its leaf_base (in 16-byte units).
+TEST(CompressedBvh, DeviceFormPointsLeavesAtTheirBlocks) {
+  const auto tris = random_soup(1500, 64);
+  FlatBvh bvh = build_bvh(tris, with_splits(false));
+  compress_bvh8(bvh);
+  bvh.triangles[3].flags = PX_TRI_ALPHA_TESTED;
+  const std::vector<std::uint32_t> words = device_wide_nodes(bvh, BvhLayout::Compressed8);
+  const std::size_t node_units = bvh.cnodes.size() * sizeof(CompressedBvh8Node) / 16;
+  EXPECT_EQ(words.size() * 4,
+            bvh.cnodes.size() * sizeof(CompressedBvh8Node) + bvh.cleaf_first.size() * sizeof(BvhLeafBlock));
+  std::vector<int> refs(bvh.triangles.size(), 0);
+  for (std::size_t n = 0; n < bvh.cnodes.size(); ++n) {
+    CompressedBvh8Node dev;
+    std::memcpy(&dev, words.data() + n * sizeof dev / 4, sizeof dev);
+    const CompressedBvh8Node& host = bvh.cnodes[n];
+    EXPECT_EQ(dev.child_base, host.child_base);
+    EXPECT_EQ(0, std::memcmp(dev.meta, host.meta, 56)) << "meta and boxes unchanged";
+    for (int i = 0; i < 8; ++i) {
+      const unsigned count = (host.meta[i] >> 3) & 7u, rank = host.meta[i] & 7u;
+      if (host.meta[i] == 0 || count == 0) continue;
+      const std::size_t unit = dev.leaf_base + std::size_t{PX_LEAF_BLOCK_UNITS} * rank;
+      EXPECT_EQ(unit, node_units + (std::size_t{host.leaf_base} + rank) * PX_LEAF_BLOCK_UNITS);
+      ASSERT_LE((unit * 16 + sizeof(BvhLeafBlock)) / 4, words.size());
+      BvhLeafBlock b;
+      std::memcpy(&b, words.data() + unit * 4, sizeof b);
+      EXPECT_EQ(b.first, bvh.cleaf_first[host.leaf_base + rank]);
+      EXPECT_EQ(b.count, count);
+      std::uint32_t flags = 0;
+      for (std::uint32_t j = 0; j < b.count; ++j) {
+        const BvhTriangle& t = bvh.triangles[b.first + j];
+        flags |= t.flags;
+        ++refs[b.first + j];
+        EXPECT_EQ(b.v[0][j], t.v0[0]);
+        EXPECT_EQ(b.v[8][j], t.v2[2]);
+      }
+      EXPECT_EQ(b.flags, flags);
+    }
+  }
+  for (std::size_t i = 0; i < refs.size(); ++i) EXPECT_EQ(refs[i], 1) << "entry " << i;
+}
+
+TEST(CompressedBvh, ValidatorDetectsCorruptCompressedNodes) {
+  const auto tris = random_soup(2000, 65);
+  FlatBvh bvh = build_bvh(tris, with_splits(false));
+  compress_bvh8(bvh);
+  ASSERT_TRUE(validate_bvh(bvh, tris).ok);
+  // A leaf slot and an interior slot whose y extent spans more than one grid step.
+  std::uint32_t leaf_node = ~0u, inner_node = ~0u;
+  int leaf_slot = -1, inner_slot = -1;
+  for (std::uint32_t n = 0; n < bvh.cnodes.size(); ++n)
+    for (int i = 0; i < 8; ++i) {
+      const CompressedBvh8Node& c = bvh.cnodes[n];
+      if (c.meta[i] == 0 || c.qhi_y[i] <= c.qlo_y[i] + 1) continue;
+      const bool leaf = ((c.meta[i] >> 3) & 7u) > 0;
+      if (leaf && leaf_slot < 0) leaf_node = n, leaf_slot = i;
+      if (!leaf && inner_slot < 0 && n > 0) inner_node = n, inner_slot = i;
+    }
+  ASSERT_GE(leaf_slot, 0);
+  ASSERT_GE(inner_slot, 0);
+  auto expect_invalid = [&](const FlatBvh& bad, const char* what) {
+    const BvhValidation v = validate_bvh(bad, tris);
+    EXPECT_FALSE(v.ok) << what;
+    ASSERT_FALSE(v.errors.empty()) << what;
+    EXPECT_NE(v.errors.front().find("cwbvh"), std::string::npos) << what << ": " << v.errors.front();
+  };
+  // One grid step in on qhi: the decoded box no longer contains its child.
+  FlatBvh shrunk_leaf = bvh;
+  shrunk_leaf.cnodes[leaf_node].qhi_y[leaf_slot] -= 1;
+  expect_invalid(shrunk_leaf, "a leaf's qhi one step too low");
+  FlatBvh shrunk_inner = bvh;
+  shrunk_inner.cnodes[inner_node].qhi_y[inner_slot] -= 1;
+  expect_invalid(shrunk_inner, "an interior child's qhi one step too low");
+  FlatBvh raised = bvh;
+  raised.cnodes[inner_node].qlo_x[inner_slot] += 1;
+  expect_invalid(raised, "an interior child's qlo one step too high");
+  FlatBvh finer = bvh;
+  finer.cnodes[inner_node].e[2] -= 1;
+  expect_invalid(finer, "a halved scale");
+  FlatBvh bad_child = bvh;
+  bad_child.cnodes[inner_node].child_base = static_cast<std::uint32_t>(bvh.cnodes.size());
+  expect_invalid(bad_child, "interior children past the node array");
+  FlatBvh bad_leaf = bvh;
+  bad_leaf.cnodes[leaf_node].leaf_base = static_cast<std::uint32_t>(bvh.cleaf_first.size());
+  expect_invalid(bad_leaf, "leaves past the leaf table");
+  FlatBvh moved_leaf = bvh;
+  moved_leaf.cleaf_first[0] += 1;
+  expect_invalid(moved_leaf, "a leaf that starts at the wrong triangle");
+  FlatBvh dropped = bvh;
+  dropped.cnodes[leaf_node].meta[leaf_slot] = 0;
+  expect_invalid(dropped, "a leaf slot marked unused");
+  FlatBvh imask = bvh;
+  imask.cnodes[leaf_node].imask ^= static_cast<std::uint8_t>(1u << leaf_slot);
+  expect_invalid(imask, "imask disagreeing with meta");
+}
+
 TEST(Validator, DetectsUncoveredSplitTriangle) {
   // With spatial splits a triangle spans several leaves; moving one of them away must be
   // caught even though the triangle is still referenced.

@@ -44,7 +44,7 @@ struct TraceFixture {
   }
 };
 
-// Every trace test runs once per BVH node layout (binary, 4-wide, 8-wide): the layout is
+// Every trace test runs once per BVH node layout (binary, 4-wide, 8-wide, compressed 8-wide): the layout is
 // process-wide, so the fixture sets it before the test builds its tree and device scene.
 class TraceKernels : public ::testing::TestWithParam<BvhLayout> {
  protected:
@@ -546,7 +546,8 @@ TEST_P(TraceKernels, SameHitsWithOneTwoAndFourDevices) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Layouts, TraceKernels,
-                         ::testing::Values(BvhLayout::Binary, BvhLayout::Wide4, BvhLayout::Wide8),
+                         ::testing::Values(BvhLayout::Binary, BvhLayout::Wide4, BvhLayout::Wide8,
+                                           BvhLayout::Compressed8),
                          [](const ::testing::TestParamInfo<BvhLayout>& info) {
                            return std::string(to_string(info.param));
                          });

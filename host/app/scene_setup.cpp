@@ -53,7 +53,9 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
                             : (std::to_string(static_cast<long>(bs.build_ms)) + " ms").c_str(),
                  bvh_layout() == BvhLayout::Binary ? ""
                  : (std::string("; traversed as ") + to_string(bvh_layout()) + ", " +
-                    std::to_string(bvh_layout() == BvhLayout::Wide4 ? out.bvh.nodes4.size() : out.bvh.nodes8.size()) +
+                    std::to_string(bvh_layout() == BvhLayout::Wide4   ? out.bvh.nodes4.size()
+                                   : bvh_layout() == BvhLayout::Wide8 ? out.bvh.nodes8.size()
+                                                                      : out.bvh.cnodes.size()) +
                     " nodes").c_str(),
                  bs.split_budget_exceeded ? "; spatial splits stopped at their budget (heavily overlapping "
                                             "triangles): binned SAH instead"

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <sstream>
 
@@ -147,6 +148,7 @@ struct ChildSlot {
 
 struct BinaryNodes {
   static constexpr int kWidth = 2;
+  static constexpr bool kNestedBoxes = true;  // child boxes lie inside the box the parent stores
   const std::vector<BvhNode>& nodes;
   const char* name = "";
   std::size_t size() const { return nodes.size(); }
@@ -165,6 +167,7 @@ struct BinaryNodes {
 template <int W, typename Node>
 struct WideNodes {
   static constexpr int kWidth = W;
+  static constexpr bool kNestedBoxes = true;
   const std::vector<Node>& nodes;
   const char* name;
   std::size_t size() const { return nodes.size(); }
@@ -184,6 +187,60 @@ struct WideNodes {
                                    "slot 4", "slot 5", "slot 6", "slot 7"};
     return names[side];
   }
+};
+
+// The compressed nodes, slots decoded to float boxes exactly as the kernels decode them. Nested
+// boxes are not required: a child's grid may be coarser than its parent's, so its decoded boxes
+// can stick out of the (also rounded-out) box the parent stores for it by less than a grid step;
+// validate_compressed checks each decoded box against the exact Bvh8Node box instead.
+float decode_plane(const CompressedBvh8Node& n, int axis, std::uint8_t q) {
+  // The kernels' q * scale + p, scale from the biased exponent's bit pattern (types.h).
+  const std::uint32_t bits = std::uint32_t{n.e[axis]} << 23;
+  float scale;
+  std::memcpy(&scale, &bits, sizeof scale);
+  return static_cast<float>(q) * scale + n.p[axis];
+}
+
+unsigned meta_count(std::uint8_t m) { return (m >> PX_CWBVH_META_COUNT_SHIFT) & 7u; }
+unsigned meta_rank(std::uint8_t m) { return m & PX_CWBVH_RANK_MASK; }
+
+struct CompressedNodes {
+  static constexpr int kWidth = 8;
+  static constexpr bool kNestedBoxes = false;
+  const std::vector<CompressedBvh8Node>& nodes;
+  const std::vector<std::uint32_t>& leaf_first;
+  const char* name;
+  std::size_t size() const { return nodes.size(); }
+  ChildSlot slot(std::size_t n, int i) const {
+    const CompressedBvh8Node& node = nodes[n];
+    ChildSlot c;
+    c.lo = c.lo_copy;
+    c.hi = c.hi_copy;
+    const std::uint8_t m = node.meta[i];
+    if (m == 0) {  // unused: as the other layouts' absent slots
+      for (int k = 0; k < 3; ++k)
+        c.lo_copy[k] = std::numeric_limits<float>::max(), c.hi_copy[k] = -std::numeric_limits<float>::max();
+      c.index = 0;
+      c.count = 0;
+      return c;
+    }
+    const std::uint8_t* qlo[3] = {node.qlo_x, node.qlo_y, node.qlo_z};
+    const std::uint8_t* qhi[3] = {node.qhi_x, node.qhi_y, node.qhi_z};
+    for (int k = 0; k < 3; ++k) {
+      c.lo_copy[k] = decode_plane(node, k, qlo[k][i]);
+      c.hi_copy[k] = decode_plane(node, k, qhi[k][i]);
+    }
+    c.count = meta_count(m);
+    if (c.count == 0) {
+      c.index = node.child_base + meta_rank(m);
+    } else {
+      const std::uint64_t leaf = std::uint64_t{node.leaf_base} + meta_rank(m);
+      // Out of range: an index past every triangle, which the leaf check reports.
+      c.index = leaf < leaf_first.size() ? leaf_first[leaf] : std::numeric_limits<std::uint32_t>::max();
+    }
+    return c;
+  }
+  static const char* side_name(int side) { return WideNodes<8, Bvh8Node>::side_name(side); }
 };
 
 template <typename Nodes>
@@ -255,7 +312,7 @@ void validate_tree(const Nodes& tree, const FlatBvh& bvh, const std::vector<Scen
         report.error(tree.name, "node ", e.node, " ", side_name[side], " box is inverted on some axis");
         continue;
       }
-      if (e.has_box && !contains(e.box, box, tolerance(e.box, nullptr)))
+      if (Nodes::kNestedBoxes && e.has_box && !contains(e.box, box, tolerance(e.box, nullptr)))
         report.error(tree.name, "node ", e.node, " ", side_name[side],
                      " box is not inside the box its parent stores for it");
 
@@ -359,6 +416,95 @@ void validate_tree(const Nodes& tree, const FlatBvh& bvh, const std::vector<Scen
   // References to prims >= triangles.size() were reported above and never enter this list.
 }
 
+// What the generic walk cannot see in the compressed layout: the encoding itself, and each
+// decoded box against the exact box of the Bvh8Node slot it was built from (no tolerance: the
+// quantization is exact arithmetic, compressed_bvh.cpp). Together with the wide8 checks
+// (exact boxes contain their subtrees), every decoded box contains its subtree.
+void validate_compressed(const FlatBvh& bvh, Report& report) {
+  const auto& cn = bvh.cnodes;
+  if (bvh.nodes8.empty()) {
+    report.error("cwbvh nodes are present without the wide8 nodes they are built from");
+    return;
+  }
+  std::vector<std::uint8_t> seen(cn.size(), 0);
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> stack{{0u, 0u}};  // (cnode, node8)
+  while (!stack.empty()) {
+    const auto [c, w] = stack.back();
+    stack.pop_back();
+    if (c >= cn.size() || w >= bvh.nodes8.size() || seen[c]) continue;  // reported by the walk
+    seen[c] = 1;
+    const CompressedBvh8Node& n = cn[c];
+    const Bvh8Node& ref = bvh.nodes8[w];
+    bool encoding_ok = true;
+    for (int k = 0; k < 3; ++k)
+      if (n.e[k] < 1 || n.e[k] > 246) {
+        report.error("cwbvh node ", c, " has scale exponent ", int(n.e[k]), " on axis ", k, " (1..246)");
+        encoding_ok = false;
+      }
+    if (!encoding_ok) continue;
+    const std::uint8_t* qlo[3] = {n.qlo_x, n.qlo_y, n.qlo_z};
+    const std::uint8_t* qhi[3] = {n.qhi_x, n.qhi_y, n.qhi_z};
+    const float* rlo[3] = {ref.lo_x, ref.lo_y, ref.lo_z};
+    const float* rhi[3] = {ref.hi_x, ref.hi_y, ref.hi_z};
+    unsigned interior = 0, leaves = 0;
+    for (int i = 0; i < 8; ++i) {
+      const std::uint8_t m = n.meta[i];
+      const bool ref_used = !(ref.lo_x[i] > ref.hi_x[i] && ref.lo_y[i] > ref.hi_y[i] && ref.lo_z[i] > ref.hi_z[i]);
+      const bool is_interior = m != 0 && meta_count(m) == 0;
+      if (((n.imask >> i) & 1u) != (is_interior ? 1u : 0u))
+        report.error("cwbvh node ", c, " slot ", i, ": imask and meta disagree");
+      if (m == 0) {
+        for (int k = 0; k < 3; ++k)
+          if (qlo[k][i] != 255 || qhi[k][i] != 0)
+            report.error("cwbvh node ", c, " slot ", i, " is unused but its box is not inverted (255, 0)");
+        if (ref_used) report.error("cwbvh node ", c, " slot ", i, " is unused but wide8 node ", w, " uses it");
+        continue;
+      }
+      if ((m & PX_CWBVH_META_USED) == 0 || (m & 0x40u) != 0 || meta_count(m) > PX_BVH_MAX_LEAF_SIZE) {
+        report.error("cwbvh node ", c, " slot ", i, " has an invalid meta byte ", unsigned(m));
+        continue;
+      }
+      const unsigned expected_rank = is_interior ? interior++ : leaves++;
+      if (meta_rank(m) != expected_rank)
+        report.error("cwbvh node ", c, " slot ", i, " has rank ", meta_rank(m), ", expected ", expected_rank);
+      if (!ref_used) {
+        report.error("cwbvh node ", c, " slot ", i, " is used but wide8 node ", w, " leaves it unused");
+        continue;
+      }
+      if (meta_count(m) != ref.count[i])
+        report.error("cwbvh node ", c, " slot ", i, " holds ", meta_count(m), " triangles, wide8 ", ref.count[i]);
+      for (int k = 0; k < 3; ++k) {
+        if (qlo[k][i] > qhi[k][i]) report.error("cwbvh node ", c, " slot ", i, " box is inverted on axis ", k);
+        for (std::uint8_t q : {qlo[k][i], qhi[k][i]}) {
+          // The decoded plane must be exact (types.h), or a fused and an unfused decode differ.
+          const double exact = double(n.p[k]) + double(q) * std::ldexp(1.0, int(n.e[k]) - 127);
+          if (double(decode_plane(n, k, q)) != exact) {
+            report.error("cwbvh node ", c, " slot ", i, ": plane ", unsigned(q), " on axis ", k,
+                         " does not decode to an exact float");
+            break;
+          }
+        }
+        if (decode_plane(n, k, qlo[k][i]) > rlo[k][i] || decode_plane(n, k, qhi[k][i]) < rhi[k][i])
+          report.error("cwbvh node ", c, " slot ", i, " decoded box does not contain the exact child box on axis ", k);
+      }
+      if (is_interior) {
+        const std::uint64_t child = std::uint64_t{n.child_base} + meta_rank(m);
+        if (child < cn.size()) stack.push_back({static_cast<std::uint32_t>(child), ref.child[i]});
+      } else {
+        const std::uint64_t leaf = std::uint64_t{n.leaf_base} + meta_rank(m);
+        if (leaf >= bvh.cleaf_first.size())
+          report.error("cwbvh node ", c, " slot ", i, " leaf ", leaf, " is past the ", bvh.cleaf_first.size(), " leaves");
+        else if (bvh.cleaf_first[leaf] != ref.child[i])
+          report.error("cwbvh node ", c, " slot ", i, " leaf starts at triangle ", bvh.cleaf_first[leaf],
+                       ", wide8 at ", ref.child[i]);
+      }
+    }
+    if (std::uint64_t{n.child_base} + interior > cn.size())
+      report.error("cwbvh node ", c, " interior children ", n.child_base, "..", std::uint64_t{n.child_base} + interior - 1,
+                   " are past the ", cn.size(), " nodes");
+  }
+}
+
 }  // namespace
 
 BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles) {
@@ -370,6 +516,10 @@ BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>&
   validate_tree(BinaryNodes{bvh.nodes}, bvh, triangles, report);
   if (!bvh.nodes4.empty()) validate_tree(WideNodes<4, Bvh4Node>{bvh.nodes4, "wide4 "}, bvh, triangles, report);
   if (!bvh.nodes8.empty()) validate_tree(WideNodes<8, Bvh8Node>{bvh.nodes8, "wide8 "}, bvh, triangles, report);
+  if (!bvh.cnodes.empty()) {
+    validate_tree(CompressedNodes{bvh.cnodes, bvh.cleaf_first, "cwbvh "}, bvh, triangles, report);
+    validate_compressed(bvh, report);
+  }
   return report.finish();
 }
 

@@ -811,7 +811,7 @@ FlatBvh build_bvh(const std::vector<SceneTriangle>& triangles, const BvhBuildOpt
   bvh.stats.scene_triangles = triangles.size();
   // The wide nodes the kernels traverse (when the process uses a wide layout).
   const BvhLayout layout = bvh_layout();
-  if (layout != BvhLayout::Binary) bvh.stats.collapse_ms = collapse_bvh(bvh, bvh_layout_width(layout));
+  if (layout != BvhLayout::Binary) bvh.stats.collapse_ms = ensure_layout(bvh, layout);
   bvh.stats.build_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return bvh;

@@ -29,7 +29,7 @@ struct BvhBuildStats {
   std::size_t nodes = 0;
   int depth = 0;                   // root = depth 1... leaves included as a level below nodes
   double build_ms = 0.0;           // includes collapse_ms
-  double collapse_ms = 0.0;        // binary -> wide nodes (0 for the binary layout)
+  double collapse_ms = 0.0;        // binary -> wide (and compressed) nodes (0 for the binary layout)
   double sah_cost = 0.0;           // SAH cost of the flattened tree (traversal 1, intersection 1)
   // Spatial splits are bounded in work: a build may call the split callback at most
   // split_call_budget(scene_triangles) times; past that it is redone with binned SAH
@@ -46,13 +46,17 @@ std::uint64_t split_call_budget(std::size_t triangles,
                                 std::uint32_t calls_per_triangle = BvhBuildOptions{}.split_calls_per_triangle);
 
 // The node layout the kernels traverse: the binary nodes, or the same tree collapsed into
-// 4- or 8-wide nodes (types.h: Bvh4Node, Bvh8Node). Process-wide, because every kernel build
-// must agree with the uploaded nodes (DeviceSet passes -DPX_BVH_WIDTH, DeviceScene uploads the
+// 4- or 8-wide nodes (types.h: Bvh4Node, Bvh8Node), or the 8-wide tree with quantized child
+// boxes (types.h: CompressedBvh8Node, "cwbvh"). Process-wide, because every kernel build must
+// agree with the uploaded nodes (DeviceSet passes -DPX_BVH_WIDTH, DeviceScene uploads the
 // matching array). Default: kDefaultBvhLayout, or the environment variable PX_BVH_LAYOUT
-// (binary | wide4 | wide8) read at the first call.
-enum class BvhLayout { Binary = 2, Wide4 = 4, Wide8 = 8 };
+// (binary | wide4 | wide8 | cwbvh) read at the first call.
+// The values are the kernels' PX_BVH_WIDTH (9 = PX_BVH_COMPRESSED8, 8 children per node).
+enum class BvhLayout { Binary = 2, Wide4 = 4, Wide8 = 8, Compressed8 = PX_BVH_COMPRESSED8 };
 BvhLayout bvh_layout();
 void set_bvh_layout(BvhLayout layout);  // for benches and tests; before kernels are built
+// The value of PX_BVH_WIDTH the kernels are built with for `layout` (not always the number of
+// children: Compressed8 is 9, PX_BVH_COMPRESSED8).
 inline int bvh_layout_width(BvhLayout layout) { return static_cast<int>(layout); }
 const char* to_string(BvhLayout layout);
 BvhLayout parse_bvh_layout(const std::string& name);  // throws std::invalid_argument
@@ -64,6 +68,11 @@ struct FlatBvh {
   // `triangles` exactly as the binary leaves do.
   std::vector<Bvh4Node> nodes4;
   std::vector<Bvh8Node> nodes8;
+  // nodes8 with quantized boxes (empty unless built: compress_bvh8). Same nodes, same slots;
+  // the interior children of a node are contiguous, and its leaves are contiguous entries of
+  // cleaf_first (the first triangle of each leaf; the count is in the slot's meta byte).
+  std::vector<CompressedBvh8Node> cnodes;
+  std::vector<std::uint32_t> cleaf_first;
   BvhBuildStats stats;
 };
 
@@ -76,13 +85,25 @@ constexpr std::uint32_t kWideIndexLimit = 1u << 29;
 // children until it has `width` of them or only leaves. Returns the time taken in ms.
 double collapse_bvh(FlatBvh& bvh, int width);
 
-// The node buffer the kernels read for a wide layout: the wide nodes followed by one
-// BvhLeafBlock per leaf (types.h), leaf slots pointing at their blocks. Reads the triangles'
-// flags, so call it after set_triangle_flags. Throws if the wide nodes are absent.
-std::vector<std::uint32_t> device_wide_nodes(const FlatBvh& bvh, BvhLayout layout);
+// Fills bvh.cnodes and bvh.cleaf_first from bvh.nodes8 (collapsing first if nodes8 is empty):
+// quantized boxes as types.h documents for CompressedBvh8Node (host/bvh/compressed_bvh.cpp).
+// Returns the time taken in ms, the collapse included.
+double compress_bvh8(FlatBvh& bvh);
 
-// Makes sure `bvh` carries the nodes of `layout` (collapsing if needed).
-void ensure_layout(FlatBvh& bvh, BvhLayout layout);
+// The node buffer the kernels read for a wide layout (Wide4, Wide8, Compressed8): the wide
+// nodes followed by one BvhLeafBlock per leaf (types.h), leaf slots pointing at their blocks.
+// Reads the triangles' flags, so call it after set_triangle_flags. Throws if the wide nodes are
+// absent.
+std::vector<std::uint32_t> device_wide_nodes(const FlatBvh& bvh, BvhLayout layout);
+// The leaf block (types.h: BvhLeafBlock) of the `count` triangles from `first`; throws if they
+// are out of range or count is not 1..4.
+BvhLeafBlock leaf_block(const std::vector<BvhTriangle>& tris, std::uint32_t first, std::uint32_t count);
+// The Compressed8 part of device_wide_nodes (compressed_bvh.cpp).
+std::vector<std::uint32_t> device_compressed_nodes(const FlatBvh& bvh);
+
+// Makes sure `bvh` carries the nodes of `layout` (collapsing / compressing if needed). Returns
+// the time that took in ms (0 when they were there).
+double ensure_layout(FlatBvh& bvh, BvhLayout layout);
 
 // Builds with Embree's rtcBuildBVH (SAH, maxBranchingFactor 2, maxDepth PX_BVH_MAX_DEPTH) and
 // flattens the result. Throws std::runtime_error on an empty input or an Embree error.
@@ -104,6 +125,10 @@ struct BvhValidation {
 // twice; leaf sizes <= PX_BVH_MAX_LEAF_SIZE.
 // Wide nodes present (nodes4 / nodes8) are checked the same way: every triangle entry in
 // exactly one leaf, child boxes inside the box the parent stores, depth, unused slots absent.
+// Compressed nodes present (cnodes) likewise, on their decoded boxes, and besides: the encoding
+// (meta / imask agree, exponents in range, every decoded plane an exact float), indices in
+// range, and slot by slot against nodes8 (which they must have been built from): the same
+// children, each decoded box containing the exact Bvh8Node box with no tolerance.
 BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles);
 
 }  // namespace px

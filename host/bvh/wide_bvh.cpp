@@ -127,6 +127,7 @@ const char* to_string(BvhLayout layout) {
     case BvhLayout::Binary: return "binary";
     case BvhLayout::Wide4: return "wide4";
     case BvhLayout::Wide8: return "wide8";
+    case BvhLayout::Compressed8: return "cwbvh";
   }
   return "?";
 }
@@ -135,7 +136,8 @@ BvhLayout parse_bvh_layout(const std::string& name) {
   if (name == "binary" || name == "2") return BvhLayout::Binary;
   if (name == "wide4" || name == "4") return BvhLayout::Wide4;
   if (name == "wide8" || name == "8") return BvhLayout::Wide8;
-  throw std::invalid_argument("unknown BVH layout '" + name + "' (binary, wide4 or wide8)");
+  if (name == "cwbvh" || name == "compressed8") return BvhLayout::Compressed8;
+  throw std::invalid_argument("unknown BVH layout '" + name + "' (binary, wide4, wide8 or cwbvh)");
 }
 
 double collapse_bvh(FlatBvh& bvh, int width) {
@@ -156,6 +158,26 @@ double collapse_bvh(FlatBvh& bvh, int width) {
     throw std::invalid_argument("collapse_bvh: width must be 4 or 8");
   }
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+BvhLeafBlock leaf_block(const std::vector<BvhTriangle>& tris, std::uint32_t first, std::uint32_t count) {
+  if (count == 0 || count > 4 || first + std::uint64_t{count} > tris.size())
+    throw std::runtime_error("BVH: leaf out of range in the wide layout");
+  BvhLeafBlock b;
+  b.first = first;
+  b.count = count;
+  b.flags = 0;
+  b.pad = 0;
+  for (std::uint32_t j = 0; j < 4; ++j) {
+    const BvhTriangle& t = tris[first + (j < count ? j : 0)];
+    if (j < count) b.flags |= t.flags;
+    for (int k = 0; k < 3; ++k) {
+      b.v[k][j] = t.v0[k];
+      b.v[3 + k][j] = t.v1[k];
+      b.v[6 + k][j] = t.v2[k];
+    }
+  }
+  return b;
 }
 
 namespace {
@@ -180,20 +202,7 @@ std::vector<std::uint32_t> device_form(const std::vector<Node>& nodes, const std
       const std::uint32_t first = n.child[i], count = n.count[i];
       if (count > 4 || first + std::uint64_t{count} > tris.size())
         throw std::runtime_error("BVH: leaf out of range in the wide layout");
-      BvhLeafBlock& b = blocks[next];
-      b.first = first;
-      b.count = count;
-      b.flags = 0;
-      b.pad = 0;
-      for (std::uint32_t j = 0; j < 4; ++j) {
-        const BvhTriangle& t = tris[first + (j < count ? j : 0)];
-        if (j < count) b.flags |= t.flags;
-        for (int k = 0; k < 3; ++k) {
-          b.v[k][j] = t.v0[k];
-          b.v[3 + k][j] = t.v1[k];
-          b.v[6 + k][j] = t.v2[k];
-        }
-      }
+      blocks[next] = leaf_block(tris, first, count);
       n.child[i] = static_cast<std::uint32_t>((nodes.size() * sizeof(Node) + next * sizeof(BvhLeafBlock)) / 16);
       ++next;
     }
@@ -208,12 +217,15 @@ std::vector<std::uint32_t> device_form(const std::vector<Node>& nodes, const std
 std::vector<std::uint32_t> device_wide_nodes(const FlatBvh& bvh, BvhLayout layout) {
   if (layout == BvhLayout::Wide4) return device_form<4>(bvh.nodes4, bvh.triangles);
   if (layout == BvhLayout::Wide8) return device_form<8>(bvh.nodes8, bvh.triangles);
+  if (layout == BvhLayout::Compressed8) return device_compressed_nodes(bvh);
   throw std::invalid_argument("device_wide_nodes: not a wide layout");
 }
 
-void ensure_layout(FlatBvh& bvh, BvhLayout layout) {
-  if (layout == BvhLayout::Wide4 && bvh.nodes4.empty()) collapse_bvh(bvh, 4);
-  if (layout == BvhLayout::Wide8 && bvh.nodes8.empty()) collapse_bvh(bvh, 8);
+double ensure_layout(FlatBvh& bvh, BvhLayout layout) {
+  if (layout == BvhLayout::Wide4 && bvh.nodes4.empty()) return collapse_bvh(bvh, 4);
+  if (layout == BvhLayout::Wide8 && bvh.nodes8.empty()) return collapse_bvh(bvh, 8);
+  if (layout == BvhLayout::Compressed8 && bvh.cnodes.empty()) return compress_bvh8(bvh);
+  return 0.0;
 }
 
 }  // namespace px

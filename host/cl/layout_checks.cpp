@@ -23,6 +23,14 @@ static_assert(offsetof(Bvh4Node, hi_y) == 48 && offsetof(Bvh4Node, lo_z) == 64);
 static_assert(offsetof(Bvh4Node, hi_z) == 80 && offsetof(Bvh4Node, child) == 96);
 static_assert(offsetof(Bvh4Node, count) == 112);
 
+static_assert(sizeof(CompressedBvh8Node) == 80 && offsetof(CompressedBvh8Node, e) == 12);
+static_assert(offsetof(CompressedBvh8Node, imask) == 15 && offsetof(CompressedBvh8Node, child_base) == 16);
+static_assert(offsetof(CompressedBvh8Node, leaf_base) == 20 && offsetof(CompressedBvh8Node, meta) == 24);
+static_assert(offsetof(CompressedBvh8Node, qlo_x) == 32 && offsetof(CompressedBvh8Node, qlo_y) == 40);
+static_assert(offsetof(CompressedBvh8Node, qlo_z) == 48 && offsetof(CompressedBvh8Node, qhi_x) == 56);
+static_assert(offsetof(CompressedBvh8Node, qhi_y) == 64 && offsetof(CompressedBvh8Node, qhi_z) == 72);
+static_assert(sizeof(BvhLeafBlock) == PX_LEAF_BLOCK_UNITS * 16);
+
 static_assert(sizeof(BvhLeafBlock) == 160 && offsetof(BvhLeafBlock, first) == 144);
 static_assert(offsetof(BvhLeafBlock, count) == 148 && offsetof(BvhLeafBlock, flags) == 152);
 

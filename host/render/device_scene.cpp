@@ -166,7 +166,8 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, const FlatBvh& 
     switch (layout) {
       case BvhLayout::Binary: b.nodes = upload(devices.context(), dev.queue, flagged.nodes, bytes); break;
       case BvhLayout::Wide4:
-      case BvhLayout::Wide8: b.nodes = upload(devices.context(), dev.queue, wide_words, bytes); break;
+      case BvhLayout::Wide8:
+      case BvhLayout::Compressed8: b.nodes = upload(devices.context(), dev.queue, wide_words, bytes); break;
     }
     b.triangles = upload(devices.context(), dev.queue, triangles, bytes);
     b.shading = upload(devices.context(), dev.queue, shading, bytes);

@@ -15,7 +15,7 @@
 namespace px {
 
 struct DeviceSceneBuffers {
-  cl::Buffer nodes;      // BvhNode[], Bvh4Node[] or Bvh8Node[] (bvh_layout())
+  cl::Buffer nodes;      // BvhNode[], Bvh4Node[], Bvh8Node[] or CompressedBvh8Node[] (bvh_layout())
   cl::Buffer triangles;  // BvhTriangle[] (leaf order, flags filled from materials)
   cl::Buffer shading;    // TriangleShading[] (scene order)
   cl::Buffer materials;  // GpuMaterial[]

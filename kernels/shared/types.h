@@ -3,7 +3,8 @@
  * This header is compiled by both sides, so a layout cannot drift: the host static_asserts
  * every size and offset documented here (host/cl/layout_checks.cpp). Rules that keep the two
  * compilers in agreement:
- *   - only 4-byte scalars (float, uint, int) and arrays of them; no float3 (16 bytes in
+ *   - only 4-byte scalars (float, uint, int) and arrays of them, plus uchar arrays whose
+ *     lengths keep every 4-byte field 4-aligned (CompressedBvh8Node); no float3 (16 bytes in
  *     OpenCL C, 12 in C++), no pointers, no bool;
  *   - every struct is a multiple of 16 bytes where it is read in bulk, so a node or triangle
  *     never straddles more cache lines than it must.
@@ -15,6 +16,7 @@
 #include <cstdint>
 namespace px {
 typedef std::uint32_t uint;
+typedef std::uint8_t uchar; /* only in byte arrays of 4-byte-multiple length (CompressedBvh8Node) */
 #endif
 
 /* Deepest BVH the kernels can traverse. The host asks Embree for at most this depth
@@ -56,7 +58,8 @@ typedef struct BvhNode {
   uint right_count;
 } BvhNode;
 
-/* Wide BVH nodes (Bvh8Node is the default traversal layout; PX_BVH_WIDTH selects, see below). The same
+/* Wide BVH nodes (Bvh8Node is the default traversal layout; PX_BVH_WIDTH selects, see below; the
+ * compressed form of the 8-wide tree, CompressedBvh8Node, follows BvhLeafBlock). The same
  * tree as the binary one, collapsed: each wide node stands for a binary node and takes as
  * children up to W of its binary descendants (leaves are the binary leaves, so the triangle
  * array is shared). Children are stored structure-of-arrays, one W-float row per box plane, so
@@ -124,9 +127,71 @@ typedef struct BvhLeafBlock {
   uint pad;
 } BvhLeafBlock;
 
+/* Compressed 8-wide BVH node ("cwbvh"), 80 bytes, after Ylitie, Karras & Laine 2017
+ * ("Efficient incoherent ray traversal on GPUs through compressed wide BVHs"): the same tree as
+ * Bvh8Node (same nodes, same child slots in the same order), with each child box stored as 8-bit
+ * offsets on a per-node grid, so a node is 80 bytes instead of 256 (memory traffic is what
+ * limits incoherent traversal on GPUs; on a CPU the decode costs more than it saves).
+ *
+ *  offset  field
+ *   0..11  p[3]        grid origin (float): the node's box min snapped down to the grid
+ *  12..14  e[3]        per-axis scale as an IEEE-754 biased exponent: scale = 2^(e - 127), whose
+ *                      float bit pattern is e << 23 (1 <= e <= 246, so scale and 255 * scale
+ *                      are normal floats)
+ *  15      imask       bit i set: slot i is an interior child
+ *  16..19  child_base  node index of the first interior child; interior children are stored
+ *                      contiguously, slot i's at child_base + rank(i)
+ *  20..23  leaf_base   host: index into FlatBvh::cleaf_first of the node's first leaf (its
+ *                      leaves are contiguous there, slot i's at leaf_base + rank(i));
+ *                      device: the first leaf's BvhLeafBlock in 16-byte units from the buffer's
+ *                      start, the node's leaf blocks contiguous (slot i's at leaf_base +
+ *                      10 * rank(i))
+ *  24..31  meta[8]     per slot: 0 = unused; else bit 7 set, bits 3..5 the leaf's triangle
+ *                      count (1..4; 0 for an interior child), bits 0..2 rank(i): the slot's
+ *                      position among the node's interior children or among its leaves
+ *  32..39  qlo_x[8]    quantized child boxes: child i spans, per axis k,
+ *  40..47  qlo_y[8]      [p[k] + qlo_k[i] * scale_k, p[k] + qhi_k[i] * scale_k]
+ *  48..55  qlo_z[8]    Unused slots hold qlo = 255, qhi = 0 (and meta 0, which traversal
+ *  56..63  qhi_x[8]      checks; the inverted box is only a second guard).
+ *  64..71  qhi_y[8]
+ *  72..79  qhi_z[8]
+ *
+ * Conservative and exact (host/bvh/compressed_bvh.cpp): qlo is rounded down and qhi up, so the
+ * decoded box contains the child's exact box (and the triangles below it); the scale is the
+ * smallest power of two for which 255 * scale covers the node's extent from p, raised until p and
+ * every p + q * scale (q = 0..255) is an integer multiple of scale below 2^24 * scale, i.e. an
+ * exactly representable float. Decoding q * scale + p in float is then exact (with or without a
+ * fused multiply-add), so the kernels see exactly the planes the host checked, and the slab test
+ * of the decoded box is as conservative as Bvh8Node's (validator: bvh_validator.cpp). Depth and
+ * node count are those of the Bvh8Node tree, so PX_WBVH_STACK_SIZE(8) bounds the stack. Nodes are
+ * in the order the builder allocates sibling blocks (a node's interior children, then the first
+ * child's subtree, depth first). */
+typedef struct CompressedBvh8Node {
+  float p[3];
+  uchar e[3];
+  uchar imask;
+  uint child_base;
+  uint leaf_base;
+  uchar meta[8];
+  uchar qlo_x[8];
+  uchar qlo_y[8];
+  uchar qlo_z[8];
+  uchar qhi_x[8];
+  uchar qhi_y[8];
+  uchar qhi_z[8];
+} CompressedBvh8Node;
+
+#define PX_CWBVH_META_USED 0x80u
+#define PX_CWBVH_META_COUNT_SHIFT 3u
+#define PX_CWBVH_RANK_MASK 7u
+/* A leaf block (BvhLeafBlock, 160 bytes) in the 16-byte units of leaf_base. */
+#define PX_LEAF_BLOCK_UNITS 10u
+
 /* Which node layout the scene's node buffer holds and the traversal reads: 2 (BvhNode), 4
- * (Bvh4Node) or 8 (Bvh8Node). The host passes -DPX_BVH_WIDTH=N to every kernel build and
- * uploads the matching nodes (host/bvh/flat_bvh.h: bvh_layout_width()). */
+ * (Bvh4Node), 8 (Bvh8Node) or 9 (PX_BVH_COMPRESSED8: CompressedBvh8Node, 8 children per node).
+ * This is the one switch: the host passes -DPX_BVH_WIDTH=N to every kernel build and uploads the
+ * matching nodes (host/bvh/flat_bvh.h: bvh_layout_width()). */
+#define PX_BVH_COMPRESSED8 9
 #if defined(__OPENCL_C_VERSION__) && !defined(PX_BVH_WIDTH)
 #define PX_BVH_WIDTH 2
 #endif

@@ -1,5 +1,6 @@
 /* BVH traversal: closest hit and any hit, over the node layout PX_BVH_WIDTH selects
- * (shared/types.h): the 64-byte binary nodes (2) or the 4- / 8-wide SoA nodes.
+ * (shared/types.h): the 64-byte binary nodes (2), the 4- / 8-wide SoA nodes, or the compressed
+ * 8-wide nodes (PX_BVH_COMPRESSED8).
  *
  * Binary: one node fetch tests both child boxes. Leaf children are intersected right away
  * (their triangles are contiguous in leaf order); interior children are visited near-first
@@ -129,14 +130,26 @@ inline int px_trace_any(const SceneView* scene, float3 org, float3 dir, float tm
 #else
 
 /* ---------------------------------------------------------------------------------------
- * Wide traversal over Bvh4Node / Bvh8Node (PX_BVH_WIDTH 4 or 8). One node fetch tests all W
- * child boxes with W-wide vector ops inside the work-item. The ray's octant picks, per axis,
- * which plane row is the near one, so the slab test needs no min/max swap: same arithmetic as
- * px_intersect_box ((plane - org) * inv_dir, far distance widened by PX_BOX_FAR_SCALE), so it is
- * just as conservative. Any hit: leaves are intersected as soon as their box is hit, interior
- * children pushed in any order. Closest hit: see below. */
+ * Wide traversal over Bvh4Node / Bvh8Node (PX_BVH_WIDTH 4 or 8) or CompressedBvh8Node
+ * (PX_BVH_COMPRESSED8). One node fetch tests all W child boxes with W-wide vector ops inside the
+ * work-item. The ray's octant picks, per axis, which plane row is the near one, so the slab test
+ * needs no min/max swap: same arithmetic as px_intersect_box ((plane - org) * inv_dir, far
+ * distance widened by PX_BOX_FAR_SCALE), so it is just as conservative. The compressed layout
+ * first decodes its 8-bit planes, q * scale + p, which is exact by construction (types.h), so it
+ * tests exactly the boxes the host validated. Any hit: leaves are intersected as soon as their
+ * box is hit, interior children pushed in any order. Closest hit: see below. The two layouts
+ * differ only in px_wide_boxes (box test) and pxw_child_entry (a slot's stack entry). */
+#if PX_BVH_WIDTH == PX_BVH_COMPRESSED8
+#define PXW 8
+#define PXW_COMPRESSED 1
+#define PXW_NODE_FLOATS 20 /* 80 bytes */
+#else
 #define PXW PX_BVH_WIDTH
+#define PXW_COMPRESSED 0
 #define PXW_NODE_FLOATS (8 * PXW)
+#endif
+/* The compressed tree is the Bvh8Node tree re-stored (same nodes, same depth), so the 8-wide
+ * bound holds for it too: (8 - 1) * PX_BVH_MAX_DEPTH + 1 = 281 entries. */
 #define PXW_STACK PX_WBVH_STACK_SIZE(PXW)
 #if PXW == 8
 typedef float8 pxw_float;
@@ -161,7 +174,7 @@ inline uint pxw_mask(pxw_int m) {
   return (uint)(q.x | q.y);
 }
 #else
-#error "PX_BVH_WIDTH must be 2, 4 or 8"
+#error "PX_BVH_WIDTH must be 2, 4, 8 or 9 (PX_BVH_COMPRESSED8)"
 #endif
 
 /* max / min as compare-and-select: one vmaxps / vminps each, where fmax / fmin also have to
@@ -200,7 +213,8 @@ inline void px_prefetch_entry(const global float* nodes, uint e) {
 /* Per-ray constants of the wide box test. */
 typedef struct WideRay {
   pxw_float ox, oy, oz, ix, iy, iz;
-  uint near_x, near_y, near_z, far_x, far_y, far_z; /* plane row offsets in floats */
+  /* Plane row offsets: in floats (Bvh4Node / Bvh8Node), in bytes (CompressedBvh8Node). */
+  uint near_x, near_y, near_z, far_x, far_y, far_z;
 } WideRay;
 
 inline WideRay px_make_wide_ray(float3 org, float3 inv_dir) {
@@ -211,30 +225,101 @@ inline WideRay px_make_wide_ray(float3 org, float3 inv_dir) {
   w.ix = (pxw_float)(inv_dir.x);
   w.iy = (pxw_float)(inv_dir.y);
   w.iz = (pxw_float)(inv_dir.z);
-  /* Rows: lo_x, hi_x, lo_y, hi_y, lo_z, hi_z. A negative inverse direction enters at hi. */
+  /* A negative inverse direction enters at hi. */
+#if PXW_COMPRESSED
+  /* Byte rows: qlo_x 32, qlo_y 40, qlo_z 48, qhi_x 56, qhi_y 64, qhi_z 72. */
+  w.near_x = inv_dir.x < 0.0f ? 56u : 32u;
+  w.far_x = 88u - w.near_x;
+  w.near_y = inv_dir.y < 0.0f ? 64u : 40u;
+  w.far_y = 104u - w.near_y;
+  w.near_z = inv_dir.z < 0.0f ? 72u : 48u;
+  w.far_z = 120u - w.near_z;
+#else
+  /* Float rows: lo_x, hi_x, lo_y, hi_y, lo_z, hi_z. */
   w.near_x = inv_dir.x < 0.0f ? PXW : 0u;
   w.far_x = PXW - w.near_x;
   w.near_y = inv_dir.y < 0.0f ? 3u * PXW : 2u * PXW;
   w.far_y = 5u * PXW - w.near_y;
   w.near_z = inv_dir.z < 0.0f ? 5u * PXW : 4u * PXW;
   w.far_z = 9u * PXW - w.near_z;
+#endif
   return w;
 }
 
-/* Slab test of all W children of `node`: entry distances in *t_enter; returns the hit mask. */
-inline uint px_wide_boxes(const global float* node, const WideRay* w, float tmin, float tmax,
-                          pxw_float* t_enter) {
-  const pxw_float tnx = (pxw_vload(0, node + w->near_x) - w->ox) * w->ix;
-  const pxw_float tny = (pxw_vload(0, node + w->near_y) - w->oy) * w->iy;
-  const pxw_float tnz = (pxw_vload(0, node + w->near_z) - w->oz) * w->iz;
-  const pxw_float tfx = (pxw_vload(0, node + w->far_x) - w->ox) * w->ix;
-  const pxw_float tfy = (pxw_vload(0, node + w->far_y) - w->oy) * w->iy;
-  const pxw_float tfz = (pxw_vload(0, node + w->far_z) - w->oz) * w->iz;
+/* The slab test proper, on the six plane rows: entry distances in *t_enter; the hit mask. */
+inline uint px_wide_slabs(pxw_float nx, pxw_float ny, pxw_float nz, pxw_float fx, pxw_float fy, pxw_float fz,
+                          const WideRay* w, float tmin, float tmax, pxw_float* t_enter) {
+  const pxw_float tnx = (nx - w->ox) * w->ix;
+  const pxw_float tny = (ny - w->oy) * w->iy;
+  const pxw_float tnz = (nz - w->oz) * w->iz;
+  const pxw_float tfx = (fx - w->ox) * w->ix;
+  const pxw_float tfy = (fy - w->oy) * w->iy;
+  const pxw_float tfz = (fz - w->oz) * w->iz;
   const pxw_float enter = pxw_max(pxw_max(tnx, tny), pxw_max(tnz, (pxw_float)(tmin)));
   const pxw_float leave = pxw_min(pxw_min(tfx, tfy), pxw_min(tfz, (pxw_float)(tmax))) * PX_BOX_FAR_SCALE;
   *t_enter = enter;
   return pxw_mask(enter <= leave);
 }
+
+#if PXW_COMPRESSED
+
+/* Scale of axis k from its biased exponent byte: the float whose bit pattern is e << 23. */
+inline float px_cw_scale(const global uchar* node, int k) { return as_float((uint)node[12 + k] << 23); }
+
+/* One decoded plane row: q * scale + p, exact (types.h), so fused or not it is the same float. */
+inline float8 px_cw_row(const global uchar* node, uint row, float scale, float p) {
+  return convert_float8(vload8(0, node + row)) * scale + p;
+}
+
+/* Slab test of the 8 children of a compressed node. Unused slots (meta 0) are masked out: their
+ * inverted boxes alone would not do, since near and far distances of a tiny inverted box can
+ * round to the same value. */
+inline uint px_wide_boxes(const global float* node, const WideRay* w, float tmin, float tmax, float8* t_enter) {
+  const global uchar* b = (const global uchar*)node;
+  const float sx = px_cw_scale(b, 0), sy = px_cw_scale(b, 1), sz = px_cw_scale(b, 2);
+  const float px = node[0], py = node[1], pz = node[2];
+  const uint hits = px_wide_slabs(px_cw_row(b, w->near_x, sx, px), px_cw_row(b, w->near_y, sy, py),
+                                  px_cw_row(b, w->near_z, sz, pz), px_cw_row(b, w->far_x, sx, px),
+                                  px_cw_row(b, w->far_y, sy, py), px_cw_row(b, w->far_z, sz, pz), w, tmin, tmax,
+                                  t_enter);
+  const uchar8 meta = vload8(0, b + 24);
+  return hits & pxw_mask(convert_int8(meta != (uchar8)(0)));
+}
+
+/* Slot i's stack entry: an interior child's node index (child_base + rank), or a leaf's block
+ * offset in 16-byte units | count << 29 (leaf_base + 10 * rank; DeviceScene keeps it < 2^29). */
+inline uint pxw_child_entry(const global float* node, uint i) {
+  const global uint* words = (const global uint*)node;
+  const uint m = ((const global uchar*)node)[24 + i];
+  const uint rank = m & PX_CWBVH_RANK_MASK;
+  const uint count = (m >> PX_CWBVH_META_COUNT_SHIFT) & 7u;
+  return count > 0u ? (words[5] + PX_LEAF_BLOCK_UNITS * rank) | (count << 29) : words[4] + rank;
+}
+
+/* The node's second cache line (80 bytes span at most two): start its miss with the first's. */
+inline void pxw_prefetch_node_rest(const global float* node) { PX_PREFETCH(node + PXW_NODE_FLOATS - 1); }
+
+#else
+
+/* Slab test of all W children of `node`: entry distances in *t_enter; returns the hit mask. */
+inline uint px_wide_boxes(const global float* node, const WideRay* w, float tmin, float tmax,
+                          pxw_float* t_enter) {
+  return px_wide_slabs(pxw_vload(0, node + w->near_x), pxw_vload(0, node + w->near_y),
+                       pxw_vload(0, node + w->near_z), pxw_vload(0, node + w->far_x),
+                       pxw_vload(0, node + w->far_y), pxw_vload(0, node + w->far_z), w, tmin, tmax, t_enter);
+}
+
+/* Slot i's stack entry: node index, or leaf block offset in 16-byte units | count << 29. */
+inline uint pxw_child_entry(const global float* node, uint i) {
+  const global uint* child = (const global uint*)(node + 6 * PXW);
+  const global uint* count = (const global uint*)(node + 7 * PXW);
+  return child[i] | (count[i] << 29);
+}
+
+/* The child / count rows are read only after the box test: start their miss now. */
+inline void pxw_prefetch_node_rest(const global float* node) { PX_PREFETCH(node + 6 * PXW); }
+
+#endif
 
 inline uint px_lowest_bit(uint m) { return 31u - clz(m & (0u - m)); }
 
@@ -337,15 +422,13 @@ inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir,
       px_intersect_block(scene, nodes + (size_t)(entry & 0x1fffffffu) * 4, entry >> 29, &shear, tmin, &best);
     } else {
       const global float* node = nodes + (size_t)entry * PXW_NODE_FLOATS;
-      const global uint* child = (const global uint*)(node + 6 * PXW);
-      const global uint* count = (const global uint*)(node + 7 * PXW);
-      PX_PREFETCH(child); /* read only after the box test: start its miss now */
+      pxw_prefetch_node_rest(node);
       pxw_float enter_v;
       uint mask = px_wide_boxes(node, &wray, tmin, best.t, &enter_v);
       if (mask != 0u) {
         uint i = px_lowest_bit(mask);
         mask &= mask - 1u;
-        uint near_e = child[i] | (count[i] << 29);
+        uint near_e = pxw_child_entry(node, i);
         if (mask == 0u) {
           entry = near_e;
           continue;
@@ -358,7 +441,7 @@ inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir,
           i = px_lowest_bit(mask);
           mask &= mask - 1u;
           float t = enter[i];
-          uint e = child[i] | (count[i] << 29);
+          uint e = pxw_child_entry(node, i);
           if (t <= near_t) { /* the new child becomes the nearest; push the old one */
             const float ft = near_t;
             const uint fe = near_e;
@@ -407,19 +490,18 @@ inline int px_trace_any(const SceneView* scene, float3 org, float3 dir, float tm
   Hit scratch;
   for (;;) {
     const global float* node = nodes + (size_t)node_index * PXW_NODE_FLOATS;
-    const global uint* child = (const global uint*)(node + 6 * PXW);
-    const global uint* count = (const global uint*)(node + 7 * PXW);
     pxw_float enter_v;
     uint mask = px_wide_boxes(node, &wray, tmin, tmax, &enter_v);
     while (mask != 0u) {
       const uint i = px_lowest_bit(mask);
       mask &= mask - 1u;
-      const uint c = count[i];
-      if (c > 0u) {
+      const uint e = pxw_child_entry(node, i);
+      if (e >> 29) {
         scratch.t = tmax;
-        if (px_intersect_block(scene, nodes + (size_t)child[i] * 4, c, &shear, tmin, &scratch)) return 1;
+        if (px_intersect_block(scene, nodes + (size_t)(e & 0x1fffffffu) * 4, e >> 29, &shear, tmin, &scratch))
+          return 1;
       } else if (sp < PXW_STACK) {
-        stack_node[sp++] = child[i];
+        stack_node[sp++] = e;
       }
     }
     if (sp == 0) break;
