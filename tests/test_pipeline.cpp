@@ -133,9 +133,10 @@ TEST(Operations, CoverEveryScheduledRowOnceAndWaitOnlyOnEarlierOperations) {
           }
           // Queue order: the previous operation on the device's lane is always among the waits.
           const long prev = last[2 * op.device + op.lane];
-          if (prev >= 0)
+          if (prev >= 0) {
             ASSERT_NE(std::find(op.after.begin(), op.after.end(), static_cast<std::size_t>(prev)), op.after.end())
                 << what << " op " << i;
+          }
           last[2 * op.device + op.lane] = static_cast<long>(i);
           if (op.stage == Stage::Transfer) {
             EXPECT_EQ(op.to, fs.tree.root) << what;
@@ -152,7 +153,9 @@ TEST(Operations, CoverEveryScheduledRowOnceAndWaitOnlyOnEarlierOperations) {
             const Operation &a = ops[j], &b = ops[i];
             const bool same_device = a.device == b.device;
             auto must = [&](bool cond, const char* why) {
-              if (cond) ASSERT_TRUE(before[i].count(j)) << what << ": op " << i << " must wait for op " << j << " (" << why << ")";
+              if (cond) {
+                ASSERT_TRUE(before[i].count(j)) << what << ": op " << i << " must wait for op " << j << " (" << why << ")";
+              }
             };
             must(same_device && b.stage == Stage::Denoise && b.eye == 0 &&
                      (a.stage == Stage::Reproject || a.stage == Stage::PathTraceLeft),
