@@ -468,6 +468,59 @@ TEST(Svgf, SilhouettePixelsWhoseSamplesHitTheSurfaceAreFilteredNotPassedThrough)
   EXPECT_EQ(lifted, static_cast<int>(v.h + 1) / 2);
 }
 
+// The environment is not filtered, but at 1 spp each of its pixels is one jittered sample (a
+// horizon's step shows as a crawling sawtooth), so its colour is accumulated over frames, its
+// history found by direction. It converges to the mean; it starts over where the previous frame
+// saw a surface there; the first frame passes through untouched.
+TEST(Svgf, EnvironmentPixelsAccumulateOverFramesByDirection) {
+  FilterRun run;
+  const auto& v = run.view;
+  auto sky_gbuffer = [&v](bool surface_rows) {
+    auto g = v.gbuffer([](unsigned, unsigned) { return std::pair{3.0f, glm::vec3(0, 0, -1)}; });
+    for (unsigned y = 0; y < v.h; ++y)
+      for (unsigned x = 0; x < v.w; ++x) {
+        if (surface_rows && y < v.h / 2) continue;
+        GBufferTexel& t = g[y * v.w + x];
+        const glm::vec3 d = v.dir(x, y);
+        for (int k = 0; k < 3; ++k) t.pos[k] = d[k];
+        t.depth = 0.0f;
+        t.material_class = PX_CLASS_MISS;
+      }
+    return g;
+  };
+  std::mt19937 rng(23);
+  auto truth = [](unsigned, unsigned) { return 0.4f; };
+  const auto all_sky = sky_gbuffer(false);
+  std::vector<cl_float4> sky_albedo(all_sky.size(), cl_float4{{1.0f, 1.0f, 1.0f, 0.0f}});
+  // Frame 0 has no history: passed through bit for bit.
+  auto c0 = noisy(v, rng, truth, 0.2f);
+  auto out0 = run.frame(all_sky, c0, sky_albedo);
+  for (std::size_t i = 0; i < out0.size(); ++i)
+    for (int k = 0; k < 3; ++k) ASSERT_EQ(out0[i].s[k], c0[i].s[k]) << "pixel " << i;
+  const double first = rmse(v, out0, truth);
+  double last = first;
+  for (int f = 1; f < 12; ++f) last = rmse(v, run.frame(all_sky, noisy(v, rng, truth, 0.2f), sky_albedo), truth);
+  std::printf("[ measure  ] environment RMSE: frame 0 %.4f, frame 11 %.4f\n", first, last);
+  EXPECT_LT(last, 0.45 * first) << "12 frames with alpha 0.2 should cut the noise by more than half";
+
+  // The top half turns into a surface for a frame, then back into sky: that sky has no history
+  // (it was not the environment the frame before) and passes through again.
+  run.frame(sky_gbuffer(true), noisy(v, rng, truth, 0.2f), sky_albedo);
+  auto c2 = noisy(v, rng, truth, 0.2f);
+  auto out2 = run.frame(all_sky, c2, sky_albedo);
+  int fresh_equal = 0, kept_differ = 0;
+  for (unsigned y = 0; y < v.h; ++y)
+    for (unsigned x = 0; x < v.w; ++x) {
+      const std::size_t i = y * v.w + x;
+      const bool same = out2[i].s[0] == c2[i].s[0];
+      // rows v.h/2 - 1 and v.h/2 straddle the change: bilinear taps may reach either side
+      if (y + 1 < v.h / 2) fresh_equal += same;
+      else if (y > v.h / 2) kept_differ += !same;
+    }
+  EXPECT_EQ(fresh_equal, static_cast<int>((v.h / 2 - 1) * v.w));
+  EXPECT_GT(kept_differ, static_cast<int>((v.h / 2 - 1) * v.w * 9 / 10));
+}
+
 TEST(Svgf, RareBrightSamplesKeepTheirEnergy) {
   // One-sample paths are heavy-tailed: most find little light, a few find a lot (a bounce
   // that reaches the sun). Here 5% of the pixels hold 20 and the rest 0, on one flat surface.

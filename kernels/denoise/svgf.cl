@@ -4,7 +4,8 @@
  *                   texel per pixel (normal, signed depth);
  *   svgf_temporal   demodulate by albedo, reproject last frame's history through the previous
  *                   camera (2x2 bilinear taps, 3x3 fallback), accumulate colour and luminance
- *                   moments with alpha = max(alpha_min, 1/h);
+ *                   moments with alpha = max(alpha_min, 1/h); the environment's colour is
+ *                   accumulated too, its history found by direction;
  *   svgf_variance   variance from the moments, or a 7x7 bilateral spatial estimate while h < 4;
  *   svgf_atrous     5x5 B3-spline a-trous steps (spacing 2^i) with normal, depth and luminance
  *                   edge-stopping; variance propagates as sum w^2 var / (sum w)^2;
@@ -18,8 +19,10 @@
  * length, w: 1 if the pixel is filtered, PX_SVGF_BORROWED for a silhouette pixel filtered with
  * a neighbour's geometry, else 0); guide float4 (shading normal, +depth where the
  * filter smooths the pixel, -depth where not: one load per tap where the GBufferTexel was 48
- * bytes, and the filtered flag without a second load from moments). Background and emitters are not filtered: they
- * pass through with their noisy colour and never serve as taps. */
+ * bytes, and the filtered flag without a second load from moments). The environment and
+ * emitters are not filtered and never serve as taps: emitters pass through with their noisy
+ * colour, the environment with its colour accumulated over frames (moments (0, 0, history
+ * length, 0)). */
 #include "shared/types.h"
 #include "render/camera.h"
 #include "scene/scene_view.h"
@@ -79,6 +82,56 @@ inline int px_history_matches(const global GBufferTexel* q, float3 n, float expe
   return fabs(q->depth - expected) < 0.05f * expected && dot(px_load3(q->normal), n) > 0.9f;
 }
 
+/* Where world direction `d` (from the previous camera's origin) lands in the previous frame:
+ * continuous pixel coordinates (*fx, *fy) of its image. 0 when d points behind that camera. */
+inline int px_previous_pixel(float3 d, const CameraParams* prev, const SvgfParams* p, float* fx, float* fy) {
+  const float zf = dot(d, (float3)(prev->forward[0], prev->forward[1], prev->forward[2]));
+  if (!(zf > 0.0f)) return 0;
+  const float sx = dot(d, (float3)(prev->right[0], prev->right[1], prev->right[2])) / zf;
+  const float sy = dot(d, (float3)(prev->up[0], prev->up[1], prev->up[2])) / zf;
+  *fx = (sx / (prev->tan_half_fov_y * prev->aspect) + 1.0f) * 0.5f * (float)p->width - 0.5f;
+  *fy = (1.0f - sy / prev->tan_half_fov_y) * 0.5f * (float)p->height - 0.5f;
+  return 1;
+}
+
+/* Is previous-frame pixel (tx, ty) one that history may be read from for a pixel of row y:
+ * inside the image, within temporal_rows rows, in readable rows. */
+inline int px_history_tap_readable(int tx, int ty, int y, const SvgfParams* p) {
+  return tx >= 0 && tx < (int)p->width && ty >= 0 && ty < (int)p->height && abs(ty - y) <= (int)p->temporal_rows &&
+         px_row_readable(ty, p);
+}
+
+/* The environment is not filtered, but it is accumulated over frames: at 1 spp every pixel on
+ * the horizon (or the sun's rim) is one jittered sample of a step, and left alone the edge
+ * crawls from frame to frame. The environment is at infinity, so its history is found by
+ * direction alone (the G-buffer keeps a miss's direction in pos), 2x2 bilinear taps on texels
+ * that were the environment too, and not a borrowing silhouette pixel (whose history is
+ * illumination, not radiance). Radiance, not illumination: the colour blends like the
+ * surfaces' with alpha = max(alpha, 1 / history length); the length rides in moments.z. */
+inline float4 px_environment_temporal(float3 c, const global GBufferTexel* g, int y, const global GBufferTexel* prev_gbuf,
+                                      const global float4* prev_illum, const global float4* prev_moments,
+                                      const SvgfParams* p, const CameraParams* prev_cam) {
+  float fx, fy;
+  if (!px_previous_pixel(px_load3(g->pos), prev_cam, p, &fx, &fy)) return (float4)(c, 1.0f);
+  const float x0f = floor(fx), y0f = floor(fy);
+  const float ax = fx - x0f, ay = fy - y0f;
+  float3 hist = (float3)(0.0f, 0.0f, 0.0f);
+  float hist_len = 0.0f, wsum = 0.0f;
+  for (int k = 0; k < 4; ++k) {
+    const int tx = (int)x0f + (k & 1), ty = (int)y0f + (k >> 1);
+    const float w = ((k & 1) ? ax : 1.0f - ax) * ((k >> 1) ? ay : 1.0f - ay);
+    if (w <= 0.0f || !px_history_tap_readable(tx, ty, y, p)) continue;
+    const uint j = (uint)ty * p->width + (uint)tx;
+    if (prev_gbuf[j].material_class != PX_CLASS_MISS || prev_moments[j].w != 0.0f) continue;
+    hist += w * prev_illum[j].xyz;
+    hist_len += w * prev_moments[j].z;
+    wsum += w;
+  }
+  if (wsum <= 0.0f) return (float4)(c, 1.0f);
+  const float len = fmin((float)p->max_history, floor(hist_len / wsum + 0.5f) + 1.0f);
+  return (float4)(mix(hist / wsum, c, fmax(p->alpha, 1.0f / len)), len);
+}
+
 kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, const global float4* color,
                           const global float4* albedo, const global GBufferTexel* gbuf, const global GBufferTexel* prev_gbuf,
                           const global float4* prev_illum, const global float4* prev_moments, SvgfParams p,
@@ -92,7 +145,7 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
   const float3 illum = c / px_demod_albedo(albedo, i);
   const float l = px_lum(illum);
   if (!px_filtered_class(g->material_class)) {
-    /* A silhouette pixel whose samples mostly hit a filtered surface borrows a neighbour's
+    /* A silhouette pixel whose samples all hit a filtered surface borrows a neighbour's
      * geometry (PX_SVGF_BORROWED); it has no geometry of its own to match history with, so its
      * history starts over every frame. */
     if (albedo[i].w >= PX_SVGF_BORROW_COVERAGE && px_borrowed_centre(guide, (int)(i % p.width), y, &p) >= 0) {
@@ -100,8 +153,12 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
       out_moments[i] = (float4)(l, l * l, 1.0f, PX_SVGF_BORROWED);
       return;
     }
-    out_illum[i] = (float4)(c, 0.0f);
-    out_moments[i] = (float4)(0.0f, 0.0f, 0.0f, 0.0f);
+    /* Emitters pass through; the environment is accumulated (colour, history length). */
+    const float4 env = g->material_class == PX_CLASS_MISS && have_history
+                           ? px_environment_temporal(c, g, y, prev_gbuf, prev_illum, prev_moments, &p, &prev_cam)
+                           : (float4)(c, 1.0f);
+    out_illum[i] = (float4)(env.xyz, 0.0f);
+    out_moments[i] = (float4)(0.0f, 0.0f, env.w, 0.0f);
     return;
   }
 
@@ -113,20 +170,15 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
     const float3 n = px_load3(g->normal);
     const float3 d = pos - px_camera_origin(&prev_cam);
     const float expected = length(d);
-    const float zf = dot(d, (float3)(prev_cam.forward[0], prev_cam.forward[1], prev_cam.forward[2]));
-    if (zf > 0.0f) {
-      const float sx = dot(d, (float3)(prev_cam.right[0], prev_cam.right[1], prev_cam.right[2])) / zf;
-      const float sy = dot(d, (float3)(prev_cam.up[0], prev_cam.up[1], prev_cam.up[2])) / zf;
-      const float fx = (sx / (prev_cam.tan_half_fov_y * prev_cam.aspect) + 1.0f) * 0.5f * (float)p.width - 0.5f;
-      const float fy = (1.0f - sy / prev_cam.tan_half_fov_y) * 0.5f * (float)p.height - 0.5f;
+    float fx, fy;
+    if (px_previous_pixel(d, &prev_cam, &p, &fx, &fy)) {
       const float x0f = floor(fx), y0f = floor(fy);
       const float ax = fx - x0f, ay = fy - y0f;
       /* 2x2 bilinear taps, each kept only on the same surface. */
       for (int k = 0; k < 4; ++k) {
         const int tx = (int)x0f + (k & 1), ty = (int)y0f + (k >> 1);
         const float w = ((k & 1) ? ax : 1.0f - ax) * ((k >> 1) ? ay : 1.0f - ay);
-        if (w <= 0.0f || tx < 0 || tx >= (int)p.width || ty < 0 || ty >= (int)p.height) continue;
-        if (abs(ty - y) > (int)p.temporal_rows || !px_row_readable(ty, &p)) continue;
+        if (w <= 0.0f || !px_history_tap_readable(tx, ty, y, &p)) continue;
         const uint j = (uint)ty * p.width + (uint)tx;
         if (!px_history_matches(prev_gbuf + j, n, expected)) continue;
         hist += w * prev_illum[j].xyz;
@@ -141,8 +193,7 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
         for (int dy = -1; dy <= 1; ++dy)
           for (int dx = -1; dx <= 1; ++dx) {
             const int tx = cx + dx, ty = cy + dy;
-            if (tx < 0 || tx >= (int)p.width || ty < 0 || ty >= (int)p.height) continue;
-            if (abs(ty - y) > (int)p.temporal_rows || !px_row_readable(ty, &p)) continue;
+            if (!px_history_tap_readable(tx, ty, y, &p)) continue;
             const uint j = (uint)ty * p.width + (uint)tx;
             if (!px_history_matches(prev_gbuf + j, n, expected)) continue;
             hist += prev_illum[j].xyz;

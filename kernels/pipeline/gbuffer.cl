@@ -17,7 +17,11 @@ kernel void gbuffer(global GBufferTexel* out, uint row0, uint rows, CameraParams
   const Hit hit = px_trace_closest_leaf(&scene, org, dir, 0.0f, INFINITY);
   GBufferTexel g;
   if (hit.prim == PX_NO_HIT) {
-    g.pos[0] = g.pos[1] = g.pos[2] = 0.0f;
+    /* The environment is at infinity: the ray's direction is all there is to its "position"
+     * (SVGF reprojects the environment's history by direction). */
+    g.pos[0] = dir.x;
+    g.pos[1] = dir.y;
+    g.pos[2] = dir.z;
     g.depth = 0.0f;
     g.normal[0] = g.normal[1] = g.normal[2] = 0.0f;
     g.material_class = PX_CLASS_MISS;

@@ -394,7 +394,8 @@ typedef struct FrameParams {
  * (No albedo: the denoiser demodulates by the path tracer's per-pixel mean albedo of the
  * samples themselves, which the centre's albedo is not.)
  *
- *   0..11 pos[3] (world hit point)       12..15 depth (distance along the ray; 0 on a miss)
+ *   0..11 pos[3] (world hit point; on a miss the ray's unit direction)
+ *                                        12..15 depth (distance along the ray; 0 on a miss)
  *  16..27 normal[3] (shading, facing the eye)  28..31 material_class (PX_CLASS_*)
  *  32..35 prim (scene triangle, PX_NO_HIT on a miss) */
 typedef struct GBufferTexel {
