@@ -552,16 +552,22 @@ struct DenoisedRun {
   std::vector<std::array<ImageRGB, 2>> frames;
 };
 
+// What the pipeline runs below share: `kind`, 1 spp, 3 bounces, `seams`.
+StereoPipeline::Options pipeline_options(PipelineKind kind, SeamMode seams = SeamMode::Halo) {
+  StereoPipeline::Options opt;
+  opt.pipeline = kind;
+  opt.trace.spp = 1;
+  opt.trace.bounces = 3;
+  opt.seams = seams;
+  return opt;
+}
+
 DenoisedRun run_pipeline(const LoadedScene& loaded, int devices, SeamMode seams, unsigned frames, unsigned w, unsigned h,
                          unsigned iterations = 5, bool denoise = true) {
   DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
   DeviceScene ds(set, loaded.scene, loaded.bvh);
-  StereoPipeline::Options opt;
-  opt.pipeline = PipelineKind::Proposed;
-  opt.trace.spp = 1;
-  opt.trace.bounces = 3;
+  StereoPipeline::Options opt = pipeline_options(PipelineKind::Proposed, seams);
   opt.denoise = denoise;
-  opt.seams = seams;
   opt.svgf.iterations = iterations;
   StereoPipeline p(set, ds, loaded.scene, w, h, opt);
   DenoisedRun r;
@@ -634,11 +640,7 @@ TEST(SvgfDistributed, SideQueueGivesTheSameImages) {
         for (int overlap = 0; overlap < 2; ++overlap) {
           DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
           DeviceScene ds(set, loaded.scene, loaded.bvh);
-          StereoPipeline::Options opt;
-          opt.pipeline = kind;
-          opt.trace.spp = 1;
-          opt.trace.bounces = 3;
-          opt.seams = seams;
+          StereoPipeline::Options opt = pipeline_options(kind, seams);
           opt.overlap = overlap == 1 ? Overlap::On : Overlap::Off;  // On: also on these CPU devices
           StereoPipeline p(set, ds, loaded.scene, w, h, opt);
           for (unsigned f = 0; f < 3; ++f) {
@@ -801,10 +803,7 @@ std::vector<std::array<ImageRGB, 2>> run_with_strips(const LoadedScene& loaded, 
                                                      unsigned w, unsigned h) {
   DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
   DeviceScene ds(set, loaded.scene, loaded.bvh);
-  StereoPipeline::Options opt;
-  opt.pipeline = kind;
-  opt.trace.spp = 1;
-  opt.trace.bounces = 3;
+  StereoPipeline::Options opt = pipeline_options(kind);
   opt.svgf.iterations = 2;  // G-buffer margin 18 rows: the moves below go past it
   StereoPipeline p(set, ds, loaded.scene, w, h, opt);
   std::vector<std::array<ImageRGB, 2>> frames;

@@ -37,6 +37,9 @@ class QueueLanes {
   // The selected lane's queue of local device `local` (DeviceLayout::local_index).
   cl::CommandQueue& queue(int local) { return lane(local, selected_); }
   cl::CommandQueue& lane(int local, int lane);
+  // The main lane's queue, whichever lane is selected: where per-frame bookkeeping (counters,
+  // read-backs) goes, in the order the frame's main work runs.
+  cl::CommandQueue& main(int local) { return lane(local, kMain); }
 
   // Finishes every queue of every lane.
   void finish_all();

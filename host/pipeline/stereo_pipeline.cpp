@@ -132,7 +132,7 @@ FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
                         make_eye_camera(centre, Eye::Right, scene_.ipd_units(), width_, height_)}};
   const int n = layout_.count();
   for (int d = 0; d < n; ++d)
-    if (local(d)) images_[d].zero_counters(queue(d));
+    if (local(d)) images_[d].zero_counters(main_queue(d));
 
   // The executor: each run of consecutive operations of one stage and lane goes to that stage's
   // unit, on that lane. What an operation waits for on the other lane becomes a barrier on its
@@ -198,7 +198,7 @@ FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
   for (int d = 0; d < n; ++d) {
     if (!local(d)) continue;
     cl_uint count = 0, bad = 0, bad_px = 0;
-    auto& q = queue(d);
+    auto& q = main_queue(d);
     q.enqueueReadBuffer(images_[d].nonfinite_paths, CL_FALSE, 0, sizeof(cl_uint), &bad);
     q.enqueueReadBuffer(images_[d].nonfinite_pixels, CL_FALSE, 0, sizeof(cl_uint), &bad_px);
     if (fill) q.enqueueReadBuffer(images_[d].hole_count, CL_FALSE, 0, sizeof(cl_uint), &count);
@@ -252,7 +252,7 @@ std::vector<std::uint8_t> StereoPipeline::hole_mask() {
   if (!fill) return mask;
   for (int d = 0; d < layout_.count(); ++d) {
     if (fill->right_rows[d].empty() || !local(d)) continue;
-    auto& q = queue(d);
+    auto& q = main_queue(d);
     cl_uint count = 0;
     q.enqueueReadBuffer(images_[d].hole_count, CL_TRUE, 0, sizeof(cl_uint), &count);
     std::vector<cl_uint> list(count);
@@ -270,7 +270,7 @@ std::vector<GBufferTexel> StereoPipeline::gbuffer_of(int eye) {
     for (const RowRange& r : eye == 0 ? g->left_rows[d] : g->right_rows[d]) {
       if (!local(d)) continue;
       const std::size_t first = static_cast<std::size_t>(r.begin) * width_, count = static_cast<std::size_t>(r.size()) * width_;
-      queue(d).enqueueReadBuffer(images_[d].gbuffer[eye], CL_TRUE, first * sizeof(GBufferTexel),
+      main_queue(d).enqueueReadBuffer(images_[d].gbuffer[eye], CL_TRUE, first * sizeof(GBufferTexel),
                                                     count * sizeof(GBufferTexel), out.data() + first);
     }
   return out;
@@ -281,7 +281,7 @@ std::array<ImageRGB, 2> StereoPipeline::radiance() {
     throw std::logic_error("radiance(): the pipeline gathers RGBA8 only (Options::gather_radiance is off)");
   const std::size_t pixels = static_cast<std::size_t>(width_) * height_;
   if (!holds_frame()) throw std::logic_error("only rank 0 holds the finished frame");
-  auto& q = queue(schedule_.tree.root);
+  auto& q = main_queue(schedule_.tree.root);
   std::array<ImageRGB, 2> out;
   for (int e = 0; e < 2; ++e) {
     std::vector<cl_float4> px(pixels);
@@ -298,7 +298,7 @@ std::array<ImageRGB, 2> StereoPipeline::radiance() {
 std::array<std::vector<std::uint8_t>, 2> StereoPipeline::rgba8() {
   const std::size_t pixels = static_cast<std::size_t>(width_) * height_;
   if (!holds_frame()) throw std::logic_error("only rank 0 holds the finished frame");
-  auto& q = queue(schedule_.tree.root);
+  auto& q = main_queue(schedule_.tree.root);
   std::array<std::vector<std::uint8_t>, 2> out;
   for (int e = 0; e < 2; ++e) {
     out[e].resize(pixels * 4);

@@ -157,7 +157,8 @@ class StereoPipeline {
 
   static DenoiseStage::Options denoise_options(const Options& options);
   bool local(int d) const { return layout_.is_local(d); }
-  cl::CommandQueue& queue(int d) { return lanes_.lane(layout_.local_index(d), QueueLanes::kMain); }
+  // Device d's main-lane queue (not the selected lane's: see QueueLanes::main).
+  cl::CommandQueue& main_queue(int d) { return lanes_.main(layout_.local_index(d)); }
 
   DeviceSet& devices_;
   Cluster* cluster_;
