@@ -468,17 +468,55 @@ kernel void svgf_atrous(global float4* out_illum, const global float4* illum, co
  * that an unfiltered pixel comes back exactly as it went in.
  * Unfiltered pixels (background, emitters) already hold their colour; borrowing ones
  * (PX_SVGF_BORROWED) take their own samples' albedo back, as filtered ones do. */
+/* A borrowing pixel's centre sees the environment while all its n samples hit the surface: the
+ * surface covers only part of it. If a straight edge crosses the pixel at a uniformly random
+ * place, the coverage is uniform on [0, 1/2] given the centre outside, and all n samples land
+ * inside with probability coverage^n: the expected coverage is (1/2)(n + 1)/(n + 2), 1/3 at
+ * 1 spp. The filtered surface colour takes that share, the environment next to the pixel (its
+ * environment 8-neighbours' accumulated colour) the rest. Given the whole pixel, the surface
+ * grew a pixel of full surface colour wherever a sample crossed the silhouette. Reads rows
+ * y - 1 .. y + 1 of illum, moments and guide, all exchanged after svgf_temporal (the
+ * environment's colour does not change in the spatial passes). */
+inline float3 px_borrowed_blend(float3 surface, float samples, const global float4* illum,
+                                const global float4* moments, const global float4* guide, int x, int y,
+                                const SvgfParams* p) {
+  float3 env = (float3)(0.0f, 0.0f, 0.0f);
+  float count = 0.0f;
+  for (int dy = -1; dy <= 1; ++dy) {
+    const int ty = y + dy;
+    if (ty < 0 || ty >= (int)p->height || !px_row_readable(ty, p)) continue;
+    for (int dx = -1; dx <= 1; ++dx) {
+      const int tx = x + dx;
+      if ((dx == 0 && dy == 0) || tx < 0 || tx >= (int)p->width) continue;
+      const uint j = (uint)ty * p->width + (uint)tx;
+      /* the environment: not filtered, not borrowing, depth 0 (emitters have a depth) */
+      if (moments[j].w != 0.0f || guide[j].w != 0.0f) continue;
+      env += illum[j].xyz;
+      count += 1.0f;
+    }
+  }
+  if (count == 0.0f) return surface;
+  const float n = fmax(samples, 1.0f);
+  return mix(env / count, surface, 0.5f * (n + 1.0f) / (n + 2.0f));
+}
+
+/* `out_color` holds the pixel's radiance (w: its finite sample count) and is overwritten. */
 kernel void svgf_remodulate(global float4* out_color, const global float4* illum, const global float4* moments,
-                            const global float4* albedo, SvgfParams p) {
+                            const global float4* albedo, const global float4* guide, SvgfParams p) {
   const uint gid = get_global_id(0);
   if (gid >= p.rows * p.width) return;
   const uint i = p.row0 * p.width + gid;
   const float4 c = illum[i];
-  if (moments[i].w == 0.0f) {
+  const float m = moments[i].w;
+  if (m == 0.0f) {
     out_color[i] = (float4)(c.xyz, 1.0f);
     return;
   }
-  out_color[i] = (float4)(c.xyz * px_demod_albedo(albedo, i), 1.0f);
+  float3 radiance = c.xyz * px_demod_albedo(albedo, i);
+  if (m == PX_SVGF_BORROWED)
+    radiance = px_borrowed_blend(radiance, out_color[i].w, illum, moments, guide, (int)(i % p.width),
+                                 (int)(i / p.width), &p);
+  out_color[i] = (float4)(radiance, 1.0f);
 }
 
 /* The paper's optional seam filter ("--seams bilateral"): after independent per-strip

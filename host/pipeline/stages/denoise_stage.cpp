@@ -118,7 +118,8 @@ void DenoiseStage::denoise_eye(int e, const std::vector<RowRange>& strip, const 
       if (env_.local(d)) svgf(d).atrous(i, strip[d], readable(d));
   }
   for (int d = 0; d < n; ++d)
-    if (env_.local(d)) svgf(d).remodulate(env_.images[d].radiance[e], env_.images[d].albedo[e], strip[d]);
+    if (env_.local(d))
+      svgf(d).remodulate(env_.images[d].radiance[e], env_.images[d].albedo[e], strip[d], readable(d));
   if (options_.seams == SeamMode::Bilateral && n > 1) {
     exchange_halo([&](int d) -> const cl::Buffer& { return env_.images[d].radiance[e]; }, options_.seam_band + 2);
     for (int d = 0; d < n; ++d) {

@@ -130,14 +130,16 @@ void SvgfDenoiser::atrous(unsigned iteration, RowRange rows, RowRange readable) 
   }
 }
 
-void SvgfDenoiser::remodulate(const cl::Buffer& out_color, const cl::Buffer& albedo, RowRange rows) {
+void SvgfDenoiser::remodulate(const cl::Buffer& out_color, const cl::Buffer& albedo, RowRange rows,
+                              RowRange readable) {
   if (rows.size() == 0) return;
   cl::Kernel k(devices_.program("denoise/svgf.cl"), "svgf_remodulate");
   k.setArg(0, out_color);
   k.setArg(1, illum_[current_]);
   k.setArg(2, moments_);
   k.setArg(3, albedo);
-  k.setArg(4, params(rows, rows, 1));
+  k.setArg(4, guide_);
+  k.setArg(5, params(rows, readable, 1));
   launch(k, rows, "remodulate");
 }
 

@@ -42,8 +42,10 @@ class SvgfDenoiser {
   void variance(RowRange rows, RowRange readable);
   // Pass 3+i: one a-trous step; iteration 0's output becomes next frame's colour history.
   void atrous(unsigned iteration, RowRange rows, RowRange readable);
-  // Last pass: remodulate by the same `albedo` into `out_color` (float4 radiance).
-  void remodulate(const cl::Buffer& out_color, const cl::Buffer& albedo, RowRange rows);
+  // Last pass: remodulate by the same `albedo` into `out_color` (float4 radiance, w its sample
+  // count on input: the colour passed to temporal()). Silhouette pixels that borrowed a
+  // neighbour's geometry blend with the environment around them in `readable` rows.
+  void remodulate(const cl::Buffer& out_color, const cl::Buffer& albedo, RowRange rows, RowRange readable);
   // The paper's bilateral seam filter on `color` (rows within `band` of a seam; -1 = none),
   // reading rows across the seam (exchanged beforehand).
   void seam_filter(const cl::Buffer& color, RowRange rows, RowRange readable, int seam_above, int seam_below,
