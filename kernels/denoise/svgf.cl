@@ -51,6 +51,15 @@ inline int px_row_readable(int y, const SvgfParams* p) { return y >= (int)p->lo_
 inline int px_guide_filtered(float4 g) { return g.w > 0.0f; }
 inline float px_guide_depth(float4 g) { return fabs(g.w); }
 
+/* Index of the k-th (0..7, scan order) 8-neighbour of pixel (x, y), or -1 where it lies outside
+ * the image or in a row that is not readable. */
+inline int px_neighbour8(int x, int y, int k, const SvgfParams* p) {
+  const int m = k < 4 ? k : k + 1; /* skip the centre of the 3x3 window */
+  const int tx = x + m % 3 - 1, ty = y + m / 3 - 1;
+  if (tx < 0 || tx >= (int)p->width || ty < 0 || ty >= (int)p->height || !px_row_readable(ty, p)) return -1;
+  return ty * (int)p->width + tx;
+}
+
 /* The centre a PX_SVGF_BORROWED pixel (x, y) borrows: the index of its filtered 8-neighbour
  * nearest to the camera (at a silhouette against the sky or a farther surface, the object its
  * samples hit is the one in front), the first in scan order on equal depth; -1 if none. Reads
@@ -58,18 +67,13 @@ inline float px_guide_depth(float4 g) { return fabs(g.w); }
 inline int px_borrowed_centre(const global float4* guide, int x, int y, const SvgfParams* p) {
   int best = -1;
   float best_depth = INFINITY;
-  for (int dy = -1; dy <= 1; ++dy) {
-    const int ty = y + dy;
-    if (ty < 0 || ty >= (int)p->height || !px_row_readable(ty, p)) continue;
-    for (int dx = -1; dx <= 1; ++dx) {
-      const int tx = x + dx;
-      if ((dx == 0 && dy == 0) || tx < 0 || tx >= (int)p->width) continue;
-      const int j = ty * (int)p->width + tx;
-      const float4 g = guide[j];
-      if (px_guide_filtered(g) && g.w < best_depth) {
-        best = j;
-        best_depth = g.w;
-      }
+  for (int k = 0; k < 8; ++k) {
+    const int j = px_neighbour8(x, y, k, p);
+    if (j < 0) continue;
+    const float4 g = guide[j];
+    if (px_guide_filtered(g) && g.w < best_depth) {
+      best = j;
+      best_depth = g.w;
     }
   }
   return best;
@@ -482,18 +486,12 @@ inline float3 px_borrowed_blend(float3 surface, float samples, const global floa
                                 const SvgfParams* p) {
   float3 env = (float3)(0.0f, 0.0f, 0.0f);
   float count = 0.0f;
-  for (int dy = -1; dy <= 1; ++dy) {
-    const int ty = y + dy;
-    if (ty < 0 || ty >= (int)p->height || !px_row_readable(ty, p)) continue;
-    for (int dx = -1; dx <= 1; ++dx) {
-      const int tx = x + dx;
-      if ((dx == 0 && dy == 0) || tx < 0 || tx >= (int)p->width) continue;
-      const uint j = (uint)ty * p->width + (uint)tx;
-      /* the environment: not filtered, not borrowing, depth 0 (emitters have a depth) */
-      if (moments[j].w != 0.0f || guide[j].w != 0.0f) continue;
-      env += illum[j].xyz;
-      count += 1.0f;
-    }
+  for (int k = 0; k < 8; ++k) {
+    const int j = px_neighbour8(x, y, k, p);
+    /* the environment: not filtered, not borrowing, depth 0 (emitters have a depth) */
+    if (j < 0 || moments[j].w != 0.0f || guide[j].w != 0.0f) continue;
+    env += illum[j].xyz;
+    count += 1.0f;
   }
   if (count == 0.0f) return surface;
   const float n = fmax(samples, 1.0f);
