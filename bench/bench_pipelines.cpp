@@ -2,7 +2,8 @@
 // devices, scene and camera animation. Reports per pipeline the makespan of the animation
 // (warm-up frames excluded), per stage and device the median device time (the paper's
 // Table 1 for this machine), the ratios baseline/proposed and mono/proposed, and the right
-// eye's error against a converged reference of frame 0, so every speed figure has its error.
+// eye's error against converged references of frame 0 and of the last frame, so every speed
+// figure has its error (the last frame's with the denoiser's history behind it).
 //
 //   build/bench_pipelines --scene atrium --width 160 --height 90 --frames 50 --devices 2
 //       --ref-spp 1024 --csv pipelines.csv --summary-csv makespan.csv --frames-csv frames.csv
@@ -32,7 +33,8 @@ struct PipelineResult {
   std::string name;
   double makespan_ms = 0, median_frame_ms = 0, reprojected = 0;
   std::map<std::pair<int, int>, std::vector<double>> stage_ms;  // (stage, device) -> per frame
-  double right_psnr = 0, right_rel_mse = 0;
+  double right_psnr = 0, right_rel_mse = 0;            // frame 0: no history yet
+  double last_right_psnr = 0, last_right_rel_mse = 0;  // the last frame, with history
   std::vector<double> frame_ms;  // wall time of each timed frame
   int owner = 0;
 };
@@ -77,7 +79,7 @@ int main(int argc, char** argv) {
   if (!summary_csv.empty()) {
     summary_out.open(summary_csv);
     summary_out << "scene,pipeline,devices,device_mode,width,height,spp,bounces,frames,makespan_ms,median_frame_ms,hz,"
-                   "reprojected,ref_spp,right_psnr_db,right_rel_mse\n";
+                   "reprojected,ref_spp,right_psnr_db,right_rel_mse,last_right_psnr_db,last_right_rel_mse\n";
   }
   if (!frames_csv.empty()) {
     frames_out.open(frames_csv);
@@ -95,13 +97,17 @@ int main(int argc, char** argv) {
       const px::DeviceScene& ds = on_devices.device_scene;
       std::fprintf(stderr, "[bench] %s: %d devices (%s)\n", name.c_str(), set.size(), px::to_string(set.mode()));
 
-      std::array<px::ImageRGB, 2> reference;
+      // References of frame 0 and of the last frame (the camera moves between them).
+      const unsigned last = warmup + frames - 1;
+      std::array<px::ImageRGB, 2> reference, last_reference;
       if (ref_spp > 0) {
         px::PathTracer tracer(set, ds, scene);
         px::ReferenceOptions ref_opt;
         ref_opt.spp = ref_spp;
         ref_opt.bounces = bounces;
         reference = px::render_reference(tracer, 0.0f, 0, width, height, ref_opt, px::eta_printer(name + " reference"));
+        last_reference = px::render_reference(tracer, static_cast<float>(last) / fps, last, width, height, ref_opt,
+                                              px::eta_printer(name + " reference, last frame"));
       }
 
       std::vector<PipelineResult> results;
@@ -129,10 +135,14 @@ int main(int argc, char** argv) {
         for (unsigned f = 0; f < warmup + frames; ++f) {
           const auto st = pipeline.render(f, static_cast<float>(f) / fps);
           if (f == 0 && ref_spp > 0) {
-            auto eyes = pipeline.radiance();
-            auto d = px::compare_images(eyes[1], reference[1]);
+            auto d = px::compare_images(pipeline.radiance()[1], reference[1]);
             r.right_psnr = d.psnr_db;
             r.right_rel_mse = d.rel_mse;
+          }
+          if (f == last && ref_spp > 0) {
+            auto d = px::compare_images(pipeline.radiance()[1], last_reference[1]);
+            r.last_right_psnr = d.psnr_db;
+            r.last_right_rel_mse = d.rel_mse;
           }
           if (f < warmup) continue;
           frame_ms.push_back(st.wall_ms);
@@ -151,18 +161,22 @@ int main(int argc, char** argv) {
 
       std::printf("\n== %s, %ux%u per eye, %u spp, %u bounces, %d devices (%s), %u frames after %u warm-up ==\n",
                   name.c_str(), width, height, spp, bounces, set.size(), px::to_string(set.mode()), frames, warmup);
-      std::printf("%-11s %12s %12s %8s %12s %10s %10s\n", "pipeline", "makespan ms", "median ms", "Hz", "reprojected",
-                  "right PSNR", "right rMSE");
+      std::printf("%-11s %12s %12s %8s %12s %10s %10s %10s %10s\n", "pipeline", "makespan ms", "median ms", "Hz",
+                  "reprojected", "right PSNR", "right rMSE", "last PSNR", "last rMSE");
       for (const auto& r : results)
-        std::printf("%-11s %12.0f %12.1f %8.2f %11.1f%% %10.2f %10.4f\n", r.name.c_str(), r.makespan_ms,
+        std::printf("%-11s %12.0f %12.1f %8.2f %11.1f%% %10.2f %10.4f %10.2f %10.4f\n", r.name.c_str(), r.makespan_ms,
                     r.median_frame_ms, 1000.0 * frames / r.makespan_ms, 100.0 * r.reprojected, r.right_psnr,
-                    r.right_rel_mse);
+                    r.right_rel_mse, r.last_right_psnr, r.last_right_rel_mse);
+      if (ref_spp > 0)
+        std::printf("error: right eye vs %u-spp references of frame 0 (no history yet) and of frame %u (last)\n",
+                    ref_spp, last);
       if (summary_out)
         for (const auto& r : results)
           summary_out << name << ',' << r.name << ',' << set.size() << ',' << px::to_string(set.mode()) << ',' << width
                       << ',' << height << ',' << spp << ',' << bounces << ',' << frames << ',' << r.makespan_ms << ','
                       << r.median_frame_ms << ',' << 1000.0 * frames / r.makespan_ms << ',' << r.reprojected << ','
-                      << ref_spp << ',' << r.right_psnr << ',' << r.right_rel_mse << '\n';
+                      << ref_spp << ',' << r.right_psnr << ',' << r.right_rel_mse << ',' << r.last_right_psnr << ','
+                      << r.last_right_rel_mse << '\n';
       std::printf("speed-up proposed vs baseline: x%.2f (makespan ratio); proposed vs mono: x%.2f\n",
                   results[1].makespan_ms / results[0].makespan_ms, results[2].makespan_ms / results[0].makespan_ms);
       if (compare_overlap)
