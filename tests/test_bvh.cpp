@@ -792,6 +792,14 @@ TEST(WideBvh, DeviceFormHoldsEveryLeafAsABlock) {
   for (std::size_t i = 0; i < refs.size(); ++i) EXPECT_EQ(refs[i], 1) << "entry " << i;
 }
 
+// The validator rejects `bad`, and its first error names the layout at fault (`layout`).
+void expect_rejected(const FlatBvh& bad, const std::vector<SceneTriangle>& tris, const char* layout, const char* what) {
+  const BvhValidation v = validate_bvh(bad, tris);
+  EXPECT_FALSE(v.ok) << what;
+  ASSERT_FALSE(v.errors.empty()) << what;
+  EXPECT_NE(v.errors.front().find(layout), std::string::npos) << what << ": " << v.errors.front();
+}
+
 TEST(WideBvh, ValidatorDetectsCorruptWideNodes) {
   const auto tris = random_soup(2000, 62);
   FlatBvh bvh = build_bvh(tris, with_splits(false));
@@ -808,12 +816,7 @@ TEST(WideBvh, ValidatorDetectsCorruptWideNodes) {
     }
   ASSERT_GE(leaf_slot, 0);
   ASSERT_GE(inner_slot, 0);
-  auto expect_invalid = [&](const FlatBvh& bad, const char* what) {
-    const BvhValidation v = validate_bvh(bad, tris);
-    EXPECT_FALSE(v.ok) << what;
-    ASSERT_FALSE(v.errors.empty()) << what;
-    EXPECT_NE(v.errors.front().find("wide8"), std::string::npos) << v.errors.front();
-  };
+  auto expect_invalid = [&](const FlatBvh& bad, const char* what) { expect_rejected(bad, tris, "wide8", what); };
   FlatBvh shrunk = bvh;
   Bvh8Node& s = shrunk.nodes8[leaf_node];
   s.hi_y[leaf_slot] = 0.5f * (s.lo_y[leaf_slot] + s.hi_y[leaf_slot]);
@@ -1013,12 +1016,7 @@ TEST(CompressedBvh, ValidatorDetectsCorruptCompressedNodes) {
     }
   ASSERT_GE(leaf_slot, 0);
   ASSERT_GE(inner_slot, 0);
-  auto expect_invalid = [&](const FlatBvh& bad, const char* what) {
-    const BvhValidation v = validate_bvh(bad, tris);
-    EXPECT_FALSE(v.ok) << what;
-    ASSERT_FALSE(v.errors.empty()) << what;
-    EXPECT_NE(v.errors.front().find("cwbvh"), std::string::npos) << what << ": " << v.errors.front();
-  };
+  auto expect_invalid = [&](const FlatBvh& bad, const char* what) { expect_rejected(bad, tris, "cwbvh", what); };
   // One grid step in on qhi: the decoded box no longer contains its child.
   FlatBvh shrunk_leaf = bvh;
   shrunk_leaf.cnodes[leaf_node].qhi_y[leaf_slot] -= 1;

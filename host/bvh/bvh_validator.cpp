@@ -126,11 +126,6 @@ bool has_nan(const float* lo, const float* hi) {
   return false;
 }
 
-// An absent child: inverted on every axis (types.h: min = +FLT_MAX, max = -FLT_MAX).
-bool is_absent(const float* lo, const float* hi) {
-  return lo[0] > hi[0] && lo[1] > hi[1] && lo[2] > hi[2];
-}
-
 // Points every triangle must have inside the union of the leaf boxes that reference it:
 // vertices, edge midpoints, centroid and three interior points.
 constexpr double kSamples[][3] = {{1, 0, 0},         {0, 1, 0},         {0, 0, 1},
@@ -294,7 +289,7 @@ void validate_tree(const Nodes& tree, const FlatBvh& bvh, const std::vector<Scen
         report.error(tree.name, "node ", e.node, " ", side_name[side], " box has NaN");
         continue;
       }
-      if (is_absent(lo[side], hi[side])) {
+      if (is_absent_box(lo[side], hi[side])) {
         // Binary: only the root of a one-leaf scene may have an absent child, and only with
         // count 0. Wide: any node may have unused slots, with child 0 and count 0.
         if (wide ? (count[side] != 0 || index[side] != 0) : (e.node != 0 || count[side] != 0))
@@ -449,7 +444,7 @@ void validate_compressed(const FlatBvh& bvh, Report& report) {
     unsigned interior = 0, leaves = 0;
     for (int i = 0; i < 8; ++i) {
       const std::uint8_t m = n.meta[i];
-      const bool ref_used = !(ref.lo_x[i] > ref.hi_x[i] && ref.lo_y[i] > ref.hi_y[i] && ref.lo_z[i] > ref.hi_z[i]);
+      const bool ref_used = !is_absent_slot(ref, i);
       const bool is_interior = m != 0 && meta_count(m) == 0;
       if (((n.imask >> i) & 1u) != (is_interior ? 1u : 0u))
         report.error("cwbvh node ", c, " slot ", i, ": imask and meta disagree");

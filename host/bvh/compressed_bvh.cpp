@@ -25,10 +25,6 @@ constexpr int kMinExponent = 1 - kExponentBias;    // smallest normal float scal
 constexpr int kMaxExponent = 246 - kExponentBias;  // 255 * 2^119 is still a finite float
 constexpr double kExactLimit = 16777216.0;         // 2^24: integers up to it are exact floats
 
-bool slot_used(const Bvh8Node& n, int i) {
-  return !(n.lo_x[i] > n.hi_x[i] && n.lo_y[i] > n.hi_y[i] && n.lo_z[i] > n.hi_z[i]);
-}
-
 // One axis of a node's grid: origin p = k * 2^exponent.
 struct AxisGrid {
   int exponent;
@@ -95,7 +91,7 @@ class Compressor {
                    std::numeric_limits<float>::max()};
     float hi[3] = {-lo[0], -lo[1], -lo[2]};
     for (int i = 0; i < 8; ++i) {
-      if (!slot_used(n, i)) continue;
+      if (is_absent_slot(n, i)) continue;
       const float clo[3] = {n.lo_x[i], n.lo_y[i], n.lo_z[i]}, chi[3] = {n.hi_x[i], n.hi_y[i], n.hi_z[i]};
       for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], clo[k]), hi[k] = std::max(hi[k], chi[k]);
     }
@@ -112,7 +108,7 @@ class Compressor {
     c.child_base = static_cast<std::uint32_t>(bvh_.cnodes.size());
     c.leaf_base = static_cast<std::uint32_t>(bvh_.cleaf_first.size());
     for (int i = 0; i < 8; ++i) {
-      if (!slot_used(n, i)) continue;
+      if (is_absent_slot(n, i)) continue;
       const float clo[3] = {n.lo_x[i], n.lo_y[i], n.lo_z[i]}, chi[3] = {n.hi_x[i], n.hi_y[i], n.hi_z[i]};
       std::uint8_t* qlo[3] = {c.qlo_x, c.qlo_y, c.qlo_z};
       std::uint8_t* qhi[3] = {c.qhi_x, c.qhi_y, c.qhi_z};
@@ -155,7 +151,7 @@ double compress_bvh8(FlatBvh& bvh) {
 
 std::vector<std::uint32_t> device_compressed_nodes(const FlatBvh& bvh) {
   static_assert(sizeof(CompressedBvh8Node) % 16 == 0 && sizeof(BvhLeafBlock) == PX_LEAF_BLOCK_UNITS * 16);
-  if (bvh.cnodes.empty()) throw std::invalid_argument("device_wide_nodes: the compressed nodes are not built");
+  if (bvh.cnodes.empty()) throw std::invalid_argument("device_compressed_nodes: the compressed nodes are not built");
   const std::size_t leaves = bvh.cleaf_first.size();
   const std::size_t node_bytes = bvh.cnodes.size() * sizeof(CompressedBvh8Node);
   if ((node_bytes + leaves * sizeof(BvhLeafBlock)) / 16 >= kWideIndexLimit)

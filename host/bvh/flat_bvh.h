@@ -90,6 +90,18 @@ double collapse_bvh(FlatBvh& bvh, int width);
 // Returns the time taken in ms, the collapse included.
 double compress_bvh8(FlatBvh& bvh);
 
+// An absent child (a root with a single leaf, an unused wide slot): its box is inverted on
+// every axis (types.h: min = +FLT_MAX, max = -FLT_MAX), so no ray ever enters it.
+inline bool is_absent_box(const float* lo, const float* hi) {
+  return lo[0] > hi[0] && lo[1] > hi[1] && lo[2] > hi[2];
+}
+// Slot i of a wide node (Bvh4Node, Bvh8Node), whose planes are stored structure-of-arrays.
+template <typename WideNode>
+bool is_absent_slot(const WideNode& n, int i) {
+  const float lo[3] = {n.lo_x[i], n.lo_y[i], n.lo_z[i]}, hi[3] = {n.hi_x[i], n.hi_y[i], n.hi_z[i]};
+  return is_absent_box(lo, hi);
+}
+
 // The node buffer the kernels read for a wide layout (Wide4, Wide8, Compressed8): the wide
 // nodes followed by one BvhLeafBlock per leaf (types.h), leaf slots pointing at their blocks.
 // Reads the triangles' flags, so call it after set_triangle_flags. Throws if the wide nodes are

@@ -30,10 +30,6 @@ struct ChildRef {
   }
 };
 
-bool absent(const float* lo, const float* hi) {
-  return lo[0] > hi[0] && lo[1] > hi[1] && lo[2] > hi[2];
-}
-
 // The present children of binary node `n`, appended to `out`.
 template <typename Out>
 void binary_children(const BvhNode& n, Out& out, int& size) {
@@ -42,7 +38,7 @@ void binary_children(const BvhNode& n, Out& out, int& size) {
   const std::uint32_t index[2] = {n.left, n.right};
   const std::uint32_t count[2] = {n.left_count, n.right_count};
   for (int side = 0; side < 2; ++side) {
-    if (absent(lo[side], hi[side])) continue;
+    if (is_absent_box(lo[side], hi[side])) continue;
     ChildRef& c = out[size++];
     for (int k = 0; k < 3; ++k) c.lo[k] = lo[side][k], c.hi[k] = hi[side][k];
     c.index = index[side];

@@ -146,13 +146,13 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
   const int y = (int)(i / p.width);
   const global GBufferTexel* g = gbuf + i;
   const float3 c = color[i].xyz;
-  const float3 illum = c / px_demod_albedo(albedo, i);
-  const float l = px_lum(illum);
   if (!px_filtered_class(g->material_class)) {
     /* A silhouette pixel whose samples all hit a filtered surface borrows a neighbour's
      * geometry (PX_SVGF_BORROWED); it has no geometry of its own to match history with, so its
      * history starts over every frame. */
     if (albedo[i].w >= PX_SVGF_BORROW_COVERAGE && px_borrowed_centre(guide, (int)(i % p.width), y, &p) >= 0) {
+      const float3 illum = c / px_demod_albedo(albedo, i);
+      const float l = px_lum(illum);
       out_illum[i] = (float4)(illum, 0.0f);
       out_moments[i] = (float4)(l, l * l, 1.0f, PX_SVGF_BORROWED);
       return;
@@ -165,6 +165,8 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
     out_moments[i] = (float4)(0.0f, 0.0f, env.w, 0.0f);
     return;
   }
+  const float3 illum = c / px_demod_albedo(albedo, i);
+  const float l = px_lum(illum);
 
   float3 hist = (float3)(0.0f, 0.0f, 0.0f);
   float2 hist_m = (float2)(0.0f, 0.0f);
