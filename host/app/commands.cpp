@@ -95,14 +95,17 @@ void write_render_frame(const RenderCommand& cmd, const OutputDir& dir, unsigned
                         VideoWriter* video) {
   const std::string prefix = frame_name(f, "");
   const int w = static_cast<int>(cmd.width), h = static_cast<int>(cmd.height);
+  // A build without an image codec renders for its report, timeline and video only (said once
+  // at the start).
+  const bool files = image_codec_available();
   try {
-    for (int e = 0; e < 2; ++e) {
+    for (int e = 0; e < 2 && files; ++e) {
       const std::string name = prefix + (e == 0 ? "left" : "right");
       if (!cmd.no_exr) write_exr(dir.file(name + ".exr"), eyes[e]);
       write_png(dir.file(name + ".png"), w, h, png[e]);
     }
     const auto stereo = side_by_side(png[0], png[1], w, h);
-    write_png(dir.file(prefix + "stereo.png"), 2 * w, h, stereo);
+    if (files) write_png(dir.file(prefix + "stereo.png"), 2 * w, h, stereo);
     if (video) video->write_frame(stereo);
   } catch (const ImageError& e) {
     // Say what is usable: the frames before this one are complete.
@@ -191,6 +194,9 @@ int run_render(const RenderCommand& cmd) {
   std::optional<VideoWriter> video;
   auto setup = [&] {
     if (root) {
+      if (!image_codec_available())
+        std::fprintf(stderr, "render: this build has no image codec (configured with -DPX_OPENIMAGEIO=OFF): no image "
+                             "files are written; --report, --timeline and --video still are\n");
       out_dir.emplace(cmd.out, cmd.overwrite, is_render_frame_file);
       if (!cmd.report.empty()) report.emplace(cmd, opt, cluster.size());
       if (!cmd.timeline.empty()) timeline.emplace(cmd.timeline);
@@ -382,8 +388,11 @@ int run_render(const RenderCommand& cmd) {
       for (const RowRange& r : pipeline.strips()) std::printf(" %u", r.size());
       std::printf("\n");
     }
-    std::printf("files:\n  %s/frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png (NNNN = 0000-%04u)\n",
-                cmd.out.c_str(), eye_files, done - 1);
+    if (image_codec_available())
+      std::printf("files:\n  %s/frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png (NNNN = 0000-%04u)\n",
+                  cmd.out.c_str(), eye_files, done - 1);
+    else
+      std::printf("files:\n  no images (this build has no image codec)\n");
     if (report) std::printf("  report:   %s\n", cmd.report.c_str());
     if (timeline) std::printf("  timeline: %s\n", cmd.timeline.c_str());
     if (video) std::printf("  video:    %s (left | right, %g fps)\n", cmd.video.c_str(), double(cmd.fps));
@@ -396,8 +405,12 @@ int run_render(const RenderCommand& cmd) {
                 report ? "; the report covers those frames" : "");
     return interrupt_exit_code();
   }
-  std::printf("wrote %u frame(s) to %s (frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png); %.1f Hz %s\n",
-              cmd.frames, cmd.out.c_str(), eye_files, hz,
+  if (image_codec_available())
+    std::printf("wrote %u frame(s) to %s (frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png); ", cmd.frames,
+                cmd.out.c_str(), eye_files);
+  else
+    std::printf("rendered %u frame(s), no image files (this build has no image codec); ", cmd.frames);
+  std::printf("%.1f Hz %s\n", hz,
               done > 1 ? "over the frames after the first (which includes kernel compilation)"
                        : "(one frame, including kernel compilation)");
   // A signal after the last frame: every frame is written, but the exit status still says so.

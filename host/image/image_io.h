@@ -1,8 +1,14 @@
 // Image files: linear float EXR (radiance, for references and error figures) and 8-bit PNG
-// (what a person looks at). Thin wrappers over OpenImageIO that throw ImageError with the path
-// on failure.
+// (what a person looks at), and the decoding of texture images. Thin wrappers over OpenImageIO
+// (image_codec_oiio.cpp) that throw ImageError with the path on failure.
+//
+// A build configured with -DPX_OPENIMAGEIO=OFF has no image codec (image_codec_none.cpp): it
+// still renders and measures (reports, timelines, in-memory error figures) but writes no image
+// file and loads no texture, and says so. It exists for machines without the Debian packages,
+// e.g. a GPU machine the project is carried to as a self-contained bundle.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <stdexcept>
 #include <string>
@@ -21,11 +27,34 @@ struct ImageRGB {
   std::vector<float> rgb;  // width * height * 3
 };
 
+// False in a build without an image codec: every function below then fails with a message that
+// says so (decode_image_* return it; the others throw ImageError).
+bool image_codec_available();
+
 void write_exr(const std::string& path, const ImageRGB& image);
 ImageRGB read_image_rgb(const std::string& path);  // any format OIIO reads; alpha dropped
 
 // 8-bit RGBA, rows top to bottom.
 void write_png(const std::string& path, int width, int height, const std::vector<std::uint8_t>& rgba);
+
+// The pixels of a decoded image, channel-interleaved float, rows top to bottom, as stored (no
+// colour conversion; straight, unassociated alpha).
+struct DecodedImage {
+  int width = 0;
+  int height = 0;
+  int channels = 0;
+  int alpha_channel = -1;       // the channel the file names as alpha, or -1
+  bool integer_format = false;  // stored as integers (8/16-bit colour is usually sRGB-encoded)
+  bool tagged_linear = false;   // the file says its colour space is linear
+  std::vector<float> pixels;    // width * height * channels
+};
+
+// Decodes an image file, or an encoded image held in memory (`name` only picks the decoder by
+// its extension). Returns an empty string on success, else the reason. Refuses volumes and
+// images of more than 8192 x 8192 pixels (as float RGBA that is already 1 GiB per device copy).
+std::string decode_image_file(const std::string& path, DecodedImage& out);
+std::string decode_image_memory(const unsigned char* bytes, std::size_t size, const std::string& name,
+                                DecodedImage& out);
 
 // Linear -> sRGB-encoded 8 bit with exposure scale and clamp (a preview tonemap for host-side
 // images; the pipeline's tonemap stage runs on the devices).

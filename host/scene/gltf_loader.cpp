@@ -25,12 +25,11 @@
 //   KHR_materials_transmission >= 0.5     -> smooth dielectric, index from KHR_materials_ior
 //   doubleSided                           -> emitters light both faces
 // Everything else the file asks for is named in one warning line.
+#include "image/image_io.h"
 #include "scene/primitives.h"
 #include "scene/scene_file_bytes.h"
 #include "scene/scene_loader.h"
 
-#include <OpenImageIO/filesystem.h>
-#include <OpenImageIO/imageio.h>
 #include <tiny_gltf.h>
 
 #include <glm/gtc/quaternion.hpp>
@@ -168,14 +167,14 @@ std::string one_line(const std::string& text) {
   return out;
 }
 
-// Images are decoded by OpenImageIO from memory (as the OBJ path's textures are), into float
+// Images are decoded from memory (image_io.h) (as the OBJ path's textures are), into float
 // RGBA kept in tinygltf's Image (bits 32). An image it cannot decode (KTX2, WebP...) or one
 // too large loses its texture, with a warning, instead of failing the whole file.
 struct ImageLoadLog {
   std::vector<std::string> failed;
 };
 
-// The file name OpenImageIO picks its reader by.
+// The file name the decoder is picked by.
 std::string image_name_for(const tinygltf::Image& image, const unsigned char* bytes, int size) {
   if (size >= 8 && std::memcmp(bytes, "\x89PNG", 4) == 0) return "image.png";
   if (size >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF) return "image.jpg";
@@ -187,30 +186,16 @@ std::string image_name_for(const tinygltf::Image& image, const unsigned char* by
 
 std::string decode_image(tinygltf::Image* image, const unsigned char* bytes, int size) {
   if (size <= 0) return "empty image";
-  OIIO::Filesystem::IOMemReader memory(bytes, std::size_t(size));
-  OIIO::ImageSpec config;
-  config.attribute("oiio:UnassociatedAlpha", 1);  // straight alpha, as stored: cut-outs are tested, not blended
-  // The proxy goes in the configuration: OpenImageIO 2.4's open(name, config, proxy) still
-  // looks for the file by name.
-  void* proxy = &memory;
-  config.attribute("oiio:ioproxy", OIIO::TypeDesc::PTR, &proxy);
-  auto in = OIIO::ImageInput::open(image_name_for(*image, bytes, size), &config);
-  if (!in) return OIIO::geterror();
-  const OIIO::ImageSpec spec = in->spec();
-  const int w = spec.width, h = spec.height, nc = spec.nchannels;
-  if (w <= 0 || h <= 0 || nc <= 0 || spec.depth > 1) return "not a 2D image";
-  // 8192 x 8192 as float RGBA is already 1 GiB per device copy.
-  if (std::size_t(w) * std::size_t(h) > (std::size_t(1) << 26)) return "image larger than 8192 x 8192";
-  std::vector<float> pixels(std::size_t(w) * std::size_t(h) * std::size_t(nc));
-  if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, pixels.data())) return in->geterror();
-  in->close();
-  image->width = w;
-  image->height = h;
-  image->component = nc;
+  DecodedImage decoded;
+  const std::string error = decode_image_memory(bytes, std::size_t(size), image_name_for(*image, bytes, size), decoded);
+  if (!error.empty()) return error;
+  image->width = decoded.width;
+  image->height = decoded.height;
+  image->component = decoded.channels;
   image->bits = 32;
   image->pixel_type = TINYGLTF_COMPONENT_TYPE_FLOAT;
-  image->image.resize(pixels.size() * sizeof(float));
-  std::memcpy(image->image.data(), pixels.data(), image->image.size());
+  image->image.resize(decoded.pixels.size() * sizeof(float));
+  std::memcpy(image->image.data(), decoded.pixels.data(), image->image.size());
   return {};
 }
 

@@ -10,12 +10,12 @@
 //     attribute, with a warning;
 //   - parses vertex coordinates itself, so NaN/Inf (including MSVC's "1.#IND") are seen.
 // tinyobjloader is then asked not to triangulate; polygons are ear-clipped here.
+#include "image/image_io.h"
 #include "scene/mtl_statements.h"
 #include "scene/primitives.h"
 #include "scene/scene_file_bytes.h"
 #include "scene/scene_loader.h"
 
-#include <OpenImageIO/imageio.h>
 #include <tiny_obj_loader.h>
 
 #include <algorithm>
@@ -332,27 +332,12 @@ enum class TextureUse { kColour, kAlpha, kNormal };
 // its cut-out value in every channel, so the renderer reads .w whatever texture it is given
 // (the alpha channel when the image has one, else the first channel).
 std::string read_texture(const fs::path& file, TextureUse use, Texture& tex) {
-  // Keep colour unassociated (straight) as stored in the file: cut-outs are alpha-tested, not
-  // blended, so premultiplying would only darken the edges of leaves.
-  OIIO::ImageSpec config;
-  config.attribute("oiio:UnassociatedAlpha", 1);
-  auto in = OIIO::ImageInput::open(file.string(), &config);
-  if (!in) return OIIO::geterror();
-  const OIIO::ImageSpec spec = in->spec();
-  const int w = spec.width, h = spec.height, nc = spec.nchannels;
-  if (w <= 0 || h <= 0 || nc <= 0) return "empty image";
-  if (spec.depth > 1) return "volume images are not supported";
-  // 8192 x 8192 as float RGBA is already 1 GiB per device copy.
-  if (std::size_t(w) * std::size_t(h) > (std::size_t(1) << 26)) return "image larger than 8192 x 8192";
-  std::vector<float> pixels(std::size_t(w) * h * nc);
-  if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, pixels.data())) return in->geterror();
-  in->close();
-
-  const bool srgb = use == TextureUse::kColour && !spec.format.is_floating_point() &&
-                    !OIIO::Strutil::iequals(spec.get_string_attribute("oiio:ColorSpace"), "Linear");
-  const int alpha_channel = spec.alpha_channel >= 0 && spec.alpha_channel < nc ? spec.alpha_channel
-                            : nc == 2 || nc == 4                              ? nc - 1
-                                                                              : -1;
+  DecodedImage decoded;
+  if (std::string error = decode_image_file(file.string(), decoded); !error.empty()) return error;
+  const int w = decoded.width, h = decoded.height, nc = decoded.channels;
+  const std::vector<float>& pixels = decoded.pixels;
+  const bool srgb = use == TextureUse::kColour && decoded.integer_format && !decoded.tagged_linear;
+  const int alpha_channel = decoded.alpha_channel >= 0 ? decoded.alpha_channel : nc == 2 || nc == 4 ? nc - 1 : -1;
   tex.width = w;
   tex.height = h;
   tex.rgba.resize(std::size_t(w) * h * 4);

@@ -33,7 +33,7 @@ inline constexpr float kMaxSceneCoordinate = 1e11f;
 // lies so far from the origin relative to its size that floats resolve it coarsely.
 void check_coordinate_range(Scene& scene, const std::string& source, bool warn = true);
 
-// Loads an OBJ (+MTL, textures through OpenImageIO) into triangles and materials.
+// Loads an OBJ (+MTL, textures through the image codec, image/image_io.h) into triangles and materials.
 // Repairs (with counts in scene.stats): drops degenerate and non-finite triangles,
 // falls back to a default material for a missing MTL / unknown material (with a warning).
 // Refuses (SceneError): unreadable file, out-of-range indices, no triangles left.

@@ -1,0 +1,74 @@
+#!/usr/bin/env bash
+# The measurements behind the real-time goal (2 x 1280 x 720, 1 spp, 6 bounces, SVGF, one
+# device), in one run, so that a machine lent for a few minutes yields all of them:
+#   1. trace.csv         bench_trace: kernel vs Embree, primary and diffuse rays, per BVH layout
+#   2. frame*.csv        bench_pipelines: per-stage device medians for proposed (side queue on),
+#                        proposed-1q (one queue), baseline and mono, with PSNR / relMSE against a
+#                        reference at frame 0 and at the last frame
+#   3. frame_cwbvh*.csv  the same for proposed with the compressed 8-wide BVH (PX_BVH_LAYOUT)
+#   4. render.json, timeline.json
+#                        one render: per-stage report and the Chrome trace, whose slices name each
+#                        SVGF pass (per-pass times) and show the side queue's overlap
+#   5. frame4spp*.csv    bench_pipelines at 4 spp (hole filling's per-pixel cost at more samples)
+# plus devices.txt and each step's log. Every step has its own time limit; a step that fails or
+# runs out of time is noted in summary.txt and the suite goes on.
+#
+# Usage: bench/realtime_suite.sh [--out DIR] [--run "PREFIX"] [--quick] [--scene S]
+#   --run PREFIX  a command that starts a program of the build given its name and arguments, e.g.
+#                 --run "bash .gpu/run.sh" for a bundle (default: the programs in build/)
+#   --quick       small sizes and few frames, to check the suite itself on a CPU (a minute or two)
+set -uo pipefail
+root="$(cd "$(dirname "$0")/.." && pwd)"
+out=realtime-suite
+run=""
+quick=0
+scene=atrium
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --out) out="$2"; shift 2 ;;
+    --run) run="$2"; shift 2 ;;
+    --quick) quick=1; shift ;;
+    --scene) scene="$2"; shift 2 ;;
+    -h|--help) sed -n 2,20p "$0"; exit 0 ;;
+    *) echo "realtime_suite: unknown argument $1 (see --help)" >&2; exit 2 ;;
+  esac
+done
+if [ $quick = 1 ]; then
+  w=96 h=54 frames=4 ref=16 repeats=2 limit=300 threads=2
+else
+  w=1280 h=720 frames=50 ref=256 repeats=7 limit=150 threads=$(nproc)
+fi
+mkdir -p "$out" || { echo "realtime_suite: cannot create $out" >&2; exit 1; }
+summary="$out/summary.txt"
+: >"$summary"
+
+# step NAME SECONDS PROGRAM ARGS...: runs one program of the build under a time limit.
+step() {
+  local name="$1" seconds="$2"; shift 2
+  local t0=$SECONDS
+  echo "[realtime_suite] $name ..." >&2
+  local prog="$1"; shift
+  local cmd
+  if [ -n "$run" ]; then read -ra cmd <<<"$run"; cmd+=("$prog"); else cmd=("$root/build/$prog"); fi
+  timeout -k 10 "$seconds" "${cmd[@]}" "$@" >"$out/$name.log" 2>&1
+  local rc=$?
+  local note="ok"
+  [ $rc = 124 ] || [ $rc = 137 ] && note="TIMED OUT after ${seconds} s"
+  [ $rc != 0 ] && [ "$note" = ok ] && note="FAILED (exit $rc)"
+  printf '%-12s %-28s %4d s  %s\n' "$name" "$note" $((SECONDS - t0)) "$(tail -1 "$out/$name.log" | cut -c1-80)" >>"$summary"
+}
+
+step devices 60 parallax devices
+step trace "$limit" bench_trace --scene "$scene" --scene cornell --width $w --height $h --repeats $repeats \
+  --threads "$threads" --layout wide8 --layout cwbvh --layout binary --csv "$out/trace.csv"
+common=(--scene "$scene" --width $w --height $h --spp 1 --frames $frames --warmup 2 --devices 1)
+step frame "$limit" bench_pipelines "${common[@]}" --ref-spp $ref --compare-overlap --csv "$out/frame.csv" \
+  --summary-csv "$out/frame_summary.csv" --frames-csv "$out/frame_frames.csv"
+PX_BVH_LAYOUT=cwbvh step frame_cwbvh "$limit" bench_pipelines "${common[@]}" --ref-spp $ref \
+  --csv "$out/frame_cwbvh.csv" --summary-csv "$out/frame_cwbvh_summary.csv"
+step render "$limit" parallax render --scene "$scene" --width $w --height $h --spp 1 --frames 20 --devices 1 \
+  --out "$out/render" --overwrite --no-exr --report "$out/render.json" --timeline "$out/timeline.json"
+step frame4spp "$limit" bench_pipelines --scene "$scene" --width $w --height $h --spp 4 --frames $((frames / 2 + 1)) \
+  --warmup 1 --devices 1 --ref-spp 0 --csv "$out/frame4spp.csv" --summary-csv "$out/frame4spp_summary.csv"
+rm -rf "$out/render"
+cat "$summary"

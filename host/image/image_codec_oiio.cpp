@@ -1,0 +1,115 @@
+// The image codec: OpenImageIO reads and writes every image file (see image_io.h).
+#include "image/image_io.h"
+
+#include "io/atomic_file.h"
+
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imageio.h>
+
+#include <algorithm>
+
+namespace px {
+namespace {
+
+// Encodes into memory (an OIIO IOProxy) and hands the bytes to write_file_atomic: OIIO's own
+// file output does not report every failed write or close (a full disk gave 0-byte files and
+// success), and a file written in place is truncated under its final name if the run stops.
+void write_image(const std::string& path, int width, int height, int channels, OIIO::TypeDesc type,
+                 const void* pixels) {
+  std::vector<unsigned char> encoded;
+  OIIO::Filesystem::IOVecOutput proxy(encoded);
+  auto out = OIIO::ImageOutput::create(path, &proxy);
+  if (!out) throw ImageError("cannot write " + path + ": " + OIIO::geterror());
+  if (!out->supports("ioproxy"))
+    throw ImageError("cannot write " + path + ": the " + out->format_name() +
+                     " writer of this OpenImageIO cannot encode into memory");
+  OIIO::ImageSpec spec(width, height, channels, type);
+  if (!out->open(path, spec)) throw ImageError("cannot encode " + path + ": " + out->geterror());
+  if (!out->write_image(type, pixels)) throw ImageError("cannot encode " + path + ": " + out->geterror());
+  if (!out->close()) throw ImageError("cannot encode " + path + ": " + out->geterror());
+  out.reset();
+  try {
+    write_file_atomic(path, std::string_view(reinterpret_cast<const char*>(encoded.data()), encoded.size()));
+  } catch (const WriteError& e) {
+    throw ImageError(e.what());
+  }
+}
+
+// Reads the first subimage of an opened input as float. Returns the reason on failure.
+std::string read_decoded(OIIO::ImageInput& in, DecodedImage& out) {
+  const OIIO::ImageSpec spec = in.spec();
+  const int w = spec.width, h = spec.height, nc = spec.nchannels;
+  if (w <= 0 || h <= 0 || nc <= 0) return "empty image";
+  if (spec.depth > 1) return "volume images are not supported";
+  if (std::size_t(w) * std::size_t(h) > (std::size_t(1) << 26)) return "image larger than 8192 x 8192";
+  out.pixels.assign(std::size_t(w) * std::size_t(h) * std::size_t(nc), 0.0f);
+  if (!in.read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, out.pixels.data())) return in.geterror();
+  in.close();
+  out.width = w;
+  out.height = h;
+  out.channels = nc;
+  out.alpha_channel = spec.alpha_channel >= 0 && spec.alpha_channel < nc ? spec.alpha_channel : -1;
+  out.integer_format = !spec.format.is_floating_point();
+  out.tagged_linear = OIIO::Strutil::iequals(spec.get_string_attribute("oiio:ColorSpace"), "Linear");
+  return {};
+}
+
+}  // namespace
+
+bool image_codec_available() { return true; }
+
+void write_exr(const std::string& path, const ImageRGB& image) {
+  write_image(path, image.width, image.height, 3, OIIO::TypeDesc::FLOAT, image.rgb.data());
+}
+
+ImageRGB read_image_rgb(const std::string& path) {
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) throw ImageError("cannot read " + path + ": " + OIIO::geterror());
+  const OIIO::ImageSpec& spec = in->spec();
+  if (spec.nchannels < 1) throw ImageError(path + ": image has no channels");
+  std::vector<float> all(static_cast<std::size_t>(spec.width) * spec.height * spec.nchannels);
+  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, all.data()))
+    throw ImageError("cannot read " + path + ": " + in->geterror());
+  ImageRGB img;
+  img.width = spec.width;
+  img.height = spec.height;
+  img.rgb.resize(static_cast<std::size_t>(img.width) * img.height * 3);
+  for (std::size_t i = 0; i < static_cast<std::size_t>(img.width) * img.height; ++i)
+    for (int c = 0; c < 3; ++c)
+      img.rgb[i * 3 + c] = all[i * spec.nchannels + std::min(c, spec.nchannels - 1)];
+  return img;
+}
+
+void write_png(const std::string& path, int width, int height, const std::vector<std::uint8_t>& rgba) {
+  if (rgba.size() != static_cast<std::size_t>(width) * height * 4)
+    throw ImageError("write_png " + path + ": buffer size does not match " + std::to_string(width) +
+                     "x" + std::to_string(height));
+  write_image(path, width, height, 4, OIIO::TypeDesc::UINT8, rgba.data());
+}
+
+std::string decode_image_file(const std::string& path, DecodedImage& out) {
+  // Keep colour unassociated (straight) as stored in the file: cut-outs are alpha-tested, not
+  // blended, so premultiplying would only darken the edges of leaves.
+  OIIO::ImageSpec config;
+  config.attribute("oiio:UnassociatedAlpha", 1);
+  auto in = OIIO::ImageInput::open(path, &config);
+  if (!in) return OIIO::geterror();
+  return read_decoded(*in, out);
+}
+
+std::string decode_image_memory(const unsigned char* bytes, std::size_t size, const std::string& name,
+                                DecodedImage& out) {
+  if (size == 0) return "empty image";
+  OIIO::Filesystem::IOMemReader memory(bytes, size);
+  OIIO::ImageSpec config;
+  config.attribute("oiio:UnassociatedAlpha", 1);
+  // The proxy goes in the configuration: OpenImageIO 2.4's open(name, config, proxy) still
+  // looks for the file by name.
+  void* proxy = &memory;
+  config.attribute("oiio:ioproxy", OIIO::TypeDesc::PTR, &proxy);
+  auto in = OIIO::ImageInput::open(name, &config);
+  if (!in) return OIIO::geterror();
+  return read_decoded(*in, out);
+}
+
+}  // namespace px
