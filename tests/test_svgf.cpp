@@ -42,8 +42,14 @@ float lum(const cl_float4& c) { return 0.2126f * c.s[0] + 0.7152f * c.s[1] + 0.0
 
 // ---- a-trous against the host ----
 
-TEST(Svgf, AtrousMatchesHostImplementation) {
-  const unsigned w = 40, h = 30;
+// Both a-trous kernels: svgf_atrous (a pixel per work-item) and svgf_atrous8 (eight pixels per
+// work-item in float8, what CPU devices run). 43 columns: the last group of eight is partial, and
+// at steps 2 and 4 taps leave the image on both sides of whole groups.
+class AtrousKernel : public ::testing::TestWithParam<unsigned> {};
+
+TEST_P(AtrousKernel, MatchesHostImplementation) {
+  const unsigned lanes = GetParam();
+  const unsigned w = 43, h = 30;
   const std::size_t n = w * h;
   std::mt19937 rng(4);
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
@@ -78,7 +84,8 @@ TEST(Svgf, AtrousMatchesHostImplementation) {
   for (unsigned step : {1u, 2u, 4u}) {
     p.step = step;
     auto bi = upload(illum), bg = upload(g), bm = upload(moments);
-    cl::Buffer out(one_device().context(), CL_MEM_READ_WRITE, n * sizeof(cl_float4));
+    // A sentinel outside the strip: the pass writes its rows and no other.
+    auto out = upload(std::vector<cl_float4>(n, cl_float4{{-7.0f, -7.0f, -7.0f, -7.0f}}));
     // The guide texels of every row, then the a-trous step reading them.
     cl::Buffer guide(one_device().context(), CL_MEM_READ_WRITE, n * sizeof(cl_float4));
     SvgfParams all = p;
@@ -86,10 +93,14 @@ TEST(Svgf, AtrousMatchesHostImplementation) {
     cl::Kernel kg(one_device().program("denoise/svgf.cl"), "svgf_guide");
     kg.setArg(0, guide); kg.setArg(1, bg); kg.setArg(2, all);
     launch_1d(one_device().devices()[0].queue, kg, all.rows * w);
-    cl::Kernel k(one_device().program("denoise/svgf.cl"), "svgf_atrous");
+    cl::Kernel k(one_device().program("denoise/svgf.cl"), lanes == 8 ? "svgf_atrous8" : "svgf_atrous");
     k.setArg(0, out); k.setArg(1, bi); k.setArg(2, guide); k.setArg(3, bm); k.setArg(4, p);
-    launch_1d(one_device().devices()[0].queue, k, p.rows * w);
+    launch_1d(one_device().devices()[0].queue, k, p.rows * ((w + lanes - 1) / lanes));
     auto got = download<cl_float4>(out, n);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (i / w >= p.row0 && i / w < p.row0 + p.rows) continue;
+      ASSERT_EQ(got[i].s[0], -7.0f) << "pixel " << i << " outside the strip";
+    }
     // Host version of the same filter, written from the SVGF paper's formulas.
     auto readable = [&](int y) { return y >= static_cast<int>(p.lo_row) && y < static_cast<int>(p.hi_row) && y < static_cast<int>(h) && y >= 0; };
     auto at = [&](int x, int y) { return static_cast<std::size_t>(y) * w + x; };
@@ -182,6 +193,11 @@ TEST(Svgf, AtrousMatchesHostImplementation) {
   EXPECT_GT(borrowing, 10);
 }
 
+INSTANTIATE_TEST_SUITE_P(Svgf, AtrousKernel, ::testing::Values(1u, 8u),
+                         [](const ::testing::TestParamInfo<unsigned>& info) {
+                           return info.param == 8 ? std::string("EightPixelsPerItem") : std::string("OnePixelPerItem");
+                         });
+
 TEST(Svgf, FilterExpMatchesDoublePrecisionExp) {
   // px_exp (kernels/math/exp.h), the filters' weight function, over its whole range and the
   // values around its edges.
@@ -212,6 +228,20 @@ TEST(Svgf, FilterExpMatchesDoublePrecisionExp) {
     if (std::isnan(x[i])) EXPECT_TRUE(std::isnan(got[i]));
     else if (x[i] < 0.0f) EXPECT_EQ(got[i], 0.0f) << "exp(" << x[i] << ")";
     else EXPECT_EQ(got[i], inf) << "exp(" << x[i] << ")";
+  }
+  // px_exp8 (eight taps at once, svgf_atrous8) is the same operations lane by lane: same bits.
+  const cl_uint n8 = n / 8 * 8;
+  cl::Buffer out8(one_device().context(), CL_MEM_READ_WRITE, n8 * sizeof(float));
+  cl::Kernel k8(one_device().program("testing/math_probe.cl"), "probe_exp8");
+  k8.setArg(0, out8); k8.setArg(1, in); k8.setArg(2, n8);
+  launch_1d(one_device().devices()[0].queue, k8, n8 / 8);
+  const auto got8 = download<float>(out8, n8);
+  for (std::size_t i = 0; i < n8; ++i) {
+    if (std::isnan(got[i])) {
+      EXPECT_TRUE(std::isnan(got8[i])) << "exp8(" << x[i] << ")";
+      continue;
+    }
+    ASSERT_EQ(std::memcmp(&got8[i], &got[i], sizeof(float)), 0) << "exp8(" << x[i] << ") = " << got8[i] << ", exp " << got[i];
   }
 }
 
@@ -660,6 +690,40 @@ TEST(SvgfDistributed, SideQueueGivesTheSameImages) {
             EXPECT_TRUE(same_bits(frames[0][f][e], frames[1][f][e])) << what << ", frame " << f << ", eye " << e;
         EXPECT_EQ(pngs[0], pngs[1]) << what;
       }
+}
+
+TEST(SvgfDistributed, EightPixelAtrousKernelGivesTheSameImagesToRounding) {
+  // svgf_atrous8 (what CPU devices run) against svgf_atrous through the whole pipeline, over
+  // frames with history (the first a-trous iterate feeds the next frame): the same filter, so
+  // pixels differ by float rounding only (the two kernels contract multiply-adds differently).
+  const unsigned w = 41, h = 29;
+  for (const LoadedScene* scene : {&cornell(), &sphere_under_sky()}) {
+    std::array<std::vector<std::array<ImageRGB, 2>>, 2> frames;
+    for (int k = 0; k < 2; ++k) {
+      DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+      DeviceScene ds(set, scene->scene, scene->bvh);
+      StereoPipeline::Options opt = pipeline_options(PipelineKind::Proposed);
+      opt.svgf.atrous_lanes = k == 0 ? 1 : 8;
+      StereoPipeline p(set, ds, scene->scene, w, h, opt);
+      for (unsigned f = 0; f < 3; ++f) {
+        p.render(f, 0.25f * f);
+        frames[k].push_back(p.radiance());
+      }
+    }
+    std::size_t identical = 0, values = 0;
+    double worst = 0.0;
+    for (unsigned f = 0; f < 3; ++f)
+      for (int e = 0; e < 2; ++e)
+        for (std::size_t i = 0; i < frames[0][f][e].rgb.size(); ++i) {
+          const float a = frames[0][f][e].rgb[i], b = frames[1][f][e].rgb[i];
+          ++values;
+          identical += a == b;
+          worst = std::max(worst, std::abs(double(a) - b) / (std::abs(double(a)) + 1e-3));
+        }
+    std::printf("[ measure  ] %zu of %zu values bit-identical, worst relative difference %.3g\n", identical, values, worst);
+    EXPECT_LT(worst, 1e-4);
+    EXPECT_GT(identical, values / 4) << "rounding differences should leave most values exact";
+  }
 }
 
 TEST(SvgfDistributed, IndependentSeamsDifferOnlyNearSeams) {

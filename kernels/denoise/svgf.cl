@@ -399,31 +399,32 @@ kernel void svgf_variance(global float4* out_illum, const global float4* illum, 
   out_illum[i] = (float4)(csum, var);
 }
 
-kernel void svgf_atrous(global float4* out_illum, const global float4* illum, const global float4* guide,
-                        const global float4* moments, SvgfParams p) {
-  const uint gid = get_global_id(0);
-  if (gid >= p.rows * p.width) return;
-  const uint i = p.row0 * p.width + gid;
-  const int x = (int)(i % p.width), y = (int)(i / p.width);
+/* The centre of an a-trous tap sum at pixel i = (x, y): its edge-stopping geometry (its own, or a
+ * borrowing pixel's lender's) and luminance scale. Returns 0 for a pixel the pass leaves as it
+ * is (not filtered, and not borrowing), having written it to out_illum. */
+inline int px_atrous_centre(global float4* out_illum, const global float4* illum, const global float4* guide,
+                            const global float4* moments, int x, int y, const SvgfParams* p, FilterCentre* fc,
+                            float* lum_scale) {
+  const uint i = (uint)y * p->width + (uint)x;
   const float4 c = illum[i];
   int borrowed = -1;
   if (!px_guide_filtered(guide[i])) {
-    if (moments[i].w == PX_SVGF_BORROWED) borrowed = px_borrowed_centre(guide, x, y, &p);
+    if (moments[i].w == PX_SVGF_BORROWED) borrowed = px_borrowed_centre(guide, x, y, p);
     if (borrowed < 0) {
       out_illum[i] = c;
-      return;
+      return 0;
     }
   }
-  const FilterCentre fc = px_filter_centre_at(guide, x, y, borrowed, c.xyz, &p);
+  *fc = px_filter_centre_at(guide, x, y, borrowed, c.xyz, p);
   /* Variance prefiltered with a 3x3 Gaussian: the luminance weight's scale. */
   float var = 0.0f, vw = 0.0f;
   for (int dy = -1; dy <= 1; ++dy) {
     const int ty = y + dy;
-    if (ty < 0 || ty >= (int)p.height || !px_row_readable(ty, &p)) continue;
+    if (ty < 0 || ty >= (int)p->height || !px_row_readable(ty, p)) continue;
     for (int dx = -1; dx <= 1; ++dx) {
       const int tx = x + dx;
-      if (tx < 0 || tx >= (int)p.width) continue;
-      const uint j = (uint)ty * p.width + (uint)tx;
+      if (tx < 0 || tx >= (int)p->width) continue;
+      const uint j = (uint)ty * p->width + (uint)tx;
       if (!px_guide_filtered(guide[j])) continue;
       const float k = (dx == 0 ? 0.5f : 0.25f) * (dy == 0 ? 0.5f : 0.25f);
       var += k * illum[j].w;
@@ -431,8 +432,22 @@ kernel void svgf_atrous(global float4* out_illum, const global float4* illum, co
     }
   }
   var = vw > 0.0f ? var / vw : c.w;
-  const float lum_scale = p.sigma_l * sqrt(fmax(0.0f, var)) + 1e-6f;
-  const float h[5] = {1.0f / 16.0f, 1.0f / 4.0f, 3.0f / 8.0f, 1.0f / 4.0f, 1.0f / 16.0f};
+  *lum_scale = p->sigma_l * sqrt(fmax(0.0f, var)) + 1e-6f;
+  return 1;
+}
+
+/* B3-spline a-trous weights of taps -2..2. */
+__constant float px_atrous_h[5] = {1.0f / 16.0f, 1.0f / 4.0f, 3.0f / 8.0f, 1.0f / 4.0f, 1.0f / 16.0f};
+
+kernel void svgf_atrous(global float4* out_illum, const global float4* illum, const global float4* guide,
+                        const global float4* moments, SvgfParams p) {
+  const uint gid = get_global_id(0);
+  if (gid >= p.rows * p.width) return;
+  const uint i = p.row0 * p.width + gid;
+  const int x = (int)(i % p.width), y = (int)(i / p.width);
+  FilterCentre fc;
+  float lum_scale;
+  if (!px_atrous_centre(out_illum, illum, guide, moments, x, y, &p, &fc, &lum_scale)) return;
   const int step = (int)p.step;
   /* Every tap's weight twice: .x with the normal exponent sigma_n, .y with a loose one. A pixel
    * whose normal no neighbour shares closely — alpha-cut foliage cards, curved surfaces seen at
@@ -453,7 +468,7 @@ kernel void svgf_atrous(global float4* out_illum, const global float4* illum, co
       /* Unfiltered pixels are never taps; the centre always is (a borrowing one included). */
       if (!px_guide_filtered(g) && (kx != 0 || ky != 0)) continue;
       const float4 t = illum[j];
-      float2 w = (float2)(h[kx + 2] * h[ky + 2]);
+      float2 w = (float2)(px_atrous_h[kx + 2] * px_atrous_h[ky + 2]);
       if (kx != 0 || ky != 0)
         w *= px_geometry_weights(g, fc.n, fc.z, fc.grad, (float)(kx * step), (float)(ky * step), &p,
                                  fabs(fc.l - px_lum(t.xyz)) / lum_scale);
@@ -463,11 +478,148 @@ kernel void svgf_atrous(global float4* out_illum, const global float4* illum, co
       csum_loose += w.y * t.xyz;
     }
   }
-  const float centre = h[2] * h[2];
+  const float centre = px_atrous_h[2] * px_atrous_h[2];
   if (wsum.x - centre < PX_SVGF_ISOLATED * centre)
     out_illum[i] = (float4)(csum_loose / wsum.y, vsum.y / (wsum.y * wsum.y));
   else
     out_illum[i] = (float4)(csum_strict / wsum.x, vsum.x / (wsum.x * wsum.x));
+}
+
+/* (c^e1, c^e2) for eight cosines at once (negative: 0), as px_normal_weights lane by lane. */
+inline void px_normal_weights8(float8 c, float e1, float e2, float8* w1, float8* w2) {
+  c = fmax(0.0f, c);
+  if (px_integer_exponent(e1) && px_integer_exponent(e2)) {
+    uint k1 = (uint)e1, k2 = (uint)e2;
+    float8 a = (float8)(1.0f), b = (float8)(1.0f);
+    while ((k1 | k2) != 0u) {
+      if (k1 & 1u) a *= c;
+      if (k2 & 1u) b *= c;
+      c = select(c * c, (float8)(0.0f), c < 1e-10f);
+      k1 >>= 1;
+      k2 >>= 1;
+    }
+    *w1 = a;
+    *w2 = b;
+  } else {
+    *w1 = pow(c, (float8)(e1));
+    *w2 = pow(c, (float8)(e2));
+  }
+}
+
+/* Eight consecutive float4 texels from `first` as four float8 planes (x, y, z, w). */
+inline void px_load8_planes(const global float4* first, float8* x, float8* y, float8* z, float8* w) {
+  const float16 a = vload16(0, (const global float*)first);
+  const float16 b = vload16(1, (const global float*)first);
+  *x = (float8)(a.s048c, b.s048c);
+  *y = (float8)(a.s159d, b.s159d);
+  *z = (float8)(a.s26ae, b.s26ae);
+  *w = (float8)(a.s37bf, b.s37bf);
+}
+
+/* The same a-trous step for eight horizontally adjacent pixels per work-item, written for CPU
+ * devices. PoCL runs each work-item of svgf_atrous as scalar code (its vectorizer gives up on
+ * the tap loop), so a tap cost ~100 scalar instructions there. Here the lanes are explicit:
+ * each tap's weights for the eight pixels are float8 arithmetic, one AVX register per quantity,
+ * and the tap's eight texels are two 64-byte loads. The per-pixel centre work (borrowing, 3x3
+ * variance) stays scalar. Same filter, same operations per lane as svgf_atrous (test_svgf
+ * checks both against the host implementation); a GPU, where each work-item is already a SIMD
+ * lane, runs svgf_atrous. Items: rows x ceil(width / 8). */
+#define PX_ATROUS_LANES 8
+kernel void svgf_atrous8(global float4* out_illum, const global float4* illum, const global float4* guide,
+                         const global float4* moments, SvgfParams p) {
+  const uint per_row = (p.width + PX_ATROUS_LANES - 1u) / PX_ATROUS_LANES;
+  const uint gid = get_global_id(0);
+  if (gid >= p.rows * per_row) return;
+  const int y = (int)(p.row0 + gid / per_row);
+  const int x0 = (int)(gid % per_row) * PX_ATROUS_LANES;
+  /* The centres, lane by lane. A lane past the image's right edge or left unfiltered is off. */
+  float cnx[PX_ATROUS_LANES], cny[PX_ATROUS_LANES], cnz[PX_ATROUS_LANES], cz[PX_ATROUS_LANES];
+  float cgx[PX_ATROUS_LANES], cgy[PX_ATROUS_LANES], cl[PX_ATROUS_LANES], cscale[PX_ATROUS_LANES];
+  int on[PX_ATROUS_LANES];
+  int any = 0;
+  for (int l = 0; l < PX_ATROUS_LANES; ++l) {
+    FilterCentre fc;
+    float scale = 1.0f;
+    on[l] = x0 + l < (int)p.width && px_atrous_centre(out_illum, illum, guide, moments, x0 + l, y, &p, &fc, &scale);
+    if (!on[l]) fc = (FilterCentre){(float3)(0.0f, 0.0f, 1.0f), 1.0f, (float2)(0.0f, 0.0f), 0.0f};
+    cnx[l] = fc.n.x; cny[l] = fc.n.y; cnz[l] = fc.n.z; cz[l] = fc.z;
+    cgx[l] = fc.grad.x; cgy[l] = fc.grad.y; cl[l] = fc.l; cscale[l] = scale;
+    any |= on[l];
+  }
+  if (!any) return;
+  const float8 nx = vload8(0, cnx), ny = vload8(0, cny), nz = vload8(0, cnz), z = vload8(0, cz);
+  const float8 gx = vload8(0, cgx), gy = vload8(0, cgy), lum = vload8(0, cl), lum_scale = vload8(0, cscale);
+  const int8 lane = (int8)(0, 1, 2, 3, 4, 5, 6, 7);
+  const int step = (int)p.step;
+  const float loose = fmin(p.sigma_n, PX_SVGF_LOOSE_SIGMA_N);
+  /* As svgf_atrous: .x strict, .y loose normal weights (the isolated-pixel fallback). */
+  float8 wsum_x = (float8)(0.0f), wsum_y = wsum_x, vsum_x = wsum_x, vsum_y = wsum_x;
+  float8 cs_r = wsum_x, cs_g = wsum_x, cs_b = wsum_x, cl_r = wsum_x, cl_g = wsum_x, cl_b = wsum_x;
+  for (int ky = -2; ky <= 2; ++ky) {
+    const int ty = y + ky * step;
+    if (ty < 0 || ty >= (int)p.height || !px_row_readable(ty, &p)) continue;
+    const uint row = (uint)ty * p.width;
+    for (int kx = -2; kx <= 2; ++kx) {
+      const int tx0 = x0 + kx * step;
+      const int8 tx = (int8)(tx0) + lane;
+      const int8 inside = tx >= 0 && tx < (int)p.width;
+      float8 tnx, tny, tnz, tw, tr, tg, tb, tv;
+      if (tx0 >= 0 && tx0 + PX_ATROUS_LANES <= (int)p.width) {
+        px_load8_planes(guide + row + (uint)tx0, &tnx, &tny, &tnz, &tw);
+        px_load8_planes(illum + row + (uint)tx0, &tr, &tg, &tb, &tv);
+      } else {
+        /* At the image's left and right edges: lane by lane, clamped (outside lanes weigh 0). */
+        float a[8][PX_ATROUS_LANES];
+        for (int l = 0; l < PX_ATROUS_LANES; ++l) {
+          const uint j = row + (uint)clamp(tx0 + l, 0, (int)p.width - 1);
+          const float4 g = guide[j], t = illum[j];
+          a[0][l] = g.x; a[1][l] = g.y; a[2][l] = g.z; a[3][l] = g.w;
+          a[4][l] = t.x; a[5][l] = t.y; a[6][l] = t.z; a[7][l] = t.w;
+        }
+        tnx = vload8(0, a[0]); tny = vload8(0, a[1]); tnz = vload8(0, a[2]); tw = vload8(0, a[3]);
+        tr = vload8(0, a[4]); tg = vload8(0, a[5]); tb = vload8(0, a[6]); tv = vload8(0, a[7]);
+      }
+      const float h = px_atrous_h[kx + 2] * px_atrous_h[ky + 2];
+      float8 w_x = (float8)(h), w_y = w_x;
+      int8 use = inside;
+      if (kx != 0 || ky != 0) {
+        /* Unfiltered pixels are never taps (the centre always is). Same terms as
+         * px_geometry_weights, in the same order. */
+        use = use && tw > 0.0f;
+        const float8 extra = fabs(lum - (0.2126f * tr + 0.7152f * tg + 0.0722f * tb)) / lum_scale;
+        const float dx = (float)(kx * step), dy = (float)(ky * step);
+        const float8 depth_term = fabs(z - tw) / (p.sigma_z * fabs(gx * dx + gy * dy) + 1e-3f * z + 1e-6f);
+        const float8 rest = px_exp8(-(depth_term + extra));
+        float8 n1, n2;
+        px_normal_weights8(nx * tnx + ny * tny + nz * tnz, p.sigma_n, loose, &n1, &n2);
+        w_x *= n1 * rest;
+        w_y *= n2 * rest;
+      }
+      w_x = select((float8)(0.0f), w_x, use);
+      w_y = select((float8)(0.0f), w_y, use);
+      wsum_x += w_x;
+      wsum_y += w_y;
+      vsum_x += w_x * w_x * tv;
+      vsum_y += w_y * w_y * tv;
+      cs_r += w_x * tr; cs_g += w_x * tg; cs_b += w_x * tb;
+      cl_r += w_y * tr; cl_g += w_y * tg; cl_b += w_y * tb;
+    }
+  }
+  const float centre = px_atrous_h[2] * px_atrous_h[2];
+  float ws[PX_ATROUS_LANES], wl[PX_ATROUS_LANES], vs[PX_ATROUS_LANES], vl[PX_ATROUS_LANES];
+  float sr[PX_ATROUS_LANES], sg[PX_ATROUS_LANES], sb[PX_ATROUS_LANES];
+  float lr[PX_ATROUS_LANES], lg[PX_ATROUS_LANES], lb[PX_ATROUS_LANES];
+  vstore8(wsum_x, 0, ws); vstore8(wsum_y, 0, wl); vstore8(vsum_x, 0, vs); vstore8(vsum_y, 0, vl);
+  vstore8(cs_r, 0, sr); vstore8(cs_g, 0, sg); vstore8(cs_b, 0, sb);
+  vstore8(cl_r, 0, lr); vstore8(cl_g, 0, lg); vstore8(cl_b, 0, lb);
+  for (int l = 0; l < PX_ATROUS_LANES; ++l) {
+    if (!on[l]) continue;
+    const uint i = (uint)y * p.width + (uint)(x0 + l);
+    if (ws[l] - centre < PX_SVGF_ISOLATED * centre)
+      out_illum[i] = (float4)((float3)(lr[l], lg[l], lb[l]) / wl[l], vl[l] / (wl[l] * wl[l]));
+    else
+      out_illum[i] = (float4)((float3)(sr[l], sg[l], sb[l]) / ws[l], vs[l] / (ws[l] * ws[l]));
+  }
 }
 
 /* Back from illumination to radiance: multiply the albedo that demodulation divided out, so

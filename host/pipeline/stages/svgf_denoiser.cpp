@@ -3,6 +3,8 @@
 #include "cl/launch.h"
 
 #include <iterator>
+#include <stdexcept>
+#include <string>
 
 namespace px {
 
@@ -65,9 +67,19 @@ const char* atrous_pass_name(unsigned iteration) {
 
 }  // namespace
 
-void SvgfDenoiser::launch(cl::Kernel& k, RowRange rows, const char* pass) {
-  events_.push_back({Stage::Denoise, launch_1d(queue(), k,
-                                               static_cast<std::size_t>(rows.size()) * width_), pass});
+unsigned SvgfDenoiser::atrous_lanes() const {
+  if (options_.atrous_lanes == 1 || options_.atrous_lanes == 8) return options_.atrous_lanes;
+  if (options_.atrous_lanes != 0)
+    throw std::invalid_argument("SvgfDenoiser: atrous_lanes must be 0, 1 or 8, not " +
+                                std::to_string(options_.atrous_lanes));
+  // Measured on PoCL: see svgf_atrous8 in kernels/denoise/svgf.cl. A GPU work-item is already a
+  // SIMD lane, and eight pixels per item would leave the GPU an eighth of the items.
+  return devices_.devices()[device_].device.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_CPU ? 8u : 1u;
+}
+
+void SvgfDenoiser::launch(cl::Kernel& k, RowRange rows, const char* pass, unsigned pixels_per_item) {
+  const std::size_t per_row = (width_ + pixels_per_item - 1) / pixels_per_item;
+  events_.push_back({Stage::Denoise, launch_1d(queue(), k, static_cast<std::size_t>(rows.size()) * per_row), pass});
 }
 
 void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& albedo, const cl::Buffer& gbuf,
@@ -111,13 +123,14 @@ void SvgfDenoiser::variance(RowRange rows, RowRange readable) {
 
 void SvgfDenoiser::atrous(unsigned iteration, RowRange rows, RowRange readable) {
   if (rows.size() == 0) return;
-  cl::Kernel k(devices_.program("denoise/svgf.cl"), "svgf_atrous");
+  const unsigned lanes = atrous_lanes();
+  cl::Kernel k(devices_.program("denoise/svgf.cl"), lanes == 8 ? "svgf_atrous8" : "svgf_atrous");
   k.setArg(0, illum_[1 - current_]);
   k.setArg(1, illum_[current_]);
   k.setArg(2, guide_);
   k.setArg(3, moments_);
   k.setArg(4, params(rows, readable, 1u << iteration));
-  launch(k, rows, atrous_pass_name(iteration));
+  launch(k, rows, atrous_pass_name(iteration), lanes);
   current_ = 1 - current_;
   if (iteration == 0) {
     // The feedback tap: the first filtered iterate is next frame's colour history.

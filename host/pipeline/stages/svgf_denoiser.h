@@ -23,6 +23,9 @@ class SvgfDenoiser {
     float alpha_moments = 0.2f;
     unsigned max_history = 32;
     unsigned temporal_rows = 16;  // largest vertical history offset (rows) still accepted
+    // Pixels per work-item of the a-trous passes: 1 (svgf_atrous) or 8 (svgf_atrous8, float8
+    // arithmetic across eight pixels, for CPUs); 0 picks 8 on CPU devices and 1 elsewhere.
+    unsigned atrous_lanes = 0;
   };
 
   // `device` is a local device index; `lanes` (optional) the pipeline's queue lanes, whose
@@ -72,7 +75,8 @@ class SvgfDenoiser {
 
  private:
   SvgfParams params(RowRange rows, RowRange readable, unsigned step) const;
-  void launch(cl::Kernel& k, RowRange rows, const char* pass);
+  void launch(cl::Kernel& k, RowRange rows, const char* pass, unsigned pixels_per_item = 1);
+  unsigned atrous_lanes() const;  // options_.atrous_lanes, with 0 resolved for this device
   cl::CommandQueue& queue() { return lanes_ ? lanes_->queue(device_) : devices_.devices()[device_].queue; }
 
   DeviceSet& devices_;
