@@ -39,6 +39,7 @@ else
   w=1280 h=720 frames=50 ref=256 repeats=7 limit=150 threads=$(nproc)
 fi
 mkdir -p "$out" || { echo "realtime_suite: cannot create $out" >&2; exit 1; }
+out=$(cd "$out" && pwd)  # absolute: a --run wrapper may start the programs in another directory
 summary="$out/summary.txt"
 : >"$summary"
 
