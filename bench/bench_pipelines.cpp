@@ -49,6 +49,7 @@ int main(int argc, char** argv) {
   float fps = 30.0f;
   std::string csv, summary_csv, frames_csv;
   bool compare_overlap = false;
+  std::string hole_spread = "auto";
   app.add_option("--scene", scenes)->capture_default_str();
   app.add_option("--width", width)->capture_default_str();
   app.add_option("--height", height)->capture_default_str();
@@ -65,7 +66,14 @@ int main(int argc, char** argv) {
   app.add_flag("--compare-overlap", compare_overlap,
                "run proposed with the side queue forced on (on CPUs it is off by default), and again with one "
                "queue per device as pipeline 'proposed-1q', for the side queue's speed-up side by side");
+  app.add_option("--hole-spread", hole_spread,
+                 "stage 5's work-items: auto (a (hole, sample) pair each on GPUs at 2-8 spp, else a hole each), "
+                 "on, off (images are identical)")
+      ->check(CLI::IsMember({"auto", "on", "off"}))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  using Spread = px::HoleFillStage::SampleSpread;
+  const Spread spread = hole_spread == "on" ? Spread::On : hole_spread == "off" ? Spread::Off : Spread::Auto;
   if (frames == 0 || width == 0 || height == 0 || devices < 1) {
     std::fprintf(stderr, "bench_pipelines: --frames, --width, --height and --devices must be positive\n");
     return 1;
@@ -126,6 +134,7 @@ int main(int argc, char** argv) {
         opt.trace.spp = spp;
         opt.trace.bounces = bounces;
         opt.overlap = overlap;
+        opt.hole_fill.spread = spread;
         px::StereoPipeline pipeline(set, ds, scene, width, height, opt);
         PipelineResult r;
         r.name = std::string(px::to_string(kind)) + (overlap == px::Overlap::Off ? "-1q" : "");

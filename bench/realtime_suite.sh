@@ -9,7 +9,8 @@
 #   4. render.json, timeline.json
 #                        one render: per-stage report and the Chrome trace, whose slices name each
 #                        SVGF pass (per-pass times) and show the side queue's overlap
-#   5. frame4spp*.csv    bench_pipelines at 4 spp (hole filling's per-pixel cost at more samples)
+#   5. frame4spp_*.csv   bench_pipelines at 4 spp (hole filling's per-pixel cost at more samples),
+#                        with stage 5's samples spread over work-items (auto: on GPUs) and not
 # plus devices.txt and each step's log. Every step has its own time limit; a step that fails or
 # runs out of time is noted in summary.txt and the suite goes on.
 #
@@ -69,7 +70,10 @@ PX_BVH_LAYOUT=cwbvh step frame_cwbvh "$limit" bench_pipelines "${common[@]}" --r
   --csv "$out/frame_cwbvh.csv" --summary-csv "$out/frame_cwbvh_summary.csv"
 step render "$limit" parallax render --scene "$scene" --width $w --height $h --spp 1 --frames 20 --devices 1 \
   --out "$out/render" --overwrite --no-exr --report "$out/render.json" --timeline "$out/timeline.json"
-step frame4spp "$limit" bench_pipelines --scene "$scene" --width $w --height $h --spp 4 --frames $((frames / 2 + 1)) \
-  --warmup 1 --devices 1 --ref-spp 0 --csv "$out/frame4spp.csv" --summary-csv "$out/frame4spp_summary.csv"
+for spread in auto off; do
+  step frame4spp_$spread "$limit" bench_pipelines --scene "$scene" --width $w --height $h --spp 4 \
+    --frames $((frames / 2 + 1)) --warmup 1 --devices 1 --ref-spp 0 --hole-spread $spread \
+    --csv "$out/frame4spp_$spread.csv" --summary-csv "$out/frame4spp_${spread}_summary.csv"
+done
 rm -rf "$out/render"
 cat "$summary"

@@ -36,7 +36,7 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
   path_trace_ = &add_unit<PathTraceStage>({Stage::PathTraceLeft, Stage::PathTraceRight}, options.trace);
   add_unit<GBufferStage>({Stage::GBuffer});
   add_unit<ReprojectStage>({Stage::Reproject});
-  add_unit<HoleFillStage>({Stage::HoleFill}, *path_trace_);
+  add_unit<HoleFillStage>({Stage::HoleFill}, *path_trace_, options.hole_fill);
   if (options.denoise) denoise_ = &add_unit<DenoiseStage>({Stage::Denoise}, denoise_options(options));
   add_unit<TonemapStage>({Stage::Tonemap}, TonemapStage::Options{options.exposure});
   add_unit<TransferStage>({Stage::Transfer}, TransferStage::Options{options.gather_radiance, options.denoise});

@@ -15,6 +15,7 @@
 #include "pipeline/queue_lanes.h"
 #include "pipeline/row_transfer.h"
 #include "pipeline/stages/denoise_stage.h"
+#include "pipeline/stages/hole_fill_stage.h"
 #include "pipeline/stages/path_trace_stage.h"
 #include "pipeline/stages/stage_unit.h"
 #include "pipeline/strip_schedule.h"
@@ -82,6 +83,8 @@ class StereoPipeline {
     // they overlap the right eye's reprojection and hole filling (queue_lanes.h; Auto: on GPUs).
     // Images are identical either way. Off under MPI (one queue per device there).
     Overlap overlap = Overlap::Auto;
+    // Stage 5's work-items: a hole each, or a (hole, sample) pair each on GPUs (hole_fill_stage.h).
+    HoleFillStage::Options hole_fill;
   };
 
   StereoPipeline(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene, unsigned width,

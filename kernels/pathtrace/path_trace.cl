@@ -130,6 +130,27 @@ inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float
   return radiance;
 }
 
+/* Sample s of pixel (x, y): the radiance of its camera path, and in *albedo the path's primary
+ * demodulation albedo (see px_trace_path). Every random number comes from the pixel's and the
+ * sample's own stream, so a sample is the same whichever work-item traces it. */
+inline float3 px_render_sample(const SceneView* scene, const FrameParams* fp, const CameraParams* cam, uint x, uint y,
+                               uint s, float4* albedo) {
+  const SampleKey key = px_sample_key(x, y, fp->frame, fp->eye, fp->sample_offset + s, fp->seed);
+  const float4 u = px_sample4(key, 0u);
+  const float3 dir = px_camera_dir(cam, x, y, u.x, u.y);
+  return px_trace_path(scene, fp, px_camera_origin(cam), dir, key, albedo);
+}
+
+inline int px_finite3(float3 v) { return isfinite(v.x) && isfinite(v.y) && isfinite(v.z); }
+
+/* A pixel's mean from the sum of its `good` finite samples: (rgb, good), and in *albedo the mean
+ * albedo (w: the coverage). No finite path: (1, 1, 1, 0). */
+inline float4 px_pixel_mean(float3 sum, float4 albedo_sum, uint good, float4* albedo) {
+  const float inv = good > 0u ? 1.0f / (float)good : 0.0f;
+  *albedo = good > 0u ? albedo_sum * inv : (float4)(1.0f, 1.0f, 1.0f, 0.0f);
+  return (float4)(good > 0u ? sum / (float)good : sum, (float)good);
+}
+
 /* Mean radiance of pixel (x, y): fp->spp paths; a path with non-finite radiance is dropped
  * from the mean and counted in *nonfinite. Returns (rgb, finite sample count); *albedo gets
  * the mean primary demodulation albedo of the same (finite) paths, so that radiance / albedo
@@ -139,17 +160,13 @@ inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float
  * misses the object but whose samples hit it). No finite path: (1, 1, 1, 0). */
 inline float4 px_render_pixel(const SceneView* scene, const FrameParams* fp, const CameraParams* cam,
                               uint x, uint y, volatile global uint* nonfinite, float4* albedo) {
-  const float3 org = px_camera_origin(cam);
   float3 sum = (float3)(0.0f, 0.0f, 0.0f);
   float4 albedo_sum = (float4)(0.0f, 0.0f, 0.0f, 0.0f);
   uint good = 0;
   for (uint s = 0; s < fp->spp; ++s) {
-    const SampleKey key = px_sample_key(x, y, fp->frame, fp->eye, fp->sample_offset + s, fp->seed);
-    const float4 u = px_sample4(key, 0u);
-    const float3 dir = px_camera_dir(cam, x, y, u.x, u.y);
     float4 a;
-    const float3 l = px_trace_path(scene, fp, org, dir, key, &a);
-    if (isfinite(l.x) && isfinite(l.y) && isfinite(l.z)) {
+    const float3 l = px_render_sample(scene, fp, cam, x, y, s, &a);
+    if (px_finite3(l)) {
       sum += l;
       albedo_sum += a;
       ++good;
@@ -157,9 +174,7 @@ inline float4 px_render_pixel(const SceneView* scene, const FrameParams* fp, con
       atomic_inc(nonfinite);
     }
   }
-  const float inv = good > 0u ? 1.0f / (float)good : 0.0f;
-  *albedo = good > 0u ? albedo_sum * inv : (float4)(1.0f, 1.0f, 1.0f, 0.0f);
-  return (float4)(good > 0u ? sum / (float)good : sum, (float)good);
+  return px_pixel_mean(sum, albedo_sum, good, albedo);
 }
 
 /* Stage 2 (and mono): every pixel of rows [fp.row0, fp.row0 + fp.rows) of eye fp.eye.
@@ -187,5 +202,51 @@ kernel void path_trace_list(global float4* out, global float4* albedo_out, volat
   const uint p = holes[i];
   float4 albedo;
   out[p] = px_render_pixel(&scene, &fp, &cam, p % cam.width, p / cam.width, nonfinite, &albedo);
+  albedo_out[p] = albedo;
+}
+
+/* Stage 5 with the samples spread: one work-item per (hole, sample) pair, so that a launch at
+ * spp samples has spp times as many items as holes. At 1280x720 a frame's ~60k holes are too
+ * few work-items to fill a large GPU; at 4 spp this gives it 240k. Each item writes its sample
+ * (radiance with w = 1 if finite, else all 0; then its albedo) to `samples`, two float4 per
+ * pair; resolve_hole_samples averages them. Images are bit-identical to path_trace_list: the
+ * same samples, summed in the same order. */
+kernel void path_trace_list_samples(global float4* samples, volatile global uint* nonfinite, const global uint* holes,
+                                    const global uint* hole_count, FrameParams fp, CameraParams cam,
+                                    PX_SCENE_PARAMS) {
+  const uint i = get_global_id(0);
+  const uint hole = i / fp.spp, s = i % fp.spp;
+  if (hole >= *hole_count) return;
+  const SceneView scene = PX_SCENE_VIEW();
+  const uint p = holes[hole];
+  float4 a;
+  const float3 l = px_render_sample(&scene, &fp, &cam, p % cam.width, p / cam.width, s, &a);
+  const int finite = px_finite3(l);
+  if (!finite) atomic_inc(nonfinite);
+  samples[2u * i] = finite ? (float4)(l, 1.0f) : (float4)(0.0f, 0.0f, 0.0f, 0.0f);
+  samples[2u * i + 1u] = a;
+}
+
+/* The pixels of path_trace_list_samples: per hole, its spp samples summed in sample order (as
+ * px_render_pixel sums them), then the same mean. */
+kernel void resolve_hole_samples(global float4* out, global float4* albedo_out, const global float4* samples,
+                                 const global uint* holes, const global uint* hole_count, uint spp) {
+  const uint hole = get_global_id(0);
+  if (hole >= *hole_count) return;
+  float3 sum = (float3)(0.0f, 0.0f, 0.0f);
+  float4 albedo_sum = (float4)(0.0f, 0.0f, 0.0f, 0.0f);
+  uint good = 0;
+  for (uint s = 0; s < spp; ++s) {
+    const uint i = hole * spp + s;
+    const float4 l = samples[2u * i];
+    if (l.w > 0.0f) {
+      sum += l.xyz;
+      albedo_sum += samples[2u * i + 1u];
+      ++good;
+    }
+  }
+  const uint p = holes[hole];
+  float4 albedo;
+  out[p] = px_pixel_mean(sum, albedo_sum, good, &albedo);
   albedo_out[p] = albedo;
 }

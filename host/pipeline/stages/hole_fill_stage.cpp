@@ -4,22 +4,65 @@
 
 namespace px {
 
+bool HoleFillStage::spreads(int d, unsigned spp) const {
+  switch (options_.spread) {
+    case SampleSpread::On: return true;
+    case SampleSpread::Off: return false;
+    case SampleSpread::Auto: break;
+  }
+  if (spp < 2 || spp > kMaxSpreadSpp) return false;
+  const cl::Device& device = env_.devices.devices()[env_.layout.local_index(d)].device;
+  return (device.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) != 0;
+}
+
 void HoleFillStage::run(const std::vector<const Operation*>& ops, const FrameInputs& in) {
   for (const Operation* op : ops) {
     if (!env_.local(op->device)) continue;
     const FrameImages& f = env_.images[op->device];
-    cl::Kernel k(env_.devices.program("pathtrace/path_trace.cl"), "path_trace_list");
-    k.setArg(0, f.radiance[1]);
-    k.setArg(1, f.albedo[1]);
-    k.setArg(2, f.nonfinite_paths);
-    k.setArg(3, f.holes);
-    k.setArg(4, f.hole_count);
-    k.setArg(5, tracer_.frame_params(1, op->rows, in.frame));
-    k.setArg(6, in.cams[1]);
-    env_.scene_on(op->device).bind(k, 7);
-    // Sized for the worst case (every pixel a hole): the hole count lives on the device, so no
-    // host round trip is needed between reprojection and hole filling.
-    env_.log.record(Stage::HoleFill, op->device, launch_1d(env_.queue(op->device), k, env_.pixels(op->rows)));
+    const FrameParams fp = tracer_.frame_params(1, op->rows, in.frame);
+    const cl::Program& program = env_.devices.program("pathtrace/path_trace.cl");
+    // Launches are sized for the worst case (every pixel a hole): the hole count lives on the
+    // device, so no host round trip is needed between reprojection and hole filling.
+    if (!spreads(op->device, fp.spp)) {
+      cl::Kernel k(program, "path_trace_list");
+      k.setArg(0, f.radiance[1]);
+      k.setArg(1, f.albedo[1]);
+      k.setArg(2, f.nonfinite_paths);
+      k.setArg(3, f.holes);
+      k.setArg(4, f.hole_count);
+      k.setArg(5, fp);
+      k.setArg(6, in.cams[1]);
+      env_.scene_on(op->device).bind(k, 7);
+      env_.log.record(Stage::HoleFill, op->device, launch_1d(env_.queue(op->device), k, env_.pixels(op->rows)));
+      continue;
+    }
+    // A hole's index in the list is below the strip's pixel count, so its samples fit in
+    // pixels(rows) x spp pairs; sized for the whole frame, strips can move without a new buffer.
+    Scratch& scratch = scratch_[op->device];
+    const std::size_t bytes = static_cast<std::size_t>(env_.width) * env_.height * fp.spp * 2 * sizeof(cl_float4);
+    if (scratch.bytes < bytes) {
+      scratch.samples = cl::Buffer(env_.devices.context(), CL_MEM_READ_WRITE, bytes);
+      scratch.bytes = bytes;
+    }
+    cl::Kernel trace(program, "path_trace_list_samples");
+    trace.setArg(0, scratch.samples);
+    trace.setArg(1, f.nonfinite_paths);
+    trace.setArg(2, f.holes);
+    trace.setArg(3, f.hole_count);
+    trace.setArg(4, fp);
+    trace.setArg(5, in.cams[1]);
+    env_.scene_on(op->device).bind(trace, 6);
+    env_.log.record(Stage::HoleFill, op->device,
+                    launch_1d(env_.queue(op->device), trace, env_.pixels(op->rows) * fp.spp), "samples");
+    cl::Kernel resolve(program, "resolve_hole_samples");
+    resolve.setArg(0, f.radiance[1]);
+    resolve.setArg(1, f.albedo[1]);
+    resolve.setArg(2, scratch.samples);
+    resolve.setArg(3, f.holes);
+    resolve.setArg(4, f.hole_count);
+    resolve.setArg(5, static_cast<cl_uint>(fp.spp));
+    env_.log.record(Stage::HoleFill, op->device, launch_1d(env_.queue(op->device), resolve, env_.pixels(op->rows)),
+                    "resolve");
   }
 }
 
