@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# The build without an image codec (cmake -DPX_OPENIMAGEIO=OFF), as a machine without the
+# project's packages builds it (e.g. a GPU machine the project is carried to as a bundle): it
+# must compile, render with a report and a timeline, write no image file, say so, and turn a
+# texture into a warning. Builds into build-nocodec/ (host code at -O0: only compiling matters).
+# Usage: tests/no_codec_smoke.sh [BUILD_DIR]
+set -u
+root="$(cd "$(dirname "$0")/.." && pwd)"
+build="${1:-$root/build-nocodec}"
+cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Debug "-DCMAKE_CXX_FLAGS_DEBUG=-O0" -DPX_OPENIMAGEIO=OFF -DPX_MPI=OFF \
+  -DPX_VIEWER=OFF >/dev/null || exit 1
+cmake --build "$build" -j "$(nproc 2>/dev/null || echo 2)" --target parallax >/dev/null || { echo "FAIL build"; exit 1; }
+bin="$build/parallax"
+tmp="$(mktemp -d)"
+trap 'rm -rf "$tmp"' EXIT
+export POCL_CACHE_DIR="${POCL_CACHE_DIR:-$build/pocl-cache}" PARALLAX_CACHE_DIR="${PARALLAX_CACHE_DIR:-$build/parallax-cache}"
+fails=0
+ok() { echo "ok   $*"; }
+fail() { echo "FAIL $*"; fails=$((fails + 1)); }
+
+if ldd "$bin" | grep -qi openimageio; then fail "the binary links OpenImageIO"; else ok "no OpenImageIO linked"; fi
+out="$("$bin" render --width 32 --height 18 --frames 2 --out "$tmp/r" --report "$tmp/r.json" --timeline "$tmp/t.json" 2>&1)"
+rc=$?
+if [ $rc -eq 0 ]; then ok "render runs"; else fail "render exit $rc"; echo "$out" | tail -5; fi
+if grep -q "no image codec" <<<"$out"; then ok "render says it writes no images"; else fail "render does not say so"; fi
+if grep -q "rendered 2 frame(s), no image files" <<<"$out"; then ok "summary names no files"; else fail "summary"; fi
+if [ -s "$tmp/r.json" ] && [ -s "$tmp/t.json" ]; then ok "report and timeline written"; else fail "report or timeline missing"; fi
+if [ -z "$(find "$tmp" -name '*.png' -o -name '*.exr')" ]; then ok "no image files"; else fail "image files written"; fi
+
+# A textured OBJ: the texture is a warning naming the missing codec, the render goes on.
+printf 'newmtl tex\nKd 1 1 1\nmap_Kd albedo.png\n' >"$tmp/m.mtl"
+printf 'mtllib m.mtl\nv -1 -1 3\nv 1 -1 3\nv 0 1 3\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl tex\nf 1/1 2/2 3/3\n' >"$tmp/t.obj"
+printf '\x89PNG\r\n\x1a\n' >"$tmp/albedo.png"
+out="$("$bin" render --scene "$tmp/t.obj" --width 32 --height 18 --out "$tmp/o" 2>&1)"
+rc=$?
+if [ $rc -eq 0 ] && grep -q "PX_OPENIMAGEIO=OFF" <<<"$out"; then ok "a texture is a warning"; else
+  fail "textured OBJ: exit $rc"; echo "$out" | tail -5; fi
+
+echo "no_codec_smoke: $fails failure(s)"
+[ $fails -eq 0 ]
