@@ -34,6 +34,11 @@ struct ComputeDevice {
   cl::CommandQueue queue;      // in-order, CL_QUEUE_PROFILING_ENABLE
   std::string description;     // for logs: "pthread-haswell (sub-device 1 of 2, 1 CU)"
   int compute_units = 0;
+
+  // What kind of device it is: stages pick their kernel variant by it (e.g. SVGF's a-trous pass,
+  // hole filling's work-items, the side queue).
+  bool is_gpu() const { return (device.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) != 0; }
+  bool is_cpu() const { return (device.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_CPU) != 0; }
 };
 
 class DeviceSet {

@@ -5,7 +5,7 @@ namespace px {
 bool wants_side_queue(Overlap overlap, const DeviceSet& devices) {
   if (overlap != Overlap::Auto) return overlap == Overlap::On;
   for (const ComputeDevice& d : devices.devices())
-    if (d.device.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) return true;
+    if (d.is_gpu()) return true;
   return false;
 }
 

@@ -4,15 +4,19 @@
 
 namespace px {
 
+HoleFillStage::HoleFillStage(StageEnv& env, const PathTraceStage& tracer, const Options& options)
+    : StageUnit(env), tracer_(tracer), options_(options), scratch_(env.layout.count()), gpu_(env.layout.count()) {
+  for (int d = 0; d < env.layout.count(); ++d)
+    gpu_[d] = env.local(d) && env.devices.devices()[env.layout.local_index(d)].is_gpu();
+}
+
 bool HoleFillStage::spreads(int d, unsigned spp) const {
   switch (options_.spread) {
     case SampleSpread::On: return true;
     case SampleSpread::Off: return false;
     case SampleSpread::Auto: break;
   }
-  if (spp < 2 || spp > kMaxSpreadSpp) return false;
-  const cl::Device& device = env_.devices.devices()[env_.layout.local_index(d)].device;
-  return (device.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) != 0;
+  return gpu_[d] && spp >= 2 && spp <= kMaxSpreadSpp;
 }
 
 void HoleFillStage::run(const std::vector<const Operation*>& ops, const FrameInputs& in) {

@@ -24,8 +24,7 @@ class HoleFillStage : public StageUnit {
   // 4 spp. Beyond this many samples, Auto keeps a work-item per hole.
   static constexpr unsigned kMaxSpreadSpp = 8;
 
-  HoleFillStage(StageEnv& env, const PathTraceStage& tracer, const Options& options)
-      : StageUnit(env), tracer_(tracer), options_(options), scratch_(env.layout.count()) {}
+  HoleFillStage(StageEnv& env, const PathTraceStage& tracer, const Options& options);
   void run(const std::vector<const Operation*>& ops, const FrameInputs& in) override;
 
   // Whether device `d` spreads samples at `spp` (options().spread resolved for its type).
@@ -40,6 +39,7 @@ class HoleFillStage : public StageUnit {
   const PathTraceStage& tracer_;
   Options options_;
   std::vector<Scratch> scratch_;  // per device, grown to the frame's pixels x spp on first use
+  std::vector<bool> gpu_;         // per device: a local GPU
 };
 
 }  // namespace px

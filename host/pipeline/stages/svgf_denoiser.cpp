@@ -10,7 +10,8 @@ namespace px {
 
 SvgfDenoiser::SvgfDenoiser(DeviceSet& devices, int device, unsigned width, unsigned height, const Options& options,
                            QueueLanes* lanes)
-    : devices_(devices), device_(device), lanes_(lanes), width_(width), height_(height), options_(options) {
+    : devices_(devices), device_(device), lanes_(lanes), width_(width), height_(height), options_(options),
+      atrous_lanes_(resolve_atrous_lanes(options, devices.devices()[device])) {
   const std::size_t bytes = static_cast<std::size_t>(width) * height * sizeof(cl_float4);
   const auto& ctx = devices.context();
   auto& q = devices.devices()[device].queue;
@@ -67,14 +68,14 @@ const char* atrous_pass_name(unsigned iteration) {
 
 }  // namespace
 
-unsigned SvgfDenoiser::atrous_lanes() const {
-  if (options_.atrous_lanes == 1 || options_.atrous_lanes == 8) return options_.atrous_lanes;
-  if (options_.atrous_lanes != 0)
+unsigned SvgfDenoiser::resolve_atrous_lanes(const Options& options, const ComputeDevice& device) {
+  if (options.atrous_lanes == 1 || options.atrous_lanes == 8) return options.atrous_lanes;
+  if (options.atrous_lanes != 0)
     throw std::invalid_argument("SvgfDenoiser: atrous_lanes must be 0, 1 or 8, not " +
-                                std::to_string(options_.atrous_lanes));
+                                std::to_string(options.atrous_lanes));
   // Measured on PoCL: see svgf_atrous8 in kernels/denoise/svgf.cl. A GPU work-item is already a
   // SIMD lane, and eight pixels per item would leave the GPU an eighth of the items.
-  return devices_.devices()[device_].device.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_CPU ? 8u : 1u;
+  return device.is_cpu() ? 8u : 1u;
 }
 
 void SvgfDenoiser::launch(cl::Kernel& k, RowRange rows, const char* pass, unsigned pixels_per_item) {
@@ -123,14 +124,13 @@ void SvgfDenoiser::variance(RowRange rows, RowRange readable) {
 
 void SvgfDenoiser::atrous(unsigned iteration, RowRange rows, RowRange readable) {
   if (rows.size() == 0) return;
-  const unsigned lanes = atrous_lanes();
-  cl::Kernel k(devices_.program("denoise/svgf.cl"), lanes == 8 ? "svgf_atrous8" : "svgf_atrous");
+  cl::Kernel k(devices_.program("denoise/svgf.cl"), atrous_lanes_ == 8 ? "svgf_atrous8" : "svgf_atrous");
   k.setArg(0, illum_[1 - current_]);
   k.setArg(1, illum_[current_]);
   k.setArg(2, guide_);
   k.setArg(3, moments_);
   k.setArg(4, params(rows, readable, 1u << iteration));
-  launch(k, rows, atrous_pass_name(iteration), lanes);
+  launch(k, rows, atrous_pass_name(iteration), atrous_lanes_);
   current_ = 1 - current_;
   if (iteration == 0) {
     // The feedback tap: the first filtered iterate is next frame's colour history.

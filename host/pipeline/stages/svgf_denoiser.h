@@ -76,7 +76,8 @@ class SvgfDenoiser {
  private:
   SvgfParams params(RowRange rows, RowRange readable, unsigned step) const;
   void launch(cl::Kernel& k, RowRange rows, const char* pass, unsigned pixels_per_item = 1);
-  unsigned atrous_lanes() const;  // options_.atrous_lanes, with 0 resolved for this device
+  // options.atrous_lanes with 0 resolved for `device` (invalid values throw).
+  static unsigned resolve_atrous_lanes(const Options& options, const ComputeDevice& device);
   cl::CommandQueue& queue() { return lanes_ ? lanes_->queue(device_) : devices_.devices()[device_].queue; }
 
   DeviceSet& devices_;
@@ -84,6 +85,7 @@ class SvgfDenoiser {
   QueueLanes* lanes_;
   unsigned width_, height_;
   Options options_;
+  unsigned atrous_lanes_;  // pixels per work-item of the a-trous passes on this device (1 or 8)
   cl::Buffer illum_[2];        // ping-pong filter buffers (rgb, variance)
   cl::Buffer moments_;         // (m1, m2, history length, filtered flag)
   cl::Buffer guide_;           // (normal, +depth filtered / -depth not), from guide()
