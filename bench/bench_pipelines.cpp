@@ -103,7 +103,8 @@ int main(int argc, char** argv) {
       const px::Scene& scene = on_devices.loaded.scene;
       px::DeviceSet& set = on_devices.devices;
       const px::DeviceScene& ds = on_devices.device_scene;
-      std::fprintf(stderr, "[bench] %s: %d devices (%s)\n", name.c_str(), set.size(), px::to_string(set.mode()));
+      std::fprintf(stderr, "[bench] %s: %d devices (%s), BVH nodes %s\n", name.c_str(), set.size(), px::to_string(set.mode()),
+                   px::to_string(set.bvh_layout()));
 
       // References of frame 0 and of the last frame (the camera moves between them).
       const unsigned last = warmup + frames - 1;

@@ -5,7 +5,8 @@
 #   2. frame*.csv        bench_pipelines: per-stage device medians for proposed (side queue on),
 #                        proposed-1q (one queue), baseline and mono, with PSNR / relMSE against a
 #                        reference at frame 0 and at the last frame
-#   3. frame_cwbvh*.csv  the same for proposed with the compressed 8-wide BVH (PX_BVH_LAYOUT)
+#   3. frame_wide8*.csv  the same with the uncompressed 8-wide BVH (PX_BVH_LAYOUT=wide8; a GPU's
+#                        default is cwbvh, so 2 and 3 compare the layouts on whole frames)
 #   4. render.json, timeline.json
 #                        one render: per-stage report and the Chrome trace, whose slices name each
 #                        SVGF pass (per-pass times) and show the side queue's overlap
@@ -84,8 +85,8 @@ step trace bench_trace --scene "$scene" --scene cornell --width $w --height $h -
 common=(--scene "$scene" --width $w --height $h --spp 1 --frames $frames --warmup 2 --devices 1)
 step frame bench_pipelines "${common[@]}" --ref-spp $ref --compare-overlap --csv "$out/frame.csv" \
   --summary-csv "$out/frame_summary.csv" --frames-csv "$out/frame_frames.csv"
-PX_BVH_LAYOUT=cwbvh step frame_cwbvh bench_pipelines "${common[@]}" --ref-spp $ref \
-  --csv "$out/frame_cwbvh.csv" --summary-csv "$out/frame_cwbvh_summary.csv"
+PX_BVH_LAYOUT=wide8 step frame_wide8 bench_pipelines "${common[@]}" --ref-spp $ref \
+  --csv "$out/frame_wide8.csv" --summary-csv "$out/frame_wide8_summary.csv"
 step render parallax render --scene "$scene" --width $w --height $h --spp 1 --frames 20 --devices 1 \
   --out "$out/render" --overwrite --no-exr --report "$out/render.json" --timeline "$out/timeline.json"
 for spread in auto off; do

@@ -12,7 +12,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
+#include <optional>
 #include <memory>
 #include <random>
 
@@ -49,13 +51,13 @@ struct TraceFixture {
 class TraceKernels : public ::testing::TestWithParam<BvhLayout> {
  protected:
   void SetUp() override {
-    saved_ = bvh_layout();
+    saved_ = requested_bvh_layout();
     set_bvh_layout(GetParam());
   }
   void TearDown() override { set_bvh_layout(saved_); }
 
  private:
-  BvhLayout saved_ = BvhLayout::Binary;
+  std::optional<BvhLayout> saved_;
 };
 
 DeviceSet& one_device() {
@@ -543,6 +545,49 @@ TEST_P(TraceKernels, SameHitsWithOneTwoAndFourDevices) {
     EXPECT_EQ(0, std::memcmp(hits.data(), reference.data(), hits.size() * sizeof(Hit)))
         << count << " devices (" << to_string(set.mode()) << ") differ from 1 device";
   }
+}
+
+// Restores the process's layout request when a test ends.
+class LayoutRequestGuard {
+ public:
+  LayoutRequestGuard() : saved_(requested_bvh_layout()) {}
+  ~LayoutRequestGuard() { set_bvh_layout(saved_); }
+
+ private:
+  std::optional<BvhLayout> saved_;
+};
+
+TEST(BvhLayoutChoice, EachDeviceTypeHasItsDefaultUnlessALayoutIsRequested) {
+  LayoutRequestGuard guard;
+  set_bvh_layout(std::nullopt);
+  EXPECT_FALSE(requested_bvh_layout().has_value());
+  EXPECT_EQ(bvh_layout_for(false), BvhLayout::Wide8);
+  EXPECT_EQ(bvh_layout_for(true), BvhLayout::Compressed8);
+  EXPECT_EQ(bvh_layout(), BvhLayout::Wide8);
+  DeviceSet& set = one_device();
+  const bool gpus = std::all_of(set.devices().begin(), set.devices().end(),
+                                [](const ComputeDevice& d) { return d.is_gpu(); });
+  EXPECT_EQ(set.bvh_layout(), gpus ? BvhLayout::Compressed8 : BvhLayout::Wide8);
+  set_bvh_layout(BvhLayout::Binary);
+  EXPECT_EQ(bvh_layout_for(false), BvhLayout::Binary);
+  EXPECT_EQ(bvh_layout_for(true), BvhLayout::Binary);
+  EXPECT_EQ(set.bvh_layout(), BvhLayout::Binary);
+}
+
+// A GPU set's DeviceScene gets a tree collapsed for CPUs (load_and_build) and makes its own
+// compressed nodes: here a binary-only tree uploaded to a set that traverses cwbvh.
+TEST(BvhLayoutChoice, DeviceSceneMakesTheNodesItsSetTraverses) {
+  LayoutRequestGuard guard;
+  set_bvh_layout(BvhLayout::Binary);
+  Scene scene = scene_from(random_soup(2000, 5));
+  const FlatBvh bvh = build_bvh(scene.triangles);
+  ASSERT_TRUE(bvh.nodes8.empty() && bvh.cnodes.empty());
+  set_bvh_layout(BvhLayout::Compressed8);
+  DeviceScene device_scene(one_device(), scene, bvh);
+  EXPECT_EQ(device_scene.layout(), BvhLayout::Compressed8);
+  RayBatchTracer tracer(one_device(), device_scene);
+  const auto rays = random_rays(scene.triangles, 2000, 9);
+  expect_matches_brute_force(scene.triangles, rays, tracer.closest(rays));
 }
 
 INSTANTIATE_TEST_SUITE_P(Layouts, TraceKernels,

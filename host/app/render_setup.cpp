@@ -45,6 +45,8 @@ PipelineConfig make_pipeline_config(const RenderCommand& cmd) {
 void print_device_set(const DeviceSet& set) {
   std::fprintf(stderr, "[devices] %d on '%s' (%s):\n", set.size(), set.platform_name().c_str(), to_string(set.mode()));
   for (const auto& d : set.devices()) std::fprintf(stderr, "  %d: %s\n", d.index, d.description.c_str());
+  std::fprintf(stderr, "  BVH nodes: %s (%s)\n", to_string(set.bvh_layout()),
+               requested_bvh_layout() ? "requested" : "the default for these devices");
 }
 
 RenderSession::RenderSession(const RenderCommand& cmd, const StereoPipeline::Options& options)

@@ -52,7 +52,7 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
                                   .c_str()
                             : (std::to_string(static_cast<long>(bs.build_ms)) + " ms").c_str(),
                  bvh_layout() == BvhLayout::Binary ? ""
-                 : (std::string("; traversed as ") + to_string(bvh_layout()) + ", " +
+                 : (std::string("; ") + to_string(bvh_layout()) + ", " +
                     std::to_string(bvh_layout() == BvhLayout::Wide4   ? out.bvh.nodes4.size()
                                    : bvh_layout() == BvhLayout::Wide8 ? out.bvh.nodes8.size()
                                                                       : out.bvh.cnodes.size()) +

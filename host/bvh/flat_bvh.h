@@ -7,6 +7,7 @@
 #include "shared/types.h"
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -47,14 +48,29 @@ std::uint64_t split_call_budget(std::size_t triangles,
 
 // The node layout the kernels traverse: the binary nodes, or the same tree collapsed into
 // 4- or 8-wide nodes (types.h: Bvh4Node, Bvh8Node), or the 8-wide tree with quantized child
-// boxes (types.h: CompressedBvh8Node, "cwbvh"). Process-wide, because every kernel build must
-// agree with the uploaded nodes (DeviceSet passes -DPX_BVH_WIDTH, DeviceScene uploads the
-// matching array). Default: kDefaultBvhLayout, or the environment variable PX_BVH_LAYOUT
-// (binary | wide4 | wide8 | cwbvh) read at the first call.
+// boxes (types.h: CompressedBvh8Node, "cwbvh"). Every kernel build of a device set must agree
+// with the nodes uploaded to it: DeviceSet::bvh_layout() names the set's layout, its programs
+// are built with the matching -DPX_BVH_WIDTH, and DeviceScene uploads the matching array.
 // The values are the kernels' PX_BVH_WIDTH (9 = PX_BVH_COMPRESSED8, 8 children per node).
 enum class BvhLayout { Binary = 2, Wide4 = 4, Wide8 = 8, Compressed8 = PX_BVH_COMPRESSED8 };
+// The layout asked for, process-wide: set_bvh_layout(), else the environment variable
+// PX_BVH_LAYOUT (binary | wide4 | wide8 | cwbvh, read at the first call); none = each device set
+// takes its device type's default (bvh_layout_for).
+std::optional<BvhLayout> requested_bvh_layout();
+// For benches and tests, before kernels are built; nullopt: none requested (PX_BVH_LAYOUT is
+// then ignored too).
+void set_bvh_layout(std::optional<BvhLayout> layout);
+// The layout a device set traverses: the requested one, else by device type.
+//  - CPUs (and sets that mix device kinds): Wide8. Measured on PoCL: 8 boxes per float8 test
+//    in one work-item, 0.77-0.98 of Embree's single-ray speed; cwbvh's decode costs 5-17% there.
+//  - Sets of GPUs only: Compressed8. The same tree in 80-byte nodes instead of 256 (atrium:
+//    7.5 MiB of nodes against 24.0), since GPU traversal is bound by node fetches (Ylitie,
+//    Karras, Laine 2017: compressed 8-wide nodes ~2x binary on incoherent rays). Not yet
+//    measured on a GPU here: bench/realtime_suite.sh compares both layouts there.
+BvhLayout bvh_layout_for(bool all_gpus);
+// The layout of a CPU set (bvh_layout_for(false)): what the host collapses a freshly built tree
+// into ahead of time (build_bvh); a GPU set's DeviceScene compresses its own copy.
 BvhLayout bvh_layout();
-void set_bvh_layout(BvhLayout layout);  // for benches and tests; before kernels are built
 // The value of PX_BVH_WIDTH the kernels are built with for `layout` (not always the number of
 // children: Compressed8 is 9, PX_BVH_COMPRESSED8).
 inline int bvh_layout_width(BvhLayout layout) { return static_cast<int>(layout); }
@@ -113,6 +129,8 @@ BvhLeafBlock leaf_block(const std::vector<BvhTriangle>& tris, std::uint32_t firs
 // The Compressed8 part of device_wide_nodes (compressed_bvh.cpp).
 std::vector<std::uint32_t> device_compressed_nodes(const FlatBvh& bvh);
 
+// Whether `bvh` carries the nodes of `layout` (the binary nodes always).
+bool has_layout(const FlatBvh& bvh, BvhLayout layout);
 // Makes sure `bvh` carries the nodes of `layout` (collapsing / compressing if needed). Returns
 // the time that took in ms (0 when they were there).
 double ensure_layout(FlatBvh& bvh, BvhLayout layout);

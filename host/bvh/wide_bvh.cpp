@@ -15,10 +15,12 @@ namespace px {
 
 namespace {
 
-// The layout the kernels traverse unless PX_BVH_LAYOUT or set_bvh_layout() says otherwise.
-constexpr BvhLayout kDefaultBvhLayout = BvhLayout::Wide8;
+// The defaults per device type when no layout is requested (flat_bvh.h: bvh_layout_for says why).
+constexpr BvhLayout kCpuBvhLayout = BvhLayout::Wide8;
+constexpr BvhLayout kGpuBvhLayout = BvhLayout::Compressed8;
 
-std::atomic<int> g_layout{0};  // 0: not chosen yet
+// The requested layout: 0 = PX_BVH_LAYOUT not read yet, -1 = read, and nothing requested.
+std::atomic<int> g_layout{0};
 
 struct ChildRef {
   float lo[3], hi[3];
@@ -98,25 +100,32 @@ class Collapser {
   std::vector<Node>& out_;
 };
 
-BvhLayout layout_from_environment() {
+int layout_from_environment() {
   const char* env = std::getenv("PX_BVH_LAYOUT");
-  if (!env || !*env) return kDefaultBvhLayout;
-  return parse_bvh_layout(env);
+  if (!env || !*env) return -1;
+  return static_cast<int>(parse_bvh_layout(env));
 }
 
 }  // namespace
 
-BvhLayout bvh_layout() {
+std::optional<BvhLayout> requested_bvh_layout() {
   int v = g_layout.load();
   if (v == 0) {
-    v = static_cast<int>(layout_from_environment());
+    v = layout_from_environment();
     int expected = 0;
     if (!g_layout.compare_exchange_strong(expected, v)) v = expected;
   }
+  if (v < 0) return std::nullopt;
   return static_cast<BvhLayout>(v);
 }
 
-void set_bvh_layout(BvhLayout layout) { g_layout.store(static_cast<int>(layout)); }
+BvhLayout bvh_layout_for(bool all_gpus) {
+  return requested_bvh_layout().value_or(all_gpus ? kGpuBvhLayout : kCpuBvhLayout);
+}
+
+BvhLayout bvh_layout() { return bvh_layout_for(false); }
+
+void set_bvh_layout(std::optional<BvhLayout> layout) { g_layout.store(layout ? static_cast<int>(*layout) : -1); }
 
 const char* to_string(BvhLayout layout) {
   switch (layout) {
@@ -215,6 +224,16 @@ std::vector<std::uint32_t> device_wide_nodes(const FlatBvh& bvh, BvhLayout layou
   if (layout == BvhLayout::Wide8) return device_form<8>(bvh.nodes8, bvh.triangles);
   if (layout == BvhLayout::Compressed8) return device_compressed_nodes(bvh);
   throw std::invalid_argument("device_wide_nodes: not a wide layout");
+}
+
+bool has_layout(const FlatBvh& bvh, BvhLayout layout) {
+  switch (layout) {
+    case BvhLayout::Binary: return true;
+    case BvhLayout::Wide4: return !bvh.nodes4.empty();
+    case BvhLayout::Wide8: return !bvh.nodes8.empty();
+    case BvhLayout::Compressed8: return !bvh.cnodes.empty();
+  }
+  return false;
 }
 
 double ensure_layout(FlatBvh& bvh, BvhLayout layout) {

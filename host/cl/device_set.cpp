@@ -158,12 +158,15 @@ DeviceSet DeviceSet::create(const DeviceOptions& options) {
                      std::to_string(cd.compute_units) + " CU)";
     set.devices_.push_back(std::move(cd));
   }
+  set.all_gpus_ = std::all_of(set.devices_.begin(), set.devices_.end(), [](const ComputeDevice& d) { return d.is_gpu(); });
   return set;
 }
 
+BvhLayout DeviceSet::bvh_layout() const { return bvh_layout_for(all_gpus_); }
+
 const cl::Program& DeviceSet::program(const std::string& path, const std::string& extra_options) {
-  // Every kernel is built for the BVH layout DeviceScene uploads (flat_bvh.h: bvh_layout()),
-  // unless the caller names one (DeviceScene::kernel_options()).
+  // Every kernel is built for the BVH layout DeviceScene uploads (bvh_layout()), unless the
+  // caller names one (DeviceScene::kernel_options()).
   const bool names_layout = extra_options.find("-DPX_BVH_WIDTH=") != std::string::npos;
   const std::string layout_define =
       names_layout ? "" : "-DPX_BVH_WIDTH=" + std::to_string(bvh_layout_width(bvh_layout()));

@@ -16,6 +16,8 @@
 
 namespace px {
 
+enum class BvhLayout;  // bvh/flat_bvh.h
+
 enum class DeviceMode { Auto, SubDevices, PlatformDevices, SharedQueues };
 
 const char* to_string(DeviceMode mode);
@@ -51,6 +53,10 @@ class DeviceSet {
   int size() const { return static_cast<int>(devices_.size()); }
   DeviceMode mode() const { return mode_; }  // the mode actually used (never Auto)
   const std::string& platform_name() const { return platform_name_; }
+  // The BVH node layout this set's kernels are built for and DeviceScene uploads to it: the one
+  // requested (PX_BVH_LAYOUT, set_bvh_layout), else the default for its device type
+  // (flat_bvh.h: bvh_layout_for). Read at each call, so a test may switch it between scenes.
+  BvhLayout bvh_layout() const;
 
   // Builds kernels/<path> (with its includes) for every device in the set; cached per
   // (path, options). A failed build throws ClFailure carrying each device's build log.
@@ -66,6 +72,7 @@ class DeviceSet {
   std::vector<ComputeDevice> devices_;
   DeviceMode mode_ = DeviceMode::Auto;
   std::string platform_name_;
+  bool all_gpus_ = false;  // every device a GPU
   std::map<std::string, cl::Program> programs_;
 };
 

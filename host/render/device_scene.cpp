@@ -1,6 +1,8 @@
 #include "render/device_scene.h"
 
 #include <cmath>
+#include <stdexcept>
+#include <string>
 
 namespace px {
 namespace {
@@ -137,11 +139,19 @@ void fill_light_params(const Scene& scene, std::size_t light_count, FrameParams&
 DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, const FlatBvh& bvh) {
   FlatBvh flagged = bvh;
   set_triangle_flags(flagged, triangle_flags(scene));
-  // The nodes of the layout the kernels are built for (DeviceSet::program), collapsed here if
-  // the caller's tree does not carry them.
-  const BvhLayout layout = bvh_layout();
+  // The nodes of the layout the set's kernels are built for (DeviceSet::bvh_layout), collapsed
+  // or compressed here if the caller's tree does not carry them (a GPU set's cwbvh from a tree
+  // load_and_build collapsed for CPUs). Nodes made here have not met the validator the loader
+  // ran, so they meet it now.
+  const BvhLayout layout = devices.bvh_layout();
   layout_ = layout;
-  ensure_layout(flagged, layout);
+  if (!has_layout(flagged, layout)) {
+    ensure_layout(flagged, layout);
+    const BvhValidation check = validate_bvh(flagged, scene.triangles);
+    if (!check.ok)
+      throw std::runtime_error(std::string("internal error: the ") + to_string(layout) +
+                               " nodes failed validation: " + (check.errors.empty() ? "" : check.errors.front()));
+  }
   const std::vector<std::uint32_t> wide_words =
       layout == BvhLayout::Binary ? std::vector<std::uint32_t>{} : device_wide_nodes(flagged, layout);
   const auto& triangles = flagged.triangles;

@@ -15,7 +15,7 @@
 namespace px {
 
 struct DeviceSceneBuffers {
-  cl::Buffer nodes;      // BvhNode[], Bvh4Node[], Bvh8Node[] or CompressedBvh8Node[] (bvh_layout())
+  cl::Buffer nodes;      // BvhNode[], Bvh4Node[], Bvh8Node[] or CompressedBvh8Node[] (DeviceSet::bvh_layout())
   cl::Buffer triangles;  // BvhTriangle[] (leaf order, flags filled from materials)
   cl::Buffer shading;    // TriangleShading[] (scene order)
   cl::Buffer materials;  // GpuMaterial[]
@@ -46,8 +46,8 @@ class DeviceScene {
   const DeviceSceneBuffers& on(int device_index) const { return per_device_.at(device_index); }
   std::size_t bytes_per_device() const { return bytes_per_device_; }
   std::size_t light_count() const { return light_count_; }
-  // The node layout uploaded (bvh_layout() at construction), and the kernel build option that
-  // matches it (DeviceSet::program uses the process-wide layout when none is given).
+  // The node layout uploaded (the set's bvh_layout() at construction), and the kernel build
+  // option that matches it (DeviceSet::program uses the set's current layout when none is given).
   BvhLayout layout() const { return layout_; }
   std::string kernel_options() const { return "-DPX_BVH_WIDTH=" + std::to_string(bvh_layout_width(layout_)); }
 
