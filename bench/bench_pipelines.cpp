@@ -66,6 +66,11 @@ int main(int argc, char** argv) {
   app.add_flag("--compare-overlap", compare_overlap,
                "run proposed with the side queue forced on (on CPUs it is off by default), and again with one "
                "queue per device as pipeline 'proposed-1q', for the side queue's speed-up side by side");
+  std::string path_tracer = "megakernel";
+  app.add_option("--path-tracer", path_tracer,
+                 "stages 2, 5 and 12: megakernel or wavefront (a kernel per path step; images are identical)")
+      ->check(CLI::IsMember({"megakernel", "wavefront"}))
+      ->capture_default_str();
   app.add_option("--hole-spread", hole_spread,
                  "stage 5's work-items: auto (a (hole, sample) pair each on GPUs at 2-8 spp, else a hole each), "
                  "on, off (images are identical)")
@@ -136,6 +141,7 @@ int main(int argc, char** argv) {
         opt.trace.bounces = bounces;
         opt.overlap = overlap;
         opt.hole_fill.spread = spread;
+        opt.path_kernel = px::parse_path_trace_kernel(path_tracer);
         px::StereoPipeline pipeline(set, ds, scene, width, height, opt);
         PipelineResult r;
         r.name = std::string(px::to_string(kind)) + (overlap == px::Overlap::Off ? "-1q" : "");

@@ -41,6 +41,12 @@ const WordTable<DeviceMode>& device_mode_words() {
   return words;
 }
 
+const WordTable<PathTraceKernel>& path_tracer_words() {
+  static const WordTable<PathTraceKernel> words{{"megakernel", PathTraceKernel::Megakernel},
+                                                {"wavefront", PathTraceKernel::Wavefront}};
+  return words;
+}
+
 const WordTable<StripBalance>& balance_words() {
   static const WordTable<StripBalance> words{{"static", StripBalance::Static}, {"dynamic", StripBalance::Dynamic}};
   return words;
@@ -56,6 +62,7 @@ const std::string& cli_word(SeamMode value) { return word_of(seam_mode_words(), 
 const std::string& cli_word(LightSampling value) { return word_of(light_sampling_words(), value); }
 const std::string& cli_word(DeviceMode value) { return word_of(device_mode_words(), value); }
 const std::string& cli_word(StripBalance value) { return word_of(balance_words(), value); }
+const std::string& cli_word(PathTraceKernel value) { return word_of(path_tracer_words(), value); }
 const std::string& cli_word(SkyMode value) { return word_of(sky_words(), value); }
 
 }  // namespace px

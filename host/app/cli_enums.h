@@ -9,6 +9,7 @@
 #include "pipeline/stereo_pipeline.h"
 #include "pipeline/strip_schedule.h"
 #include "render/path_tracer.h"
+#include "render/wavefront_path_tracer.h"
 #include "scene/scene_loader.h"
 
 #include <string>
@@ -27,6 +28,7 @@ const WordTable<LightSampling>& light_sampling_words();  // mis, nee, bsdf
 const WordTable<DeviceMode>& device_mode_words();     // auto, subdevices, platform, queues
 const WordTable<StripBalance>& balance_words();       // static, dynamic
 const WordTable<SkyMode>& sky_words();                // auto, on, off
+const WordTable<PathTraceKernel>& path_tracer_words();  // megakernel, wavefront
 
 // The word of a value, as the flag takes it (named apart from the libraries' to_string so that
 // a call is never ambiguous).
@@ -36,5 +38,6 @@ const std::string& cli_word(LightSampling value);
 const std::string& cli_word(DeviceMode value);
 const std::string& cli_word(StripBalance value);
 const std::string& cli_word(SkyMode value);
+const std::string& cli_word(PathTraceKernel value);
 
 }  // namespace px

@@ -46,6 +46,7 @@ struct RenderCommand {
   float fps = 30.0f;           // camera-path time of frame f is f / fps
   float exposure = 1.0f;       // PNG preview scale
   PathTracer::Options trace;   // --spp, --bounces, --light-sampling, ...
+  PathTraceKernel path_kernel = PathTraceKernel::Megakernel;  // --path-tracer
   std::string out = "out/render";
   bool overwrite = false;
   bool explain = false;        // print the schedule (stage x device workload pairs, tree)

@@ -68,6 +68,9 @@ void add_pipeline_flags(CLI::App* cmd, px::RenderCommand& r) {
   cmd->add_option("--spp", r.trace.spp, "samples per pixel")->check(CLI::Range(1u, 1u << 20))->capture_default_str();
   cmd->add_option("--bounces", r.trace.bounces, "maximum path length in bounces")->check(CLI::Range(0u, px::PathTracer::kMaxBounces))->capture_default_str();
   cmd->add_option("--rr-start", r.trace.rr_start_bounce, "Russian roulette from this bounce on")->capture_default_str();
+  add_word_option(cmd, "--path-tracer", r.path_kernel, px::path_tracer_words(),
+                  "megakernel: a work-item traces a pixel's whole paths; wavefront: a kernel per path step over "
+                  "all paths, their state in memory between steps (images are identical)");
   add_word_option(cmd, "--light-sampling", r.trace.light_sampling, px::light_sampling_words(),
                   "mis (NEE + BSDF sampling, power heuristic), nee (next-event only), bsdf (BSDF sampling only)");
   cmd->add_option("--seed", r.trace.seed, "seed of the sample streams")->capture_default_str();

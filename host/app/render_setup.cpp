@@ -23,6 +23,7 @@ PipelineConfig make_pipeline_config(const RenderCommand& cmd) {
   auto& opt = cfg.options;
   opt.pipeline = cmd.pipeline;
   opt.trace = cmd.trace;
+  opt.path_kernel = cmd.path_kernel;
   opt.exposure = cmd.exposure;
   opt.denoise = !cmd.no_denoise;
   opt.svgf = cmd.svgf;

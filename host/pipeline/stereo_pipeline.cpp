@@ -33,7 +33,7 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
     if (local(d)) images_[d] = FrameImages::allocate(devices.context(), width, height);
   // The units, each registered for the stages it runs (adding a stage: its unit here, its row
   // in the pipelines' tables).
-  path_trace_ = &add_unit<PathTraceStage>({Stage::PathTraceLeft, Stage::PathTraceRight}, options.trace);
+  path_trace_ = &add_unit<PathTraceStage>({Stage::PathTraceLeft, Stage::PathTraceRight}, options.trace, options.path_kernel);
   add_unit<GBufferStage>({Stage::GBuffer});
   add_unit<ReprojectStage>({Stage::Reproject});
   add_unit<HoleFillStage>({Stage::HoleFill}, *path_trace_, options.hole_fill);

@@ -66,6 +66,8 @@ class StereoPipeline {
   struct Options {
     PipelineKind pipeline = PipelineKind::Proposed;
     PathTracer::Options trace;
+    // Stages 2, 5 and 12: the megakernel or the wavefront tracer (same images).
+    PathTraceKernel path_kernel = PathTraceKernel::Megakernel;
     float exposure = 1.0f;
     bool denoise = true;
     SvgfDenoiser::Options svgf;

@@ -7,127 +7,26 @@
  * A path whose radiance is not finite is dropped (left out of the pixel's mean) and counted
  * in `nonfinite`: no NaN or Inf ever reaches the output. */
 #include "shared/types.h"
+#include "pathtrace/path_vertex.h"
+#include "pathtrace/pixel_mean.h"
 #include "render/camera.h"
-#include "sampling/sample_stream.h"
-#include "sampling/warp.h"
-#include "scene/scene_view.h"
-#include "shading/bsdf.h"
-#include "shading/lights.h"
-#include "shading/material.h"
-#include "shading/normal_map.h"
-#include "trace/ray_offset.h"
 #include "trace/traverse.h"
 
-/* Radiance along one camera path. *primary_albedo receives the demodulation albedo of the
- * first vertex (px_demodulation_albedo; 1 where the ray escapes or meets an emitter, whose
- * radiance is its own "illumination") and, in w, 1 where that vertex is a surface the denoiser
- * filters (not an emitter, not the environment), else 0. */
+/* Radiance along one camera path, its vertices in a loop (path_vertex.h); *primary_albedo
+ * receives PathVertex::primary_albedo. */
 inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir,
                             SampleKey key, float4* primary_albedo) {
-  *primary_albedo = (float4)(1.0f, 1.0f, 1.0f, 0.0f);
-  float3 radiance = (float3)(0.0f, 0.0f, 0.0f);
-  float3 throughput = (float3)(1.0f, 1.0f, 1.0f);
-  float prev_pdf = 0.0f;
-  int prev_delta = 1; /* the camera ray counts as a delta "bounce": emission seen directly is kept */
-  float3 prev_n = (float3)(0.0f, 1.0f, 0.0f);
-  const int use_nee = fp->light_sampling != PX_LIGHTS_BSDF;
-  const int use_bsdf_light = fp->light_sampling != PX_LIGHTS_NEE;
-
+  PathVertex v = px_camera_path(org, dir);
   for (uint bounce = 0; bounce <= fp->max_bounces; ++bounce) {
-    const Hit hit = px_trace_closest_leaf(scene, org, dir, 0.0f, INFINITY);
-    if (hit.prim == PX_NO_HIT) {
-      const float3 le = px_environment(fp, dir);
-      float w = 1.0f;
-      if (!prev_delta) {
-        if (!use_bsdf_light) w = 0.0f;
-        else if (use_nee) w = px_mis_power(prev_pdf, px_environment_pdf(fp, prev_n, dir));
-      }
-      radiance += throughput * le * w;
-      break;
-    }
-
-    const global BvhTriangle* tri = scene->tris + hit.prim;
-    const uint prim = tri->prim;
-    const global TriangleShading* sh = scene->shading + prim;
-    const global GpuMaterial* mat = scene->materials + sh->material;
-    const float3 v0 = px_load3(tri->v0), v1 = px_load3(tri->v1), v2 = px_load3(tri->v2);
-    const float bw = 1.0f - hit.u - hit.v;
-    const float3 p = bw * v0 + hit.u * v1 + hit.v * v2;
-    const float3 wo = -dir;
-    float3 ng = normalize(cross(v1 - v0, v2 - v0));
-    float3 ns = bw * px_load3(sh->n0) + hit.u * px_load3(sh->n1) + hit.v * px_load3(sh->n2);
-    const float ns_len = length(ns);
-    ns = ns_len > 0.0f && isfinite(ns_len) ? ns / ns_len : ng;
-    /* The winding order's normal is the front; emitters light only that side (unless two-sided). */
-    const int front_face = dot(ng, wo) > 0.0f;
-    /* The side the path arrives from, for glass: the geometric normal oriented like the vertex
-     * normals (outwards on closed meshes), taken before the two-sided flips below. */
-    const int outside = front_face == (dot(ng, ns) >= 0.0f);
-    /* Two-sided surfaces: face both normals towards the viewer of this vertex. */
-    if (!front_face) ng = -ng;
-    if (dot(ns, ng) < 0.0f) ns = -ns;
-
-    if ((mat->flags & PX_MAT_EMISSIVE) && (front_face || (mat->flags & PX_MAT_TWO_SIDED_EMITTER))) {
-      float w = 1.0f;
-      if (!prev_delta) {
-        if (!use_bsdf_light) {
-          w = 0.0f;
-        } else if (use_nee) {
-          const int li = px_find_light(scene, fp->light_count, prim);
-          const float lp = li >= 0 ? px_triangle_light_pdf(fp, scene->lights + li, hit.t, fabs(dot(ng, dir))) : 0.0f;
-          w = px_mis_power(prev_pdf, lp);
-        }
-      }
-      radiance += throughput * px_load3(mat->emission) * w;
-    }
-    if (bounce == fp->max_bounces) break;
-
-    float3 albedo = px_load3(mat->diffuse);
-    if (mat->diffuse_texture >= 0)
-      albedo *= px_texture_bilinear(scene, mat->diffuse_texture, px_interpolate_uv(sh, hit.u, hit.v)).xyz;
-    const float2 uv = px_interpolate_uv(sh, hit.u, hit.v);
-    if (mat->normal_texture >= 0) ns = px_normal_mapped(scene, mat, sh, v0, v1, v2, uv, ns, wo);
-    const Bsdf bsdf = px_material_bsdf(scene, mat, albedo, uv, outside);
-    if (bounce == 0u && !(mat->flags & PX_MAT_EMISSIVE)) *primary_albedo = (float4)(px_demodulation_albedo(&bsdf), 1.0f);
-    const float3 origin = px_offset_ray_origin(p, ng);
-    const float4 u_light = px_sample4(key, 1u + 2u * bounce);
-    const float4 u_bsdf = px_sample4(key, 2u + 2u * bounce);
-
-    /* Next-event estimation (only the non-delta part of the BSDF can use it). */
-    const int has_smooth = bsdf.p_specular < 1.0f || !bsdf.mirror;
-    if (use_nee && has_smooth) {
-      const LightSample ls = px_sample_light(scene, fp, p, ns, u_light);
-      if (ls.pdf > 0.0f && dot(ng, ls.wi) > 0.0f && dot(ns, ls.wi) > 0.0f) {
-        const float3 f = px_bsdf_eval(&bsdf, ns, wo, ls.wi);
-        if (f.x + f.y + f.z > 0.0f) {
-          /* Stop short of the light's own surface; environment rays are unbounded. */
-          const float tmax = isinf(ls.dist) ? INFINITY : ls.dist * (1.0f - 1e-4f);
-          if (!px_trace_any(scene, origin, ls.wi, 0.0f, tmax)) {
-            const float w = use_bsdf_light ? px_mis_power(ls.pdf, px_bsdf_pdf(&bsdf, ns, wo, ls.wi)) : 1.0f;
-            radiance += throughput * f * ls.radiance * (dot(ns, ls.wi) * w / ls.pdf);
-          }
-        }
-      }
-    }
-
-    const BsdfSample bs = px_bsdf_sample(&bsdf, ns, wo, u_bsdf.xyz);
-    /* A refracted direction must cross the surface; any other must stay on the viewer's side. */
-    const float side = bs.transmitted ? -1.0f : 1.0f;
-    if (!bs.valid || side * dot(ng, bs.wi) <= 0.0f) break;
-    throughput *= bs.weight;
-    prev_pdf = bs.pdf;
-    prev_delta = bs.delta;
-    prev_n = ns;
-
-    if (bounce + 1u >= fp->rr_start_bounce) {
-      const float q = fmin(0.95f, fmax(throughput.x, fmax(throughput.y, throughput.z)));
-      if (!(u_bsdf.w < q)) break;
-      throughput /= q;
-    }
-    org = bs.transmitted ? px_offset_ray_origin(p, -ng) : origin;
-    dir = bs.wi;
+    const Hit hit = px_trace_closest_leaf(scene, v.org, v.dir, 0.0f, INFINITY);
+    ShadowRay shadow;
+    const int goes_on = px_path_vertex(scene, fp, key, bounce, hit, &v, &shadow);
+    if (shadow.valid && !px_trace_any(scene, shadow.org, shadow.dir, 0.0f, shadow.tmax))
+      v.radiance += shadow.contribution;
+    if (!goes_on) break;
   }
-  return radiance;
+  *primary_albedo = v.primary_albedo;
+  return v.radiance;
 }
 
 /* Sample s of pixel (x, y): the radiance of its camera path, and in *albedo the path's primary
@@ -139,16 +38,6 @@ inline float3 px_render_sample(const SceneView* scene, const FrameParams* fp, co
   const float4 u = px_sample4(key, 0u);
   const float3 dir = px_camera_dir(cam, x, y, u.x, u.y);
   return px_trace_path(scene, fp, px_camera_origin(cam), dir, key, albedo);
-}
-
-inline int px_finite3(float3 v) { return isfinite(v.x) && isfinite(v.y) && isfinite(v.z); }
-
-/* A pixel's mean from the sum of its `good` finite samples: (rgb, good), and in *albedo the mean
- * albedo (w: the coverage). No finite path: (1, 1, 1, 0). */
-inline float4 px_pixel_mean(float3 sum, float4 albedo_sum, uint good, float4* albedo) {
-  const float inv = good > 0u ? 1.0f / (float)good : 0.0f;
-  *albedo = good > 0u ? albedo_sum * inv : (float4)(1.0f, 1.0f, 1.0f, 0.0f);
-  return (float4)(good > 0u ? sum / (float)good : sum, (float)good);
 }
 
 /* Mean radiance of pixel (x, y): fp->spp paths; a path with non-finite radiance is dropped

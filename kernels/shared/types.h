@@ -389,6 +389,32 @@ typedef struct FrameParams {
 #define PX_LIGHTS_NEE 1u
 #define PX_LIGHTS_BSDF 2u
 
+/* The wavefront path tracer (kernels/pathtrace/wavefront.cl) keeps every path of a launch (one
+ * per (pixel, sample) pair, path i = slot * spp + sample) in global memory between its kernels.
+ * Per path, in float4 buffers:
+ *
+ *   path state, PX_PATH_STATE_FLOAT4S float4 (96 bytes; PathVertex in pathtrace/path_vertex.h):
+ *     0  org.xyz, prev_pdf            the next ray's origin; the last BSDF sample's pdf
+ *     1  dir.xyz, prev_delta          the next ray's direction; 1.0f after a delta bounce
+ *     2  throughput.xyz, 0
+ *     3  radiance.xyz, 0              gathered so far
+ *     4  prev_n.xyz, 0                the last vertex's shading normal
+ *     5  primary_albedo               the denoiser's demodulation albedo (w: coverage)
+ *   shadow ray, PX_SHADOW_RAY_FLOAT4S float4 (48 bytes; ShadowRay there):
+ *     0  org.xyz, tmax
+ *     1  dir.xyz, 0
+ *     2  contribution.xyz, 0          added to the radiance if nothing blocks the ray
+ *
+ * and besides: one Hit, one uint pixel index (full frame) per path, two uint queues of live
+ * path indices (swapped every vertex), one of paths with a shadow ray, and the counters
+ * (uint[PX_WAVEFRONT_COUNTERS]): [0] the launch's slots (pixels); [PX_WF_LIVE + b] the paths
+ * alive at vertex b; [PX_WF_SHADOWS + b] the shadow rays made at vertex b, b = 0..max_bounces. */
+#define PX_PATH_STATE_FLOAT4S 6u
+#define PX_SHADOW_RAY_FLOAT4S 3u
+#define PX_WF_LIVE 1u
+#define PX_WF_SHADOWS (PX_WF_LIVE + PX_MAX_BOUNCES_LIMIT + 1u)
+#define PX_WAVEFRONT_COUNTERS (PX_WF_SHADOWS + PX_MAX_BOUNCES_LIMIT + 1u)
+
 
 /* One G-buffer texel (stage 3): what the primary ray through the pixel centre hit, 36 bytes.
  * (No albedo: the denoiser demodulates by the path tracer's per-pixel mean albedo of the

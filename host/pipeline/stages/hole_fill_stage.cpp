@@ -4,7 +4,7 @@
 
 namespace px {
 
-HoleFillStage::HoleFillStage(StageEnv& env, const PathTraceStage& tracer, const Options& options)
+HoleFillStage::HoleFillStage(StageEnv& env, PathTraceStage& tracer, const Options& options)
     : StageUnit(env), tracer_(tracer), options_(options), scratch_(env.layout.count()), gpu_(env.layout.count()) {
   for (int d = 0; d < env.layout.count(); ++d)
     gpu_[d] = env.local(d) && env.devices.devices()[env.layout.local_index(d)].is_gpu();
@@ -24,6 +24,16 @@ void HoleFillStage::run(const std::vector<const Operation*>& ops, const FrameInp
     if (!env_.local(op->device)) continue;
     const FrameImages& f = env_.images[op->device];
     const FrameParams fp = tracer_.frame_params(1, op->rows, in.frame);
+    if (tracer_.kernel() == PathTraceKernel::Wavefront) {
+      const PathTracer::Targets out{f.radiance[1], f.albedo[1], f.nonfinite_paths};
+      tracer_.record(Stage::HoleFill, op->device,
+                     WavefrontPathTracer::trace_list(env_.devices.context(), env_.queue(op->device),
+                                                     env_.devices.program("pathtrace/wavefront.cl"),
+                                                     env_.scene_on(op->device), tracer_.wavefront_scratch(op->device),
+                                                     out, f.holes, f.hole_count, env_.pixels(op->rows), fp,
+                                                     in.cams[1]));
+      continue;
+    }
     const cl::Program& program = env_.devices.program("pathtrace/path_trace.cl");
     // Launches are sized for the worst case (every pixel a hole): the hole count lives on the
     // device, so no host round trip is needed between reprojection and hole filling.

@@ -1,5 +1,6 @@
 // Stage 5: path traces the right-eye pixels reprojection left in the hole list, with the path
-// tracing stage's options (the same spp and bounces as the left eye).
+// tracing stage's options (the same spp and bounces as the left eye) and its kind of tracer
+// (with the wavefront tracer, `spread` does not apply: its paths are work-items already).
 #pragma once
 
 #include "pipeline/stages/path_trace_stage.h"
@@ -24,7 +25,7 @@ class HoleFillStage : public StageUnit {
   // 4 spp. Beyond this many samples, Auto keeps a work-item per hole.
   static constexpr unsigned kMaxSpreadSpp = 8;
 
-  HoleFillStage(StageEnv& env, const PathTraceStage& tracer, const Options& options);
+  HoleFillStage(StageEnv& env, PathTraceStage& tracer, const Options& options);
   void run(const std::vector<const Operation*>& ops, const FrameInputs& in) override;
 
   // Whether device `d` spreads samples at `spp` (options().spread resolved for its type).
@@ -36,7 +37,7 @@ class HoleFillStage : public StageUnit {
     cl::Buffer samples;
     std::size_t bytes = 0;
   };
-  const PathTraceStage& tracer_;
+  PathTraceStage& tracer_;  // its options, and its wavefront buffers
   Options options_;
   std::vector<Scratch> scratch_;  // per device, grown to the frame's pixels x spp on first use
   std::vector<bool> gpu_;         // per device: a local GPU

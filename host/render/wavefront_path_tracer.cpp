@@ -1,0 +1,143 @@
+#include "render/wavefront_path_tracer.h"
+
+#include "cl/launch.h"
+
+#include <stdexcept>
+#include <string>
+
+namespace px {
+
+const char* to_string(PathTraceKernel kernel) {
+  return kernel == PathTraceKernel::Wavefront ? "wavefront" : "megakernel";
+}
+
+PathTraceKernel parse_path_trace_kernel(const std::string& name) {
+  if (name == "megakernel") return PathTraceKernel::Megakernel;
+  if (name == "wavefront") return PathTraceKernel::Wavefront;
+  throw std::invalid_argument("unknown path tracer '" + name + "' (megakernel or wavefront)");
+}
+
+void WavefrontPathTracer::Scratch::reserve(const cl::Context& context, std::size_t n) {
+  if (n <= paths) return;
+  states = cl::Buffer(context, CL_MEM_READ_WRITE, n * PX_PATH_STATE_FLOAT4S * sizeof(cl_float4));
+  shadows = cl::Buffer(context, CL_MEM_READ_WRITE, n * PX_SHADOW_RAY_FLOAT4S * sizeof(cl_float4));
+  hits = cl::Buffer(context, CL_MEM_READ_WRITE, n * sizeof(Hit));
+  path_pixel = cl::Buffer(context, CL_MEM_READ_WRITE, n * sizeof(cl_uint));
+  for (auto& q : queue) q = cl::Buffer(context, CL_MEM_READ_WRITE, n * sizeof(cl_uint));
+  shadow_queue = cl::Buffer(context, CL_MEM_READ_WRITE, n * sizeof(cl_uint));
+  if (!counts()) counts = cl::Buffer(context, CL_MEM_READ_WRITE, PX_WAVEFRONT_COUNTERS * sizeof(cl_uint));
+  paths = n;
+}
+
+namespace {
+
+static_assert(WavefrontPathTracer::kBytesPerPath ==
+              (PX_PATH_STATE_FLOAT4S + PX_SHADOW_RAY_FLOAT4S) * sizeof(cl_float4) + sizeof(Hit) + 4 * sizeof(cl_uint));
+
+// Everything after the generate kernel: the vertices, then the pixels. `paths` bounds every
+// launch (the queues' counts live on the device, so the host never waits for them).
+void trace_vertices(const cl::CommandQueue& queue, const cl::Program& program, const DeviceSceneBuffers& scene,
+                    WavefrontPathTracer::Scratch& s, const PathTracer::Targets& out, const FrameParams& params,
+                    const CameraParams& camera, std::size_t slots, std::vector<WavefrontPathTracer::Command>& log) {
+  const std::size_t paths = slots * params.spp;
+  cl::Kernel extend(program, "wf_extend"), shade(program, "wf_shade"), connect(program, "wf_connect");
+  extend.setArg(0, s.states);
+  extend.setArg(1, s.hits);
+  extend.setArg(3, s.counts);
+  scene.bind(extend, 5);
+  shade.setArg(0, s.states);
+  shade.setArg(1, s.shadows);
+  shade.setArg(2, s.hits);
+  shade.setArg(3, s.path_pixel);
+  shade.setArg(6, s.shadow_queue);
+  shade.setArg(7, s.counts);
+  shade.setArg(9, params);
+  shade.setArg(10, camera);
+  scene.bind(shade, 11);
+  connect.setArg(0, s.states);
+  connect.setArg(1, s.shadows);
+  connect.setArg(2, s.shadow_queue);
+  connect.setArg(3, s.counts);
+  scene.bind(connect, 5);
+  for (cl_uint b = 0; b <= params.max_bounces; ++b) {
+    const cl::Buffer& live = s.queue[b % 2];
+    extend.setArg(2, live);
+    extend.setArg(4, b);
+    log.push_back({"extend", launch_1d(queue, extend, paths)});
+    shade.setArg(4, live);
+    shade.setArg(5, s.queue[(b + 1) % 2]);
+    shade.setArg(8, b);
+    log.push_back({"shade", launch_1d(queue, shade, paths)});
+    connect.setArg(4, b);
+    // The last vertex makes no shadow ray (px_path_vertex ends the path before sampling a light).
+    if (b < params.max_bounces) log.push_back({"connect", launch_1d(queue, connect, paths)});
+  }
+  cl::Kernel resolve(program, "wf_resolve");
+  resolve.setArg(0, out.radiance);
+  resolve.setArg(1, out.albedo);
+  resolve.setArg(2, out.nonfinite);
+  resolve.setArg(3, s.states);
+  resolve.setArg(4, s.path_pixel);
+  resolve.setArg(5, s.counts);
+  resolve.setArg(6, static_cast<cl_uint>(params.spp));
+  log.push_back({"resolve", launch_1d(queue, resolve, slots)});
+}
+
+void check_params(const FrameParams& params) {
+  if (params.spp == 0) throw std::invalid_argument("wavefront path tracer: spp must be at least 1");
+  if (params.max_bounces > PX_MAX_BOUNCES_LIMIT)
+    throw std::invalid_argument("wavefront path tracer: too many bounces");
+}
+
+std::vector<WavefrontPathTracer::Command> start(const cl::CommandQueue& queue, WavefrontPathTracer::Scratch& s) {
+  std::vector<WavefrontPathTracer::Command> log;
+  cl::Event zeroed;
+  queue.enqueueFillBuffer(s.counts, cl_uint{0}, 0, PX_WAVEFRONT_COUNTERS * sizeof(cl_uint), nullptr, &zeroed);
+  log.push_back({"reset", zeroed});
+  return log;
+}
+
+}  // namespace
+
+std::vector<WavefrontPathTracer::Command> WavefrontPathTracer::trace_rows(
+    const cl::Context& context, const cl::CommandQueue& queue, const cl::Program& program,
+    const DeviceSceneBuffers& scene, Scratch& scratch, const PathTracer::Targets& out, const FrameParams& params,
+    const CameraParams& camera, unsigned width) {
+  check_params(params);
+  const std::size_t slots = static_cast<std::size_t>(params.rows) * width;
+  scratch.reserve(context, slots * params.spp);
+  auto log = start(queue, scratch);
+  cl::Kernel generate(program, "wf_generate_rows");
+  generate.setArg(0, scratch.states);
+  generate.setArg(1, scratch.path_pixel);
+  generate.setArg(2, scratch.queue[0]);
+  generate.setArg(3, scratch.counts);
+  generate.setArg(4, params);
+  generate.setArg(5, camera);
+  log.push_back({"generate", launch_1d(queue, generate, slots * params.spp)});
+  trace_vertices(queue, program, scene, scratch, out, params, camera, slots, log);
+  return log;
+}
+
+std::vector<WavefrontPathTracer::Command> WavefrontPathTracer::trace_list(
+    const cl::Context& context, const cl::CommandQueue& queue, const cl::Program& program,
+    const DeviceSceneBuffers& scene, Scratch& scratch, const PathTracer::Targets& out, const cl::Buffer& holes,
+    const cl::Buffer& hole_count, std::size_t max_pixels, const FrameParams& params, const CameraParams& camera) {
+  check_params(params);
+  scratch.reserve(context, max_pixels * params.spp);
+  auto log = start(queue, scratch);
+  cl::Kernel generate(program, "wf_generate_list");
+  generate.setArg(0, scratch.states);
+  generate.setArg(1, scratch.path_pixel);
+  generate.setArg(2, scratch.queue[0]);
+  generate.setArg(3, scratch.counts);
+  generate.setArg(4, holes);
+  generate.setArg(5, hole_count);
+  generate.setArg(6, params);
+  generate.setArg(7, camera);
+  log.push_back({"generate", launch_1d(queue, generate, max_pixels * params.spp)});
+  trace_vertices(queue, program, scene, scratch, out, params, camera, max_pixels, log);
+  return log;
+}
+
+}  // namespace px

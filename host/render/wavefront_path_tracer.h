@@ -1,0 +1,51 @@
+// The wavefront path tracer's launches (kernels/pathtrace/wavefront.cl): the megakernel's
+// images, a kernel per path step. Which of the two a device runs is PathTraceKernel; both give
+// the same images to the last bit, so the choice is speed alone (GPUs: measure with
+// bench_pipelines --path-tracer).
+#pragma once
+
+#include "cl/cl_error.h"
+#include "render/device_scene.h"
+#include "render/path_tracer.h"
+
+#include <cstddef>
+#include <vector>
+
+namespace px {
+
+enum class PathTraceKernel { Megakernel, Wavefront };
+const char* to_string(PathTraceKernel kernel);
+PathTraceKernel parse_path_trace_kernel(const std::string& name);  // throws std::invalid_argument
+
+class WavefrontPathTracer {
+ public:
+  // One device's path buffers (types.h: PX_PATH_STATE_FLOAT4S), grown on demand and reused
+  // frame after frame: 96 + 48 + 16 + 4 * 4 = 176 bytes per path, e.g. 162 MB for 1280x720
+  // pixels at 1 spp.
+  struct Scratch {
+    cl::Buffer states, shadows, hits, path_pixel, queue[2], shadow_queue, counts;
+    std::size_t paths = 0;
+    void reserve(const cl::Context& context, std::size_t paths);
+  };
+  static constexpr std::size_t kBytesPerPath = 176;
+
+  // A launch's commands, in order, with the pass each belongs to (for the event log).
+  struct Command {
+    const char* pass;
+    cl::Event event;
+  };
+
+  // `params.rows` rows of `width` pixels from `params.row0`: every pixel, params.spp paths each.
+  static std::vector<Command> trace_rows(const cl::Context& context, const cl::CommandQueue& queue,
+                                         const cl::Program& program, const DeviceSceneBuffers& scene,
+                                         Scratch& scratch, const PathTracer::Targets& out, const FrameParams& params,
+                                         const CameraParams& camera, unsigned width);
+  // The pixels listed in `holes` (*hole_count of them, on the device; at most `max_pixels`).
+  static std::vector<Command> trace_list(const cl::Context& context, const cl::CommandQueue& queue,
+                                         const cl::Program& program, const DeviceSceneBuffers& scene,
+                                         Scratch& scratch, const PathTracer::Targets& out, const cl::Buffer& holes,
+                                         const cl::Buffer& hole_count, std::size_t max_pixels,
+                                         const FrameParams& params, const CameraParams& camera);
+};
+
+}  // namespace px

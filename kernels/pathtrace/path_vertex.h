@@ -1,0 +1,167 @@
+/* One vertex of a camera path: what the path tracer does between two closest-hit queries.
+ *
+ * Both path tracers are built from it, so they compute the same paths to the last bit:
+ *   - the megakernel (path_trace.cl: px_trace_path) loops over the vertices of one path in
+ *     one work-item, tracing each shadow ray where it is made;
+ *   - the wavefront tracer (wavefront.cl) runs one kernel per step over all paths (extend:
+ *     closest hits; shade: px_path_vertex; connect: the shadow rays), keeping PathVertex in
+ *     global memory between them (types.h: PX_PATH_STATE_FLOAT4S).
+ * The shadow ray's contribution is computed here and added by the caller once the ray is known
+ * to be unoccluded, in both tracers, so the additions to the radiance happen in the same order
+ * and with the same roundings. */
+#ifndef PARALLAX_PATH_VERTEX_H
+#define PARALLAX_PATH_VERTEX_H
+
+#include "shared/types.h"
+#include "sampling/sample_stream.h"
+#include "sampling/warp.h"
+#include "scene/scene_view.h"
+#include "shading/bsdf.h"
+#include "shading/lights.h"
+#include "shading/material.h"
+#include "shading/normal_map.h"
+#include "trace/ray_offset.h"
+
+/* The state a path carries from one vertex to the next. */
+typedef struct PathVertex {
+  float3 org, dir;    /* the next ray */
+  float3 throughput;
+  float3 radiance;    /* gathered so far */
+  float3 prev_n;      /* shading normal of the last vertex (the environment's MIS pdf) */
+  float prev_pdf;     /* pdf of the last BSDF sample (MIS) */
+  int prev_delta;     /* the last bounce was a delta one (the camera ray counts as one) */
+  /* The demodulation albedo of the first vertex (px_demodulation_albedo; 1 where the ray
+   * escapes or meets an emitter, whose radiance is its own "illumination") and, in w, 1 where
+   * that vertex is a surface the denoiser filters (not an emitter, not the environment), else 0. */
+  float4 primary_albedo;
+} PathVertex;
+
+/* A next-event-estimation ray and what it adds to the radiance if nothing blocks it. */
+typedef struct ShadowRay {
+  float3 org, dir, contribution;
+  float tmax;
+  int valid;
+} ShadowRay;
+
+inline PathVertex px_camera_path(float3 org, float3 dir) {
+  PathVertex v;
+  v.org = org;
+  v.dir = dir;
+  v.throughput = (float3)(1.0f, 1.0f, 1.0f);
+  v.radiance = (float3)(0.0f, 0.0f, 0.0f);
+  v.prev_n = (float3)(0.0f, 1.0f, 0.0f);
+  v.prev_pdf = 0.0f;
+  v.prev_delta = 1;
+  v.primary_albedo = (float4)(1.0f, 1.0f, 1.0f, 0.0f);
+  return v;
+}
+
+/* Vertex `bounce` of path *v, whose ray (v->org, v->dir) found `hit`: adds what the vertex
+ * emits (or the environment, for a miss), prepares the shadow ray of next-event estimation in
+ * *shadow (valid = 0 if none), samples the BSDF for the next ray and applies Russian roulette.
+ * Returns 1 if the path goes on from the updated *v, 0 if it ends here (the shadow ray, if
+ * valid, still counts). */
+inline int px_path_vertex(const SceneView* scene, const FrameParams* fp, SampleKey key, uint bounce, Hit hit,
+                          PathVertex* v, ShadowRay* shadow) {
+  shadow->valid = 0;
+  const int use_nee = fp->light_sampling != PX_LIGHTS_BSDF;
+  const int use_bsdf_light = fp->light_sampling != PX_LIGHTS_NEE;
+  const float3 dir = v->dir;
+
+  if (hit.prim == PX_NO_HIT) {
+    const float3 le = px_environment(fp, dir);
+    float w = 1.0f;
+    if (!v->prev_delta) {
+      if (!use_bsdf_light) w = 0.0f;
+      else if (use_nee) w = px_mis_power(v->prev_pdf, px_environment_pdf(fp, v->prev_n, dir));
+    }
+    v->radiance += v->throughput * le * w;
+    return 0;
+  }
+
+  const global BvhTriangle* tri = scene->tris + hit.prim;
+  const uint prim = tri->prim;
+  const global TriangleShading* sh = scene->shading + prim;
+  const global GpuMaterial* mat = scene->materials + sh->material;
+  const float3 v0 = px_load3(tri->v0), v1 = px_load3(tri->v1), v2 = px_load3(tri->v2);
+  const float bw = 1.0f - hit.u - hit.v;
+  const float3 p = bw * v0 + hit.u * v1 + hit.v * v2;
+  const float3 wo = -dir;
+  float3 ng = normalize(cross(v1 - v0, v2 - v0));
+  float3 ns = bw * px_load3(sh->n0) + hit.u * px_load3(sh->n1) + hit.v * px_load3(sh->n2);
+  const float ns_len = length(ns);
+  ns = ns_len > 0.0f && isfinite(ns_len) ? ns / ns_len : ng;
+  /* The winding order's normal is the front; emitters light only that side (unless two-sided). */
+  const int front_face = dot(ng, wo) > 0.0f;
+  /* The side the path arrives from, for glass: the geometric normal oriented like the vertex
+   * normals (outwards on closed meshes), taken before the two-sided flips below. */
+  const int outside = front_face == (dot(ng, ns) >= 0.0f);
+  /* Two-sided surfaces: face both normals towards the viewer of this vertex. */
+  if (!front_face) ng = -ng;
+  if (dot(ns, ng) < 0.0f) ns = -ns;
+
+  if ((mat->flags & PX_MAT_EMISSIVE) && (front_face || (mat->flags & PX_MAT_TWO_SIDED_EMITTER))) {
+    float w = 1.0f;
+    if (!v->prev_delta) {
+      if (!use_bsdf_light) {
+        w = 0.0f;
+      } else if (use_nee) {
+        const int li = px_find_light(scene, fp->light_count, prim);
+        const float lp = li >= 0 ? px_triangle_light_pdf(fp, scene->lights + li, hit.t, fabs(dot(ng, dir))) : 0.0f;
+        w = px_mis_power(v->prev_pdf, lp);
+      }
+    }
+    v->radiance += v->throughput * px_load3(mat->emission) * w;
+  }
+  if (bounce == fp->max_bounces) return 0;
+
+  float3 albedo = px_load3(mat->diffuse);
+  if (mat->diffuse_texture >= 0)
+    albedo *= px_texture_bilinear(scene, mat->diffuse_texture, px_interpolate_uv(sh, hit.u, hit.v)).xyz;
+  const float2 uv = px_interpolate_uv(sh, hit.u, hit.v);
+  if (mat->normal_texture >= 0) ns = px_normal_mapped(scene, mat, sh, v0, v1, v2, uv, ns, wo);
+  const Bsdf bsdf = px_material_bsdf(scene, mat, albedo, uv, outside);
+  if (bounce == 0u && !(mat->flags & PX_MAT_EMISSIVE))
+    v->primary_albedo = (float4)(px_demodulation_albedo(&bsdf), 1.0f);
+  const float3 origin = px_offset_ray_origin(p, ng);
+  const float4 u_light = px_sample4(key, 1u + 2u * bounce);
+  const float4 u_bsdf = px_sample4(key, 2u + 2u * bounce);
+
+  /* Next-event estimation (only the non-delta part of the BSDF can use it). */
+  const int has_smooth = bsdf.p_specular < 1.0f || !bsdf.mirror;
+  if (use_nee && has_smooth) {
+    const LightSample ls = px_sample_light(scene, fp, p, ns, u_light);
+    if (ls.pdf > 0.0f && dot(ng, ls.wi) > 0.0f && dot(ns, ls.wi) > 0.0f) {
+      const float3 f = px_bsdf_eval(&bsdf, ns, wo, ls.wi);
+      if (f.x + f.y + f.z > 0.0f) {
+        const float w = use_bsdf_light ? px_mis_power(ls.pdf, px_bsdf_pdf(&bsdf, ns, wo, ls.wi)) : 1.0f;
+        shadow->valid = 1;
+        shadow->org = origin;
+        shadow->dir = ls.wi;
+        /* Stop short of the light's own surface; environment rays are unbounded. */
+        shadow->tmax = isinf(ls.dist) ? INFINITY : ls.dist * (1.0f - 1e-4f);
+        shadow->contribution = v->throughput * f * ls.radiance * (dot(ns, ls.wi) * w / ls.pdf);
+      }
+    }
+  }
+
+  const BsdfSample bs = px_bsdf_sample(&bsdf, ns, wo, u_bsdf.xyz);
+  /* A refracted direction must cross the surface; any other must stay on the viewer's side. */
+  const float side = bs.transmitted ? -1.0f : 1.0f;
+  if (!bs.valid || side * dot(ng, bs.wi) <= 0.0f) return 0;
+  v->throughput *= bs.weight;
+  v->prev_pdf = bs.pdf;
+  v->prev_delta = bs.delta;
+  v->prev_n = ns;
+
+  if (bounce + 1u >= fp->rr_start_bounce) {
+    const float q = fmin(0.95f, fmax(v->throughput.x, fmax(v->throughput.y, v->throughput.z)));
+    if (!(u_bsdf.w < q)) return 0;
+    v->throughput /= q;
+  }
+  v->org = bs.transmitted ? px_offset_ray_origin(p, -ng) : origin;
+  v->dir = bs.wi;
+  return 1;
+}
+
+#endif

@@ -1,0 +1,16 @@
+/* A pixel's value from its samples, shared by every path tracer (path_trace.cl's kernels and
+ * wavefront.cl's wf_resolve), so that they agree to the last bit. */
+#ifndef PARALLAX_PIXEL_MEAN_H
+#define PARALLAX_PIXEL_MEAN_H
+
+inline int px_finite3(float3 v) { return isfinite(v.x) && isfinite(v.y) && isfinite(v.z); }
+
+/* A pixel's mean from the sum of its `good` finite samples: (rgb, good), and in *albedo the mean
+ * albedo (w: the coverage). No finite path: (1, 1, 1, 0). */
+inline float4 px_pixel_mean(float3 sum, float4 albedo_sum, uint good, float4* albedo) {
+  const float inv = good > 0u ? 1.0f / (float)good : 0.0f;
+  *albedo = good > 0u ? albedo_sum * inv : (float4)(1.0f, 1.0f, 1.0f, 0.0f);
+  return (float4)(good > 0u ? sum / (float)good : sum, (float)good);
+}
+
+#endif

@@ -1,0 +1,168 @@
+/* Wavefront path tracing: the megakernel's paths (path_trace.cl), computed one step at a time
+ * over all paths of a launch, a kernel per step (Laine, Karras, Aila 2013, "Megakernels
+ * considered harmful"):
+ *
+ *   wf_generate_rows / wf_generate_list   a camera ray per (pixel, sample) pair
+ *   then for each vertex b = 0..max_bounces, over the paths still alive:
+ *     wf_extend    closest hits
+ *     wf_shade     px_path_vertex: emission, next-event ray, BSDF sample, Russian roulette;
+ *                  the paths that go on are appended to the next vertex's queue
+ *     wf_connect   the shadow rays; unblocked ones add their contribution
+ *   wf_resolve    each pixel's mean over its samples, as px_render_pixel takes it
+ *
+ * Each kernel does less, so it needs fewer registers than the megakernel and its work-items
+ * diverge less (a work-group traces rays, or shades, but not both); the queues drop the paths
+ * that ended. The price is the path state's round trip through memory at every vertex. Every
+ * sample is the megakernel's to the last bit: the same vertex code (path_vertex.h), the same
+ * additions in the same order, the same per-pixel sum (buffers: types.h, PX_PATH_STATE_FLOAT4S).
+ * Launches are sized for the worst case (every path alive); items past a queue's count return. */
+#include "shared/types.h"
+#include "pathtrace/path_vertex.h"
+#include "pathtrace/pixel_mean.h"
+#include "render/camera.h"
+#include "trace/traverse.h"
+
+inline void px_store_path(global float4* states, uint i, const PathVertex* v) {
+  global float4* s = states + (size_t)i * PX_PATH_STATE_FLOAT4S;
+  s[0] = (float4)(v->org, v->prev_pdf);
+  s[1] = (float4)(v->dir, v->prev_delta ? 1.0f : 0.0f);
+  s[2] = (float4)(v->throughput, 0.0f);
+  s[3] = (float4)(v->radiance, 0.0f);
+  s[4] = (float4)(v->prev_n, 0.0f);
+  s[5] = v->primary_albedo;
+}
+
+inline PathVertex px_load_path(const global float4* states, uint i) {
+  const global float4* s = states + (size_t)i * PX_PATH_STATE_FLOAT4S;
+  PathVertex v;
+  const float4 o = s[0], d = s[1];
+  v.org = o.xyz;
+  v.prev_pdf = o.w;
+  v.dir = d.xyz;
+  v.prev_delta = d.w != 0.0f;
+  v.throughput = s[2].xyz;
+  v.radiance = s[3].xyz;
+  v.prev_n = s[4].xyz;
+  v.primary_albedo = s[5];
+  return v;
+}
+
+/* The sample stream of path i, which traces sample i % spp of full-frame pixel `pixel`. */
+inline SampleKey px_path_key(const FrameParams* fp, uint width, uint pixel, uint i) {
+  return px_sample_key(pixel % width, pixel / width, fp->frame, fp->eye, fp->sample_offset + i % fp->spp, fp->seed);
+}
+
+/* Path i's camera ray (px_render_sample's) from pixel `pixel`, queued for vertex 0. */
+inline void px_generate(global float4* states, global uint* path_pixel, global uint* queue, const FrameParams* fp,
+                        const CameraParams* cam, uint pixel, uint i) {
+  const SampleKey key = px_path_key(fp, cam->width, pixel, i);
+  const float4 u = px_sample4(key, 0u);
+  const float3 dir = px_camera_dir(cam, pixel % cam->width, pixel / cam->width, u.x, u.y);
+  const PathVertex v = px_camera_path(px_camera_origin(cam), dir);
+  px_store_path(states, i, &v);
+  path_pixel[i] = pixel;
+  queue[i] = i;
+}
+
+/* Every pixel of rows [fp.row0, fp.row0 + fp.rows), fp.spp paths each. */
+kernel void wf_generate_rows(global float4* states, global uint* path_pixel, global uint* queue, global uint* counts,
+                             FrameParams fp, CameraParams cam) {
+  const uint i = get_global_id(0);
+  const uint slots = fp.rows * cam.width;
+  if (i == 0u) {
+    counts[0] = slots;
+    counts[PX_WF_LIVE] = slots * fp.spp;
+  }
+  if (i >= slots * fp.spp) return;
+  px_generate(states, path_pixel, queue, &fp, &cam, fp.row0 * cam.width + i / fp.spp, i);
+}
+
+/* The *hole_count pixels listed in `holes` (stage 5), fp.spp paths each. */
+kernel void wf_generate_list(global float4* states, global uint* path_pixel, global uint* queue, global uint* counts,
+                             const global uint* holes, const global uint* hole_count, FrameParams fp,
+                             CameraParams cam) {
+  const uint i = get_global_id(0);
+  const uint slots = *hole_count;
+  if (i == 0u) {
+    counts[0] = slots;
+    counts[PX_WF_LIVE] = slots * fp.spp;
+  }
+  if (i >= slots * fp.spp) return;
+  px_generate(states, path_pixel, queue, &fp, &cam, holes[i / fp.spp], i);
+}
+
+kernel void wf_extend(const global float4* states, global Hit* hits, const global uint* queue,
+                      const global uint* counts, uint bounce, PX_SCENE_PARAMS) {
+  const uint j = get_global_id(0);
+  if (j >= counts[PX_WF_LIVE + bounce]) return;
+  const SceneView scene = PX_SCENE_VIEW();
+  const uint i = queue[j];
+  const global float4* s = states + (size_t)i * PX_PATH_STATE_FLOAT4S;
+  hits[i] = px_trace_closest_leaf(&scene, s[0].xyz, s[1].xyz, 0.0f, INFINITY);
+}
+
+kernel void wf_shade(global float4* states, global float4* shadows, const global Hit* hits,
+                     const global uint* path_pixel, const global uint* queue, global uint* next_queue,
+                     global uint* shadow_queue, volatile global uint* counts, uint bounce, FrameParams fp,
+                     CameraParams cam, PX_SCENE_PARAMS) {
+  const uint j = get_global_id(0);
+  if (j >= counts[PX_WF_LIVE + bounce]) return;
+  const SceneView scene = PX_SCENE_VIEW();
+  const uint i = queue[j];
+  PathVertex v = px_load_path(states, i);
+  ShadowRay shadow;
+  const int goes_on =
+      px_path_vertex(&scene, &fp, px_path_key(&fp, cam.width, path_pixel[i], i), bounce, hits[i], &v, &shadow);
+  px_store_path(states, i, &v);
+  if (shadow.valid) {
+    global float4* r = shadows + (size_t)i * PX_SHADOW_RAY_FLOAT4S;
+    r[0] = (float4)(shadow.org, shadow.tmax);
+    r[1] = (float4)(shadow.dir, 0.0f);
+    r[2] = (float4)(shadow.contribution, 0.0f);
+    shadow_queue[atomic_inc(counts + PX_WF_SHADOWS + bounce)] = i;
+  }
+  /* px_path_vertex ends every path at vertex max_bounces, so the next queue stays in range. */
+  if (goes_on) next_queue[atomic_inc(counts + PX_WF_LIVE + bounce + 1u)] = i;
+}
+
+kernel void wf_connect(global float4* states, const global float4* shadows, const global uint* shadow_queue,
+                       const global uint* counts, uint bounce, PX_SCENE_PARAMS) {
+  const uint j = get_global_id(0);
+  if (j >= counts[PX_WF_SHADOWS + bounce]) return;
+  const SceneView scene = PX_SCENE_VIEW();
+  const uint i = shadow_queue[j];
+  const global float4* r = shadows + (size_t)i * PX_SHADOW_RAY_FLOAT4S;
+  const float4 o = r[0];
+  if (px_trace_any(&scene, o.xyz, r[1].xyz, 0.0f, o.w)) return;
+  global float4* radiance = states + (size_t)i * PX_PATH_STATE_FLOAT4S + 3;
+  float3 l = (*radiance).xyz;
+  l += r[2].xyz;
+  *radiance = (float4)(l, 0.0f);
+}
+
+/* Slot k's pixel: its fp.spp samples summed in sample order (dropping and counting non-finite
+ * ones), then px_pixel_mean, as px_render_pixel does. */
+kernel void wf_resolve(global float4* out, global float4* albedo_out, volatile global uint* nonfinite,
+                       const global float4* states, const global uint* path_pixel, const global uint* counts,
+                       uint spp) {
+  const uint k = get_global_id(0);
+  if (k >= counts[0]) return;
+  float3 sum = (float3)(0.0f, 0.0f, 0.0f);
+  float4 albedo_sum = (float4)(0.0f, 0.0f, 0.0f, 0.0f);
+  uint good = 0;
+  for (uint s = 0; s < spp; ++s) {
+    const global float4* st = states + (size_t)(k * spp + s) * PX_PATH_STATE_FLOAT4S;
+    const float3 l = st[3].xyz;
+    if (px_finite3(l)) {
+      sum += l;
+      albedo_sum += st[5];
+      ++good;
+    } else {
+      atomic_inc(nonfinite);
+    }
+  }
+  const uint p = path_pixel[k * spp];
+  float4 albedo;
+  out[p] = px_pixel_mean(sum, albedo_sum, good, &albedo);
+  albedo_out[p] = albedo;
+}
