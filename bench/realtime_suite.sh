@@ -7,10 +7,12 @@
 #                        reference at frame 0 and at the last frame
 #   3. frame_wide8*.csv  the same with the uncompressed 8-wide BVH (PX_BVH_LAYOUT=wide8; a GPU's
 #                        default is cwbvh, so 2 and 3 compare the layouts on whole frames)
-#   4. render.json, timeline.json
+#   4. frame_wavefront*.csv  the same with the wavefront path tracer (--path-tracer wavefront),
+#                        no reference: its images are the megakernel's to the bit
+#   5. render.json, timeline.json
 #                        one render: per-stage report and the Chrome trace, whose slices name each
 #                        SVGF pass (per-pass times) and show the side queue's overlap
-#   5. frame4spp_*.csv   bench_pipelines at 4 spp (hole filling's per-pixel cost at more samples),
+#   6. frame4spp_*.csv   bench_pipelines at 4 spp (hole filling's per-pixel cost at more samples),
 #                        with stage 5's samples spread over work-items (auto: on GPUs) and not
 # plus devices.txt and each step's log. The whole run keeps within --budget seconds (default 540,
 # under a lent machine's 10-minute limit per command): each step may take at most 150 s, and
@@ -36,7 +38,7 @@ while [ $# -gt 0 ]; do
     --quick) quick=1; shift ;;
     --scene) scene="$2"; shift 2 ;;
     --budget) budget="$2"; shift 2 ;;
-    -h|--help) sed -n 2,24p "$0"; exit 0 ;;
+    -h|--help) sed -n '2,/^set -uo pipefail/{/^set/!p}' "$0"; exit 0 ;;
     *) echo "realtime_suite: unknown argument $1 (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -46,7 +48,7 @@ if [ $quick = 1 ]; then
 else
   w=1280 h=720 frames=50 ref=256 repeats=7 threads=$(nproc)
 fi
-steps_left=7  # the steps below (frame4spp runs twice)
+steps_left=8  # the steps below (frame4spp runs twice)
 deadline=$((SECONDS + budget))
 mkdir -p "$out" || { echo "realtime_suite: cannot create $out" >&2; exit 1; }
 out=$(cd "$out" && pwd)  # absolute: a --run wrapper may start the programs in another directory
@@ -87,6 +89,8 @@ step frame bench_pipelines "${common[@]}" --ref-spp $ref --compare-overlap --csv
   --summary-csv "$out/frame_summary.csv" --frames-csv "$out/frame_frames.csv"
 PX_BVH_LAYOUT=wide8 step frame_wide8 bench_pipelines "${common[@]}" --ref-spp $ref \
   --csv "$out/frame_wide8.csv" --summary-csv "$out/frame_wide8_summary.csv"
+step frame_wavefront bench_pipelines "${common[@]}" --ref-spp 0 --path-tracer wavefront \
+  --csv "$out/frame_wavefront.csv" --summary-csv "$out/frame_wavefront_summary.csv"
 step render parallax render --scene "$scene" --width $w --height $h --spp 1 --frames 20 --devices 1 \
   --out "$out/render" --overwrite --no-exr --report "$out/render.json" --timeline "$out/timeline.json"
 for spread in auto off; do
