@@ -5,6 +5,9 @@
 #include "cl/launch.h"
 #include "render/device_scene.h"
 #include "render/path_tracer.h"
+#include "render/stereo_camera.h"
+#include "render/wavefront_path_tracer.h"
+#include "scene/builtin_scenes.h"
 #include "scene/primitives.h"
 #include "scene/scene_loader.h"
 
@@ -12,6 +15,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <memory>
 #include <random>
 
@@ -508,6 +512,111 @@ TEST(PathTracer, NonFiniteRadianceIsDroppedAndCounted) {
   for (const auto& eye : eyes)
     for (float v : eye.rgb) ASSERT_TRUE(std::isfinite(v));
   EXPECT_GT(f.tracer->nonfinite_paths(), 0u);
+}
+
+// ---- the wavefront tracer against the megakernel, kernel by kernel ----
+
+// A strip of rows traced by both tracers into full-frame buffers, and a list of scattered
+// pixels (stage 5's hole list) by the wavefront tracer: the same pixels and albedos to the bit,
+// and the same non-finite counts, also when a pixel's samples come in several launches
+// (max_paths below spp paths per pixel: batches of 2, 2 and 1 samples, their sums carried over).
+struct TracedBuffers {
+  std::vector<cl_float4> radiance, albedo;
+  cl_uint nonfinite = 0;
+};
+
+void expect_same_pixels(const TracedBuffers& a, const TracedBuffers& b, const std::vector<cl_uint>& pixels,
+                        const std::string& what, bool same_count = true) {
+  int differ = 0;
+  for (cl_uint p : pixels) {
+    differ += std::memcmp(&a.radiance[p], &b.radiance[p], sizeof(cl_float4)) != 0;
+    differ += std::memcmp(&a.albedo[p], &b.albedo[p], sizeof(cl_float4)) != 0;
+  }
+  EXPECT_EQ(differ, 0) << what << ": of " << pixels.size() << " pixels";
+  if (same_count) EXPECT_EQ(a.nonfinite, b.nonfinite) << what;
+}
+
+TEST(WavefrontPathTracer, SamplesInBatchesGiveTheMegakernelsPixels) {
+  Scene overflow = closed_emissive_sphere(0.9f, 3.0e38f);  // paths that overflow to Inf
+  for (Scene scene : {make_builtin_scene("cornell-glossy"), overflow}) {
+    RenderFixture f(one_device(), scene);
+    DeviceSet& set = one_device();
+    const cl::CommandQueue& queue = set.devices()[0].queue;
+    const unsigned w = 24, h = 16, row0 = 4, rows = 9;
+    PathTracer::Options opt;
+    opt.spp = 5;
+    opt.bounces = 4;
+    const FrameParams fp = PathTracer::frame_params(scene, f.device_scene->light_count(), opt, 0, row0, rows, 3);
+    const CameraParams cam = make_eye_camera(evaluate_camera(scene, 0.0f), Eye::Left, scene.ipd_units(), w, h);
+    const std::size_t bytes = std::size_t{w} * h * sizeof(cl_float4);
+    auto run = [&](const std::function<void(const PathTracer::Targets&)>& trace) {
+      cl::Buffer radiance(set.context(), CL_MEM_READ_WRITE, bytes), albedo(set.context(), CL_MEM_READ_WRITE, bytes);
+      cl::Buffer nonfinite(set.context(), CL_MEM_READ_WRITE, sizeof(cl_uint));
+      queue.enqueueFillBuffer(radiance, cl_float{-1.0f}, 0, bytes);
+      queue.enqueueFillBuffer(albedo, cl_float{-1.0f}, 0, bytes);
+      queue.enqueueFillBuffer(nonfinite, cl_uint{0}, 0, sizeof(cl_uint));
+      trace({radiance, albedo, nonfinite});
+      TracedBuffers out;
+      out.radiance.resize(std::size_t{w} * h);
+      out.albedo.resize(out.radiance.size());
+      queue.enqueueReadBuffer(radiance, CL_TRUE, 0, bytes, out.radiance.data());
+      queue.enqueueReadBuffer(albedo, CL_TRUE, 0, bytes, out.albedo.data());
+      queue.enqueueReadBuffer(nonfinite, CL_TRUE, 0, sizeof(cl_uint), &out.nonfinite);
+      return out;
+    };
+    const TracedBuffers mega = run([&](const PathTracer::Targets& t) {
+      PathTracer::launch(queue, set.program("pathtrace/path_trace.cl"), f.device_scene->on(0), t, fp, cam, w);
+    });
+    std::vector<cl_uint> strip;
+    for (cl_uint p = row0 * w; p < (row0 + rows) * w; ++p) strip.push_back(p);
+    const cl::Program& wavefront = set.program("pathtrace/wavefront.cl");
+    for (std::size_t max_paths : {WavefrontPathTracer::kMaxPathsPerLaunch, std::size_t{2} * rows * w}) {
+      WavefrontPathTracer::Scratch scratch;
+      const TracedBuffers wave = run([&](const PathTracer::Targets& t) {
+        WavefrontPathTracer::trace_rows(set.context(), queue, wavefront, f.device_scene->on(0), scratch, t, fp, cam, w,
+                                        max_paths);
+      });
+      const std::string what = scene.name + ", rows, at most " + std::to_string(max_paths) + " paths a launch";
+      expect_same_pixels(mega, wave, strip, what);
+      // Nothing outside the strip was written.
+      for (cl_uint p = 0; p < row0 * w; ++p) ASSERT_EQ(wave.radiance[p].s[0], -1.0f) << what << ", pixel " << p;
+    }
+    // A hole list: every third pixel of the strip, 1 to 5 paths a launch.
+    std::vector<cl_uint> holes;
+    for (std::size_t i = 0; i < strip.size(); i += 3) holes.push_back(strip[i]);
+    const cl_uint count = static_cast<cl_uint>(holes.size());
+    cl::Buffer hole_buf(set.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, holes.size() * sizeof(cl_uint),
+                        holes.data());
+    cl::Buffer count_buf(set.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, sizeof(cl_uint),
+                         const_cast<cl_uint*>(&count));
+    // The megakernel's own run over the list: the reference for the list's non-finite count.
+    const FrameParams mega_fp = fp;
+    TracedBuffers mega_holes;
+    {
+      cl::Kernel k(set.program("pathtrace/path_trace.cl"), "path_trace_list");
+      mega_holes = run([&](const PathTracer::Targets& t) {
+        k.setArg(0, t.radiance);
+        k.setArg(1, t.albedo);
+        k.setArg(2, t.nonfinite);
+        k.setArg(3, hole_buf);
+        k.setArg(4, count_buf);
+        k.setArg(5, mega_fp);
+        k.setArg(6, cam);
+        f.device_scene->on(0).bind(k, 7);
+        launch_1d(queue, k, holes.size());
+      });
+    }
+    expect_same_pixels(mega, mega_holes, holes, scene.name + ": the megakernel's own list against its strip", false);
+    for (std::size_t max_paths : {WavefrontPathTracer::kMaxPathsPerLaunch, holes.size() * 2, holes.size()}) {
+      WavefrontPathTracer::Scratch scratch;
+      const TracedBuffers wave = run([&](const PathTracer::Targets& t) {
+        WavefrontPathTracer::trace_list(set.context(), queue, wavefront, f.device_scene->on(0), scratch, t, hole_buf,
+                                        count_buf, strip.size(), fp, cam, max_paths);
+      });
+      expect_same_pixels(mega_holes, wave, holes,
+                         scene.name + ", hole list, at most " + std::to_string(max_paths) + " paths a launch");
+    }
+  }
 }
 
 // ---- glass: a smooth dielectric ----

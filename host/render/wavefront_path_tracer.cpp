@@ -2,6 +2,7 @@
 
 #include "cl/launch.h"
 
+#include <algorithm>
 #include <stdexcept>
 #include <string>
 
@@ -17,16 +18,26 @@ PathTraceKernel parse_path_trace_kernel(const std::string& name) {
   throw std::invalid_argument("unknown path tracer '" + name + "' (megakernel or wavefront)");
 }
 
-void WavefrontPathTracer::Scratch::reserve(const cl::Context& context, std::size_t n) {
-  if (n <= paths) return;
-  states = cl::Buffer(context, CL_MEM_READ_WRITE, n * PX_PATH_STATE_FLOAT4S * sizeof(cl_float4));
-  shadows = cl::Buffer(context, CL_MEM_READ_WRITE, n * PX_SHADOW_RAY_FLOAT4S * sizeof(cl_float4));
-  hits = cl::Buffer(context, CL_MEM_READ_WRITE, n * sizeof(Hit));
-  path_pixel = cl::Buffer(context, CL_MEM_READ_WRITE, n * sizeof(cl_uint));
-  for (auto& q : queue) q = cl::Buffer(context, CL_MEM_READ_WRITE, n * sizeof(cl_uint));
-  shadow_queue = cl::Buffer(context, CL_MEM_READ_WRITE, n * sizeof(cl_uint));
+void WavefrontPathTracer::Scratch::reserve(const cl::Context& context, std::size_t n, std::size_t k) {
+  if (n > paths) {
+    states = cl::Buffer(context, CL_MEM_READ_WRITE, n * PX_PATH_STATE_FLOAT4S * sizeof(cl_float4));
+    shadows = cl::Buffer(context, CL_MEM_READ_WRITE, n * PX_SHADOW_RAY_FLOAT4S * sizeof(cl_float4));
+    hits = cl::Buffer(context, CL_MEM_READ_WRITE, n * sizeof(Hit));
+    path_pixel = cl::Buffer(context, CL_MEM_READ_WRITE, n * sizeof(cl_uint));
+    for (auto& q : queue) q = cl::Buffer(context, CL_MEM_READ_WRITE, n * sizeof(cl_uint));
+    shadow_queue = cl::Buffer(context, CL_MEM_READ_WRITE, n * sizeof(cl_uint));
+    paths = n;
+  }
+  if (k > slots) {
+    sums = cl::Buffer(context, CL_MEM_READ_WRITE, k * 2 * sizeof(cl_float4));
+    slots = k;
+  }
   if (!counts()) counts = cl::Buffer(context, CL_MEM_READ_WRITE, PX_WAVEFRONT_COUNTERS * sizeof(cl_uint));
-  paths = n;
+}
+
+std::size_t WavefrontPathTracer::paths_per_launch(std::size_t slots, unsigned spp, std::size_t max_paths) {
+  const std::size_t batch = std::max<std::size_t>(1, std::min<std::size_t>(spp, max_paths / std::max<std::size_t>(slots, 1)));
+  return slots * batch;
 }
 
 namespace {
@@ -34,12 +45,13 @@ namespace {
 static_assert(WavefrontPathTracer::kBytesPerPath ==
               (PX_PATH_STATE_FLOAT4S + PX_SHADOW_RAY_FLOAT4S) * sizeof(cl_float4) + sizeof(Hit) + 4 * sizeof(cl_uint));
 
-// Everything after the generate kernel: the vertices, then the pixels. `paths` bounds every
-// launch (the queues' counts live on the device, so the host never waits for them).
+using Commands = std::vector<WavefrontPathTracer::Command>;
+
+// One batch's vertices, after its generate kernel: extend / shade / connect per vertex. `paths`
+// bounds every launch (the queues' counts live on the device, so the host never waits for them).
 void trace_vertices(const cl::CommandQueue& queue, const cl::Program& program, const DeviceSceneBuffers& scene,
-                    WavefrontPathTracer::Scratch& s, const PathTracer::Targets& out, const FrameParams& params,
-                    const CameraParams& camera, std::size_t slots, std::vector<WavefrontPathTracer::Command>& log) {
-  const std::size_t paths = slots * params.spp;
+                    WavefrontPathTracer::Scratch& s, const FrameParams& params, const CameraParams& camera,
+                    std::size_t paths, Commands& log) {
   cl::Kernel extend(program, "wf_extend"), shade(program, "wf_shade"), connect(program, "wf_connect");
   extend.setArg(0, s.states);
   extend.setArg(1, s.hits);
@@ -72,6 +84,22 @@ void trace_vertices(const cl::CommandQueue& queue, const cl::Program& program, c
     // The last vertex makes no shadow ray (px_path_vertex ends the path before sampling a light).
     if (b < params.max_bounces) log.push_back({"connect", launch_1d(queue, connect, paths)});
   }
+}
+
+// Every batch of samples: reset the counters, generate (`generate` binds its kernel's own
+// arguments for a batch's FrameParams), the vertices, and resolve into `out` or the sums.
+template <typename Generate>
+Commands trace_batches(const cl::Context& context, const cl::CommandQueue& queue, const cl::Program& program,
+                       const DeviceSceneBuffers& scene, WavefrontPathTracer::Scratch& s, const PathTracer::Targets& out,
+                       const FrameParams& params, const CameraParams& camera, std::size_t slots,
+                       std::size_t max_paths, const Generate& generate) {
+  if (params.spp == 0) throw std::invalid_argument("wavefront path tracer: spp must be at least 1");
+  if (params.max_bounces > PX_MAX_BOUNCES_LIMIT)
+    throw std::invalid_argument("wavefront path tracer: too many bounces");
+  const std::size_t paths = WavefrontPathTracer::paths_per_launch(slots, params.spp, max_paths);
+  const unsigned batch_spp = static_cast<unsigned>(paths / std::max<std::size_t>(slots, 1));
+  s.reserve(context, paths, slots);
+  Commands log;
   cl::Kernel resolve(program, "wf_resolve");
   resolve.setArg(0, out.radiance);
   resolve.setArg(1, out.albedo);
@@ -79,22 +107,30 @@ void trace_vertices(const cl::CommandQueue& queue, const cl::Program& program, c
   resolve.setArg(3, s.states);
   resolve.setArg(4, s.path_pixel);
   resolve.setArg(5, s.counts);
-  resolve.setArg(6, static_cast<cl_uint>(params.spp));
-  log.push_back({"resolve", launch_1d(queue, resolve, slots)});
-}
-
-void check_params(const FrameParams& params) {
-  if (params.spp == 0) throw std::invalid_argument("wavefront path tracer: spp must be at least 1");
-  if (params.max_bounces > PX_MAX_BOUNCES_LIMIT)
-    throw std::invalid_argument("wavefront path tracer: too many bounces");
-}
-
-std::vector<WavefrontPathTracer::Command> start(const cl::CommandQueue& queue, WavefrontPathTracer::Scratch& s) {
-  std::vector<WavefrontPathTracer::Command> log;
-  cl::Event zeroed;
-  queue.enqueueFillBuffer(s.counts, cl_uint{0}, 0, PX_WAVEFRONT_COUNTERS * sizeof(cl_uint), nullptr, &zeroed);
-  log.push_back({"reset", zeroed});
+  resolve.setArg(6, s.sums);
+  for (unsigned first = 0; first < params.spp; first += batch_spp) {
+    FrameParams batch = params;
+    batch.spp = std::min(batch_spp, params.spp - first);
+    batch.sample_offset = params.sample_offset + first;
+    cl::Event zeroed;
+    queue.enqueueFillBuffer(s.counts, cl_uint{0}, 0, PX_WAVEFRONT_COUNTERS * sizeof(cl_uint), nullptr, &zeroed);
+    log.push_back({"reset", zeroed});
+    log.push_back({"generate", generate(batch, slots * batch.spp)});
+    trace_vertices(queue, program, scene, s, batch, camera, slots * batch.spp, log);
+    resolve.setArg(7, static_cast<cl_uint>(batch.spp));
+    resolve.setArg(8, static_cast<cl_uint>(first == 0));
+    resolve.setArg(9, static_cast<cl_uint>(first + batch.spp == params.spp));
+    log.push_back({"resolve", launch_1d(queue, resolve, slots)});
+  }
   return log;
+}
+
+// The generate kernels' first four arguments, once Scratch holds its buffers for the launch.
+void bind_generate(cl::Kernel& generate, const WavefrontPathTracer::Scratch& s) {
+  generate.setArg(0, s.states);
+  generate.setArg(1, s.path_pixel);
+  generate.setArg(2, s.queue[0]);
+  generate.setArg(3, s.counts);
 }
 
 }  // namespace
@@ -102,42 +138,33 @@ std::vector<WavefrontPathTracer::Command> start(const cl::CommandQueue& queue, W
 std::vector<WavefrontPathTracer::Command> WavefrontPathTracer::trace_rows(
     const cl::Context& context, const cl::CommandQueue& queue, const cl::Program& program,
     const DeviceSceneBuffers& scene, Scratch& scratch, const PathTracer::Targets& out, const FrameParams& params,
-    const CameraParams& camera, unsigned width) {
-  check_params(params);
-  const std::size_t slots = static_cast<std::size_t>(params.rows) * width;
-  scratch.reserve(context, slots * params.spp);
-  auto log = start(queue, scratch);
+    const CameraParams& camera, unsigned width, std::size_t max_paths) {
   cl::Kernel generate(program, "wf_generate_rows");
-  generate.setArg(0, scratch.states);
-  generate.setArg(1, scratch.path_pixel);
-  generate.setArg(2, scratch.queue[0]);
-  generate.setArg(3, scratch.counts);
-  generate.setArg(4, params);
   generate.setArg(5, camera);
-  log.push_back({"generate", launch_1d(queue, generate, slots * params.spp)});
-  trace_vertices(queue, program, scene, scratch, out, params, camera, slots, log);
-  return log;
+  const std::size_t slots = static_cast<std::size_t>(params.rows) * width;
+  return trace_batches(context, queue, program, scene, scratch, out, params, camera, slots, max_paths,
+                       [&](const FrameParams& batch, std::size_t paths) {
+                         bind_generate(generate, scratch);
+                         generate.setArg(4, batch);
+                         return launch_1d(queue, generate, paths);
+                       });
 }
 
 std::vector<WavefrontPathTracer::Command> WavefrontPathTracer::trace_list(
     const cl::Context& context, const cl::CommandQueue& queue, const cl::Program& program,
     const DeviceSceneBuffers& scene, Scratch& scratch, const PathTracer::Targets& out, const cl::Buffer& holes,
-    const cl::Buffer& hole_count, std::size_t max_pixels, const FrameParams& params, const CameraParams& camera) {
-  check_params(params);
-  scratch.reserve(context, max_pixels * params.spp);
-  auto log = start(queue, scratch);
+    const cl::Buffer& hole_count, std::size_t max_pixels, const FrameParams& params, const CameraParams& camera,
+    std::size_t max_paths) {
   cl::Kernel generate(program, "wf_generate_list");
-  generate.setArg(0, scratch.states);
-  generate.setArg(1, scratch.path_pixel);
-  generate.setArg(2, scratch.queue[0]);
-  generate.setArg(3, scratch.counts);
   generate.setArg(4, holes);
   generate.setArg(5, hole_count);
-  generate.setArg(6, params);
   generate.setArg(7, camera);
-  log.push_back({"generate", launch_1d(queue, generate, max_pixels * params.spp)});
-  trace_vertices(queue, program, scene, scratch, out, params, camera, max_pixels, log);
-  return log;
+  return trace_batches(context, queue, program, scene, scratch, out, params, camera, max_pixels, max_paths,
+                       [&](const FrameParams& batch, std::size_t paths) {
+                         bind_generate(generate, scratch);
+                         generate.setArg(6, batch);
+                         return launch_1d(queue, generate, paths);
+                       });
 }
 
 }  // namespace px

@@ -20,14 +20,20 @@ PathTraceKernel parse_path_trace_kernel(const std::string& name);  // throws std
 class WavefrontPathTracer {
  public:
   // One device's path buffers (types.h: PX_PATH_STATE_FLOAT4S), grown on demand and reused
-  // frame after frame: 96 + 48 + 16 + 4 * 4 = 176 bytes per path, e.g. 162 MB for 1280x720
-  // pixels at 1 spp.
+  // frame after frame: kBytesPerPath (96 + 48 + 16 + 4 * 4) per path of a launch, e.g. 162 MB
+  // for 1280x720 pixels at 1 spp, plus 32 bytes per pixel for sums across launches.
   struct Scratch {
-    cl::Buffer states, shadows, hits, path_pixel, queue[2], shadow_queue, counts;
-    std::size_t paths = 0;
-    void reserve(const cl::Context& context, std::size_t paths);
+    cl::Buffer states, shadows, hits, path_pixel, queue[2], shadow_queue, counts, sums;
+    std::size_t paths = 0, slots = 0;
+    void reserve(const cl::Context& context, std::size_t paths, std::size_t slots);
   };
   static constexpr std::size_t kBytesPerPath = 176;
+  // The most paths one launch holds (704 MB of buffers): a pixel's samples beyond it come in
+  // further launches (batches of samples), their sums carried over in order, so the images do
+  // not depend on it. Every pixel's first batch has at least one sample.
+  static constexpr std::size_t kMaxPathsPerLaunch = std::size_t{1} << 22;
+  // The paths a launch of `slots` pixels at `spp` samples holds (what Scratch must reserve).
+  static std::size_t paths_per_launch(std::size_t slots, unsigned spp, std::size_t max_paths = kMaxPathsPerLaunch);
 
   // A launch's commands, in order, with the pass each belongs to (for the event log).
   struct Command {
@@ -39,13 +45,15 @@ class WavefrontPathTracer {
   static std::vector<Command> trace_rows(const cl::Context& context, const cl::CommandQueue& queue,
                                          const cl::Program& program, const DeviceSceneBuffers& scene,
                                          Scratch& scratch, const PathTracer::Targets& out, const FrameParams& params,
-                                         const CameraParams& camera, unsigned width);
+                                         const CameraParams& camera, unsigned width,
+                                         std::size_t max_paths = kMaxPathsPerLaunch);
   // The pixels listed in `holes` (*hole_count of them, on the device; at most `max_pixels`).
   static std::vector<Command> trace_list(const cl::Context& context, const cl::CommandQueue& queue,
                                          const cl::Program& program, const DeviceSceneBuffers& scene,
                                          Scratch& scratch, const PathTracer::Targets& out, const cl::Buffer& holes,
                                          const cl::Buffer& hole_count, std::size_t max_pixels,
-                                         const FrameParams& params, const CameraParams& camera);
+                                         const FrameParams& params, const CameraParams& camera,
+                                         std::size_t max_paths = kMaxPathsPerLaunch);
 };
 
 }  // namespace px

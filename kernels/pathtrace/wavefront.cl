@@ -141,15 +141,24 @@ kernel void wf_connect(global float4* states, const global float4* shadows, cons
 }
 
 /* Slot k's pixel: its fp.spp samples summed in sample order (dropping and counting non-finite
- * ones), then px_pixel_mean, as px_render_pixel does. */
+ * ones), then px_pixel_mean, as px_render_pixel does. A pixel's samples may come in several
+ * launches (batches of samples, so that the paths fit in memory): `acc` (two float4 per slot:
+ * the radiance sum with the finite-sample count in w, then the albedo sum) carries the sums from
+ * one to the next, in the same order; `first` starts them, `last` writes the pixel. */
 kernel void wf_resolve(global float4* out, global float4* albedo_out, volatile global uint* nonfinite,
                        const global float4* states, const global uint* path_pixel, const global uint* counts,
-                       uint spp) {
+                       global float4* acc, uint spp, uint first, uint last) {
   const uint k = get_global_id(0);
   if (k >= counts[0]) return;
   float3 sum = (float3)(0.0f, 0.0f, 0.0f);
   float4 albedo_sum = (float4)(0.0f, 0.0f, 0.0f, 0.0f);
   uint good = 0;
+  if (!first) {
+    const float4 a = acc[2u * k];
+    sum = a.xyz;
+    good = (uint)a.w;
+    albedo_sum = acc[2u * k + 1u];
+  }
   for (uint s = 0; s < spp; ++s) {
     const global float4* st = states + (size_t)(k * spp + s) * PX_PATH_STATE_FLOAT4S;
     const float3 l = st[3].xyz;
@@ -160,6 +169,11 @@ kernel void wf_resolve(global float4* out, global float4* albedo_out, volatile g
     } else {
       atomic_inc(nonfinite);
     }
+  }
+  if (!last) {
+    acc[2u * k] = (float4)(sum, (float)good);
+    acc[2u * k + 1u] = albedo_sum;
+    return;
   }
   const uint p = path_pixel[k * spp];
   float4 albedo;

@@ -22,8 +22,9 @@ void PathTraceStage::run(const std::vector<const Operation*>& ops, const FrameIn
     const PathTracer::Targets out{f.radiance[e], f.albedo[e], f.nonfinite_paths};
     if (kernel_ == PathTraceKernel::Wavefront) {
       // Sized for the whole frame, so that moving strips never reallocate.
+      const std::size_t frame_pixels = static_cast<std::size_t>(env_.width) * env_.height;
       scratch_[op->device].reserve(env_.devices.context(),
-                                   static_cast<std::size_t>(env_.width) * env_.height * options_.spp);
+                                   WavefrontPathTracer::paths_per_launch(frame_pixels, options_.spp), frame_pixels);
       record(op->stage, op->device,
              WavefrontPathTracer::trace_rows(env_.devices.context(), env_.queue(op->device),
                                              env_.devices.program("pathtrace/wavefront.cl"), env_.scene_on(op->device),
