@@ -6,7 +6,8 @@
  *   then for each vertex b = 0..max_bounces, over the paths still alive:
  *     wf_extend    closest hits
  *     wf_shade     px_path_vertex: emission, next-event ray, BSDF sample, Russian roulette;
- *                  the paths that go on are appended to the next vertex's queue
+ *                  the paths that go on are appended to the next vertex's queue (a prefix
+ *                  sum per work-group, parallel/group_scan.h: one atomic per group and queue)
  *     wf_connect   the shadow rays; unblocked ones add their contribution
  *   wf_resolve    each pixel's mean over its samples, as px_render_pixel takes it
  *
@@ -19,6 +20,7 @@
 #include "shared/types.h"
 #include "pathtrace/path_vertex.h"
 #include "pathtrace/pixel_mean.h"
+#include "parallel/group_scan.h"
 #include "render/camera.h"
 #include "trace/traverse.h"
 
@@ -101,28 +103,51 @@ kernel void wf_extend(const global float4* states, global Hit* hits, const globa
   hits[i] = px_trace_closest_leaf(&scene, s[0].xyz, s[1].xyz, 0.0f, INFINITY);
 }
 
+/* The live paths' vertex `bounce`. Each work-group appends its paths that go on to the next
+ * vertex's queue, and its shadow rays to the shadow queue, with one prefix sum for both (live
+ * paths in the low 16 bits, shadow rays in the high: at most PX_LOCAL_SIZE each) and one
+ * atomic_add per queue: a queue keeps its paths in the order of the queue before, group by
+ * group, so neighbouring work-items keep tracing neighbouring pixels' paths. */
+#if PX_LOCAL_SIZE > 0xffff
+#error "wf_shade packs two per-group counts of at most PX_LOCAL_SIZE into 16 bits each"
+#endif
+__attribute__((reqd_work_group_size(PX_LOCAL_SIZE, 1, 1)))
 kernel void wf_shade(global float4* states, global float4* shadows, const global Hit* hits,
                      const global uint* path_pixel, const global uint* queue, global uint* next_queue,
                      global uint* shadow_queue, volatile global uint* counts, uint bounce, FrameParams fp,
                      CameraParams cam, PX_SCENE_PARAMS) {
-  const uint j = get_global_id(0);
-  if (j >= counts[PX_WF_LIVE + bounce]) return;
-  const SceneView scene = PX_SCENE_VIEW();
-  const uint i = queue[j];
-  PathVertex v = px_load_path(states, i);
-  ShadowRay shadow;
-  const int goes_on =
-      px_path_vertex(&scene, &fp, px_path_key(&fp, cam.width, path_pixel[i], i), bounce, hits[i], &v, &shadow);
-  px_store_path(states, i, &v);
-  if (shadow.valid) {
-    global float4* r = shadows + (size_t)i * PX_SHADOW_RAY_FLOAT4S;
-    r[0] = (float4)(shadow.org, shadow.tmax);
-    r[1] = (float4)(shadow.dir, 0.0f);
-    r[2] = (float4)(shadow.contribution, 0.0f);
-    shadow_queue[atomic_inc(counts + PX_WF_SHADOWS + bounce)] = i;
+  local uint scan[PX_LOCAL_SIZE];
+  local uint bases[2];
+  const uint j = get_global_id(0), lid = get_local_id(0);
+  /* No early return: every work-item of the group takes part in the prefix sum below. */
+  uint i = 0u;
+  int goes_on = 0, has_shadow = 0;
+  if (j < counts[PX_WF_LIVE + bounce]) {
+    const SceneView scene = PX_SCENE_VIEW();
+    i = queue[j];
+    PathVertex v = px_load_path(states, i);
+    ShadowRay shadow;
+    goes_on =
+        px_path_vertex(&scene, &fp, px_path_key(&fp, cam.width, path_pixel[i], i), bounce, hits[i], &v, &shadow);
+    px_store_path(states, i, &v);
+    if (shadow.valid) {
+      global float4* r = shadows + (size_t)i * PX_SHADOW_RAY_FLOAT4S;
+      r[0] = (float4)(shadow.org, shadow.tmax);
+      r[1] = (float4)(shadow.dir, 0.0f);
+      r[2] = (float4)(shadow.contribution, 0.0f);
+      has_shadow = 1;
+    }
   }
-  /* px_path_vertex ends every path at vertex max_bounces, so the next queue stays in range. */
-  if (goes_on) next_queue[atomic_inc(counts + PX_WF_LIVE + bounce + 1u)] = i;
+  const uint mine = px_group_inclusive_scan((goes_on ? 1u : 0u) | (has_shadow ? 0x10000u : 0u), scan);
+  if (lid == PX_LOCAL_SIZE - 1u) {
+    const uint live = mine & 0xffffu, made = mine >> 16;
+    /* px_path_vertex ends every path at vertex max_bounces, so the next queue stays in range. */
+    bases[0] = live ? atomic_add(counts + PX_WF_LIVE + bounce + 1u, live) : 0u;
+    bases[1] = made ? atomic_add(counts + PX_WF_SHADOWS + bounce, made) : 0u;
+  }
+  barrier(CLK_LOCAL_MEM_FENCE);
+  if (goes_on) next_queue[bases[0] + (mine & 0xffffu) - 1u] = i;
+  if (has_shadow) shadow_queue[bases[1] + (mine >> 16) - 1u] = i;
 }
 
 kernel void wf_connect(global float4* states, const global float4* shadows, const global uint* shadow_queue,

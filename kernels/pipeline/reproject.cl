@@ -22,6 +22,7 @@
  * copied from the same left pixel: the environment is at infinity, so parallel eyes see it at
  * zero disparity. */
 #include "shared/types.h"
+#include "parallel/group_scan.h"
 #include "render/camera.h"
 #include "scene/scene_view.h"
 
@@ -153,17 +154,9 @@ kernel void reproject(global float4* right_radiance, global float4* right_albedo
     right_radiance[i] = result;
     right_albedo[i] = albedo;
   }
-  /* Inclusive prefix sum of the hole flags (Hillis-Steele, log2(64) = 6 steps). */
   const uint hole = active && !ok ? 1u : 0u;
-  scan[lid] = hole;
+  const uint before_and_mine = px_group_inclusive_scan(hole, scan);
+  if (lid == PX_REPROJECT_GROUP - 1) group_base = before_and_mine ? atomic_add(hole_count, before_and_mine) : 0u;
   barrier(CLK_LOCAL_MEM_FENCE);
-  for (uint offset = 1; offset < PX_REPROJECT_GROUP; offset <<= 1) {
-    const uint add = lid >= offset ? scan[lid - offset] : 0u;
-    barrier(CLK_LOCAL_MEM_FENCE);
-    scan[lid] += add;
-    barrier(CLK_LOCAL_MEM_FENCE);
-  }
-  if (lid == PX_REPROJECT_GROUP - 1) group_base = scan[lid] ? atomic_add(hole_count, scan[lid]) : 0u;
-  barrier(CLK_LOCAL_MEM_FENCE);
-  if (hole) holes[group_base + scan[lid] - 1u] = i;
+  if (hole) holes[group_base + before_and_mine - 1u] = i;
 }
