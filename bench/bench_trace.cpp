@@ -169,7 +169,7 @@ int main(int argc, char** argv) {
   int devices = 1, repeats = 7;
   int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   std::string csv;
-  std::vector<std::string> layout_names{px::to_string(px::bvh_layout())};
+  std::vector<std::string> layout_names;
   app.add_option("--scene", scenes, "scenes to measure (repeatable)")->capture_default_str();
   app.add_option("--width", width)->capture_default_str();
   app.add_option("--height", height)->capture_default_str();
@@ -177,14 +177,16 @@ int main(int argc, char** argv) {
   app.add_option("--repeats", repeats, "timed repetitions (median reported)")->check(CLI::Range(1, 1000))->capture_default_str();
   app.add_option("--threads", threads, "Embree threads (std::thread chunks)")->capture_default_str();
   app.add_option("--csv", csv, "also write the table as CSV");
-  app.add_option("--layout", layout_names, "BVH node layouts to trace, side by side (binary, wide4, wide8, cwbvh; repeatable)")
-      ->capture_default_str();
+  app.add_option("--layout", layout_names,
+                 "BVH node layouts to trace, side by side (binary, wide4, wide8, cwbvh; repeatable; default: the "
+                 "device set's own, PX_BVH_LAYOUT or by device type)");
   CLI11_PARSE(app, argc, argv);
 
   return px::run_guarded([&]() -> int {
     std::vector<Row> rows;
     std::vector<px::BvhLayout> layouts;
     for (const auto& l : layout_names) layouts.push_back(px::parse_bvh_layout(l));
+    if (layouts.empty()) layouts.push_back(px::DeviceSet::create({devices, px::DeviceMode::Auto, ""}).bvh_layout());
     for (const auto& name : scenes) {
       px::set_bvh_layout(layouts[0]);
       auto loaded = px::load_and_build(name);

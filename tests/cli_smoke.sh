@@ -100,6 +100,14 @@ else echo "skip plot_report (no python3-matplotlib)"; fi
 check "bad seam mode is refused" 1 "seams" -- "$bin" render --seams wobbly --out "$tmp/y"
 check "explain shows the denoise stage" 0 "denoise" -- "$bin" render --explain --devices 2 --height 100
 check "compare gives PSNR" 0 "psnr_db" -- "$bin" compare "$tmp/r_proposed/frame_0000_left.exr" "$tmp/r_mono/frame_0000_left.exr"
+check "render --path-tracer wavefront" 0 "wrote 2 frame" -- "$bin" render --scene cornell --pipeline proposed \
+  --width 32 --height 18 --frames 2 --devices 2 --path-tracer wavefront --out "$tmp/r_wave" --report "$tmp/r_wave.json"
+if grep -q '"path_tracer": "wavefront"' "$tmp/r_wave.json" && grep -q '"bvh_layout": "' "$tmp/r_wave.json"; then
+  passes=$((passes + 1)); echo "ok   report names the path tracer and the BVH layout"
+else fails=$((fails + 1)); echo "FAIL report lacks path_tracer / bvh_layout"; fi
+check "the wavefront tracer gives the megakernel's image" 0 "^mse 0$" -- "$bin" compare \
+  "$tmp/r_wave/frame_0001_right.exr" "$tmp/r_proposed/frame_0001_right.exr"
+check "unknown path tracer is refused" 1 "path-tracer" -- "$bin" render --path-tracer gpu --out "$tmp/x"
 check "reference shows progress" 0 "reference_" -- "$bin" reference --scene cornell --width 16 --height 9 --spp 8 --pass-spp 4 --out "$tmp/ref"
 
 # --- nothing lost, nothing mixed ---

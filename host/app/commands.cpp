@@ -352,7 +352,7 @@ int run_render(const RenderCommand& cmd) {
                  static_cast<unsigned long long>(pipeline.nonfinite_paths()));
   const bool stopped = done < cmd.frames;
   if (report) {
-    report->finish(totals, all_devices, devices.mode(), pipeline.nonfinite_paths());
+    report->finish(totals, all_devices, devices.mode(), devices.bvh_layout(), pipeline.nonfinite_paths());
     std::fprintf(stderr, "[render] report written to %s\n", cmd.report.c_str());
   }
   if (video) {

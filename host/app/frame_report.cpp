@@ -50,7 +50,7 @@ void RenderReport::add_frame(unsigned frame, const FrameStats& st, const std::ve
   first_frame_ = false;
 }
 
-void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode device_mode,
+void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode device_mode, BvhLayout bvh_layout,
                           std::uint64_t nonfinite_paths) {
   const nlohmann::json r = {
       {"schema", "parallax-render-report/1"},
@@ -64,6 +64,8 @@ void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode de
       {"spp", options_.trace.spp},
       {"bounces", options_.trace.bounces},
       {"denoise", options_.denoise},
+      {"path_tracer", cli_word(options_.path_kernel)},
+      {"bvh_layout", to_string(bvh_layout)},
       {"seams", cli_word(cmd_.seams)},
       {"balance", cli_word(cmd_.balance)},
       {"target_ms", cmd_.target_ms.empty() ? nlohmann::json(nullptr) : nlohmann::json(cmd_.target_ms)},

@@ -45,7 +45,8 @@ class RenderReport {
   void add_frame(unsigned frame, const FrameStats& stats, const std::vector<RowRange>& strips,
                  const FrameQuality& quality, std::optional<double> predicted_ms);
   // The summary, then the file appears under its name.
-  void finish(const RenderTotals& totals, int devices, DeviceMode device_mode, std::uint64_t nonfinite_paths);
+  void finish(const RenderTotals& totals, int devices, DeviceMode device_mode, BvhLayout bvh_layout,
+              std::uint64_t nonfinite_paths);
 
  private:
   const RenderCommand& cmd_;
