@@ -62,7 +62,7 @@ std::optional<BvhLayout> requested_bvh_layout();
 void set_bvh_layout(std::optional<BvhLayout> layout);
 // The layout a device set traverses: the requested one, else by device type.
 //  - CPUs (and sets that mix device kinds): Wide8. Measured on PoCL: 8 boxes per float8 test
-//    in one work-item, 0.77-0.98 of Embree's single-ray speed; cwbvh's decode costs 5-17% there.
+//    in one work-item, 0.77-1.00 of Embree's single-ray speed; cwbvh's decode costs 5-17% there.
 //  - Sets of GPUs only: Compressed8. The same tree in 80-byte nodes instead of 256 (atrium:
 //    7.5 MiB of nodes against 24.0), since GPU traversal is bound by node fetches (Ylitie,
 //    Karras, Laine 2017: compressed 8-wide nodes ~2x binary on incoherent rays). Not yet

@@ -9,6 +9,7 @@
 #include "render/path_tracer.h"
 
 #include <cstddef>
+#include <string>
 #include <vector>
 
 namespace px {
