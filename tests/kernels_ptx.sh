@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Every OpenCL kernel file compiles for an NVIDIA GPU as well as for PoCL's CPU devices: clang's
+# OpenCL C front end and its PTX back end (target nvptx64-nvidia-nvcl), OpenCL C 1.2 with the
+# options DeviceSet::program passes, once per BVH layout the kernels are built for
+# (-DPX_BVH_WIDTH 2, 4, 8, 9). PoCL compiles for the CPU it runs on, so CI would never see a
+# construct only x86 accepts; GPU machines are lent for minutes, and a kernel that does not
+# build there wastes them. Nothing runs and no speed is checked.
+# Usage: kernels_ptx.sh SOURCE_DIR. Exit 77 (skipped) when clang or its NVPTX back end is missing
+# (scripts/install-deps --fuzz installs clang; CI has it).
+set -u
+src="$1"
+clang_bin="${CLANG:-clang}"
+if ! command -v "$clang_bin" >/dev/null 2>&1; then echo "skip: no clang"; exit 77; fi
+if ! "$clang_bin" --print-targets 2>/dev/null | grep -q nvptx64; then echo "skip: clang has no NVPTX back end"; exit 77; fi
+fails=0
+count=0
+while IFS= read -r -d '' file; do
+  rel="${file#"$src"/kernels/}"
+  for width in 2 4 8 9; do
+    count=$((count + 1))
+    if ! out="$("$clang_bin" -x cl -cl-std=CL1.2 -target nvptx64-nvidia-nvcl -Xclang -finclude-default-header \
+        -cl-single-precision-constant -O2 -DPX_BVH_WIDTH=$width -I"$src/kernels" -S -o /dev/null "$file" 2>&1)"; then
+      echo "FAIL $rel (PX_BVH_WIDTH=$width):"
+      echo "$out" | head -20
+      fails=$((fails + 1))
+    fi
+  done
+  echo "ok   $rel"
+done < <(find "$src/kernels" -name '*.cl' -print0 | sort -z)
+[ "$count" -gt 0 ] || { echo "FAIL no kernel files under $src/kernels"; exit 1; }
+echo "kernels_ptx: $count compilations, $fails failure(s)"
+[ "$fails" -eq 0 ]
