@@ -92,7 +92,8 @@ int main(int argc, char** argv) {
   if (!summary_csv.empty()) {
     summary_out.open(summary_csv);
     summary_out << "scene,pipeline,devices,device_mode,width,height,spp,bounces,frames,makespan_ms,median_frame_ms,hz,"
-                   "reprojected,ref_spp,right_psnr_db,right_rel_mse,last_right_psnr_db,last_right_rel_mse\n";
+                   "reprojected,ref_spp,right_psnr_db,right_rel_mse,last_right_psnr_db,last_right_rel_mse,path_tracer,"
+                   "bvh_layout\n";
   }
   if (!frames_csv.empty()) {
     frames_out.open(frames_csv);
@@ -192,7 +193,7 @@ int main(int argc, char** argv) {
                       << ',' << height << ',' << spp << ',' << bounces << ',' << frames << ',' << r.makespan_ms << ','
                       << r.median_frame_ms << ',' << 1000.0 * frames / r.makespan_ms << ',' << r.reprojected << ','
                       << ref_spp << ',' << r.right_psnr << ',' << r.right_rel_mse << ',' << r.last_right_psnr << ','
-                      << r.last_right_rel_mse << '\n';
+                      << r.last_right_rel_mse << ',' << path_tracer << ',' << px::to_string(set.bvh_layout()) << '\n';
       std::printf("speed-up proposed vs baseline: x%.2f (makespan ratio); proposed vs mono: x%.2f\n",
                   results[1].makespan_ms / results[0].makespan_ms, results[2].makespan_ms / results[0].makespan_ms);
       if (compare_overlap)
