@@ -186,7 +186,11 @@ int main(int argc, char** argv) {
     std::vector<Row> rows;
     std::vector<px::BvhLayout> layouts;
     for (const auto& l : layout_names) layouts.push_back(px::parse_bvh_layout(l));
-    if (layouts.empty()) layouts.push_back(px::DeviceSet::create({devices, px::DeviceMode::Auto, ""}).bvh_layout());
+    // One device set for every scene; without --layout, its own layout (by device type).
+    auto set = px::DeviceSet::create({devices, px::DeviceMode::Auto, ""});
+    std::fprintf(stderr, "[bench] %d device(s), %s mode: %s\n", set.size(), px::to_string(set.mode()),
+                 set.devices()[0].description.c_str());
+    if (layouts.empty()) layouts.push_back(set.bvh_layout());
     for (const auto& name : scenes) {
       px::set_bvh_layout(layouts[0]);
       auto loaded = px::load_and_build(name);
@@ -194,9 +198,6 @@ int main(int argc, char** argv) {
       // cut-outs are switched off too (they are tested in test_trace_kernels).
       for (auto& m : loaded.scene.materials) m.alpha_texture = -1;
       px::EmbreeReference embree(loaded.scene.triangles);
-      auto set = px::DeviceSet::create({devices, px::DeviceMode::Auto, ""});
-      std::fprintf(stderr, "[bench] %d device(s), %s mode: %s\n", set.size(), px::to_string(set.mode()),
-                   set.devices()[0].description.c_str());
       // The layout is process-wide: each DeviceScene uploads, and each tracer builds its
       // kernels for, the layout current at its construction.
       std::vector<std::unique_ptr<px::DeviceScene>> scenes_per_layout;

@@ -533,7 +533,9 @@ void expect_same_pixels(const TracedBuffers& a, const TracedBuffers& b, const st
     differ += std::memcmp(&a.albedo[p], &b.albedo[p], sizeof(cl_float4)) != 0;
   }
   EXPECT_EQ(differ, 0) << what << ": of " << pixels.size() << " pixels";
-  if (same_count) EXPECT_EQ(a.nonfinite, b.nonfinite) << what;
+  if (same_count) {
+    EXPECT_EQ(a.nonfinite, b.nonfinite) << what;
+  }
 }
 
 TEST(WavefrontPathTracer, SamplesInBatchesGiveTheMegakernelsPixels) {

@@ -54,6 +54,14 @@ std::string read_decoded(OIIO::ImageInput& in, DecodedImage& out) {
   return {};
 }
 
+// Textures keep their colour unassociated (straight) as stored in the file: cut-outs are
+// alpha-tested, not blended, so premultiplying would only darken the edges of leaves.
+OIIO::ImageSpec straight_alpha_config() {
+  OIIO::ImageSpec config;
+  config.attribute("oiio:UnassociatedAlpha", 1);
+  return config;
+}
+
 }  // namespace
 
 bool image_codec_available() { return true; }
@@ -88,10 +96,7 @@ void write_png(const std::string& path, int width, int height, const std::vector
 }
 
 std::string decode_image_file(const std::string& path, DecodedImage& out) {
-  // Keep colour unassociated (straight) as stored in the file: cut-outs are alpha-tested, not
-  // blended, so premultiplying would only darken the edges of leaves.
-  OIIO::ImageSpec config;
-  config.attribute("oiio:UnassociatedAlpha", 1);
+  const OIIO::ImageSpec config = straight_alpha_config();
   auto in = OIIO::ImageInput::open(path, &config);
   if (!in) return OIIO::geterror();
   return read_decoded(*in, out);
@@ -101,8 +106,7 @@ std::string decode_image_memory(const unsigned char* bytes, std::size_t size, co
                                 DecodedImage& out) {
   if (size == 0) return "empty image";
   OIIO::Filesystem::IOMemReader memory(bytes, size);
-  OIIO::ImageSpec config;
-  config.attribute("oiio:UnassociatedAlpha", 1);
+  OIIO::ImageSpec config = straight_alpha_config();
   // The proxy goes in the configuration: OpenImageIO 2.4's open(name, config, proxy) still
   // looks for the file by name.
   void* proxy = &memory;

@@ -167,7 +167,7 @@ std::string one_line(const std::string& text) {
   return out;
 }
 
-// Images are decoded from memory (image_io.h) (as the OBJ path's textures are), into float
+// Images are decoded from memory by the image codec (image_io.h), as the OBJ path's textures are, into float
 // RGBA kept in tinygltf's Image (bits 32). An image it cannot decode (KTX2, WebP...) or one
 // too large loses its texture, with a warning, instead of failing the whole file.
 struct ImageLoadLog {

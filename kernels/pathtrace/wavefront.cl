@@ -66,16 +66,21 @@ inline void px_generate(global float4* states, global uint* path_pixel, global u
   queue[i] = i;
 }
 
+/* A generate kernel's start: work-item 0 sets the launch's counts (`slots` pixels, fp->spp paths
+ * each, all alive at vertex 0). Returns whether work-item i has a path to generate. */
+inline int px_generate_counts(global uint* counts, uint slots, const FrameParams* fp, uint i) {
+  if (i == 0u) {
+    counts[0] = slots;
+    counts[PX_WF_LIVE] = slots * fp->spp;
+  }
+  return i < slots * fp->spp;
+}
+
 /* Every pixel of rows [fp.row0, fp.row0 + fp.rows), fp.spp paths each. */
 kernel void wf_generate_rows(global float4* states, global uint* path_pixel, global uint* queue, global uint* counts,
                              FrameParams fp, CameraParams cam) {
   const uint i = get_global_id(0);
-  const uint slots = fp.rows * cam.width;
-  if (i == 0u) {
-    counts[0] = slots;
-    counts[PX_WF_LIVE] = slots * fp.spp;
-  }
-  if (i >= slots * fp.spp) return;
+  if (!px_generate_counts(counts, fp.rows * cam.width, &fp, i)) return;
   px_generate(states, path_pixel, queue, &fp, &cam, fp.row0 * cam.width + i / fp.spp, i);
 }
 
@@ -84,12 +89,7 @@ kernel void wf_generate_list(global float4* states, global uint* path_pixel, glo
                              const global uint* holes, const global uint* hole_count, FrameParams fp,
                              CameraParams cam) {
   const uint i = get_global_id(0);
-  const uint slots = *hole_count;
-  if (i == 0u) {
-    counts[0] = slots;
-    counts[PX_WF_LIVE] = slots * fp.spp;
-  }
-  if (i >= slots * fp.spp) return;
+  if (!px_generate_counts(counts, *hole_count, &fp, i)) return;
   px_generate(states, path_pixel, queue, &fp, &cam, holes[i / fp.spp], i);
 }
 
