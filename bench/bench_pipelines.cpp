@@ -39,6 +39,13 @@ struct PipelineResult {
   int owner = 0;
 };
 
+// A pipeline's name in a 9-character column header.
+std::string short_name(const std::string& name) {
+  if (name == "proposed-1q") return "p-1q";
+  if (name == "proposed-gpass") return "p-gp";
+  return name.substr(0, 4);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -48,7 +55,7 @@ int main(int argc, char** argv) {
   int devices = 2;
   float fps = 30.0f;
   std::string csv, summary_csv, frames_csv;
-  bool compare_overlap = false;
+  bool compare_overlap = false, compare_gbuffer = false;
   std::string hole_spread = "auto";
   app.add_option("--scene", scenes)->capture_default_str();
   app.add_option("--width", width)->capture_default_str();
@@ -66,6 +73,9 @@ int main(int argc, char** argv) {
   app.add_flag("--compare-overlap", compare_overlap,
                "run proposed with the side queue forced on (on CPUs it is off by default), and again with one "
                "queue per device as pipeline 'proposed-1q', for the side queue's speed-up side by side");
+  app.add_flag("--compare-gbuffer", compare_gbuffer,
+               "run proposed again with the left eye's G-buffer traced by its own pass (stage 3) instead of "
+               "written by the path tracer, as pipeline 'proposed-gpass' (images are identical)");
   std::string path_tracer = "megakernel";
   app.add_option("--path-tracer", path_tracer,
                  "stages 2, 5 and 12: megakernel or wavefront (a kernel per path step; images are identical)")
@@ -128,24 +138,33 @@ int main(int argc, char** argv) {
       std::vector<PipelineResult> results;
       // Proposed, baseline and mono (results 0-2), then proposed on one queue per device.
       // With --compare-overlap: proposed with the side queue forced on, and proposed-1q without.
-      std::vector<std::pair<px::PipelineKind, px::Overlap>> runs{{px::PipelineKind::Proposed, px::Overlap::Auto},
-                                                                 {px::PipelineKind::Baseline, px::Overlap::Auto},
-                                                                 {px::PipelineKind::Mono, px::Overlap::Auto}};
+      // With --compare-gbuffer: proposed-gpass, whose G-buffer pass traces the left eye too.
+      struct Run {
+        px::PipelineKind kind;
+        px::Overlap overlap = px::Overlap::Auto;
+        bool gbuffer_from_path_tracer = true;
+        std::string name;
+      };
+      std::vector<Run> runs;
+      for (px::PipelineKind kind : {px::PipelineKind::Proposed, px::PipelineKind::Baseline, px::PipelineKind::Mono})
+        runs.push_back({kind, px::Overlap::Auto, true, px::to_string(kind)});
       if (compare_overlap) {
-        runs[0].second = px::Overlap::On;
-        runs.push_back({px::PipelineKind::Proposed, px::Overlap::Off});
+        runs[0].overlap = px::Overlap::On;
+        runs.push_back({px::PipelineKind::Proposed, px::Overlap::Off, true, "proposed-1q"});
       }
-      for (auto [kind, overlap] : runs) {
+      if (compare_gbuffer) runs.push_back({px::PipelineKind::Proposed, runs[0].overlap, false, "proposed-gpass"});
+      for (const Run& run : runs) {
         px::StereoPipeline::Options opt;
-        opt.pipeline = kind;
+        opt.pipeline = run.kind;
         opt.trace.spp = spp;
         opt.trace.bounces = bounces;
-        opt.overlap = overlap;
+        opt.overlap = run.overlap;
+        opt.gbuffer_from_path_tracer = run.gbuffer_from_path_tracer;
         opt.hole_fill.spread = spread;
         opt.path_kernel = px::parse_path_trace_kernel(path_tracer);
         px::StereoPipeline pipeline(set, ds, scene, width, height, opt);
         PipelineResult r;
-        r.name = std::string(px::to_string(kind)) + (overlap == px::Overlap::Off ? "-1q" : "");
+        r.name = run.name;
         r.owner = pipeline.schedule().tree.root;
         std::vector<double> frame_ms;
         double reprojected = 0;
@@ -178,10 +197,10 @@ int main(int argc, char** argv) {
 
       std::printf("\n== %s, %ux%u per eye, %u spp, %u bounces, %d devices (%s), %u frames after %u warm-up ==\n",
                   name.c_str(), width, height, spp, bounces, set.size(), px::to_string(set.mode()), frames, warmup);
-      std::printf("%-11s %12s %12s %8s %12s %10s %10s %10s %10s\n", "pipeline", "makespan ms", "median ms", "Hz",
+      std::printf("%-14s %12s %12s %8s %12s %10s %10s %10s %10s\n", "pipeline", "makespan ms", "median ms", "Hz",
                   "reprojected", "right PSNR", "right rMSE", "last PSNR", "last rMSE");
       for (const auto& r : results)
-        std::printf("%-11s %12.0f %12.1f %8.2f %11.1f%% %10.2f %10.4f %10.2f %10.4f\n", r.name.c_str(), r.makespan_ms,
+        std::printf("%-14s %12.0f %12.1f %8.2f %11.1f%% %10.2f %10.4f %10.2f %10.4f\n", r.name.c_str(), r.makespan_ms,
                     r.median_frame_ms, 1000.0 * frames / r.makespan_ms, 100.0 * r.reprojected, r.right_psnr,
                     r.right_rel_mse, r.last_right_psnr, r.last_right_rel_mse);
       if (ref_spp > 0)
@@ -196,12 +215,16 @@ int main(int argc, char** argv) {
                       << r.last_right_rel_mse << ',' << path_tracer << ',' << px::to_string(set.bvh_layout()) << '\n';
       std::printf("speed-up proposed vs baseline: x%.2f (makespan ratio); proposed vs mono: x%.2f\n",
                   results[1].makespan_ms / results[0].makespan_ms, results[2].makespan_ms / results[0].makespan_ms);
-      if (compare_overlap)
-        std::printf("side queue: proposed vs proposed-1q: x%.2f (makespan ratio)\n",
-                    results[3].makespan_ms / results[0].makespan_ms);
+      for (const auto& r : results) {
+        if (r.name == "proposed-1q")
+          std::printf("side queue: proposed vs proposed-1q: x%.2f (makespan ratio)\n", r.makespan_ms / results[0].makespan_ms);
+        if (r.name == "proposed-gpass")
+          std::printf("G-buffer from the path tracer: proposed vs proposed-gpass: x%.2f (makespan ratio)\n",
+                      r.makespan_ms / results[0].makespan_ms);
+      }
       std::printf("\nmedian device ms per frame, by stage and device:\n%-22s", "stage");
       for (const auto& r : results)
-        for (int d = 0; d < set.size(); ++d) std::printf(" %9s", (r.name.substr(0, 4) + "/d" + std::to_string(d)).c_str());
+        for (int d = 0; d < set.size(); ++d) std::printf(" %9s", (short_name(r.name) + "/d" + std::to_string(d)).c_str());
       std::printf("\n");
       for (int stage : {2, 12, 3, 4, 5, 6, 7, 8, 9}) {
         std::printf("%-3d %-18s", stage, px::stage_name(static_cast<px::Stage>(stage)));

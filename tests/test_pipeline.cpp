@@ -93,10 +93,40 @@ TEST(Operations, CoverEveryScheduledRowOnceAndWaitOnlyOnEarlierOperations) {
       for (int n = 1; n <= 4; ++n) {
         const unsigned h = 37, margin = 5;
         const FrameSchedule fs = make_schedule(kind, n, h, denoise);
-        for (bool side : {false, true}) {
-        const std::vector<Operation> ops = make_operations(fs, margin, side);
+        for (int variant = 0; variant < 4; ++variant) {
+        const bool side = variant & 1, fuse = variant & 2;
+        const std::vector<Operation> ops = make_operations(fs, margin, side, fuse);
         const std::string what = std::string(to_string(kind)) + (denoise ? " denoised" : "") + " n=" + std::to_string(n) +
-                                 (side ? " side lane" : "");
+                                 (side ? " side lane" : "") + (fuse ? " G-buffer from path tracing" : "");
+        // Per device and eye, the G-buffer rows written there: by the G-buffer passes, and by the
+        // path traces that write theirs. With and without fusion the same rows, each once.
+        const std::vector<Operation> plain = make_operations(fs, margin, side, false);
+        int fused_ops = 0;
+        for (int d = 0; d < n; ++d)
+          for (int eye = 0; eye < 2; ++eye) {
+            std::vector<int> got(h, 0), want(h, 0);
+            for (const Operation& op : ops) {
+              if (op.device != d || op.eye != eye) continue;
+              const bool writes = op.stage == Stage::GBuffer || op.writes_gbuffer;
+              if (op.writes_gbuffer) {
+                ASSERT_TRUE(fuse) << what;
+                ASSERT_TRUE(op.stage == Stage::PathTraceLeft || op.stage == Stage::PathTraceRight) << what;
+                ++fused_ops;
+              }
+              if (writes)
+                for (unsigned y = op.rows.begin; y < op.rows.end; ++y) got[y]++;
+            }
+            for (const Operation& op : plain)
+              if (op.device == d && op.eye == eye && op.stage == Stage::GBuffer)
+                for (unsigned y = op.rows.begin; y < op.rows.end; ++y) want[y]++;
+            for (unsigned y = 0; y < h; ++y)
+              ASSERT_EQ(got[y], want[y]) << what << " device " << d << " eye " << eye << " G-buffer row " << y;
+          }
+        // Proposed and mono path trace each device's strip of the left eye where its G-buffer is
+        // (mono has a G-buffer only for the denoiser).
+        if (fuse && (kind == PipelineKind::Proposed || (kind == PipelineKind::Mono && denoise))) {
+          EXPECT_GE(fused_ops, n) << what;
+        }
         for (const StageWork& w : fs.stages)
           for (int eye = 0; eye < 2; ++eye) {
             // Independently of make_operations: the rows the schedule gives this stage and eye.
@@ -110,7 +140,9 @@ TEST(Operations, CoverEveryScheduledRowOnceAndWaitOnlyOnEarlierOperations) {
                 // The owner's rows stay where they are; every other scheduled row travels once.
                 ASSERT_EQ(got[y], want[y] && want_device[y] != fs.tree.root ? 1 : 0) << what << " row " << y;
               } else if (w.stage == Stage::GBuffer) {
-                // Each device's G-buffer also covers `margin` rows beyond its strip.
+                // Each device's G-buffer also covers `margin` rows beyond its strip (fused: the
+                // pass's rows and the path traced rows that write theirs, checked above).
+                if (fuse) continue;
                 bool near = false;
                 for (unsigned z = y > margin ? y - margin : 0; z <= std::min(h - 1, y + margin); ++z) near |= want[z] > 0;
                 ASSERT_EQ(got[y] > 0, near) << what << " g-buffer row " << y;
@@ -160,6 +192,8 @@ TEST(Operations, CoverEveryScheduledRowOnceAndWaitOnlyOnEarlierOperations) {
             must(same_device && b.stage == Stage::Denoise && b.eye == 0 &&
                      (a.stage == Stage::Reproject || a.stage == Stage::PathTraceLeft),
                  "denoising rewrites the radiance they read or write");
+            must(same_device && a.writes_gbuffer && (b.stage == Stage::Reproject || (b.stage == Stage::Denoise && a.eye == b.eye)),
+                 "they read the G-buffer the path trace wrote");
             must(same_device && b.stage == Stage::Tonemap && a.stage == Stage::Denoise && a.eye == b.eye,
                  "tonemap reads denoised radiance");
             must(same_device && b.stage == Stage::Tonemap && a.stage == Stage::HoleFill && b.eye == 1,
@@ -492,6 +526,60 @@ TEST(StereoPipeline, WavefrontPathTracerGivesTheMegakernelsImages) {
     double sum = 0;
     for (float v : images[1][1].rgb) sum += v;
     EXPECT_GT(sum, 0.0) << what << ": a black image would match a black image";
+  }
+}
+
+bool same_gbuffer(const std::vector<GBufferTexel>& a, const std::vector<GBufferTexel>& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(GBufferTexel)) == 0;
+}
+
+TEST(StereoPipeline, PathTracedGBufferIsTheGBufferPassesToTheLastBit) {
+  // The path tracers' centred first sample writes the G-buffer of the rows they trace; the
+  // G-buffer pass (an independent kernel) traces the same texels when that is off. Denoised,
+  // over two frames, so that SVGF reads the G-buffer (margins included) and its history.
+  const LoadedScene sky{silhouettes_scene(), {}};
+  LoadedScene sky_built{sky.scene, build_bvh(sky.scene.triangles)};
+  struct Case {
+    const LoadedScene* scene;
+    PipelineKind kind;
+    int devices;
+    PathTraceKernel kernel;
+  };
+  const std::vector<Case> cases{{&glossy_cornell(), PipelineKind::Proposed, 1, PathTraceKernel::Megakernel},
+                                {&glossy_cornell(), PipelineKind::Proposed, 3, PathTraceKernel::Megakernel},
+                                {&glossy_cornell(), PipelineKind::Proposed, 2, PathTraceKernel::Wavefront},
+                                {&glossy_cornell(), PipelineKind::Baseline, 2, PathTraceKernel::Megakernel},
+                                {&sky_built, PipelineKind::Mono, 2, PathTraceKernel::Wavefront},
+                                {&sky_built, PipelineKind::Proposed, 2, PathTraceKernel::Megakernel}};
+  for (const Case& c : cases) {
+    std::array<std::array<ImageRGB, 2>, 2> images;
+    std::array<std::array<std::vector<GBufferTexel>, 2>, 2> gbuffers;
+    int fused_ops = 0;
+    for (int k = 0; k < 2; ++k) {
+      DeviceSet set = DeviceSet::create({c.devices, DeviceMode::Auto, ""});
+      DeviceScene ds(set, c.scene->scene, c.scene->bvh);
+      StereoPipeline::Options opt;
+      opt.pipeline = c.kind;
+      opt.trace.spp = 2;
+      opt.trace.bounces = 3;
+      opt.path_kernel = c.kernel;
+      opt.gbuffer_from_path_tracer = k == 1;
+      StereoPipeline p(set, ds, c.scene->scene, 48, 37, opt);
+      for (const Operation& op : p.operations()) fused_ops += op.writes_gbuffer;
+      for (unsigned f = 0; f < 2; ++f) p.render(f, 0.1f * f);
+      images[k] = p.radiance();
+      for (int e = 0; e < 2; ++e) gbuffers[k][e] = p.gbuffer_of(e);
+    }
+    const std::string what = std::string(to_string(c.kind)) + ", " + std::to_string(c.devices) + " device(s), " +
+                             to_string(c.kernel) + ", " + c.scene->scene.name;
+    EXPECT_GT(fused_ops, 0) << what << ": no path trace wrote the G-buffer";
+    for (int e = 0; e < 2; ++e) {
+      EXPECT_TRUE(same_gbuffer(gbuffers[0][e], gbuffers[1][e])) << what << ": G-buffer of eye " << e;
+      EXPECT_TRUE(same_bits(images[0][e], images[1][e])) << what << ": image of eye " << e;
+    }
+    std::size_t hits = 0;
+    for (const GBufferTexel& t : gbuffers[1][0]) hits += t.prim != PX_NO_HIT;
+    EXPECT_GT(hits, gbuffers[1][0].size() / 4) << what << ": an empty G-buffer would match an empty one";
   }
 }
 

@@ -161,7 +161,7 @@ int run_render(const RenderCommand& cmd) {
   const bool root = cluster.rank() == 0;
   opt.cluster = &cluster;
   opt.gather_radiance = !cmd.no_exr;
-  opt.overlap = cmd.no_overlap ? Overlap::Off : Overlap::Auto;
+  opt.overlap = cmd.no_overlap ? Overlap::Off : cmd.force_overlap ? Overlap::On : Overlap::Auto;
   if (cmd.explain) {
     if (!root) return 0;
     // The schedule depends only on pipeline, device count, height and denoising: no scene needed.
@@ -169,11 +169,14 @@ int run_render(const RenderCommand& cmd) {
         make_schedule(opt.pipeline, cmd.devices.count * cluster.size(), cmd.height, opt.denoise);
     std::printf("%s\n%s", schedule.explain().c_str(),
                 explain_operations(make_operations(schedule, StereoPipeline::gbuffer_margin(schedule, opt),
-                                                  opt.overlap != Overlap::Off && !distributed))
+                                                  opt.overlap != Overlap::Off && !distributed,
+                                                  StereoPipeline::fuses_gbuffer(opt)))
                     .c_str());
     if (opt.overlap != Overlap::Off && !distributed)
-      std::printf("lanes: 'side' operations run on a second queue per device where a device is a GPU; on CPU "
-                  "devices, and with --no-overlap, every operation runs on the main queue\n");
+      std::printf(cmd.force_overlap ? "lanes: 'side' operations run on a second queue per device (--overlap)\n"
+                                    : "lanes: 'side' operations run on a second queue per device where a device is a "
+                                      "GPU; on CPU devices (unless --overlap), and with --no-overlap, every operation "
+                                      "runs on the main queue\n");
     if (distributed)
       std::printf("MPI: %d ranks x %d device(s); rank r drives devices %d*r .. %d*r+%d\n", cluster.size(),
                   cmd.devices.count, cmd.devices.count, cmd.devices.count, cmd.devices.count - 1);

@@ -53,6 +53,7 @@ struct RenderCommand {
   bool no_denoise = false;
   bool no_exr = false;         // PNGs only: finished strips travel as RGBA8 alone
   bool no_overlap = false;     // one queue per device (no side queue for the left eye)
+  bool force_overlap = false;  // the side queue on CPU devices too
   SvgfDenoiser::Options svgf;
   SeamMode seams = SeamMode::Halo;
   std::string report;          // JSON report path ("" = none)

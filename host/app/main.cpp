@@ -134,10 +134,16 @@ int main(int argc, char** argv) {
   render_cmd->add_flag("--no-exr", render.no_exr,
                        "write PNGs only: finished strips then travel to the owner as RGBA8 alone (4 bytes a pixel "
                        "instead of 20; what a display needs, as in the paper)");
-  render_cmd->add_flag("--no-overlap", render.no_overlap,
-                       "one command queue per device: the left eye's denoising, tonemapping and transfer no longer run "
-                       "on a side queue beside the right eye's reprojection and hole filling (images are identical; "
-                       "the side queue is used only where a device is a GPU: on CPUs it measured slower)");
+  auto* no_overlap = render_cmd->add_flag(
+      "--no-overlap", render.no_overlap,
+      "one command queue per device: the left eye's denoising, tonemapping and transfer no longer run "
+      "on a side queue beside the right eye's reprojection and hole filling (images are identical; "
+      "the side queue is used only where a device is a GPU: on CPUs it measured slower)");
+  render_cmd
+      ->add_flag("--overlap", render.force_overlap,
+                 "the side queue on every device, CPUs included (to see the overlap in a --timeline on a machine "
+                 "without a GPU; images are identical)")
+      ->excludes(no_overlap);
   add_word_option(render_cmd, "--balance", render.balance, px::balance_words(),
                   "strip boundaries between devices: static (even split) or dynamic (moved between frames "
                   "toward equal measured device time; images stay identical; proposed and mono pipelines)");

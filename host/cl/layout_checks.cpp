@@ -66,6 +66,7 @@ static_assert(sizeof(FrameParams) == 128);
 static_assert(offsetof(FrameParams, p_sun) == 28 && offsetof(FrameParams, light_count) == 76);
 static_assert(offsetof(FrameParams, frame) == 80 && offsetof(FrameParams, rr_start_bounce) == 104);
 static_assert(offsetof(FrameParams, row0) == 108 && offsetof(FrameParams, rows) == 112);
+static_assert(offsetof(FrameParams, sample_offset) == 116 && offsetof(FrameParams, first_sample_centred) == 120);
 static_assert(sizeof(GBufferTexel) == 36);
 static_assert(offsetof(GBufferTexel, depth) == 12 && offsetof(GBufferTexel, material_class) == 28);
 static_assert(offsetof(GBufferTexel, prim) == 32);

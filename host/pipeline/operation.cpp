@@ -1,5 +1,6 @@
 #include "pipeline/operation.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <map>
 #include <set>
@@ -27,6 +28,7 @@ std::vector<Access> accesses(const Operation& op) {
   switch (op.stage) {
     case Stage::PathTraceLeft:
     case Stage::PathTraceRight:
+      if (op.writes_gbuffer) return {{d, Image::Radiance, e, true}, {d, Image::Albedo, e, true}, {d, Image::GBuffer, e, true}};
       return {{d, Image::Radiance, e, true}, {d, Image::Albedo, e, true}};
     case Stage::GBuffer:
       return {{d, Image::GBuffer, e, true}};
@@ -54,13 +56,57 @@ std::vector<Access> accesses(const Operation& op) {
   }
 }
 
+bool is_path_trace(Stage s) { return s == Stage::PathTraceLeft || s == Stage::PathTraceRight; }
+
+// `rows` less every range in `cut`, as ordered disjoint ranges.
+std::vector<RowRange> subtract(RowRange rows, std::vector<RowRange> cut) {
+  std::sort(cut.begin(), cut.end(), [](RowRange a, RowRange b) { return a.begin < b.begin; });
+  std::vector<RowRange> left;
+  unsigned at = rows.begin;
+  for (const RowRange& c : cut) {
+    if (c.end <= at || c.begin >= rows.end) continue;
+    if (c.begin > at) left.push_back({at, c.begin});
+    at = std::max(at, c.end);
+  }
+  if (at < rows.end) left.push_back({at, rows.end});
+  return left;
+}
+
+// The path traces write the G-buffer rows they trace where their device has a G-buffer pass of
+// the same eye; those passes keep the rest.
+std::vector<Operation> fuse_gbuffer(std::vector<Operation> ops) {
+  std::set<std::pair<int, int>> has_pass;  // (device, eye)
+  for (const Operation& op : ops)
+    if (op.stage == Stage::GBuffer) has_pass.insert({op.device, op.eye});
+  std::map<std::pair<int, int>, std::vector<RowRange>> traced;
+  for (Operation& op : ops) {
+    if (!is_path_trace(op.stage) || !has_pass.count({op.device, op.eye})) continue;
+    op.writes_gbuffer = true;
+    traced[{op.device, op.eye}].push_back(op.rows);
+  }
+  std::vector<Operation> out;
+  for (const Operation& op : ops) {
+    if (op.stage != Stage::GBuffer) {
+      out.push_back(op);
+      continue;
+    }
+    for (const RowRange& r : subtract(op.rows, traced[{op.device, op.eye}])) {
+      Operation piece = op;
+      piece.rows = r;
+      out.push_back(piece);
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 bool on_side_lane(const Operation& op) {
   return op.eye == 0 && (op.stage == Stage::Denoise || op.stage == Stage::Tonemap || op.stage == Stage::Transfer);
 }
 
-std::vector<Operation> make_operations(const FrameSchedule& schedule, unsigned gbuffer_margin, bool side_lane) {
+std::vector<Operation> make_operations(const FrameSchedule& schedule, unsigned gbuffer_margin, bool side_lane,
+                                       bool gbuffer_from_path_tracer) {
   std::vector<Operation> ops;
   const int n = schedule.devices;
   auto add = [&](const StageWork& w, int eye, int d, RowRange rows) {
@@ -92,6 +138,7 @@ std::vector<Operation> make_operations(const FrameSchedule& schedule, unsigned g
       for (const RowRange& r : w.right_rows[d]) add(w, 1, d, r);
     }
   }
+  if (gbuffer_from_path_tracer) ops = fuse_gbuffer(std::move(ops));
   // What each waits for (see the header): per image, its last writer and the readers since.
   struct Touches {
     long writer = -1;
@@ -140,6 +187,7 @@ std::string explain_operations(const std::vector<Operation>& operations) {
     out << line;
     if (op.payload == TransferPayload::FinishedImage) out << " finished image";
     if (op.payload == TransferPayload::LinearRadiance) out << " linear radiance";
+    if (op.writes_gbuffer) out << " +G-buffer";
     if (!op.after.empty()) {
       out << "  after";
       for (std::size_t a : op.after) out << " " << a;

@@ -32,6 +32,9 @@ struct Operation {
   int to = -1;          // a transfer: the receiving device
   TransferPayload payload = TransferPayload::None;
   int lane = 0;                    // QueueLanes::kMain or kSide
+  // A path trace that also writes its rows' G-buffer texels (its first sample is the G-buffer's
+  // ray, PathTracer::Options::first_sample_centred); the G-buffer pass then skips those rows.
+  bool writes_gbuffer = false;
   std::vector<std::size_t> after;  // indices of the operations it waits for (see above)
 };
 
@@ -41,7 +44,11 @@ struct Operation {
 // a denoise stage eye by eye (its passes run all devices of one eye in step, exchanging halo
 // rows between them).
 // `side_lane`: give the left eye's denoising, tonemapping and transfer the side lane.
-std::vector<Operation> make_operations(const FrameSchedule& schedule, unsigned gbuffer_margin, bool side_lane = true);
+// `gbuffer_from_path_tracer`: a path trace writes the G-buffer of its rows where its device has
+// a G-buffer pass of the same eye, and that pass keeps only the rows no such path trace covers
+// (the margins; none where a device path traces all it needs), split into ranges if need be.
+std::vector<Operation> make_operations(const FrameSchedule& schedule, unsigned gbuffer_margin, bool side_lane = true,
+                                       bool gbuffer_from_path_tracer = false);
 
 // Whether operation `op` takes the side lane (when there is one).
 bool on_side_lane(const Operation& op);

@@ -87,6 +87,11 @@ class StereoPipeline {
     Overlap overlap = Overlap::Auto;
     // Stage 5's work-items: a hole each, or a (hole, sample) pair each on GPUs (hole_fill_stage.h).
     HoleFillStage::Options hole_fill;
+    // Where a device path traces an eye's rows (stage 2; mono's 12 too), its centred first
+    // sample writes their G-buffer, and stage 3 traces only the margin rows beyond them (needs
+    // trace.first_sample_centred; ignored without). Images are identical either way: the texels
+    // are the G-buffer pass's to the last bit.
+    bool gbuffer_from_path_tracer = true;
   };
 
   StereoPipeline(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene, unsigned width,
@@ -95,7 +100,12 @@ class StereoPipeline {
   const FrameSchedule& schedule() const { return schedule_; }
   // The operations the next frame runs (the schedule with this frame's G-buffer margins).
   std::vector<Operation> operations() const {
-    return make_operations(schedule_, gbuffer_margin(schedule_, options_), lanes_.has_side());
+    return make_operations(schedule_, gbuffer_margin(schedule_, options_), lanes_.has_side(),
+                           fuses_gbuffer(options_));
+  }
+  // Whether path traces write the G-buffer of their rows (Options::gbuffer_from_path_tracer).
+  static bool fuses_gbuffer(const Options& options) {
+    return options.gbuffer_from_path_tracer && options.trace.first_sample_centred;
   }
   // The rows beyond its strip that each G-buffer pass of `schedule` covers: the most any
   // scheduled stage declares it reads (a static gbuffer_rows_read of its unit).

@@ -21,6 +21,7 @@ FrameParams PathTracer::frame_params(const Scene& scene, std::size_t light_count
   fp.row0 = row0;
   fp.rows = rows;
   fp.sample_offset = sample_offset;
+  fp.first_sample_centred = options.first_sample_centred ? 1u : 0u;
   return fp;
 }
 
@@ -31,9 +32,12 @@ cl::Event PathTracer::launch(const cl::CommandQueue& queue, const cl::Program& p
   k.setArg(0, out.radiance);
   k.setArg(1, out.albedo);
   k.setArg(2, out.nonfinite);
-  k.setArg(3, params);
-  k.setArg(4, camera);
-  scene.bind(k, 5);
+  if (out.gbuffer && !(params.first_sample_centred && params.sample_offset == 0))
+    throw std::logic_error("PathTracer::launch: a G-buffer needs the frame's first sample centred");
+  k.setArg(3, out.gbuffer ? *out.gbuffer : cl::Buffer());
+  k.setArg(4, params);
+  k.setArg(5, camera);
+  scene.bind(k, 6);
   return launch_1d(queue, k, static_cast<std::size_t>(params.rows) * width);
 }
 

@@ -26,6 +26,11 @@ class PathTracer {
     unsigned rr_start_bounce = 3;  // Russian roulette from this bounce on
     LightSampling light_sampling = LightSampling::Mis;
     std::uint32_t seed = 0;
+    // A frame's sample 0 of every pixel goes through the pixel centre (px_sample_camera_dir):
+    // the G-buffer's ray, so the path tracer can write the G-buffer (Targets::gbuffer) and the
+    // denoiser's G-buffer describes the surface that sample saw. Off for references, which
+    // integrate the whole pixel.
+    bool first_sample_centred = true;
   };
 
   // Everything but buffers that a path_trace / path_trace_list launch needs.
@@ -35,11 +40,15 @@ class PathTracer {
   // The one launch of the path_trace kernel, shared by render_stereo and the pipeline's path
   // tracing stage: `rows` of eye `eye` into the full-frame float4 `radiance` and `albedo`
   // buffers (absolute pixel indices; only those rows are written), dropped non-finite paths
-  // counted into `nonfinite` (uint). Returns the launch's event.
+  // counted into `nonfinite` (uint). `gbuffer`, if not null: the eye's full-frame G-buffer
+  // (GBufferTexel), whose texels of `rows` the centred first sample writes (the G-buffer
+  // pass's, bit for bit; needs first_sample_centred and sample offset 0). Returns the launch's
+  // event.
   struct Targets {
     const cl::Buffer& radiance;
     const cl::Buffer& albedo;
     const cl::Buffer& nonfinite;
+    const cl::Buffer* gbuffer = nullptr;
   };
   static cl::Event launch(const cl::CommandQueue& queue, const cl::Program& program, const DeviceSceneBuffers& scene,
                           const Targets& out, const FrameParams& params, const CameraParams& camera, unsigned width);

@@ -50,8 +50,8 @@ using Commands = std::vector<WavefrontPathTracer::Command>;
 // One batch's vertices, after its generate kernel: extend / shade / connect per vertex. `paths`
 // bounds every launch (the queues' counts live on the device, so the host never waits for them).
 void trace_vertices(const cl::CommandQueue& queue, const cl::Program& program, const DeviceSceneBuffers& scene,
-                    WavefrontPathTracer::Scratch& s, const FrameParams& params, const CameraParams& camera,
-                    std::size_t paths, Commands& log) {
+                    WavefrontPathTracer::Scratch& s, const cl::Buffer* gbuffer, const FrameParams& params,
+                    const CameraParams& camera, std::size_t paths, Commands& log) {
   cl::Kernel extend(program, "wf_extend"), shade(program, "wf_shade"), connect(program, "wf_connect");
   extend.setArg(0, s.states);
   extend.setArg(1, s.hits);
@@ -63,9 +63,10 @@ void trace_vertices(const cl::CommandQueue& queue, const cl::Program& program, c
   shade.setArg(3, s.path_pixel);
   shade.setArg(6, s.shadow_queue);
   shade.setArg(7, s.counts);
-  shade.setArg(9, params);
-  shade.setArg(10, camera);
-  scene.bind(shade, 11);
+  shade.setArg(9, gbuffer ? *gbuffer : cl::Buffer());
+  shade.setArg(10, params);
+  shade.setArg(11, camera);
+  scene.bind(shade, 12);
   connect.setArg(0, s.states);
   connect.setArg(1, s.shadows);
   connect.setArg(2, s.shadow_queue);
@@ -116,7 +117,7 @@ Commands trace_batches(const cl::Context& context, const cl::CommandQueue& queue
     queue.enqueueFillBuffer(s.counts, cl_uint{0}, 0, PX_WAVEFRONT_COUNTERS * sizeof(cl_uint), nullptr, &zeroed);
     log.push_back({"reset", zeroed});
     log.push_back({"generate", generate(batch, slots * batch.spp)});
-    trace_vertices(queue, program, scene, s, batch, camera, slots * batch.spp, log);
+    trace_vertices(queue, program, scene, s, out.gbuffer, batch, camera, slots * batch.spp, log);
     resolve.setArg(7, static_cast<cl_uint>(batch.spp));
     resolve.setArg(8, static_cast<cl_uint>(first == 0));
     resolve.setArg(9, static_cast<cl_uint>(first + batch.spp == params.spp));

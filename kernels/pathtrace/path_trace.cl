@@ -9,16 +9,19 @@
 #include "shared/types.h"
 #include "pathtrace/path_vertex.h"
 #include "pathtrace/pixel_mean.h"
+#include "pipeline/gbuffer_texel.h"
 #include "render/camera.h"
 #include "trace/traverse.h"
 
 /* Radiance along one camera path, its vertices in a loop (path_vertex.h); *primary_albedo
- * receives PathVertex::primary_albedo. */
+ * receives PathVertex::primary_albedo. If `gbuffer_texel` is not null, the camera ray's texel
+ * (gbuffer_texel.h) goes there. */
 inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir,
-                            SampleKey key, float4* primary_albedo) {
+                            SampleKey key, float4* primary_albedo, global GBufferTexel* gbuffer_texel) {
   PathVertex v = px_camera_path(org, dir);
   for (uint bounce = 0; bounce <= fp->max_bounces; ++bounce) {
     const Hit hit = px_trace_closest_leaf(scene, v.org, v.dir, 0.0f, INFINITY);
+    if (bounce == 0u && gbuffer_texel) *gbuffer_texel = px_gbuffer_texel(scene, v.dir, hit);
     ShadowRay shadow;
     const int goes_on = px_path_vertex(scene, fp, key, bounce, hit, &v, &shadow);
     if (shadow.valid && !px_trace_any(scene, shadow.org, shadow.dir, 0.0f, shadow.tmax))
@@ -31,13 +34,14 @@ inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float
 
 /* Sample s of pixel (x, y): the radiance of its camera path, and in *albedo the path's primary
  * demodulation albedo (see px_trace_path). Every random number comes from the pixel's and the
- * sample's own stream, so a sample is the same whichever work-item traces it. */
+ * sample's own stream, so a sample is the same whichever work-item traces it. `gbuffer_texel`:
+ * the pixel's G-buffer texel, written if not null and this sample is the centred one. */
 inline float3 px_render_sample(const SceneView* scene, const FrameParams* fp, const CameraParams* cam, uint x, uint y,
-                               uint s, float4* albedo) {
+                               uint s, float4* albedo, global GBufferTexel* gbuffer_texel) {
   const SampleKey key = px_sample_key(x, y, fp->frame, fp->eye, fp->sample_offset + s, fp->seed);
-  const float4 u = px_sample4(key, 0u);
-  const float3 dir = px_camera_dir(cam, x, y, u.x, u.y);
-  return px_trace_path(scene, fp, px_camera_origin(cam), dir, key, albedo);
+  const float3 dir = px_sample_camera_dir(fp, cam, key, x, y, s);
+  return px_trace_path(scene, fp, px_camera_origin(cam), dir, key, albedo,
+                       px_sample_centred(fp, s) ? gbuffer_texel : 0);
 }
 
 /* Mean radiance of pixel (x, y): fp->spp paths; a path with non-finite radiance is dropped
@@ -48,13 +52,14 @@ inline float3 px_render_sample(const SceneView* scene, const FrameParams* fp, co
  * the denoiser filters (the pixel's coverage: SVGF filters a silhouette pixel whose centre
  * misses the object but whose samples hit it). No finite path: (1, 1, 1, 0). */
 inline float4 px_render_pixel(const SceneView* scene, const FrameParams* fp, const CameraParams* cam,
-                              uint x, uint y, volatile global uint* nonfinite, float4* albedo) {
+                              uint x, uint y, volatile global uint* nonfinite, float4* albedo,
+                              global GBufferTexel* gbuffer_texel) {
   float3 sum = (float3)(0.0f, 0.0f, 0.0f);
   float4 albedo_sum = (float4)(0.0f, 0.0f, 0.0f, 0.0f);
   uint good = 0;
   for (uint s = 0; s < fp->spp; ++s) {
     float4 a;
-    const float3 l = px_render_sample(scene, fp, cam, x, y, s, &a);
+    const float3 l = px_render_sample(scene, fp, cam, x, y, s, &a, gbuffer_texel);
     if (px_finite3(l)) {
       sum += l;
       albedo_sum += a;
@@ -67,15 +72,19 @@ inline float4 px_render_pixel(const SceneView* scene, const FrameParams* fp, con
 }
 
 /* Stage 2 (and mono): every pixel of rows [fp.row0, fp.row0 + fp.rows) of eye fp.eye.
- * out, albedo_out: full-frame float4 images (width * height); only these rows are written. */
+ * out, albedo_out: full-frame float4 images (width * height); only these rows are written.
+ * gbuffer: null, or the eye's full-frame G-buffer, whose texels of these rows the centred first
+ * sample writes (the G-buffer pass's, bit for bit; only with fp.first_sample_centred and
+ * fp.sample_offset 0, else nothing is written). */
 kernel void path_trace(global float4* out, global float4* albedo_out, volatile global uint* nonfinite,
-                       FrameParams fp, CameraParams cam, PX_SCENE_PARAMS) {
+                       global GBufferTexel* gbuffer, FrameParams fp, CameraParams cam, PX_SCENE_PARAMS) {
   const uint i = get_global_id(0);
   if (i >= fp.rows * cam.width) return;
   const SceneView scene = PX_SCENE_VIEW();
   const uint p = fp.row0 * cam.width + i;
   float4 albedo;
-  out[p] = px_render_pixel(&scene, &fp, &cam, p % cam.width, p / cam.width, nonfinite, &albedo);
+  out[p] = px_render_pixel(&scene, &fp, &cam, p % cam.width, p / cam.width, nonfinite, &albedo,
+                           gbuffer ? gbuffer + p : 0);
   albedo_out[p] = albedo;
 }
 
@@ -90,7 +99,7 @@ kernel void path_trace_list(global float4* out, global float4* albedo_out, volat
   const SceneView scene = PX_SCENE_VIEW();
   const uint p = holes[i];
   float4 albedo;
-  out[p] = px_render_pixel(&scene, &fp, &cam, p % cam.width, p / cam.width, nonfinite, &albedo);
+  out[p] = px_render_pixel(&scene, &fp, &cam, p % cam.width, p / cam.width, nonfinite, &albedo, 0);
   albedo_out[p] = albedo;
 }
 
@@ -109,7 +118,7 @@ kernel void path_trace_list_samples(global float4* samples, volatile global uint
   const SceneView scene = PX_SCENE_VIEW();
   const uint p = holes[hole];
   float4 a;
-  const float3 l = px_render_sample(&scene, &fp, &cam, p % cam.width, p / cam.width, s, &a);
+  const float3 l = px_render_sample(&scene, &fp, &cam, p % cam.width, p / cam.width, s, &a, 0);
   const int finite = px_finite3(l);
   if (!finite) atomic_inc(nonfinite);
   samples[2u * i] = finite ? (float4)(l, 1.0f) : (float4)(0.0f, 0.0f, 0.0f, 0.0f);

@@ -21,6 +21,7 @@
 #include "pathtrace/path_vertex.h"
 #include "pathtrace/pixel_mean.h"
 #include "parallel/group_scan.h"
+#include "pipeline/gbuffer_texel.h"
 #include "render/camera.h"
 #include "trace/traverse.h"
 
@@ -58,8 +59,7 @@ inline SampleKey px_path_key(const FrameParams* fp, uint width, uint pixel, uint
 inline void px_generate(global float4* states, global uint* path_pixel, global uint* queue, const FrameParams* fp,
                         const CameraParams* cam, uint pixel, uint i) {
   const SampleKey key = px_path_key(fp, cam->width, pixel, i);
-  const float4 u = px_sample4(key, 0u);
-  const float3 dir = px_camera_dir(cam, pixel % cam->width, pixel / cam->width, u.x, u.y);
+  const float3 dir = px_sample_camera_dir(fp, cam, key, pixel % cam->width, pixel / cam->width, i % fp->spp);
   const PathVertex v = px_camera_path(px_camera_origin(cam), dir);
   px_store_path(states, i, &v);
   path_pixel[i] = pixel;
@@ -103,7 +103,8 @@ kernel void wf_extend(const global float4* states, global Hit* hits, const globa
   hits[i] = px_trace_closest_leaf(&scene, s[0].xyz, s[1].xyz, 0.0f, INFINITY);
 }
 
-/* The live paths' vertex `bounce`. Each work-group appends its paths that go on to the next
+/* The live paths' vertex `bounce`. At vertex 0, the centred first sample's path writes its
+ * pixel's texel of `gbuffer` (if not null), as the megakernel does. Each work-group appends its paths that go on to the next
  * vertex's queue, and its shadow rays to the shadow queue, with one prefix sum for both (live
  * paths in the low 16 bits, shadow rays in the high: at most PX_LOCAL_SIZE each) and one
  * atomic_add per queue: a queue keeps its paths in the order of the queue before, group by
@@ -114,8 +115,8 @@ kernel void wf_extend(const global float4* states, global Hit* hits, const globa
 __attribute__((reqd_work_group_size(PX_LOCAL_SIZE, 1, 1)))
 kernel void wf_shade(global float4* states, global float4* shadows, const global Hit* hits,
                      const global uint* path_pixel, const global uint* queue, global uint* next_queue,
-                     global uint* shadow_queue, volatile global uint* counts, uint bounce, FrameParams fp,
-                     CameraParams cam, PX_SCENE_PARAMS) {
+                     global uint* shadow_queue, volatile global uint* counts, uint bounce,
+                     global GBufferTexel* gbuffer, FrameParams fp, CameraParams cam, PX_SCENE_PARAMS) {
   local uint scan[PX_LOCAL_SIZE];
   local uint bases[2];
   const uint j = get_global_id(0), lid = get_local_id(0);
@@ -126,9 +127,11 @@ kernel void wf_shade(global float4* states, global float4* shadows, const global
     const SceneView scene = PX_SCENE_VIEW();
     i = queue[j];
     PathVertex v = px_load_path(states, i);
+    const Hit hit = hits[i];
+    if (bounce == 0u && gbuffer && px_sample_centred(&fp, i % fp.spp))
+      gbuffer[path_pixel[i]] = px_gbuffer_texel(&scene, v.dir, hit);
     ShadowRay shadow;
-    goes_on =
-        px_path_vertex(&scene, &fp, px_path_key(&fp, cam.width, path_pixel[i], i), bounce, hits[i], &v, &shadow);
+    goes_on = px_path_vertex(&scene, &fp, px_path_key(&fp, cam.width, path_pixel[i], i), bounce, hit, &v, &shadow);
     px_store_path(states, i, &v);
     if (shadow.valid) {
       global float4* r = shadows + (size_t)i * PX_SHADOW_RAY_FLOAT4S;

@@ -354,7 +354,8 @@ typedef struct LightTriangle {
  *  96..99 seed   100..103 light_sampling (PX_LIGHTS_*)  104..107 rr_start_bounce
  * 108..111 row0 (first image row of this launch)  112..115 rows
  * 116..119 sample_offset (index of this launch's first sample: progressive passes)
- * 120..127 padding */
+ * 120..123 first_sample_centred (1: the frame's sample 0 is the pixel centre's, the G-buffer's ray)
+ * 124..127 padding */
 typedef struct FrameParams {
   float sun_dir[3];
   float sun_cos_max;
@@ -376,7 +377,8 @@ typedef struct FrameParams {
   uint row0;
   uint rows;
   uint sample_offset;
-  uint pad[2];
+  uint first_sample_centred;
+  uint pad;
 } FrameParams;
 
 /* Largest FrameParams::max_bounces the host accepts: two sample dimensions per bounce must

@@ -19,7 +19,8 @@ void PathTraceStage::run(const std::vector<const Operation*>& ops, const FrameIn
     if (!env_.local(op->device)) continue;
     const FrameImages& f = env_.images[op->device];
     const int e = op->eye;
-    const PathTracer::Targets out{f.radiance[e], f.albedo[e], f.nonfinite_paths};
+    const PathTracer::Targets out{f.radiance[e], f.albedo[e], f.nonfinite_paths,
+                                  op->writes_gbuffer ? &f.gbuffer[e] : nullptr};
     if (kernel_ == PathTraceKernel::Wavefront) {
       // Sized for the whole frame, so that moving strips never reallocate.
       const std::size_t frame_pixels = static_cast<std::size_t>(env_.width) * env_.height;
