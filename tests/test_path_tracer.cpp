@@ -602,9 +602,10 @@ TEST(WavefrontPathTracer, SamplesInBatchesGiveTheMegakernelsPixels) {
         k.setArg(2, t.nonfinite);
         k.setArg(3, hole_buf);
         k.setArg(4, count_buf);
-        k.setArg(5, mega_fp);
-        k.setArg(6, cam);
-        f.device_scene->on(0).bind(k, 7);
+        k.setArg(5, cl::Buffer());  // no centre hits: every sample traces its camera ray
+        k.setArg(6, mega_fp);
+        k.setArg(7, cam);
+        f.device_scene->on(0).bind(k, 8);
         launch_1d(queue, k, holes.size());
       });
     }
@@ -613,7 +614,7 @@ TEST(WavefrontPathTracer, SamplesInBatchesGiveTheMegakernelsPixels) {
       WavefrontPathTracer::Scratch scratch;
       const TracedBuffers wave = run([&](const PathTracer::Targets& t) {
         WavefrontPathTracer::trace_list(set.context(), queue, wavefront, f.device_scene->on(0), scratch, t, hole_buf,
-                                        count_buf, strip.size(), fp, cam, max_paths);
+                                        count_buf, strip.size(), fp, cam, nullptr, max_paths);
       });
       expect_same_pixels(mega_holes, wave, holes,
                          scene.name + ", hole list, at most " + std::to_string(max_paths) + " paths a launch");

@@ -127,6 +127,24 @@ TEST(Operations, CoverEveryScheduledRowOnceAndWaitOnlyOnEarlierOperations) {
         if (fuse && (kind == PipelineKind::Proposed || (kind == PipelineKind::Mono && denoise))) {
           EXPECT_GE(fused_ops, n) << what;
         }
+        // Hole filling starts from the right-eye G-buffer pass's hits (proposed: on every device).
+        for (const Operation& op : ops) {
+          if (!op.shares_hits) continue;
+          ASSERT_TRUE(fuse) << what;
+          ASSERT_TRUE((op.stage == Stage::GBuffer && op.eye == 1) || op.stage == Stage::HoleFill) << what;
+          if (op.stage != Stage::HoleFill) continue;
+          std::vector<int> hit_rows(h, 0);
+          for (const Operation& g : ops)
+            if (g.stage == Stage::GBuffer && g.shares_hits && g.device == op.device)
+              for (unsigned y = g.rows.begin; y < g.rows.end; ++y) hit_rows[y] = 1;
+          for (unsigned y = op.rows.begin; y < op.rows.end; ++y)
+            ASSERT_EQ(hit_rows[y], 1) << what << ": hole filling row " << y << " has no G-buffer hit";
+        }
+        if (fuse && kind == PipelineKind::Proposed) {
+          EXPECT_EQ(std::count_if(ops.begin(), ops.end(),
+                                  [](const Operation& op) { return op.stage == Stage::HoleFill && op.shares_hits; }),
+                    n) << what;
+        }
         for (const StageWork& w : fs.stages)
           for (int eye = 0; eye < 2; ++eye) {
             // Independently of make_operations: the rows the schedule gives this stage and eye.
@@ -194,6 +212,8 @@ TEST(Operations, CoverEveryScheduledRowOnceAndWaitOnlyOnEarlierOperations) {
                  "denoising rewrites the radiance they read or write");
             must(same_device && a.writes_gbuffer && (b.stage == Stage::Reproject || (b.stage == Stage::Denoise && a.eye == b.eye)),
                  "they read the G-buffer the path trace wrote");
+            must(same_device && a.stage == Stage::GBuffer && a.shares_hits && b.stage == Stage::HoleFill && b.shares_hits,
+                 "hole filling starts from the hits the G-buffer pass wrote");
             must(same_device && b.stage == Stage::Tonemap && a.stage == Stage::Denoise && a.eye == b.eye,
                  "tonemap reads denoised radiance");
             must(same_device && b.stage == Stage::Tonemap && a.stage == Stage::HoleFill && b.eye == 1,
@@ -533,10 +553,12 @@ bool same_gbuffer(const std::vector<GBufferTexel>& a, const std::vector<GBufferT
   return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(GBufferTexel)) == 0;
 }
 
-TEST(StereoPipeline, PathTracedGBufferIsTheGBufferPassesToTheLastBit) {
-  // The path tracers' centred first sample writes the G-buffer of the rows they trace; the
-  // G-buffer pass (an independent kernel) traces the same texels when that is off. Denoised,
-  // over two frames, so that SVGF reads the G-buffer (margins included) and its history.
+TEST(StereoPipeline, CentreRaysTracedOnceGiveTheGBufferPassesTexelsAndTheSameImages) {
+  // The path tracers' centred first sample writes the G-buffer of the rows they trace, and hole
+  // filling starts its centred first sample from the right-eye G-buffer pass's hits; with that
+  // off, the G-buffer pass (an independent kernel) traces every texel and hole filling every
+  // camera ray. Denoised, over two frames, so that SVGF reads the G-buffer (margins included)
+  // and its history.
   const LoadedScene sky{silhouettes_scene(), {}};
   LoadedScene sky_built{sky.scene, build_bvh(sky.scene.triangles)};
   struct Case {
@@ -544,9 +566,11 @@ TEST(StereoPipeline, PathTracedGBufferIsTheGBufferPassesToTheLastBit) {
     PipelineKind kind;
     int devices;
     PathTraceKernel kernel;
+    HoleFillStage::SampleSpread spread = HoleFillStage::SampleSpread::Off;
   };
+  using Spread = HoleFillStage::SampleSpread;
   const std::vector<Case> cases{{&glossy_cornell(), PipelineKind::Proposed, 1, PathTraceKernel::Megakernel},
-                                {&glossy_cornell(), PipelineKind::Proposed, 3, PathTraceKernel::Megakernel},
+                                {&glossy_cornell(), PipelineKind::Proposed, 3, PathTraceKernel::Megakernel, Spread::On},
                                 {&glossy_cornell(), PipelineKind::Proposed, 2, PathTraceKernel::Wavefront},
                                 {&glossy_cornell(), PipelineKind::Baseline, 2, PathTraceKernel::Megakernel},
                                 {&sky_built, PipelineKind::Mono, 2, PathTraceKernel::Wavefront},
@@ -554,7 +578,8 @@ TEST(StereoPipeline, PathTracedGBufferIsTheGBufferPassesToTheLastBit) {
   for (const Case& c : cases) {
     std::array<std::array<ImageRGB, 2>, 2> images;
     std::array<std::array<std::vector<GBufferTexel>, 2>, 2> gbuffers;
-    int fused_ops = 0;
+    std::array<std::vector<std::uint8_t>, 2> holes;
+    int fused_ops = 0, hole_fills_from_hits = 0;
     for (int k = 0; k < 2; ++k) {
       DeviceSet set = DeviceSet::create({c.devices, DeviceMode::Auto, ""});
       DeviceScene ds(set, c.scene->scene, c.scene->bvh);
@@ -564,15 +589,25 @@ TEST(StereoPipeline, PathTracedGBufferIsTheGBufferPassesToTheLastBit) {
       opt.trace.bounces = 3;
       opt.path_kernel = c.kernel;
       opt.gbuffer_from_path_tracer = k == 1;
+      opt.hole_fill.spread = c.spread;
       StereoPipeline p(set, ds, c.scene->scene, 48, 37, opt);
-      for (const Operation& op : p.operations()) fused_ops += op.writes_gbuffer;
+      for (const Operation& op : p.operations()) {
+        fused_ops += op.writes_gbuffer;
+        hole_fills_from_hits += op.stage == Stage::HoleFill && op.shares_hits;
+      }
       for (unsigned f = 0; f < 2; ++f) p.render(f, 0.1f * f);
       images[k] = p.radiance();
+      holes[k] = p.hole_mask();
       for (int e = 0; e < 2; ++e) gbuffers[k][e] = p.gbuffer_of(e);
     }
     const std::string what = std::string(to_string(c.kind)) + ", " + std::to_string(c.devices) + " device(s), " +
                              to_string(c.kernel) + ", " + c.scene->scene.name;
     EXPECT_GT(fused_ops, 0) << what << ": no path trace wrote the G-buffer";
+    if (c.kind != PipelineKind::Mono) {
+      EXPECT_GT(hole_fills_from_hits, 0) << what << ": no hole filling started from the G-buffer's hits";
+      EXPECT_GT(std::count(holes[1].begin(), holes[1].end(), 1), 0) << what << ": no holes";
+    }
+    EXPECT_EQ(holes[0], holes[1]) << what;
     for (int e = 0; e < 2; ++e) {
       EXPECT_TRUE(same_gbuffer(gbuffers[0][e], gbuffers[1][e])) << what << ": G-buffer of eye " << e;
       EXPECT_TRUE(same_bits(images[0][e], images[1][e])) << what << ": image of eye " << e;

@@ -21,6 +21,7 @@ FrameImages FrameImages::allocate(const cl::Context& ctx, unsigned width, unsign
     f.gbuffer[e] = device_buffer(ctx, pixels * sizeof(GBufferTexel));
     f.rgba[e] = device_buffer(ctx, pixels * sizeof(cl_uchar4));
   }
+  f.right_hits = device_buffer(ctx, pixels * sizeof(Hit));
   f.holes = device_buffer(ctx, pixels * sizeof(cl_uint));
   f.hole_count = device_buffer(ctx, sizeof(cl_uint));
   f.nonfinite_paths = device_buffer(ctx, sizeof(cl_uint));

@@ -15,6 +15,8 @@ struct FrameImages {
   std::array<cl::Buffer, 2> albedo;    // float4: mean primary albedo of the samples behind
                                        // `radiance` (SVGF demodulates by it)
   std::array<cl::Buffer, 2> gbuffer;   // GBufferTexel: this frame's primary hits
+  cl::Buffer right_hits;               // Hit: the right eye's G-buffer rays' hits, where hole
+                                       // filling starts its centred first samples
   std::array<cl::Buffer, 2> rgba;      // uchar4: tonemapped
   cl::Buffer holes;                    // uint pixel indices reprojection could not fill (worst
                                        // case every pixel), appended in scanline order per group

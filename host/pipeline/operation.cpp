@@ -12,12 +12,12 @@ namespace px {
 namespace {
 
 // The per-device images operations hand each other (FrameImages), per eye where they have one.
-enum class Image { Radiance, Albedo, GBuffer, Rgba, Holes };
+enum class Image { Radiance, Albedo, GBuffer, Rgba, Holes, RightHits };
 
 struct Access {
   int device;
   Image image;
-  int eye;  // -1: the hole list (right eye only, one per device)
+  int eye;  // -1: the hole list and the right eye's hits (one per device)
   bool write;
 };
 
@@ -31,11 +31,15 @@ std::vector<Access> accesses(const Operation& op) {
       if (op.writes_gbuffer) return {{d, Image::Radiance, e, true}, {d, Image::Albedo, e, true}, {d, Image::GBuffer, e, true}};
       return {{d, Image::Radiance, e, true}, {d, Image::Albedo, e, true}};
     case Stage::GBuffer:
+      if (op.shares_hits) return {{d, Image::GBuffer, e, true}, {d, Image::RightHits, -1, true}};
       return {{d, Image::GBuffer, e, true}};
     case Stage::Reproject:
       return {{d, Image::Radiance, 0, false}, {d, Image::GBuffer, 0, false}, {d, Image::GBuffer, 1, false},
               {d, Image::Radiance, 1, true},  {d, Image::Albedo, 1, true},   {d, Image::Holes, -1, true}};
     case Stage::HoleFill:
+      if (op.shares_hits)
+        return {{d, Image::Holes, -1, false}, {d, Image::RightHits, -1, false}, {d, Image::Radiance, 1, true},
+                {d, Image::Albedo, 1, true}};
       return {{d, Image::Holes, -1, false}, {d, Image::Radiance, 1, true}, {d, Image::Albedo, 1, true}};
     case Stage::Denoise:
       // Its own strip. The halo rows it exchanges with its neighbours are read and written by
@@ -96,6 +100,18 @@ std::vector<Operation> fuse_gbuffer(std::vector<Operation> ops) {
       out.push_back(piece);
     }
   }
+  // Hole filling from the right eye's G-buffer hits, where that device's passes cover its rows.
+  std::map<int, std::vector<RowRange>> right_pass;  // device -> rows of its right-eye G-buffer passes
+  for (const Operation& op : out)
+    if (op.stage == Stage::GBuffer && op.eye == 1) right_pass[op.device].push_back(op.rows);
+  std::set<int> sharing;
+  for (Operation& op : out)
+    if (op.stage == Stage::HoleFill && subtract(op.rows, right_pass[op.device]).empty()) {
+      op.shares_hits = true;
+      sharing.insert(op.device);
+    }
+  for (Operation& op : out)
+    if (op.stage == Stage::GBuffer && op.eye == 1 && sharing.count(op.device)) op.shares_hits = true;
   return out;
 }
 
@@ -188,6 +204,7 @@ std::string explain_operations(const std::vector<Operation>& operations) {
     if (op.payload == TransferPayload::FinishedImage) out << " finished image";
     if (op.payload == TransferPayload::LinearRadiance) out << " linear radiance";
     if (op.writes_gbuffer) out << " +G-buffer";
+    if (op.shares_hits) out << (op.stage == Stage::HoleFill ? " from G-buffer hits" : " +hits");
     if (!op.after.empty()) {
       out << "  after";
       for (std::size_t a : op.after) out << " " << a;

@@ -35,6 +35,9 @@ struct Operation {
   // A path trace that also writes its rows' G-buffer texels (its first sample is the G-buffer's
   // ray, PathTracer::Options::first_sample_centred); the G-buffer pass then skips those rows.
   bool writes_gbuffer = false;
+  // The right eye's G-buffer pass keeps its rays' hits (FrameImages::right_hits), and hole
+  // filling starts each hole's centred first sample from them instead of tracing it again.
+  bool shares_hits = false;
   std::vector<std::size_t> after;  // indices of the operations it waits for (see above)
 };
 
@@ -44,9 +47,11 @@ struct Operation {
 // a denoise stage eye by eye (its passes run all devices of one eye in step, exchanging halo
 // rows between them).
 // `side_lane`: give the left eye's denoising, tonemapping and transfer the side lane.
-// `gbuffer_from_path_tracer`: a path trace writes the G-buffer of its rows where its device has
-// a G-buffer pass of the same eye, and that pass keeps only the rows no such path trace covers
-// (the margins; none where a device path traces all it needs), split into ranges if need be.
+// `gbuffer_from_path_tracer` (each pixel's centre ray traced once a frame): a path trace writes
+// the G-buffer of its rows where its device has a G-buffer pass of the same eye, and that pass
+// keeps only the rows no such path trace covers (the margins; none where a device path traces
+// all it needs), split into ranges if need be; and a hole filling whose rows its device's
+// right-eye G-buffer passes cover starts from their hits (shares_hits on all of them).
 std::vector<Operation> make_operations(const FrameSchedule& schedule, unsigned gbuffer_margin, bool side_lane = true,
                                        bool gbuffer_from_path_tracer = false);
 

@@ -50,13 +50,16 @@ using Commands = std::vector<WavefrontPathTracer::Command>;
 // One batch's vertices, after its generate kernel: extend / shade / connect per vertex. `paths`
 // bounds every launch (the queues' counts live on the device, so the host never waits for them).
 void trace_vertices(const cl::CommandQueue& queue, const cl::Program& program, const DeviceSceneBuffers& scene,
-                    WavefrontPathTracer::Scratch& s, const cl::Buffer* gbuffer, const FrameParams& params,
-                    const CameraParams& camera, std::size_t paths, Commands& log) {
+                    WavefrontPathTracer::Scratch& s, const cl::Buffer* gbuffer, const cl::Buffer* centre_hits,
+                    const FrameParams& params, const CameraParams& camera, std::size_t paths, Commands& log) {
   cl::Kernel extend(program, "wf_extend"), shade(program, "wf_shade"), connect(program, "wf_connect");
   extend.setArg(0, s.states);
   extend.setArg(1, s.hits);
   extend.setArg(3, s.counts);
-  scene.bind(extend, 5);
+  extend.setArg(5, s.path_pixel);
+  extend.setArg(6, centre_hits ? *centre_hits : cl::Buffer());
+  extend.setArg(7, params);
+  scene.bind(extend, 8);
   shade.setArg(0, s.states);
   shade.setArg(1, s.shadows);
   shade.setArg(2, s.hits);
@@ -92,8 +95,8 @@ void trace_vertices(const cl::CommandQueue& queue, const cl::Program& program, c
 template <typename Generate>
 Commands trace_batches(const cl::Context& context, const cl::CommandQueue& queue, const cl::Program& program,
                        const DeviceSceneBuffers& scene, WavefrontPathTracer::Scratch& s, const PathTracer::Targets& out,
-                       const FrameParams& params, const CameraParams& camera, std::size_t slots,
-                       std::size_t max_paths, const Generate& generate) {
+                       const cl::Buffer* centre_hits, const FrameParams& params, const CameraParams& camera,
+                       std::size_t slots, std::size_t max_paths, const Generate& generate) {
   if (params.spp == 0) throw std::invalid_argument("wavefront path tracer: spp must be at least 1");
   if (params.max_bounces > PX_MAX_BOUNCES_LIMIT)
     throw std::invalid_argument("wavefront path tracer: too many bounces");
@@ -117,7 +120,7 @@ Commands trace_batches(const cl::Context& context, const cl::CommandQueue& queue
     queue.enqueueFillBuffer(s.counts, cl_uint{0}, 0, PX_WAVEFRONT_COUNTERS * sizeof(cl_uint), nullptr, &zeroed);
     log.push_back({"reset", zeroed});
     log.push_back({"generate", generate(batch, slots * batch.spp)});
-    trace_vertices(queue, program, scene, s, out.gbuffer, batch, camera, slots * batch.spp, log);
+    trace_vertices(queue, program, scene, s, out.gbuffer, centre_hits, batch, camera, slots * batch.spp, log);
     resolve.setArg(7, static_cast<cl_uint>(batch.spp));
     resolve.setArg(8, static_cast<cl_uint>(first == 0));
     resolve.setArg(9, static_cast<cl_uint>(first + batch.spp == params.spp));
@@ -143,7 +146,7 @@ std::vector<WavefrontPathTracer::Command> WavefrontPathTracer::trace_rows(
   cl::Kernel generate(program, "wf_generate_rows");
   generate.setArg(5, camera);
   const std::size_t slots = static_cast<std::size_t>(params.rows) * width;
-  return trace_batches(context, queue, program, scene, scratch, out, params, camera, slots, max_paths,
+  return trace_batches(context, queue, program, scene, scratch, out, nullptr, params, camera, slots, max_paths,
                        [&](const FrameParams& batch, std::size_t paths) {
                          bind_generate(generate, scratch);
                          generate.setArg(4, batch);
@@ -155,12 +158,12 @@ std::vector<WavefrontPathTracer::Command> WavefrontPathTracer::trace_list(
     const cl::Context& context, const cl::CommandQueue& queue, const cl::Program& program,
     const DeviceSceneBuffers& scene, Scratch& scratch, const PathTracer::Targets& out, const cl::Buffer& holes,
     const cl::Buffer& hole_count, std::size_t max_pixels, const FrameParams& params, const CameraParams& camera,
-    std::size_t max_paths) {
+    const cl::Buffer* centre_hits, std::size_t max_paths) {
   cl::Kernel generate(program, "wf_generate_list");
   generate.setArg(4, holes);
   generate.setArg(5, hole_count);
   generate.setArg(7, camera);
-  return trace_batches(context, queue, program, scene, scratch, out, params, camera, max_pixels, max_paths,
+  return trace_batches(context, queue, program, scene, scratch, out, centre_hits, params, camera, max_pixels, max_paths,
                        [&](const FrameParams& batch, std::size_t paths) {
                          bind_generate(generate, scratch);
                          generate.setArg(6, batch);

@@ -15,12 +15,14 @@
 
 /* Radiance along one camera path, its vertices in a loop (path_vertex.h); *primary_albedo
  * receives PathVertex::primary_albedo. If `gbuffer_texel` is not null, the camera ray's texel
- * (gbuffer_texel.h) goes there. */
+ * (gbuffer_texel.h) goes there. If `first_hit` is not null, it is the camera ray's hit, already
+ * traced (by the G-buffer pass, for the same ray). */
 inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir,
-                            SampleKey key, float4* primary_albedo, global GBufferTexel* gbuffer_texel) {
+                            SampleKey key, float4* primary_albedo, global GBufferTexel* gbuffer_texel,
+                            const global Hit* first_hit) {
   PathVertex v = px_camera_path(org, dir);
   for (uint bounce = 0; bounce <= fp->max_bounces; ++bounce) {
-    const Hit hit = px_trace_closest_leaf(scene, v.org, v.dir, 0.0f, INFINITY);
+    const Hit hit = bounce == 0u && first_hit ? *first_hit : px_trace_closest_leaf(scene, v.org, v.dir, 0.0f, INFINITY);
     if (bounce == 0u && gbuffer_texel) *gbuffer_texel = px_gbuffer_texel(scene, v.dir, hit);
     ShadowRay shadow;
     const int goes_on = px_path_vertex(scene, fp, key, bounce, hit, &v, &shadow);
@@ -34,14 +36,17 @@ inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float
 
 /* Sample s of pixel (x, y): the radiance of its camera path, and in *albedo the path's primary
  * demodulation albedo (see px_trace_path). Every random number comes from the pixel's and the
- * sample's own stream, so a sample is the same whichever work-item traces it. `gbuffer_texel`:
- * the pixel's G-buffer texel, written if not null and this sample is the centred one. */
+ * sample's own stream, so a sample is the same whichever work-item traces it. If this sample is
+ * the centred one: `gbuffer_texel` (if not null) receives the pixel's G-buffer texel, and
+ * `centre_hit` (if not null) is the centre ray's hit, traced already. */
 inline float3 px_render_sample(const SceneView* scene, const FrameParams* fp, const CameraParams* cam, uint x, uint y,
-                               uint s, float4* albedo, global GBufferTexel* gbuffer_texel) {
+                               uint s, float4* albedo, global GBufferTexel* gbuffer_texel,
+                               const global Hit* centre_hit) {
   const SampleKey key = px_sample_key(x, y, fp->frame, fp->eye, fp->sample_offset + s, fp->seed);
   const float3 dir = px_sample_camera_dir(fp, cam, key, x, y, s);
-  return px_trace_path(scene, fp, px_camera_origin(cam), dir, key, albedo,
-                       px_sample_centred(fp, s) ? gbuffer_texel : 0);
+  const int centred = px_sample_centred(fp, s);
+  return px_trace_path(scene, fp, px_camera_origin(cam), dir, key, albedo, centred ? gbuffer_texel : 0,
+                       centred ? centre_hit : 0);
 }
 
 /* Mean radiance of pixel (x, y): fp->spp paths; a path with non-finite radiance is dropped
@@ -53,13 +58,13 @@ inline float3 px_render_sample(const SceneView* scene, const FrameParams* fp, co
  * misses the object but whose samples hit it). No finite path: (1, 1, 1, 0). */
 inline float4 px_render_pixel(const SceneView* scene, const FrameParams* fp, const CameraParams* cam,
                               uint x, uint y, volatile global uint* nonfinite, float4* albedo,
-                              global GBufferTexel* gbuffer_texel) {
+                              global GBufferTexel* gbuffer_texel, const global Hit* centre_hit) {
   float3 sum = (float3)(0.0f, 0.0f, 0.0f);
   float4 albedo_sum = (float4)(0.0f, 0.0f, 0.0f, 0.0f);
   uint good = 0;
   for (uint s = 0; s < fp->spp; ++s) {
     float4 a;
-    const float3 l = px_render_sample(scene, fp, cam, x, y, s, &a, gbuffer_texel);
+    const float3 l = px_render_sample(scene, fp, cam, x, y, s, &a, gbuffer_texel, centre_hit);
     if (px_finite3(l)) {
       sum += l;
       albedo_sum += a;
@@ -84,22 +89,25 @@ kernel void path_trace(global float4* out, global float4* albedo_out, volatile g
   const uint p = fp.row0 * cam.width + i;
   float4 albedo;
   out[p] = px_render_pixel(&scene, &fp, &cam, p % cam.width, p / cam.width, nonfinite, &albedo,
-                           gbuffer ? gbuffer + p : 0);
+                           gbuffer ? gbuffer + p : 0, 0);
   albedo_out[p] = albedo;
 }
 
 /* Stage 5, hole filling: only the pixels listed in `holes` (full-frame indices, *hole_count of
  * them, compacted by compact_holes), so work-items do not idle on reprojected pixels. The launch
- * is sized for the worst case; items past the count return at once. */
+ * is sized for the worst case; items past the count return at once. `centre_hits`: null, or the
+ * G-buffer pass's full-frame hits of the same eye (its rays are the centred first samples'),
+ * so that a hole's first sample starts at its hit instead of tracing the ray a second time. */
 kernel void path_trace_list(global float4* out, global float4* albedo_out, volatile global uint* nonfinite,
-                            const global uint* holes, const global uint* hole_count, FrameParams fp,
-                            CameraParams cam, PX_SCENE_PARAMS) {
+                            const global uint* holes, const global uint* hole_count,
+                            const global Hit* centre_hits, FrameParams fp, CameraParams cam, PX_SCENE_PARAMS) {
   const uint i = get_global_id(0);
   if (i >= *hole_count) return;
   const SceneView scene = PX_SCENE_VIEW();
   const uint p = holes[i];
   float4 albedo;
-  out[p] = px_render_pixel(&scene, &fp, &cam, p % cam.width, p / cam.width, nonfinite, &albedo, 0);
+  out[p] = px_render_pixel(&scene, &fp, &cam, p % cam.width, p / cam.width, nonfinite, &albedo, 0,
+                           centre_hits ? centre_hits + p : 0);
   albedo_out[p] = albedo;
 }
 
@@ -110,15 +118,16 @@ kernel void path_trace_list(global float4* out, global float4* albedo_out, volat
  * pair; resolve_hole_samples averages them. Images are bit-identical to path_trace_list: the
  * same samples, summed in the same order. */
 kernel void path_trace_list_samples(global float4* samples, volatile global uint* nonfinite, const global uint* holes,
-                                    const global uint* hole_count, FrameParams fp, CameraParams cam,
-                                    PX_SCENE_PARAMS) {
+                                    const global uint* hole_count, const global Hit* centre_hits, FrameParams fp,
+                                    CameraParams cam, PX_SCENE_PARAMS) {
   const uint i = get_global_id(0);
   const uint hole = i / fp.spp, s = i % fp.spp;
   if (hole >= *hole_count) return;
   const SceneView scene = PX_SCENE_VIEW();
   const uint p = holes[hole];
   float4 a;
-  const float3 l = px_render_sample(&scene, &fp, &cam, p % cam.width, p / cam.width, s, &a, 0);
+  const float3 l =
+      px_render_sample(&scene, &fp, &cam, p % cam.width, p / cam.width, s, &a, 0, centre_hits ? centre_hits + p : 0);
   const int finite = px_finite3(l);
   if (!finite) atomic_inc(nonfinite);
   samples[2u * i] = finite ? (float4)(l, 1.0f) : (float4)(0.0f, 0.0f, 0.0f, 0.0f);

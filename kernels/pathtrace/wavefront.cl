@@ -93,12 +93,20 @@ kernel void wf_generate_list(global float4* states, global uint* path_pixel, glo
   px_generate(states, path_pixel, queue, &fp, &cam, holes[i / fp.spp], i);
 }
 
+/* The live paths' closest hits at vertex `bounce`. `centre_hits`: null, or the G-buffer pass's
+ * full-frame hits, which the centred first samples' camera rays take instead of a trace (as
+ * px_trace_path does). */
 kernel void wf_extend(const global float4* states, global Hit* hits, const global uint* queue,
-                      const global uint* counts, uint bounce, PX_SCENE_PARAMS) {
+                      const global uint* counts, uint bounce, const global uint* path_pixel,
+                      const global Hit* centre_hits, FrameParams fp, PX_SCENE_PARAMS) {
   const uint j = get_global_id(0);
   if (j >= counts[PX_WF_LIVE + bounce]) return;
-  const SceneView scene = PX_SCENE_VIEW();
   const uint i = queue[j];
+  if (bounce == 0u && centre_hits && px_sample_centred(&fp, i % fp.spp)) {
+    hits[i] = centre_hits[path_pixel[i]];
+    return;
+  }
+  const SceneView scene = PX_SCENE_VIEW();
   const global float4* s = states + (size_t)i * PX_PATH_STATE_FLOAT4S;
   hits[i] = px_trace_closest_leaf(&scene, s[0].xyz, s[1].xyz, 0.0f, INFINITY);
 }

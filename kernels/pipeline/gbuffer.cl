@@ -1,19 +1,24 @@
 /* Stage 3: G-buffer of one eye's rows, from the primary ray through each pixel centre
  * (gbuffer_texel.h). Where a device path traces the same eye's rows in the same frame, the path
  * tracer writes those texels itself and this pass covers only the rest (the margin rows the
- * denoiser and reprojection read beyond the strip, and the eyes nobody path traces in full). */
+ * denoiser and reprojection read beyond the strip, and the eyes nobody path traces in full).
+ * `hits`: null, or a full-frame Hit buffer that receives each ray's hit, where hole filling
+ * (stage 5) starts its pixels' centred first sample instead of tracing the same ray again. */
 #include "shared/types.h"
 #include "pipeline/gbuffer_texel.h"
 #include "render/camera.h"
 #include "scene/scene_view.h"
 #include "trace/traverse.h"
 
-kernel void gbuffer(global GBufferTexel* out, uint row0, uint rows, CameraParams cam, PX_SCENE_PARAMS) {
+kernel void gbuffer(global GBufferTexel* out, global Hit* hits, uint row0, uint rows, CameraParams cam,
+                    PX_SCENE_PARAMS) {
   const uint gid = get_global_id(0);
   if (gid >= rows * cam.width) return;
   const SceneView scene = PX_SCENE_VIEW();
   const uint i = row0 * cam.width + gid; /* out is a full-frame buffer */
   const uint x = i % cam.width, y = i / cam.width;
   const float3 dir = px_camera_dir(&cam, x, y, 0.5f, 0.5f);
-  out[i] = px_gbuffer_texel(&scene, dir, px_trace_closest_leaf(&scene, px_camera_origin(&cam), dir, 0.0f, INFINITY));
+  const Hit hit = px_trace_closest_leaf(&scene, px_camera_origin(&cam), dir, 0.0f, INFINITY);
+  out[i] = px_gbuffer_texel(&scene, dir, hit);
+  if (hits) hits[i] = hit;
 }

@@ -8,11 +8,13 @@ void GBufferStage::run(const std::vector<const Operation*>& ops, const FrameInpu
   for (const Operation* op : ops) {
     if (!env_.local(op->device)) continue;
     cl::Kernel k(env_.devices.program("pipeline/gbuffer.cl"), "gbuffer");
-    k.setArg(0, env_.images[op->device].gbuffer[op->eye]);
-    k.setArg(1, static_cast<cl_uint>(op->rows.begin));
-    k.setArg(2, static_cast<cl_uint>(op->rows.size()));
-    k.setArg(3, in.cams[op->eye]);
-    env_.scene_on(op->device).bind(k, 4);
+    const FrameImages& f = env_.images[op->device];
+    k.setArg(0, f.gbuffer[op->eye]);
+    k.setArg(1, op->shares_hits ? f.right_hits : cl::Buffer());
+    k.setArg(2, static_cast<cl_uint>(op->rows.begin));
+    k.setArg(3, static_cast<cl_uint>(op->rows.size()));
+    k.setArg(4, in.cams[op->eye]);
+    env_.scene_on(op->device).bind(k, 5);
     env_.log.record(Stage::GBuffer, op->device, launch_1d(env_.queue(op->device), k, env_.pixels(op->rows)));
   }
 }

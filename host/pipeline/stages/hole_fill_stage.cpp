@@ -24,6 +24,7 @@ void HoleFillStage::run(const std::vector<const Operation*>& ops, const FrameInp
     if (!env_.local(op->device)) continue;
     const FrameImages& f = env_.images[op->device];
     const FrameParams fp = tracer_.frame_params(1, op->rows, in.frame);
+    const cl::Buffer* centre_hits = op->shares_hits ? &f.right_hits : nullptr;
     if (tracer_.kernel() == PathTraceKernel::Wavefront) {
       const PathTracer::Targets out{f.radiance[1], f.albedo[1], f.nonfinite_paths};
       tracer_.record(Stage::HoleFill, op->device,
@@ -31,7 +32,7 @@ void HoleFillStage::run(const std::vector<const Operation*>& ops, const FrameInp
                                                      env_.devices.program("pathtrace/wavefront.cl"),
                                                      env_.scene_on(op->device), tracer_.wavefront_scratch(op->device),
                                                      out, f.holes, f.hole_count, env_.pixels(op->rows), fp,
-                                                     in.cams[1]));
+                                                     in.cams[1], centre_hits));
       continue;
     }
     const cl::Program& program = env_.devices.program("pathtrace/path_trace.cl");
@@ -44,9 +45,10 @@ void HoleFillStage::run(const std::vector<const Operation*>& ops, const FrameInp
       k.setArg(2, f.nonfinite_paths);
       k.setArg(3, f.holes);
       k.setArg(4, f.hole_count);
-      k.setArg(5, fp);
-      k.setArg(6, in.cams[1]);
-      env_.scene_on(op->device).bind(k, 7);
+      k.setArg(5, centre_hits ? *centre_hits : cl::Buffer());
+      k.setArg(6, fp);
+      k.setArg(7, in.cams[1]);
+      env_.scene_on(op->device).bind(k, 8);
       env_.log.record(Stage::HoleFill, op->device, launch_1d(env_.queue(op->device), k, env_.pixels(op->rows)));
       continue;
     }
@@ -63,9 +65,10 @@ void HoleFillStage::run(const std::vector<const Operation*>& ops, const FrameInp
     trace.setArg(1, f.nonfinite_paths);
     trace.setArg(2, f.holes);
     trace.setArg(3, f.hole_count);
-    trace.setArg(4, fp);
-    trace.setArg(5, in.cams[1]);
-    env_.scene_on(op->device).bind(trace, 6);
+    trace.setArg(4, centre_hits ? *centre_hits : cl::Buffer());
+    trace.setArg(5, fp);
+    trace.setArg(6, in.cams[1]);
+    env_.scene_on(op->device).bind(trace, 7);
     env_.log.record(Stage::HoleFill, op->device,
                     launch_1d(env_.queue(op->device), trace, env_.pixels(op->rows) * fp.spp), "samples");
     cl::Kernel resolve(program, "resolve_hole_samples");
