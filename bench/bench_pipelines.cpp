@@ -56,7 +56,7 @@ int main(int argc, char** argv) {
   float fps = 30.0f;
   std::string csv, summary_csv, frames_csv;
   bool compare_overlap = false, compare_gbuffer = false;
-  std::string hole_spread = "auto";
+  std::string hole_spread = "auto", atrous_tiles = "auto";
   app.add_option("--scene", scenes)->capture_default_str();
   app.add_option("--width", width)->capture_default_str();
   app.add_option("--height", height)->capture_default_str();
@@ -84,6 +84,10 @@ int main(int argc, char** argv) {
   app.add_option("--hole-spread", hole_spread,
                  "stage 5's work-items: auto (a (hole, sample) pair each on GPUs at 2-8 spp, else a hole each), "
                  "on, off (images are identical)")
+      ->check(CLI::IsMember({"auto", "on", "off"}))
+      ->capture_default_str();
+  app.add_option("--atrous-tiles", atrous_tiles,
+                 "SVGF's a-trous steps 1-4 from local-memory tiles: auto (on GPUs), on, off (images are identical)")
       ->check(CLI::IsMember({"auto", "on", "off"}))
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
@@ -161,6 +165,7 @@ int main(int argc, char** argv) {
         opt.overlap = run.overlap;
         opt.gbuffer_from_path_tracer = run.gbuffer_from_path_tracer;
         opt.hole_fill.spread = spread;
+        opt.svgf.atrous_tiles = atrous_tiles == "on" ? 1 : atrous_tiles == "off" ? 0 : -1;
         opt.path_kernel = px::parse_path_trace_kernel(path_tracer);
         px::StereoPipeline pipeline(set, ds, scene, width, height, opt);
         PipelineResult r;

@@ -15,6 +15,8 @@
 #                        SVGF pass (per-pass times) and show the side queue's overlap
 #   6. frame4spp_*.csv   bench_pipelines at 4 spp (hole filling's per-pixel cost at more samples),
 #                        with stage 5's samples spread over work-items (auto: on GPUs) and not
+#   7. frame_notiles*.csv  step 2's settings with SVGF's a-trous taps read from global memory
+#                        (--atrous-tiles off; a GPU's default reads steps 1-4 from local tiles)
 # plus devices.txt and each step's log. The whole run keeps within --budget seconds (default 540,
 # under a lent machine's 10-minute limit per command): each step may take at most 150 s, and
 # never so much that the steps after it would get less than 20 s each (or, with a small budget,
@@ -49,7 +51,7 @@ if [ $quick = 1 ]; then
 else
   w=1280 h=720 frames=50 ref=256 repeats=7 threads=$(nproc)
 fi
-steps_left=8  # the steps below (frame4spp runs twice)
+steps_left=9  # the steps below (frame4spp runs twice)
 deadline=$((SECONDS + budget))
 mkdir -p "$out" || { echo "realtime_suite: cannot create $out" >&2; exit 1; }
 out=$(cd "$out" && pwd)  # absolute: a --run wrapper may start the programs in another directory
@@ -99,5 +101,7 @@ for spread in auto off; do
     --frames $((frames / 2 + 1)) --warmup 1 --devices 1 --ref-spp 0 --hole-spread $spread \
     --csv "$out/frame4spp_$spread.csv" --summary-csv "$out/frame4spp_${spread}_summary.csv"
 done
+step frame_notiles bench_pipelines "${common[@]}" --ref-spp 0 --atrous-tiles off \
+  --csv "$out/frame_notiles.csv" --summary-csv "$out/frame_notiles_summary.csv"
 rm -rf "$out/render"
 cat "$summary"

@@ -42,13 +42,16 @@ float lum(const cl_float4& c) { return 0.2126f * c.s[0] + 0.7152f * c.s[1] + 0.0
 
 // ---- a-trous against the host ----
 
-// Both a-trous kernels: svgf_atrous (a pixel per work-item) and svgf_atrous8 (eight pixels per
-// work-item in float8, what CPU devices run). 43 columns: the last group of eight is partial, and
-// at steps 2 and 4 taps leave the image on both sides of whole groups.
+// The a-trous kernels: svgf_atrous (a pixel per work-item), svgf_atrous8 (eight pixels per
+// work-item in float8, what CPU devices run; param 8) and svgf_atrous_tiled (8x8-pixel tiles
+// whose taps come from local memory, what GPUs run at steps 1-4; param 64). 43 columns: the last
+// group of eight (and tile) is partial, and at steps 2 and 4 taps leave the image on both sides
+// of whole groups; the strip's 20 rows end in a partial row of tiles.
 class AtrousKernel : public ::testing::TestWithParam<unsigned> {};
 
 TEST_P(AtrousKernel, MatchesHostImplementation) {
-  const unsigned lanes = GetParam();
+  const unsigned lanes = GetParam() == 8 ? 8 : 1;
+  const bool tiled = GetParam() == 64;
   const unsigned w = 43, h = 30;
   const std::size_t n = w * h;
   std::mt19937 rng(4);
@@ -93,9 +96,11 @@ TEST_P(AtrousKernel, MatchesHostImplementation) {
     cl::Kernel kg(one_device().program("denoise/svgf.cl"), "svgf_guide");
     kg.setArg(0, guide); kg.setArg(1, bg); kg.setArg(2, all);
     launch_1d(one_device().devices()[0].queue, kg, all.rows * w);
-    cl::Kernel k(one_device().program("denoise/svgf.cl"), lanes == 8 ? "svgf_atrous8" : "svgf_atrous");
+    cl::Kernel k(one_device().program("denoise/svgf.cl"),
+                 tiled ? "svgf_atrous_tiled" : lanes == 8 ? "svgf_atrous8" : "svgf_atrous");
     k.setArg(0, out); k.setArg(1, bi); k.setArg(2, guide); k.setArg(3, bm); k.setArg(4, p);
-    launch_1d(one_device().devices()[0].queue, k, p.rows * ((w + lanes - 1) / lanes));
+    launch_1d(one_device().devices()[0].queue, k,
+              tiled ? ((w + 7) / 8) * ((p.rows + 7) / 8) * 64 : p.rows * ((w + lanes - 1) / lanes));
     auto got = download<cl_float4>(out, n);
     for (std::size_t i = 0; i < n; ++i) {
       if (i / w >= p.row0 && i / w < p.row0 + p.rows) continue;
@@ -193,9 +198,11 @@ TEST_P(AtrousKernel, MatchesHostImplementation) {
   EXPECT_GT(borrowing, 10);
 }
 
-INSTANTIATE_TEST_SUITE_P(Svgf, AtrousKernel, ::testing::Values(1u, 8u),
+INSTANTIATE_TEST_SUITE_P(Svgf, AtrousKernel, ::testing::Values(1u, 8u, 64u),
                          [](const ::testing::TestParamInfo<unsigned>& info) {
-                           return info.param == 8 ? std::string("EightPixelsPerItem") : std::string("OnePixelPerItem");
+                           return info.param == 64  ? std::string("TilesInLocalMemory")
+                                  : info.param == 8 ? std::string("EightPixelsPerItem")
+                                                    : std::string("OnePixelPerItem");
                          });
 
 TEST(Svgf, FilterExpMatchesDoublePrecisionExp) {
@@ -723,6 +730,33 @@ TEST(SvgfDistributed, EightPixelAtrousKernelGivesTheSameImagesToRounding) {
     std::printf("[ measure  ] %zu of %zu values bit-identical, worst relative difference %.3g\n", identical, values, worst);
     EXPECT_LT(worst, 1e-4);
     EXPECT_GT(identical, values / 4) << "rounding differences should leave most values exact";
+  }
+}
+
+TEST(SvgfDistributed, TiledAtrousKernelGivesTheSameImages) {
+  // svgf_atrous_tiled (GPUs, steps 1-4) against svgf_atrous through the whole pipeline: 2 devices
+  // (tiles that straddle a strip's readable rows), 5 iterations (steps 8 and 16 fall back to
+  // svgf_atrous), frames with history. The tap sum is the same code reading the same texels
+  // from local memory instead of global, so the images are the same to the bit.
+  const unsigned w = 41, h = 29;
+  for (const LoadedScene* scene : {&cornell(), &sphere_under_sky()}) {
+    std::array<std::vector<std::array<ImageRGB, 2>>, 2> frames;
+    for (int k = 0; k < 2; ++k) {
+      DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+      DeviceScene ds(set, scene->scene, scene->bvh);
+      StereoPipeline::Options opt = pipeline_options(PipelineKind::Proposed);
+      opt.svgf.atrous_lanes = 1;
+      opt.svgf.atrous_tiles = k;
+      opt.svgf.iterations = 5;
+      StereoPipeline p(set, ds, scene->scene, w, h, opt);
+      for (unsigned f = 0; f < 3; ++f) {
+        p.render(f, 0.25f * f);
+        frames[k].push_back(p.radiance());
+      }
+    }
+    for (unsigned f = 0; f < 3; ++f)
+      for (int e = 0; e < 2; ++e)
+        EXPECT_TRUE(same_bits(frames[0][f][e], frames[1][f][e])) << scene->scene.name << ", frame " << f << ", eye " << e;
   }
 }
 

@@ -439,6 +439,52 @@ inline int px_atrous_centre(global float4* out_illum, const global float4* illum
 /* B3-spline a-trous weights of taps -2..2. */
 __constant float px_atrous_h[5] = {1.0f / 16.0f, 1.0f / 4.0f, 3.0f / 8.0f, 1.0f / 4.0f, 1.0f / 16.0f};
 
+/* The a-trous tap sum of pixel (x, y) (index i) around centre `fc`, written to out_illum[i]: the
+ * body of svgf_atrous and svgf_atrous_tiled, which differ only in where a tap's texels come
+ * from: GUIDE_AT(tx, ty) and ILLUM_AT(tx, ty) are the guide and illumination texels of pixel
+ * (tx, ty), read only for taps inside the image and the readable rows.
+ *
+ * Every tap's weight twice: .x with the normal exponent sigma_n, .y with a loose one. A pixel
+ * whose normal no neighbour shares closely — alpha-cut foliage cards, curved surfaces seen at
+ * grazing angles, silhouettes — gets no weight from anyone under the strict test and keeps its
+ * lone sample, at 1 spp often black. Such an isolated pixel takes the loose weights, which still
+ * stop at creases, depth steps and luminance edges; every other pixel is filtered exactly as
+ * before. */
+#define PX_ATROUS_TAP_SUM(GUIDE_AT, ILLUM_AT)                                                         \
+  do {                                                                                               \
+    const int step_ = (int)p.step;                                                                   \
+    float2 wsum = (float2)(0.0f, 0.0f), vsum = (float2)(0.0f, 0.0f);                                 \
+    float3 csum_strict = (float3)(0.0f, 0.0f, 0.0f), csum_loose = csum_strict;                       \
+    for (int ky = -2; ky <= 2; ++ky) {                                                               \
+      const int ty = y + ky * step_;                                                                 \
+      if (ty < 0 || ty >= (int)p.height || !px_row_readable(ty, &p)) continue;                       \
+      for (int kx = -2; kx <= 2; ++kx) {                                                             \
+        const int tx = x + kx * step_;                                                               \
+        if (tx < 0 || tx >= (int)p.width) continue;                                                  \
+        const float4 g = GUIDE_AT(tx, ty);                                                           \
+        /* Unfiltered pixels are never taps; the centre always is (a borrowing one included). */     \
+        if (!px_guide_filtered(g) && (kx != 0 || ky != 0)) continue;                                 \
+        const float4 t = ILLUM_AT(tx, ty);                                                           \
+        float2 w = (float2)(px_atrous_h[kx + 2] * px_atrous_h[ky + 2]);                              \
+        if (kx != 0 || ky != 0)                                                                      \
+          w *= px_geometry_weights(g, fc.n, fc.z, fc.grad, (float)(kx * step_), (float)(ky * step_), \
+                                   &p, fabs(fc.l - px_lum(t.xyz)) / lum_scale);                      \
+        wsum += w;                                                                                   \
+        vsum += w * w * t.w;                                                                         \
+        csum_strict += w.x * t.xyz;                                                                  \
+        csum_loose += w.y * t.xyz;                                                                   \
+      }                                                                                              \
+    }                                                                                                \
+    const float centre = px_atrous_h[2] * px_atrous_h[2];                                            \
+    if (wsum.x - centre < PX_SVGF_ISOLATED * centre)                                                 \
+      out_illum[i] = (float4)(csum_loose / wsum.y, vsum.y / (wsum.y * wsum.y));                      \
+    else                                                                                             \
+      out_illum[i] = (float4)(csum_strict / wsum.x, vsum.x / (wsum.x * wsum.x));                     \
+  } while (0)
+
+#define PX_GLOBAL_GUIDE(tx, ty) guide[(uint)(ty) * p.width + (uint)(tx)]
+#define PX_GLOBAL_ILLUM(tx, ty) illum[(uint)(ty) * p.width + (uint)(tx)]
+
 kernel void svgf_atrous(global float4* out_illum, const global float4* illum, const global float4* guide,
                         const global float4* moments, SvgfParams p) {
   const uint gid = get_global_id(0);
@@ -448,41 +494,53 @@ kernel void svgf_atrous(global float4* out_illum, const global float4* illum, co
   FilterCentre fc;
   float lum_scale;
   if (!px_atrous_centre(out_illum, illum, guide, moments, x, y, &p, &fc, &lum_scale)) return;
-  const int step = (int)p.step;
-  /* Every tap's weight twice: .x with the normal exponent sigma_n, .y with a loose one. A pixel
-   * whose normal no neighbour shares closely — alpha-cut foliage cards, curved surfaces seen at
-   * grazing angles, silhouettes — gets no weight from anyone under the strict test and keeps
-   * its lone sample, at 1 spp often black. Such an isolated pixel takes the loose weights,
-   * which still stop at creases, depth steps and luminance edges; every other pixel is
-   * filtered exactly as before. */
-  float2 wsum = (float2)(0.0f, 0.0f), vsum = (float2)(0.0f, 0.0f);
-  float3 csum_strict = (float3)(0.0f, 0.0f, 0.0f), csum_loose = csum_strict;
-  for (int ky = -2; ky <= 2; ++ky) {
-    const int ty = y + ky * step;
-    if (ty < 0 || ty >= (int)p.height || !px_row_readable(ty, &p)) continue;
-    for (int kx = -2; kx <= 2; ++kx) {
-      const int tx = x + kx * step;
-      if (tx < 0 || tx >= (int)p.width) continue;
-      const uint j = (uint)ty * p.width + (uint)tx;
-      const float4 g = guide[j];
-      /* Unfiltered pixels are never taps; the centre always is (a borrowing one included). */
-      if (!px_guide_filtered(g) && (kx != 0 || ky != 0)) continue;
-      const float4 t = illum[j];
-      float2 w = (float2)(px_atrous_h[kx + 2] * px_atrous_h[ky + 2]);
-      if (kx != 0 || ky != 0)
-        w *= px_geometry_weights(g, fc.n, fc.z, fc.grad, (float)(kx * step), (float)(ky * step), &p,
-                                 fabs(fc.l - px_lum(t.xyz)) / lum_scale);
-      wsum += w;
-      vsum += w * w * t.w;
-      csum_strict += w.x * t.xyz;
-      csum_loose += w.y * t.xyz;
+  PX_ATROUS_TAP_SUM(PX_GLOBAL_GUIDE, PX_GLOBAL_ILLUM);
+}
+
+/* The same a-trous step for GPUs, its taps read from local memory: a work-group filters a tile of
+ * PX_ATROUS_TILE x PX_ATROUS_TILE pixels and first loads the guide and illumination texels of the
+ * tile and its apron (2 x step pixels on each side) once, where svgf_atrous's 25 taps per pixel
+ * each go to global memory (to the caches, at best). For steps up to PX_ATROUS_TILE_MAX_STEP
+ * (1, 2 and 4: 144, 256 and 576 texels for 64 pixels, 18 KiB of local memory at step 4); larger
+ * steps touch too few texels twice to gain, and run svgf_atrous. The centre's work (borrowing,
+ * the 3x3 variance) reads global memory as in svgf_atrous, and the tap sum is the same code
+ * (PX_ATROUS_TAP_SUM). Items: PX_LOCAL_SIZE per tile, tiles row by row over the strip. */
+#define PX_ATROUS_TILE 8
+#define PX_ATROUS_TILE_MAX_STEP 4
+#define PX_ATROUS_TILE_SPAN (PX_ATROUS_TILE + 4 * PX_ATROUS_TILE_MAX_STEP)
+#if PX_ATROUS_TILE * PX_ATROUS_TILE != PX_LOCAL_SIZE
+#error "svgf_atrous_tiled: a work-group is one tile"
+#endif
+__attribute__((reqd_work_group_size(PX_LOCAL_SIZE, 1, 1)))
+kernel void svgf_atrous_tiled(global float4* out_illum, const global float4* illum, const global float4* guide,
+                              const global float4* moments, SvgfParams p) {
+  local float4 tile_guide[PX_ATROUS_TILE_SPAN * PX_ATROUS_TILE_SPAN];
+  local float4 tile_illum[PX_ATROUS_TILE_SPAN * PX_ATROUS_TILE_SPAN];
+  const uint tiles_x = (p.width + PX_ATROUS_TILE - 1u) / PX_ATROUS_TILE;
+  const uint group = get_group_id(0), lid = get_local_id(0);
+  const int apron = 2 * (int)min(p.step, (uint)PX_ATROUS_TILE_MAX_STEP), span = PX_ATROUS_TILE + 2 * apron;
+  const int x0 = (int)((group % tiles_x) * PX_ATROUS_TILE), y0 = (int)(p.row0 + (group / tiles_x) * PX_ATROUS_TILE);
+  const int ox = x0 - apron, oy = y0 - apron;
+  /* Texels outside the image or the readable rows are not loaded: the tap sum skips them. */
+  for (int k = (int)lid; k < span * span; k += PX_LOCAL_SIZE) {
+    const int tx = ox + k % span, ty = oy + k / span;
+    if (tx >= 0 && tx < (int)p.width && ty >= 0 && ty < (int)p.height && px_row_readable(ty, &p)) {
+      tile_guide[k] = PX_GLOBAL_GUIDE(tx, ty);
+      tile_illum[k] = PX_GLOBAL_ILLUM(tx, ty);
     }
   }
-  const float centre = px_atrous_h[2] * px_atrous_h[2];
-  if (wsum.x - centre < PX_SVGF_ISOLATED * centre)
-    out_illum[i] = (float4)(csum_loose / wsum.y, vsum.y / (wsum.y * wsum.y));
-  else
-    out_illum[i] = (float4)(csum_strict / wsum.x, vsum.x / (wsum.x * wsum.x));
+  barrier(CLK_LOCAL_MEM_FENCE);
+  const int x = x0 + (int)(lid % PX_ATROUS_TILE), y = y0 + (int)(lid / PX_ATROUS_TILE);
+  if (x >= (int)p.width || y >= (int)(p.row0 + p.rows) || p.step > PX_ATROUS_TILE_MAX_STEP) return;
+  const uint i = (uint)y * p.width + (uint)x;
+  FilterCentre fc;
+  float lum_scale;
+  if (!px_atrous_centre(out_illum, illum, guide, moments, x, y, &p, &fc, &lum_scale)) return;
+#define PX_TILE_GUIDE(tx, ty) tile_guide[((ty) - oy) * span + (tx) - ox]
+#define PX_TILE_ILLUM(tx, ty) tile_illum[((ty) - oy) * span + (tx) - ox]
+  PX_ATROUS_TAP_SUM(PX_TILE_GUIDE, PX_TILE_ILLUM);
+#undef PX_TILE_GUIDE
+#undef PX_TILE_ILLUM
 }
 
 /* (c^e1, c^e2) for eight cosines at once (negative: 0), as px_normal_weights lane by lane. */

@@ -11,7 +11,9 @@ namespace px {
 SvgfDenoiser::SvgfDenoiser(DeviceSet& devices, int device, unsigned width, unsigned height, const Options& options,
                            QueueLanes* lanes)
     : devices_(devices), device_(device), lanes_(lanes), width_(width), height_(height), options_(options),
-      atrous_lanes_(resolve_atrous_lanes(options, devices.devices()[device])) {
+      atrous_lanes_(resolve_atrous_lanes(options, devices.devices()[device])),
+      atrous_tiles_(atrous_lanes_ == 1 &&
+                    (options.atrous_tiles < 0 ? devices.devices()[device].is_gpu() : options.atrous_tiles != 0)) {
   const std::size_t bytes = static_cast<std::size_t>(width) * height * sizeof(cl_float4);
   const auto& ctx = devices.context();
   auto& q = devices.devices()[device].queue;
@@ -124,13 +126,24 @@ void SvgfDenoiser::variance(RowRange rows, RowRange readable) {
 
 void SvgfDenoiser::atrous(unsigned iteration, RowRange rows, RowRange readable) {
   if (rows.size() == 0) return;
-  cl::Kernel k(devices_.program("denoise/svgf.cl"), atrous_lanes_ == 8 ? "svgf_atrous8" : "svgf_atrous");
+  const unsigned step = 1u << iteration;
+  // Must match svgf_atrous_tiled's PX_ATROUS_TILE and PX_ATROUS_TILE_MAX_STEP.
+  constexpr unsigned kTile = 8, kTileMaxStep = 4;
+  static_assert(kTile * kTile == PX_LOCAL_SIZE, "a work-group of svgf_atrous_tiled is one tile");
+  const bool tiled = atrous_tiles_ && step <= kTileMaxStep;
+  cl::Kernel k(devices_.program("denoise/svgf.cl"),
+               atrous_lanes_ == 8 ? "svgf_atrous8" : tiled ? "svgf_atrous_tiled" : "svgf_atrous");
   k.setArg(0, illum_[1 - current_]);
   k.setArg(1, illum_[current_]);
   k.setArg(2, guide_);
   k.setArg(3, moments_);
-  k.setArg(4, params(rows, readable, 1u << iteration));
-  launch(k, rows, atrous_pass_name(iteration), atrous_lanes_);
+  k.setArg(4, params(rows, readable, step));
+  if (tiled) {
+    const std::size_t tiles = static_cast<std::size_t>((width_ + kTile - 1) / kTile) * ((rows.size() + kTile - 1) / kTile);
+    events_.push_back({Stage::Denoise, launch_1d(queue(), k, tiles * PX_LOCAL_SIZE), atrous_pass_name(iteration)});
+  } else {
+    launch(k, rows, atrous_pass_name(iteration), atrous_lanes_);
+  }
   current_ = 1 - current_;
   if (iteration == 0) {
     // The feedback tap: the first filtered iterate is next frame's colour history.

@@ -26,6 +26,10 @@ class SvgfDenoiser {
     // Pixels per work-item of the a-trous passes: 1 (svgf_atrous) or 8 (svgf_atrous8, float8
     // arithmetic across eight pixels, for CPUs); 0 picks 8 on CPU devices and 1 elsewhere.
     unsigned atrous_lanes = 0;
+    // With a pixel per work-item: the a-trous steps of spacing 1, 2 and 4 read their taps from
+    // local-memory tiles (svgf_atrous_tiled; same filter). -1 picks them on GPU devices, 0 never,
+    // 1 always (CPUs too: the tests run them on PoCL).
+    int atrous_tiles = -1;
   };
 
   // `device` is a local device index; `lanes` (optional) the pipeline's queue lanes, whose
@@ -86,6 +90,7 @@ class SvgfDenoiser {
   unsigned width_, height_;
   Options options_;
   unsigned atrous_lanes_;  // pixels per work-item of the a-trous passes on this device (1 or 8)
+  bool atrous_tiles_;      // svgf_atrous_tiled for the small steps (atrous_lanes_ 1 only)
   cl::Buffer illum_[2];        // ping-pong filter buffers (rgb, variance)
   cl::Buffer moments_;         // (m1, m2, history length, filtered flag)
   cl::Buffer guide_;           // (normal, +depth filtered / -depth not), from guide()
