@@ -143,6 +143,8 @@ std::vector<WavefrontPathTracer::Command> WavefrontPathTracer::trace_rows(
     const cl::Context& context, const cl::CommandQueue& queue, const cl::Program& program,
     const DeviceSceneBuffers& scene, Scratch& scratch, const PathTracer::Targets& out, const FrameParams& params,
     const CameraParams& camera, unsigned width, std::size_t max_paths) {
+  if (out.gbuffer && !(params.first_sample_centred && params.sample_offset == 0))
+    throw std::logic_error("WavefrontPathTracer::trace_rows: a G-buffer needs the frame's first sample centred");
   cl::Kernel generate(program, "wf_generate_rows");
   generate.setArg(5, camera);
   const std::size_t slots = static_cast<std::size_t>(params.rows) * width;
