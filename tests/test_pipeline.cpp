@@ -504,9 +504,18 @@ Scene silhouettes_scene() {
 // devices. Glossy cornell (emitters, Russian roulette from bounce 3, glossy holes) and an object
 // under the sky (environment MIS, rays that escape at the first vertex); 3 spp (not a power of
 // two); 0 bounces (no shadow rays at all) and 5; the non-finite counts too.
+// silhouettes_scene() with its BVH, built once.
+const LoadedScene& silhouettes() {
+  static const LoadedScene s = [] {
+    Scene scene = silhouettes_scene();
+    auto bvh = build_bvh(scene.triangles);
+    return LoadedScene{std::move(scene), std::move(bvh)};
+  }();
+  return s;
+}
+
 TEST(StereoPipeline, WavefrontPathTracerGivesTheMegakernelsImages) {
-  const LoadedScene sky{silhouettes_scene(), {}};
-  LoadedScene sky_built{sky.scene, build_bvh(sky.scene.triangles)};
+  const LoadedScene& sky_built = silhouettes();
   struct Case {
     const LoadedScene* scene;
     PipelineKind kind;
@@ -559,8 +568,7 @@ TEST(StereoPipeline, CentreRaysTracedOnceGiveTheGBufferPassesTexelsAndTheSameIma
   // off, the G-buffer pass (an independent kernel) traces every texel and hole filling every
   // camera ray. Denoised, over two frames, so that SVGF reads the G-buffer (margins included)
   // and its history.
-  const LoadedScene sky{silhouettes_scene(), {}};
-  LoadedScene sky_built{sky.scene, build_bvh(sky.scene.triangles)};
+  const LoadedScene& sky_built = silhouettes();
   struct Case {
     const LoadedScene* scene;
     PipelineKind kind;

@@ -14,6 +14,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <random>
 
@@ -699,24 +700,31 @@ TEST(SvgfDistributed, SideQueueGivesTheSameImages) {
       }
 }
 
+// Three frames (with history: the first a-trous iterate feeds the next) of the proposed pipeline
+// on 2 devices, 41x29, with SVGF's options set by `svgf`.
+std::vector<std::array<ImageRGB, 2>> three_denoised_frames(const LoadedScene& scene,
+                                                           const std::function<void(SvgfDenoiser::Options&)>& svgf) {
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  DeviceScene ds(set, scene.scene, scene.bvh);
+  StereoPipeline::Options opt = pipeline_options(PipelineKind::Proposed);
+  svgf(opt.svgf);
+  StereoPipeline p(set, ds, scene.scene, 41, 29, opt);
+  std::vector<std::array<ImageRGB, 2>> frames;
+  for (unsigned f = 0; f < 3; ++f) {
+    p.render(f, 0.25f * f);
+    frames.push_back(p.radiance());
+  }
+  return frames;
+}
+
 TEST(SvgfDistributed, EightPixelAtrousKernelGivesTheSameImagesToRounding) {
   // svgf_atrous8 (what CPU devices run) against svgf_atrous through the whole pipeline, over
-  // frames with history (the first a-trous iterate feeds the next frame): the same filter, so
-  // pixels differ by float rounding only (the two kernels contract multiply-adds differently).
-  const unsigned w = 41, h = 29;
+  // frames with history: the same filter, so pixels differ by float rounding only (the two
+  // kernels contract multiply-adds differently).
   for (const LoadedScene* scene : {&cornell(), &sphere_under_sky()}) {
     std::array<std::vector<std::array<ImageRGB, 2>>, 2> frames;
-    for (int k = 0; k < 2; ++k) {
-      DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
-      DeviceScene ds(set, scene->scene, scene->bvh);
-      StereoPipeline::Options opt = pipeline_options(PipelineKind::Proposed);
-      opt.svgf.atrous_lanes = k == 0 ? 1 : 8;
-      StereoPipeline p(set, ds, scene->scene, w, h, opt);
-      for (unsigned f = 0; f < 3; ++f) {
-        p.render(f, 0.25f * f);
-        frames[k].push_back(p.radiance());
-      }
-    }
+    for (int k = 0; k < 2; ++k)
+      frames[k] = three_denoised_frames(*scene, [&](SvgfDenoiser::Options& o) { o.atrous_lanes = k == 0 ? 1 : 8; });
     std::size_t identical = 0, values = 0;
     double worst = 0.0;
     for (unsigned f = 0; f < 3; ++f)
@@ -738,22 +746,14 @@ TEST(SvgfDistributed, TiledAtrousKernelGivesTheSameImages) {
   // (tiles that straddle a strip's readable rows), 5 iterations (steps 8 and 16 fall back to
   // svgf_atrous), frames with history. The tap sum is the same code reading the same texels
   // from local memory instead of global, so the images are the same to the bit.
-  const unsigned w = 41, h = 29;
   for (const LoadedScene* scene : {&cornell(), &sphere_under_sky()}) {
     std::array<std::vector<std::array<ImageRGB, 2>>, 2> frames;
-    for (int k = 0; k < 2; ++k) {
-      DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
-      DeviceScene ds(set, scene->scene, scene->bvh);
-      StereoPipeline::Options opt = pipeline_options(PipelineKind::Proposed);
-      opt.svgf.atrous_lanes = 1;
-      opt.svgf.atrous_tiles = k;
-      opt.svgf.iterations = 5;
-      StereoPipeline p(set, ds, scene->scene, w, h, opt);
-      for (unsigned f = 0; f < 3; ++f) {
-        p.render(f, 0.25f * f);
-        frames[k].push_back(p.radiance());
-      }
-    }
+    for (int k = 0; k < 2; ++k)
+      frames[k] = three_denoised_frames(*scene, [&](SvgfDenoiser::Options& o) {
+        o.atrous_lanes = 1;
+        o.atrous_tiles = k;
+        o.iterations = 5;
+      });
     for (unsigned f = 0; f < 3; ++f)
       for (int e = 0; e < 2; ++e)
         EXPECT_TRUE(same_bits(frames[0][f][e], frames[1][f][e])) << scene->scene.name << ", frame " << f << ", eye " << e;
