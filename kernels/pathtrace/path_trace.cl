@@ -15,14 +15,15 @@
 
 /* Radiance along one camera path, its vertices in a loop (path_vertex.h); *primary_albedo
  * receives PathVertex::primary_albedo. If `gbuffer_texel` is not null, the camera ray's texel
- * (gbuffer_texel.h) goes there. If `first_hit` is not null, it is the camera ray's hit, already
+ * (gbuffer_texel.h) goes there. If `centre_hit` is not null, it is the camera ray's hit, already
  * traced (by the G-buffer pass, for the same ray). */
 inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir,
                             SampleKey key, float4* primary_albedo, global GBufferTexel* gbuffer_texel,
-                            const global Hit* first_hit) {
+                            const global Hit* centre_hit) {
   PathVertex v = px_camera_path(org, dir);
   for (uint bounce = 0; bounce <= fp->max_bounces; ++bounce) {
-    const Hit hit = bounce == 0u && first_hit ? *first_hit : px_trace_closest_leaf(scene, v.org, v.dir, 0.0f, INFINITY);
+    const Hit hit =
+        bounce == 0u && centre_hit ? *centre_hit : px_trace_closest_leaf(scene, v.org, v.dir, 0.0f, INFINITY);
     if (bounce == 0u && gbuffer_texel) *gbuffer_texel = px_gbuffer_texel(scene, v.dir, hit);
     ShadowRay shadow;
     const int goes_on = px_path_vertex(scene, fp, key, bounce, hit, &v, &shadow);
