@@ -101,7 +101,9 @@ TEST_P(AtrousKernel, MatchesHostImplementation) {
                  tiled ? "svgf_atrous_tiled" : lanes == 8 ? "svgf_atrous8" : "svgf_atrous");
     k.setArg(0, out); k.setArg(1, bi); k.setArg(2, guide); k.setArg(3, bm); k.setArg(4, p);
     launch_1d(one_device().devices()[0].queue, k,
-              tiled ? ((w + 7) / 8) * ((p.rows + 7) / 8) * 64 : p.rows * ((w + lanes - 1) / lanes));
+              tiled ? ((w + PX_ATROUS_TILE - 1) / PX_ATROUS_TILE) * ((p.rows + PX_ATROUS_TILE - 1) / PX_ATROUS_TILE) *
+                          PX_LOCAL_SIZE
+                    : p.rows * ((w + lanes - 1) / lanes));
     auto got = download<cl_float4>(out, n);
     for (std::size_t i = 0; i < n; ++i) {
       if (i / w >= p.row0 && i / w < p.row0 + p.rows) continue;

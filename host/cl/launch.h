@@ -23,4 +23,10 @@ inline std::size_t round_up(std::size_t n, std::size_t local = kLocalSize) { ret
 cl::Event launch_1d(const cl::CommandQueue& queue, const cl::Kernel& kernel, std::size_t items,
                     const std::vector<cl::Event>* waits = nullptr);
 
+// Sets kernel argument `index` to `*buffer`, or to a null buffer (the kernel sees a null
+// pointer: an optional input or output it skips) where `buffer` is null.
+inline void set_optional_buffer(cl::Kernel& kernel, cl_uint index, const cl::Buffer* buffer) {
+  kernel.setArg(index, buffer ? *buffer : cl::Buffer());
+}
+
 }  // namespace px

@@ -25,6 +25,12 @@ FrameParams PathTracer::frame_params(const Scene& scene, std::size_t light_count
   return fp;
 }
 
+void PathTracer::check_gbuffer_target(const Targets& out, const FrameParams& params) {
+  // Without the centred sample nothing would write the texels: a stale G-buffer, silently.
+  if (out.gbuffer && !(params.first_sample_centred && params.sample_offset == 0))
+    throw std::logic_error("path tracer: a G-buffer target needs the frame's first sample centred");
+}
+
 cl::Event PathTracer::launch(const cl::CommandQueue& queue, const cl::Program& program,
                              const DeviceSceneBuffers& scene, const Targets& out, const FrameParams& params,
                              const CameraParams& camera, unsigned width) {
@@ -32,9 +38,8 @@ cl::Event PathTracer::launch(const cl::CommandQueue& queue, const cl::Program& p
   k.setArg(0, out.radiance);
   k.setArg(1, out.albedo);
   k.setArg(2, out.nonfinite);
-  if (out.gbuffer && !(params.first_sample_centred && params.sample_offset == 0))
-    throw std::logic_error("PathTracer::launch: a G-buffer needs the frame's first sample centred");
-  k.setArg(3, out.gbuffer ? *out.gbuffer : cl::Buffer());
+  check_gbuffer_target(out, params);
+  set_optional_buffer(k, 3, out.gbuffer);
   k.setArg(4, params);
   k.setArg(5, camera);
   scene.bind(k, 6);

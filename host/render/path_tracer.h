@@ -50,6 +50,9 @@ class PathTracer {
     const cl::Buffer& nonfinite;
     const cl::Buffer* gbuffer = nullptr;
   };
+  // Throws std::logic_error for a G-buffer target that the launch would not write (no centred
+  // first sample in `params`). Both path tracers check it.
+  static void check_gbuffer_target(const Targets& out, const FrameParams& params);
   static cl::Event launch(const cl::CommandQueue& queue, const cl::Program& program, const DeviceSceneBuffers& scene,
                           const Targets& out, const FrameParams& params, const CameraParams& camera, unsigned width);
 

@@ -57,7 +57,7 @@ void trace_vertices(const cl::CommandQueue& queue, const cl::Program& program, c
   extend.setArg(1, s.hits);
   extend.setArg(3, s.counts);
   extend.setArg(5, s.path_pixel);
-  extend.setArg(6, centre_hits ? *centre_hits : cl::Buffer());
+  set_optional_buffer(extend, 6, centre_hits);
   extend.setArg(7, params);
   scene.bind(extend, 8);
   shade.setArg(0, s.states);
@@ -66,7 +66,7 @@ void trace_vertices(const cl::CommandQueue& queue, const cl::Program& program, c
   shade.setArg(3, s.path_pixel);
   shade.setArg(6, s.shadow_queue);
   shade.setArg(7, s.counts);
-  shade.setArg(9, gbuffer ? *gbuffer : cl::Buffer());
+  set_optional_buffer(shade, 9, gbuffer);
   shade.setArg(10, params);
   shade.setArg(11, camera);
   scene.bind(shade, 12);
@@ -143,8 +143,7 @@ std::vector<WavefrontPathTracer::Command> WavefrontPathTracer::trace_rows(
     const cl::Context& context, const cl::CommandQueue& queue, const cl::Program& program,
     const DeviceSceneBuffers& scene, Scratch& scratch, const PathTracer::Targets& out, const FrameParams& params,
     const CameraParams& camera, unsigned width, std::size_t max_paths) {
-  if (out.gbuffer && !(params.first_sample_centred && params.sample_offset == 0))
-    throw std::logic_error("WavefrontPathTracer::trace_rows: a G-buffer needs the frame's first sample centred");
+  PathTracer::check_gbuffer_target(out, params);
   cl::Kernel generate(program, "wf_generate_rows");
   generate.setArg(5, camera);
   const std::size_t slots = static_cast<std::size_t>(params.rows) * width;

@@ -505,8 +505,6 @@ kernel void svgf_atrous(global float4* out_illum, const global float4* illum, co
  * steps touch too few texels twice to gain, and run svgf_atrous. The centre's work (borrowing,
  * the 3x3 variance) reads global memory as in svgf_atrous, and the tap sum is the same code
  * (PX_ATROUS_TAP_SUM). Items: PX_LOCAL_SIZE per tile, tiles row by row over the strip. */
-#define PX_ATROUS_TILE 8
-#define PX_ATROUS_TILE_MAX_STEP 4
 #define PX_ATROUS_TILE_SPAN (PX_ATROUS_TILE + 4 * PX_ATROUS_TILE_MAX_STEP)
 #if PX_ATROUS_TILE * PX_ATROUS_TILE != PX_LOCAL_SIZE
 #error "svgf_atrous_tiled: a work-group is one tile"

@@ -100,18 +100,15 @@ inline int px_path_vertex(const SceneView* scene, const FrameParams* fp, SampleK
     return 0;
   }
 
-  const global BvhTriangle* tri = scene->tris + hit.prim;
-  const uint prim = tri->prim;
-  const global TriangleShading* sh = scene->shading + prim;
-  const global GpuMaterial* mat = scene->materials + sh->material;
-  const float3 v0 = px_load3(tri->v0), v1 = px_load3(tri->v1), v2 = px_load3(tri->v2);
-  const float bw = 1.0f - hit.u - hit.v;
-  const float3 p = bw * v0 + hit.u * v1 + hit.v * v2;
+  const SurfaceHit surf = px_surface_hit(scene, hit);
+  const uint prim = surf.prim;
+  const global TriangleShading* sh = surf.sh;
+  const global GpuMaterial* mat = surf.mat;
+  const float3 v0 = surf.v0, v1 = surf.v1, v2 = surf.v2;
+  const float3 p = surf.p;
   const float3 wo = -dir;
-  float3 ng = normalize(cross(v1 - v0, v2 - v0));
-  float3 ns = bw * px_load3(sh->n0) + hit.u * px_load3(sh->n1) + hit.v * px_load3(sh->n2);
-  const float ns_len = length(ns);
-  ns = ns_len > 0.0f && isfinite(ns_len) ? ns / ns_len : ng;
+  float3 ng = surf.ng;
+  float3 ns = surf.ns;
   /* The winding order's normal is the front; emitters light only that side (unless two-sided). */
   const int front_face = dot(ng, wo) > 0.0f;
   /* The side the path arrives from, for glass: the geometric normal oriented like the vertex

@@ -25,23 +25,15 @@ inline GBufferTexel px_gbuffer_texel(const SceneView* scene, float3 dir, Hit hit
     g.prim = PX_NO_HIT;
     return g;
   }
-  const global BvhTriangle* tri = scene->tris + hit.prim;
-  const uint prim = tri->prim;
-  const global TriangleShading* sh = scene->shading + prim;
-  const global GpuMaterial* m = scene->materials + sh->material;
-  const float3 v0 = px_load3(tri->v0), v1 = px_load3(tri->v1), v2 = px_load3(tri->v2);
-  const float w = 1.0f - hit.u - hit.v;
-  const float3 p = w * v0 + hit.u * v1 + hit.v * v2;
-  float3 ng = normalize(cross(v1 - v0, v2 - v0));
-  if (dot(ng, dir) > 0.0f) ng = -ng;
-  float3 n = w * px_load3(sh->n0) + hit.u * px_load3(sh->n1) + hit.v * px_load3(sh->n2);
-  const float len = length(n);
-  n = len > 0.0f && isfinite(len) ? n / len : ng;
-  if (dot(n, ng) < 0.0f) n = -n;
-  g.pos[0] = p.x; g.pos[1] = p.y; g.pos[2] = p.z;
+  const SurfaceHit s = px_surface_hit(scene, hit);
+  const global GpuMaterial* m = s.mat;
+  /* Both normals facing the eye (the vertex normal of a degenerate triangle is ng either way). */
+  const float3 ng = dot(s.ng, dir) > 0.0f ? -s.ng : s.ng;
+  const float3 n = dot(s.ns, ng) < 0.0f ? -s.ns : s.ns;
+  g.pos[0] = s.p.x; g.pos[1] = s.p.y; g.pos[2] = s.p.z;
   g.depth = hit.t;
   g.normal[0] = n.x; g.normal[1] = n.y; g.normal[2] = n.z;
-  g.prim = prim;
+  g.prim = s.prim;
   g.material_class = (m->flags & PX_MAT_EMISSIVE)     ? PX_CLASS_EMISSIVE
                      : (m->flags & PX_MAT_DIELECTRIC) ? PX_CLASS_DIELECTRIC
                      : (m->flags & PX_MAT_MIRROR)  ? PX_CLASS_MIRROR

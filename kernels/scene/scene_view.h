@@ -46,6 +46,36 @@ inline SceneView px_scene_view(const global BvhNode* nodes, const global BvhTria
 inline float3 px_load3(const global float* p) { return (float3)(p[0], p[1], p[2]); }
 inline float3 px_load3_private(const float* p) { return (float3)(p[0], p[1], p[2]); }
 
+/* What a closest hit (hit.prim != PX_NO_HIT) found, before anything is faced towards the ray:
+ * the scene triangle `prim` with its shading record and material, its vertices, the hit point,
+ * the winding order's unit normal `ng`, and the interpolated vertex normal `ns` (ng where that
+ * degenerates). The path tracer's vertex and the G-buffer texel both start from it. */
+typedef struct SurfaceHit {
+  uint prim;
+  const global TriangleShading* sh;
+  const global GpuMaterial* mat;
+  float3 v0, v1, v2;
+  float3 p, ng, ns;
+} SurfaceHit;
+
+inline SurfaceHit px_surface_hit(const SceneView* scene, Hit hit) {
+  SurfaceHit s;
+  const global BvhTriangle* tri = scene->tris + hit.prim;
+  s.prim = tri->prim;
+  s.sh = scene->shading + s.prim;
+  s.mat = scene->materials + s.sh->material;
+  s.v0 = px_load3(tri->v0);
+  s.v1 = px_load3(tri->v1);
+  s.v2 = px_load3(tri->v2);
+  const float w = 1.0f - hit.u - hit.v;
+  s.p = w * s.v0 + hit.u * s.v1 + hit.v * s.v2;
+  s.ng = normalize(cross(s.v1 - s.v0, s.v2 - s.v0));
+  const float3 n = w * px_load3(s.sh->n0) + hit.u * px_load3(s.sh->n1) + hit.v * px_load3(s.sh->n2);
+  const float len = length(n);
+  s.ns = len > 0.0f && isfinite(len) ? n / len : s.ng;
+  return s;
+}
+
 /* Bilinear lookup with wrap-around addressing; v = 0 is the image's bottom row (OBJ
  * convention), stored rows run top to bottom. */
 inline float4 px_texture_bilinear(const SceneView* s, int index, float2 uv) {

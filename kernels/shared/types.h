@@ -19,13 +19,19 @@ typedef std::uint32_t uint;
 typedef std::uint8_t uchar; /* only in byte arrays of 4-byte-multiple length (CompressedBvh8Node) */
 #endif
 
-/* Deepest BVH the kernels can traverse. The host asks Embree for at most this depth
- * (RTCBuildArguments::maxDepth) and the validator re-checks it; the traversal stack holds
- * PX_BVH_STACK_SIZE entries, which covers a depth-first walk of such a tree. */
 /* Work-items per work-group of every kernel launch (host/cl/launch.h; kernels that use
  * local memory, e.g. reprojection's hole compaction, must agree). */
 #define PX_LOCAL_SIZE 64
 
+/* svgf_atrous_tiled (kernels/denoise/svgf.cl): a work-group filters a PX_ATROUS_TILE-square
+ * tile of pixels, for a-trous steps up to PX_ATROUS_TILE_MAX_STEP (the host launches it only
+ * for those, PX_LOCAL_SIZE items per tile). */
+#define PX_ATROUS_TILE 8
+#define PX_ATROUS_TILE_MAX_STEP 4
+
+/* Deepest BVH the kernels can traverse. The host asks Embree for at most this depth
+ * (RTCBuildArguments::maxDepth) and the validator re-checks it; the traversal stack holds
+ * PX_BVH_STACK_SIZE entries, which covers a depth-first walk of such a tree. */
 #define PX_BVH_MAX_DEPTH 40
 #define PX_BVH_STACK_SIZE 48
 

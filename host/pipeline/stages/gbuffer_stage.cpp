@@ -10,7 +10,7 @@ void GBufferStage::run(const std::vector<const Operation*>& ops, const FrameInpu
     cl::Kernel k(env_.devices.program("pipeline/gbuffer.cl"), "gbuffer");
     const FrameImages& f = env_.images[op->device];
     k.setArg(0, f.gbuffer[op->eye]);
-    k.setArg(1, op->shares_hits ? f.right_hits : cl::Buffer());
+    set_optional_buffer(k, 1, op->shares_hits ? &f.right_hits : nullptr);
     k.setArg(2, static_cast<cl_uint>(op->rows.begin));
     k.setArg(3, static_cast<cl_uint>(op->rows.size()));
     k.setArg(4, in.cams[op->eye]);

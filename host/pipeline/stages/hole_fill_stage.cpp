@@ -45,7 +45,7 @@ void HoleFillStage::run(const std::vector<const Operation*>& ops, const FrameInp
       k.setArg(2, f.nonfinite_paths);
       k.setArg(3, f.holes);
       k.setArg(4, f.hole_count);
-      k.setArg(5, centre_hits ? *centre_hits : cl::Buffer());
+      set_optional_buffer(k, 5, centre_hits);
       k.setArg(6, fp);
       k.setArg(7, in.cams[1]);
       env_.scene_on(op->device).bind(k, 8);
@@ -65,7 +65,7 @@ void HoleFillStage::run(const std::vector<const Operation*>& ops, const FrameInp
     trace.setArg(1, f.nonfinite_paths);
     trace.setArg(2, f.holes);
     trace.setArg(3, f.hole_count);
-    trace.setArg(4, centre_hits ? *centre_hits : cl::Buffer());
+    set_optional_buffer(trace, 4, centre_hits);
     trace.setArg(5, fp);
     trace.setArg(6, in.cams[1]);
     env_.scene_on(op->device).bind(trace, 7);

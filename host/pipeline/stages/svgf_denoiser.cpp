@@ -127,10 +127,7 @@ void SvgfDenoiser::variance(RowRange rows, RowRange readable) {
 void SvgfDenoiser::atrous(unsigned iteration, RowRange rows, RowRange readable) {
   if (rows.size() == 0) return;
   const unsigned step = 1u << iteration;
-  // Must match svgf_atrous_tiled's PX_ATROUS_TILE and PX_ATROUS_TILE_MAX_STEP.
-  constexpr unsigned kTile = 8, kTileMaxStep = 4;
-  static_assert(kTile * kTile == PX_LOCAL_SIZE, "a work-group of svgf_atrous_tiled is one tile");
-  const bool tiled = atrous_tiles_ && step <= kTileMaxStep;
+  const bool tiled = atrous_tiles_ && step <= PX_ATROUS_TILE_MAX_STEP;
   cl::Kernel k(devices_.program("denoise/svgf.cl"),
                atrous_lanes_ == 8 ? "svgf_atrous8" : tiled ? "svgf_atrous_tiled" : "svgf_atrous");
   k.setArg(0, illum_[1 - current_]);
@@ -139,7 +136,8 @@ void SvgfDenoiser::atrous(unsigned iteration, RowRange rows, RowRange readable) 
   k.setArg(3, moments_);
   k.setArg(4, params(rows, readable, step));
   if (tiled) {
-    const std::size_t tiles = static_cast<std::size_t>((width_ + kTile - 1) / kTile) * ((rows.size() + kTile - 1) / kTile);
+    const std::size_t tiles = static_cast<std::size_t>((width_ + PX_ATROUS_TILE - 1) / PX_ATROUS_TILE) *
+                              ((rows.size() + PX_ATROUS_TILE - 1) / PX_ATROUS_TILE);
     events_.push_back({Stage::Denoise, launch_1d(queue(), k, tiles * PX_LOCAL_SIZE), atrous_pass_name(iteration)});
   } else {
     launch(k, rows, atrous_pass_name(iteration), atrous_lanes_);
