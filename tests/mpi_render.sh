@@ -3,8 +3,8 @@
 # strips on R ranks (one device each), halo seams and strip transfers as MPI messages, a
 # 3-frame animation with denoising; plus strips that move between ranks (--balance dynamic),
 # the baseline pipeline, and a rank that cannot start (its scene file is missing) stopping
-# every rank with a message instead of a hang. Pixels are compared with `parallax compare`
-# (mse exactly 0).
+# every rank with a message instead of a hang. Pixels are compared with `parallax compare --exact`
+# (every channel of every EXR pixel bit for bit, lights above 1 included).
 # Usage: mpi_render.sh PATH/TO/parallax
 set -u
 bin="$(cd "$(dirname "$1")" && pwd)/$(basename "$1")"
@@ -24,8 +24,10 @@ same_pixels() {  # same_pixels NAME DIR_A DIR_B
   local f e out
   for f in 0000 0001 0002; do
     for e in left right; do
-      out="$("$bin" compare "$2/frame_${f}_$e.exr" "$3/frame_${f}_$e.exr" 2>&1)"
-      if ! grep -qx "mse 0" <<<"$out"; then bad "$1: frame $f $e differs from one process ($(grep mse <<<"$out" | tail -1))"; return; fi
+      out="$("$bin" compare --exact "$2/frame_${f}_$e.exr" "$3/frame_${f}_$e.exr" 2>&1)"
+      if ! grep -qx "identical" <<<"$out"; then
+        bad "$1: frame $f $e differs from one process ($(tr '\n' ' ' <<<"$out" | cut -c1-300))"; return
+      fi
     done
   done
   ok "$1: every EXR pixel equals one process with one device"

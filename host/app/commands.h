@@ -92,6 +92,7 @@ struct ReferenceCommand {
 
 struct CompareCommand {
   std::string image, reference;
+  bool exact = false;  // bit-for-bit comparison of the pixel data instead of error figures
 };
 
 int run_devices(const DeviceChoice& choice);

@@ -146,7 +146,10 @@ int main(int argc, char** argv) {
       ->excludes(no_overlap);
   add_word_option(render_cmd, "--balance", render.balance, px::balance_words(),
                   "strip boundaries between devices: static (even split) or dynamic (moved between frames "
-                  "toward equal measured device time; images stay identical; proposed and mono pipelines)");
+                  "toward equal measured device time; images stay identical; proposed and mono pipelines). Over queues "
+                  "on one device (--device-mode queues, or more --devices than compute units) the queues share the "
+                  "same compute units: the strips still move, by times that mostly reflect the order the queues "
+                  "run in, and the frame gets no faster");
   render_cmd->add_option("--balance-step", render.balance_step,
                          "with --balance dynamic: the most rows a strip boundary moves per frame")
       ->check(CLI::Range(1u, 65535u))
@@ -190,9 +193,18 @@ int main(int argc, char** argv) {
   add_device_flags(reference_cmd, reference.devices);
 
   px::CompareCommand compare;
-  auto* compare_cmd = app.add_subcommand("compare", "PSNR and relative MSE of an image against a reference");
+  auto* compare_cmd = app.add_subcommand(
+      "compare", "PSNR, relative MSE and MSE of an image against a reference, or (--exact) whether the pixels are identical");
+  compare_cmd->footer("Both images must have the same size. psnr_db = 10 log10(1 / mean squared error of the values "
+                      "clamped to [0, 1]), as a display shows them (peak 1); rel_mse = mean of (a - r)^2 / (r^2 + 0.01) "
+                      "and mse = mean of (a - r)^2 on the unclamped radiance. psnr_db inf does not mean equal pixels "
+                      "(values above 1 are clamped): --exact compares the bit patterns.\n");
   compare_cmd->add_option("image", compare.image, "image (EXR)")->required()->check(CLI::ExistingFile);
   compare_cmd->add_option("reference", compare.reference, "reference (EXR)")->required()->check(CLI::ExistingFile);
+  compare_cmd->add_flag("--exact", compare.exact,
+                        "compare the float pixel data bit for bit (every channel; -0 vs +0 and NaN payloads differ): "
+                        "print 'identical' and exit 0, or the number of differing pixels, the first difference (x, "
+                        "y, channel, both values) and the largest absolute difference, and exit 1");
 
   auto* demo_cmd = app.add_subcommand("demo", "render the default scene as a first look (what scripts/demo runs)");
   std::string demo_out = "out/demo";

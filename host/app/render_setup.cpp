@@ -28,6 +28,21 @@ PipelineConfig make_pipeline_config(const RenderCommand& cmd) {
   opt.denoise = !cmd.no_denoise;
   opt.svgf = cmd.svgf;
   opt.seams = cmd.seams;
+  // SVGF's temporal variance is the spread of the luminance moments accumulated over frames.
+  // With --alpha-moments 1 nothing is accumulated: from the frame where a pixel's history is
+  // long enough for the temporal estimate (4 frames) its variance is exactly 0, every a-trous
+  // tap's luminance weight is 0, and the "denoised" image is the noisy one. Never what is meant.
+  if (opt.denoise && opt.svgf.alpha_moments >= 1.0f)
+    throw std::invalid_argument(
+        "--alpha-moments 1 keeps no moment history: from the 4th frame on SVGF's variance estimate is 0 and "
+        "its filter returns the noisy image unchanged; use a value below 1 (default 0.2), or --no-denoise for "
+        "the noisy image");
+  // --alpha 1 is a real choice (SVGF on each frame alone, e.g. to see the spatial filter), but it
+  // switches the colour history off: say so.
+  if (opt.denoise && opt.svgf.alpha >= 1.0f)
+    cfg.warnings.push_back(
+        "warning: --alpha 1 switches SVGF's colour history off: every frame is filtered from its own samples "
+        "alone (no temporal accumulation: noisier, and the image flickers); the default is 0.2");
   // The control loop, when asked for: limits from the command line (the starting bounces and
   // iterations are the most it may use; spp may rise to --max-spp).
   if (!cmd.target_ms.empty()) {

@@ -21,6 +21,9 @@ namespace px {
 struct PipelineConfig {
   StereoPipeline::Options options;
   std::optional<FrameTimeController> controller;
+  // Settings that are allowed but change what the user gets in a way they may not expect (e.g.
+  // no temporal history): one line each, printed once by the caller (rank 0 under MPI).
+  std::vector<std::string> warnings;
 };
 PipelineConfig make_pipeline_config(const RenderCommand& cmd);
 

@@ -2,6 +2,7 @@
 
 #include "bvh/flat_bvh.h"
 #include "cl/kernel_sources.h"
+#include "cl/pocl_launch_guard.h"
 
 #include <algorithm>
 #include <cstdlib>
@@ -159,6 +160,15 @@ DeviceSet DeviceSet::create(const DeviceOptions& options) {
     set.devices_.push_back(std::move(cd));
   }
   set.all_gpus_ = std::all_of(set.devices_.begin(), set.devices_.end(), [](const ComputeDevice& d) { return d.is_gpu(); });
+  // PoCL's CPU drivers share one work-group-function cache per process, which miscounts when
+  // launches of one kernel at different global sizes overlap on several queues (any mode:
+  // queues, sub-devices, POCL_DEVICES entries); the guard orders such launches.
+  const bool pocl_cpu = set.platform_name_.find("Portable Computing Language") != std::string::npos &&
+                        std::any_of(set.devices_.begin(), set.devices_.end(), [](const ComputeDevice& d) { return d.is_cpu(); });
+  if (pocl_cpu && PoclLaunchGuard::enabled()) {
+    set.launch_guard_ = std::make_unique<LaunchGuardRegistration>();
+    set.launch_guard_->context = set.context_();
+  }
   return set;
 }
 
@@ -190,8 +200,13 @@ const cl::Program& DeviceSet::program(const std::string& path, const std::string
     }
     throw ClFailure(msg.str());
   }
+  // PoCL's build hash covers the source and the options, i.e. this key (in one process all
+  // PoCL CPU devices are the same host CPU).
+  if (launch_guard_) PoclLaunchGuard::register_program(context_(), program(), key);
   return programs_.emplace(key, std::move(program)).first->second;
 }
+
+DeviceSet::LaunchGuardRegistration::~LaunchGuardRegistration() { PoclLaunchGuard::forget_context(context); }
 
 void DeviceSet::finish_all() {
   for (auto& d : devices_) d.queue.finish();

@@ -65,6 +65,9 @@ class DeviceSet {
   // Finishes every queue.
   void finish_all();
 
+  // Whether launches on this set go through PoclLaunchGuard (PoCL CPU devices; pocl_launch_guard.h).
+  bool guards_launches() const { return static_cast<bool>(launch_guard_); }
+
  private:
   cl::Platform platform_;
   cl::Context context_;
@@ -74,6 +77,14 @@ class DeviceSet {
   std::string platform_name_;
   bool all_gpus_ = false;  // every device a GPU
   std::map<std::string, cl::Program> programs_;
+  // Registers the set's programs with PoclLaunchGuard and forgets them (and the events it
+  // keeps of the set's queues) when the set goes. Declared last: destroyed first, while the
+  // context, queues and programs still exist. Null where the set needs no guard.
+  struct LaunchGuardRegistration {
+    cl_context context = nullptr;
+    ~LaunchGuardRegistration();
+  };
+  std::unique_ptr<LaunchGuardRegistration> launch_guard_;
 };
 
 // One line per platform and device with the facts that matter for splitting work

@@ -268,6 +268,7 @@ float scene_size(const Scene& scene) {
 int run_view(const ViewCommand& cmd) {
   // Bad flags fail before any window opens or scene loads.
   PipelineConfig config = make_pipeline_config(cmd.render);
+  for (const auto& w : config.warnings) std::fprintf(stderr, "view: %s\n", w.c_str());
   if (!cmd.screenshot.empty()) {
     const std::string ext = cmd.screenshot.size() >= 4 ? cmd.screenshot.substr(cmd.screenshot.size() - 4) : "";
     if (ext != ".png" && ext != ".PNG") throw std::invalid_argument("--screenshot must name a .png file");
