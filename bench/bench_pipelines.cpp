@@ -39,10 +39,34 @@ struct PipelineResult {
   int owner = 0;
 };
 
+// With --compare-kernels: each scene-dependent kernel's private memory per work-item
+// (CL_KERNEL_PRIVATE_MEM_SIZE: on a GPU, registers spilled to memory) built for the scene's
+// features and with every feature.
+void print_kernel_private_memory(px::DeviceSet& set, px::DeviceScene& ds) {
+  const std::pair<const char*, const char*> kernels[] = {
+      {"pathtrace/path_trace.cl", "path_trace"}, {"pathtrace/path_trace.cl", "path_trace_list"},
+      {"pathtrace/wavefront.cl", "wf_shade"},    {"pipeline/gbuffer.cl", "gbuffer"},
+      {"trace/trace_rays.cl", "trace_closest"}};
+  const cl::Device& device = set.devices()[0].device;
+  std::printf("private memory per work-item (bytes, CL_KERNEL_PRIVATE_MEM_SIZE): scene kernels / general kernels\n");
+  const px::KernelChoice before = ds.kernel_choice();
+  for (const auto& [path, name] : kernels) {
+    std::size_t bytes[2] = {0, 0};
+    for (int general = 0; general < 2; ++general) {
+      ds.set_kernel_choice(general ? px::KernelChoice::General : px::KernelChoice::Scene);
+      cl::Kernel k(set.program(path, ds.kernel_options()), name);
+      bytes[general] = k.getWorkGroupInfo<CL_KERNEL_PRIVATE_MEM_SIZE>(device);
+    }
+    std::printf("  %-18s %8zu / %zu\n", name, bytes[0], bytes[1]);
+  }
+  ds.set_kernel_choice(before);
+}
+
 // A pipeline's name in a 9-character column header.
 std::string short_name(const std::string& name) {
   if (name == "proposed-1q") return "p-1q";
   if (name == "proposed-gpass") return "p-gp";
+  if (name == "proposed-general") return "p-gen";
   return name.substr(0, 4);
 }
 
@@ -55,7 +79,7 @@ int main(int argc, char** argv) {
   int devices = 2;
   float fps = 30.0f;
   std::string csv, summary_csv, frames_csv;
-  bool compare_overlap = false, compare_gbuffer = false;
+  bool compare_overlap = false, compare_gbuffer = false, compare_kernels = false;
   std::string hole_spread = "auto", atrous_tiles = "auto";
   app.add_option("--scene", scenes)->capture_default_str();
   app.add_option("--width", width)->capture_default_str();
@@ -76,6 +100,9 @@ int main(int argc, char** argv) {
   app.add_flag("--compare-gbuffer", compare_gbuffer,
                "run proposed again with the left eye's G-buffer traced by its own pass (stage 3) instead of "
                "written by the path tracer, as pipeline 'proposed-gpass' (images are identical)");
+  app.add_flag("--compare-kernels", compare_kernels,
+               "run proposed again with every kernel feature compiled in (--kernels general), as pipeline "
+               "'proposed-general', beside the kernels built for the scene's features (images are identical)");
   std::string path_tracer = "megakernel";
   app.add_option("--path-tracer", path_tracer,
                  "stages 2, 5 and 12: megakernel or wavefront (a kernel per path step; images are identical)")
@@ -148,6 +175,7 @@ int main(int argc, char** argv) {
         px::Overlap overlap = px::Overlap::Auto;
         bool gbuffer_from_path_tracer = true;
         std::string name;
+        px::KernelChoice kernels = px::KernelChoice::Scene;
       };
       std::vector<Run> runs;
       for (px::PipelineKind kind : {px::PipelineKind::Proposed, px::PipelineKind::Baseline, px::PipelineKind::Mono})
@@ -157,6 +185,10 @@ int main(int argc, char** argv) {
         runs.push_back({px::PipelineKind::Proposed, px::Overlap::Off, true, "proposed-1q"});
       }
       if (compare_gbuffer) runs.push_back({px::PipelineKind::Proposed, runs[0].overlap, false, "proposed-gpass"});
+      if (compare_kernels)
+        runs.push_back({px::PipelineKind::Proposed, runs[0].overlap, true, "proposed-general", px::KernelChoice::General});
+      std::fprintf(stderr, "[bench] %s: kernels for the scene's features: %s\n", name.c_str(),
+                   px::describe_kernel_features(ds.scene_features()).c_str());
       for (const Run& run : runs) {
         px::StereoPipeline::Options opt;
         opt.pipeline = run.kind;
@@ -167,6 +199,8 @@ int main(int argc, char** argv) {
         opt.hole_fill.spread = spread;
         opt.svgf.atrous_tiles = atrous_tiles == "on" ? 1 : atrous_tiles == "off" ? 0 : -1;
         opt.path_kernel = px::parse_path_trace_kernel(path_tracer);
+        // Programs are looked up at each launch with the scene's current choice: set for this run.
+        on_devices.device_scene.set_kernel_choice(run.kernels);
         px::StereoPipeline pipeline(set, ds, scene, width, height, opt);
         PipelineResult r;
         r.name = run.name;
@@ -202,10 +236,10 @@ int main(int argc, char** argv) {
 
       std::printf("\n== %s, %ux%u per eye, %u spp, %u bounces, %d devices (%s), %u frames after %u warm-up ==\n",
                   name.c_str(), width, height, spp, bounces, set.size(), px::to_string(set.mode()), frames, warmup);
-      std::printf("%-14s %12s %12s %8s %12s %10s %10s %10s %10s\n", "pipeline", "makespan ms", "median ms", "Hz",
+      std::printf("%-16s %12s %12s %8s %12s %10s %10s %10s %10s\n", "pipeline", "makespan ms", "median ms", "Hz",
                   "reprojected", "right PSNR", "right rMSE", "last PSNR", "last rMSE");
       for (const auto& r : results)
-        std::printf("%-14s %12.0f %12.1f %8.2f %11.1f%% %10.2f %10.4f %10.2f %10.4f\n", r.name.c_str(), r.makespan_ms,
+        std::printf("%-16s %12.0f %12.1f %8.2f %11.1f%% %10.2f %10.4f %10.2f %10.4f\n", r.name.c_str(), r.makespan_ms,
                     r.median_frame_ms, 1000.0 * frames / r.makespan_ms, 100.0 * r.reprojected, r.right_psnr,
                     r.right_rel_mse, r.last_right_psnr, r.last_right_rel_mse);
       if (ref_spp > 0)
@@ -220,12 +254,16 @@ int main(int argc, char** argv) {
                       << r.last_right_rel_mse << ',' << path_tracer << ',' << px::to_string(set.bvh_layout()) << '\n';
       std::printf("speed-up proposed vs baseline: x%.2f (makespan ratio); proposed vs mono: x%.2f\n",
                   results[1].makespan_ms / results[0].makespan_ms, results[2].makespan_ms / results[0].makespan_ms);
+      if (compare_kernels) print_kernel_private_memory(set, on_devices.device_scene);
       for (const auto& r : results) {
         if (r.name == "proposed-1q")
           std::printf("side queue: proposed vs proposed-1q: x%.2f (makespan ratio)\n", r.makespan_ms / results[0].makespan_ms);
         if (r.name == "proposed-gpass")
           std::printf("G-buffer from the path tracer: proposed vs proposed-gpass: x%.2f (makespan ratio)\n",
                       r.makespan_ms / results[0].makespan_ms);
+        if (r.name == "proposed-general")
+          std::printf("kernels for the scene's features (%s): proposed vs proposed-general: x%.2f (makespan ratio)\n",
+                      px::describe_kernel_features(ds.scene_features()).c_str(), r.makespan_ms / results[0].makespan_ms);
       }
       std::printf("\nmedian device ms per frame, by stage and device:\n%-22s", "stage");
       for (const auto& r : results)

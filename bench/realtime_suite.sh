@@ -4,8 +4,10 @@
 #   1. trace.csv         bench_trace: kernel vs Embree, primary and diffuse rays, per BVH layout
 #   2. frame*.csv        bench_pipelines: per-stage device medians for proposed (side queue on),
 #                        proposed-1q (one queue), proposed-gpass (the G-buffer pass traces every
-#                        centre ray again), baseline and mono, with PSNR / relMSE against a
-#                        reference at frame 0 and at the last frame
+#                        centre ray again), proposed-general (every kernel feature compiled in,
+#                        not only the scene's; its log also lists each kernel's private memory
+#                        per work-item for both builds), baseline and mono, with PSNR / relMSE
+#                        against a reference at frame 0 and at the last frame
 #   3. frame_wide8*.csv  the same with the uncompressed 8-wide BVH (PX_BVH_LAYOUT=wide8; a GPU's
 #                        default is cwbvh, so 2 and 3 compare the layouts on whole frames)
 #   4. frame_wavefront*.csv  the same with the wavefront path tracer (--path-tracer wavefront),
@@ -88,7 +90,8 @@ step devices parallax devices
 step trace bench_trace --scene "$scene" --scene cornell --width $w --height $h --repeats $repeats \
   --threads "$threads" --layout wide8 --layout cwbvh --layout binary --csv "$out/trace.csv"
 common=(--scene "$scene" --width $w --height $h --spp 1 --frames $frames --warmup 2 --devices 1)
-step frame bench_pipelines "${common[@]}" --ref-spp $ref --compare-overlap --compare-gbuffer --csv "$out/frame.csv" \
+step frame bench_pipelines "${common[@]}" --ref-spp $ref --compare-overlap --compare-gbuffer --compare-kernels \
+  --csv "$out/frame.csv" \
   --summary-csv "$out/frame_summary.csv" --frames-csv "$out/frame_frames.csv"
 PX_BVH_LAYOUT=wide8 step frame_wide8 bench_pipelines "${common[@]}" --ref-spp $ref \
   --csv "$out/frame_wide8.csv" --summary-csv "$out/frame_wide8_summary.csv"

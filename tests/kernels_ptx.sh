@@ -16,11 +16,16 @@ fails=0
 count=0
 while IFS= read -r -d '' file; do
   rel="${file#"$src"/kernels/}"
-  for width in 2 4 8 9; do
+  # Every BVH layout with every feature, then the wide layout with no scene feature and with two
+  # complementary halves of them (PX_FEATURES, kernels/shared/types.h): a build for a scene's
+  # features must compile, and without warnings (a constant operand in a feature test warns).
+  for variant in "2 0x3ff" "4 0x3ff" "8 0x3ff" "9 0x3ff" "8 0x000" "8 0x155" "8 0x2aa"; do
+    read -r width features <<<"$variant"
     count=$((count + 1))
     if ! out="$("$clang_bin" -x cl -cl-std=CL1.2 -target nvptx64-nvidia-nvcl -Xclang -finclude-default-header \
-        -cl-single-precision-constant -O2 -DPX_BVH_WIDTH=$width -I"$src/kernels" -S -o /dev/null "$file" 2>&1)"; then
-      echo "FAIL $rel (PX_BVH_WIDTH=$width):"
+        -cl-single-precision-constant -O2 -DPX_BVH_WIDTH=$width -DPX_FEATURES=$features -I"$src/kernels" -S \
+        -o /dev/null "$file" 2>&1)" || grep -q "warning:" <<<"$out"; then
+      echo "FAIL $rel (PX_BVH_WIDTH=$width PX_FEATURES=$features):"
       echo "$out" | head -20
       fails=$((fails + 1))
     fi

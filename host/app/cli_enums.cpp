@@ -47,6 +47,11 @@ const WordTable<PathTraceKernel>& path_tracer_words() {
   return words;
 }
 
+const WordTable<KernelChoice>& kernel_words() {
+  static const WordTable<KernelChoice> words{{"scene", KernelChoice::Scene}, {"general", KernelChoice::General}};
+  return words;
+}
+
 const WordTable<StripBalance>& balance_words() {
   static const WordTable<StripBalance> words{{"static", StripBalance::Static}, {"dynamic", StripBalance::Dynamic}};
   return words;
@@ -64,5 +69,6 @@ const std::string& cli_word(DeviceMode value) { return word_of(device_mode_words
 const std::string& cli_word(StripBalance value) { return word_of(balance_words(), value); }
 const std::string& cli_word(PathTraceKernel value) { return word_of(path_tracer_words(), value); }
 const std::string& cli_word(SkyMode value) { return word_of(sky_words(), value); }
+const std::string& cli_word(KernelChoice value) { return word_of(kernel_words(), value); }
 
 }  // namespace px

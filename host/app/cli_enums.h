@@ -29,6 +29,7 @@ const WordTable<DeviceMode>& device_mode_words();     // auto, subdevices, platf
 const WordTable<StripBalance>& balance_words();       // static, dynamic
 const WordTable<SkyMode>& sky_words();                // auto, on, off
 const WordTable<PathTraceKernel>& path_tracer_words();  // megakernel, wavefront
+const WordTable<KernelChoice>& kernel_words();         // scene, general
 
 // The word of a value, as the flag takes it (named apart from the libraries' to_string so that
 // a call is never ambiguous).
@@ -39,5 +40,6 @@ const std::string& cli_word(DeviceMode value);
 const std::string& cli_word(StripBalance value);
 const std::string& cli_word(SkyMode value);
 const std::string& cli_word(PathTraceKernel value);
+const std::string& cli_word(KernelChoice value);
 
 }  // namespace px

@@ -130,8 +130,9 @@ int run_devices(const DeviceChoice& choice) {
 int run_preview(const PreviewCommand& cmd) {
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite);
-  SceneOnDevices on_devices(cmd.scene, cmd.devices.options(), false, cmd.sky);
+  SceneOnDevices on_devices(cmd.scene, cmd.devices.options(), false, cmd.sky, cmd.kernels);
   print_device_set(on_devices.devices);
+  print_kernel_features(on_devices.device_scene);
   PreviewRenderer renderer(on_devices.devices, on_devices.device_scene);
   std::fprintf(stderr, "[preview] %ux%u per eye, t = %.2f s ...\n", cmd.width, cmd.height, cmd.time_s);
   check_camera(on_devices.loaded.scene, cmd.time_s, "preview");
@@ -208,9 +209,10 @@ int run_render(const RenderCommand& cmd) {
       if (!cmd.video.empty()) video.emplace(cmd.video, 2 * cmd.width, cmd.height, cmd.fps);
     }
     // Every rank loads the scene itself (the scene is replicated, not sent).
-    on_devices.emplace(cmd.scene, cmd.devices.options(), !root, cmd.sky);
+    on_devices.emplace(cmd.scene, cmd.devices.options(), !root, cmd.sky, cmd.kernels);
     const DeviceSet& set = on_devices->devices;
     if (root) print_device_set(set);
+    if (root) print_kernel_features(on_devices->device_scene);
     // Queues sharing one device run on the same compute units: dynamic strips still move, but
     // by times that say more about the order the queues run in than about speed.
     if (root && dynamic_strips && set.mode() == DeviceMode::SharedQueues && set.size() > 1)
@@ -356,7 +358,8 @@ int run_render(const RenderCommand& cmd) {
                  static_cast<unsigned long long>(pipeline.nonfinite_paths()));
   const bool stopped = done < cmd.frames;
   if (report) {
-    report->finish(totals, all_devices, devices.mode(), devices.bvh_layout(), pipeline.nonfinite_paths());
+    report->finish(totals, all_devices, devices.mode(), devices.bvh_layout(), on_devices->device_scene.kernel_features(),
+                   pipeline.nonfinite_paths());
     std::fprintf(stderr, "[render] report written to %s\n", cmd.report.c_str());
   }
   if (video) {
@@ -425,8 +428,9 @@ int run_render(const RenderCommand& cmd) {
 int run_reference(const ReferenceCommand& cmd) {
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite);
-  SceneOnDevices on_devices(cmd.scene, cmd.devices.options(), false, cmd.sky);
+  SceneOnDevices on_devices(cmd.scene, cmd.devices.options(), false, cmd.sky, cmd.kernels);
   print_device_set(on_devices.devices);
+  print_kernel_features(on_devices.device_scene);
   const Scene& scene = on_devices.loaded.scene;
   PathTracer tracer(on_devices.devices, on_devices.device_scene, scene);
   ReferenceOptions opt;

@@ -24,6 +24,7 @@ struct DeviceChoice {
 struct PreviewCommand {
   std::string scene = "cornell";
   SkyMode sky = SkyMode::kAuto;  // light for scenes without any (see load_scene)
+  KernelChoice kernels = KernelChoice::Scene;  // --kernels: the scene's features or all
   unsigned width = 640, height = 360;
   float time_s = 0.0f;
   std::string out = "out/preview";
@@ -47,6 +48,7 @@ struct RenderCommand {
   float exposure = 1.0f;       // PNG preview scale
   PathTracer::Options trace;   // --spp, --bounces, --light-sampling, ...
   PathTraceKernel path_kernel = PathTraceKernel::Megakernel;  // --path-tracer
+  KernelChoice kernels = KernelChoice::Scene;                 // --kernels
   std::string out = "out/render";
   bool overwrite = false;
   bool explain = false;        // print the schedule (stage x device workload pairs, tree)
@@ -78,6 +80,7 @@ struct ViewCommand {
 struct ReferenceCommand {
   std::string scene = "cornell";
   SkyMode sky = SkyMode::kAuto;  // light for scenes without any (see load_scene)
+  KernelChoice kernels = KernelChoice::Scene;  // --kernels
   unsigned width = 640, height = 360;
   unsigned spp = 4096;
   unsigned pass_spp = 16;      // samples per progressive pass

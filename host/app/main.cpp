@@ -48,6 +48,11 @@ void add_size_flags(CLI::App* cmd, unsigned& width, unsigned& height) {
 const char* kSceneHelp = "scene: a JSON scene file (scenes/*.json), an OBJ, glTF 2.0 (.gltf) or binary glTF (.glb) "
                          "file, or a built-in name (cornell, cornell-glossy, atrium)";
 
+void add_kernels_flag(CLI::App* cmd, px::KernelChoice& kernels) {
+  add_word_option(cmd, "--kernels", kernels, px::kernel_words(),
+                  "which features the scene-dependent kernels (path tracers, G-buffer, trace, preview) are compiled with: scene (only those the loaded scene uses: no texture, cut-out, glass, normal-map, sun or sky code where it has none; images are identical) or general (every feature)");
+}
+
 void add_sky_flag(CLI::App* cmd, px::SkyMode& sky) {
   add_word_option(cmd, "--sky", sky, px::sky_words(),
                   "default sky environment: auto (only for a scene without any light: no emitter, sun or sky), "
@@ -68,6 +73,7 @@ void add_pipeline_flags(CLI::App* cmd, px::RenderCommand& r) {
   cmd->add_option("--spp", r.trace.spp, "samples per pixel")->check(CLI::Range(1u, 1u << 20))->capture_default_str();
   cmd->add_option("--bounces", r.trace.bounces, "maximum path length in bounces")->check(CLI::Range(0u, px::PathTracer::kMaxBounces))->capture_default_str();
   cmd->add_option("--rr-start", r.trace.rr_start_bounce, "Russian roulette from this bounce on")->capture_default_str();
+  add_kernels_flag(cmd, r.kernels);
   add_word_option(cmd, "--path-tracer", r.path_kernel, px::path_tracer_words(),
                   "megakernel: a work-item traces a pixel's whole paths; wavefront: a kernel per path step over "
                   "all paths, their state in memory between steps (images are identical)");
@@ -110,6 +116,7 @@ int main(int argc, char** argv) {
   auto* preview_cmd = app.add_subcommand("preview", "shaded primary hits of both eyes (a quick geometry/framing check)");
   preview_cmd->add_option("--scene", preview.scene, kSceneHelp)->capture_default_str();
   add_sky_flag(preview_cmd, preview.sky);
+  add_kernels_flag(preview_cmd, preview.kernels);
   add_size_flags(preview_cmd, preview.width, preview.height);
   preview_cmd->add_option("--time", preview.time_s, "time on the camera path, seconds")->capture_default_str();
   preview_cmd->add_option("--out", preview.out, "output directory")->capture_default_str();
@@ -181,6 +188,7 @@ int main(int argc, char** argv) {
                    "reference_{left,right}.exr");
   reference_cmd->add_option("--scene", reference.scene, kSceneHelp)->capture_default_str();
   add_sky_flag(reference_cmd, reference.sky);
+  add_kernels_flag(reference_cmd, reference.kernels);
   add_size_flags(reference_cmd, reference.width, reference.height);
   reference_cmd->add_option("--spp", reference.spp, "total samples per pixel")->check(CLI::Range(1u, 1u << 24))->capture_default_str();
   reference_cmd->add_option("--pass-spp", reference.pass_spp, "samples per progressive pass")->check(CLI::Range(1u, 4096u))->capture_default_str();

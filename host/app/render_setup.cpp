@@ -65,10 +65,20 @@ void print_device_set(const DeviceSet& set) {
                requested_bvh_layout() ? "requested" : "the default for these devices");
 }
 
+void print_kernel_features(const DeviceScene& scene) {
+  if (scene.kernel_choice() == KernelChoice::General)
+    std::fprintf(stderr, "[kernels] general: every feature compiled in (the scene uses: %s)\n",
+                 describe_kernel_features(scene.scene_features()).c_str());
+  else
+    std::fprintf(stderr, "[kernels] compiled for the scene's features: %s (--kernels general: all)\n",
+                 describe_kernel_features(scene.kernel_features()).c_str());
+}
+
 RenderSession::RenderSession(const RenderCommand& cmd, const StereoPipeline::Options& options)
-    : SceneOnDevices(cmd.scene, cmd.devices.options(), false, cmd.sky),
+    : SceneOnDevices(cmd.scene, cmd.devices.options(), false, cmd.sky, cmd.kernels),
       pipeline(devices, device_scene, loaded.scene, cmd.width, cmd.height, options) {
   print_device_set(devices);
+  print_kernel_features(device_scene);
 }
 
 std::map<Stage, double> slowest_device_ms(const FrameStats& stats) {

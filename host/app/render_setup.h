@@ -28,6 +28,8 @@ struct PipelineConfig {
 PipelineConfig make_pipeline_config(const RenderCommand& cmd);
 
 void print_device_set(const DeviceSet& set);
+// One line: the features the scene-dependent kernels are compiled with (--kernels).
+void print_kernel_features(const DeviceScene& scene);
 
 // Scene, BVH, devices and the stereo pipeline of a RenderCommand, built in that order with
 // progress on stderr (the pipeline refers to the scene and devices it is built on).

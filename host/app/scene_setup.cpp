@@ -85,12 +85,15 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
   return out;
 }
 
-SceneOnDevices::SceneOnDevices(const std::string& spec, const DeviceOptions& device_options, bool quiet, SkyMode sky)
-    : SceneOnDevices(load_and_build(spec, quiet, sky), device_options) {}
+SceneOnDevices::SceneOnDevices(const std::string& spec, const DeviceOptions& device_options, bool quiet, SkyMode sky,
+                               KernelChoice kernels)
+    : SceneOnDevices(load_and_build(spec, quiet, sky), device_options, kernels) {}
 
-SceneOnDevices::SceneOnDevices(LoadedScene scene, const DeviceOptions& device_options)
+SceneOnDevices::SceneOnDevices(LoadedScene scene, const DeviceOptions& device_options, KernelChoice kernels)
     : loaded(std::move(scene)),
       devices(DeviceSet::create(device_options)),
-      device_scene(devices, loaded.scene, loaded.bvh) {}
+      device_scene(devices, loaded.scene, loaded.bvh) {
+  device_scene.set_kernel_choice(kernels);
+}
 
 }  // namespace px

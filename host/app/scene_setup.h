@@ -27,9 +27,9 @@ LoadedScene load_and_build(const std::string& spec, bool quiet = false, SkyMode 
 // `device_scene`. Says nothing about the devices: callers print them as they see fit.
 struct SceneOnDevices {
   SceneOnDevices(const std::string& spec, const DeviceOptions& device_options, bool quiet = false,
-                 SkyMode sky = SkyMode::kAuto);
+                 SkyMode sky = SkyMode::kAuto, KernelChoice kernels = KernelChoice::Scene);
   // A scene loaded before: a bench that runs one scene on several device sets loads it once.
-  SceneOnDevices(LoadedScene scene, const DeviceOptions& device_options);
+  SceneOnDevices(LoadedScene scene, const DeviceOptions& device_options, KernelChoice kernels = KernelChoice::Scene);
   SceneOnDevices(const SceneOnDevices&) = delete;
   SceneOnDevices& operator=(const SceneOnDevices&) = delete;
 

@@ -1,6 +1,7 @@
 #include "render/device_scene.h"
 
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 
@@ -136,9 +137,16 @@ void fill_light_params(const Scene& scene, std::size_t light_count, FrameParams&
   p.p_triangles = light_count > 0 ? share : 0.0f;
 }
 
+std::string DeviceScene::kernel_options() const {
+  char features[16];
+  std::snprintf(features, sizeof features, "0x%03x", kernel_features());
+  return "-DPX_BVH_WIDTH=" + std::to_string(bvh_layout_width(layout_)) + " -DPX_FEATURES=" + features;
+}
+
 DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, const FlatBvh& bvh) {
   FlatBvh flagged = bvh;
-  set_triangle_flags(flagged, triangle_flags(scene));
+  const std::vector<std::uint32_t> tri_flags = triangle_flags(scene);
+  set_triangle_flags(flagged, tri_flags);
   // The nodes of the layout the set's kernels are built for (DeviceSet::bvh_layout), collapsed
   // or compressed here if the caller's tree does not carry them (a GPU set's cwbvh from a tree
   // load_and_build collapsed for CPUs). Nodes made here have not met the validator the loader
@@ -159,6 +167,9 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, const FlatBvh& 
   const auto materials = make_gpu_materials(scene);
   const auto lights = make_light_table(scene);
   light_count_ = lights.size();
+  FrameParams light_params{};
+  fill_light_params(scene, light_count_, light_params);
+  scene_features_ = px::kernel_features(materials, tri_flags, light_params);
   std::vector<TextureInfo> infos;
   std::vector<cl_float4> texels;
   for (const auto& t : scene.textures) {

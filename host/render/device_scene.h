@@ -7,6 +7,7 @@
 
 #include "bvh/flat_bvh.h"
 #include "cl/device_set.h"
+#include "render/kernel_features.h"
 #include "scene/scene.h"
 
 #include <string>
@@ -49,13 +50,24 @@ class DeviceScene {
   // The node layout uploaded (the set's bvh_layout() at construction), and the kernel build
   // option that matches it (DeviceSet::program uses the set's current layout when none is given).
   BvhLayout layout() const { return layout_; }
-  std::string kernel_options() const { return "-DPX_BVH_WIDTH=" + std::to_string(bvh_layout_width(layout_)); }
+  // The build options of the scene-dependent kernels (path tracers, G-buffer, trace, preview):
+  // the node layout and the PX_FEATURES the kernels carry (kernel_features.h).
+  std::string kernel_options() const;
+
+  // The features the scene uses, and those its kernels are built with: the scene's (the
+  // default) or every feature (KernelChoice::General). Choose before any stage builds a kernel.
+  std::uint32_t scene_features() const { return scene_features_; }
+  std::uint32_t kernel_features() const { return choice_ == KernelChoice::General ? PX_FEATURES_ALL : scene_features_; }
+  KernelChoice kernel_choice() const { return choice_; }
+  void set_kernel_choice(KernelChoice choice) { choice_ = choice; }
 
  private:
   std::vector<DeviceSceneBuffers> per_device_;
   std::size_t bytes_per_device_ = 0;
   std::size_t light_count_ = 0;
   BvhLayout layout_ = BvhLayout::Binary;
+  std::uint32_t scene_features_ = PX_FEATURES_ALL;
+  KernelChoice choice_ = KernelChoice::Scene;
 };
 
 }  // namespace px

@@ -55,7 +55,7 @@ std::array<ImageRGB, 2> PathTracer::render_stereo(float time_s, std::uint32_t fr
   if (width > 65535 || height > 65535) throw std::invalid_argument("image too large (65535 max per side)");
   const Camera centre = evaluate_camera(scene_, time_s);
   const int n = devices_.size();
-  const cl::Program& program = devices_.program("pathtrace/path_trace.cl");
+  const cl::Program& program = devices_.program("pathtrace/path_trace.cl", device_scene_.kernel_options());
 
   struct Launch {
     cl::Buffer out, albedo, counter;

@@ -24,7 +24,7 @@ std::array<ImageRGB, 2> PreviewRenderer::render(const Scene& scene, float time_s
       const std::size_t pixels = static_cast<std::size_t>(row1 - row0) * width;
       cl::Buffer out(devices_.context(), CL_MEM_WRITE_ONLY, pixels * 3 * sizeof(float));
       const auto& b = scene_.on(d);
-      cl::Kernel k(devices_.program("render/primary_preview.cl"), "primary_preview");
+      cl::Kernel k(devices_.program("render/primary_preview.cl", scene_.kernel_options()), "primary_preview");
       k.setArg(0, out);
       k.setArg(1, static_cast<cl_uint>(row0));
       k.setArg(2, static_cast<cl_uint>(row1 - row0));

@@ -118,7 +118,8 @@ inline int px_path_vertex(const SceneView* scene, const FrameParams* fp, SampleK
   if (!front_face) ng = -ng;
   if (dot(ns, ng) < 0.0f) ns = -ns;
 
-  if ((mat->flags & PX_MAT_EMISSIVE) && (front_face || (mat->flags & PX_MAT_TWO_SIDED_EMITTER))) {
+  int two_sided = PX_HAS(PX_FEATURE_TWO_SIDED) && (mat->flags & PX_MAT_TWO_SIDED_EMITTER);
+  if (PX_HAS(PX_FEATURE_EMISSIVE) && (mat->flags & PX_MAT_EMISSIVE) && (front_face || two_sided)) {
     float w = 1.0f;
     if (!v->prev_delta) {
       if (!use_bsdf_light) {
@@ -134,10 +135,10 @@ inline int px_path_vertex(const SceneView* scene, const FrameParams* fp, SampleK
   if (bounce == fp->max_bounces) return 0;
 
   float3 albedo = px_load3(mat->diffuse);
-  if (mat->diffuse_texture >= 0)
+  if (PX_HAS(PX_FEATURE_TEXTURES) && mat->diffuse_texture >= 0)
     albedo *= px_texture_bilinear(scene, mat->diffuse_texture, px_interpolate_uv(sh, hit.u, hit.v)).xyz;
   const float2 uv = px_interpolate_uv(sh, hit.u, hit.v);
-  if (mat->normal_texture >= 0) ns = px_normal_mapped(scene, mat, sh, v0, v1, v2, uv, ns, wo);
+  if (PX_HAS(PX_FEATURE_NORMAL_MAP) && mat->normal_texture >= 0) ns = px_normal_mapped(scene, mat, sh, v0, v1, v2, uv, ns, wo);
   const Bsdf bsdf = px_material_bsdf(scene, mat, albedo, uv, outside);
   if (bounce == 0u && !(mat->flags & PX_MAT_EMISSIVE))
     v->primary_albedo = (float4)(px_demodulation_albedo(&bsdf), 1.0f);

@@ -23,7 +23,7 @@ kernel void primary_preview(global float* out_rgb, uint row0, uint rows, CameraP
     const float3 n = normalize(w * px_load3(s->n0) + hit.u * px_load3(s->n1) + hit.v * px_load3(s->n2));
     const global GpuMaterial* m = scene.materials + s->material;
     float3 albedo = px_load3(m->diffuse);
-    if (m->diffuse_texture >= 0)
+    if (PX_HAS(PX_FEATURE_TEXTURES) && m->diffuse_texture >= 0)
       albedo *= px_texture_bilinear(&scene, m->diffuse_texture, px_interpolate_uv(s, hit.u, hit.v)).xyz;
     albedo += px_load3(m->specular);
     c = albedo * (0.15f + 0.85f * fabs(dot(n, dir))) + px_load3(m->emission);

@@ -11,6 +11,7 @@
 #ifndef PARALLAX_BSDF_H
 #define PARALLAX_BSDF_H
 
+#include "shared/types.h"
 #include "sampling/warp.h"
 #include "shading/dielectric.h"
 
@@ -66,7 +67,7 @@ inline Bsdf px_make_dielectric_bsdf(float3 reflect_tint, float3 transmission, fl
  * scales all reflected light works, as long as the same one is used both ways and it is
  * averaged over the same samples as the radiance (see px_render_pixel). */
 inline float3 px_demodulation_albedo(const Bsdf* b) {
-  if (b->dielectric) return (float3)(1.0f, 1.0f, 1.0f); /* glass passes (nearly) all light on */
+  if (PX_HAS(PX_FEATURE_DIELECTRIC) && b->dielectric) return (float3)(1.0f, 1.0f, 1.0f); /* glass passes (nearly) all light on */
   return clamp(b->diffuse + b->specular, 0.0f, 1.0f);
 }
 
@@ -90,7 +91,7 @@ inline float3 px_bsdf_eval(const Bsdf* b, float3 n, float3 wo, float3 wi) {
   const float cos_o = dot(n, wo), cos_i = dot(n, wi);
   if (cos_o <= 0.0f || cos_i <= 0.0f) return (float3)(0.0f, 0.0f, 0.0f);
   float3 f = b->diffuse * PX_INV_PI;
-  if (!b->mirror && b->p_specular > 0.0f) {
+  if (PX_HAS(PX_FEATURE_GGX) && !b->mirror && b->p_specular > 0.0f) {
     const float3 h = normalize(wo + wi);
     const float d = px_ggx_d(dot(n, h), b->alpha);
     const float g = px_ggx_g1(cos_o, b->alpha) * px_ggx_g1(cos_i, b->alpha);
@@ -104,7 +105,7 @@ inline float px_bsdf_pdf(const Bsdf* b, float3 n, float3 wo, float3 wi) {
   const float cos_o = dot(n, wo), cos_i = dot(n, wi);
   if (cos_o <= 0.0f || cos_i <= 0.0f) return 0.0f;
   float pdf = (1.0f - b->p_specular) * cos_i * PX_INV_PI;
-  if (!b->mirror && b->p_specular > 0.0f) {
+  if (PX_HAS(PX_FEATURE_GGX) && !b->mirror && b->p_specular > 0.0f) {
     const float3 h = normalize(wo + wi);
     const float cos_h = dot(n, h);
     /* Half-vector density D(h) cos_h, mapped to wi by the reflection Jacobian 1 / (4 wo.h). */
@@ -154,9 +155,11 @@ inline BsdfSample px_bsdf_sample(const Bsdf* b, float3 n, float3 wo, float3 u) {
   s.transmitted = 0;
   const float cos_o = dot(n, wo);
   if (cos_o <= 0.0f) return s;
-  if (b->dielectric) return px_dielectric_sample(b, n, wo, cos_o, u.z);
-  if (u.z < b->p_specular) {
-    if (b->mirror) {
+  if (PX_HAS(PX_FEATURE_DIELECTRIC) && b->dielectric) return px_dielectric_sample(b, n, wo, cos_o, u.z);
+  /* Without GGX and mirror lobes in the scene p_specular is 0 here; inside, a delta lobe means
+   * a mirror material (glass returned above). */
+  if ((PX_HAS(PX_FEATURE_GGX) || PX_HAS(PX_FEATURE_MIRROR)) && u.z < b->p_specular) {
+    if (PX_HAS(PX_FEATURE_MIRROR) && b->mirror) {
       s.wi = 2.0f * cos_o * n - wo;
       s.delta = 1;
       s.weight = b->specular / b->p_specular;

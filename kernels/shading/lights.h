@@ -14,13 +14,14 @@
 #include "shading/bsdf.h"
 
 inline float3 px_sky_radiance(const FrameParams* fp, float3 d) {
+  if (!PX_HAS(PX_FEATURE_SKY)) return (float3)(0.0f, 0.0f, 0.0f); /* the host zeroes a disabled sky */
   if (d.y < 0.0f) return px_load3_private(fp->sky_ground);
   return mix(px_load3_private(fp->sky_horizon), px_load3_private(fp->sky_zenith), sqrt(d.y));
 }
 
 /* Radiance arriving along a ray that left the scene in direction d. */
 inline float3 px_environment(const FrameParams* fp, float3 d) {
-  if (fp->p_sun > 0.0f && dot(d, px_load3_private(fp->sun_dir)) >= fp->sun_cos_max)
+  if (PX_HAS(PX_FEATURE_SUN) && fp->p_sun > 0.0f && dot(d, px_load3_private(fp->sun_dir)) >= fp->sun_cos_max)
     return px_load3_private(fp->sun_radiance);
   return px_sky_radiance(fp, d);
 }
@@ -29,9 +30,9 @@ inline float3 px_environment(const FrameParams* fp, float3 d) {
  * environment from a point with shading normal n. */
 inline float px_environment_pdf(const FrameParams* fp, float3 n, float3 d) {
   float pdf = 0.0f;
-  if (fp->p_sun > 0.0f && dot(d, px_load3_private(fp->sun_dir)) >= fp->sun_cos_max)
+  if (PX_HAS(PX_FEATURE_SUN) && fp->p_sun > 0.0f && dot(d, px_load3_private(fp->sun_dir)) >= fp->sun_cos_max)
     pdf += fp->p_sun / (2.0f * PX_PI * (1.0f - fp->sun_cos_max));
-  if (fp->p_sky > 0.0f) pdf += fp->p_sky * fmax(0.0f, dot(n, d)) * PX_INV_PI;
+  if (PX_HAS(PX_FEATURE_SKY) && fp->p_sky > 0.0f) pdf += fp->p_sky * fmax(0.0f, dot(n, d)) * PX_INV_PI;
   return pdf;
 }
 
@@ -71,7 +72,7 @@ inline LightSample px_sample_light(const SceneView* s, const FrameParams* fp, fl
   ls.radiance = (float3)(0.0f, 0.0f, 0.0f);
   ls.wi = n;
   float pick = u.z;
-  if (pick < fp->p_triangles) {
+  if (PX_HAS(PX_FEATURE_EMISSIVE) && pick < fp->p_triangles) {
     if (fp->light_count == 0u) return ls;
     /* First entry whose inclusive CDF exceeds u.w. */
     int lo = 0, hi = (int)fp->light_count - 1;
@@ -93,16 +94,16 @@ inline LightSample px_sample_light(const SceneView* s, const FrameParams* fp, fl
     /* Seen from behind, a one-sided emitter sends nothing: no sample (pdf 0), exactly as a
      * BSDF-sampled ray that hits its back gets no emission. */
     const uint flags = s->materials[s->shading[l->prim].material].flags;
-    if (!(flags & PX_MAT_TWO_SIDED_EMITTER) && dot(ng, ls.wi) >= 0.0f) return ls;
+    if (!(PX_HAS(PX_FEATURE_TWO_SIDED) && (flags & PX_MAT_TWO_SIDED_EMITTER)) && dot(ng, ls.wi) >= 0.0f) return ls;
     ls.pdf = px_triangle_light_pdf(fp, l, ls.dist, fabs(dot(ng, ls.wi)));
     ls.radiance = px_load3(l->emission);
     return ls;
   }
   pick -= fp->p_triangles;
-  if (pick < fp->p_sun) {
+  if (PX_HAS(PX_FEATURE_SUN) && pick < fp->p_sun) {
     const float3 sd = px_load3_private(fp->sun_dir);
     ls.wi = px_to_world(px_uniform_cone(u.x, u.y, fp->sun_cos_max), sd);
-  } else if (fp->p_sky > 0.0f) {
+  } else if (PX_HAS(PX_FEATURE_SKY) && fp->p_sky > 0.0f) {
     ls.wi = px_to_world(px_cosine_hemisphere(u.x, u.y), n);
   } else {
     return ls;

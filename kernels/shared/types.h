@@ -202,6 +202,38 @@ typedef struct CompressedBvh8Node {
 #define PX_BVH_WIDTH 2
 #endif
 
+/* The scene features a kernel build carries (-DPX_FEATURES=mask, from the loaded scene:
+ * host/render/kernel_features.h). Each run-time branch of a feature is written
+ * `if (PX_HAS(PX_FEATURE_X) && <the run-time test>)`: where the scene lacks X the test is false
+ * for every pixel anyway, so a build without X drops that code (and, on a GPU, its registers)
+ * without changing a bit of any image. A build without the define carries everything.
+ *   TEXTURES       diffuse or specular texture lookups (map_Kd, map_Ks, glTF base colour)
+ *   ALPHA_TEST     alpha cut-outs tested during traversal (map_d, glTF MASK)
+ *   DIELECTRIC     smooth glass: Fresnel reflection and refraction
+ *   MIRROR         delta specular lobes (PX_MAT_MIRROR, or a specular colour with alpha 0)
+ *   GGX            glossy specular lobes (a specular colour with alpha > 0)
+ *   NORMAL_MAP     tangent-space normal maps
+ *   EMISSIVE       emissive triangles: emission on hit, next-event estimation of triangles
+ *   TWO_SIDED      emitters that emit from both faces
+ *   SUN, SKY       the environment's sun disk and analytic sky */
+#define PX_FEATURE_TEXTURES 0x001u
+#define PX_FEATURE_ALPHA_TEST 0x002u
+#define PX_FEATURE_DIELECTRIC 0x004u
+#define PX_FEATURE_MIRROR 0x008u
+#define PX_FEATURE_GGX 0x010u
+#define PX_FEATURE_NORMAL_MAP 0x020u
+#define PX_FEATURE_EMISSIVE 0x040u
+#define PX_FEATURE_TWO_SIDED 0x080u
+#define PX_FEATURE_SUN 0x100u
+#define PX_FEATURE_SKY 0x200u
+#define PX_FEATURES_ALL 0x3ffu
+#if defined(__OPENCL_C_VERSION__)
+#ifndef PX_FEATURES
+#define PX_FEATURES PX_FEATURES_ALL
+#endif
+#define PX_HAS(feature) ((PX_FEATURES & (feature)) != 0u)
+#endif
+
 /* Wide traversal stack: a node pushes at most W - 1 entries net (it continues into one hit
  * child), nodes are at most PX_BVH_MAX_DEPTH - 1 deep, plus the W - 1 of the last push. */
 #define PX_WBVH_STACK_SIZE(w) (((w) - 1) * PX_BVH_MAX_DEPTH + 1)

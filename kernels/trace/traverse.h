@@ -17,6 +17,13 @@
 
 inline int px_child_absent(uint index, uint count) { return count == 0u && index == 0u; }
 
+/* A hit (u, v) on leaf triangle `tri` that its alpha cut-out removes (never without the
+ * ALPHA_TEST feature: the test is compiled out). */
+inline int px_cut_out(const SceneView* scene, const global BvhTriangle* tri, float u, float v) {
+  return PX_HAS(PX_FEATURE_ALPHA_TEST) && (tri->flags & PX_TRI_ALPHA_TESTED) != 0u &&
+         !px_alpha_visible(scene, tri->prim, u, v);
+}
+
 /* Intersects `count` leaf triangles starting at `first`; updates *best. Returns 1 on any hit. */
 inline int px_intersect_leaf(const SceneView* scene, uint first, uint count,
                              const RayShear* shear, float tmin, Hit* best) {
@@ -25,7 +32,7 @@ inline int px_intersect_leaf(const SceneView* scene, uint first, uint count,
     const global BvhTriangle* tri = scene->tris + i;
     float t, u, v;
     if (px_intersect_triangle_mem(shear, tri->v0, tri->v1, tri->v2, tmin, best->t, &t, &u, &v) &&
-        ((tri->flags & PX_TRI_ALPHA_TESTED) == 0u || px_alpha_visible(scene, tri->prim, u, v))) {
+        !px_cut_out(scene, tri, u, v)) {
       best->t = t;
       best->u = u;
       best->v = v;
@@ -335,7 +342,8 @@ inline int px_intersect_block(const SceneView* scene, const global float* block,
                               const RayShear* s, float tmin, Hit* best) {
   const global uint* header = (const global uint*)(block + 36);
   const uint first = header[0];
-  if (header[2] & PX_TRI_ALPHA_TESTED) return px_intersect_leaf(scene, first, count, s, tmin, best);
+  if (PX_HAS(PX_FEATURE_ALPHA_TEST) && (header[2] & PX_TRI_ALPHA_TESTED))
+    return px_intersect_leaf(scene, first, count, s, tmin, best);
   const float ox = px_axis(s->org, s->kx), oy = px_axis(s->org, s->ky), oz = px_axis(s->org, s->kz);
   const int kx = 4 * s->kx, ky = 4 * s->ky, kz = 4 * s->kz;
   const float4 az = vload4(0, block + kz) - oz;

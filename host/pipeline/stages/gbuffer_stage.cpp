@@ -7,7 +7,7 @@ namespace px {
 void GBufferStage::run(const std::vector<const Operation*>& ops, const FrameInputs& in) {
   for (const Operation* op : ops) {
     if (!env_.local(op->device)) continue;
-    cl::Kernel k(env_.devices.program("pipeline/gbuffer.cl"), "gbuffer");
+    cl::Kernel k(env_.devices.program("pipeline/gbuffer.cl", env_.device_scene.kernel_options()), "gbuffer");
     const FrameImages& f = env_.images[op->device];
     k.setArg(0, f.gbuffer[op->eye]);
     set_optional_buffer(k, 1, op->shares_hits ? &f.right_hits : nullptr);
