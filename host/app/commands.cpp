@@ -132,6 +132,7 @@ int run_preview(const PreviewCommand& cmd) {
   const OutputDir out_dir(cmd.out, cmd.overwrite);
   SceneOnDevices on_devices(cmd.scene, cmd.devices.options(), false, cmd.sky, cmd.kernels);
   print_device_set(on_devices.devices);
+  print_scene_upload(on_devices.device_scene, on_devices.devices.size());
   print_kernel_features(on_devices.device_scene);
   PreviewRenderer renderer(on_devices.devices, on_devices.device_scene);
   std::fprintf(stderr, "[preview] %ux%u per eye, t = %.2f s ...\n", cmd.width, cmd.height, cmd.time_s);
@@ -212,6 +213,7 @@ int run_render(const RenderCommand& cmd) {
     on_devices.emplace(cmd.scene, cmd.devices.options(), !root, cmd.sky, cmd.kernels);
     const DeviceSet& set = on_devices->devices;
     if (root) print_device_set(set);
+    if (root) print_scene_upload(on_devices->device_scene, set.size());
     if (root) print_kernel_features(on_devices->device_scene);
     // Queues sharing one device run on the same compute units: dynamic strips still move, but
     // by times that say more about the order the queues run in than about speed.
@@ -358,7 +360,7 @@ int run_render(const RenderCommand& cmd) {
                  static_cast<unsigned long long>(pipeline.nonfinite_paths()));
   const bool stopped = done < cmd.frames;
   if (report) {
-    report->finish(totals, all_devices, devices.mode(), devices.bvh_layout(), on_devices->device_scene.kernel_features(),
+    report->finish(totals, all_devices, devices.mode(), devices.bvh_layout(), on_devices->device_scene,
                    pipeline.nonfinite_paths());
     std::fprintf(stderr, "[render] report written to %s\n", cmd.report.c_str());
   }
@@ -430,6 +432,7 @@ int run_reference(const ReferenceCommand& cmd) {
   const OutputDir out_dir(cmd.out, cmd.overwrite);
   SceneOnDevices on_devices(cmd.scene, cmd.devices.options(), false, cmd.sky, cmd.kernels);
   print_device_set(on_devices.devices);
+  print_scene_upload(on_devices.device_scene, on_devices.devices.size());
   print_kernel_features(on_devices.device_scene);
   const Scene& scene = on_devices.loaded.scene;
   PathTracer tracer(on_devices.devices, on_devices.device_scene, scene);

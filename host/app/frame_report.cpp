@@ -51,7 +51,7 @@ void RenderReport::add_frame(unsigned frame, const FrameStats& st, const std::ve
 }
 
 void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode device_mode, BvhLayout bvh_layout,
-                          std::uint32_t kernel_features, std::uint64_t nonfinite_paths) {
+                          const DeviceScene& scene, std::uint64_t nonfinite_paths) {
   const nlohmann::json r = {
       {"schema", "parallax-render-report/1"},
       {"scene", cmd_.scene},
@@ -67,7 +67,9 @@ void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode de
       {"path_tracer", cli_word(options_.path_kernel)},
       {"bvh_layout", to_string(bvh_layout)},
       {"kernels", cli_word(cmd_.kernels)},
-      {"kernel_features", kernel_feature_list(kernel_features)},
+      {"kernel_features", kernel_feature_list(scene.kernel_features())},
+      {"scene_device_bytes", scene.bytes_in_context()},
+      {"scene_upload_ms", scene.upload_ms()},
       {"seams", cli_word(cmd_.seams)},
       {"balance", cli_word(cmd_.balance)},
       {"target_ms", cmd_.target_ms.empty() ? nlohmann::json(nullptr) : nlohmann::json(cmd_.target_ms)},

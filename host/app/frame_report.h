@@ -46,7 +46,7 @@ class RenderReport {
                  const FrameQuality& quality, std::optional<double> predicted_ms);
   // The summary, then the file appears under its name.
   void finish(const RenderTotals& totals, int devices, DeviceMode device_mode, BvhLayout bvh_layout,
-              std::uint32_t kernel_features, std::uint64_t nonfinite_paths);
+              const DeviceScene& scene, std::uint64_t nonfinite_paths);
 
  private:
   const RenderCommand& cmd_;

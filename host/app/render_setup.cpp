@@ -65,6 +65,11 @@ void print_device_set(const DeviceSet& set) {
                requested_bvh_layout() ? "requested" : "the default for these devices");
 }
 
+void print_scene_upload(const DeviceScene& scene, int devices) {
+  std::fprintf(stderr, "[scene] on the devices: %.1f MiB in one copy shared by %d device(s) of the context (%.0f ms)\n",
+               static_cast<double>(scene.bytes_in_context()) / (1024.0 * 1024.0), devices, scene.upload_ms());
+}
+
 void print_kernel_features(const DeviceScene& scene) {
   if (scene.kernel_choice() == KernelChoice::General)
     std::fprintf(stderr, "[kernels] general: every feature compiled in (the scene uses: %s)\n",
@@ -78,6 +83,7 @@ RenderSession::RenderSession(const RenderCommand& cmd, const StereoPipeline::Opt
     : SceneOnDevices(cmd.scene, cmd.devices.options(), false, cmd.sky, cmd.kernels),
       pipeline(devices, device_scene, loaded.scene, cmd.width, cmd.height, options) {
   print_device_set(devices);
+  print_scene_upload(device_scene, devices.size());
   print_kernel_features(device_scene);
 }
 

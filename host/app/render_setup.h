@@ -30,6 +30,8 @@ PipelineConfig make_pipeline_config(const RenderCommand& cmd);
 void print_device_set(const DeviceSet& set);
 // One line: the features the scene-dependent kernels are compiled with (--kernels).
 void print_kernel_features(const DeviceScene& scene);
+// One line: the scene's bytes on the devices (one copy per context) and the upload time.
+void print_scene_upload(const DeviceScene& scene, int devices);
 
 // Scene, BVH, devices and the stereo pipeline of a RenderCommand, built in that order with
 // progress on stderr (the pipeline refers to the scene and devices it is built on).

@@ -1,18 +1,63 @@
 #include "render/device_scene.h"
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <stdexcept>
 #include <string>
 
 namespace px {
 namespace {
 
+// What one OpenCL context can hold: the largest single allocation and the global memory of
+// its smallest device. PX_MAX_ALLOC_BYTES lowers the first (to test the refusal below without a
+// 4 GiB scene).
+struct AllocationLimits {
+  std::size_t max_alloc = 0, global_mem = 0;
+  std::string device;  // the device that sets max_alloc
+};
+
+AllocationLimits allocation_limits(const DeviceSet& devices) {
+  AllocationLimits l;
+  l.max_alloc = l.global_mem = static_cast<std::size_t>(-1);
+  for (const auto& d : devices.devices()) {
+    const auto max_alloc = static_cast<std::size_t>(d.device.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>());
+    if (max_alloc < l.max_alloc) {
+      l.max_alloc = max_alloc;
+      l.device = d.device.getInfo<CL_DEVICE_NAME>();
+    }
+    l.global_mem = std::min(l.global_mem, static_cast<std::size_t>(d.device.getInfo<CL_DEVICE_GLOBAL_MEM_SIZE>()));
+  }
+  if (const char* env = std::getenv("PX_MAX_ALLOC_BYTES")) {
+    const unsigned long long v = std::strtoull(env, nullptr, 10);
+    if (v > 0 && v < l.max_alloc) {
+      l.max_alloc = static_cast<std::size_t>(v);
+      l.device += " (lowered by PX_MAX_ALLOC_BYTES)";
+    }
+  }
+  return l;
+}
+
+std::string mib(std::size_t bytes) {
+  char s[64];
+  std::snprintf(s, sizeof s, "%.1f MiB (%zu bytes)", static_cast<double>(bytes) / (1024.0 * 1024.0), bytes);
+  return s;
+}
+
+// One buffer of the scene, written through `queue`; refused (before anything is allocated on
+// the device) where it exceeds what one allocation may hold: a clear error naming the buffer,
+// never a failed allocation deep in the driver or a wrong image.
 template <typename T>
-cl::Buffer upload(const cl::Context& ctx, cl::CommandQueue& queue, const std::vector<T>& data,
-                  std::size_t& total) {
+cl::Buffer upload(const char* name, const cl::Context& ctx, cl::CommandQueue& queue, const std::vector<T>& data,
+                  const AllocationLimits& limits, std::size_t& total) {
   // A zero-sized buffer is invalid in OpenCL; keep one element so kernels always get a buffer.
   const std::size_t bytes = std::max<std::size_t>(1, data.size()) * sizeof(T);
+  if (bytes > limits.max_alloc)
+    throw std::runtime_error(std::string("the scene's ") + name + " buffer needs " + mib(bytes) +
+                             ", more than one allocation may hold on " + limits.device + ": " + mib(limits.max_alloc) +
+                             " (CL_DEVICE_MAX_MEM_ALLOC_SIZE); the scene is too large for this device");
   cl::Buffer buffer(ctx, CL_MEM_READ_ONLY, bytes);
   if (!data.empty()) queue.enqueueWriteBuffer(buffer, CL_TRUE, 0, data.size() * sizeof(T), data.data());
   total += bytes;
@@ -181,24 +226,33 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, const FlatBvh& 
     for (std::size_t i = 0; i < t.rgba.size() / 4; ++i)
       texels.push_back({{t.rgba[4 * i], t.rgba[4 * i + 1], t.rgba[4 * i + 2], t.rgba[4 * i + 3]}});
   }
-  for (auto& dev : devices.devices()) {
-    std::size_t bytes = 0;
-    DeviceSceneBuffers b;
-    switch (layout) {
-      case BvhLayout::Binary: b.nodes = upload(devices.context(), dev.queue, flagged.nodes, bytes); break;
-      case BvhLayout::Wide4:
-      case BvhLayout::Wide8:
-      case BvhLayout::Compressed8: b.nodes = upload(devices.context(), dev.queue, wide_words, bytes); break;
-    }
-    b.triangles = upload(devices.context(), dev.queue, triangles, bytes);
-    b.shading = upload(devices.context(), dev.queue, shading, bytes);
-    b.materials = upload(devices.context(), dev.queue, materials, bytes);
-    b.textures = upload(devices.context(), dev.queue, infos, bytes);
-    b.texels = upload(devices.context(), dev.queue, texels, bytes);
-    b.lights = upload(devices.context(), dev.queue, lights, bytes);
-    bytes_per_device_ = bytes;
-    per_device_.push_back(std::move(b));
+  // One copy per OpenCL context: every ComputeDevice of a set (sub-devices, queues or platform
+  // devices) shares the set's context, and a read-only buffer serves all of them, so an added
+  // device costs no scene memory.
+  const auto upload_start = std::chrono::steady_clock::now();
+  const AllocationLimits limits = allocation_limits(devices);
+  auto& queue = devices.devices().front().queue;
+  const cl::Context& ctx = devices.context();
+  std::size_t bytes = 0;
+  DeviceSceneBuffers b;
+  switch (layout) {
+    case BvhLayout::Binary: b.nodes = upload("BVH node", ctx, queue, flagged.nodes, limits, bytes); break;
+    case BvhLayout::Wide4:
+    case BvhLayout::Wide8:
+    case BvhLayout::Compressed8: b.nodes = upload("BVH node", ctx, queue, wide_words, limits, bytes); break;
   }
+  b.triangles = upload("triangle", ctx, queue, triangles, limits, bytes);
+  b.shading = upload("shading", ctx, queue, shading, limits, bytes);
+  b.materials = upload("material", ctx, queue, materials, limits, bytes);
+  b.textures = upload("texture table", ctx, queue, infos, limits, bytes);
+  b.texels = upload("texel", ctx, queue, texels, limits, bytes);
+  b.lights = upload("light", ctx, queue, lights, limits, bytes);
+  if (bytes > limits.global_mem)
+    throw std::runtime_error("the scene needs " + mib(bytes) + " of device memory, more than the device has: " +
+                             mib(limits.global_mem) + " (CL_DEVICE_GLOBAL_MEM_SIZE)");
+  bytes_in_context_ = bytes;
+  upload_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - upload_start).count();
+  per_device_.assign(devices.devices().size(), b);
 }
 
 }  // namespace px

@@ -1,8 +1,10 @@
-// Scene data replicated on every device (sort-first rendering partitions the image, never the
+// Scene data every device reads whole (sort-first rendering partitions the image, never the
 // scene): BVH nodes, leaf-order triangles, per-triangle shading, materials, textures and the
-// emissive-triangle table. One set of buffers per ComputeDevice, each written through that
-// device's own queue. Kernels take these as their last parameters (PX_SCENE_PARAMS in
-// kernels/scene/scene_view.h); bind() sets them in that order.
+// emissive-triangle table. One set of read-only buffers in the set's OpenCL context, shared by
+// all its devices (on(d) gives every device the same buffers); a buffer larger than a device's
+// CL_DEVICE_MAX_MEM_ALLOC_SIZE (or PX_MAX_ALLOC_BYTES) is refused with an error naming it.
+// Kernels take these as their last parameters (PX_SCENE_PARAMS in kernels/scene/scene_view.h);
+// bind() sets them in that order.
 #pragma once
 
 #include "bvh/flat_bvh.h"
@@ -41,11 +43,14 @@ void fill_light_params(const Scene& scene, std::size_t light_count, FrameParams&
 
 class DeviceScene {
  public:
-  // Uploads `bvh` and the scene's shading data to every device in `devices` (blocking).
+  // Uploads `bvh` and the scene's shading data once into the context of `devices` (blocking).
   DeviceScene(DeviceSet& devices, const Scene& scene, const FlatBvh& bvh);
 
   const DeviceSceneBuffers& on(int device_index) const { return per_device_.at(device_index); }
-  std::size_t bytes_per_device() const { return bytes_per_device_; }
+  // Bytes of scene data in the set's context, shared by all its devices (one copy per context).
+  std::size_t bytes_in_context() const { return bytes_in_context_; }
+  // Host time to create and write those buffers (blocking writes), ms.
+  double upload_ms() const { return upload_ms_; }
   std::size_t light_count() const { return light_count_; }
   // The node layout uploaded (the set's bvh_layout() at construction), and the kernel build
   // option that matches it (DeviceSet::program uses the set's current layout when none is given).
@@ -63,7 +68,8 @@ class DeviceScene {
 
  private:
   std::vector<DeviceSceneBuffers> per_device_;
-  std::size_t bytes_per_device_ = 0;
+  std::size_t bytes_in_context_ = 0;
+  double upload_ms_ = 0.0;
   std::size_t light_count_ = 0;
   BvhLayout layout_ = BvhLayout::Binary;
   std::uint32_t scene_features_ = PX_FEATURES_ALL;

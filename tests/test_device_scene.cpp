@@ -1,0 +1,82 @@
+// The scene on the devices (render/device_scene.h): one copy per OpenCL context, whatever the
+// number of devices, and a buffer too large for one allocation refused with an error that
+// names it and both sizes (PX_MAX_ALLOC_BYTES lowers the device's limit for the test).
+#include "render/device_scene.h"
+#include "scene/primitives.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <string>
+
+namespace px {
+namespace {
+
+Scene spheres() {
+  Scene s;
+  s.name = "spheres";
+  s.materials = {Material{}};
+  for (int i = 0; i < 6; ++i) append_icosphere(s.triangles, {1.5f * i, 0.0f, 0.0f}, 0.6f, 3, 0);
+  return s;
+}
+
+std::size_t size_of(const cl::Buffer& b) { return b.getInfo<CL_MEM_SIZE>(); }
+
+std::size_t total_size(const DeviceSceneBuffers& b) {
+  return size_of(b.nodes) + size_of(b.triangles) + size_of(b.shading) + size_of(b.materials) + size_of(b.textures) +
+         size_of(b.texels) + size_of(b.lights);
+}
+
+TEST(DeviceScene, OneCopyPerContextServesEveryDevice) {
+  const Scene scene = spheres();
+  const FlatBvh bvh = build_bvh(scene.triangles);
+  DeviceSet set = DeviceSet::create({3, DeviceMode::Auto, ""});
+  DeviceScene ds(set, scene, bvh);
+  for (int d = 1; d < set.size(); ++d) {
+    EXPECT_EQ(ds.on(d).triangles(), ds.on(0).triangles()) << "device " << d << " has its own triangle buffer";
+    EXPECT_EQ(ds.on(d).nodes(), ds.on(0).nodes()) << "device " << d;
+    EXPECT_EQ(ds.on(d).texels(), ds.on(0).texels()) << "device " << d;
+  }
+  // What the context holds is what the scene reports, once.
+  EXPECT_EQ(ds.bytes_in_context(), total_size(ds.on(0)));
+  EXPECT_GE(size_of(ds.on(0).triangles), scene.triangles.size() * sizeof(BvhTriangle));
+}
+
+// Sets an environment variable for one scope.
+struct ScopedEnv {
+  ScopedEnv(const char* name, const std::string& value) : name_(name) { setenv(name, value.c_str(), 1); }
+  ~ScopedEnv() { unsetenv(name_); }
+  const char* name_;
+};
+
+TEST(DeviceScene, ABufferOverTheAllocationLimitIsRefusedNamingItAndTheSizes) {
+  const Scene scene = spheres();
+  const FlatBvh bvh = build_bvh(scene.triangles);
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  // The first buffer written is the BVH's nodes (with the wide layouts their leaf blocks too):
+  // a limit one byte below it must stop the upload there, naming it.
+  std::size_t nodes = 0;
+  {
+    DeviceScene ds(set, scene, bvh);
+    nodes = size_of(ds.on(0).nodes);
+  }
+  {
+    const ScopedEnv limit("PX_MAX_ALLOC_BYTES", std::to_string(nodes - 1));
+    try {
+      DeviceScene ds(set, scene, bvh);
+      ADD_FAILURE() << "a " << nodes << "-byte node buffer was accepted under a " << nodes - 1 << "-byte limit";
+    } catch (const std::runtime_error& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("BVH node buffer needs"), std::string::npos) << what;
+      EXPECT_NE(what.find("(" + std::to_string(nodes) + " bytes)"), std::string::npos) << what;
+      EXPECT_NE(what.find("(" + std::to_string(nodes - 1) + " bytes)"), std::string::npos) << what;
+      EXPECT_NE(what.find("CL_DEVICE_MAX_MEM_ALLOC_SIZE"), std::string::npos) << what;
+    }
+  }
+  // At exactly its size it fits (every other buffer of this scene is smaller).
+  const ScopedEnv exact("PX_MAX_ALLOC_BYTES", std::to_string(nodes));
+  EXPECT_NO_THROW(DeviceScene(set, scene, bvh));
+}
+
+}  // namespace
+}  // namespace px
