@@ -92,7 +92,8 @@ SceneOnDevices::SceneOnDevices(const std::string& spec, const DeviceOptions& dev
 SceneOnDevices::SceneOnDevices(LoadedScene scene, const DeviceOptions& device_options, KernelChoice kernels)
     : loaded(std::move(scene)),
       devices(DeviceSet::create(device_options)),
-      device_scene(devices, loaded.scene, loaded.bvh) {
+      // The tree's host copy is not needed once its nodes are on the devices.
+      device_scene(devices, loaded.scene, std::move(loaded.bvh)) {
   device_scene.set_kernel_choice(kernels);
 }
 

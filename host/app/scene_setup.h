@@ -25,6 +25,7 @@ LoadedScene load_and_build(const std::string& spec, bool quiet = false, SkyMode 
 // (DeviceSet::create), the scene uploaded to every one of them. Members in dependency order;
 // built in place and never moved, since what renders on them refers to `devices` and
 // `device_scene`. Says nothing about the devices: callers print them as they see fit.
+// `loaded.bvh` is moved into the upload: empty afterwards (the devices hold the nodes).
 struct SceneOnDevices {
   SceneOnDevices(const std::string& spec, const DeviceOptions& device_options, bool quiet = false,
                  SkyMode sky = SkyMode::kAuto, KernelChoice kernels = KernelChoice::Scene);

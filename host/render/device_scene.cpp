@@ -188,8 +188,8 @@ std::string DeviceScene::kernel_options() const {
   return "-DPX_BVH_WIDTH=" + std::to_string(bvh_layout_width(layout_)) + " -DPX_FEATURES=" + features;
 }
 
-DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, const FlatBvh& bvh) {
-  FlatBvh flagged = bvh;
+DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh) {
+  FlatBvh& flagged = bvh;
   const std::vector<std::uint32_t> tri_flags = triangle_flags(scene);
   set_triangle_flags(flagged, tri_flags);
   // The nodes of the layout the set's kernels are built for (DeviceSet::bvh_layout), collapsed

@@ -44,7 +44,9 @@ void fill_light_params(const Scene& scene, std::size_t light_count, FrameParams&
 class DeviceScene {
  public:
   // Uploads `bvh` and the scene's shading data once into the context of `devices` (blocking).
-  DeviceScene(DeviceSet& devices, const Scene& scene, const FlatBvh& bvh);
+  // `bvh` is taken by value: a caller that no longer needs its tree moves it in, and its
+  // memory is gone when the upload is done (SceneOnDevices does).
+  DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh);
 
   const DeviceSceneBuffers& on(int device_index) const { return per_device_.at(device_index); }
   // Bytes of scene data in the set's context, shared by all its devices (one copy per context).
