@@ -361,7 +361,7 @@ int run_render(const RenderCommand& cmd) {
   const bool stopped = done < cmd.frames;
   if (report) {
     report->finish(totals, all_devices, devices.mode(), devices.bvh_layout(), on_devices->device_scene,
-                   pipeline.nonfinite_paths());
+                   on_devices->loaded.times, pipeline.nonfinite_paths());
     std::fprintf(stderr, "[render] report written to %s\n", cmd.report.c_str());
   }
   if (video) {
@@ -392,6 +392,15 @@ int run_render(const RenderCommand& cmd) {
       std::printf("%.1f Hz (one frame, including kernel compilation)\n", hz);
     std::printf("median device time per stage%s:\n%s", done > 1 ? " (frames after the first)" : "",
                 summary.table(1).c_str());
+    {
+      const StartTimes& t = on_devices->loaded.times;
+      const DeviceScene& ds = on_devices->device_scene;
+      std::printf("start: scene %.0f ms, BVH %.0f ms (%s), validation %.0f ms%s, upload %.0f ms (%.1f MiB, one copy "
+                  "for the %d device(s) of the context)\n",
+                  t.load_ms, t.bvh_ms, t.bvh_from_cache ? "read from the cache" : "built", t.validate_ms,
+                  t.cache_store_ms > 0.0 ? (", cache write " + std::to_string(static_cast<long>(t.cache_store_ms)) + " ms").c_str() : "",
+                  ds.upload_ms(), static_cast<double>(ds.bytes_in_context()) / (1024.0 * 1024.0), devices.size());
+    }
     if (balancer) {
       std::printf("strips at the end (rows per device):");
       for (const RowRange& r : pipeline.strips()) std::printf(" %u", r.size());

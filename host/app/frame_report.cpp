@@ -51,7 +51,7 @@ void RenderReport::add_frame(unsigned frame, const FrameStats& st, const std::ve
 }
 
 void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode device_mode, BvhLayout bvh_layout,
-                          const DeviceScene& scene, std::uint64_t nonfinite_paths) {
+                          const DeviceScene& scene, const StartTimes& start, std::uint64_t nonfinite_paths) {
   const nlohmann::json r = {
       {"schema", "parallax-render-report/1"},
       {"scene", cmd_.scene},
@@ -70,6 +70,12 @@ void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode de
       {"kernel_features", kernel_feature_list(scene.kernel_features())},
       {"scene_device_bytes", scene.bytes_in_context()},
       {"scene_upload_ms", scene.upload_ms()},
+      {"start", {{"scene_load_ms", start.load_ms},
+                 {"bvh_ms", start.bvh_ms},
+                 {"bvh_from_cache", start.bvh_from_cache},
+                 {"bvh_validate_ms", start.validate_ms},
+                 {"bvh_cache_store_ms", start.cache_store_ms},
+                 {"upload_ms", scene.upload_ms()}}},
       {"seams", cli_word(cmd_.seams)},
       {"balance", cli_word(cmd_.balance)},
       {"target_ms", cmd_.target_ms.empty() ? nlohmann::json(nullptr) : nlohmann::json(cmd_.target_ms)},

@@ -6,6 +6,7 @@
 #pragma once
 
 #include "app/commands.h"
+#include "app/scene_setup.h"
 #include "cl/device_set.h"
 #include "control/frame_time_controller.h"
 #include "io/atomic_file.h"
@@ -46,7 +47,7 @@ class RenderReport {
                  const FrameQuality& quality, std::optional<double> predicted_ms);
   // The summary, then the file appears under its name.
   void finish(const RenderTotals& totals, int devices, DeviceMode device_mode, BvhLayout bvh_layout,
-              const DeviceScene& scene, std::uint64_t nonfinite_paths);
+              const DeviceScene& scene, const StartTimes& start, std::uint64_t nonfinite_paths);
 
  private:
   const RenderCommand& cmd_;

@@ -23,6 +23,8 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
   out.scene = load_scene(spec, sky);
   const auto& st = out.scene.stats;
   auto t1 = clock::now();
+  const auto ms = [](clock::time_point a, clock::time_point b) { return std::chrono::duration<double, std::milli>(b - a).count(); };
+  out.times.load_ms = ms(t0, t1);
   if (!quiet) {
     std::fprintf(stderr, "[scene] %s: %zu triangles, %zu materials, %zu textures (%.0f ms)\n",
                  out.scene.name.c_str(), out.scene.triangles.size(), out.scene.materials.size(),
@@ -41,6 +43,8 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
   // The cache holds the binary tree; the wide nodes the kernels traverse are collapsed from it
   // (a few percent of a build), so that the validator below checks them too.
   if (from_cache) ensure_layout(out.bvh, bvh_layout());
+  out.times.bvh_ms = ms(t2, clock::now());
+  out.times.bvh_from_cache = from_cache;
   const auto& bs = out.bvh.stats;
   if (!quiet)
     std::fprintf(stderr, "[bvh] %zu nodes, %zu leaf triangles, depth %d, SAH %.1f (%s)%s%s\n", bs.nodes,
@@ -60,7 +64,9 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
                  bs.split_budget_exceeded ? "; spatial splits stopped at their budget (heavily overlapping "
                                             "triangles): binned SAH instead"
                                           : "");
+  const auto t3 = clock::now();
   auto check = validate_bvh(out.bvh, out.scene.triangles);
+  out.times.validate_ms = ms(t3, clock::now());
   if (!check.ok && from_cache) {
     // A cached file that passed its checksum but not the validator (a builder bug fixed since,
     // with the same sources hash?): rebuild rather than fail.
@@ -77,7 +83,9 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
   }
   if (cacheable && !from_cache) {
     std::string why;
+    const auto t4 = clock::now();
     const std::string path = cache.store(out.bvh, out.scene.triangles, build_options, &why);
+    out.times.cache_store_ms = ms(t4, clock::now());
     if (!quiet && !path.empty()) std::fprintf(stderr, "[bvh] cached in %s for the next run\n", path.c_str());
     if (!quiet && path.empty() && !BvhCache::default_dir().empty())
       std::fprintf(stderr, "[bvh] warning: could not cache the BVH (%s)\n", why.c_str());

@@ -13,9 +13,19 @@
 
 namespace px {
 
+// Where a start's time went, ms (render's summary and report).
+struct StartTimes {
+  double load_ms = 0.0;      // reading and converting the scene file(s)
+  double bvh_ms = 0.0;       // building the BVH, or reading it from the cache
+  bool bvh_from_cache = false;
+  double validate_ms = 0.0;  // the BVH validator
+  double cache_store_ms = 0.0;
+};
+
 struct LoadedScene {
   Scene scene;
   FlatBvh bvh;
+  StartTimes times;
 };
 
 // Throws SceneError / std::runtime_error with a user-facing message on failure.
