@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <map>
+#include <mutex>
 #include <sstream>
 #include <stdexcept>
 
@@ -72,6 +74,29 @@ cl::Platform choose_platform(const std::string& wanted) {
   throw ClFailure("OpenCL platforms exist but none has a device");
 }
 
+// The sub-devices of `root` for a BY_COUNTS partition, made once per process and kept.
+//
+// Why kept: PoCL 3.1's clReleaseCommandQueue releases the queue's context before it reads
+// queue->device (for the driver's free_queue). When that release is the context's last, the
+// context releases its devices, and a sub-device whose last reference that was is freed before
+// it is read: a use-after-free. The last reference to a context is often not the host's: a
+// PoCL worker thread drops its event's queue reference after the host has seen the command
+// complete, and so can free a finished set's context moments later, while the host is already
+// building the next set (bench_seams, or any process that makes device sets one after another,
+// crashed in POclReleaseEvent in about 1 run in 4 under load; a root device is never freed, so
+// one device never crashed). Keeping a reference to every sub-device for the life of the
+// process makes that last release harmless; later sets of the same partition reuse them.
+std::vector<cl::Device> sub_devices(cl::Device root, const std::vector<cl_device_partition_property>& props) {
+  static std::mutex mutex;
+  // Never destroyed: at exit the OpenCL runtime may be gone before static destructors run.
+  static auto* kept = new std::map<std::pair<cl_device_id, std::vector<cl_device_partition_property>>,
+                                   std::vector<cl::Device>>;
+  std::lock_guard<std::mutex> lock(mutex);
+  auto& subs = (*kept)[{root(), props}];
+  if (subs.empty()) root.createSubDevices(props.data(), &subs);
+  return subs;
+}
+
 }  // namespace
 
 DeviceSet DeviceSet::create(const DeviceOptions& options) {
@@ -119,8 +144,7 @@ DeviceSet DeviceSet::create(const DeviceOptions& options) {
       for (int i = 0; i < n; ++i) props.push_back(first_cus / n + (i < first_cus % n ? 1 : 0));
       props.push_back(CL_DEVICE_PARTITION_BY_COUNTS_LIST_END);
       props.push_back(0);
-      std::vector<cl::Device> subs;
-      first.createSubDevices(props.data(), &subs);
+      std::vector<cl::Device> subs = sub_devices(first, props);
       if (static_cast<int>(subs.size()) != n)
         throw ClFailure("clCreateSubDevices returned " + std::to_string(subs.size()) +
                         " sub-devices, asked for " + std::to_string(n));
