@@ -593,7 +593,23 @@ TEST(Bvh, DepthLimitHoldsOnAGeometricProgression) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The validator must catch corruption
+// The validator must catch corruption, each with the error that names it: a validator that
+// rejected a corrupt tree only through a side effect (a check that happens to fire for another
+// reason) would let that corruption through where the side effect does not occur.
+
+// `v` rejects the tree, at most the first 10 errors and a count are reported, and one of them
+// starts with `layout` ("" for the binary tree: its errors carry no prefix, "wide8 ", "cwbvh ")
+// and contains `message`.
+::testing::AssertionResult has_error(const BvhValidation& v, const std::string& layout, const std::string& message) {
+  std::string all;
+  for (const auto& e : v.errors) all += "\n  " + e;
+  if (v.ok) return ::testing::AssertionFailure() << "the validator accepted the tree";
+  if (v.errors.empty() || v.errors.size() > 11)
+    return ::testing::AssertionFailure() << v.errors.size() << " errors reported, expected 1..11:" << all;
+  for (const auto& e : v.errors)
+    if (e.rfind(layout, 0) == 0 && e.find(message) != std::string::npos) return ::testing::AssertionSuccess();
+  return ::testing::AssertionFailure() << "no error '" << layout << "... " << message << "' among:" << all;
+}
 
 class ValidatorDetects : public ::testing::Test {
  protected:
@@ -601,91 +617,107 @@ class ValidatorDetects : public ::testing::Test {
     tris_ = random_soup(2000, 61);
     bvh_ = build_bvh(tris_, with_splits(false));
     ASSERT_TRUE(validate_bvh(bvh_, tris_).ok);
-    // A leaf with at least two triangles, an inner child slot, and the parent of each.
+    // A leaf with at least two triangles, an inner child slot, and the parent of each. Not the
+    // root for the inner slots: a root pointing at itself would be "points at the root" again,
+    // not a cycle below it.
     for (std::uint32_t i = 0; i < bvh_.nodes.size(); ++i) {
       const BvhNode& n = bvh_.nodes[i];
       if (big_leaf_node_ == kNone && n.left_count >= 2) big_leaf_node_ = i;
-      if (inner_child_node_ == kNone && n.left_count == 0 && n.right_count == 0)
+      if (inner_child_node_ == kNone && i > 0 && n.left_count == 0 && n.right_count == 0)
         inner_child_node_ = i;
     }
     ASSERT_NE(big_leaf_node_, kNone);
     ASSERT_NE(inner_child_node_, kNone);
   }
 
-  void expect_invalid(const FlatBvh& bvh, const char* what) {
-    const BvhValidation v = validate_bvh(bvh, tris_);
-    EXPECT_FALSE(v.ok) << what;
-    EXPECT_FALSE(v.errors.empty()) << what;
-    EXPECT_LE(v.errors.size(), 11u) << "only the first few errors are reported";
+  // The binary tree's own errors carry no layout prefix, and no wide layout is built here.
+  void expect_invalid(const FlatBvh& bvh, const std::string& message, const char* what) {
+    EXPECT_TRUE(has_error(validate_bvh(bvh, tris_), "", message)) << what;
   }
 
   static constexpr std::uint32_t kNone = ~0u;
   std::vector<SceneTriangle> tris_;
   FlatBvh bvh_;
   std::uint32_t big_leaf_node_ = kNone;    // its left child is a leaf of >= 2 triangles
-  std::uint32_t inner_child_node_ = kNone;  // both its children are inner nodes
+  std::uint32_t inner_child_node_ = kNone;  // not the root; both its children are inner nodes
 };
 
 TEST_F(ValidatorDetects, ShrunkLeafBox) {
   FlatBvh bad = bvh_;
   BvhNode& n = bad.nodes[big_leaf_node_];
   n.lmax[0] = 0.5f * (n.lmin[0] + n.lmax[0]);
-  expect_invalid(bad, "leaf box no longer contains its triangles");
+  expect_invalid(bad, "is not inside the box of its leaf", "leaf box no longer contains its triangles");
 }
 
 TEST_F(ValidatorDetects, ShrunkInnerBox) {
   FlatBvh bad = bvh_;
   BvhNode& n = bad.nodes[inner_child_node_];
   n.lmin[1] = 0.5f * (n.lmin[1] + n.lmax[1]);
-  expect_invalid(bad, "inner box no longer contains its children");
+  expect_invalid(bad, "box is not inside the box its parent stores for it", "inner box no longer contains its children");
 }
 
 TEST_F(ValidatorDetects, DroppedLeafTriangle) {
   FlatBvh bad = bvh_;
   bad.nodes[big_leaf_node_].left_count -= 1;
-  expect_invalid(bad, "a triangle is no longer referenced");
+  // The entry left out of its leaf, and (no spatial splits: one entry per triangle) its triangle.
+  const std::string entry = "triangle entry " + std::to_string(bad.nodes[big_leaf_node_].left +
+                                                                bad.nodes[big_leaf_node_].left_count);
+  expect_invalid(bad, entry + " is in 0 leaves (expected 1)", "an entry no longer referenced");
+  const std::string prim = "scene triangle " + std::to_string(bad.triangles[bad.nodes[big_leaf_node_].left +
+                                                                             bad.nodes[big_leaf_node_].left_count].prim);
+  expect_invalid(bad, prim + " is not referenced by any leaf", "a triangle no longer referenced");
 }
 
 TEST_F(ValidatorDetects, Cycle) {
   FlatBvh to_root = bvh_;
   to_root.nodes[inner_child_node_].left = 0;
-  expect_invalid(to_root, "child points at the root");
+  expect_invalid(to_root, "node " + std::to_string(inner_child_node_) + " left child index 0 points at the root",
+                 "child points at the root");
   FlatBvh to_self = bvh_;
   to_self.nodes[inner_child_node_].right = inner_child_node_;
-  expect_invalid(to_self, "child points at its own node");
+  const std::string again = "node " + std::to_string(inner_child_node_) + " is reached more than once";
+  expect_invalid(to_self, again, "child points at its own node");
   FlatBvh shared = bvh_;
   shared.nodes[inner_child_node_].right = shared.nodes[inner_child_node_].left;
-  expect_invalid(shared, "two parents share a subtree");
+  const std::string twice = "node " + std::to_string(shared.nodes[inner_child_node_].left) + " is reached more than once";
+  expect_invalid(shared, twice, "two parents share a subtree");
+  expect_invalid(shared, "nodes are not reachable from the root", "the subtree it no longer points to");
 }
 
 TEST_F(ValidatorDetects, OutOfRangeIndices) {
   FlatBvh node_index = bvh_;
   node_index.nodes[inner_child_node_].left = static_cast<std::uint32_t>(bvh_.nodes.size() + 5);
-  expect_invalid(node_index, "node index past the end");
+  expect_invalid(node_index,
+                 "node " + std::to_string(inner_child_node_) + " left child index " +
+                     std::to_string(bvh_.nodes.size() + 5) + " is out of range",
+                 "node index past the end");
   FlatBvh tri_index = bvh_;
   tri_index.nodes[big_leaf_node_].left = static_cast<std::uint32_t>(bvh_.triangles.size() - 1);
-  expect_invalid(tri_index, "leaf range past the end");
+  expect_invalid(tri_index, "but there are " + std::to_string(bvh_.triangles.size()), "leaf range past the end");
   FlatBvh prim = bvh_;
   prim.triangles[3].prim = static_cast<std::uint32_t>(tris_.size());
-  expect_invalid(prim, "prim index past the scene");
+  expect_invalid(prim, "triangle entry 3 has prim " + std::to_string(tris_.size()) + " but the scene has",
+                 "prim index past the scene");
 }
 
 TEST_F(ValidatorDetects, NanBox) {
   FlatBvh bad = bvh_;
   bad.nodes[0].rmax[2] = std::numeric_limits<float>::quiet_NaN();
-  expect_invalid(bad, "NaN in a box");
+  expect_invalid(bad, "node 0 right box has NaN", "NaN in a box");
 }
 
 TEST_F(ValidatorDetects, WrongTriangleData) {
   FlatBvh bad = bvh_;
   bad.triangles[10].v1[0] += 0.25f;
-  expect_invalid(bad, "vertex differs from the scene");
+  expect_invalid(bad, "triangle entry 10 does not match scene triangle " + std::to_string(bad.triangles[10].prim),
+                 "vertex differs from the scene");
 }
 
 TEST_F(ValidatorDetects, UnreachableNode) {
   FlatBvh bad = bvh_;
   bad.nodes.push_back(bad.nodes[1]);
-  expect_invalid(bad, "a node nothing points to");
+  expect_invalid(bad, "1 nodes are not reachable from the root (first: " + std::to_string(bvh_.nodes.size()) + ")",
+                 "a node nothing points to");
 }
 
 TEST_F(ValidatorDetects, ManyErrorsAreCapped) {
@@ -792,12 +824,15 @@ TEST(WideBvh, DeviceFormHoldsEveryLeafAsABlock) {
   for (std::size_t i = 0; i < refs.size(); ++i) EXPECT_EQ(refs[i], 1) << "entry " << i;
 }
 
-// The validator rejects `bad`, and its first error names the layout at fault (`layout`).
-void expect_rejected(const FlatBvh& bad, const std::vector<SceneTriangle>& tris, const char* layout, const char* what) {
+// The validator rejects `bad`, its first error names the layout at fault (`layout`), and one of
+// its errors is the one this corruption must cause: `layout` then `message`.
+void expect_rejected(const FlatBvh& bad, const std::vector<SceneTriangle>& tris, const char* layout,
+                     const std::string& message, const char* what) {
   const BvhValidation v = validate_bvh(bad, tris);
   EXPECT_FALSE(v.ok) << what;
   ASSERT_FALSE(v.errors.empty()) << what;
   EXPECT_NE(v.errors.front().find(layout), std::string::npos) << what << ": " << v.errors.front();
+  EXPECT_TRUE(has_error(v, std::string(layout) + " ", message)) << what;
 }
 
 TEST(WideBvh, ValidatorDetectsCorruptWideNodes) {
@@ -816,26 +851,34 @@ TEST(WideBvh, ValidatorDetectsCorruptWideNodes) {
     }
   ASSERT_GE(leaf_slot, 0);
   ASSERT_GE(inner_slot, 0);
-  auto expect_invalid = [&](const FlatBvh& bad, const char* what) { expect_rejected(bad, tris, "wide8", what); };
+  auto expect_invalid = [&](const FlatBvh& bad, const std::string& message, const char* what) {
+    expect_rejected(bad, tris, "wide8", message, what);
+  };
+  const std::string leaf_at = "node " + std::to_string(leaf_node) + " slot " + std::to_string(leaf_slot);
   FlatBvh shrunk = bvh;
   Bvh8Node& s = shrunk.nodes8[leaf_node];
   s.hi_y[leaf_slot] = 0.5f * (s.lo_y[leaf_slot] + s.hi_y[leaf_slot]);
-  expect_invalid(shrunk, "leaf box no longer contains its triangles");
+  expect_invalid(shrunk, " is not inside the box of its leaf", "leaf box no longer contains its triangles");
   FlatBvh inner = bvh;
   Bvh8Node& in = inner.nodes8[inner_node];
   in.lo_z[inner_slot] = 0.5f * (in.lo_z[inner_slot] + in.hi_z[inner_slot]);
-  expect_invalid(inner, "inner box no longer contains its children");
+  expect_invalid(inner, " box is not inside the box its parent stores for it", "inner box no longer contains its children");
   FlatBvh dropped = bvh;
   dropped.nodes8[leaf_node].count[leaf_slot] -= 1;
-  expect_invalid(dropped, "a triangle entry is no longer referenced");
+  expect_invalid(dropped,
+                 "triangle entry " + std::to_string(bvh.nodes8[leaf_node].child[leaf_slot] +
+                                                    bvh.nodes8[leaf_node].count[leaf_slot] - 1) +
+                     " is in 0 leaves (expected 1)",
+                 "a triangle entry is no longer referenced");
   FlatBvh cycle = bvh;
   cycle.nodes8[inner_node].child[inner_slot] = inner_node;
-  expect_invalid(cycle, "child points at its own node");
+  expect_invalid(cycle, "node " + std::to_string(inner_node) + " is reached more than once", "child points at its own node");
   FlatBvh absent = bvh;
   Bvh8Node& a = absent.nodes8[leaf_node];
   a.lo_x[leaf_slot] = a.lo_y[leaf_slot] = a.lo_z[leaf_slot] = std::numeric_limits<float>::max();
   a.hi_x[leaf_slot] = a.hi_y[leaf_slot] = a.hi_z[leaf_slot] = -std::numeric_limits<float>::max();
-  expect_invalid(absent, "an unused slot that still holds a leaf");
+  expect_invalid(absent, leaf_at + " slot is unused (inverted box) but has a child or count",
+                 "an unused slot that still holds a leaf");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1016,35 +1059,55 @@ TEST(CompressedBvh, ValidatorDetectsCorruptCompressedNodes) {
     }
   ASSERT_GE(leaf_slot, 0);
   ASSERT_GE(inner_slot, 0);
-  auto expect_invalid = [&](const FlatBvh& bad, const char* what) { expect_rejected(bad, tris, "cwbvh", what); };
+  auto expect_invalid = [&](const FlatBvh& bad, const std::string& message, const char* what) {
+    expect_rejected(bad, tris, "cwbvh", message, what);
+  };
+  const std::string leaf_at = "node " + std::to_string(leaf_node) + " slot " + std::to_string(leaf_slot);
+  const std::string inner_at = "node " + std::to_string(inner_node) + " slot " + std::to_string(inner_slot);
   // One grid step in on qhi: the decoded box no longer contains its child.
   FlatBvh shrunk_leaf = bvh;
   shrunk_leaf.cnodes[leaf_node].qhi_y[leaf_slot] -= 1;
-  expect_invalid(shrunk_leaf, "a leaf's qhi one step too low");
+  expect_invalid(shrunk_leaf, leaf_at + " decoded box does not contain the exact child box on axis 1",
+                 "a leaf's qhi one step too low");
   FlatBvh shrunk_inner = bvh;
   shrunk_inner.cnodes[inner_node].qhi_y[inner_slot] -= 1;
-  expect_invalid(shrunk_inner, "an interior child's qhi one step too low");
+  expect_invalid(shrunk_inner, inner_at + " decoded box does not contain the exact child box on axis 1",
+                 "an interior child's qhi one step too low");
   FlatBvh raised = bvh;
   raised.cnodes[inner_node].qlo_x[inner_slot] += 1;
-  expect_invalid(raised, "an interior child's qlo one step too high");
+  expect_invalid(raised, inner_at + " decoded box does not contain the exact child box on axis 0",
+                 "an interior child's qlo one step too high");
   FlatBvh finer = bvh;
   finer.cnodes[inner_node].e[2] -= 1;
-  expect_invalid(finer, "a halved scale");
+  expect_invalid(finer, " decoded box does not contain the exact child box on axis 2", "a halved scale");
   FlatBvh bad_child = bvh;
   bad_child.cnodes[inner_node].child_base = static_cast<std::uint32_t>(bvh.cnodes.size());
-  expect_invalid(bad_child, "interior children past the node array");
+  // The walk meets the first of them (child_base + the slot's rank) before the encoding check
+  // would name the whole range, and its errors fill the ten reported.
+  expect_invalid(bad_child,
+                 inner_at + " child index " +
+                     std::to_string(bvh.cnodes.size() + (bvh.cnodes[inner_node].meta[inner_slot] & PX_CWBVH_RANK_MASK)) +
+                     " is out of range",
+                 "interior children past the node array");
   FlatBvh bad_leaf = bvh;
   bad_leaf.cnodes[leaf_node].leaf_base = static_cast<std::uint32_t>(bvh.cleaf_first.size());
-  expect_invalid(bad_leaf, "leaves past the leaf table");
+  // The walk decodes a leaf past the table as a start past every triangle (CompressedNodes::slot).
+  expect_invalid(bad_leaf,
+                 "leaf under node " + std::to_string(leaf_node) + " references triangles 4294967295..",
+                 "leaves past the leaf table");
   FlatBvh moved_leaf = bvh;
   moved_leaf.cleaf_first[0] += 1;
-  expect_invalid(moved_leaf, "a leaf that starts at the wrong triangle");
+  expect_invalid(moved_leaf,
+                 " leaf starts at triangle " + std::to_string(bvh.cleaf_first[0] + 1) + ", wide8 at " +
+                     std::to_string(bvh.cleaf_first[0]),
+                 "a leaf that starts at the wrong triangle");
   FlatBvh dropped = bvh;
   dropped.cnodes[leaf_node].meta[leaf_slot] = 0;
-  expect_invalid(dropped, "a leaf slot marked unused");
+  expect_invalid(dropped, leaf_at + " is unused but its box is not inverted (255, 0)", "a leaf slot marked unused");
+  expect_invalid(dropped, leaf_at + " is unused but wide8 node ", "a leaf slot marked unused");
   FlatBvh imask = bvh;
   imask.cnodes[leaf_node].imask ^= static_cast<std::uint8_t>(1u << leaf_slot);
-  expect_invalid(imask, "imask disagreeing with meta");
+  expect_invalid(imask, leaf_at + ": imask and meta disagree", "imask disagreeing with meta");
 }
 
 TEST(Validator, DetectsUncoveredSplitTriangle) {
@@ -1060,7 +1123,9 @@ TEST(Validator, DetectsUncoveredSplitTriangle) {
     for (int k = 0; k < 3; ++k) n.lmax[k] = n.lmin[k] + 0.01f * (n.lmax[k] - n.lmin[k]);
     break;
   }
-  EXPECT_FALSE(validate_bvh(bvh, tris).ok);
+  // The shrunk leaf still holds its pieces of split triangles, and their other leaves do not
+  // cover what this one covered.
+  EXPECT_TRUE(has_error(validate_bvh(bvh, tris), "", " leaf boxes"));
 }
 
 // A chain: node i has a leaf (triangle i) on the left and node i + 1 on the right; the last
@@ -1111,17 +1176,20 @@ TEST(Validator, DepthAndLeafSizeLimits) {
   EXPECT_FALSE(too_deep.ok);
   ASSERT_FALSE(too_deep.errors.empty());
   EXPECT_NE(too_deep.errors[0].find("depth"), std::string::npos) << too_deep.errors[0];
+  EXPECT_TRUE(has_error(too_deep, "",
+                        "at depth " + std::to_string(PX_BVH_MAX_DEPTH + 1) + " exceeds PX_BVH_MAX_DEPTH"));
 
   // One inner node whose right leaf holds PX_BVH_MAX_LEAF_SIZE + 1 triangles.
   const std::vector<SceneTriangle> few(tris.begin(), tris.begin() + PX_BVH_MAX_LEAF_SIZE + 2);
-  EXPECT_FALSE(validate_bvh(chain(few, 1), few).ok);
+  EXPECT_TRUE(has_error(validate_bvh(chain(few, 1), few), "",
+                        "holds " + std::to_string(PX_BVH_MAX_LEAF_SIZE + 1) + " triangles, more than PX_BVH_MAX_LEAF_SIZE"));
   const std::vector<SceneTriangle> fits(tris.begin(), tris.begin() + PX_BVH_MAX_LEAF_SIZE + 1);
   EXPECT_TRUE(validate_bvh(chain(fits, 1), fits).ok);
 }
 
 TEST(Validator, EmptyTreeAndAbsentChildRules) {
   const auto tris = random_soup(3, 81);
-  EXPECT_FALSE(validate_bvh(FlatBvh{}, tris).ok);
+  EXPECT_TRUE(has_error(validate_bvh(FlatBvh{}, tris), "", "the BVH has no nodes"));
   // An absent child anywhere but the root is an error.
   FlatBvh bvh = build_bvh(random_soup(50, 82), with_splits(false));
   ASSERT_GT(bvh.nodes.size(), 1u);
@@ -1129,7 +1197,8 @@ TEST(Validator, EmptyTreeAndAbsentChildRules) {
   for (int k = 0; k < 3; ++k) n.rmin[k] = FLT_MAX, n.rmax[k] = -FLT_MAX;
   n.right_count = 0;
   n.right = 0;
-  EXPECT_FALSE(validate_bvh(bvh, random_soup(50, 82)).ok);
+  EXPECT_TRUE(has_error(validate_bvh(bvh, random_soup(50, 82)), "",
+                        "node 1 right child is absent (inverted box); only the root's may be"));
 }
 
 // ---------------------------------------------------------------------------------------------

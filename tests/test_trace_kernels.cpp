@@ -341,12 +341,33 @@ TEST_P(TraceKernels, AxisAlignedAndGrazingRays) {
     EXPECT_FLOAT_EQ(hits[i].t, expect_t[i]);
   }
   // Grazing: rays lying in a face's plane and along edges. Either answer is geometrically
-  // defensible; what must hold is no NaN/Inf, and t inside the ray interval.
+  // defensible; what must hold is no NaN/Inf, and t inside the ray interval. Of the nine rays
+  // along +x, (y, z) = (0, 0.3) is no grazing ray: it lies in no face's plane (y, z = +-1) and
+  // on neither diagonal of the x = -1 face (y = +-z), so it enters that face's interior at
+  // (-1, 0, 0.3), t = 4, and must hit it there, with barycentrics that rebuild that point.
   std::vector<Ray> graze;
+  std::size_t clean = 0;
   for (float y : {-1.0f, 1.0f, 0.0f})
-    for (float z : {-1.0f, 1.0f, 0.3f}) graze.push_back(make_ray({-5.0f, y, z}, {1.0f, 0.0f, 0.0f}));
+    for (float z : {-1.0f, 1.0f, 0.3f}) {
+      if (y == 0.0f && z == 0.3f) clean = graze.size();
+      graze.push_back(make_ray({-5.0f, y, z}, {1.0f, 0.0f, 0.0f}));
+    }
   graze.push_back(make_ray({-5.0f, 1.0f, -5.0f}, glm::normalize(glm::vec3(1.0f, 0.0f, 1.0f))));
   auto gh = f.tracer->closest(graze);
+  ASSERT_NE(gh[clean].prim, PX_NO_HIT) << "the interior ray (y, z) = (0, 0.3) missed the box";
+  EXPECT_FLOAT_EQ(gh[clean].t, 4.0f);
+  {
+    const SceneTriangle& t = m[gh[clean].prim];
+    for (const auto& p : t.p) EXPECT_EQ(p.x, -1.0f) << "hit prim " << gh[clean].prim << " is not on the x = -1 face";
+    const glm::vec3 at = (1.0f - gh[clean].u - gh[clean].v) * t.p[0] + gh[clean].u * t.p[1] + gh[clean].v * t.p[2];
+    EXPECT_NEAR(at.x, -1.0f, 1e-6f);
+    EXPECT_NEAR(at.y, 0.0f, 1e-6f);
+    EXPECT_NEAR(at.z, 0.3f, 1e-6f);
+    // Embree, independent of our kernels, agrees on the triangle and the distance.
+    const Hit ref = EmbreeReference(m).intersect(graze[clean]);
+    EXPECT_EQ(ref.prim, gh[clean].prim);
+    EXPECT_FLOAT_EQ(ref.t, 4.0f);
+  }
   for (std::size_t i = 0; i < graze.size(); ++i) {
     if (gh[i].prim == PX_NO_HIT) continue;
     EXPECT_TRUE(std::isfinite(gh[i].t) && gh[i].t >= 0.0f) << "grazing ray " << i;
