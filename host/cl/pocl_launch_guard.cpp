@@ -97,11 +97,11 @@ long PoclLaunchGuard::widening_launches() {
   return r.widening_launches;
 }
 
+// The lock is held until the launch is recorded: the guard sees launches in host order.
 PoclLaunchGuard::PoclLaunchGuard(const cl::CommandQueue& queue, const cl::Kernel& kernel, std::size_t global,
-                                 std::size_t local, std::vector<cl::Event>& waits) {
+                                 std::size_t local, std::vector<cl::Event>& waits)
+    : lock_(registry().mutex) {
   auto& r = registry();
-  r.mutex.lock();  // held until the launch is recorded: the guard sees launches in host order
-  locked_ = true;
   if (r.programs.empty()) return;
   cl_program program = nullptr;
   PX_CL_CHECK(clGetKernelInfo(kernel(), CL_KERNEL_PROGRAM, sizeof program, &program, nullptr));
@@ -144,10 +144,6 @@ void PoclLaunchGuard::done(const cl::Event& launched) {
     // Launches on other queues will wait for this one: make sure it is submitted.
     PX_CL_CHECK(clFlush(queue_));
   }
-}
-
-PoclLaunchGuard::~PoclLaunchGuard() {
-  if (locked_) registry().mutex.unlock();
 }
 
 }  // namespace px

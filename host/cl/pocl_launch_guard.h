@@ -38,6 +38,7 @@
 #include <CL/opencl.hpp>
 
 #include <cstddef>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -61,7 +62,6 @@ class PoclLaunchGuard {
   PoclLaunchGuard(const cl::CommandQueue& queue, const cl::Kernel& kernel, std::size_t global, std::size_t local,
                   std::vector<cl::Event>& waits);
   void done(const cl::Event& launched);
-  ~PoclLaunchGuard();
 
   PoclLaunchGuard(const PoclLaunchGuard&) = delete;
   PoclLaunchGuard& operator=(const PoclLaunchGuard&) = delete;
@@ -70,12 +70,13 @@ class PoclLaunchGuard {
   static long widening_launches();
 
  private:
+  // Held from construction to destruction (also when a query in the constructor throws).
+  std::unique_lock<std::mutex> lock_;
   PoclKernelLaunches* kernel_ = nullptr;  // null: not a guarded launch
   cl_command_queue queue_ = nullptr;
   cl_context context_ = nullptr;
   std::size_t global_ = 0;
   bool widens_ = false;
-  bool locked_ = false;
 };
 
 }  // namespace px
