@@ -69,7 +69,6 @@ void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode de
       {"kernels", cli_word(cmd_.kernels)},
       {"kernel_features", kernel_feature_list(scene.kernel_features())},
       {"scene_device_bytes", scene.bytes_in_context()},
-      {"scene_upload_ms", scene.upload_ms()},
       {"start", {{"scene_load_ms", start.load_ms},
                  {"bvh_ms", start.bvh_ms},
                  {"bvh_from_cache", start.bvh_from_cache},

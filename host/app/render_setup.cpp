@@ -66,7 +66,7 @@ void print_device_set(const DeviceSet& set) {
 }
 
 void print_scene_upload(const DeviceScene& scene, int devices) {
-  std::fprintf(stderr, "[scene] on the devices: %.1f MiB in one copy shared by %d device(s) of the context (%.0f ms)\n",
+  std::fprintf(stderr, "[scene] on the devices: %.1f MiB, one copy in the context of its %d device(s) (%.0f ms)\n",
                static_cast<double>(scene.bytes_in_context()) / (1024.0 * 1024.0), devices, scene.upload_ms());
 }
 

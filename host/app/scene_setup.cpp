@@ -71,9 +71,14 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
     // A cached file that passed its checksum but not the validator (a builder bug fixed since,
     // with the same sources hash?): rebuild rather than fail.
     if (!quiet) std::fprintf(stderr, "[bvh] the cached BVH failed validation: rebuilding\n");
+    const auto t5 = clock::now();
     out.bvh = build_bvh(out.scene.triangles, build_options);
     ensure_layout(out.bvh, bvh_layout());
+    out.times.bvh_ms += ms(t5, clock::now());
+    out.times.bvh_from_cache = false;
+    const auto t6 = clock::now();
     check = validate_bvh(out.bvh, out.scene.triangles);
+    out.times.validate_ms += ms(t6, clock::now());
     cached.reset();
   }
   if (!check.ok) {

@@ -224,9 +224,9 @@ const cl::Program& DeviceSet::program(const std::string& path, const std::string
     }
     throw ClFailure(msg.str());
   }
-  // PoCL's build hash covers the source and the options, i.e. this key (in one process all
-  // PoCL CPU devices are the same host CPU).
-  if (launch_guard_) PoclLaunchGuard::register_program(context_(), program(), key);
+  // PoCL's build hash covers the source (named by its path) and the build options exactly (in
+  // one process all PoCL CPU devices are the same host CPU).
+  if (launch_guard_) PoclLaunchGuard::register_program(context_(), program(), path + "|" + opts);
   return programs_.emplace(key, std::move(program)).first->second;
 }
 

@@ -53,14 +53,6 @@ bool finished(const cl::Event& e) {
   return status <= CL_COMPLETE;  // complete, or failed (a negative status)
 }
 
-std::string kernel_name(cl_kernel kernel) {
-  std::size_t size = 0;
-  PX_CL_CHECK(clGetKernelInfo(kernel, CL_KERNEL_FUNCTION_NAME, 0, nullptr, &size));
-  std::string name(size, '\0');
-  PX_CL_CHECK(clGetKernelInfo(kernel, CL_KERNEL_FUNCTION_NAME, size, name.data(), nullptr));
-  if (!name.empty() && name.back() == '\0') name.pop_back();
-  return name;
-}
 
 }  // namespace
 
@@ -84,10 +76,17 @@ void PoclLaunchGuard::forget_context(cl_context context) {
   for (auto it = r.programs.begin(); it != r.programs.end();)
     it = it->second.first == context ? r.programs.erase(it) : std::next(it);
   for (auto& [key, k] : r.kernels) {
+    // A set torn down with launches in flight: they finish first, so that no later set's launch
+    // of the kernel overlaps with one the guard no longer knows.
+    for (const auto& l : k.last)
+      if (l.context == context && l.event() && !finished(l.event)) l.event.wait();
     k.last.erase(std::remove_if(k.last.begin(), k.last.end(),
                                 [&](const RecordedLaunch& l) { return l.context == context; }),
                  k.last.end());
     if (k.widening.context == context) k.widening = RecordedLaunch{};
+    // PoCL evicts unused entries once it holds 128: the widest one may be gone by the next set.
+    // Starting over costs that set one ordered launch per kernel and never under-counts.
+    k.widest = 0;
   }
 }
 
@@ -108,7 +107,7 @@ PoclLaunchGuard::PoclLaunchGuard(const cl::CommandQueue& queue, const cl::Kernel
   auto p = r.programs.find(program);
   if (p == r.programs.end()) return;  // not built by a guarded device set
 
-  kernel_ = &r.kernels[p->second.second + "|" + kernel_name(kernel()) + "|" + std::to_string(local)];
+  kernel_ = &r.kernels[p->second.second + "|" + kernel.getInfo<CL_KERNEL_FUNCTION_NAME>() + "|" + std::to_string(local)];
   queue_ = queue();
   context_ = p->second.first;
   global_ = global;
@@ -116,10 +115,15 @@ PoclLaunchGuard::PoclLaunchGuard(const cl::CommandQueue& queue, const cl::Kernel
   // A launch on the same queue is ordered by the in-order queue already.
   auto wait_for = [&](const RecordedLaunch& l) {
     if (!l.event() || l.queue == queue_ || finished(l.event)) return;
-    if (l.context == context_)
+    if (l.context == context_) {
+      // Waiting on another queue's event needs that queue flushed (OpenCL 1.2, 5.13).
+      PX_CL_CHECK(clFlush(l.queue));
       waits.push_back(l.event);
-    else
-      l.event.wait();  // two device sets at once: the entries are process-wide
+    } else {
+      // Two device sets at once (the entries are process-wide): wait on the host, holding the
+      // lock, so every launch in the process waits too. Rare: sets are made one after another.
+      l.event.wait();
+    }
   };
   if (widens_) {
     for (const auto& l : kernel_->last) wait_for(l);

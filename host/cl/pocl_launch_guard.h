@@ -23,8 +23,9 @@
 //
 // The guard. Every launch goes through launch_1d, with one local size and no offset, so all
 // launches of one kernel share one chain of entries and only the global size decides. The guard
-// keeps, per kernel, the widest global size launched so far in the process (an upper bound on
-// PoCL's widest entry) and orders launches so that a launch that may load a new entry (one wider
+// keeps, per kernel, the widest global size launched so far by the live device set (an upper
+// bound on PoCL's widest entry; it starts over with each set, since PoCL evicts unused entries
+// once it holds 128) and orders launches so that a launch that may load a new entry (one wider
 // than any before) is never in flight beside another launch of that kernel:
 //   - a widening launch waits for the last launch of the kernel on every other queue;
 //   - every later launch of the kernel waits for the widening launch (until it has completed).
@@ -57,8 +58,8 @@ class PoclLaunchGuard {
   // Whether the guard is on for this process (PX_POCL_LAUNCH_GUARD, default on).
   static bool enabled();
 
-  // One launch: construct before the enqueue (adds to `waits` what the launch must wait for,
-  // and holds the guard's lock), call done() with the launch's event after it.
+  // One launch: construct before the enqueue (adds to `waits` what the launch must wait for
+  // besides the caller's, and holds the guard's lock), call done() with the launch's event.
   PoclLaunchGuard(const cl::CommandQueue& queue, const cl::Kernel& kernel, std::size_t global, std::size_t local,
                   std::vector<cl::Event>& waits);
   void done(const cl::Event& launched);

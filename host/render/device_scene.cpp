@@ -227,10 +227,19 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh) {
       texels.push_back({{t.rgba[4 * i], t.rgba[4 * i + 1], t.rgba[4 * i + 2], t.rgba[4 * i + 3]}});
   }
   // One copy per OpenCL context: every ComputeDevice of a set (sub-devices, queues or platform
-  // devices) shares the set's context, and a read-only buffer serves all of them, so an added
-  // device costs no scene memory.
+  // devices) shares the set's context, and a read-only buffer serves all of them. Devices that
+  // share memory (sub-devices, queues: PoCL) then share the one copy; separate GPUs of a
+  // platform each get their copy from the runtime on first use.
   const auto upload_start = std::chrono::steady_clock::now();
   const AllocationLimits limits = allocation_limits(devices);
+  // The whole scene against the device's memory first, before anything is allocated.
+  const auto size_of = [](const auto& v) { return std::max<std::size_t>(1, v.size()) * sizeof(v[0]); };
+  const std::size_t total = (layout == BvhLayout::Binary ? size_of(flagged.nodes) : size_of(wide_words)) +
+                            size_of(triangles) + size_of(shading) + size_of(materials) + size_of(infos) +
+                            size_of(texels) + size_of(lights);
+  if (total > limits.global_mem)
+    throw std::runtime_error("the scene needs " + mib(total) + " of device memory, more than the device has: " +
+                             mib(limits.global_mem) + " (CL_DEVICE_GLOBAL_MEM_SIZE)");
   auto& queue = devices.devices().front().queue;
   const cl::Context& ctx = devices.context();
   std::size_t bytes = 0;
@@ -247,9 +256,6 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh) {
   b.textures = upload("texture table", ctx, queue, infos, limits, bytes);
   b.texels = upload("texel", ctx, queue, texels, limits, bytes);
   b.lights = upload("light", ctx, queue, lights, limits, bytes);
-  if (bytes > limits.global_mem)
-    throw std::runtime_error("the scene needs " + mib(bytes) + " of device memory, more than the device has: " +
-                             mib(limits.global_mem) + " (CL_DEVICE_GLOBAL_MEM_SIZE)");
   bytes_in_context_ = bytes;
   upload_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - upload_start).count();
   per_device_.assign(devices.devices().size(), b);

@@ -20,7 +20,9 @@ std::uint32_t kernel_features(const std::vector<GpuMaterial>& materials, const s
     if (m.diffuse_texture >= 0 || m.specular_texture >= 0) f |= PX_FEATURE_TEXTURES;
     if (m.normal_texture >= 0) f |= PX_FEATURE_NORMAL_MAP;
     if (m.flags & PX_MAT_EMISSIVE) f |= PX_FEATURE_EMISSIVE;
-    if (m.flags & PX_MAT_TWO_SIDED_EMITTER) f |= PX_FEATURE_TWO_SIDED;
+    // The kernels read the two-sided flag of emitters only (glTF sets it on every double-sided
+    // material).
+    if ((m.flags & PX_MAT_EMISSIVE) && (m.flags & PX_MAT_TWO_SIDED_EMITTER)) f |= PX_FEATURE_TWO_SIDED;
     if (m.flags & PX_MAT_DIELECTRIC) {
       f |= PX_FEATURE_DIELECTRIC;
       continue;  // glass has no diffuse or glossy lobe (shading/material.h)

@@ -156,8 +156,8 @@ inline BsdfSample px_bsdf_sample(const Bsdf* b, float3 n, float3 wo, float3 u) {
   const float cos_o = dot(n, wo);
   if (cos_o <= 0.0f) return s;
   if (PX_HAS(PX_FEATURE_DIELECTRIC) && b->dielectric) return px_dielectric_sample(b, n, wo, cos_o, u.z);
-  /* Without GGX and mirror lobes in the scene p_specular is 0 here; inside, a delta lobe means
-   * a mirror material (glass returned above). */
+  /* Without GGX and mirror lobes in the scene p_specular is <= 0 here; inside, a delta lobe
+   * means a mirror material (glass returned above). */
   if ((PX_HAS(PX_FEATURE_GGX) || PX_HAS(PX_FEATURE_MIRROR)) && u.z < b->p_specular) {
     if (PX_HAS(PX_FEATURE_MIRROR) && b->mirror) {
       s.wi = 2.0f * cos_o * n - wo;
