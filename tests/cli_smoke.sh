@@ -318,5 +318,85 @@ check "--alpha-moments 1 without denoising is no error" 0 "wrote|frame" -- "$bin
 check "--alpha 1 warns that SVGF's colour history is off" 0 "alpha 1 switches SVGF's colour history off" -- "$bin" \
   render --scene cornell --width 16 --height 8 --frames 1 --alpha 1 --out "$tmp/alpha_1"
 
+# --aov: auxiliary EXRs per frame and eye. On the Cornell box (64x36) the albedo is the wall's
+# diffuse colour and the normal the wall's, unit length wherever the ray hit; every pipeline and
+# device count gives the same files (each device's rows read from the device that wrote them:
+# a row read from the wrong one would hold that device's stale or unwritten texels); --overwrite
+# removes them; unknown names are refused.
+check "--aov refuses an unknown name" 1 "unknown auxiliary image 'depth'" -- "$bin" render --scene cornell --aov albedo,depth \
+  --out "$tmp/aov_bad"
+check "--aov refuses an empty entry" 1 "empty name" -- "$bin" render --scene cornell --aov albedo, --out "$tmp/aov_bad"
+check "--aov refuses --no-exr" 1 "no-exr" -- "$bin" render --scene cornell --width 16 --height 9 --aov normal --no-exr \
+  --out "$tmp/aov_bad"
+check "render --help lists --aov" 0 "[-]-aov LIST" -- "$bin" render --help
+for run in "proposed 1" "proposed 3" "baseline 3" "mono 3"; do
+  set -- $run
+  check "render --aov albedo,normal ($1, $2 device(s))" 0 "_\{albedo,normal\}\.exr" -- "$bin" render --scene cornell \
+    --pipeline "$1" --width 64 --height 36 --frames 2 --devices "$2" --aov albedo,normal --out "$tmp/aov_$1_$2"
+done
+check "render --aov normal without denoising (mono schedules its G-buffer)" 0 "_normal\.exr" -- "$bin" render --scene cornell \
+  --pipeline mono --width 64 --height 36 --frames 2 --devices 3 --aov normal --no-denoise --out "$tmp/aov_mono_raw"
+if [ -e "$tmp/aov_mono_raw/frame_0001_left_normal.exr" ] && [ ! -e "$tmp/aov_mono_raw/frame_0001_left_albedo.exr" ]; then
+  ok "--aov normal writes normals only"; else bad "--aov normal: wrong files: $(ls "$tmp/aov_mono_raw" | tr '\n' ' ')"; fi
+for f in frame_0000_left_albedo frame_0001_left_albedo frame_0001_right_albedo frame_0000_left_normal frame_0001_left_normal \
+         frame_0001_right_normal; do
+  for other in proposed_3 baseline_3; do
+    check "--aov: $other gives proposed on 1 device's $f" 0 "^identical$" -- "$bin" compare --exact \
+      "$tmp/aov_proposed_1/$f.exr" "$tmp/aov_$other/$f.exr"
+  done
+done
+# Normals are the G-buffer's, whatever the pipeline (mono's too, with or without denoising).
+for f in frame_0001_left_normal frame_0001_right_normal; do
+  for other in mono_3 mono_raw; do
+    check "--aov: $other gives proposed's $f" 0 "^identical$" -- "$bin" compare --exact \
+      "$tmp/aov_proposed_1/$f.exr" "$tmp/aov_$other/$f.exr"
+  done
+done
+if /usr/bin/python3 - "$tmp/aov_proposed_3" <<'PY'
+import sys
+import numpy as np
+import OpenImageIO as oiio
+
+d = sys.argv[1]
+fails = 0
+
+def read(name):
+    buf = oiio.ImageBuf(f"{d}/{name}")
+    px = buf.get_pixels(oiio.FLOAT)
+    if buf.has_error or px is None or px.shape != (36, 64, 3):
+        raise SystemExit(f"cannot read {name} as 64x36 RGB: {buf.geterror()}")
+    return px
+
+def check(cond, what):
+    global fails
+    print(("  ok   " if cond else "  FAIL ") + what)
+    fails += not cond
+
+# Row 18 of the 64x36 Cornell box, in both eyes: the red wall (x ~ 556, facing -x) at column 19,
+# the green wall (x = 0, facing +x) at 46, the back wall (facing -z) at 38; no hit at the sides.
+walls = {"red": (19, (0.63, 0.065, 0.05), (-1, 0, 0)), "green": (46, (0.14, 0.45, 0.091), (1, 0, 0)),
+         "back": (38, (0.725, 0.71, 0.68), (0, 0, -1))}
+for eye in ("left", "right"):
+    for f in (0, 1):
+        a = read(f"frame_{f:04d}_{eye}_albedo.exr")
+        n = read(f"frame_{f:04d}_{eye}_normal.exr")
+        for wall, (x, kd, normal) in walls.items():
+            check(np.allclose(a[18, x], kd, atol=1e-5), f"frame {f} {eye}: {wall} wall albedo {a[18, x]} = {kd}")
+            check(float(np.dot(n[18, x], normal)) > 0.999, f"frame {f} {eye}: {wall} wall normal {n[18, x]} ~ {normal}")
+        length = np.linalg.norm(n, axis=2)
+        hit = length > 0
+        check(0.3 < hit.mean() < 0.9, f"frame {f} {eye}: {hit.mean():.2f} of the pixels hit the box")
+        check(np.abs(length[hit] - 1).max() < 1e-4, f"frame {f} {eye}: normals unit length on hits")
+        check(not hit[18, 2] and not hit[18, 61], f"frame {f} {eye}: no normal (0, 0, 0) where the ray missed")
+        check(np.isfinite(a).all() and a.min() >= 0 and a.max() <= 1, f"frame {f} {eye}: albedo finite, within [0, 1]")
+sys.exit(1 if fails else 0)
+PY
+then ok "--aov values: wall albedo and normals, unit length on hits, zero on misses"
+else bad "--aov values (above)"; fi
+check "--overwrite removes the auxiliary images too" 0 "removed 18 file" -- "$bin" render --scene cornell --width 64 \
+  --height 36 --frames 1 --devices 3 --out "$tmp/aov_proposed_3" --overwrite
+if ! ls "$tmp/aov_proposed_3" | grep -q '_albedo\|_normal'; then ok "no stale auxiliary images"
+else bad "stale auxiliary images after --overwrite"; fi
+
 echo "$passes passed, $fails failed"
 [ "$fails" -eq 0 ]

@@ -42,6 +42,8 @@ for key in ("scene", "pipeline", "balance", "seams"):
 for key in ("width", "height", "devices", "spp", "bounces"):
     check(r[key] == int(want[key]), f"{key} = {r[key]}, expected {want[key]}")
 check(r["denoise"] is denoise, f"denoise = {r['denoise']}")
+check(r["jitter"] == want.get("jitter", "halton"), f"jitter = {r['jitter']!r}")
+check(0.0 <= r["taa_alpha"] <= 1.0, f"taa_alpha = {r['taa_alpha']}")
 check(r["ranks"] == 1 and all(f["mpi"] is None for f in frames), "one process: ranks 1, no MPI traffic")
 check(r["target_ms"] == (want["target_ms"] if controlled else None), f"target_ms = {r['target_ms']!r}")
 
@@ -152,8 +154,8 @@ run proposed name=proposed scene=cornell pipeline=proposed balance=dynamic seams
   --pipeline proposed --balance dynamic --width 32 --height 18 --frames 4 --devices 2 --spp 2 --bounces 3 --svgf-iterations 4
 # Without denoising only the finished strips travel: 20 bytes a pixel (RGBA8 + float radiance),
 # 4 with --no-exr (RGBA8 alone).
-run proposed_3dev pipeline=proposed width=32 height=18 frames=2 devices=3 spp=1 bounces=2 denoise=0 texel=20 reprojects=1 -- \
-  --pipeline proposed --width 32 --height 18 --frames 2 --devices 3 --spp 1 --bounces 2 --no-denoise
+run proposed_3dev pipeline=proposed width=32 height=18 frames=2 devices=3 spp=1 bounces=2 denoise=0 texel=20 reprojects=1 jitter=centre -- \
+  --pipeline proposed --width 32 --height 18 --frames 2 --devices 3 --spp 1 --bounces 2 --no-denoise --jitter centre
 run proposed_no_exr pipeline=proposed width=24 height=10 frames=2 devices=2 spp=1 bounces=2 denoise=0 texel=4 reprojects=1 -- \
   --pipeline proposed --width 24 --height 10 --frames 2 --devices 2 --spp 1 --bounces 2 --no-denoise --no-exr
 run baseline pipeline=baseline width=32 height=18 frames=2 devices=2 spp=1 bounces=4 svgf_iterations=3 reprojects=1 -- \

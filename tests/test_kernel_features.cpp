@@ -137,7 +137,7 @@ LoadedScene every_feature_scene() {
   s.camera.target = {0.0f, -0.3f, 0.0f};
   s.camera.vfov_deg = 50.0f;
   s.camera_path = {{0.0f, {0.0f, 0.8f, 4.5f}, {0.0f, -0.3f, 0.0f}}, {1.0f, {0.6f, 1.0f, 4.0f}, {0.1f, -0.3f, 0.0f}}};
-  return LoadedScene{s, build_bvh(s.triangles)};
+  return LoadedScene{s, build_bvh(s.triangles), {}};
 }
 
 bool same_bits(const ImageRGB& a, const ImageRGB& b) {
@@ -170,7 +170,7 @@ Images render_with(const LoadedScene& loaded, KernelChoice kernels, PathTraceKer
   PathTracer::Options ref;
   ref.spp = 2;
   ref.bounces = 4;
-  ref.first_sample_centred = false;
+  ref.first_sample_on_gbuffer_ray = false;
   out.reference = tracer.render_stereo(0.0f, 0, w, h, ref);
   out.preview = PreviewRenderer(set, ds).render(loaded.scene, 0.0f, w, h);
   return out;

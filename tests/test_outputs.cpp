@@ -206,6 +206,10 @@ TEST(OutputDir, FoldersAFailedRunCreatedAreRemovedIfEmpty) {
 TEST(OutputDir, RenderFrameNames) {
   EXPECT_TRUE(is_render_frame_file("frame_0000_left.exr"));
   EXPECT_TRUE(is_render_frame_file("frame_12345_stereo.png"));
+  EXPECT_TRUE(is_render_frame_file("frame_0003_right_albedo.exr"));
+  EXPECT_TRUE(is_render_frame_file("frame_0003_left_normal.exr"));
+  EXPECT_FALSE(is_render_frame_file("frame_0003_stereo_normal.exr"));
+  EXPECT_FALSE(is_render_frame_file("frame_0003_left_albedo.png"));
   EXPECT_FALSE(is_render_frame_file("frame_0000_left.exr.bak"));
   EXPECT_FALSE(is_render_frame_file("my_frame_0000_left.exr"));
   EXPECT_FALSE(is_render_frame_file("frame_00_left.exr"));

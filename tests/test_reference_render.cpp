@@ -85,7 +85,7 @@ struct Furnace {
     opt.spp = spp;
     opt.bounces = kBounces;
     opt.seed = seed;
-    opt.first_sample_centred = false;
+    opt.first_sample_on_gbuffer_ray = false;
     return tracer->render_stereo(0.0f, 0, w, h, opt);
   }
 };

@@ -14,6 +14,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <functional>
@@ -99,9 +100,17 @@ TEST_P(AtrousKernel, MatchesHostImplementation) {
     cl::Kernel kg(one_device().program("denoise/svgf.cl"), "svgf_guide");
     kg.setArg(0, guide); kg.setArg(1, bg); kg.setArg(2, all);
     launch_1d(one_device().devices()[0].queue, kg, all.rows * w);
+    // The luminance guide of every readable row (svgf_luma), checked against a host version.
+    cl::Buffer luma(one_device().context(), CL_MEM_READ_WRITE, n * sizeof(cl_float2));
+    SvgfParams readable_rows = p;
+    readable_rows.row0 = p.lo_row; readable_rows.rows = p.hi_row - p.lo_row;
+    cl::Kernel kl(one_device().program("denoise/svgf.cl"), "svgf_luma");
+    kl.setArg(0, luma); kl.setArg(1, bi); kl.setArg(2, guide); kl.setArg(3, readable_rows);
+    launch_1d(one_device().devices()[0].queue, kl, readable_rows.rows * w);
+    const std::vector<cl_float2> got_luma = download<cl_float2>(luma, n);
     cl::Kernel k(one_device().program("denoise/svgf.cl"),
                  tiled ? "svgf_atrous_tiled" : lanes == 8 ? "svgf_atrous8" : "svgf_atrous");
-    k.setArg(0, out); k.setArg(1, bi); k.setArg(2, guide); k.setArg(3, bm); k.setArg(4, p);
+    k.setArg(0, out); k.setArg(1, bi); k.setArg(2, guide); k.setArg(3, bm); k.setArg(4, luma); k.setArg(5, p);
     launch_1d(one_device().devices()[0].queue, k,
               tiled ? ((w + PX_ATROUS_TILE - 1) / PX_ATROUS_TILE) * ((p.rows + PX_ATROUS_TILE - 1) / PX_ATROUS_TILE) *
                           PX_LOCAL_SIZE
@@ -131,6 +140,34 @@ TEST_P(AtrousKernel, MatchesHostImplementation) {
         }
       return best;
     };
+    // What an a-trous tap's luminance test compares, per pixel: the luminance of a filtered
+    // pixel averaged over its 3x3 neighbours on the same surface (filtered, normal cosine >= 0.9,
+    // depth within 10%) with the weights (1/2 centre, 1/4 beside) per axis, any other pixel's
+    // own; and the variance averaged with the same weights over the filtered neighbours.
+    std::vector<double> luma_host(n, 0.0), var_host(n, 0.0);
+    for (int y = static_cast<int>(p.lo_row); y < static_cast<int>(p.hi_row); ++y)
+      for (int x = 0; x < static_cast<int>(w); ++x) {
+        const std::size_t i = at(x, y);
+        const glm::dvec3 n0(g[i].normal[0], g[i].normal[1], g[i].normal[2]);
+        double sum = 0, wsum = 0, var = 0, vw = 0;
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int tx = x + dx, ty = y + dy;
+            if (!readable(ty) || tx < 0 || tx >= static_cast<int>(w) || !filtered(at(tx, ty))) continue;
+            const std::size_t j = at(tx, ty);
+            const double kk = (dx == 0 ? 0.5 : 0.25) * (dy == 0 ? 0.5 : 0.25);
+            var += kk * illum[j].s[3];
+            vw += kk;
+            const glm::dvec3 n1(g[j].normal[0], g[j].normal[1], g[j].normal[2]);
+            if (glm::dot(n0, n1) < 0.9 || std::abs(g[j].depth - g[i].depth) > 0.1 * g[i].depth) continue;
+            sum += kk * lum(illum[j]);
+            wsum += kk;
+          }
+        luma_host[i] = filtered(i) ? sum / wsum : lum(illum[i]);
+        var_host[i] = vw > 0 ? var / vw : illum[i].s[3];
+        ASSERT_NEAR(got_luma[i].s[0], luma_host[i], 1e-5 * (1.0 + luma_host[i])) << "luminance guide at " << x << "," << y;
+        ASSERT_NEAR(got_luma[i].s[1], var_host[i], 1e-5 * (1.0 + var_host[i])) << "variance guide at " << x << "," << y;
+      }
     for (unsigned y = p.row0; y < p.row0 + p.rows; ++y)
       for (unsigned x = 0; x < w; ++x) {
         const std::size_t i = at(x, y);
@@ -151,16 +188,7 @@ TEST_P(AtrousKernel, MatchesHostImplementation) {
         const int yu = readable(cy - 1) ? cy - 1 : cy, yd = readable(cy + 1) ? cy + 1 : cy;
         const double gx = xr > xl ? (g[at(xr, cy)].depth - g[at(xl, cy)].depth) / double(xr - xl) : 0.0;
         const double gy = yd > yu ? (g[at(cx, yd)].depth - g[at(cx, yu)].depth) / double(yd - yu) : 0.0;
-        double var = 0, vw = 0;
-        for (int dy = -1; dy <= 1; ++dy)
-          for (int dx = -1; dx <= 1; ++dx) {
-            const int tx = x + dx, ty = y + dy;
-            if (!readable(ty) || tx < 0 || tx >= static_cast<int>(w) || !filtered(at(tx, ty))) continue;
-            const double kk = (dx == 0 ? 0.5 : 0.25) * (dy == 0 ? 0.5 : 0.25);
-            var += kk * illum[at(tx, ty)].s[3];
-            vw += kk;
-          }
-        var = vw > 0 ? var / vw : illum[i].s[3];
+        const double var = var_host[i];  // the pixel's own, a borrowing one's too
         const double hk[5] = {1 / 16.0, 1 / 4.0, 3 / 8.0, 1 / 4.0, 1 / 16.0};
         const glm::dvec3 n0(g[ci].normal[0], g[ci].normal[1], g[ci].normal[2]);
         // Twice: with the normal exponent 128, and with the loose exponent that an isolated
@@ -180,7 +208,9 @@ TEST_P(AtrousKernel, MatchesHostImplementation) {
                 const double wn = std::pow(std::max(0.0, glm::dot(n0, n1)), exponent);
                 const double wz = std::exp(-std::abs(g[ci].depth - g[j].depth) /
                                            (1.0 * std::abs(gx * kx * step + gy * ky * step) + 1e-3 * g[ci].depth + 1e-6));
-                const double wl = std::exp(-std::abs(lum(illum[i]) - lum(illum[j])) / (4.0 * std::sqrt(std::max(0.0, var)) + 1e-6));
+                // the scale is the pair's: the mean of both prefiltered variances
+                const double wl = std::exp(-std::abs(luma_host[i] - luma_host[j]) /
+                                           (4.0 * std::sqrt(0.5 * (std::max(0.0, var) + std::max(0.0, var_host[j]))) + 1e-6));
                 wt *= wn * wz * wl;
               }
               ws += wt;
@@ -317,10 +347,11 @@ struct FilterRun {
     albedo = upload(a);
     const RowRange all{0, view.h};
     den.guide(gbuf, all);
-    den.temporal(color, albedo, gbuf, prev_gbuf, view.cam, all, all);
+    den.temporal(color, albedo, gbuf, prev_gbuf, view.cam, view.cam, all, all);
     den.variance(all, all);
     for (unsigned i = 0; i < den.options().iterations; ++i) den.atrous(i, all, all);
     den.remodulate(color, albedo, all, all);  // in place, as the pipeline does (w: sample count)
+    den.antialias(color, gbuf, view.cam, view.cam, all, all);
     auto result = download<cl_float4>(color, view.w * view.h);
     den.end_frame();
     return result;
@@ -520,7 +551,11 @@ TEST(Svgf, SilhouettePixelsWhoseSamplesHitTheSurfaceAreFilteredNotPassedThrough)
 // history found by direction. It converges to the mean; it starts over where the previous frame
 // saw a surface there; the first frame passes through untouched.
 TEST(Svgf, EnvironmentPixelsAccumulateOverFramesByDirection) {
-  FilterRun run;
+  // SVGF's own accumulation of the environment, without the anti-aliasing pass after it (which
+  // blends every pixel with its own history and would hide what this checks).
+  SvgfDenoiser::Options no_antialias;
+  no_antialias.taa_alpha = 1.0f;
+  FilterRun run(no_antialias);
   const auto& v = run.view;
   auto sky_gbuffer = [&v](bool surface_rows) {
     auto g = v.gbuffer([](unsigned, unsigned) { return std::pair{3.0f, glm::vec3(0, 0, -1)}; });
@@ -593,6 +628,51 @@ TEST(Svgf, RareBrightSamplesKeepTheirEnergy) {
   EXPECT_NEAR(sum / in, 1.0, 0.1);
 }
 
+// The filter keeps energy: a flat lit surface (albedo 0.5), a still camera, 16 frames whose
+// every pixel is one heavy-tailed sample, each frame's mean exactly the surface's. Every pass
+// (temporal blend, variance, five a-trous steps, remodulation, anti-aliasing) then has an
+// exactly known mean to keep: whatever it loses is bias, not noise. Two distributions of the
+// sample: exponential (a diffusely lit surface's one-bounce estimate) and the harder 10% of
+// pixels at 10x the mean, 90% at 0 (a light, or the sun, found by one sample in ten).
+// Measured: exponential -0.04%, rare bright -0.6%. With the SVGF paper's luminance test (each
+// pixel's own noisy luminance, scaled by the centre's variance alone; svgf_luma and
+// PX_ATROUS_TAP_SUM say why not): -1.8% and -9.0%.
+double filtered_mean_of_exact_mean_noise(bool rare_bright) {
+  FilterRun run;
+  const auto g = run.view.gbuffer(flat);
+  const std::size_t n = g.size();
+  std::mt19937 rng(11);
+  // Exact means: the rare-bright frame is a shuffle of n/10 tens and zeros; the exponential
+  // frame is the quantiles of Exp(1) at (k + 0.5) / n, shuffled, rescaled to mean 1.
+  std::vector<float> values(n);
+  for (std::size_t k = 0; k < n; ++k)
+    values[k] = rare_bright ? (k < n / 10 ? 10.0f : 0.0f)
+                            : static_cast<float>(-std::log(1.0 - (k + 0.5) / static_cast<double>(n)));
+  double total = 0.0;
+  for (float v : values) total += v;
+  for (float& v : values) v = static_cast<float>(v * n / total);
+  double mean = 0.0;
+  for (int f = 0; f < 16; ++f) {
+    std::shuffle(values.begin(), values.end(), rng);
+    std::vector<cl_float4> c(n);
+    for (std::size_t i = 0; i < n; ++i) c[i] = {{0.5f * values[i], 0.5f * values[i], 0.5f * values[i], 1.0f}};
+    const auto out = run.frame(g, c);
+    mean = 0.0;
+    for (const auto& v : out) mean += lum(v);
+    mean /= static_cast<double>(n);
+  }
+  return mean / 0.5;
+}
+
+TEST(Svgf, FilterKeepsTheMeanOfANoisyImageOfKnownMean) {
+  const double exponential = filtered_mean_of_exact_mean_noise(false);
+  const double rare_bright = filtered_mean_of_exact_mean_noise(true);
+  std::printf("[ measure  ] filtered mean / exact mean after 16 frames: exponential %.4f, rare bright %.4f\n",
+              exponential, rare_bright);
+  EXPECT_NEAR(exponential, 1.0, 0.005);
+  EXPECT_NEAR(rare_bright, 1.0, 0.01);
+}
+
 // ---- distributed ----
 
 struct DenoisedRun {
@@ -650,7 +730,7 @@ const LoadedScene& sphere_under_sky() {
     s.camera.target = {0.3f, 0.0f, 0.0f};
     s.camera.vfov_deg = 50.0f;
     s.camera_path = {{0.0f, {0.0f, 0.3f, 4.0f}, {0.3f, 0.0f, 0.0f}}, {1.0f, {0.8f, 0.6f, 3.6f}, {0.3f, 0.1f, 0.0f}}};
-    return LoadedScene{s, build_bvh(s.triangles)};
+    return LoadedScene{s, build_bvh(s.triangles), {}};
   }();
   return loaded;
 }
@@ -726,7 +806,9 @@ std::vector<std::array<ImageRGB, 2>> three_denoised_frames(const LoadedScene& sc
 TEST(SvgfDistributed, EightPixelAtrousKernelGivesTheSameImagesToRounding) {
   // svgf_atrous8 (what CPU devices run) against svgf_atrous through the whole pipeline, over
   // frames with history: the same filter, so pixels differ by float rounding only (the two
-  // kernels contract multiply-adds differently).
+  // kernels contract multiply-adds differently, and the luminance test's square root per tap
+  // may round differently in its float8 form; history carries the differences into later
+  // frames: worst measured 1.0e-4 on the sphere, 1.8e-5 on cornell).
   for (const LoadedScene* scene : {&cornell(), &sphere_under_sky()}) {
     std::array<std::vector<std::array<ImageRGB, 2>>, 2> frames;
     for (int k = 0; k < 2; ++k)
@@ -742,7 +824,7 @@ TEST(SvgfDistributed, EightPixelAtrousKernelGivesTheSameImagesToRounding) {
           worst = std::max(worst, std::abs(double(a) - b) / (std::abs(double(a)) + 1e-3));
         }
     std::printf("[ measure  ] %zu of %zu values bit-identical, worst relative difference %.3g\n", identical, values, worst);
-    EXPECT_LT(worst, 1e-4);
+    EXPECT_LT(worst, 3e-4);
     EXPECT_GT(identical, values / 4) << "rounding differences should leave most values exact";
   }
 }
@@ -767,8 +849,9 @@ TEST(SvgfDistributed, TiledAtrousKernelGivesTheSameImages) {
 }
 
 TEST(SvgfDistributed, IndependentSeamsDifferOnlyNearSeams) {
-  // One frame (no history), 2 a-trous iterations: a pixel reads at most 3 (variance) + 2 + 4
-  // (a-trous) rows away, plus 1 for the depth gradient: differences stay within 10 rows.
+  // One frame (no history: the anti-aliasing pass passes it through), 2 a-trous iterations: a
+  // pixel reads at most 3 (variance) + (2 + 1) + (4 + 1) (a-trous taps and their luminance
+  // guide's 3x3) rows away, plus 1 for the depth gradient: differences stay within 13 rows.
   const unsigned w = 48, h = 40;
   auto one = run_pipeline(cornell(), 1, SeamMode::Halo, 1, w, h, 2);
   auto two = run_pipeline(cornell(), 2, SeamMode::Independent, 1, w, h, 2);
@@ -781,7 +864,7 @@ TEST(SvgfDistributed, IndependentSeamsDifferOnlyNearSeams) {
           const std::size_t i = (y * w + x) * 3 + c;
           if (one.frames[0][e].rgb[i] != two.frames[0][e].rgb[i]) {
             ++differing;
-            EXPECT_LT(std::abs(static_cast<int>(y) - static_cast<int>(seam)), 10) << "row " << y << " differs, far from the seam";
+            EXPECT_LT(std::abs(static_cast<int>(y) - static_cast<int>(seam)), 13) << "row " << y << " differs, far from the seam";
           }
         }
   EXPECT_GT(differing, 0) << "filtering strips alone should change something at the seam";
@@ -804,26 +887,28 @@ TEST(SvgfDistributed, DenoisingBringsCornellCloserToTheReference) {
   // own noise: against a 2048-spp reference with another seed every figure below moves by at
   // most 0.04 dB (the two references agree to 49-51 dB PSNR).
   //
-  // Two regions. The whole image, and the rows below the emitter: at 1 spp each pixel's one
-  // sample goes through its centre (PathTracer::Options::first_sample_centred), so a pixel on
-  // the light's edge is all emitter or none (README, "One camera ray per pixel centre"); that
-  // aliasing is no work of the denoiser, yet it dominates the whole image's error (and makes
-  // the whole image ~9-10% darker than the reference, the noisy input as much as the denoised
-  // output). Below the emitter's rows the error is the denoiser's.
+  // Two regions: the whole image, and the rows below the emitter, where the error is the
+  // denoiser's. At 1 spp each pixel's one sample goes through the frame's jitter position, the
+  // same in every pixel (CameraParams::jitter), so in one frame a pixel on the light's edge is
+  // all emitter or none; over frames the anti-aliasing pass averages the positions.
   //
   // The images are deterministic (seeded; 1 and 2 devices give the same bits), so the floors
   // sit close to the values measured now, with a margin for another CPU's float rounding.
   // Measured (left / right eye):
-  //   whole image:       noisy 23.37 / 24.19 dB, denoised 25.91 / 25.70 dB (+2.54 / +1.52)
-  //   below the emitter: noisy 27.85 / 28.97 dB, denoised 37.55 / 37.87 dB (+9.70 / +8.90)
-  //   mean luminance below the emitter, denoised / reference: 1.020 / 1.012 (noisy 1.012 / 1.012)
-  //   mean luminance, denoised / noisy: whole image 1.000 / 0.996, below the emitter 1.008 / 1.000
-  // What the floors catch, measured with broken weights (SvgfDenoiser::Options): normals
-  // ignored (sigma_n 0) 35.7 / 36.0 dB below the emitter and -3% energy; no luminance edge
-  // stopping (sigma_l 1e6) 32.7 dB and +7-8% energy; no colour history (alpha 1) -4% energy;
-  // history capped at 1 frame 36.2 / 36.6 dB and +2-3% energy. Not caught: fewer a-trous
-  // iterations, which score higher here (1 iteration: 39.1 / 39.4 dB below the emitter), the
-  // wider kernels blurring more than the noise they remove at this size.
+  //   whole image:       noisy 24.29 / 25.52 dB, denoised 29.66 / 30.20 dB (+5.37 / +4.68)
+  //   below the emitter: noisy 27.82 / 29.27 dB, denoised 38.58 / 38.87 dB (+10.76 / +9.60)
+  //   mean luminance from 2 rows below the emitter, denoised / reference: 1.033 / 1.033
+  //   (noisy 1.017 / 1.016: this frame's own noise), denoised / noisy 1.015 / 1.017 (the
+  //   anti-aliasing's history holds frames 0-2, whose short SVGF histories left them brighter
+  //   there; without anti-aliasing 1.004 / 1.006)
+  //   mean luminance, denoised / noisy: whole image 1.001 / 1.000
+  // Before the frame's sample moved with the jitter (every frame through the pixel centre),
+  // the whole image was 23.37 / 24.19 dB noisy and 25.91 / 25.70 dB denoised, and ~9-10%
+  // darker than the reference.
+  // What the floors catch, measured with broken weights (SvgfDenoiser::Options, before the
+  // jitter): normals ignored (sigma_n 0) 35.7 / 36.0 dB below the emitter and -3% energy; no
+  // luminance edge stopping (sigma_l 1e6) 32.7 dB and +7-8% energy; no colour history (alpha 1)
+  // -4% energy; history capped at 1 frame 36.2 / 36.6 dB and +2-3% energy.
   const unsigned w = 96, h = 72, frames = 4;
   static LoadedScene loaded = load_and_build("cornell", true);
   DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
@@ -835,8 +920,8 @@ TEST(SvgfDistributed, DenoisingBringsCornellCloserToTheReference) {
   const auto reference = render_reference(tracer, 0.25f * (frames - 1), frames - 1, w, h, ref_opt);
   auto noisy = run_pipeline(loaded, 2, SeamMode::Halo, frames, w, h, 5, false);
   auto denoised = run_pipeline(loaded, 2, SeamMode::Halo, frames, w, h, 5, true);
-  const double floor_whole[2] = {25.6, 25.4}, gain_whole[2] = {2.25, 1.25};
-  const double floor_surfaces[2] = {37.0, 37.3}, gain_surfaces[2] = {9.2, 8.4};
+  const double floor_whole[2] = {29.3, 29.8}, gain_whole[2] = {5.0, 4.3};
+  const double floor_surfaces[2] = {38.2, 38.5}, gain_surfaces[2] = {10.4, 9.2};
   for (int e = 0; e < 2; ++e) {
     SCOPED_TRACE(e == 0 ? "left eye" : "right eye");
     const ImageRGB& ref = reference[e];
@@ -853,18 +938,25 @@ TEST(SvgfDistributed, DenoisingBringsCornellCloserToTheReference) {
     ASSERT_LT(below, static_cast<int>(h) / 2) << "the emitter should be in the top rows";
     const double before = compare_images(n, ref).psnr_db, after = compare_images(d, ref).psnr_db;
     const double before_s = compare_images(n, ref, below).psnr_db, after_s = compare_images(d, ref, below).psnr_db;
-    const double energy_ref = mean_luminance(d, below) / mean_luminance(ref, below);
+    // Energy below the emitter is measured from 2 rows further down: anti-aliasing blends each
+    // pixel with its reprojected history within its 3x3 neighbourhood's range, and under the
+    // moving camera that carries some of the light's anti-aliased rim a row down.
+    const int guard = below + 2;
+    const double energy_ref = mean_luminance(d, guard) / mean_luminance(ref, guard);
+    const double energy_ref_whole = mean_luminance(d) / mean_luminance(ref);
     const double energy_noisy = mean_luminance(d) / mean_luminance(n);
-    const double energy_noisy_s = mean_luminance(d, below) / mean_luminance(n, below);
+    const double energy_noisy_s = mean_luminance(d, guard) / mean_luminance(n, guard);
     std::printf("[ measure  ] eye %d: whole image 1 spp %.2f dB -> SVGF %.2f dB; rows %d+ %.2f -> %.2f dB; "
-                "mean luminance rows %d+ denoised / reference %.4f, denoised / noisy %.4f (whole image %.4f)\n",
-                e, before, after, below, before_s, after_s, below, energy_ref, energy_noisy_s, energy_noisy);
+                "mean luminance rows %d+ denoised / reference %.4f, denoised / noisy %.4f; whole image denoised / "
+                "reference %.4f, denoised / noisy %.4f\n",
+                e, before, after, below, before_s, after_s, guard, energy_ref, energy_noisy_s, energy_ref_whole,
+                energy_noisy);
     EXPECT_GT(after, floor_whole[e]);
     EXPECT_GT(after - before, gain_whole[e]) << "noisy " << before << " dB, denoised " << after << " dB";
     EXPECT_GT(after_s, floor_surfaces[e]) << "rows " << below << "+";
     EXPECT_GT(after_s - before_s, gain_surfaces[e]) << "rows " << below << "+: noisy " << before_s << " dB";
-    EXPECT_NEAR(energy_ref, 1.0, 0.03) << "rows " << below << "+: the denoised image against the reference";
-    EXPECT_NEAR(energy_noisy_s, 1.0, 0.015) << "rows " << below << "+: the denoiser should neither add nor lose energy";
+    EXPECT_NEAR(energy_ref, 1.0, 0.04) << "rows " << guard << "+: the denoised image against the reference";
+    EXPECT_NEAR(energy_noisy_s, 1.0, 0.025) << "rows " << guard << "+: the denoiser should neither add nor lose energy";
     EXPECT_NEAR(energy_noisy, 1.0, 0.01) << "whole image: the denoiser should neither add nor lose energy";
   }
 }
@@ -984,7 +1076,7 @@ LoadedScene fine_checker_quad(glm::vec3 a, glm::vec3 b) {
   s.camera.position = {0.0f, 0.0f, 3.0f};
   s.camera.target = {0.0f, 0.0f, 0.0f};
   s.camera.vfov_deg = 40.0f;
-  return LoadedScene{s, build_bvh(s.triangles)};
+  return LoadedScene{s, build_bvh(s.triangles), {}};
 }
 
 TEST(SvgfDistributed, RemodulationKeepsEveryChannelsMeanForNearZeroAndSaturatedAlbedos) {

@@ -52,6 +52,11 @@ const WordTable<KernelChoice>& kernel_words() {
   return words;
 }
 
+const WordTable<PixelJitter>& jitter_words() {
+  static const WordTable<PixelJitter> words{{"halton", PixelJitter::Halton}, {"centre", PixelJitter::Centre}};
+  return words;
+}
+
 const WordTable<StripBalance>& balance_words() {
   static const WordTable<StripBalance> words{{"static", StripBalance::Static}, {"dynamic", StripBalance::Dynamic}};
   return words;
@@ -62,6 +67,25 @@ const WordTable<SkyMode>& sky_words() {
   return words;
 }
 
+StereoPipeline::Options::Aovs parse_aov_list(const std::string& list) {
+  StereoPipeline::Options::Aovs aovs;
+  std::size_t at = 0;
+  while (true) {
+    const std::size_t comma = list.find(',', at);
+    const std::string name = list.substr(at, comma == std::string::npos ? std::string::npos : comma - at);
+    bool* flag = name == "albedo" ? &aovs.albedo : name == "normal" ? &aovs.normal : nullptr;
+    if (!flag)
+      throw std::invalid_argument(name.empty() ? "empty name in the auxiliary image list '" + list +
+                                                     "' (known: albedo, normal)"
+                                               : "unknown auxiliary image '" + name + "' (known: albedo, normal)");
+    if (*flag) throw std::invalid_argument("auxiliary image '" + name + "' named twice in '" + list + "'");
+    *flag = true;
+    if (comma == std::string::npos) break;
+    at = comma + 1;
+  }
+  return aovs;
+}
+
 const std::string& cli_word(PipelineKind value) { return word_of(pipeline_words(), value); }
 const std::string& cli_word(SeamMode value) { return word_of(seam_mode_words(), value); }
 const std::string& cli_word(LightSampling value) { return word_of(light_sampling_words(), value); }
@@ -70,5 +94,6 @@ const std::string& cli_word(StripBalance value) { return word_of(balance_words()
 const std::string& cli_word(PathTraceKernel value) { return word_of(path_tracer_words(), value); }
 const std::string& cli_word(SkyMode value) { return word_of(sky_words(), value); }
 const std::string& cli_word(KernelChoice value) { return word_of(kernel_words(), value); }
+const std::string& cli_word(PixelJitter value) { return word_of(jitter_words(), value); }
 
 }  // namespace px

@@ -30,6 +30,7 @@ const WordTable<StripBalance>& balance_words();       // static, dynamic
 const WordTable<SkyMode>& sky_words();                // auto, on, off
 const WordTable<PathTraceKernel>& path_tracer_words();  // megakernel, wavefront
 const WordTable<KernelChoice>& kernel_words();         // scene, general
+const WordTable<PixelJitter>& jitter_words();          // halton, centre
 
 // The word of a value, as the flag takes it (named apart from the libraries' to_string so that
 // a call is never ambiguous).
@@ -41,5 +42,10 @@ const std::string& cli_word(StripBalance value);
 const std::string& cli_word(SkyMode value);
 const std::string& cli_word(PathTraceKernel value);
 const std::string& cli_word(KernelChoice value);
+const std::string& cli_word(PixelJitter value);
+
+// render --aov: a comma-separated list of auxiliary image names (albedo, normal; each at most
+// once). Throws std::invalid_argument naming an unknown or repeated name, or an empty entry.
+StereoPipeline::Options::Aovs parse_aov_list(const std::string& list);
 
 }  // namespace px

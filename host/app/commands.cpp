@@ -89,10 +89,10 @@ void write_stereo(const OutputDir& dir, const std::string& prefix, const std::ar
 }
 
 // Frame `f` of `render`: per eye an EXR (unless --no-exr: `eyes` is then unused) and a PNG,
-// the side-by-side stereo PNG, and the video's next frame.
+// the auxiliary EXRs --aov asks for, the side-by-side stereo PNG, and the video's next frame.
 void write_render_frame(const RenderCommand& cmd, const OutputDir& dir, unsigned f,
                         const std::array<ImageRGB, 2>& eyes, const std::array<std::vector<std::uint8_t>, 2>& png,
-                        VideoWriter* video) {
+                        const StereoPipeline& pipeline, VideoWriter* video) {
   const std::string prefix = frame_name(f, "");
   const int w = static_cast<int>(cmd.width), h = static_cast<int>(cmd.height);
   // A build without an image codec renders for its report, timeline and video only (said once
@@ -103,6 +103,8 @@ void write_render_frame(const RenderCommand& cmd, const OutputDir& dir, unsigned
       const std::string name = prefix + (e == 0 ? "left" : "right");
       if (!cmd.no_exr) write_exr(dir.file(name + ".exr"), eyes[e]);
       write_png(dir.file(name + ".png"), w, h, png[e]);
+      if (!pipeline.albedo_aov()[e].rgb.empty()) write_exr(dir.file(name + "_albedo.exr"), pipeline.albedo_aov()[e]);
+      if (!pipeline.normal_aov()[e].rgb.empty()) write_exr(dir.file(name + "_normal.exr"), pipeline.normal_aov()[e]);
     }
     const auto stereo = side_by_side(png[0], png[1], w, h);
     if (files) write_png(dir.file(prefix + "stereo.png"), 2 * w, h, stereo);
@@ -165,12 +167,17 @@ int run_render(const RenderCommand& cmd) {
     for (const auto& w : config.warnings) std::fprintf(stderr, "render: %s\n", w.c_str());
   opt.cluster = &cluster;
   opt.gather_radiance = !cmd.no_exr;
+  if (opt.aovs.any() && cmd.no_exr)
+    throw std::invalid_argument("--aov writes EXR files and --no-exr asks for PNGs only: drop one of them");
+  if (opt.aovs.any() && distributed)
+    throw std::invalid_argument("--aov is read in one process only: run it without mpirun");
   opt.overlap = cmd.no_overlap ? Overlap::Off : cmd.force_overlap ? Overlap::On : Overlap::Auto;
   if (cmd.explain) {
     if (!root) return 0;
     // The schedule depends only on pipeline, device count, height and denoising: no scene needed.
     const FrameSchedule schedule =
-        make_schedule(opt.pipeline, cmd.devices.count * cluster.size(), cmd.height, opt.denoise);
+        make_schedule(opt.pipeline, cmd.devices.count * cluster.size(), cmd.height, opt.denoise, {},
+                      StereoPipeline::wants_gbuffer(opt));
     std::printf("%s\n%s", schedule.explain().c_str(),
                 explain_operations(make_operations(schedule, StereoPipeline::gbuffer_margin(schedule, opt),
                                                   opt.overlap != Overlap::Off && !distributed,
@@ -330,7 +337,7 @@ int run_render(const RenderCommand& cmd) {
       eyes = pipeline.radiance();
       require_finite(eyes, "frame " + std::to_string(f));
     }
-    write_render_frame(cmd, *out_dir, f, eyes, pipeline.rgba8(), video ? &*video : nullptr);
+    write_render_frame(cmd, *out_dir, f, eyes, pipeline.rgba8(), pipeline, video ? &*video : nullptr);
     done = f + 1;
     summary.add(st);
     totals.add(st);
@@ -406,11 +413,15 @@ int run_render(const RenderCommand& cmd) {
       for (const RowRange& r : pipeline.strips()) std::printf(" %u", r.size());
       std::printf("\n");
     }
-    if (image_codec_available())
+    if (image_codec_available()) {
       std::printf("files:\n  %s/frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png (NNNN = 0000-%04u)\n",
                   cmd.out.c_str(), eye_files, done - 1);
-    else
+      if (opt.aovs.any())
+        std::printf("  %s/frame_NNNN_{left,right}_%s.exr (auxiliary images)\n", cmd.out.c_str(),
+                    opt.aovs.albedo && opt.aovs.normal ? "{albedo,normal}" : opt.aovs.albedo ? "albedo" : "normal");
+    } else {
       std::printf("files:\n  no images (this build has no image codec)\n");
+    }
     if (report) std::printf("  report:   %s\n", cmd.report.c_str());
     if (timeline) std::printf("  timeline: %s\n", cmd.timeline.c_str());
     if (video) std::printf("  video:    %s (left | right, %g fps)\n", cmd.video.c_str(), double(cmd.fps));

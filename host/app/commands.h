@@ -49,6 +49,7 @@ struct RenderCommand {
   PathTracer::Options trace;   // --spp, --bounces, --light-sampling, ...
   PathTraceKernel path_kernel = PathTraceKernel::Megakernel;  // --path-tracer
   KernelChoice kernels = KernelChoice::Scene;                 // --kernels
+  PixelJitter jitter = PixelJitter::Halton;                   // --jitter
   std::string out = "out/render";
   bool overwrite = false;
   bool explain = false;        // print the schedule (stage x device workload pairs, tree)
@@ -61,6 +62,7 @@ struct RenderCommand {
   std::string report;          // JSON report path ("" = none)
   std::string timeline;        // Chrome trace / Perfetto JSON path ("" = none)
   std::string video;           // left|right side by side through ffmpeg ("" = none)
+  std::string aov;             // --aov: auxiliary images per frame and eye, "albedo,normal" ("" = none)
   std::string target_ms;       // control-loop window "LO:HI" ("" = off: fixed quality)
   unsigned max_spp = 64;       // control loop: the most spp it may raise to
   StripBalance balance = StripBalance::Static;

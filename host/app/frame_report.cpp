@@ -64,6 +64,8 @@ void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode de
       {"spp", options_.trace.spp},
       {"bounces", options_.trace.bounces},
       {"denoise", options_.denoise},
+      {"jitter", cli_word(options_.jitter)},
+      {"taa_alpha", options_.svgf.taa_alpha},
       {"path_tracer", cli_word(options_.path_kernel)},
       {"bvh_layout", to_string(bvh_layout)},
       {"kernels", cli_word(cmd_.kernels)},

@@ -80,6 +80,10 @@ void add_pipeline_flags(CLI::App* cmd, px::RenderCommand& r) {
   add_word_option(cmd, "--light-sampling", r.trace.light_sampling, px::light_sampling_words(),
                   "mis (NEE + BSDF sampling, power heuristic), nee (next-event only), bsdf (BSDF sampling only)");
   cmd->add_option("--seed", r.trace.seed, "seed of the sample streams")->capture_default_str();
+  add_word_option(cmd, "--jitter", r.jitter, px::jitter_words(),
+                  "where in each pixel a frame's G-buffer ray and first sample go: halton (a Halton (2,3) point "
+                  "that moves every frame, so that the denoiser's accumulation covers the pixel: edges "
+                  "anti-alias) or centre (the pixel centre every frame)");
   cmd->add_option("--exposure", r.exposure, "scale applied before the sRGB PNG encoding")->capture_default_str();
   cmd->add_flag("--no-denoise", r.no_denoise, "skip SVGF (stages 6-7): write the noisy images");
   cmd->add_option("--svgf-iterations", r.svgf.iterations, "a-trous iterations")->check(CLI::Range(1u, 8u))->capture_default_str();
@@ -88,6 +92,11 @@ void add_pipeline_flags(CLI::App* cmd, px::RenderCommand& r) {
   cmd->add_option("--sigma-n", r.svgf.sigma_n, "SVGF normal edge-stopping exponent (paper 128, stereo paper 4)")->capture_default_str();
   cmd->add_option("--alpha", r.svgf.alpha, "temporal blend floor for colour")->check(CLI::Range(0.0f, 1.0f))->capture_default_str();
   cmd->add_option("--alpha-moments", r.svgf.alpha_moments, "temporal blend floor for moments")->check(CLI::Range(0.0f, 1.0f))->capture_default_str();
+  cmd->add_option("--taa-alpha", r.svgf.taa_alpha,
+                  "temporal anti-aliasing after SVGF: blend floor of the current frame against the reprojected, "
+                  "neighbourhood-clipped history (1: off)")
+      ->check(CLI::Range(0.0f, 1.0f))
+      ->capture_default_str();
   add_word_option(cmd, "--seams", r.seams, px::seam_mode_words(),
                   "strip borders when denoising: halo (exchange neighbour rows; N devices = 1 device), "
                   "independent (each strip alone), bilateral (independent + seam-band filter)");
@@ -164,6 +173,22 @@ int main(int argc, char** argv) {
   render_cmd->add_option("--video", render.video,
                          "also encode the frames, left and right eye side by side, as an H.264 video (.mp4, .mkv "
                          "or .mov) at --fps, through the ffmpeg program (Debian package ffmpeg)");
+  render_cmd
+      ->add_option("--aov", render.aov,
+                   "also write per frame and eye these auxiliary images as linear float EXRs, a comma list of "
+                   "albedo (the path tracer's mean primary albedo, what SVGF demodulates by: "
+                   "frame_NNNN_{left,right}_albedo.exr) and normal (the G-buffer's world-space shading normal, 0 "
+                   "where the ray missed: frame_NNNN_{left,right}_normal.exr); read back from each device after "
+                   "the frame, so not for timing runs")
+      ->type_name("LIST")
+      ->check([](const std::string& list) -> std::string {
+        try {
+          px::parse_aov_list(list);
+          return "";
+        } catch (const std::invalid_argument& e) {
+          return e.what();
+        }
+      });
   render_cmd->add_flag("--overwrite", render.overwrite, "allow writing into a non-empty output directory");
 
   px::ViewCommand view;

@@ -36,7 +36,8 @@ std::string describe_holder(const std::string& lock) {
 }  // namespace
 
 bool is_render_frame_file(std::string_view name) {
-  // frame_[0-9]{4,}_(left|right|stereo).(exr|png)
+  // frame_[0-9]{4,}_(left|right|stereo).(exr|png), or an auxiliary image (render --aov):
+  // frame_[0-9]{4,}_(left|right)_(albedo|normal).exr
   constexpr std::string_view prefix = "frame_";
   if (name.substr(0, prefix.size()) != prefix) return false;
   name.remove_prefix(prefix.size());
@@ -47,6 +48,10 @@ bool is_render_frame_file(std::string_view name) {
   for (std::string_view eye : {"left", "right", "stereo"})
     for (std::string_view ext : {".exr", ".png"})
       if (name.size() == eye.size() + ext.size() && name.substr(0, eye.size()) == eye && name.substr(eye.size()) == ext)
+        return true;
+  for (std::string_view eye : {"left_", "right_"})
+    for (std::string_view aov : {"albedo.exr", "normal.exr"})
+      if (name.size() == eye.size() + aov.size() && name.substr(0, eye.size()) == eye && name.substr(eye.size()) == aov)
         return true;
   return false;
 }

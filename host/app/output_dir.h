@@ -39,7 +39,8 @@ class OutputDir {
   std::vector<std::string> created_;  // outermost first
 };
 
-// True for frame_NNNN_{left,right,stereo}.{exr,png}: the files `render` writes.
+// True for frame_NNNN_{left,right,stereo}.{exr,png} and frame_NNNN_{left,right}_{albedo,normal}.exr
+// (--aov): the files `render` writes.
 bool is_render_frame_file(std::string_view name);
 
 }  // namespace px

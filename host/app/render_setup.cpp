@@ -1,5 +1,7 @@
 #include "app/render_setup.h"
 
+#include "app/cli_enums.h"
+
 #include <algorithm>
 #include <cstdio>
 
@@ -24,8 +26,10 @@ PipelineConfig make_pipeline_config(const RenderCommand& cmd) {
   opt.pipeline = cmd.pipeline;
   opt.trace = cmd.trace;
   opt.path_kernel = cmd.path_kernel;
+  opt.jitter = cmd.jitter;
   opt.exposure = cmd.exposure;
   opt.denoise = !cmd.no_denoise;
+  if (!cmd.aov.empty()) opt.aovs = parse_aov_list(cmd.aov);
   opt.svgf = cmd.svgf;
   opt.seams = cmd.seams;
   // SVGF's temporal variance is the spread of the luminance moments accumulated over frames.

@@ -54,7 +54,8 @@ static_assert(offsetof(GpuMaterial, specular_texture) == 52 && offsetof(GpuMater
 static_assert(offsetof(GpuMaterial, ior) == 60 && offsetof(GpuMaterial, transmission) == 64);
 static_assert(offsetof(GpuMaterial, normal_scale) == 76);
 
-static_assert(sizeof(CameraParams) == 64);
+static_assert(sizeof(CameraParams) == 80);
+static_assert(offsetof(CameraParams, jitter) == 64);
 static_assert(offsetof(CameraParams, tan_half_fov_y) == 12 && offsetof(CameraParams, aspect) == 28);
 static_assert(offsetof(CameraParams, width) == 44 && offsetof(CameraParams, height) == 60);
 
@@ -66,11 +67,12 @@ static_assert(sizeof(FrameParams) == 128);
 static_assert(offsetof(FrameParams, p_sun) == 28 && offsetof(FrameParams, light_count) == 76);
 static_assert(offsetof(FrameParams, frame) == 80 && offsetof(FrameParams, rr_start_bounce) == 104);
 static_assert(offsetof(FrameParams, row0) == 108 && offsetof(FrameParams, rows) == 112);
-static_assert(offsetof(FrameParams, sample_offset) == 116 && offsetof(FrameParams, first_sample_centred) == 120);
+static_assert(offsetof(FrameParams, sample_offset) == 116 && offsetof(FrameParams, first_sample_on_gbuffer_ray) == 120);
 static_assert(sizeof(GBufferTexel) == 36);
 static_assert(offsetof(GBufferTexel, depth) == 12 && offsetof(GBufferTexel, material_class) == 28);
 static_assert(offsetof(GBufferTexel, prim) == 32);
 static_assert(sizeof(SvgfParams) == 64);
+static_assert(offsetof(SvgfParams, jitter) == 56);
 static_assert(offsetof(SvgfParams, temporal_rows) == 24 && offsetof(SvgfParams, lo_row) == 40);
 static_assert(offsetof(SvgfParams, width) == 48 && offsetof(SvgfParams, height) == 52);
 

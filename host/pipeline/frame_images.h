@@ -16,7 +16,7 @@ struct FrameImages {
                                        // `radiance` (SVGF demodulates by it)
   std::array<cl::Buffer, 2> gbuffer;   // GBufferTexel: this frame's primary hits
   cl::Buffer right_hits;               // Hit: the right eye's G-buffer rays' hits, where hole
-                                       // filling starts its centred first samples
+                                       // filling starts its first samples (the G-buffer's rays)
   std::array<cl::Buffer, 2> rgba;      // uchar4: tonemapped
   cl::Buffer holes;                    // uint pixel indices reprojection could not fill (worst
                                        // case every pixel), appended in scanline order per group

@@ -33,10 +33,10 @@ struct Operation {
   TransferPayload payload = TransferPayload::None;
   int lane = 0;                    // QueueLanes::kMain or kSide
   // A path trace that also writes its rows' G-buffer texels (its first sample is the G-buffer's
-  // ray, PathTracer::Options::first_sample_centred); the G-buffer pass then skips those rows.
+  // ray, PathTracer::Options::first_sample_on_gbuffer_ray); the G-buffer pass then skips those rows.
   bool writes_gbuffer = false;
   // The right eye's G-buffer pass keeps its rays' hits (FrameImages::right_hits), and hole
-  // filling starts each hole's centred first sample from them instead of tracing it again.
+  // filling starts each hole's first sample (the G-buffer's ray) from them instead of tracing it again.
   bool shares_hits = false;
   std::vector<std::size_t> after;  // indices of the operations it waits for (see above)
 };

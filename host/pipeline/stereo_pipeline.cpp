@@ -22,13 +22,15 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
       width_(width),
       height_(height),
       options_(options),
-      schedule_(make_schedule(options.pipeline, layout_.count(), height, options.denoise)),
+      schedule_(make_schedule(options.pipeline, layout_.count(), height, options.denoise, {}, wants_gbuffer(options))),
       images_(layout_.count()),
       lanes_(devices, !cluster_ && wants_side_queue(options.overlap, devices)),
       transfer_(devices, layout_, cluster_, width, height, log_, lanes_),
       env_{devices, layout_, device_scene, scene, width, height, images_, log_, transfer_, lanes_} {
   if (width == 0 || height == 0 || width > 65535 || height > 65535)
     throw std::invalid_argument("image size must be between 1 and 65535 per side");
+  if (options.aovs.any() && cluster_)
+    throw std::invalid_argument("auxiliary images (--aov) are read in one process only, not across MPI ranks");
   for (int d = 0; d < layout_.count(); ++d)
     if (local(d)) images_[d] = FrameImages::allocate(devices.context(), width, height);
   // The units, each registered for the stages it runs (adding a stage: its unit here, its row
@@ -127,9 +129,10 @@ FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
   transfer_.reset_bytes();
   if (cluster_) cluster_->reset_traffic();
   // Stage 1, scene update: this frame's camera constants, passed to every launch.
+  const std::array<float, 2> jitter = pixel_jitter(options_.jitter, frame);
   const FrameInputs in{frame,
-                       {make_eye_camera(centre, Eye::Left, scene_.ipd_units(), width_, height_),
-                        make_eye_camera(centre, Eye::Right, scene_.ipd_units(), width_, height_)}};
+                       {make_eye_camera(centre, Eye::Left, scene_.ipd_units(), width_, height_, jitter),
+                        make_eye_camera(centre, Eye::Right, scene_.ipd_units(), width_, height_, jitter)}};
   const int n = layout_.count();
   for (int d = 0; d < n; ++d)
     if (local(d)) images_[d].zero_counters(main_queue(d));
@@ -178,6 +181,7 @@ FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
   }
   lanes_.finish_all();
   transfer_.end_frame();
+  if (options_.aovs.any()) capture_aovs();
   // Stage 7: what a unit keeps for the next frame becomes the previous frame's (SVGF history
   // and G-buffer).
   for (const auto& u : units_) u->end_frame(in);
@@ -243,7 +247,7 @@ void StereoPipeline::set_strips(const std::vector<RowRange>& strips) {
   if (strips == schedule_.strips) return;
   // make_schedule checks the strips and refuses the baseline pipeline; the history moves to the
   // new strips in the next frame's denoising (DenoiseStage).
-  schedule_ = make_schedule(options_.pipeline, layout_.count(), height_, options_.denoise, strips);
+  schedule_ = make_schedule(options_.pipeline, layout_.count(), height_, options_.denoise, strips, wants_gbuffer(options_));
 }
 
 std::vector<std::uint8_t> StereoPipeline::hole_mask() {
@@ -274,6 +278,68 @@ std::vector<GBufferTexel> StereoPipeline::gbuffer_of(int eye) {
                                                     count * sizeof(GBufferTexel), out.data() + first);
     }
   return out;
+}
+
+std::vector<int> StereoPipeline::row_owners(int eye, std::initializer_list<Stage> writes) const {
+  std::vector<int> owner(height_, -1);
+  for (const StageWork& w : schedule_.stages) {
+    if (std::find(writes.begin(), writes.end(), w.stage) == writes.end()) continue;
+    const auto& rows = eye == 0 ? w.left_rows : w.right_rows;
+    for (std::size_t d = 0; d < rows.size(); ++d)
+      for (const RowRange& r : rows[d])
+        for (unsigned y = r.begin; y < r.end; ++y) owner[y] = static_cast<int>(d);
+  }
+  return owner;
+}
+
+void StereoPipeline::capture_aovs() {
+  const std::size_t pixels = static_cast<std::size_t>(width_) * height_;
+  // Reads the texels of every row of `image` (per device: its buffer for that eye) from the
+  // device `owner` names, one read per run of rows with the same owner.
+  auto gather = [&](const std::vector<int>& owner, std::array<cl::Buffer, 2> FrameImages::*image, int eye,
+                    std::size_t texel, void* out) {
+    for (unsigned y = 0; y < height_;) {
+      const int d = owner[y];
+      if (d < 0 || !local(d))
+        throw std::logic_error("auxiliary images: no device of this process wrote row " + std::to_string(y));
+      unsigned end = y + 1;
+      while (end < height_ && owner[end] == d) ++end;
+      const std::size_t first = static_cast<std::size_t>(y) * width_, count = static_cast<std::size_t>(end - y) * width_;
+      main_queue(d).enqueueReadBuffer((images_[d].*image)[eye], CL_FALSE, first * texel, count * texel,
+                                      static_cast<char*>(out) + first * texel);
+      y = end;
+    }
+    for (int d = 0; d < layout_.count(); ++d)
+      if (local(d)) main_queue(d).finish();
+  };
+  auto blank = [&](ImageRGB& img) {
+    img.width = static_cast<int>(width_);
+    img.height = static_cast<int>(height_);
+    img.rgb.assign(pixels * 3, 0.0f);
+  };
+  for (int e = 0; e < 2; ++e) {
+    if (options_.aovs.albedo) {
+      // The path traces write each pixel's albedo; the right eye's reprojection and hole filling
+      // overwrite it where they run.
+      std::vector<cl_float4> px(pixels);
+      gather(row_owners(e, {Stage::PathTraceLeft, Stage::PathTraceRight, Stage::Reproject, Stage::HoleFill}),
+             &FrameImages::albedo, e, sizeof(cl_float4), px.data());
+      blank(albedo_aov_[e]);
+      for (std::size_t i = 0; i < pixels; ++i)
+        for (int c = 0; c < 3; ++c) albedo_aov_[e].rgb[i * 3 + c] = px[i].s[c];
+    }
+    if (options_.aovs.normal) {
+      // Each device's G-buffer rows of the eye (without the margins, which equal their owner's
+      // texels): written by its G-buffer pass or its path trace's first sample (the G-buffer's ray).
+      if (!schedule_.find(Stage::GBuffer)) throw std::logic_error("auxiliary normals: no G-buffer stage scheduled");
+      std::vector<GBufferTexel> g(pixels);
+      gather(row_owners(e, {Stage::GBuffer}), &FrameImages::gbuffer, e, sizeof(GBufferTexel), g.data());
+      blank(normal_aov_[e]);
+      for (std::size_t i = 0; i < pixels; ++i)
+        if (g[i].material_class != PX_CLASS_MISS && g[i].prim != PX_NO_HIT)
+          for (int c = 0; c < 3; ++c) normal_aov_[e].rgb[i * 3 + c] = g[i].normal[c];
+    }
+  }
 }
 
 std::array<ImageRGB, 2> StereoPipeline::radiance() {

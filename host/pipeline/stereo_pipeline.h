@@ -20,6 +20,7 @@
 #include "pipeline/stages/stage_unit.h"
 #include "pipeline/strip_schedule.h"
 #include "render/device_scene.h"
+#include "render/pixel_jitter.h"
 #include "render/stereo_camera.h"
 
 #include <array>
@@ -87,11 +88,26 @@ class StereoPipeline {
     Overlap overlap = Overlap::Auto;
     // Stage 5's work-items: a hole each, or a (hole, sample) pair each on GPUs (hole_fill_stage.h).
     HoleFillStage::Options hole_fill;
-    // Where a device path traces an eye's rows (stage 2; mono's 12 too), its centred first
-    // sample writes their G-buffer, and stage 3 traces only the margin rows beyond them (needs
-    // trace.first_sample_centred; ignored without). Images are identical either way: the texels
+    // Where in each pixel the frame's G-buffer ray and first sample go (pixel_jitter.h): a
+    // Halton (2, 3) point per frame, so that accumulation over frames covers the pixel, or
+    // always the centre.
+    PixelJitter jitter = PixelJitter::Halton;
+    // Where a device path traces an eye's rows (stage 2; mono's 12 too), its first sample (the
+    // G-buffer's ray) writes their G-buffer, and stage 3 traces only the margin rows beyond them (needs
+    // trace.first_sample_on_gbuffer_ray; ignored without). Images are identical either way: the texels
     // are the G-buffer pass's to the last bit.
     bool gbuffer_from_path_tracer = true;
+    // Auxiliary images read back after every frame (render --aov; an output option, not the
+    // real-time path: blocking reads from the device that wrote each row). albedo: the path
+    // tracer's per-pixel mean primary albedo, the one SVGF demodulates by (the right eye's
+    // reprojected pixels: the reprojected albedo). normal: the G-buffer's world-space shading
+    // normal (facing the eye; 0 where the centre ray missed). `normal` also schedules mono's
+    // G-buffer without denoising (its path traces write it: images unchanged).
+    struct Aovs {
+      bool albedo = false, normal = false;
+      bool any() const { return albedo || normal; }
+    };
+    Aovs aovs;
   };
 
   StereoPipeline(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene, unsigned width,
@@ -105,7 +121,7 @@ class StereoPipeline {
   }
   // Whether path traces write the G-buffer of their rows (Options::gbuffer_from_path_tracer).
   static bool fuses_gbuffer(const Options& options) {
-    return options.gbuffer_from_path_tracer && options.trace.first_sample_centred;
+    return options.gbuffer_from_path_tracer && options.trace.first_sample_on_gbuffer_ray;
   }
   // The rows beyond its strip that each G-buffer pass of `schedule` covers: the most any
   // scheduled stage declares it reads (a static gbuffer_rows_read of its unit).
@@ -151,6 +167,14 @@ class StereoPipeline {
 
   std::uint64_t nonfinite_paths() const { return nonfinite_total_; }
 
+  // The last frame's auxiliary images of both eyes (Options::aovs; one process only, the
+  // constructor refuses them under MPI): RGB albedo and world-space normal, read from the
+  // device that wrote each row before the frame ended. Empty images where not asked for.
+  const std::array<ImageRGB, 2>& albedo_aov() const { return albedo_aov_; }
+  const std::array<ImageRGB, 2>& normal_aov() const { return normal_aov_; }
+  // Whether `options` schedule the G-buffer stage where denoising alone would not (mono).
+  static bool wants_gbuffer(const Options& options) { return options.aovs.normal; }
+
   // Inspection (tests, debugging; one process): gathered from whichever device owns each row.
   // Per right-eye pixel: 1 if the last frame filled it by path tracing (a hole), else 0.
   std::vector<std::uint8_t> hole_mask();
@@ -171,6 +195,12 @@ class StereoPipeline {
   }
 
   static DenoiseStage::Options denoise_options(const Options& options);
+  // Reads Options::aovs of this frame into albedo_aov_ / normal_aov_ (after its queues
+  // finished, before the units' end_frame swaps this frame's G-buffer away).
+  void capture_aovs();
+  // Per row of `eye`, the device whose buffer holds its final value of the image that
+  // `writes` stages write (the last scheduled such stage with that row wins).
+  std::vector<int> row_owners(int eye, std::initializer_list<Stage> writes) const;
   bool local(int d) const { return layout_.is_local(d); }
   // Device d's main-lane queue (not the selected lane's: see QueueLanes::main).
   cl::CommandQueue& main_queue(int d) { return lanes_.main(layout_.local_index(d)); }
@@ -194,6 +224,7 @@ class StereoPipeline {
   PathTraceStage* path_trace_ = nullptr;
   DenoiseStage* denoise_ = nullptr;
   std::uint64_t nonfinite_total_ = 0;
+  std::array<ImageRGB, 2> albedo_aov_, normal_aov_;
 };
 
 }  // namespace px

@@ -142,7 +142,7 @@ void check_strips(const std::vector<RowRange>& strips, int devices, unsigned hei
 }
 
 FrameSchedule make_schedule(PipelineKind pipeline, int devices, unsigned height, bool denoise,
-                            const std::vector<RowRange>& strips) {
+                            const std::vector<RowRange>& strips, bool gbuffer) {
   if (devices < 1) throw std::invalid_argument("make_schedule: at least one device");
   if (!strips.empty()) {
     if (!has_movable_strips(pipeline))
@@ -193,7 +193,7 @@ FrameSchedule make_schedule(PipelineKind pipeline, int devices, unsigned height,
     return none;
   };
   for (const StageRow& row : pipeline_table(pipeline)) {
-    if (row.denoise_only && !denoise) continue;
+    if (row.denoise_only && !denoise && !(gbuffer && row.stage == Stage::GBuffer)) continue;
     fs.stages.push_back(work(row.stage, devices, height, rows_of(row.left), rows_of(row.right)));
     fs.stages.back().payload = row.payload;
   }

@@ -180,6 +180,27 @@ void fill_light_params(const Scene& scene, std::size_t light_count, FrameParams&
   p.p_sun = scene.sun.enabled ? share : 0.0f;
   p.p_sky = scene.sky.enabled ? share : 0.0f;
   p.p_triangles = light_count > 0 ? share : 0.0f;
+  // The sun and the sky are both at infinity, and so share a unit: the irradiance each gives a
+  // surface facing it. Their two shares are split in that ratio, not evenly: atrium's sun gives
+  // about 4x the sky's, and with half the samples each a sunlit pixel at 1 spp saw the sun in
+  // one sample of two, at twice its weight, a binary noise that the denoiser's luminance test
+  // partly took for edges (the sunlit floor came out darker, its shadows smeared). The sky
+  // loses next-event samples in the shade, where BSDF sampling finds it well (MIS).
+  if (scene.sun.enabled && scene.sky.enabled) {
+    auto luminance = [](glm::vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; };
+    const float sun_solid_angle = 2.0f * 3.14159265f * (1.0f - p.sun_cos_max);
+    const float e_sun = std::max(0.0f, luminance(scene.sun.radiance)) * sun_solid_angle;
+    // A surface facing the zenith: 2 pi integral over mu = cos(theta) of
+    // mix(horizon, zenith, sqrt(mu)) mu dmu = pi horizon + 4 pi (zenith - horizon) / 5.
+    const float e_sky = std::max(0.0f, 3.14159265f * luminance(scene.sky.horizon) +
+                                           0.8f * 3.14159265f * luminance(scene.sky.zenith - scene.sky.horizon));
+    if (e_sun + e_sky > 0.0f && std::isfinite(e_sun + e_sky)) {
+      // Neither below a tenth of the pair's share: a dim sky still gets its next-event samples.
+      const float sun_fraction = std::clamp(e_sun / (e_sun + e_sky), 0.1f, 0.9f);
+      p.p_sun = 2.0f * share * sun_fraction;
+      p.p_sky = 2.0f * share - p.p_sun;
+    }
+  }
 }
 
 std::string DeviceScene::kernel_options() const {

@@ -26,11 +26,11 @@ class PathTracer {
     unsigned rr_start_bounce = 3;  // Russian roulette from this bounce on
     LightSampling light_sampling = LightSampling::Mis;
     std::uint32_t seed = 0;
-    // A frame's sample 0 of every pixel goes through the pixel centre (px_sample_camera_dir):
-    // the G-buffer's ray, so the path tracer can write the G-buffer (Targets::gbuffer) and the
+    // A frame's sample 0 of every pixel goes through the camera's jitter point of the frame
+    // (CameraParams::jitter, px_sample_camera_dir): the G-buffer's ray, so the path tracer can write the G-buffer (Targets::gbuffer) and the
     // denoiser's G-buffer describes the surface that sample saw. Off for references, which
     // integrate the whole pixel.
-    bool first_sample_centred = true;
+    bool first_sample_on_gbuffer_ray = true;
   };
 
   // Everything but buffers that a path_trace / path_trace_list launch needs.
@@ -41,8 +41,8 @@ class PathTracer {
   // tracing stage: `rows` of eye `eye` into the full-frame float4 `radiance` and `albedo`
   // buffers (absolute pixel indices; only those rows are written), dropped non-finite paths
   // counted into `nonfinite` (uint). `gbuffer`, if not null: the eye's full-frame G-buffer
-  // (GBufferTexel), whose texels of `rows` the centred first sample writes (the G-buffer
-  // pass's, bit for bit; needs first_sample_centred and sample offset 0). Returns the launch's
+  // (GBufferTexel), whose texels of `rows` the first sample (the G-buffer's ray) writes (the G-buffer
+  // pass's, bit for bit; needs first_sample_on_gbuffer_ray and sample offset 0). Returns the launch's
   // event.
   struct Targets {
     const cl::Buffer& radiance;
@@ -50,8 +50,8 @@ class PathTracer {
     const cl::Buffer& nonfinite;
     const cl::Buffer* gbuffer = nullptr;
   };
-  // Throws std::logic_error for a G-buffer target that the launch would not write (no centred
-  // first sample in `params`). Both path tracers check it.
+  // Throws std::logic_error for a G-buffer target that the launch would not write (no first
+  // sample on the G-buffer's ray in `params`). Both path tracers check it.
   static void check_gbuffer_target(const Targets& out, const FrameParams& params);
   static cl::Event launch(const cl::CommandQueue& queue, const cl::Program& program, const DeviceSceneBuffers& scene,
                           const Targets& out, const FrameParams& params, const CameraParams& camera, unsigned width);

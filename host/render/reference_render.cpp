@@ -15,7 +15,7 @@ std::array<ImageRGB, 2> render_reference(PathTracer& tracer, float time_s, std::
   PathTracer::Options opt;
   opt.bounces = options.bounces;
   opt.seed = options.seed;
-  opt.first_sample_centred = false;  // the whole pixel, every sample jittered
+  opt.first_sample_on_gbuffer_ray = false;  // the whole pixel, every sample jittered
   std::array<std::vector<double>, 2> sum;
   for (auto& s : sum) s.assign(static_cast<std::size_t>(width) * height * 3, 0.0);
   unsigned done = 0;

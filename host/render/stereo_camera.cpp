@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 namespace px {
 
@@ -34,7 +35,9 @@ float camera_path_duration(const Scene& scene) {
 }
 
 CameraParams make_eye_camera(const Camera& centre, Eye eye, float ipd_units, unsigned width,
-                             unsigned height) {
+                             unsigned height, std::array<float, 2> jitter) {
+  if (!(jitter[0] >= 0.0f && jitter[0] < 1.0f && jitter[1] >= 0.0f && jitter[1] < 1.0f))
+    throw std::invalid_argument("make_eye_camera: the jitter must lie in [0, 1)^2");
   const glm::vec3 forward = glm::normalize(centre.target - centre.position);
   // Right-handed: right = forward x up. Re-orthogonalise up so the basis is exact.
   const glm::vec3 right = glm::normalize(glm::cross(forward, centre.up));
@@ -53,6 +56,8 @@ CameraParams make_eye_camera(const Camera& centre, Eye eye, float ipd_units, uns
   p.aspect = static_cast<float>(width) / static_cast<float>(height);
   p.width = width;
   p.height = height;
+  p.jitter[0] = jitter[0];
+  p.jitter[1] = jitter[1];
   return p;
 }
 

@@ -50,14 +50,14 @@ using Commands = std::vector<WavefrontPathTracer::Command>;
 // One batch's vertices, after its generate kernel: extend / shade / connect per vertex. `paths`
 // bounds every launch (the queues' counts live on the device, so the host never waits for them).
 void trace_vertices(const cl::CommandQueue& queue, const cl::Program& program, const DeviceSceneBuffers& scene,
-                    WavefrontPathTracer::Scratch& s, const cl::Buffer* gbuffer, const cl::Buffer* centre_hits,
+                    WavefrontPathTracer::Scratch& s, const cl::Buffer* gbuffer, const cl::Buffer* gbuffer_hits,
                     const FrameParams& params, const CameraParams& camera, std::size_t paths, Commands& log) {
   cl::Kernel extend(program, "wf_extend"), shade(program, "wf_shade"), connect(program, "wf_connect");
   extend.setArg(0, s.states);
   extend.setArg(1, s.hits);
   extend.setArg(3, s.counts);
   extend.setArg(5, s.path_pixel);
-  set_optional_buffer(extend, 6, centre_hits);
+  set_optional_buffer(extend, 6, gbuffer_hits);
   extend.setArg(7, params);
   scene.bind(extend, 8);
   shade.setArg(0, s.states);
@@ -95,7 +95,7 @@ void trace_vertices(const cl::CommandQueue& queue, const cl::Program& program, c
 template <typename Generate>
 Commands trace_batches(const cl::Context& context, const cl::CommandQueue& queue, const cl::Program& program,
                        const DeviceSceneBuffers& scene, WavefrontPathTracer::Scratch& s, const PathTracer::Targets& out,
-                       const cl::Buffer* centre_hits, const FrameParams& params, const CameraParams& camera,
+                       const cl::Buffer* gbuffer_hits, const FrameParams& params, const CameraParams& camera,
                        std::size_t slots, std::size_t max_paths, const Generate& generate) {
   if (params.spp == 0) throw std::invalid_argument("wavefront path tracer: spp must be at least 1");
   if (params.max_bounces > PX_MAX_BOUNCES_LIMIT)
@@ -120,7 +120,7 @@ Commands trace_batches(const cl::Context& context, const cl::CommandQueue& queue
     queue.enqueueFillBuffer(s.counts, cl_uint{0}, 0, PX_WAVEFRONT_COUNTERS * sizeof(cl_uint), nullptr, &zeroed);
     log.push_back({"reset", zeroed});
     log.push_back({"generate", generate(batch, slots * batch.spp)});
-    trace_vertices(queue, program, scene, s, out.gbuffer, centre_hits, batch, camera, slots * batch.spp, log);
+    trace_vertices(queue, program, scene, s, out.gbuffer, gbuffer_hits, batch, camera, slots * batch.spp, log);
     resolve.setArg(7, static_cast<cl_uint>(batch.spp));
     resolve.setArg(8, static_cast<cl_uint>(first == 0));
     resolve.setArg(9, static_cast<cl_uint>(first + batch.spp == params.spp));
@@ -159,12 +159,12 @@ std::vector<WavefrontPathTracer::Command> WavefrontPathTracer::trace_list(
     const cl::Context& context, const cl::CommandQueue& queue, const cl::Program& program,
     const DeviceSceneBuffers& scene, Scratch& scratch, const PathTracer::Targets& out, const cl::Buffer& holes,
     const cl::Buffer& hole_count, std::size_t max_pixels, const FrameParams& params, const CameraParams& camera,
-    const cl::Buffer* centre_hits, std::size_t max_paths) {
+    const cl::Buffer* gbuffer_hits, std::size_t max_paths) {
   cl::Kernel generate(program, "wf_generate_list");
   generate.setArg(4, holes);
   generate.setArg(5, hole_count);
   generate.setArg(7, camera);
-  return trace_batches(context, queue, program, scene, scratch, out, centre_hits, params, camera, max_pixels, max_paths,
+  return trace_batches(context, queue, program, scene, scratch, out, gbuffer_hits, params, camera, max_pixels, max_paths,
                        [&](const FrameParams& batch, std::size_t paths) {
                          bind_generate(generate, scratch);
                          generate.setArg(6, batch);

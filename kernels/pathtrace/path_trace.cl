@@ -15,15 +15,15 @@
 
 /* Radiance along one camera path, its vertices in a loop (path_vertex.h); *primary_albedo
  * receives PathVertex::primary_albedo. If `gbuffer_texel` is not null, the camera ray's texel
- * (gbuffer_texel.h) goes there. If `centre_hit` is not null, it is the camera ray's hit, already
+ * (gbuffer_texel.h) goes there. If `gbuffer_hit` is not null, it is the camera ray's hit, already
  * traced (by the G-buffer pass, for the same ray). */
 inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir,
                             SampleKey key, float4* primary_albedo, global GBufferTexel* gbuffer_texel,
-                            const global Hit* centre_hit) {
+                            const global Hit* gbuffer_hit) {
   PathVertex v = px_camera_path(org, dir);
   for (uint bounce = 0; bounce <= fp->max_bounces; ++bounce) {
     const Hit hit =
-        bounce == 0u && centre_hit ? *centre_hit : px_trace_closest_leaf(scene, v.org, v.dir, 0.0f, INFINITY);
+        bounce == 0u && gbuffer_hit ? *gbuffer_hit : px_trace_closest_leaf(scene, v.org, v.dir, 0.0f, INFINITY);
     if (bounce == 0u && gbuffer_texel) *gbuffer_texel = px_gbuffer_texel(scene, v.dir, hit);
     ShadowRay shadow;
     const int goes_on = px_path_vertex(scene, fp, key, bounce, hit, &v, &shadow);
@@ -38,16 +38,16 @@ inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float
 /* Sample s of pixel (x, y): the radiance of its camera path, and in *albedo the path's primary
  * demodulation albedo (see px_trace_path). Every random number comes from the pixel's and the
  * sample's own stream, so a sample is the same whichever work-item traces it. If this sample is
- * the centred one: `gbuffer_texel` (if not null) receives the pixel's G-buffer texel, and
- * `centre_hit` (if not null) is the centre ray's hit, traced already. */
+ * the G-buffer's ray (through the camera's jitter position): `gbuffer_texel` (if not null) receives the pixel's G-buffer texel, and
+ * `gbuffer_hit` (if not null) is that ray's hit, traced already. */
 inline float3 px_render_sample(const SceneView* scene, const FrameParams* fp, const CameraParams* cam, uint x, uint y,
                                uint s, float4* albedo, global GBufferTexel* gbuffer_texel,
-                               const global Hit* centre_hit) {
+                               const global Hit* gbuffer_hit) {
   const SampleKey key = px_sample_key(x, y, fp->frame, fp->eye, fp->sample_offset + s, fp->seed);
   const float3 dir = px_sample_camera_dir(fp, cam, key, x, y, s);
-  const int centred = px_sample_centred(fp, s);
-  return px_trace_path(scene, fp, px_camera_origin(cam), dir, key, albedo, centred ? gbuffer_texel : 0,
-                       centred ? centre_hit : 0);
+  const int on_gbuffer_ray = px_sample_on_gbuffer_ray(fp, s);
+  return px_trace_path(scene, fp, px_camera_origin(cam), dir, key, albedo, on_gbuffer_ray ? gbuffer_texel : 0,
+                       on_gbuffer_ray ? gbuffer_hit : 0);
 }
 
 /* Mean radiance of pixel (x, y): fp->spp paths; a path with non-finite radiance is dropped
@@ -59,13 +59,13 @@ inline float3 px_render_sample(const SceneView* scene, const FrameParams* fp, co
  * misses the object but whose samples hit it). No finite path: (1, 1, 1, 0). */
 inline float4 px_render_pixel(const SceneView* scene, const FrameParams* fp, const CameraParams* cam,
                               uint x, uint y, volatile global uint* nonfinite, float4* albedo,
-                              global GBufferTexel* gbuffer_texel, const global Hit* centre_hit) {
+                              global GBufferTexel* gbuffer_texel, const global Hit* gbuffer_hit) {
   float3 sum = (float3)(0.0f, 0.0f, 0.0f);
   float4 albedo_sum = (float4)(0.0f, 0.0f, 0.0f, 0.0f);
   uint good = 0;
   for (uint s = 0; s < fp->spp; ++s) {
     float4 a;
-    const float3 l = px_render_sample(scene, fp, cam, x, y, s, &a, gbuffer_texel, centre_hit);
+    const float3 l = px_render_sample(scene, fp, cam, x, y, s, &a, gbuffer_texel, gbuffer_hit);
     if (px_finite3(l)) {
       sum += l;
       albedo_sum += a;
@@ -79,8 +79,8 @@ inline float4 px_render_pixel(const SceneView* scene, const FrameParams* fp, con
 
 /* Stage 2 (and mono): every pixel of rows [fp.row0, fp.row0 + fp.rows) of eye fp.eye.
  * out, albedo_out: full-frame float4 images (width * height); only these rows are written.
- * gbuffer: null, or the eye's full-frame G-buffer, whose texels of these rows the centred first
- * sample writes (the G-buffer pass's, bit for bit; only with fp.first_sample_centred and
+ * gbuffer: null, or the eye's full-frame G-buffer, whose texels of these rows the first
+ * sample writes (the G-buffer pass's, bit for bit; only with fp.first_sample_on_gbuffer_ray and
  * fp.sample_offset 0, else nothing is written). */
 kernel void path_trace(global float4* out, global float4* albedo_out, volatile global uint* nonfinite,
                        global GBufferTexel* gbuffer, FrameParams fp, CameraParams cam, PX_SCENE_PARAMS) {
@@ -96,19 +96,19 @@ kernel void path_trace(global float4* out, global float4* albedo_out, volatile g
 
 /* Stage 5, hole filling: only the pixels listed in `holes` (full-frame indices, *hole_count of
  * them, compacted by compact_holes), so work-items do not idle on reprojected pixels. The launch
- * is sized for the worst case; items past the count return at once. `centre_hits`: null, or the
- * G-buffer pass's full-frame hits of the same eye (its rays are the centred first samples'),
+ * is sized for the worst case; items past the count return at once. `gbuffer_hits`: null, or the
+ * G-buffer pass's full-frame hits of the same eye (its rays are the first samples (the G-buffer's rays)'),
  * so that a hole's first sample starts at its hit instead of tracing the ray a second time. */
 kernel void path_trace_list(global float4* out, global float4* albedo_out, volatile global uint* nonfinite,
                             const global uint* holes, const global uint* hole_count,
-                            const global Hit* centre_hits, FrameParams fp, CameraParams cam, PX_SCENE_PARAMS) {
+                            const global Hit* gbuffer_hits, FrameParams fp, CameraParams cam, PX_SCENE_PARAMS) {
   const uint i = get_global_id(0);
   if (i >= *hole_count) return;
   const SceneView scene = PX_SCENE_VIEW();
   const uint p = holes[i];
   float4 albedo;
   out[p] = px_render_pixel(&scene, &fp, &cam, p % cam.width, p / cam.width, nonfinite, &albedo, 0,
-                           centre_hits ? centre_hits + p : 0);
+                           gbuffer_hits ? gbuffer_hits + p : 0);
   albedo_out[p] = albedo;
 }
 
@@ -119,7 +119,7 @@ kernel void path_trace_list(global float4* out, global float4* albedo_out, volat
  * pair; resolve_hole_samples averages them. Images are bit-identical to path_trace_list: the
  * same samples, summed in the same order. */
 kernel void path_trace_list_samples(global float4* samples, volatile global uint* nonfinite, const global uint* holes,
-                                    const global uint* hole_count, const global Hit* centre_hits, FrameParams fp,
+                                    const global uint* hole_count, const global Hit* gbuffer_hits, FrameParams fp,
                                     CameraParams cam, PX_SCENE_PARAMS) {
   const uint i = get_global_id(0);
   const uint hole = i / fp.spp, s = i % fp.spp;
@@ -128,7 +128,7 @@ kernel void path_trace_list_samples(global float4* samples, volatile global uint
   const uint p = holes[hole];
   float4 a;
   const float3 l =
-      px_render_sample(&scene, &fp, &cam, p % cam.width, p / cam.width, s, &a, 0, centre_hits ? centre_hits + p : 0);
+      px_render_sample(&scene, &fp, &cam, p % cam.width, p / cam.width, s, &a, 0, gbuffer_hits ? gbuffer_hits + p : 0);
   const int finite = px_finite3(l);
   if (!finite) atomic_inc(nonfinite);
   samples[2u * i] = finite ? (float4)(l, 1.0f) : (float4)(0.0f, 0.0f, 0.0f, 0.0f);

@@ -45,21 +45,24 @@ typedef struct ShadowRay {
 } ShadowRay;
 
 /* Whether sample s of a launch (the pixel's sample fp->sample_offset + s) is the frame's first
- * with fp->first_sample_centred set: that sample goes through the pixel centre. */
-inline int px_sample_centred(const FrameParams* fp, uint s) {
-  return fp->first_sample_centred && fp->sample_offset + s == 0u;
+ * with fp->first_sample_on_gbuffer_ray set: that sample is the G-buffer's ray, through the
+ * camera's jitter position of the frame (CameraParams::jitter). */
+inline int px_sample_on_gbuffer_ray(const FrameParams* fp, uint s) {
+  return fp->first_sample_on_gbuffer_ray && fp->sample_offset + s == 0u;
 }
 
 /* The camera ray's direction of sample s of pixel (x, y), whose stream is `key`: jittered over
- * the pixel by the stream's first two numbers, except the centred first sample. Its first hit is
- * then the G-buffer's (gbuffer_texel.h), so the path tracer writes the G-buffer of the pixels it
- * traces instead of a second primary trace; and the radiance of that sample belongs to the very
- * surface the denoiser's G-buffer describes (measured on five scenes at 1 and 4 spp: relMSE
- * lower on all, PSNR higher on most, see README). The pipeline's references keep every sample
- * jittered: a reference integrates the whole pixel. */
+ * the pixel by the stream's first two numbers, except the first sample on the G-buffer's ray.
+ * That sample's first hit is the G-buffer's (gbuffer_texel.h), so the path tracer writes the
+ * G-buffer of the pixels it traces instead of a second primary trace, and the radiance of that
+ * sample belongs to the very surface the denoiser's G-buffer describes (measured on five scenes
+ * at 1 and 4 spp: relMSE lower on all, PSNR higher on most, see README). Its position in the
+ * pixel moves from frame to frame (CameraParams::jitter), so over frames it covers the pixel
+ * too. The pipeline's references keep every sample jittered: a reference integrates the whole
+ * pixel in one frame. */
 inline float3 px_sample_camera_dir(const FrameParams* fp, const CameraParams* cam, SampleKey key, uint x, uint y,
                                    uint s) {
-  if (px_sample_centred(fp, s)) return px_camera_dir(cam, x, y, 0.5f, 0.5f);
+  if (px_sample_on_gbuffer_ray(fp, s)) return px_camera_dir(cam, x, y, cam->jitter[0], cam->jitter[1]);
   const float4 u = px_sample4(key, 0u);
   return px_camera_dir(cam, x, y, u.x, u.y);
 }

@@ -93,17 +93,17 @@ kernel void wf_generate_list(global float4* states, global uint* path_pixel, glo
   px_generate(states, path_pixel, queue, &fp, &cam, holes[i / fp.spp], i);
 }
 
-/* The live paths' closest hits at vertex `bounce`. `centre_hits`: null, or the G-buffer pass's
- * full-frame hits, which the centred first samples' camera rays take instead of a trace (as
+/* The live paths' closest hits at vertex `bounce`. `gbuffer_hits`: null, or the G-buffer pass's
+ * full-frame hits, which the first samples (the G-buffer's rays)' camera rays take instead of a trace (as
  * px_trace_path does). */
 kernel void wf_extend(const global float4* states, global Hit* hits, const global uint* queue,
                       const global uint* counts, uint bounce, const global uint* path_pixel,
-                      const global Hit* centre_hits, FrameParams fp, PX_SCENE_PARAMS) {
+                      const global Hit* gbuffer_hits, FrameParams fp, PX_SCENE_PARAMS) {
   const uint j = get_global_id(0);
   if (j >= counts[PX_WF_LIVE + bounce]) return;
   const uint i = queue[j];
-  if (bounce == 0u && centre_hits && px_sample_centred(&fp, i % fp.spp)) {
-    hits[i] = centre_hits[path_pixel[i]];
+  if (bounce == 0u && gbuffer_hits && px_sample_on_gbuffer_ray(&fp, i % fp.spp)) {
+    hits[i] = gbuffer_hits[path_pixel[i]];
     return;
   }
   const SceneView scene = PX_SCENE_VIEW();
@@ -111,7 +111,7 @@ kernel void wf_extend(const global float4* states, global Hit* hits, const globa
   hits[i] = px_trace_closest_leaf(&scene, s[0].xyz, s[1].xyz, 0.0f, INFINITY);
 }
 
-/* The live paths' vertex `bounce`. At vertex 0, the centred first sample's path writes its
+/* The live paths' vertex `bounce`. At vertex 0, the first sample (the G-buffer's ray)'s path writes its
  * pixel's texel of `gbuffer` (if not null), as the megakernel does. Each work-group appends its paths that go on to the next
  * vertex's queue, and its shadow rays to the shadow queue, with one prefix sum for both (live
  * paths in the low 16 bits, shadow rays in the high: at most PX_LOCAL_SIZE each) and one
@@ -136,7 +136,7 @@ kernel void wf_shade(global float4* states, global float4* shadows, const global
     i = queue[j];
     PathVertex v = px_load_path(states, i);
     const Hit hit = hits[i];
-    if (bounce == 0u && gbuffer && px_sample_centred(&fp, i % fp.spp))
+    if (bounce == 0u && gbuffer && px_sample_on_gbuffer_ray(&fp, i % fp.spp))
       gbuffer[path_pixel[i]] = px_gbuffer_texel(&scene, v.dir, hit);
     ShadowRay shadow;
     goes_on = px_path_vertex(&scene, &fp, px_path_key(&fp, cam.width, path_pixel[i], i), bounce, hit, &v, &shadow);

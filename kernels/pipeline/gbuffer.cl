@@ -1,9 +1,9 @@
-/* Stage 3: G-buffer of one eye's rows, from the primary ray through each pixel centre
- * (gbuffer_texel.h). Where a device path traces the same eye's rows in the same frame, the path
+/* Stage 3: G-buffer of one eye's rows, from the primary ray through each pixel's point at the
+ * frame's jitter position (CameraParams::jitter; gbuffer_texel.h). Where a device path traces the same eye's rows in the same frame, the path
  * tracer writes those texels itself and this pass covers only the rest (the margin rows the
  * denoiser and reprojection read beyond the strip, and the eyes nobody path traces in full).
  * `hits`: null, or a full-frame Hit buffer that receives each ray's hit, where hole filling
- * (stage 5) starts its pixels' centred first sample instead of tracing the same ray again. */
+ * (stage 5) starts its pixels' first sample (the G-buffer's ray) instead of tracing the same ray again. */
 #include "shared/types.h"
 #include "pipeline/gbuffer_texel.h"
 #include "render/camera.h"
@@ -17,7 +17,7 @@ kernel void gbuffer(global GBufferTexel* out, global Hit* hits, uint row0, uint 
   const SceneView scene = PX_SCENE_VIEW();
   const uint i = row0 * cam.width + gid; /* out is a full-frame buffer */
   const uint x = i % cam.width, y = i / cam.width;
-  const float3 dir = px_camera_dir(&cam, x, y, 0.5f, 0.5f);
+  const float3 dir = px_camera_dir(&cam, x, y, cam.jitter[0], cam.jitter[1]);
   const Hit hit = px_trace_closest_leaf(&scene, px_camera_origin(&cam), dir, 0.0f, INFINITY);
   out[i] = px_gbuffer_texel(&scene, dir, hit);
   if (hits) hits[i] = hit;

@@ -2,7 +2,7 @@
  * normal facing the eye, and the material class that decides whether reprojection may reuse
  * the pixel (only view-independent, diffuse surfaces). Two writers share it, so their texels
  * are the same to the last bit: the G-buffer pass (gbuffer.cl), which traces the ray through
- * each pixel centre, and the path tracers, whose first sample of a frame is that same ray
+ * each pixel's point at the frame's jitter position, and the path tracers, whose first sample of a frame is that same ray
  * (px_sample_camera_dir) and which write the texel from its first hit instead of a second
  * trace. */
 #ifndef PARALLAX_GBUFFER_TEXEL_H

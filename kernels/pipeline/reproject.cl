@@ -113,7 +113,10 @@ kernel void reproject(global float4* right_radiance, global float4* right_albedo
     if (zf > 0.0f && px_window_on_surface(right_g, px - 1, px + 1, py, width, height, p, n, g->depth, cos_view,
                                           footprint)) {
       const float sx = dot(d, (float3)(left_cam.right[0], left_cam.right[1], left_cam.right[2])) / zf;
-      const float fx = (sx / (left_cam.tan_half_fov_y * left_cam.aspect) + 1.0f) * 0.5f * (float)width - 0.5f;
+      /* p lies at the right pixel's jitter position, and every left texel at the same position in
+       * its own pixel (both eyes share the frame's jitter): subtracting it gives the left pixel
+       * grid coordinate of the right pixel, whose two nearest left pixels are the taps. */
+      const float fx = (sx / (left_cam.tan_half_fov_y * left_cam.aspect) + 1.0f) * 0.5f * (float)width - left_cam.jitter[0];
       const float x0f = floor(fx);
       const float a = fx - x0f;
       const int x0 = (int)x0f;

@@ -334,15 +334,23 @@ typedef struct GpuMaterial {
  * winding order's normal (v1 - v0) x (v2 - v0) points to, as pbrt and Mitsuba do. */
 #define PX_MAT_TWO_SIDED_EMITTER 16u
 
-/* One eye's pinhole camera for one frame, 64 bytes. Rays leave `origin` through the image
- * plane at distance 1 along `forward`; pixel (x, y) with y = 0 at the top maps to
- * ndc = ((x + 0.5) / width * 2 - 1) * tan_half_fov_y * aspect along `right`, and
- * (1 - (y + 0.5) / height * 2) * tan_half_fov_y along `up`.
+/* One eye's pinhole camera for one frame, 80 bytes. Rays leave `origin` through the image
+ * plane at distance 1 along `forward`; the point (x + jx, y + jy) of pixel (x, y), y = 0 at the
+ * top and (jx, jy) in [0, 1)^2 (0.5 is the centre), maps to
+ * ndc = ((x + jx) / width * 2 - 1) * tan_half_fov_y * aspect along `right`, and
+ * (1 - (y + jy) / height * 2) * tan_half_fov_y along `up`.
+ *
+ * `jitter` is the frame's sub-pixel position (jx, jy): the G-buffer's ray and the path tracer's
+ * first sample of every pixel go through it. It moves from frame to frame along a
+ * low-discrepancy sequence (host/render/pixel_jitter.h), so that what the denoiser accumulates
+ * over frames covers each pixel's whole footprint (anti-aliased edges, and an emitter's edge
+ * pixels converge to their covered share); the same in both eyes and on every device.
  *
  *   0..11 origin[3]   12..15 tan_half_fov_y
  *  16..27 right[3]    28..31 aspect (width / height)
  *  32..43 up[3]       44..47 width
- *  48..59 forward[3]  60..63 height */
+ *  48..59 forward[3]  60..63 height
+ *  64..71 jitter[2]   72..79 padding */
 typedef struct CameraParams {
   float origin[3];
   float tan_half_fov_y;
@@ -352,6 +360,8 @@ typedef struct CameraParams {
   uint width;
   float forward[3];
   uint height;
+  float jitter[2];
+  uint pad[2];
 } CameraParams;
 
 
@@ -392,7 +402,8 @@ typedef struct LightTriangle {
  *  96..99 seed   100..103 light_sampling (PX_LIGHTS_*)  104..107 rr_start_bounce
  * 108..111 row0 (first image row of this launch)  112..115 rows
  * 116..119 sample_offset (index of this launch's first sample: progressive passes)
- * 120..123 first_sample_centred (1: the frame's sample 0 is the pixel centre's, the G-buffer's ray)
+ * 120..123 first_sample_on_gbuffer_ray (1: the frame's sample 0 is the G-buffer's ray, through the
+ *          camera's jitter position CameraParams::jitter)
  * 124..127 padding */
 typedef struct FrameParams {
   float sun_dir[3];
@@ -415,7 +426,7 @@ typedef struct FrameParams {
   uint row0;
   uint rows;
   uint sample_offset;
-  uint first_sample_centred;
+  uint first_sample_on_gbuffer_ray;
   uint pad;
 } FrameParams;
 
@@ -492,6 +503,11 @@ typedef struct GBufferTexel {
  * PX_SVGF_LOOSE_SIGMA_N instead (the stereo paper's sigma_n). */
 #define PX_SVGF_ISOLATED 0.25f
 #define PX_SVGF_LOOSE_SIGMA_N 4.0f
+/* SVGF's luminance guide (svgf_luma): a pixel's luminance is averaged with those of its 3x3
+ * neighbours on the same surface, told by normals within PX_SVGF_LUMA_MIN_COS and depths within
+ * PX_SVGF_LUMA_REL_DEPTH x the pixel's. */
+#define PX_SVGF_LUMA_MIN_COS 0.9f
+#define PX_SVGF_LUMA_REL_DEPTH 0.1f
 /* SVGF moments.w: how the filter treats a pixel. 0: not filtered (environment, emitters),
  * 1: filtered, PX_SVGF_BORROWED: a silhouette pixel whose centre ray misses every filtered
  * surface while all its own samples hit one (albedo.w, the share of such samples, at least
@@ -515,7 +531,9 @@ typedef struct GBufferTexel {
  *  which history is rejected — a uniform rule, so every strip split reads the same rows)
  *  28..31 step (a-trous tap spacing, 2^i)  32..35 row0  36..39 rows (rows written)
  *  40..43 lo_row  44..47 hi_row (rows that may be read: the strip alone with independent seams,
- *  the whole image with halo exchange)  48..51 width  52..55 height  56..63 padding */
+ *  the whole image with halo exchange)  48..51 width  52..55 height
+ *  56..63 jitter[2] (the frame's sub-pixel sample position, CameraParams::jitter: where in its
+ *  pixel the G-buffer texel lies, which temporal reprojection takes back out) */
 typedef struct SvgfParams {
   float sigma_l;
   float sigma_z;
@@ -531,7 +549,7 @@ typedef struct SvgfParams {
   uint hi_row;
   uint width;
   uint height;
-  uint pad[2];
+  float jitter[2];
 } SvgfParams;
 
 #ifndef __OPENCL_C_VERSION__

@@ -91,6 +91,9 @@ void DenoiseStage::denoise_eye(int e, const std::vector<RowRange>& strip, const 
                            history_rows, sizeof(cl_float4), halo_staging);
     env_.transfer.exchange([&](int d) -> const cl::Buffer& { return svgf(d).history_moments_prev(); }, held,
                            history_rows, sizeof(cl_float4), halo_staging);
+    if (o.taa_alpha < 1.0f)
+      env_.transfer.exchange([&](int d) -> const cl::Buffer& { return svgf(d).history_resolved_prev(); }, held,
+                             history_rows, sizeof(cl_float4), halo_staging);
   }
   if (moved)
     env_.transfer.exchange([&](int d) -> const cl::Buffer& { return dev_[d].gbuffer_prev[e]; }, held, history_rows,
@@ -103,7 +106,7 @@ void DenoiseStage::denoise_eye(int e, const std::vector<RowRange>& strip, const 
   for (int d = 0; d < n; ++d)
     if (env_.local(d))
       svgf(d).temporal(env_.images[d].radiance[e], env_.images[d].albedo[e], env_.images[d].gbuffer[e],
-                       dev_[d].gbuffer_prev[e], prev, strip[d], readable(d));
+                       dev_[d].gbuffer_prev[e], in.cams[e], prev, strip[d], readable(d));
   if (halo) {
     exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).illum(); }, 3);
     // Moments (with the filtered flag) are read within the variance pass's 7x7 window; farther
@@ -113,13 +116,22 @@ void DenoiseStage::denoise_eye(int e, const std::vector<RowRange>& strip, const 
   for (int d = 0; d < n; ++d)
     if (env_.local(d)) svgf(d).variance(strip[d], readable(d));
   for (unsigned i = 0; i < o.iterations; ++i) {
-    if (halo) exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).illum(); }, 2u << i);
+    // The taps reach 2^(i+1) rows; their luminance guide one more (SvgfDenoiser::atrous).
+    if (halo) exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).illum(); }, (2u << i) + 1);
     for (int d = 0; d < n; ++d)
       if (env_.local(d)) svgf(d).atrous(i, strip[d], readable(d));
   }
   for (int d = 0; d < n; ++d)
     if (env_.local(d))
       svgf(d).remodulate(env_.images[d].radiance[e], env_.images[d].albedo[e], strip[d], readable(d));
+  if (o.taa_alpha < 1.0f) {
+    // Anti-aliasing reads the remodulated radiance one row beyond the strip.
+    if (halo) exchange_halo([&](int d) -> const cl::Buffer& { return env_.images[d].radiance[e]; }, 1);
+    for (int d = 0; d < n; ++d)
+      if (env_.local(d))
+        svgf(d).antialias(env_.images[d].radiance[e], env_.images[d].gbuffer[e], in.cams[e], prev, strip[d],
+                          readable(d));
+  }
   if (options_.seams == SeamMode::Bilateral && n > 1) {
     exchange_halo([&](int d) -> const cl::Buffer& { return env_.images[d].radiance[e]; }, options_.seam_band + 2);
     for (int d = 0; d < n; ++d) {

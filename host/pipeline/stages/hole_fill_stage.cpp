@@ -24,7 +24,7 @@ void HoleFillStage::run(const std::vector<const Operation*>& ops, const FrameInp
     if (!env_.local(op->device)) continue;
     const FrameImages& f = env_.images[op->device];
     const FrameParams fp = tracer_.frame_params(1, op->rows, in.frame);
-    const cl::Buffer* centre_hits = op->shares_hits ? &f.right_hits : nullptr;
+    const cl::Buffer* gbuffer_hits = op->shares_hits ? &f.right_hits : nullptr;
     if (tracer_.kernel() == PathTraceKernel::Wavefront) {
       const PathTracer::Targets out{f.radiance[1], f.albedo[1], f.nonfinite_paths};
       tracer_.record(Stage::HoleFill, op->device,
@@ -32,7 +32,7 @@ void HoleFillStage::run(const std::vector<const Operation*>& ops, const FrameInp
                                                      env_.devices.program("pathtrace/wavefront.cl", env_.device_scene.kernel_options()),
                                                      env_.scene_on(op->device), tracer_.wavefront_scratch(op->device),
                                                      out, f.holes, f.hole_count, env_.pixels(op->rows), fp,
-                                                     in.cams[1], centre_hits));
+                                                     in.cams[1], gbuffer_hits));
       continue;
     }
     const cl::Program& program = env_.devices.program("pathtrace/path_trace.cl", env_.device_scene.kernel_options());
@@ -45,7 +45,7 @@ void HoleFillStage::run(const std::vector<const Operation*>& ops, const FrameInp
       k.setArg(2, f.nonfinite_paths);
       k.setArg(3, f.holes);
       k.setArg(4, f.hole_count);
-      set_optional_buffer(k, 5, centre_hits);
+      set_optional_buffer(k, 5, gbuffer_hits);
       k.setArg(6, fp);
       k.setArg(7, in.cams[1]);
       env_.scene_on(op->device).bind(k, 8);
@@ -65,7 +65,7 @@ void HoleFillStage::run(const std::vector<const Operation*>& ops, const FrameInp
     trace.setArg(1, f.nonfinite_paths);
     trace.setArg(2, f.holes);
     trace.setArg(3, f.hole_count);
-    set_optional_buffer(trace, 4, centre_hits);
+    set_optional_buffer(trace, 4, gbuffer_hits);
     trace.setArg(5, fp);
     trace.setArg(6, in.cams[1]);
     env_.scene_on(op->device).bind(trace, 7);

@@ -22,6 +22,9 @@ class SvgfDenoiser {
     float alpha = 0.2f;         // colour blend floor (paper 0.2)
     float alpha_moments = 0.2f;
     unsigned max_history = 32;
+    // Temporal anti-aliasing after remodulation (antialias()): the blend floor of the current
+    // frame; 1 turns it off.
+    float taa_alpha = 0.1f;
     unsigned temporal_rows = 16;  // largest vertical history offset (rows) still accepted
     // Pixels per work-item of the a-trous passes: 1 (svgf_atrous) or 8 (svgf_atrous8, float8
     // arithmetic across eight pixels, for CPUs); 0 picks 8 on CPU devices and 1 elsewhere.
@@ -42,17 +45,27 @@ class SvgfDenoiser {
   void guide(const cl::Buffer& gbuf, RowRange rows);
   // Pass 1 (after guide()): demodulate `color` by `albedo` (float4, the path tracer's
   // per-pixel mean primary albedo, w = the share of samples on filtered surfaces), blend with
-  // history reprojected through `prev_cam`.
+  // history reprojected through `prev_cam`. `cam` is the camera `gbuf` was traced with: its
+  // jitter (where in each pixel the texel lies) is taken back out of the reprojection.
   void temporal(const cl::Buffer& color, const cl::Buffer& albedo, const cl::Buffer& gbuf, const cl::Buffer& prev_gbuf,
-                const CameraParams& prev_cam, RowRange rows, RowRange readable);
-  // Pass 2: variance from moments (spatial estimate for short histories).
+                const CameraParams& cam, const CameraParams& prev_cam, RowRange rows, RowRange readable);
+  // Pass 2: variance from moments (spatial estimate for short histories). Its output, before
+  // any a-trous step, is also next frame's colour history.
   void variance(RowRange rows, RowRange readable);
-  // Pass 3+i: one a-trous step; iteration 0's output becomes next frame's colour history.
+  // Pass 3+i: one a-trous step. It first prefilters the luminance its edge-stopping compares (svgf_luma) over the rows its taps
+  // reach, `rows` widened by 2 x 2^i within `readable`, which reads one row farther: in halo
+  // mode the input's rows within 2^(i+1) + 1 of the strip must have been exchanged.
   void atrous(unsigned iteration, RowRange rows, RowRange readable);
   // Last pass: remodulate by the same `albedo` into `out_color` (float4 radiance, w its sample
   // count on input: the colour passed to temporal()). Silhouette pixels that borrowed a
   // neighbour's geometry blend with the environment around them in `readable` rows.
   void remodulate(const cl::Buffer& out_color, const cl::Buffer& albedo, RowRange rows, RowRange readable);
+  // After remodulate(): temporal anti-aliasing of `out_color` (svgf_antialias) with last
+  // frame's result, reprojected through `gbuf` (traced with `cam`) into `prev_cam`. Reads
+  // `out_color` within 1 row of `rows` (readable ones) and history within temporal_rows.
+  // Nothing with Options::taa_alpha >= 1.
+  void antialias(const cl::Buffer& out_color, const cl::Buffer& gbuf, const CameraParams& cam,
+                 const CameraParams& prev_cam, RowRange rows, RowRange readable);
   // The paper's bilateral seam filter on `color` (rows within `band` of a seam; -1 = none),
   // reading rows across the seam (exchanged beforehand).
   void seam_filter(const cl::Buffer& color, RowRange rows, RowRange readable, int seam_above, int seam_below,
@@ -66,6 +79,7 @@ class SvgfDenoiser {
   const cl::Buffer& moments() const { return moments_; }
   const cl::Buffer& history_illum_prev() const { return hist_illum_[1 - frame_parity_]; }
   const cl::Buffer& history_moments_prev() const { return hist_moments_[1 - frame_parity_]; }
+  const cl::Buffer& history_resolved_prev() const { return hist_resolved_[1 - frame_parity_]; }
 
   // Events of this frame's passes, by stage and pass name, for the timeline.
   struct PassEvent {
@@ -94,8 +108,10 @@ class SvgfDenoiser {
   cl::Buffer illum_[2];        // ping-pong filter buffers (rgb, variance)
   cl::Buffer moments_;         // (m1, m2, history length, filtered flag)
   cl::Buffer guide_;           // (normal, +depth filtered / -depth not), from guide()
+  cl::Buffer luma_;            // float2 per pixel: what an a-trous step's luminance test compares (svgf_luma)
   cl::Buffer hist_illum_[2];   // colour history: [frame_parity_] written this frame
   cl::Buffer hist_moments_[2];
+  cl::Buffer hist_resolved_[2];  // anti-aliased radiance (rgb, history length), as hist_illum_
   int current_ = 0;
   int frame_parity_ = 0;
   bool have_history_ = false;
