@@ -729,6 +729,20 @@ TEST_F(ValidatorDetects, ManyErrorsAreCapped) {
   EXPECT_NE(v.errors.back().find("more"), std::string::npos) << v.errors.back();
 }
 
+TEST_F(ValidatorDetects, ATreeReadBackFromTheCacheSkipsOnlyTheBinaryNodes) {
+  // validate_bvh(..., binary_tree = false), what a start from the BVH cache runs: the binary
+  // nodes (validated before the file was written, guarded by its checksum since) are left out,
+  // the wide nodes collapsed from them in this run are still checked.
+  FlatBvh bad = bvh_;
+  ensure_layout(bad, BvhLayout::Wide8);
+  ASSERT_TRUE(validate_bvh(bad, tris_).ok);
+  for (BvhNode& n : bad.nodes) n.lmax[0] = n.lmin[0];  // the binary tree broken after the collapse
+  EXPECT_FALSE(validate_bvh(bad, tris_).ok);
+  EXPECT_TRUE(validate_bvh(bad, tris_, /*binary_tree=*/false).ok);
+  bad.nodes8[0].child[0] = static_cast<std::uint32_t>(bad.nodes8.size() + 5);  // a wide node broken too
+  EXPECT_FALSE(validate_bvh(bad, tris_, /*binary_tree=*/false).ok);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Wide layouts (types.h: Bvh4Node, Bvh8Node): the binary tree collapsed, checked by the same
 // validator.

@@ -390,7 +390,7 @@ TEST(StereoPipeline, GlassIsNeverReprojected) {
   s.camera.position = {0.0f, 0.0f, -1.0f};
   s.camera.target = {0.0f, 0.0f, 4.0f};
   s.camera.vfov_deg = 60.0f;
-  LoadedScene loaded{s, build_bvh(s.triangles)};
+  LoadedScene loaded{s, build_bvh(s.triangles), {}};
   auto proposed = run(loaded, PipelineKind::Proposed, 2, 48, 36, 2);
   auto mono = run(loaded, PipelineKind::Mono, 2, 48, 36, 2);
   int glass_pixels = 0, reprojected = 0;
@@ -423,7 +423,7 @@ TEST(StereoPipeline, ReprojectedSurfacesAreVisibleFromTheLeftEye) {
   s.camera.target = {0.0f, 0.0f, 4.0f};
   s.camera.vfov_deg = 60.0f;
   s.ipd_m = 0.25f;  // wide eyes: large disocclusions beside the occluder
-  LoadedScene loaded{s, build_bvh(s.triangles)};
+  LoadedScene loaded{s, build_bvh(s.triangles), {}};
   auto r = run(loaded, PipelineKind::Proposed, 2, 64, 48, 1);
   const glm::vec3 left_eye = s.camera.position - glm::vec3(-1, 0, 0) * (0.5f * s.ipd_units());  // right = -x here
   EmbreeReference embree(s.triangles);

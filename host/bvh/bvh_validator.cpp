@@ -502,13 +502,13 @@ void validate_compressed(const FlatBvh& bvh, Report& report) {
 
 }  // namespace
 
-BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles) {
+BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles, bool binary_tree) {
   Report report;
   if (bvh.nodes.empty()) {
     report.error("the BVH has no nodes");
     return report.finish();
   }
-  validate_tree(BinaryNodes{bvh.nodes}, bvh, triangles, report);
+  if (binary_tree) validate_tree(BinaryNodes{bvh.nodes}, bvh, triangles, report);
   if (!bvh.nodes4.empty()) validate_tree(WideNodes<4, Bvh4Node>{bvh.nodes4, "wide4 "}, bvh, triangles, report);
   if (!bvh.nodes8.empty()) validate_tree(WideNodes<8, Bvh8Node>{bvh.nodes8, "wide8 "}, bvh, triangles, report);
   if (!bvh.cnodes.empty()) {

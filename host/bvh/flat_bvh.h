@@ -159,6 +159,9 @@ struct BvhValidation {
 // (meta / imask agree, exponents in range, every decoded plane an exact float), indices in
 // range, and slot by slot against nodes8 (which they must have been built from): the same
 // children, each decoded box containing the exact Bvh8Node box with no tolerance.
-BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles);
+// `binary_tree` false leaves the binary nodes out (the wide and compressed ones, which are
+// derived from them, are still checked): for a tree read back from the BVH cache, whose binary
+// nodes were validated before they were written and are protected by the file's checksum.
+BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles, bool binary_tree = true);
 
 }  // namespace px

@@ -568,12 +568,12 @@ kernel void svgf_atrous(global float4* out_illum, const global float4* illum, co
 }
 
 /* The same a-trous step for GPUs, its taps read from local memory: a work-group filters a tile of
- * PX_ATROUS_TILE x PX_ATROUS_TILE pixels and first loads the guide and illumination texels of the
- * tile and its apron (2 x step pixels on each side) once, where svgf_atrous's 25 taps per pixel
- * each go to global memory (to the caches, at best). For steps up to PX_ATROUS_TILE_MAX_STEP
- * (1, 2 and 4: 144, 256 and 576 texels for 64 pixels, 18 KiB of local memory at step 4); larger
- * steps touch too few texels twice to gain, and run svgf_atrous. The centre's work (borrowing,
- * the 3x3 variance) reads global memory as in svgf_atrous, and the tap sum is the same code
+ * PX_ATROUS_TILE x PX_ATROUS_TILE pixels and first loads the guide, illumination and luminance
+ * guide texels of the tile and its apron (2 x step pixels on each side) once, where
+ * svgf_atrous's 25 taps per pixel each go to global memory (to the caches, at best). For steps up
+ * to PX_ATROUS_TILE_MAX_STEP (1, 2 and 4: 144, 256 and 576 texels for 64 pixels, 22.5 KiB of
+ * local memory at step 4); larger steps touch too few texels twice to gain, and run
+ * svgf_atrous. The centre's work (borrowing) reads global memory as in svgf_atrous, and the tap sum is the same code
  * (PX_ATROUS_TAP_SUM). Items: PX_LOCAL_SIZE per tile, tiles row by row over the strip. */
 #define PX_ATROUS_TILE_SPAN (PX_ATROUS_TILE + 4 * PX_ATROUS_TILE_MAX_STEP)
 #if PX_ATROUS_TILE * PX_ATROUS_TILE != PX_LOCAL_SIZE
@@ -650,8 +650,8 @@ inline void px_load8_planes(const global float4* first, float8* x, float8* y, fl
  * devices. PoCL runs each work-item of svgf_atrous as scalar code (its vectorizer gives up on
  * the tap loop), so a tap cost ~100 scalar instructions there. Here the lanes are explicit:
  * each tap's weights for the eight pixels are float8 arithmetic, one AVX register per quantity,
- * and the tap's eight texels are two 64-byte loads. The per-pixel centre work (borrowing, 3x3
- * variance) stays scalar. Same filter, same operations per lane as svgf_atrous (test_svgf
+ * and the tap's eight texels are two 64-byte loads (and the luminance guide's one). The per-pixel
+ * centre work (borrowing) stays scalar. Same filter, same operations per lane as svgf_atrous (test_svgf
  * checks both against the host implementation); a GPU, where each work-item is already a SIMD
  * lane, runs svgf_atrous. Items: rows x ceil(width / 8). */
 #define PX_ATROUS_LANES 8

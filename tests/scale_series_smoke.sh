@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# bench/scale_series.py at a tiny size, offline: the generated meshes hold the triangles asked
+# for (read back from the PLY header and the glTF accessor), the CSV has a row with finite
+# times and memory for parallax, and bad input is refused with a non-zero exit.
+# Usage: scale_series_smoke.sh SOURCE_DIR BUILD_DIR
+set -u
+src="$1"
+build="$2"
+tmp="$(mktemp -d)"
+trap 'rm -rf "$tmp"' EXIT
+fails=0
+ok() { echo "ok   $*"; }
+fail() { echo "FAIL $*"; fails=$((fails + 1)); }
+
+if "$src/bench/scale_series.py" --sizes 0.002 --build "$build" --work "$tmp/w" --width 32 --height 18 --offline \
+  >"$tmp/out" 2>"$tmp/err"; then ok "ran"; else fail "exit $?"; tail -5 "$tmp/err"; fi
+/usr/bin/python3 - "$tmp/w" <<'PY' && ok "meshes and CSV" || fail "meshes and CSV"
+import csv, json, math, struct, sys, glob
+w = sys.argv[1]
+rows = list(csv.DictReader(open(f"{w}/results.csv")))
+assert len(rows) == 1, rows
+r = rows[0]
+t = int(r["triangles"])
+assert t == 2 * 32 * 32, t  # 0.002M asked: the nearest square grid, 32 x 32 quads
+for k in ("cold_s", "cold_mib", "warm_s", "warm_mib"):
+    assert math.isfinite(float(r[k])) and float(r[k]) > 0, (k, r[k])
+ply = open(glob.glob(f"{w}/heightfield-{t}.ply")[0], "rb").read(400).decode("latin-1")
+assert f"element face {t}" in ply and f"element vertex {33 * 33}" in ply, ply[:200]
+glb = open(glob.glob(f"{w}/heightfield-{t}.glb")[0], "rb").read()
+magic, version, total = struct.unpack("<III", glb[:12])
+n = struct.unpack("<I", glb[12:16])[0]
+doc = json.loads(glb[20:20 + n])
+assert magic == 0x46546C67 and version == 2 and total == len(glb)
+assert doc["accessors"][0]["count"] == 3 * t
+PY
+if grep -q "^| 0.00M" "$tmp/out"; then ok "table printed"; else fail "table"; cat "$tmp/out"; fi
+if "$src/bench/scale_series.py" --sizes abc --build "$build" --work "$tmp/x" >/dev/null 2>"$tmp/e1"; then
+  fail "bad --sizes accepted"; else grep -q "needs numbers" "$tmp/e1" && ok "bad --sizes refused" || fail "message"; fi
+if "$src/bench/scale_series.py" --sizes 1 --build "$tmp/nothing" --work "$tmp/y" >/dev/null 2>"$tmp/e2"; then
+  fail "missing build accepted"; else grep -q "build first" "$tmp/e2" && ok "missing build refused" || fail "message"; fi
+echo "scale_series_smoke: $fails failure(s)"
+[ "$fails" -eq 0 ]
