@@ -47,20 +47,17 @@ for scene in "${scenes[@]}"; do
   done
 done
 
-/usr/bin/python3 - "$tmp" "$runs" "$a" "$b" "${scenes[@]}" <<'PY'
+/usr/bin/python3 - "$root/scripts" "$tmp" "$runs" "$a" "$b" "${scenes[@]}" <<'PY'
 import json, statistics, sys
-tmp, runs, a, b, scenes = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4], sys.argv[5:]
+sys.path.insert(0, sys.argv[1])
+from evaluate_denoiser import frame_times  # the evaluation's reading of a report
+tmp, runs, a, b, scenes = sys.argv[2], int(sys.argv[3]), sys.argv[4], sys.argv[5], sys.argv[6:]
 def medians(scene, side):
     svgf, wall = [], []
     for r in range(1, runs + 1):
-        rep = json.load(open(f"{tmp}/{scene or 'scene'}_{side}_{r}.json"))
-        for fr in rep["frames"][1:]:  # each run's first frame compiles kernels
-            per_device = {}
-            for s in fr["stages"]:
-                if s["stage"] in (6, 7):
-                    per_device[s["device"]] = per_device.get(s["device"], 0.0) + s["device_ms"]
-            svgf.append(max(per_device.values()) if per_device else 0.0)
-            wall.append(fr["wall_ms"])
+        s, w = frame_times(json.load(open(f"{tmp}/{scene or 'scene'}_{side}_{r}.json")))
+        svgf += s
+        wall += w
     return statistics.median(svgf), statistics.median(wall), len(wall)
 print(f"a = {a}\nb = {b}")
 print(f"{'scene':10s} {'denoise ms a':>13s} {'b':>8s} {'b/a':>6s} {'frame ms a':>11s} {'b':>8s} {'b/a':>6s}  frames")

@@ -122,6 +122,21 @@ def oidn(color, albedo=None, normal=None):
     return pyoidn.denoise(color, np.clip(albedo, 0.0, 1.0), np.clip(normal, -1.0, 1.0), hdr=True, clean_aux=True)
 
 
+def frame_times(report):
+    """Per frame after the first (which compiles the kernels) of a `render --report` JSON: the
+    slowest device's device time in stages 6 (SVGF) and 7 (its history copies), and the wall time.
+    bench/compare_builds.sh reads reports with this too."""
+    svgf, wall = [], []
+    for fr in report.get("frames", [])[1:]:
+        per_device = {}
+        for s in fr["stages"]:
+            if s["stage"] in (6, 7):
+                per_device[s["device"]] = per_device.get(s["device"], 0.0) + s["device_ms"]
+        svgf.append(max(per_device.values()) if per_device else 0.0)
+        wall.append(fr["wall_ms"])
+    return svgf, wall
+
+
 def svgf_times(report_path, frame):
     if not os.path.isfile(report_path):
         raise EvalError(f"missing render report {report_path}")
@@ -130,14 +145,7 @@ def svgf_times(report_path, frame):
     frames = rep.get("frames", [])
     if len(frames) < frame + 1:
         raise EvalError(f"{report_path} holds {len(frames)} frame(s), expected {frame + 1}")
-    svgf, wall = [], []
-    for fr in frames[1:]:  # frame 0 compiles the kernels
-        per_device = {}
-        for s in fr["stages"]:
-            if s["stage"] in (6, 7):
-                per_device[s["device"]] = per_device.get(s["device"], 0.0) + s["device_ms"]
-        svgf.append(max(per_device.values()) if per_device else 0.0)
-        wall.append(fr["wall_ms"])
+    svgf, wall = frame_times(rep)
     if not svgf or max(svgf) <= 0:
         raise EvalError(f"{report_path} has no SVGF stage times (was the render denoised?)")
     return statistics.median(svgf), statistics.median(wall)

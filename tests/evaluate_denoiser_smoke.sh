@@ -6,13 +6,8 @@
 # non-zero exit.
 # Usage: evaluate_denoiser_smoke.sh SOURCE_DIR BUILD_DIR
 set -u
-src="$1"
-build="$2"
-tmp="$(mktemp -d)"
-trap 'rm -rf "$tmp"' EXIT
-fails=0
-ok() { echo "ok   $*"; }
-fail() { echo "FAIL $*"; fails=$((fails + 1)); }
+# src, build, tmp, ok, fail, finish
+source "$(dirname "$0")/support/script_checks.sh"
 script="$src/scripts/evaluate_denoiser"
 tiny=(--build "$build" --offline --width 48 --height 27 --ref-spp 32 --scenes cornell --refs "$tmp/refs")
 
@@ -105,5 +100,4 @@ rm -f "$entry/reference_right.exr"
 refused "a reference cache entry missing a file" "incomplete \(no reference_right\.exr\)" -- "${tiny[@]}" --out "$tmp/eval_bad"
 if [ ! -e "$tmp/eval_bad" ]; then ok "the refused run wrote no --out"; else fail "the refused run created $tmp/eval_bad"; fi
 
-echo "evaluate_denoiser_smoke: $fails failure(s)"
-[ "$fails" -eq 0 ]
+finish evaluate_denoiser_smoke

@@ -4,13 +4,8 @@
 # refused with a clear message and a non-zero exit.
 # Usage: evaluate_smoke.sh SOURCE_DIR BUILD_DIR
 set -u
-src="$1"
-build="$2"
-tmp="$(mktemp -d)"
-trap 'rm -rf "$tmp"' EXIT
-fails=0
-ok() { echo "ok   $*"; }
-fail() { echo "FAIL $*"; fails=$((fails + 1)); }
+# src, build, tmp, ok, fail, finish
+source "$(dirname "$0")/support/script_checks.sh"
 
 refused() {  # refused NAME PATTERN -- args...: non-zero exit and a message matching PATTERN
   local name="$1" pattern="$2"
@@ -191,5 +186,4 @@ for m in halo independent; do
   else fail "parallax compare $m.png single.png: '$psnr' dB, expected /$want/: $cmp_out"; fi
 done
 
-echo "evaluate_smoke: $fails failure(s)"
-[ "$fails" -eq 0 ]
+finish evaluate_smoke

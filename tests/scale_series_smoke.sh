@@ -4,13 +4,8 @@
 # times and memory for parallax, and bad input is refused with a non-zero exit.
 # Usage: scale_series_smoke.sh SOURCE_DIR BUILD_DIR
 set -u
-src="$1"
-build="$2"
-tmp="$(mktemp -d)"
-trap 'rm -rf "$tmp"' EXIT
-fails=0
-ok() { echo "ok   $*"; }
-fail() { echo "FAIL $*"; fails=$((fails + 1)); }
+# src, build, tmp, ok, fail, finish
+source "$(dirname "$0")/support/script_checks.sh"
 
 if "$src/bench/scale_series.py" --sizes 0.002 --build "$build" --work "$tmp/w" --width 32 --height 18 --offline \
   >"$tmp/out" 2>"$tmp/err"; then ok "ran"; else fail "exit $?"; tail -5 "$tmp/err"; fi
@@ -38,5 +33,4 @@ if "$src/bench/scale_series.py" --sizes abc --build "$build" --work "$tmp/x" >/d
   fail "bad --sizes accepted"; else grep -q "needs numbers" "$tmp/e1" && ok "bad --sizes refused" || fail "message"; fi
 if "$src/bench/scale_series.py" --sizes 1 --build "$tmp/nothing" --work "$tmp/y" >/dev/null 2>"$tmp/e2"; then
   fail "missing build accepted"; else grep -q "build first" "$tmp/e2" && ok "missing build refused" || fail "message"; fi
-echo "scale_series_smoke: $fails failure(s)"
-[ "$fails" -eq 0 ]
+finish scale_series_smoke

@@ -116,6 +116,24 @@ inline int px_history_tap_readable(int tx, int ty, int y, const SvgfParams* p) {
          px_row_readable(ty, p);
 }
 
+/* Tap k (0..3) of the 2x2 bilinear footprint of continuous pixel-grid position (fx, fy) in the
+ * previous frame: its index *j and weight *w; 0 where the weight is 0 or the texel may not be
+ * read as history for a pixel of row y (px_history_tap_readable). */
+inline int px_bilinear_history_tap(float fx, float fy, int k, int y, const SvgfParams* p, uint* j, float* w) {
+  const float x0f = floor(fx), y0f = floor(fy);
+  const float ax = fx - x0f, ay = fy - y0f;
+  const int tx = (int)x0f + (k & 1), ty = (int)y0f + (k >> 1);
+  *w = ((k & 1) ? ax : 1.0f - ax) * ((k >> 1) ? ay : 1.0f - ay);
+  if (*w <= 0.0f || !px_history_tap_readable(tx, ty, y, p)) return 0;
+  *j = (uint)ty * p->width + (uint)tx;
+  return 1;
+}
+
+/* Is pixel (tx, ty) inside the image and in a readable row (a spatial pass's tap)? */
+inline int px_pixel_readable(int tx, int ty, const SvgfParams* p) {
+  return tx >= 0 && tx < (int)p->width && ty >= 0 && ty < (int)p->height && px_row_readable(ty, p);
+}
+
 /* The environment is not filtered, but it is accumulated over frames: at 1 spp every pixel on
  * the horizon (or the sun's rim) is one jittered sample of a step, and left alone the edge
  * crawls from frame to frame. The environment is at infinity, so its history is found by
@@ -128,15 +146,12 @@ inline float4 px_environment_temporal(float3 c, const global GBufferTexel* g, in
                                       const SvgfParams* p, const CameraParams* prev_cam) {
   float fx, fy;
   if (!px_previous_pixel(px_load3(g->pos), prev_cam, p, &fx, &fy)) return (float4)(c, 1.0f);
-  const float x0f = floor(fx), y0f = floor(fy);
-  const float ax = fx - x0f, ay = fy - y0f;
   float3 hist = (float3)(0.0f, 0.0f, 0.0f);
   float hist_len = 0.0f, wsum = 0.0f;
   for (int k = 0; k < 4; ++k) {
-    const int tx = (int)x0f + (k & 1), ty = (int)y0f + (k >> 1);
-    const float w = ((k & 1) ? ax : 1.0f - ax) * ((k >> 1) ? ay : 1.0f - ay);
-    if (w <= 0.0f || !px_history_tap_readable(tx, ty, y, p)) continue;
-    const uint j = (uint)ty * p->width + (uint)tx;
+    uint j;
+    float w;
+    if (!px_bilinear_history_tap(fx, fy, k, y, p, &j, &w)) continue;
     if (prev_gbuf[j].material_class != PX_CLASS_MISS || prev_moments[j].w != 0.0f) continue;
     hist += w * prev_illum[j].xyz;
     hist_len += w * prev_moments[j].z;
@@ -189,14 +204,11 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
     const float expected = length(d);
     float fx, fy;
     if (px_previous_pixel(d, &prev_cam, &p, &fx, &fy)) {
-      const float x0f = floor(fx), y0f = floor(fy);
-      const float ax = fx - x0f, ay = fy - y0f;
       /* 2x2 bilinear taps, each kept only on the same surface. */
       for (int k = 0; k < 4; ++k) {
-        const int tx = (int)x0f + (k & 1), ty = (int)y0f + (k >> 1);
-        const float w = ((k & 1) ? ax : 1.0f - ax) * ((k >> 1) ? ay : 1.0f - ay);
-        if (w <= 0.0f || !px_history_tap_readable(tx, ty, y, &p)) continue;
-        const uint j = (uint)ty * p.width + (uint)tx;
+        uint j;
+        float w;
+        if (!px_bilinear_history_tap(fx, fy, k, y, &p, &j, &w)) continue;
         if (!px_history_matches(prev_gbuf + j, n, expected)) continue;
         hist += w * prev_illum[j].xyz;
         hist_m += w * prev_moments[j].xy;
@@ -392,12 +404,10 @@ kernel void svgf_luma(global float2* luma, const global float4* illum, const glo
   const float4 c = illum[i];
   const int filtered = px_guide_filtered(gc);
   float lsum = 0.0f, lw = 0.0f, vsum = 0.0f, vw = 0.0f;
-  for (int dy = -1; dy <= 1; ++dy) {
-    const int ty = y + dy;
-    if (ty < 0 || ty >= (int)p.height || !px_row_readable(ty, &p)) continue;
+  for (int dy = -1; dy <= 1; ++dy)
     for (int dx = -1; dx <= 1; ++dx) {
-      const int tx = x + dx;
-      if (tx < 0 || tx >= (int)p.width) continue;
+      const int tx = x + dx, ty = y + dy;
+      if (!px_pixel_readable(tx, ty, &p)) continue;
       const uint j = (uint)ty * p.width + (uint)tx;
       const float4 g = guide[j];
       if (!px_guide_filtered(g)) continue;
@@ -410,7 +420,6 @@ kernel void svgf_luma(global float2* luma, const global float4* illum, const glo
         lw += k;
       }
     }
-  }
   /* A filtered centre always counts itself: lw >= 0.25. */
   luma[i] = (float2)(filtered ? lsum / lw : px_lum(c.xyz), vw > 0.0f ? vsum / vw : c.w);
 }
@@ -846,15 +855,13 @@ kernel void svgf_antialias(global float4* resolved, global float4* history, cons
     const float3 d = g->material_class == PX_CLASS_MISS ? px_load3(g->pos) : px_load3(g->pos) - px_camera_origin(&prev_cam);
     float fx, fy;
     if (px_previous_pixel(d, &prev_cam, &p, &fx, &fy)) {
-      const float x0f = floor(fx), y0f = floor(fy);
-      const float ax = fx - x0f, ay = fy - y0f;
       float3 hist = (float3)(0.0f, 0.0f, 0.0f);
       float hist_len = 0.0f, wsum = 0.0f;
       for (int k = 0; k < 4; ++k) {
-        const int tx = (int)x0f + (k & 1), ty = (int)y0f + (k >> 1);
-        const float w = ((k & 1) ? ax : 1.0f - ax) * ((k >> 1) ? ay : 1.0f - ay);
-        if (w <= 0.0f || !px_history_tap_readable(tx, ty, y, &p)) continue;
-        const float4 h = prev[(uint)ty * p.width + (uint)tx];
+        uint j;
+        float w;
+        if (!px_bilinear_history_tap(fx, fy, k, y, &p, &j, &w)) continue;
+        const float4 h = prev[j];
         hist += w * h.xyz;
         hist_len += w * h.w;
         wsum += w;
@@ -864,18 +871,15 @@ kernel void svgf_antialias(global float4* resolved, global float4* history, cons
         /* The current 3x3 neighbourhood's mean and spread, per channel. */
         float3 m1 = (float3)(0.0f, 0.0f, 0.0f), m2 = m1;
         float count = 0.0f;
-        for (int dy = -1; dy <= 1; ++dy) {
-          const int ty = y + dy;
-          if (ty < 0 || ty >= (int)p.height || !px_row_readable(ty, &p)) continue;
+        for (int dy = -1; dy <= 1; ++dy)
           for (int dx = -1; dx <= 1; ++dx) {
-            const int tx = x + dx;
-            if (tx < 0 || tx >= (int)p.width) continue;
+            const int tx = x + dx, ty = y + dy;
+            if (!px_pixel_readable(tx, ty, &p)) continue;
             const float3 t = color[(uint)ty * p.width + (uint)tx].xyz;
             m1 += t;
             m2 += t * t;
             count += 1.0f;
           }
-        }
         m1 /= count;
         const float3 sigma = sqrt(fmax(m2 / count - m1 * m1, (float3)(0.0f, 0.0f, 0.0f)));
         hist = clamp(hist, m1 - PX_TAA_CLIP_SIGMA * sigma, m1 + PX_TAA_CLIP_SIGMA * sigma);

@@ -44,7 +44,7 @@ void SvgfDenoiser::guide(const cl::Buffer& gbuf, RowRange rows) {
   launch(k, rows, "guide");
 }
 
-SvgfParams SvgfDenoiser::params(RowRange rows, RowRange readable, unsigned step) const {
+SvgfParams SvgfDenoiser::params(RowRange rows, RowRange readable, unsigned step, const CameraParams* cam) const {
   SvgfParams p{};
   p.sigma_l = options_.sigma_l;
   p.sigma_z = options_.sigma_z;
@@ -60,6 +60,9 @@ SvgfParams SvgfDenoiser::params(RowRange rows, RowRange readable, unsigned step)
   p.hi_row = readable.end;
   p.width = width_;
   p.height = height_;
+  // Where in its pixel each G-buffer texel of `cam`'s frame lies (the passes that reproject).
+  p.jitter[0] = cam ? cam->jitter[0] : 0.5f;
+  p.jitter[1] = cam ? cam->jitter[1] : 0.5f;
   return p;
 }
 
@@ -89,6 +92,15 @@ void SvgfDenoiser::launch(cl::Kernel& k, RowRange rows, const char* pass, unsign
   events_.push_back({Stage::Denoise, launch_1d(queue(), k, static_cast<std::size_t>(rows.size()) * per_row), pass});
 }
 
+void SvgfDenoiser::copy_rows(const cl::Buffer& from, const cl::Buffer& to, RowRange rows, Stage stage,
+                             const char* pass) {
+  cl::Event e;
+  const std::size_t off = static_cast<std::size_t>(rows.begin) * width_ * sizeof(cl_float4);
+  const std::size_t len = static_cast<std::size_t>(rows.size()) * width_ * sizeof(cl_float4);
+  queue().enqueueCopyBuffer(from, to, off, off, len, nullptr, &e);
+  events_.push_back({stage, e, pass});
+}
+
 void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& albedo, const cl::Buffer& gbuf,
                             const cl::Buffer& prev_gbuf, const CameraParams& cam, const CameraParams& prev_cam,
                             RowRange rows, RowRange readable) {
@@ -103,20 +115,14 @@ void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& albedo, c
   k.setArg(5, prev_gbuf);
   k.setArg(6, hist_illum_[1 - frame_parity_]);
   k.setArg(7, hist_moments_[1 - frame_parity_]);
-  SvgfParams p = params(rows, readable, 1);
-  p.jitter[0] = cam.jitter[0];
-  p.jitter[1] = cam.jitter[1];
+  const SvgfParams p = params(rows, readable, 1, &cam);
   k.setArg(8, p);
   k.setArg(9, prev_cam);
   k.setArg(10, static_cast<cl_uint>(have_history_));
   k.setArg(11, guide_);  // guide() has run: silhouette pixels look for a neighbour to borrow from
   launch(k, rows, "temporal");
   // The moments (with history length) are this frame's moment history as they stand.
-  cl::Event e;
-  const std::size_t off = static_cast<std::size_t>(rows.begin) * width_ * sizeof(cl_float4);
-  const std::size_t len = static_cast<std::size_t>(rows.size()) * width_ * sizeof(cl_float4);
-  queue().enqueueCopyBuffer(moments_, hist_moments_[frame_parity_], off, off, len, nullptr, &e);
-  events_.push_back({Stage::RecordPrevious, e, "moment history"});
+  copy_rows(moments_, hist_moments_[frame_parity_], rows, Stage::RecordPrevious, "moment history");
 }
 
 void SvgfDenoiser::variance(RowRange rows, RowRange readable) {
@@ -132,11 +138,7 @@ void SvgfDenoiser::variance(RowRange rows, RowRange readable) {
   // spatial estimate for short histories), before any a-trous step. The SVGF paper feeds back
   // the first a-trous step instead; that compounds the step's blur and whatever energy it loses
   // into every later frame (atrium, 1 spp, 16 frames: 0.5 dB lower PSNR, still or moving).
-  cl::Event e;
-  const std::size_t off = static_cast<std::size_t>(rows.begin) * width_ * sizeof(cl_float4);
-  const std::size_t len = static_cast<std::size_t>(rows.size()) * width_ * sizeof(cl_float4);
-  queue().enqueueCopyBuffer(illum_[1 - current_], hist_illum_[frame_parity_], off, off, len, nullptr, &e);
-  events_.push_back({Stage::RecordPrevious, e, "colour history"});
+  copy_rows(illum_[1 - current_], hist_illum_[frame_parity_], rows, Stage::RecordPrevious, "colour history");
   current_ = 1 - current_;
 }
 
@@ -191,9 +193,7 @@ void SvgfDenoiser::antialias(const cl::Buffer& out_color, const cl::Buffer& gbuf
   // the pass reads its input's neighbours.
   const cl::Buffer& resolved = illum_[1 - current_];
   cl::Kernel k(devices_.program("denoise/svgf.cl"), "svgf_antialias");
-  SvgfParams p = params(rows, readable, 1);
-  p.jitter[0] = cam.jitter[0];
-  p.jitter[1] = cam.jitter[1];
+  const SvgfParams p = params(rows, readable, 1, &cam);
   k.setArg(0, resolved);
   k.setArg(1, hist_resolved_[frame_parity_]);
   k.setArg(2, out_color);
@@ -204,11 +204,7 @@ void SvgfDenoiser::antialias(const cl::Buffer& out_color, const cl::Buffer& gbuf
   k.setArg(7, static_cast<cl_uint>(have_history_));
   k.setArg(8, options_.taa_alpha);
   launch(k, rows, "anti-aliasing");
-  cl::Event e;
-  const std::size_t off = static_cast<std::size_t>(rows.begin) * width_ * sizeof(cl_float4);
-  const std::size_t len = static_cast<std::size_t>(rows.size()) * width_ * sizeof(cl_float4);
-  queue().enqueueCopyBuffer(resolved, out_color, off, off, len, nullptr, &e);
-  events_.push_back({Stage::Denoise, e, "anti-aliased copy"});
+  copy_rows(resolved, out_color, rows, Stage::Denoise, "anti-aliased copy");
 }
 
 void SvgfDenoiser::seam_filter(const cl::Buffer& color, RowRange rows, RowRange readable, int seam_above,
@@ -224,11 +220,7 @@ void SvgfDenoiser::seam_filter(const cl::Buffer& color, RowRange rows, RowRange 
   k.setArg(5, static_cast<cl_int>(seam_below));
   k.setArg(6, static_cast<cl_int>(band));
   launch(k, rows, "seam filter");
-  cl::Event e;
-  const std::size_t off = static_cast<std::size_t>(rows.begin) * width_ * sizeof(cl_float4);
-  const std::size_t len = static_cast<std::size_t>(rows.size()) * width_ * sizeof(cl_float4);
-  queue().enqueueCopyBuffer(scratch, color, off, off, len, nullptr, &e);
-  events_.push_back({Stage::Denoise, e, "seam filter copy"});
+  copy_rows(scratch, color, rows, Stage::Denoise, "seam filter copy");
 }
 
 void SvgfDenoiser::end_frame() {

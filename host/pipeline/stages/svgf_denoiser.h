@@ -92,8 +92,11 @@ class SvgfDenoiser {
   const Options& options() const { return options_; }
 
  private:
-  SvgfParams params(RowRange rows, RowRange readable, unsigned step) const;
+  // `cam`: the camera of this frame's G-buffer, whose jitter the reprojecting passes take out.
+  SvgfParams params(RowRange rows, RowRange readable, unsigned step, const CameraParams* cam = nullptr) const;
   void launch(cl::Kernel& k, RowRange rows, const char* pass, unsigned pixels_per_item = 1);
+  // Copies rows `rows` of one float4 full-frame buffer into another, timed as `pass` of `stage`.
+  void copy_rows(const cl::Buffer& from, const cl::Buffer& to, RowRange rows, Stage stage, const char* pass);
   // options.atrous_lanes with 0 resolved for `device` (invalid values throw).
   static unsigned resolve_atrous_lanes(const Options& options, const ComputeDevice& device);
   cl::CommandQueue& queue() { return lanes_ ? lanes_->queue(device_) : devices_.devices()[device_].queue; }
