@@ -8,6 +8,7 @@
 #include "render/path_tracer.h"
 #include "scene/primitives.h"
 #include "scene/scene_loader.h"
+#include "support/gltf_builder.h"
 #include "support/test_support.h"
 
 #include <OpenImageIO/imageio.h>
@@ -25,6 +26,7 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 using test::TempDir;
+using test::base64;
 
 template <typename F>
 std::string error_of(F&& f) {
@@ -40,26 +42,6 @@ int count_warnings_containing(const Scene& s, const std::string& needle) {
   int n = 0;
   for (const std::string& w : s.stats.warnings) n += w.find(needle) != std::string::npos;
   return n;
-}
-
-std::string base64(const std::string& bytes) {
-  static const char* k = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  std::size_t i = 0;
-  for (; i + 2 < bytes.size(); i += 3) {
-    const unsigned v = (unsigned(std::uint8_t(bytes[i])) << 16) | (unsigned(std::uint8_t(bytes[i + 1])) << 8) |
-                       std::uint8_t(bytes[i + 2]);
-    for (int s = 18; s >= 0; s -= 6) out += k[(v >> s) & 63];
-  }
-  if (i < bytes.size()) {
-    unsigned v = unsigned(std::uint8_t(bytes[i])) << 16;
-    if (i + 1 < bytes.size()) v |= unsigned(std::uint8_t(bytes[i + 1])) << 8;
-    out += k[(v >> 18) & 63];
-    out += k[(v >> 12) & 63];
-    out += i + 1 < bytes.size() ? k[(v >> 6) & 63] : '=';
-    out += '=';
-  }
-  return out;
 }
 
 template <typename T>

@@ -13,6 +13,7 @@
 #include "io/interrupt.h"
 #include "render/preview_renderer.h"
 #include "render/reference_render.h"
+#include "render/scene_animator.h"
 #include "render/stereo_camera.h"
 #include "pipeline/stereo_pipeline.h"
 
@@ -136,6 +137,11 @@ int run_preview(const PreviewCommand& cmd) {
   print_device_set(on_devices.devices);
   print_scene_upload(on_devices.device_scene, on_devices.devices.size());
   print_kernel_features(on_devices.device_scene);
+  SceneAnimator animator(on_devices.loaded.scene, cmd.animation);
+  if (animator.moves()) {
+    std::fprintf(stderr, "[preview] animation: %s\n", animator.describe().c_str());
+    animator.update(cmd.time_s, on_devices.devices, on_devices.device_scene);
+  }
   PreviewRenderer renderer(on_devices.devices, on_devices.device_scene);
   std::fprintf(stderr, "[preview] %ux%u per eye, t = %.2f s ...\n", cmd.width, cmd.height, cmd.time_s);
   check_camera(on_devices.loaded.scene, cmd.time_s, "preview");
@@ -206,6 +212,7 @@ int run_render(const RenderCommand& cmd) {
   std::optional<SceneOnDevices> on_devices;
   std::optional<StereoPipeline> pipeline_slot;
   std::optional<VideoWriter> video;
+  std::optional<SceneAnimator> animator;
   auto setup = [&] {
     if (root) {
       if (!image_codec_available())
@@ -228,6 +235,8 @@ int run_render(const RenderCommand& cmd) {
       std::printf("balance: dynamic over %d queues on one OpenCL device: they share its compute units, so the "
                   "strips follow the queues' measured times but the frame gets no faster\n",
                   set.size());
+    animator.emplace(on_devices->loaded.scene, cmd.animation);
+    if (root && animator->moves()) std::fprintf(stderr, "[scene] animation: %s\n", animator->describe().c_str());
     pipeline_slot.emplace(on_devices->devices, on_devices->device_scene, on_devices->loaded.scene, cmd.width,
                           cmd.height, opt);
   };
@@ -298,6 +307,7 @@ int run_render(const RenderCommand& cmd) {
   };
   if (timeline) timeline->name_devices(devices);
   RenderTotals totals;  // over the frames written (on rank 0)
+  AnimationTotals animation_totals;
   unsigned done = 0;
   // Every frame's camera is checked before the first is rendered: a bad one fails the run now.
   for (unsigned f = 0; f < cmd.frames; ++f)
@@ -312,6 +322,11 @@ int run_render(const RenderCommand& cmd) {
     const FrameQuality quality = pipeline.quality();
     last_quality = quality;
     const std::vector<RowRange> strips = pipeline.strips();
+    // One clock: the animation and the camera path are both at f / fps (every rank poses the
+    // same triangles; the last frame's queues are finished, so the geometry may be rewritten).
+    const SceneAnimator::Update update =
+        animator->update(static_cast<double>(f) / cmd.fps, on_devices->devices, on_devices->device_scene);
+    if (animator->moves()) animation_totals.add(update);
     const FrameStats st = pipeline.render(f, static_cast<float>(f) / cmd.fps);
     if (!root) {  // rank 0 holds the frame, decides the next and writes everything
       done = f + 1;
@@ -356,7 +371,7 @@ int run_render(const RenderCommand& cmd) {
     }
     std::fputc('\n', stderr);
     if (timeline) timeline->add_frame(f, st);
-    if (report) report->add_frame(f, st, strips, quality, predicted_this_frame);
+    if (report) report->add_frame(f, st, strips, quality, predicted_this_frame, animator->moves() ? &update : nullptr);
     // Under MPI the next frame's agreement stops every rank together.
     if (!distributed && interrupted()) break;
   }
@@ -408,6 +423,12 @@ int run_render(const RenderCommand& cmd) {
                   t.cache_store_ms > 0.0 ? (", cache write " + std::to_string(static_cast<long>(t.cache_store_ms)) + " ms").c_str() : "",
                   ds.upload_ms(), static_cast<double>(ds.bytes_in_context()) / (1024.0 * 1024.0), devices.size());
     }
+    if (animation_totals.frames > 0)
+      std::printf("animation: %s; per frame (median) pose %.1f ms, BVH rebuild %.1f ms, upload %.1f ms of %.2f MiB\n",
+                  animator->describe().c_str(), animation_totals.median(&SceneAnimator::Update::pose_ms),
+                  animation_totals.median(&SceneAnimator::Update::bvh_ms),
+                  animation_totals.median(&SceneAnimator::Update::upload_ms),
+                  static_cast<double>(animation_totals.bytes_last) / (1024.0 * 1024.0));
     if (balancer) {
       std::printf("strips at the end (rows per device):");
       for (const RowRange& r : pipeline.strips()) std::printf(" %u", r.size());
@@ -455,6 +476,13 @@ int run_reference(const ReferenceCommand& cmd) {
   print_scene_upload(on_devices.device_scene, on_devices.devices.size());
   print_kernel_features(on_devices.device_scene);
   const Scene& scene = on_devices.loaded.scene;
+  // The scene posed at the frame's time, as `render` poses it for that frame.
+  SceneAnimator animator(on_devices.loaded.scene, cmd.animation);
+  if (animator.moves()) {
+    std::fprintf(stderr, "[reference] animation: %s, at t = %.4g s\n", animator.describe().c_str(),
+                 static_cast<double>(cmd.frame) / cmd.fps);
+    animator.update(static_cast<double>(cmd.frame) / cmd.fps, on_devices.devices, on_devices.device_scene);
+  }
   PathTracer tracer(on_devices.devices, on_devices.device_scene, scene);
   ReferenceOptions opt;
   opt.spp = cmd.spp;

@@ -27,6 +27,7 @@ struct PreviewCommand {
   KernelChoice kernels = KernelChoice::Scene;  // --kernels: the scene's features or all
   unsigned width = 640, height = 360;
   float time_s = 0.0f;
+  std::string animation = "all";  // --animation: which glTF clips play (all, none, a name or index)
   std::string out = "out/preview";
   bool overwrite = false;
   DeviceChoice devices;
@@ -44,7 +45,8 @@ struct RenderCommand {
   PipelineKind pipeline = PipelineKind::Proposed;
   unsigned width = 640, height = 360;
   unsigned frames = 1;
-  float fps = 30.0f;           // camera-path time of frame f is f / fps
+  float fps = 30.0f;           // camera-path and animation time of frame f is f / fps
+  std::string animation = "all";  // --animation: which glTF clips play (all, none, a name or index)
   float exposure = 1.0f;       // PNG preview scale
   PathTracer::Options trace;   // --spp, --bounces, --light-sampling, ...
   PathTraceKernel path_kernel = PathTraceKernel::Megakernel;  // --path-tracer
@@ -88,6 +90,7 @@ struct ReferenceCommand {
   unsigned pass_spp = 16;      // samples per progressive pass
   unsigned frame = 0;
   float fps = 30.0f;
+  std::string animation = "all";  // --animation, as render's
   unsigned bounces = 6;
   float exposure = 1.0f;
   std::string out = "out/reference";

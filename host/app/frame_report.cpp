@@ -27,8 +27,23 @@ RenderReport::RenderReport(const RenderCommand& cmd, const StereoPipeline::Optio
   file_.write("{\n  \"frames\": [");
 }
 
+void AnimationTotals::add(const SceneAnimator::Update& u) {
+  ++frames;
+  bytes_last = u.bytes;
+  updates.push_back(u);
+}
+
+double AnimationTotals::median(double SceneAnimator::Update::*field) const {
+  if (updates.empty()) return 0.0;
+  std::vector<double> v;
+  for (const auto& u : updates) v.push_back(u.*field);
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
 void RenderReport::add_frame(unsigned frame, const FrameStats& st, const std::vector<RowRange>& strips,
-                             const FrameQuality& quality, std::optional<double> predicted_ms) {
+                             const FrameQuality& quality, std::optional<double> predicted_ms,
+                             const SceneAnimator::Update* update) {
   nlohmann::json strip_rows = nlohmann::json::array();  // [row0, rows] per device
   for (const RowRange& r : strips) strip_rows.push_back({r.begin, r.size()});
   nlohmann::json stages = nlohmann::json::array();
@@ -45,7 +60,12 @@ void RenderReport::add_frame(unsigned frame, const FrameStats& st, const std::ve
                              {"spp", quality.spp},
                              {"bounces", quality.bounces},
                              {"svgf_iterations", options_.denoise ? quality.svgf_iterations : 0u},
-                             {"predicted_ms", predicted_ms ? nlohmann::json(*predicted_ms) : nlohmann::json(nullptr)}}
+                             {"predicted_ms", predicted_ms ? nlohmann::json(*predicted_ms) : nlohmann::json(nullptr)},
+                             {"scene_update", update ? nlohmann::json{{"pose_ms", update->pose_ms},
+                                                                      {"bvh_ms", update->bvh_ms},
+                                                                      {"upload_ms", update->upload_ms},
+                                                                      {"bytes", update->bytes}}
+                                                     : nlohmann::json(nullptr)}}
                   .dump());
   first_frame_ = false;
 }

@@ -11,6 +11,7 @@
 #include "control/frame_time_controller.h"
 #include "io/atomic_file.h"
 #include "pipeline/stereo_pipeline.h"
+#include "render/scene_animator.h"
 
 #include <nlohmann/json_fwd.hpp>
 
@@ -34,6 +35,17 @@ struct RenderTotals {
   double hz() const;
 };
 
+// An animated scene's per-frame updates (SceneAnimator::Update), for the summary line.
+struct AnimationTotals {
+  unsigned frames = 0;
+  std::size_t bytes_last = 0;  // bytes the last frame wrote to the devices
+  std::vector<SceneAnimator::Update> updates;
+
+  void add(const SceneAnimator::Update& u);
+  // The median over frames of one of Update's times (ms).
+  double median(double SceneAnimator::Update::*field) const;
+};
+
 // --report: one line per frame under "frames", then the run's summary.
 class RenderReport {
  public:
@@ -43,8 +55,11 @@ class RenderReport {
 
   // Frame `frame` as rendered: the strips and quality it was rendered with, and the control
   // loop's prediction for it (none: no control loop, or no prediction yet).
+  // `update`: what posing an animated scene for this frame cost (null: a static scene; the
+  // frame's "scene_update" is then null).
   void add_frame(unsigned frame, const FrameStats& stats, const std::vector<RowRange>& strips,
-                 const FrameQuality& quality, std::optional<double> predicted_ms);
+                 const FrameQuality& quality, std::optional<double> predicted_ms,
+                 const SceneAnimator::Update* update = nullptr);
   // The summary, then the file appears under its name.
   void finish(const RenderTotals& totals, int devices, DeviceMode device_mode, BvhLayout bvh_layout,
               const DeviceScene& scene, const StartTimes& start, std::uint64_t nonfinite_paths);

@@ -48,6 +48,9 @@ void add_size_flags(CLI::App* cmd, unsigned& width, unsigned& height) {
 const char* kSceneHelp = "scene: a JSON scene file (scenes/*.json), an OBJ, glTF 2.0 (.gltf) or binary glTF (.glb) "
                          "file, or a built-in name (cornell, cornell-glossy, atrium)";
 
+const char* kAnimationHelp = "which of a glTF scene's animation clips play: all, none (the rest pose), a clip's name "
+                             "or its index; frame f is at time f / fps, and each clip loops over its own length";
+
 void add_kernels_flag(CLI::App* cmd, px::KernelChoice& kernels) {
   add_word_option(cmd, "--kernels", kernels, px::kernel_words(),
                   "which features the scene-dependent kernels (path tracers, G-buffer, trace, preview) are compiled with: scene (only those the loaded scene uses: no texture, cut-out, glass, normal-map, sun or sky code where it has none; images are identical) or general (every feature)");
@@ -69,7 +72,10 @@ void add_pipeline_flags(CLI::App* cmd, px::RenderCommand& r) {
                   "proposed: every stage on every device for its strip; baseline: Tauray-style, path "
                   "tracing distributed, the rest on the owner; mono: both eyes fully path traced");
   add_size_flags(cmd, r.width, r.height);
-  cmd->add_option("--fps", r.fps, "frame rate: frame f is at time f / fps on the camera path")->capture_default_str();
+  cmd->add_option("--fps", r.fps, "frame rate: frame f is at time f / fps on the camera path and in the animation")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_option("--animation", r.animation, kAnimationHelp)->capture_default_str();
   cmd->add_option("--spp", r.trace.spp, "samples per pixel")->check(CLI::Range(1u, 1u << 20))->capture_default_str();
   cmd->add_option("--bounces", r.trace.bounces, "maximum path length in bounces")->check(CLI::Range(0u, px::PathTracer::kMaxBounces))->capture_default_str();
   cmd->add_option("--rr-start", r.trace.rr_start_bounce, "Russian roulette from this bounce on")->capture_default_str();
@@ -127,7 +133,8 @@ int main(int argc, char** argv) {
   add_sky_flag(preview_cmd, preview.sky);
   add_kernels_flag(preview_cmd, preview.kernels);
   add_size_flags(preview_cmd, preview.width, preview.height);
-  preview_cmd->add_option("--time", preview.time_s, "time on the camera path, seconds")->capture_default_str();
+  preview_cmd->add_option("--time", preview.time_s, "time on the camera path and in the animation, seconds")->capture_default_str();
+  preview_cmd->add_option("--animation", preview.animation, kAnimationHelp)->capture_default_str();
   preview_cmd->add_option("--out", preview.out, "output directory")->capture_default_str();
   preview_cmd->add_flag("--overwrite", preview.overwrite, "allow writing into a non-empty output directory");
   add_device_flags(preview_cmd, preview.devices);
@@ -218,7 +225,10 @@ int main(int argc, char** argv) {
   reference_cmd->add_option("--spp", reference.spp, "total samples per pixel")->check(CLI::Range(1u, 1u << 24))->capture_default_str();
   reference_cmd->add_option("--pass-spp", reference.pass_spp, "samples per progressive pass")->check(CLI::Range(1u, 4096u))->capture_default_str();
   reference_cmd->add_option("--frame", reference.frame, "frame number on the camera path (time = frame / fps)")->capture_default_str();
-  reference_cmd->add_option("--fps", reference.fps, "frame rate of the animation the reference belongs to")->capture_default_str();
+  reference_cmd->add_option("--fps", reference.fps, "frame rate of the animation the reference belongs to")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  reference_cmd->add_option("--animation", reference.animation, kAnimationHelp)->capture_default_str();
   reference_cmd->add_option("--bounces", reference.bounces, "maximum path length")->check(CLI::Range(0u, px::PathTracer::kMaxBounces))->capture_default_str();
   reference_cmd->add_option("--exposure", reference.exposure, "PNG preview scale")->capture_default_str();
   reference_cmd->add_option("--out", reference.out, "output directory")->capture_default_str();

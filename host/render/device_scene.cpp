@@ -64,6 +64,25 @@ cl::Buffer upload(const char* name, const cl::Context& ctx, cl::CommandQueue& qu
   return buffer;
 }
 
+// Rewrites `buffer` with `data`, or replaces it by one a quarter larger than needed when the
+// data does not fit its `capacity` (bytes; updated). Adds the bytes written to `written`.
+template <typename T>
+void rewrite(const char* name, cl::Buffer& buffer, std::size_t& capacity, const cl::Context& ctx,
+             cl::CommandQueue& queue, const std::vector<T>& data, const AllocationLimits& limits,
+             std::size_t& written) {
+  const std::size_t bytes = std::max<std::size_t>(1, data.size()) * sizeof(T);
+  if (bytes > capacity || !buffer()) {
+    if (bytes > limits.max_alloc)
+      throw std::runtime_error(std::string("the scene's ") + name + " buffer needs " + mib(bytes) +
+                               ", more than one allocation may hold on " + limits.device + ": " +
+                               mib(limits.max_alloc) + " (CL_DEVICE_MAX_MEM_ALLOC_SIZE)");
+    capacity = std::min(limits.max_alloc, bytes + bytes / 4);
+    buffer = cl::Buffer(ctx, CL_MEM_READ_ONLY, capacity);
+  }
+  if (!data.empty()) queue.enqueueWriteBuffer(buffer, CL_TRUE, 0, data.size() * sizeof(T), data.data());
+  written += data.size() * sizeof(T);
+}
+
 void copy3(float* dst, const glm::vec3& v) {
   dst[0] = v.x;
   dst[1] = v.y;
@@ -277,9 +296,58 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh) {
   b.textures = upload("texture table", ctx, queue, infos, limits, bytes);
   b.texels = upload("texel", ctx, queue, texels, limits, bytes);
   b.lights = upload("light", ctx, queue, lights, limits, bytes);
+  capacity_.nodes = layout == BvhLayout::Binary ? size_of(flagged.nodes) : size_of(wide_words);
+  capacity_.triangles = size_of(triangles);
+  capacity_.shading = size_of(shading);
+  capacity_.lights = size_of(lights);
+  tri_flags_ = tri_flags;
   bytes_in_context_ = bytes;
   upload_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - upload_start).count();
   per_device_.assign(devices.devices().size(), b);
+}
+
+std::size_t DeviceScene::update_geometry(DeviceSet& devices, const Scene& scene, FlatBvh bvh,
+                                         const std::vector<SceneTriangle>* previous) {
+  if (per_device_.empty()) throw std::logic_error("DeviceScene::update_geometry before any upload");
+  if (scene.triangles.size() != tri_flags_.size())
+    throw std::logic_error("DeviceScene::update_geometry: the scene has " + std::to_string(scene.triangles.size()) +
+                           " triangles, not the " + std::to_string(tri_flags_.size()) + " uploaded");
+  set_triangle_flags(bvh, tri_flags_);
+  ensure_layout(bvh, layout_);
+  const std::vector<std::uint32_t> wide_words =
+      layout_ == BvhLayout::Binary ? std::vector<std::uint32_t>{} : device_wide_nodes(bvh, layout_);
+  const auto shading = make_triangle_shading(scene);
+  const auto lights = make_light_table(scene);
+  // An emitter posed edge-on to nothing (zero area) leaves the table for this frame.
+  light_count_ = lights.size();
+  std::vector<cl_float4> motion;
+  if (previous) {
+    if (previous->size() != scene.triangles.size())
+      throw std::logic_error("DeviceScene::update_geometry: the previous frame has another triangle count");
+    motion.resize(6 * scene.triangles.size());
+    for (std::size_t t = 0; t < scene.triangles.size(); ++t)
+      for (int c = 0; c < 3; ++c) {
+        const glm::vec3& now = scene.triangles[t].p[c];
+        const glm::vec3& before = (*previous)[t].p[c];
+        motion[6 * t + std::size_t(c)] = {{now.x, now.y, now.z, 0.0f}};
+        motion[6 * t + 3 + std::size_t(c)] = {{before.x, before.y, before.z, 0.0f}};
+      }
+  }
+  const AllocationLimits limits = allocation_limits(devices);
+  auto& queue = devices.devices().front().queue;
+  const cl::Context& ctx = devices.context();
+  DeviceSceneBuffers b = per_device_.front();
+  std::size_t written = 0;
+  if (layout_ == BvhLayout::Binary)
+    rewrite("BVH node", b.nodes, capacity_.nodes, ctx, queue, bvh.nodes, limits, written);
+  else
+    rewrite("BVH node", b.nodes, capacity_.nodes, ctx, queue, wide_words, limits, written);
+  rewrite("triangle", b.triangles, capacity_.triangles, ctx, queue, bvh.triangles, limits, written);
+  rewrite("shading", b.shading, capacity_.shading, ctx, queue, shading, limits, written);
+  rewrite("light", b.lights, capacity_.lights, ctx, queue, lights, limits, written);
+  if (previous) rewrite("motion", b.motion, capacity_.motion, ctx, queue, motion, limits, written);
+  per_device_.assign(per_device_.size(), b);
+  return written;
 }
 
 }  // namespace px

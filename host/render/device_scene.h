@@ -25,6 +25,10 @@ struct DeviceSceneBuffers {
   cl::Buffer textures;   // TextureInfo[]
   cl::Buffer texels;     // float4[] (all textures back to back)
   cl::Buffer lights;     // LightTriangle[]
+  // Animated scenes only (SceneAnimator), else null: per scene triangle six float4, its three
+  // vertices now and in the previous frame (the motion pass, kernels/pipeline/motion.cl). Not
+  // one of the seven scene arguments bind() sets.
+  cl::Buffer motion;
 
   // Sets the seven scene arguments starting at argument index `first`; returns the next index.
   cl_uint bind(cl::Kernel& kernel, cl_uint first) const;
@@ -49,6 +53,15 @@ class DeviceScene {
   DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh);
 
   const DeviceSceneBuffers& on(int device_index) const { return per_device_.at(device_index); }
+
+  // A frame of an animated scene: `scene`'s triangles (same count and order as at construction)
+  // and their new tree replace the geometry on the devices: nodes, leaf triangles, shading, the
+  // light table and, with `previous` (the last frame's triangles), the motion buffer. Materials
+  // and textures stay. Buffers are rewritten in place, or replaced by larger ones when the new
+  // data does not fit (a tree of more nodes). The caller makes sure no device still reads them
+  // (StereoPipeline::render returns with every queue finished). Returns the bytes written.
+  std::size_t update_geometry(DeviceSet& devices, const Scene& scene, FlatBvh bvh,
+                              const std::vector<SceneTriangle>* previous);
   // Bytes of scene data in the set's context, shared by all its devices (one copy per context).
   std::size_t bytes_in_context() const { return bytes_in_context_; }
   // Host time to create and write those buffers (blocking writes), ms.
@@ -70,6 +83,11 @@ class DeviceScene {
 
  private:
   std::vector<DeviceSceneBuffers> per_device_;
+  // Allocated bytes of the buffers update_geometry rewrites.
+  struct Capacity {
+    std::size_t nodes = 0, triangles = 0, shading = 0, lights = 0, motion = 0;
+  } capacity_;
+  std::vector<std::uint32_t> tri_flags_;  // triangle_flags(scene): fixed by the materials
   std::size_t bytes_in_context_ = 0;
   double upload_ms_ = 0.0;
   std::size_t light_count_ = 0;

@@ -25,8 +25,16 @@
 //   KHR_materials_transmission >= 0.5     -> smooth dielectric, index from KHR_materials_ior
 //   doubleSided                           -> emitters light both faces
 // Everything else the file asks for is named in one warning line.
+//
+// Motion: a file with animations keeps its node hierarchy, meshes, skins and clips in
+// Scene::rig (scene_rig.h), which poses the scene at any time; translation, rotation and scale
+// channels play with STEP, LINEAR and CUBICSPLINE interpolation, and skins (JOINTS_0 and
+// WEIGHTS_0, inverse bind matrices) are evaluated on the host. A file without animations is
+// posed once here (skins included, at their rest pose) and keeps no rig. Morph targets are named
+// in the warning line.
 #include "image/image_io.h"
 #include "scene/primitives.h"
+#include "scene/scene_rig.h"
 #include "scene/scene_file_bytes.h"
 #include "scene/scene_loader.h"
 
@@ -44,7 +52,9 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <memory>
 #include <numbers>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -236,6 +246,18 @@ class Reader {
     std::vector<glm::vec4> out(a.count, glm::vec4(0.0f));
     for_each_element(a, index, what, [&](std::size_t i, const unsigned char* p) {
       for (int c = 0; c < nc && c < 4; ++c) out[i][c] = component(a, p, c);
+    });
+    return out;
+  }
+
+  // Elements of a MAT4 float accessor (column-major, as glTF stores them).
+  std::vector<glm::dmat4> matrices(int index, const std::string& what) const {
+    const tinygltf::Accessor& a = accessor(index, what);
+    if (a.type != TINYGLTF_TYPE_MAT4 || a.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT)
+      fail(what + " (accessor " + std::to_string(index) + ") must hold MAT4 floats");
+    std::vector<glm::dmat4> out(a.count, glm::dmat4(1.0));
+    for_each_element(a, index, what, [&](std::size_t i, const unsigned char* p) {
+      for (int c = 0; c < 16; ++c) glm::value_ptr(out[i])[c] = component(a, p, c);
     });
     return out;
   }
@@ -442,10 +464,22 @@ class Converter {
       for (std::size_t i = 0; i < model_.nodes.size(); ++i)
         if (!child[i]) roots.push_back(int(i));
     }
+    // A scene that moves keeps its hierarchy, meshes, skins and clips (scene_rig.h) and is
+    // posed from them; so is one with skins, posed once at rest. Any other is flattened here.
+    bool skinned = false;
+    for (const tinygltf::Node& n : model_.nodes) skinned |= n.skin >= 0 && n.mesh >= 0;
+    if (!model_.animations.empty() || skinned) {
+      rig_ = std::make_shared<SceneRig>();
+      rig_->nodes.resize(model_.nodes.size());
+    }
     visited_.assign(model_.nodes.size(), 0);
-    for (int r : roots) visit(r, glm::dmat4(1.0), "scene", 0);
+    for (int r : roots) visit(r, glm::dmat4(1.0), -1, "scene", 0);
     if (has_camera) *has_camera = camera_found_;
-    if (!model_.animations.empty()) unsupported_.add("animations (" + std::to_string(model_.animations.size()) + ")");
+    if (rig_) {
+      skins();
+      animations();
+      pose_at_rest();
+    }
   }
 
   void finish() {
@@ -632,39 +666,39 @@ class Converter {
 
   // --- nodes and meshes ----------------------------------------------------------------------
 
-  glm::dmat4 local_transform(const tinygltf::Node& n, const std::string& where) const {
+  // The node's rest transform as the file gives it: a matrix, or translation, rotation
+  // (normalised) and scale.
+  RigNode node_transform(const tinygltf::Node& n, const std::string& where) const {
+    RigNode out;
     if (n.matrix.size() == 16) {
-      glm::dmat4 m;
-      for (int i = 0; i < 16; ++i) glm::value_ptr(m)[i] = n.matrix[std::size_t(i)];  // column-major, as glTF
-      return m;
+      out.has_matrix = true;
+      for (int i = 0; i < 16; ++i) glm::value_ptr(out.matrix)[i] = n.matrix[std::size_t(i)];  // column-major, as glTF
+      return out;
     }
     if (!n.matrix.empty()) read_.fail(where + ": matrix must have 16 numbers");
-    glm::dvec3 t(0.0), s(1.0);
-    glm::dquat r(1.0, 0.0, 0.0, 0.0);
-    if (n.translation.size() == 3) t = glm::dvec3(n.translation[0], n.translation[1], n.translation[2]);
+    if (n.translation.size() == 3) out.translation = glm::dvec3(n.translation[0], n.translation[1], n.translation[2]);
     else if (!n.translation.empty()) read_.fail(where + ": translation must have 3 numbers");
-    if (n.scale.size() == 3) s = glm::dvec3(n.scale[0], n.scale[1], n.scale[2]);
+    if (n.scale.size() == 3) out.scale = glm::dvec3(n.scale[0], n.scale[1], n.scale[2]);
     else if (!n.scale.empty()) read_.fail(where + ": scale must have 3 numbers");
     if (n.rotation.size() == 4) {
-      r = glm::dquat(n.rotation[3], n.rotation[0], n.rotation[1], n.rotation[2]);  // glTF stores x, y, z, w
+      glm::dquat r(n.rotation[3], n.rotation[0], n.rotation[1], n.rotation[2]);  // glTF stores x, y, z, w
       const double len = glm::length(r);
       if (!(len > 0.0) || !std::isfinite(len)) read_.fail(where + ": rotation is not a usable quaternion");
-      r /= len;
+      out.rotation = r / len;
     } else if (!n.rotation.empty()) {
       read_.fail(where + ": rotation must have 4 numbers");
     }
-    glm::dmat4 m = glm::mat4_cast(r);
-    m[0] *= s.x;
-    m[1] *= s.y;
-    m[2] *= s.z;
-    m[3] = glm::dvec4(t, 1.0);
-    return m;
+    return out;
+  }
+
+  static glm::dmat4 local_matrix(const RigNode& n) {
+    return n.has_matrix ? n.matrix : trs_matrix(n.translation, n.rotation, n.scale);
   }
 
   // Node chains are followed by recursion: bounded, so a file cannot overflow the stack.
   static constexpr int kMaxNodeDepth = 256;
 
-  void visit(int index, const glm::dmat4& parent, const std::string& from, int depth) {
+  void visit(int index, const glm::dmat4& parent, int parent_index, const std::string& from, int depth) {
     if (index < 0 || std::size_t(index) >= model_.nodes.size())
       read_.fail(from + " names node " + std::to_string(index) + ", which does not exist");
     if (depth >= kMaxNodeDepth)
@@ -675,18 +709,23 @@ class Converter {
       read_.fail(where + " is reached twice in the node hierarchy (a cycle or a shared child)");
     visited_[std::size_t(index)] = 1;
     const tinygltf::Node& n = model_.nodes[std::size_t(index)];
-    const glm::dmat4 world = parent * local_transform(n, where);
+    RigNode rest = node_transform(n, where);
+    const glm::dmat4 world = parent * local_matrix(rest);
     for (int c = 0; c < 4; ++c)
       for (int r = 0; r < 4; ++r)
         if (!std::isfinite(world[c][r])) read_.fail(where + ": its transform is not finite");
-    if (n.skin >= 0) unsupported_.add("skins", where);
-    if (n.camera >= 0) camera(n.camera, world, where);
-    if (n.mesh >= 0) mesh(n.mesh, world, where);
+    if (rig_) {
+      rest.parent = parent_index;
+      rig_->nodes[std::size_t(index)] = rest;
+      rig_->order.push_back(index);
+    }
+    if (n.camera >= 0) camera(n.camera, world, where, index);
+    if (n.mesh >= 0) mesh(n.mesh, world, where, index, n.skin);
     for (const auto& [ext, value] : n.extensions) unsupported_.add("node extension " + ext, where);
-    for (int c : n.children) visit(c, world, where, depth + 1);
+    for (int c : n.children) visit(c, world, index, where, depth + 1);
   }
 
-  void camera(int index, const glm::dmat4& world, const std::string& where) {
+  void camera(int index, const glm::dmat4& world, const std::string& where, int node) {
     if (std::size_t(index) >= model_.cameras.size())
       read_.fail(where + " names camera " + std::to_string(index) + ", which does not exist");
     const tinygltf::Camera& c = model_.cameras[std::size_t(index)];
@@ -715,6 +754,7 @@ class Converter {
     scene_.camera.up = glm::vec3(glm::normalize(up));
     scene_.camera.vfov_deg = float(glm::degrees(yfov));
     camera_found_ = true;
+    if (rig_) rig_->camera_node = node;
   }
 
   std::uint32_t default_material() {
@@ -729,118 +769,227 @@ class Converter {
     return std::uint32_t(default_material_);
   }
 
-  void mesh(int index, const glm::dmat4& world, const std::string& where) {
+  void mesh(int index, const glm::dmat4& world, const std::string& where, int node, int skin) {
     if (std::size_t(index) >= model_.meshes.size())
       read_.fail(where + " names mesh " + std::to_string(index) + ", which does not exist");
-    const tinygltf::Mesh& mesh = model_.meshes[std::size_t(index)];
-    const glm::dmat3 linear(world);
-    const glm::dmat3 normal_matrix = glm::transpose(glm::inverse(linear));
-    // A mirroring transform turns the winding around; the front face must stay the front.
-    const bool flip = glm::determinant(linear) < 0.0;
-    for (std::size_t pi = 0; pi < mesh.primitives.size(); ++pi) {
-      const tinygltf::Primitive& prim = mesh.primitives[pi];
-      const std::string what = "mesh " + std::to_string(index) + " primitive " + std::to_string(pi);
-      if (!prim.targets.empty()) unsupported_.add("morph targets", "mesh " + std::to_string(index));
-      for (const auto& [ext, value] : prim.extensions) unsupported_.add("primitive extension " + ext, what);
-      const int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
-      if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP &&
-          mode != TINYGLTF_MODE_TRIANGLE_FAN) {
-        unsupported_.add(mode == TINYGLTF_MODE_POINTS ? "point primitives" : "line primitives", what);
-        continue;
-      }
-      const auto pos_it = prim.attributes.find("POSITION");
-      if (pos_it == prim.attributes.end()) read_.fail(what + " has no POSITION attribute");
-      const std::vector<glm::vec4> positions = read_.floats(pos_it->second, {TINYGLTF_TYPE_VEC3}, what + " POSITION", false);
-      std::vector<glm::vec4> normals, uvs;
-      if (auto it = prim.attributes.find("NORMAL"); it != prim.attributes.end()) {
-        normals = read_.floats(it->second, {TINYGLTF_TYPE_VEC3}, what + " NORMAL", false);
-        if (normals.size() != positions.size()) read_.fail(what + ": NORMAL and POSITION counts differ");
-      }
-      if (auto it = prim.attributes.find("TEXCOORD_0"); it != prim.attributes.end()) {
-        uvs = read_.floats(it->second, {TINYGLTF_TYPE_VEC2}, what + " TEXCOORD_0", true);
-        if (uvs.size() != positions.size()) read_.fail(what + ": TEXCOORD_0 and POSITION counts differ");
-      }
-      for (const auto& [attr, acc] : prim.attributes)
-        if (attr.rfind("JOINTS_", 0) == 0 || attr.rfind("WEIGHTS_", 0) == 0) unsupported_.add("skins", what);
-        else if (attr.rfind("COLOR_", 0) == 0) unsupported_.add("vertex colours", what);
-
-      std::vector<std::uint32_t> idx;
-      if (prim.indices >= 0) {
-        idx = read_.indices(prim.indices, what + " indices");
-        for (std::size_t i = 0; i < idx.size(); ++i)
-          if (idx[i] >= positions.size())
-            read_.fail(what + ": index " + std::to_string(idx[i]) + " (at " + std::to_string(i) +
-                       ") is out of range (" + std::to_string(positions.size()) + " vertices)");
-      } else {
-        idx.resize(positions.size());
-        for (std::size_t i = 0; i < idx.size(); ++i) idx[i] = std::uint32_t(i);
-      }
-      std::vector<std::array<std::uint32_t, 3>> tris;
-      if (mode == TINYGLTF_MODE_TRIANGLES) {
-        for (std::size_t i = 0; i + 2 < idx.size(); i += 3) tris.push_back({idx[i], idx[i + 1], idx[i + 2]});
-      } else if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
-        for (std::size_t i = 0; i + 2 < idx.size(); ++i)
-          tris.push_back(i % 2 == 0 ? std::array{idx[i], idx[i + 1], idx[i + 2]}
-                                    : std::array{idx[i + 1], idx[i], idx[i + 2]});
-      } else {
-        for (std::size_t i = 1; i + 1 < idx.size(); ++i) tris.push_back({idx[0], idx[i], idx[i + 1]});
-      }
-
-      std::uint32_t material;
-      if (prim.material >= 0 && std::size_t(prim.material) < model_.materials.size())
-        material = std::uint32_t(prim.material);
-      else {
-        if (prim.material >= 0)
-          scene_.stats.warnings.push_back(path_ + ": " + what + " names material " + std::to_string(prim.material) +
-                                          ", which does not exist; using a default grey");
-        material = default_material();
-      }
-
-      // Positions in world space once per vertex; non-finite ones drop their triangles.
-      std::vector<glm::vec3> world_pos(positions.size());
-      for (std::size_t v = 0; v < positions.size(); ++v) world_pos[v] = glm::vec3(world * glm::dvec4(glm::dvec3(glm::vec3(positions[v])), 1.0));
-      for (const auto& t : tris) {
-        SceneTriangle tri;
-        tri.material = material;
-        const std::uint32_t order[3] = {t[0], flip ? t[2] : t[1], flip ? t[1] : t[2]};
-        bool finite = true;
-        for (int c = 0; c < 3; ++c) {
-          const glm::vec3& p = world_pos[order[c]];
-          finite &= std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
-          tri.p[c] = p;
-        }
-        if (!finite) {
-          ++scene_.stats.dropped_nonfinite;
-          continue;
-        }
-        if (is_degenerate(tri)) {
-          ++scene_.stats.dropped_degenerate;
-          continue;
-        }
-        const glm::vec3 ng = geometric_normal(tri);
-        if (ng == glm::vec3(0.0f)) {
-          ++scene_.stats.dropped_nonfinite;
-          continue;
-        }
-        for (int c = 0; c < 3; ++c) {
-          glm::vec3 n = ng;
-          if (!normals.empty()) {
-            const glm::vec3 wn(normal_matrix * glm::dvec3(glm::vec3(normals[order[c]])));
-            const float len = glm::length(wn);
-            if (len > 0.0f && std::isfinite(len)) n = wn / len;
+    if (skin >= 0 && std::size_t(skin) >= model_.skins.size())
+      read_.fail(where + " names skin " + std::to_string(skin) + ", which does not exist");
+    if (rig_) {
+      // Posed later (pose_at_rest, and every frame): the primitives are read once per mesh,
+      // whichever nodes share it.
+      auto [it, fresh] = rig_meshes_.try_emplace(index);
+      if (fresh)
+        for (std::size_t pi = 0; pi < model_.meshes[std::size_t(index)].primitives.size(); ++pi)
+          if (auto prim = primitive(index, pi)) {
+            rig_->primitives.push_back(std::move(*prim));
+            it->second.push_back(int(rig_->primitives.size()) - 1);
           }
-          tri.n[c] = n;
-          glm::vec2 uv(0.0f);
-          if (!uvs.empty()) {
-            const glm::vec4& a = uvs[order[c]];
-            // glTF's v runs down the image, the renderer's (OBJ's) up.
-            if (std::isfinite(a.x) && std::isfinite(a.y)) uv = glm::vec2(a.x, 1.0f - a.y);
-          }
-          tri.uv[c] = uv;
-        }
-        scene_.triangles.push_back(tri);
-      }
+      RigMeshInstance inst;
+      inst.node = node;
+      inst.skin = skin;
+      inst.primitives = it->second;
+      if (skin >= 0)
+        for (int p : inst.primitives)
+          if (rig_->primitives[std::size_t(p)].joints.empty())
+            unsupported_.add("skins on primitives without JOINTS_0 and WEIGHTS_0 (rendered unskinned)", where);
+      rig_->instances.push_back(std::move(inst));
+      return;
     }
+    for (std::size_t pi = 0; pi < model_.meshes[std::size_t(index)].primitives.size(); ++pi)
+      if (auto prim = primitive(index, pi))
+        emit_primitive(*prim, world, nullptr, nullptr, nullptr, scene_.triangles, scene_.stats);
+  }
+
+  // Primitive `pi` of mesh `index` in its own space, or nothing (with a warning) when it is not
+  // made of triangles.
+  std::optional<RigPrimitive> primitive(int index, std::size_t pi) {
+    const tinygltf::Primitive& prim = model_.meshes[std::size_t(index)].primitives[pi];
+    const std::string what = "mesh " + std::to_string(index) + " primitive " + std::to_string(pi);
+    if (!prim.targets.empty()) unsupported_.add("morph targets", "mesh " + std::to_string(index));
+    for (const auto& [ext, value] : prim.extensions) unsupported_.add("primitive extension " + ext, what);
+    const int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
+    if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP && mode != TINYGLTF_MODE_TRIANGLE_FAN) {
+      unsupported_.add(mode == TINYGLTF_MODE_POINTS ? "point primitives" : "line primitives", what);
+      return std::nullopt;
+    }
+    RigPrimitive out;
+    const auto pos_it = prim.attributes.find("POSITION");
+    if (pos_it == prim.attributes.end()) read_.fail(what + " has no POSITION attribute");
+    {
+      const std::vector<glm::vec4> positions = read_.floats(pos_it->second, {TINYGLTF_TYPE_VEC3}, what + " POSITION", false);
+      out.positions.resize(positions.size());
+      for (std::size_t v = 0; v < positions.size(); ++v) out.positions[v] = glm::vec3(positions[v]);
+    }
+    const std::size_t nv = out.positions.size();
+    if (auto it = prim.attributes.find("NORMAL"); it != prim.attributes.end()) {
+      const auto normals = read_.floats(it->second, {TINYGLTF_TYPE_VEC3}, what + " NORMAL", false);
+      if (normals.size() != nv) read_.fail(what + ": NORMAL and POSITION counts differ");
+      out.normals.resize(nv);
+      for (std::size_t v = 0; v < nv; ++v) out.normals[v] = glm::vec3(normals[v]);
+    }
+    if (auto it = prim.attributes.find("TEXCOORD_0"); it != prim.attributes.end()) {
+      const auto uvs = read_.floats(it->second, {TINYGLTF_TYPE_VEC2}, what + " TEXCOORD_0", true);
+      if (uvs.size() != nv) read_.fail(what + ": TEXCOORD_0 and POSITION counts differ");
+      out.uvs.resize(nv);
+      for (std::size_t v = 0; v < nv; ++v) out.uvs[v] = glm::vec2(uvs[v]);
+    }
+    const auto joints_it = prim.attributes.find("JOINTS_0"), weights_it = prim.attributes.find("WEIGHTS_0");
+    if (rig_ && joints_it != prim.attributes.end() && weights_it != prim.attributes.end()) {
+      out.joints = read_.floats(joints_it->second, {TINYGLTF_TYPE_VEC4}, what + " JOINTS_0", true);
+      out.weights = read_.floats(weights_it->second, {TINYGLTF_TYPE_VEC4}, what + " WEIGHTS_0", true);
+      if (out.joints.size() != nv || out.weights.size() != nv)
+        read_.fail(what + ": JOINTS_0, WEIGHTS_0 and POSITION counts differ");
+    }
+    for (const auto& [attr, acc] : prim.attributes)
+      if (attr.rfind("JOINTS_", 0) == 0 || attr.rfind("WEIGHTS_", 0) == 0) {
+        if (attr != "JOINTS_0" && attr != "WEIGHTS_0") unsupported_.add("more than four joints per vertex", what);
+        else if (!rig_) unsupported_.add("skins", what);
+      } else if (attr.rfind("COLOR_", 0) == 0) {
+        unsupported_.add("vertex colours", what);
+      }
+
+    std::vector<std::uint32_t> idx;
+    if (prim.indices >= 0) {
+      idx = read_.indices(prim.indices, what + " indices");
+      for (std::size_t i = 0; i < idx.size(); ++i)
+        if (idx[i] >= nv)
+          read_.fail(what + ": index " + std::to_string(idx[i]) + " (at " + std::to_string(i) +
+                     ") is out of range (" + std::to_string(nv) + " vertices)");
+    } else {
+      idx.resize(nv);
+      for (std::size_t i = 0; i < idx.size(); ++i) idx[i] = std::uint32_t(i);
+    }
+    auto& tris = out.triangles;
+    if (mode == TINYGLTF_MODE_TRIANGLES) {
+      for (std::size_t i = 0; i + 2 < idx.size(); i += 3) tris.push_back({idx[i], idx[i + 1], idx[i + 2]});
+    } else if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
+      for (std::size_t i = 0; i + 2 < idx.size(); ++i)
+        tris.push_back(i % 2 == 0 ? std::array{idx[i], idx[i + 1], idx[i + 2]}
+                                  : std::array{idx[i + 1], idx[i], idx[i + 2]});
+    } else {
+      for (std::size_t i = 1; i + 1 < idx.size(); ++i) tris.push_back({idx[0], idx[i], idx[i + 1]});
+    }
+
+    if (prim.material >= 0 && std::size_t(prim.material) < model_.materials.size())
+      out.material = std::uint32_t(prim.material);
+    else {
+      if (prim.material >= 0)
+        scene_.stats.warnings.push_back(path_ + ": " + what + " names material " + std::to_string(prim.material) +
+                                        ", which does not exist; using a default grey");
+      out.material = default_material();
+    }
+    return out;
+  }
+
+  // --- skins and animations (a scene with a rig only) ---------------------------------------
+
+  void skins() {
+    for (std::size_t si = 0; si < model_.skins.size(); ++si) {
+      const tinygltf::Skin& s = model_.skins[si];
+      const std::string what = "skin " + std::to_string(si);
+      RigSkin skin;
+      for (int j : s.joints) {
+        if (j < 0 || std::size_t(j) >= model_.nodes.size())
+          read_.fail(what + " names joint node " + std::to_string(j) + ", which does not exist");
+        skin.joints.push_back(j);
+      }
+      if (s.inverseBindMatrices >= 0) {
+        skin.inverse_bind = read_.matrices(s.inverseBindMatrices, what + " inverseBindMatrices");
+        if (skin.inverse_bind.size() < skin.joints.size())
+          read_.fail(what + ": " + std::to_string(skin.inverse_bind.size()) + " inverse bind matrices for " +
+                     std::to_string(skin.joints.size()) + " joints");
+        skin.inverse_bind.resize(skin.joints.size());
+      } else {
+        skin.inverse_bind.assign(skin.joints.size(), glm::dmat4(1.0));
+      }
+      rig_->skins.push_back(std::move(skin));
+    }
+    // Every vertex's joints must name one of its skin's joints.
+    for (const RigMeshInstance& inst : rig_->instances) {
+      if (inst.skin < 0) continue;
+      const std::size_t joints = rig_->skins[std::size_t(inst.skin)].joints.size();
+      for (int p : inst.primitives)
+        for (const glm::vec4& j : rig_->primitives[std::size_t(p)].joints)
+          for (int k = 0; k < 4; ++k)
+            if (!(j[k] >= 0.0f && std::size_t(j[k]) < joints))
+              read_.fail("node " + std::to_string(inst.node) + ": a vertex names joint " + std::to_string(j[k]) +
+                         " of skin " + std::to_string(inst.skin) + ", which has " + std::to_string(joints));
+    }
+  }
+
+  void animations() {
+    for (std::size_t ai = 0; ai < model_.animations.size(); ++ai) {
+      const tinygltf::Animation& a = model_.animations[ai];
+      const std::string what = "animation " + std::to_string(ai);
+      AnimationClip clip;
+      clip.name = a.name.empty() ? what : a.name;
+      for (std::size_t ci = 0; ci < a.channels.size(); ++ci) {
+        const tinygltf::AnimationChannel& c = a.channels[ci];
+        const std::string where = what + " channel " + std::to_string(ci);
+        if (c.target_node < 0) continue;  // glTF: a channel without a node is for an extension
+        if (std::size_t(c.target_node) >= model_.nodes.size())
+          read_.fail(where + " targets node " + std::to_string(c.target_node) + ", which does not exist");
+        AnimationChannel ch;
+        ch.node = c.target_node;
+        if (c.target_path == "translation") ch.path = TrsPath::Translation;
+        else if (c.target_path == "rotation") ch.path = TrsPath::Rotation;
+        else if (c.target_path == "scale") ch.path = TrsPath::Scale;
+        else {
+          unsupported_.add(c.target_path == "weights" ? "morph target weights" : "animation path " + c.target_path, what);
+          continue;
+        }
+        if (rig_->nodes[std::size_t(c.target_node)].has_matrix) {
+          unsupported_.add("channels on nodes given by a matrix", where);
+          continue;
+        }
+        if (c.sampler < 0 || std::size_t(c.sampler) >= a.samplers.size())
+          read_.fail(where + " names sampler " + std::to_string(c.sampler) + ", which does not exist");
+        const tinygltf::AnimationSampler& s = a.samplers[std::size_t(c.sampler)];
+        KeyframeTrack& track = ch.track;
+        if (s.interpolation.empty() || s.interpolation == "LINEAR") track.interpolation = Interpolation::Linear;
+        else if (s.interpolation == "STEP") track.interpolation = Interpolation::Step;
+        else if (s.interpolation == "CUBICSPLINE") track.interpolation = Interpolation::CubicSpline;
+        else read_.fail(where + ": unknown interpolation '" + s.interpolation + "'");
+        for (const glm::vec4& t : read_.floats(s.input, {TINYGLTF_TYPE_SCALAR}, where + " input", false)) {
+          if (!std::isfinite(t.x) || (!track.times.empty() && !(t.x > track.times.back())))
+            read_.fail(where + ": key times must be finite and strictly increasing");
+          track.times.push_back(t.x);
+        }
+        const bool rotation = ch.path == TrsPath::Rotation;
+        for (const glm::vec4& v : read_.floats(s.output, {rotation ? TINYGLTF_TYPE_VEC4 : TINYGLTF_TYPE_VEC3},
+                                               where + " output", rotation)) {
+          if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z) || !std::isfinite(v.w))
+            read_.fail(where + ": output values must be finite");
+          track.values.push_back(glm::dvec4(v));
+        }
+        const std::size_t per_key = track.interpolation == Interpolation::CubicSpline ? 3 : 1;
+        if (track.times.empty() || track.values.size() != per_key * track.times.size())
+          read_.fail(where + ": " + std::to_string(track.times.size()) + " key times for " +
+                     std::to_string(track.values.size()) + " output values" +
+                     (per_key == 3 ? " (CUBICSPLINE has three per key)" : ""));
+        clip.duration = std::max(clip.duration, track.times.back());
+        clip.channels.push_back(std::move(ch));
+      }
+      rig_->clips.push_back(std::move(clip));
+    }
+  }
+
+  // The scene's triangles at the rest pose (the nodes' own transforms, skins bound by them):
+  // the triangles kept here are the rig's for good. A scene without clips keeps no rig.
+  void pose_at_rest() {
+    const std::vector<glm::dmat4> world = rig_world_matrices(*rig_, 0.0, {});
+    std::vector<std::vector<glm::dmat4>> joints(rig_->skins.size());
+    for (std::size_t s = 0; s < rig_->skins.size(); ++s) joints[s] = skin_matrices(rig_->skins[s], world);
+    for (RigMeshInstance& inst : rig_->instances) {
+      inst.kept.assign(inst.primitives.size(), {});
+      const std::vector<glm::dmat4>* jm = inst.skin >= 0 ? &joints[std::size_t(inst.skin)] : nullptr;
+      for (std::size_t p = 0; p < inst.primitives.size(); ++p)
+        emit_primitive(rig_->primitives[std::size_t(inst.primitives[p])], world[std::size_t(inst.node)], jm, nullptr,
+                       &inst.kept[p], scene_.triangles, scene_.stats);
+    }
+    rig_->triangle_count = scene_.triangles.size();
+    if (!rig_->clips.empty()) scene_.rig = std::move(rig_);
+    rig_.reset();
   }
 
   const tinygltf::Model& model_;
@@ -850,6 +999,8 @@ class Converter {
   Unsupported unsupported_;
   std::map<std::pair<const tinygltf::Image*, bool>, int> cache_;
   std::vector<char> visited_;
+  std::shared_ptr<SceneRig> rig_;           // while loading a scene that moves or is skinned
+  std::map<int, std::vector<int>> rig_meshes_;  // glTF mesh -> its primitives in the rig
   int default_material_ = -1;
   bool camera_found_ = false;
 };

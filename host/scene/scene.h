@@ -6,11 +6,14 @@
 #include <glm/glm.hpp>
 
 #include <cstdint>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 namespace px {
+
+struct SceneRig;  // scene_rig.h
 
 // Any failure to produce a valid scene. The message names the file (and line, where there is
 // one) and says what is wrong, so the CLI can print it as is and exit non-zero.
@@ -112,6 +115,9 @@ struct Scene {
   Sun sun;
   Sky sky;
   SceneStats stats;
+  // How the scene moves (a glTF file with animations; scene_rig.h), or null for a static scene.
+  // `triangles` then hold its rest pose until a SceneAnimator poses them for a frame's time.
+  std::shared_ptr<const SceneRig> rig;
 
   // Interpupillary distance in scene units.
   float ipd_units() const { return ipd_m / meters_per_unit; }

@@ -6,6 +6,7 @@
 #include "image/image_io.h"
 #include "io/interrupt.h"
 #include "render/fly_camera.h"
+#include "render/scene_animator.h"
 #include "render/stereo_camera.h"
 
 // libepoxy resolves the GL entry points (buffer objects, framebuffer blits) at run time; it
@@ -66,8 +67,8 @@ struct Shared {
 };
 
 // The render thread: frame after frame until told to quit or --frames are done.
-void render_loop(const ViewCommand& cmd, RenderSession& session, std::optional<FrameTimeController>& controller,
-                 Shared& shared) {
+void render_loop(const ViewCommand& cmd, RenderSession& session, SceneAnimator& animator,
+                 std::optional<FrameTimeController>& controller, Shared& shared) {
   StereoPipeline& pipeline = session.pipeline;
   const Scene& scene = session.loaded.scene;
   const float duration = camera_path_duration(scene);
@@ -87,6 +88,9 @@ void render_loop(const ViewCommand& cmd, RenderSession& session, std::optional<F
       }
       const float t = scripted ? static_cast<float>(f) / cmd.render.fps
                                : (duration > 0.0f ? static_cast<float>(std::fmod(path_time, double(duration))) : 0.0f);
+      // The animation plays on the same clock, unbounded (each clip loops over its own length).
+      animator.update(scripted ? static_cast<double>(f) / cmd.render.fps : path_time, session.devices,
+                      session.device_scene);
       const Camera camera = flying ? fly : evaluate_camera(scene, t);
       const FrameQuality quality = pipeline.quality();
       const FrameStats st = pipeline.render(f, camera);
@@ -280,6 +284,8 @@ int run_view(const ViewCommand& cmd) {
   GlfwSession glfw;
   install_interrupt_handlers();
   RenderSession session(cmd.render, config.options);
+  SceneAnimator animator(session.loaded.scene, cmd.render.animation);
+  if (animator.moves()) std::fprintf(stderr, "[view] animation: %s\n", animator.describe().c_str());
   const unsigned w = cmd.render.width, h = cmd.render.height;
   std::fprintf(stderr, "[view] %ux%u per eye, %u spp, %u bounces, pipeline %s, denoise %s%s\n", w, h,
                config.options.trace.spp, config.options.trace.bounces, cli_word(cmd.render.pipeline).c_str(),
@@ -301,7 +307,8 @@ int run_view(const ViewCommand& cmd) {
 
   std::optional<StereoSurface> surface(std::in_place, w, h);
   Shared shared;
-  std::thread renderer(render_loop, std::cref(cmd), std::ref(session), std::ref(config.controller), std::ref(shared));
+  std::thread renderer(render_loop, std::cref(cmd), std::ref(session), std::ref(animator), std::ref(config.controller),
+                       std::ref(shared));
   // However this function leaves, the render thread is told to stop and joined first.
   struct Joiner {
     Shared& shared;

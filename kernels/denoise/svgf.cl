@@ -165,7 +165,8 @@ inline float4 px_environment_temporal(float3 c, const global GBufferTexel* g, in
 kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, const global float4* color,
                           const global float4* albedo, const global GBufferTexel* gbuf, const global GBufferTexel* prev_gbuf,
                           const global float4* prev_illum, const global float4* prev_moments, SvgfParams p,
-                          CameraParams prev_cam, uint have_history, const global float4* guide) {
+                          CameraParams prev_cam, uint have_history, const global float4* guide,
+                          const global float4* motion) {
   const uint gid = get_global_id(0);
   if (gid >= p.rows * p.width) return;
   const uint i = p.row0 * p.width + gid;
@@ -198,7 +199,8 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
   float2 hist_m = (float2)(0.0f, 0.0f);
   float hist_len = 0.0f, wsum = 0.0f;
   if (have_history) {
-    const float3 pos = px_load3(g->pos);
+    /* Where the point was: through its object's motion in an animated scene (motion.cl). */
+    const float3 pos = motion ? motion[i].xyz : px_load3(g->pos);
     const float3 n = px_load3(g->normal);
     const float3 d = pos - px_camera_origin(&prev_cam);
     const float expected = length(d);
@@ -832,17 +834,26 @@ kernel void svgf_remodulate(global float4* out_color, const global float4* illum
  * history that each bilinear read blurs and that lags behind the view (atrium, camera moving
  * about half a pixel a frame: -1.2% and 26.1 dB without the motion term, -0.8% and 27.2 dB
  * with it). The history is first clipped to
- * mean +- PX_TAA_CLIP_SIGMA standard deviations of the current 3x3 neighbourhood per channel,
+ * mean +- PX_TAA_CLIP_SIGMA standard deviations of the current 3x3 neighbourhood per YCoCg axis,
  * so that what moved or was disoccluded cannot leave a trail: on an edge the neighbourhood
  * holds both sides and the average passes. Reads `color` in rows y - 1 .. y + 1 (readable
  * ones) and `prev` within temporal_rows rows. Writes the result to `resolved` (w = 1) and the
  * new history (rgb, length) to `history`. */
+/* Luma and two chroma differences (YCoCg): the history is clipped in these axes, not in R, G
+ * and B. A box per RGB channel around a grey neighbourhood still holds a saturated colour's
+ * brightest and darkest channels, so a red object that moved on left a reddish trail on a grey
+ * edge behind it (the range of R and that of B each pass); in YCoCg the neighbourhood's narrow
+ * chroma range removes the hue. */
+inline float3 px_ycocg(float3 c) {
+  return (float3)(0.25f * c.x + 0.5f * c.y + 0.25f * c.z, 0.5f * c.x - 0.5f * c.z, -0.25f * c.x + 0.5f * c.y - 0.25f * c.z);
+}
+inline float3 px_from_ycocg(float3 c) { return (float3)(c.x + c.y - c.z, c.x + c.z, c.x - c.y - c.z); }
 #define PX_TAA_CLIP_SIGMA 1.25f
 #define PX_TAA_MOTION_ALPHA 1.0f
 #define PX_TAA_MOTION_ALPHA_MAX 0.5f
 kernel void svgf_antialias(global float4* resolved, global float4* history, const global float4* color,
                            const global float4* prev, const global GBufferTexel* gbuf, SvgfParams p,
-                           CameraParams prev_cam, uint have_history, float alpha) {
+                           CameraParams prev_cam, uint have_history, float alpha, const global float4* motion) {
   const uint gid = get_global_id(0);
   if (gid >= p.rows * p.width) return;
   const uint i = p.row0 * p.width + gid;
@@ -852,7 +863,8 @@ kernel void svgf_antialias(global float4* resolved, global float4* history, cons
   float len = 1.0f;
   if (have_history) {
     const global GBufferTexel* g = gbuf + i;
-    const float3 d = g->material_class == PX_CLASS_MISS ? px_load3(g->pos) : px_load3(g->pos) - px_camera_origin(&prev_cam);
+    const float3 at = motion && motion[i].w > 0.0f ? motion[i].xyz : px_load3(g->pos);
+    const float3 d = g->material_class == PX_CLASS_MISS ? px_load3(g->pos) : at - px_camera_origin(&prev_cam);
     float fx, fy;
     if (px_previous_pixel(d, &prev_cam, &p, &fx, &fy)) {
       float3 hist = (float3)(0.0f, 0.0f, 0.0f);
@@ -875,14 +887,14 @@ kernel void svgf_antialias(global float4* resolved, global float4* history, cons
           for (int dx = -1; dx <= 1; ++dx) {
             const int tx = x + dx, ty = y + dy;
             if (!px_pixel_readable(tx, ty, &p)) continue;
-            const float3 t = color[(uint)ty * p.width + (uint)tx].xyz;
+            const float3 t = px_ycocg(color[(uint)ty * p.width + (uint)tx].xyz);
             m1 += t;
             m2 += t * t;
             count += 1.0f;
           }
         m1 /= count;
         const float3 sigma = sqrt(fmax(m2 / count - m1 * m1, (float3)(0.0f, 0.0f, 0.0f)));
-        hist = clamp(hist, m1 - PX_TAA_CLIP_SIGMA * sigma, m1 + PX_TAA_CLIP_SIGMA * sigma);
+        hist = px_from_ycocg(clamp(px_ycocg(hist), m1 - PX_TAA_CLIP_SIGMA * sigma, m1 + PX_TAA_CLIP_SIGMA * sigma));
         len = fmin((float)p.max_history, floor(hist_len / wsum + 0.5f) + 1.0f);
         /* Motion: resampled history blurs a little more with every bilinear read and lags behind
          * what the view now shows, so a pixel that moved trusts it less. */

@@ -103,8 +103,22 @@ void SvgfDenoiser::copy_rows(const cl::Buffer& from, const cl::Buffer& to, RowRa
 
 void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& albedo, const cl::Buffer& gbuf,
                             const cl::Buffer& prev_gbuf, const CameraParams& cam, const CameraParams& prev_cam,
-                            RowRange rows, RowRange readable) {
+                            RowRange rows, RowRange readable, const cl::Buffer* scene_motion) {
   if (rows.size() == 0) return;
+  motion_this_frame_ = scene_motion != nullptr;
+  if (scene_motion) {
+    if (!motion_())
+      motion_ = cl::Buffer(devices_.context(), CL_MEM_READ_WRITE,
+                           static_cast<std::size_t>(width_) * height_ * sizeof(cl_float4));
+    cl::Kernel km(devices_.program("pipeline/motion.cl"), "gbuffer_motion");
+    km.setArg(0, motion_);
+    km.setArg(1, gbuf);
+    km.setArg(2, *scene_motion);
+    km.setArg(3, static_cast<cl_uint>(rows.begin));
+    km.setArg(4, static_cast<cl_uint>(rows.size()));
+    km.setArg(5, static_cast<cl_uint>(width_));
+    launch(km, rows, "motion");
+  }
   cl::Kernel k(devices_.program("denoise/svgf.cl"), "svgf_temporal");
   current_ = 0;
   k.setArg(0, illum_[0]);
@@ -120,6 +134,7 @@ void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& albedo, c
   k.setArg(9, prev_cam);
   k.setArg(10, static_cast<cl_uint>(have_history_));
   k.setArg(11, guide_);  // guide() has run: silhouette pixels look for a neighbour to borrow from
+  set_optional_buffer(k, 12, motion_this_frame_ ? &motion_ : nullptr);
   launch(k, rows, "temporal");
   // The moments (with history length) are this frame's moment history as they stand.
   copy_rows(moments_, hist_moments_[frame_parity_], rows, Stage::RecordPrevious, "moment history");
@@ -203,6 +218,8 @@ void SvgfDenoiser::antialias(const cl::Buffer& out_color, const cl::Buffer& gbuf
   k.setArg(6, prev_cam);
   k.setArg(7, static_cast<cl_uint>(have_history_));
   k.setArg(8, options_.taa_alpha);
+  // The motion pass covered temporal()'s rows, which are these (the strip).
+  set_optional_buffer(k, 9, motion_this_frame_ ? &motion_ : nullptr);
   launch(k, rows, "anti-aliasing");
   copy_rows(resolved, out_color, rows, Stage::Denoise, "anti-aliased copy");
 }

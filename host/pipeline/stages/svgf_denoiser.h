@@ -47,8 +47,12 @@ class SvgfDenoiser {
   // per-pixel mean primary albedo, w = the share of samples on filtered surfaces), blend with
   // history reprojected through `prev_cam`. `cam` is the camera `gbuf` was traced with: its
   // jitter (where in each pixel the texel lies) is taken back out of the reprojection.
+  // `scene_motion` (an animated scene's DeviceSceneBuffers::motion, else null): the history is
+  // found where each pixel's surface point was in the previous frame, through its object's
+  // motion as well as the camera's (a motion pass, kernels/pipeline/motion.cl, over `rows`).
   void temporal(const cl::Buffer& color, const cl::Buffer& albedo, const cl::Buffer& gbuf, const cl::Buffer& prev_gbuf,
-                const CameraParams& cam, const CameraParams& prev_cam, RowRange rows, RowRange readable);
+                const CameraParams& cam, const CameraParams& prev_cam, RowRange rows, RowRange readable,
+                const cl::Buffer* scene_motion = nullptr);
   // Pass 2: variance from moments (spatial estimate for short histories). Its output, before
   // any a-trous step, is also next frame's colour history.
   void variance(RowRange rows, RowRange readable);
@@ -63,7 +67,7 @@ class SvgfDenoiser {
   // After remodulate(): temporal anti-aliasing of `out_color` (svgf_antialias) with last
   // frame's result, reprojected through `gbuf` (traced with `cam`) into `prev_cam`. Reads
   // `out_color` within 1 row of `rows` (readable ones) and history within temporal_rows.
-  // Nothing with Options::taa_alpha >= 1.
+  // Nothing with Options::taa_alpha >= 1. Follows object motion where temporal() was given it.
   void antialias(const cl::Buffer& out_color, const cl::Buffer& gbuf, const CameraParams& cam,
                  const CameraParams& prev_cam, RowRange rows, RowRange readable);
   // The paper's bilateral seam filter on `color` (rows within `band` of a seam; -1 = none),
@@ -115,6 +119,8 @@ class SvgfDenoiser {
   cl::Buffer hist_illum_[2];   // colour history: [frame_parity_] written this frame
   cl::Buffer hist_moments_[2];
   cl::Buffer hist_resolved_[2];  // anti-aliased radiance (rgb, history length), as hist_illum_
+  cl::Buffer motion_;            // float4 per pixel: the previous frame's surface point (motion.cl)
+  bool motion_this_frame_ = false;
   int current_ = 0;
   int frame_parity_ = 0;
   bool have_history_ = false;

@@ -1,0 +1,78 @@
+#include "render/scene_animator.h"
+
+#include "bvh/flat_bvh.h"
+#include "scene/scene_rig.h"
+
+#include <chrono>
+#include <stdexcept>
+
+namespace px {
+namespace {
+
+using clock_type = std::chrono::steady_clock;
+double ms_since(clock_type::time_point t0) {
+  return std::chrono::duration<double, std::milli>(clock_type::now() - t0).count();
+}
+
+}  // namespace
+
+SceneAnimator::SceneAnimator(Scene& scene, const std::string& choice) : scene_(scene), base_camera_(scene.camera) {
+  if (!scene.rig) {
+    if (!choice.empty() && choice != "all" && choice != "none")
+      throw std::invalid_argument("--animation " + choice + ": the scene " + scene.name + " has no animations");
+    return;
+  }
+  clips_ = select_clips(scene.rig->clips, choice);
+  moves_ = rig_moves(*scene.rig, clips_);
+  // The glTF camera follows its node unless a scene file placed the camera itself.
+  if (scene.rig->camera_node >= 0 && scene.camera_path.empty()) {
+    const Camera rest = rig_camera(*scene.rig, rig_world_matrices(*scene.rig, 0.0, {}), scene.camera);
+    follow_camera_ = rest.position == scene.camera.position && rest.target == scene.camera.target;
+  }
+}
+
+std::string SceneAnimator::describe() const {
+  if (!scene_.rig) return "none (static scene)";
+  if (clips_.empty()) return "none (the rest pose)";
+  std::string out;
+  for (int c : clips_) {
+    const AnimationClip& clip = scene_.rig->clips[static_cast<std::size_t>(c)];
+    char len[32];
+    std::snprintf(len, sizeof len, " (%.2f s)", clip.duration);
+    out += (out.empty() ? "'" : ", '") + clip.name + "'" + len;
+  }
+  return out + ", looping";
+}
+
+void SceneAnimator::pose(double time_s) {
+  if (!moves_) return;
+  pose_rig(*scene_.rig, time_s, clips_, scene_.triangles);
+  if (follow_camera_)
+    scene_.camera = rig_camera(*scene_.rig, rig_world_matrices(*scene_.rig, time_s, clips_), base_camera_);
+}
+
+SceneAnimator::Update SceneAnimator::update(double time_s, DeviceSet& devices, DeviceScene& device_scene) {
+  Update u;
+  if (!moves_) return u;
+  auto t0 = clock_type::now();
+  pose(time_s);
+  u.pose_ms = ms_since(t0);
+  t0 = clock_type::now();
+  BvhBuildOptions options;
+  options.spatial_splits = false;  // every frame: the fast binned build
+  FlatBvh bvh = build_bvh(scene_.triangles, options);
+  const BvhValidation check = validate_bvh(bvh, scene_.triangles);
+  if (!check.ok)
+    throw std::runtime_error("internal error: the BVH of the posed scene at t = " + std::to_string(time_s) +
+                             " s failed validation: " + (check.errors.empty() ? "" : check.errors.front()));
+  u.bvh_ms = ms_since(t0);
+  t0 = clock_type::now();
+  // The first frame has no previous pose: its motion is none (the history is empty anyway).
+  u.bytes = device_scene.update_geometry(devices, scene_, std::move(bvh),
+                                         previous_.empty() ? &scene_.triangles : &previous_);
+  u.upload_ms = ms_since(t0);
+  previous_ = scene_.triangles;
+  return u;
+}
+
+}  // namespace px

@@ -1,0 +1,55 @@
+// Brings an animated scene (Scene::rig) to a frame's time: poses its triangles (and a glTF
+// camera on an animated node), rebuilds the BVH over them and rewrites the devices' geometry.
+// One clock: the caller passes frame f's time f / fps, the same in `render`, `reference`,
+// `view` and on every MPI rank, so every rank and device poses the same triangles bit for bit.
+//
+// The scene is rebuilt, not refitted, every frame: a binned-SAH build (no spatial splits) of
+// the posed triangles, validated, then uploaded whole. What that costs is measured per frame
+// (Update) and reported; a two-level BVH that sends only what changed is the next step for
+// scenes large enough to feel it.
+#pragma once
+
+#include "cl/device_set.h"
+#include "render/device_scene.h"
+#include "scene/scene.h"
+
+#include <string>
+#include <vector>
+
+namespace px {
+
+class SceneAnimator {
+ public:
+  // `choice` is --animation: "all" (default), "none", a clip's name or index. Throws
+  // std::invalid_argument naming the scene's clips when there is no such clip.
+  SceneAnimator(Scene& scene, const std::string& choice);
+
+  // Whether the selected clips move anything: when not, update() does nothing and the scene
+  // stays as loaded (its rest pose).
+  bool moves() const { return moves_; }
+  // Names of the clips that play, for the console.
+  std::string describe() const;
+
+  // Poses scene.triangles (and the camera, where it is an animated glTF camera) at `time_s`,
+  // on the host only: the reference renderer and the preview, which build their BVH after.
+  void pose(double time_s);
+
+  struct Update {
+    double pose_ms = 0.0, bvh_ms = 0.0, upload_ms = 0.0;
+    std::size_t bytes = 0;  // written to the devices' context
+  };
+  // pose(), then a BVH over the posed triangles and the devices' geometry rewritten, with the
+  // last frame's positions as motion (the first call: none, so no motion). Call between
+  // frames, with every queue finished.
+  Update update(double time_s, DeviceSet& devices, DeviceScene& device_scene);
+
+ private:
+  Scene& scene_;
+  std::vector<int> clips_;
+  bool moves_ = false;
+  bool follow_camera_ = false;  // the scene's camera is the rig's glTF camera
+  Camera base_camera_;
+  std::vector<SceneTriangle> previous_;
+};
+
+}  // namespace px

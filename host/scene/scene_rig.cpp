@@ -1,0 +1,201 @@
+#include "scene/scene_rig.h"
+
+#include "scene/primitives.h"
+
+#include <cmath>
+
+namespace px {
+
+glm::dmat4 trs_matrix(const glm::dvec3& t, const glm::dquat& r, const glm::dvec3& s) {
+  glm::dmat4 m = glm::mat4_cast(r);
+  m[0] *= s.x;
+  m[1] *= s.y;
+  m[2] *= s.z;
+  m[3] = glm::dvec4(t, 1.0);
+  return m;
+}
+
+std::vector<glm::dmat4> rig_world_matrices(const SceneRig& rig, double t, const std::vector<int>& clips) {
+  // Each node's translation, rotation and scale: the rest values, replaced by the channels that
+  // drive them (a later clip's channel wins where two drive the same property).
+  struct Trs {
+    glm::dvec3 t;
+    glm::dquat r;
+    glm::dvec3 s;
+  };
+  std::vector<Trs> trs(rig.nodes.size());
+  for (std::size_t i = 0; i < rig.nodes.size(); ++i)
+    trs[i] = {rig.nodes[i].translation, rig.nodes[i].rotation, rig.nodes[i].scale};
+  for (int c : clips) {
+    const AnimationClip& clip = rig.clips.at(static_cast<std::size_t>(c));
+    const double ct = clip_time(clip, t);
+    for (const AnimationChannel& ch : clip.channels) {
+      if (ch.node < 0 || static_cast<std::size_t>(ch.node) >= rig.nodes.size()) continue;
+      Trs& n = trs[static_cast<std::size_t>(ch.node)];
+      const glm::dvec4 v = sample_track(ch.track, ct, ch.path == TrsPath::Rotation);
+      switch (ch.path) {
+        case TrsPath::Translation: n.t = glm::dvec3(v); break;
+        case TrsPath::Rotation: n.r = glm::dquat(v.w, v.x, v.y, v.z); break;
+        case TrsPath::Scale: n.s = glm::dvec3(v); break;
+      }
+    }
+  }
+  std::vector<glm::dmat4> world(rig.nodes.size(), glm::dmat4(1.0));
+  for (int i : rig.order) {
+    const RigNode& n = rig.nodes[static_cast<std::size_t>(i)];
+    const Trs& p = trs[static_cast<std::size_t>(i)];
+    const glm::dmat4 local = n.has_matrix ? n.matrix : trs_matrix(p.t, p.r, p.s);
+    world[static_cast<std::size_t>(i)] = n.parent >= 0 ? world[static_cast<std::size_t>(n.parent)] * local : local;
+  }
+  return world;
+}
+
+std::vector<glm::dmat4> skin_matrices(const RigSkin& skin, const std::vector<glm::dmat4>& world) {
+  std::vector<glm::dmat4> out(skin.joints.size());
+  for (std::size_t j = 0; j < skin.joints.size(); ++j)
+    out[j] = world.at(static_cast<std::size_t>(skin.joints[j])) * skin.inverse_bind[j];
+  return out;
+}
+
+namespace {
+
+bool finite3(const glm::vec3& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
+
+// The skinning matrix of vertex v: its joints' matrices blended by its weights (normalised; a
+// vertex without weight stays in bind space).
+glm::dmat4 vertex_skin(const RigPrimitive& prim, std::size_t v, const std::vector<glm::dmat4>& joints) {
+  const glm::vec4 w = prim.weights[v];
+  const double sum = double(w.x) + double(w.y) + double(w.z) + double(w.w);
+  if (!(sum > 0.0) || !std::isfinite(sum)) return glm::dmat4(1.0);
+  glm::dmat4 m(0.0);
+  for (int k = 0; k < 4; ++k) {
+    if (!(w[k] > 0.0f)) continue;
+    const std::size_t j = static_cast<std::size_t>(prim.joints[v][k]);
+    if (j >= joints.size()) continue;  // checked at load; a joint beyond the skin has no say
+    m += (double(w[k]) / sum) * joints[j];
+  }
+  return m;
+}
+
+}  // namespace
+
+void emit_primitive(const RigPrimitive& prim, const glm::dmat4& world, const std::vector<glm::dmat4>* joint_matrices,
+                    const std::vector<std::uint32_t>* kept, std::vector<std::uint32_t>* record,
+                    std::vector<SceneTriangle>& out, SceneStats& stats) {
+  const bool skinned = joint_matrices && !prim.joints.empty();
+  // Positions (and for skins each vertex's normal matrix) once per vertex.
+  std::vector<glm::vec3> world_pos(prim.positions.size());
+  std::vector<glm::dmat3> vertex_normal_matrix;
+  std::vector<char> vertex_flips;
+  const glm::dmat3 linear(world);
+  const glm::dmat3 normal_matrix = glm::transpose(glm::inverse(linear));
+  // A mirroring transform turns the winding around; the front face must stay the front.
+  const bool flip = glm::determinant(linear) < 0.0;
+  if (skinned) {
+    vertex_normal_matrix.resize(prim.positions.size());
+    vertex_flips.resize(prim.positions.size());
+    for (std::size_t v = 0; v < prim.positions.size(); ++v) {
+      const glm::dmat4 m = vertex_skin(prim, v, *joint_matrices);
+      world_pos[v] = glm::vec3(m * glm::dvec4(glm::dvec3(prim.positions[v]), 1.0));
+      const glm::dmat3 l(m);
+      vertex_normal_matrix[v] = glm::transpose(glm::inverse(l));
+      vertex_flips[v] = glm::determinant(l) < 0.0;
+    }
+  } else {
+    for (std::size_t v = 0; v < prim.positions.size(); ++v)
+      world_pos[v] = glm::vec3(world * glm::dvec4(glm::dvec3(prim.positions[v]), 1.0));
+  }
+  const std::size_t count = kept ? kept->size() : prim.triangles.size();
+  for (std::size_t k = 0; k < count; ++k) {
+    const std::uint32_t ti = kept ? (*kept)[k] : static_cast<std::uint32_t>(k);
+    const auto& t = prim.triangles[ti];
+    const bool f = skinned ? vertex_flips[t[0]] != 0 : flip;
+    SceneTriangle tri;
+    tri.material = prim.material;
+    const std::uint32_t order[3] = {t[0], f ? t[2] : t[1], f ? t[1] : t[2]};
+    bool finite = true;
+    for (int c = 0; c < 3; ++c) {
+      tri.p[c] = world_pos[order[c]];
+      finite &= finite3(tri.p[c]);
+    }
+    glm::vec3 ng(0.0f);
+    if (!kept) {
+      if (!finite) {
+        ++stats.dropped_nonfinite;
+        continue;
+      }
+      if (is_degenerate(tri)) {
+        ++stats.dropped_degenerate;
+        continue;
+      }
+      ng = geometric_normal(tri);
+      if (ng == glm::vec3(0.0f)) {
+        ++stats.dropped_nonfinite;
+        continue;
+      }
+      if (record) record->push_back(ti);
+    } else {
+      // A kept triangle stays, whatever this pose did to it: the triangle order is fixed.
+      if (!finite) tri.p[0] = tri.p[1] = tri.p[2] = glm::vec3(0.0f);
+      ng = is_degenerate(tri) ? glm::vec3(0.0f) : geometric_normal(tri);
+      if (!finite3(ng) || ng == glm::vec3(0.0f)) ng = glm::vec3(0.0f, 0.0f, 1.0f);
+    }
+    for (int c = 0; c < 3; ++c) {
+      glm::vec3 n = ng;
+      if (!prim.normals.empty()) {
+        const glm::dmat3& nm = skinned ? vertex_normal_matrix[order[c]] : normal_matrix;
+        const glm::vec3 wn(nm * glm::dvec3(prim.normals[order[c]]));
+        const float len = glm::length(wn);
+        if (len > 0.0f && std::isfinite(len)) n = wn / len;
+      }
+      tri.n[c] = n;
+      glm::vec2 uv(0.0f);
+      if (!prim.uvs.empty()) {
+        const glm::vec2& a = prim.uvs[order[c]];
+        // glTF's v runs down the image, the renderer's (OBJ's) up.
+        if (std::isfinite(a.x) && std::isfinite(a.y)) uv = glm::vec2(a.x, 1.0f - a.y);
+      }
+      tri.uv[c] = uv;
+    }
+    out.push_back(tri);
+  }
+}
+
+void pose_rig(const SceneRig& rig, double t, const std::vector<int>& clips, std::vector<SceneTriangle>& out) {
+  const std::vector<glm::dmat4> world = rig_world_matrices(rig, t, clips);
+  out.clear();
+  out.reserve(rig.triangle_count);
+  SceneStats unused;
+  std::vector<std::vector<glm::dmat4>> joints(rig.skins.size());
+  for (std::size_t s = 0; s < rig.skins.size(); ++s) joints[s] = skin_matrices(rig.skins[s], world);
+  for (const RigMeshInstance& inst : rig.instances) {
+    const glm::dmat4& w = world.at(static_cast<std::size_t>(inst.node));
+    const std::vector<glm::dmat4>* jm = inst.skin >= 0 ? &joints[static_cast<std::size_t>(inst.skin)] : nullptr;
+    for (std::size_t p = 0; p < inst.primitives.size(); ++p)
+      emit_primitive(rig.primitives[static_cast<std::size_t>(inst.primitives[p])], w, jm, &inst.kept[p], nullptr, out,
+                     unused);
+  }
+}
+
+Camera rig_camera(const SceneRig& rig, const std::vector<glm::dmat4>& world, const Camera& base) {
+  if (rig.camera_node < 0) return base;
+  const glm::dmat4& m = world.at(static_cast<std::size_t>(rig.camera_node));
+  const glm::dvec3 pos(m * glm::dvec4(0, 0, 0, 1));
+  const glm::dvec3 fwd(m * glm::dvec4(0, 0, -1, 0));
+  const glm::dvec3 up(m * glm::dvec4(0, 1, 0, 0));
+  const double fl = glm::length(fwd);
+  if (!(fl > 0.0) || !(glm::length(glm::cross(fwd, up)) > 0.0)) return base;  // degenerate: keep the last view
+  Camera c = base;
+  c.position = glm::vec3(pos);
+  c.target = glm::vec3(pos + fwd / fl);
+  c.up = glm::vec3(glm::normalize(up));
+  return c;
+}
+
+bool rig_moves(const SceneRig& rig, const std::vector<int>& clips) {
+  for (int c : clips)
+    if (!rig.clips.at(static_cast<std::size_t>(c)).channels.empty()) return true;
+  return false;
+}
+
+}  // namespace px

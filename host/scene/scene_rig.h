@@ -1,0 +1,105 @@
+// What it takes to pose a glTF scene at any time: the node hierarchy with each node's rest
+// transform, the meshes in their own (local) space, the skins and the animation clips. The
+// loader keeps one in Scene::rig when the file's scene moves (animations); a static file is
+// posed once at load and keeps none.
+//
+// A posed scene has the same triangles in the same order at every time (those kept at load:
+// degenerate or non-finite ones at the rest pose are dropped once, for good), so that triangle i
+// of one frame is triangle i of the next: the BVH is rebuilt over them every frame, and motion
+// vectors (a point's position in the previous frame) are read by triangle index.
+#pragma once
+
+#include "scene/animation.h"
+#include "scene/scene.h"
+
+#include <glm/glm.hpp>
+#include <glm/gtc/quaternion.hpp>
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+namespace px {
+
+struct RigNode {
+  int parent = -1;
+  // A node is given either by a matrix (never animated, glTF's rule) or by its translation,
+  // rotation and scale, which channels replace.
+  bool has_matrix = false;
+  glm::dmat4 matrix{1.0};
+  glm::dvec3 translation{0.0};
+  glm::dquat rotation{1.0, 0.0, 0.0, 0.0};
+  glm::dvec3 scale{1.0};
+};
+
+// One glTF mesh primitive as the file has it: local positions, optional normals and texture
+// coordinates (glTF's v, running down the image), triangles in the file's winding, and for a
+// skinned mesh four joints (indices into its skin's joint list) and weights per vertex.
+struct RigPrimitive {
+  std::vector<glm::vec3> positions;
+  std::vector<glm::vec3> normals;  // empty: the geometric normal
+  std::vector<glm::vec2> uvs;      // empty: zero
+  std::vector<std::array<std::uint32_t, 3>> triangles;
+  std::uint32_t material = 0;
+  std::vector<glm::vec4> joints;   // empty: not skinned
+  std::vector<glm::vec4> weights;
+};
+
+// A node's mesh: the node, its skin (-1: none; a skinned mesh ignores its node's transform, as
+// glTF says) and its primitives, each with the triangles kept at load.
+struct RigMeshInstance {
+  int node = -1;
+  int skin = -1;
+  std::vector<int> primitives;                   // indices into SceneRig::primitives
+  std::vector<std::vector<std::uint32_t>> kept;  // per primitive: its triangles kept, in order
+};
+
+struct RigSkin {
+  std::vector<int> joints;                // node indices
+  std::vector<glm::dmat4> inverse_bind;   // one per joint (identity when the file gives none)
+};
+
+struct SceneRig {
+  std::vector<RigNode> nodes;  // indexed as the file's nodes
+  std::vector<int> order;      // the default scene's nodes, each after its parent
+  std::vector<RigPrimitive> primitives;
+  std::vector<RigMeshInstance> instances;  // in the order their triangles appear in Scene::triangles
+  std::vector<RigSkin> skins;
+  std::vector<AnimationClip> clips;
+  int camera_node = -1;  // the node of the scene's camera (-1: not a glTF camera)
+  std::size_t triangle_count = 0;
+};
+
+// A node's transform from translation, rotation and scale (T * R * S).
+glm::dmat4 trs_matrix(const glm::dvec3& t, const glm::dquat& r, const glm::dvec3& s);
+
+// World matrices of every node (identity for nodes outside the default scene) at scene time
+// `t` with clips `clips` playing (indices into rig.clips; none: the rest pose).
+std::vector<glm::dmat4> rig_world_matrices(const SceneRig& rig, double t, const std::vector<int>& clips);
+
+// Appends `prim`'s triangles in world space: through `world`, or, for a skinned primitive,
+// through each vertex's blend of `joint_matrices` (joint world x inverse bind). A mirroring
+// transform reverses the winding so that the front face stays the front.
+//   kept == nullptr: degenerate and non-finite triangles are dropped (counted in `stats`) and the
+//     indices of those emitted are appended to *record (if given);
+//   kept != nullptr: exactly those triangles, in that order, whatever this pose makes of them
+//     (a triangle non-finite here collapses to a point, which no ray hits).
+void emit_primitive(const RigPrimitive& prim, const glm::dmat4& world, const std::vector<glm::dmat4>* joint_matrices,
+                    const std::vector<std::uint32_t>* kept, std::vector<std::uint32_t>* record,
+                    std::vector<SceneTriangle>& out, SceneStats& stats);
+
+// The joint matrices of `skin` (joint world x inverse bind) from the world matrices.
+std::vector<glm::dmat4> skin_matrices(const RigSkin& skin, const std::vector<glm::dmat4>& world);
+
+// Every instance's kept triangles at time `t` with `clips` playing, in load order (`out` is
+// overwritten; rig.triangle_count triangles).
+void pose_rig(const SceneRig& rig, double t, const std::vector<int>& clips, std::vector<SceneTriangle>& out);
+
+// The camera of `rig.camera_node` at these world matrices, keeping `base`'s field of view; base
+// unchanged when the rig has no camera node.
+Camera rig_camera(const SceneRig& rig, const std::vector<glm::dmat4>& world, const Camera& base);
+
+// Whether any of `clips` drives a node (so the scene's pose changes with time).
+bool rig_moves(const SceneRig& rig, const std::vector<int>& clips);
+
+}  // namespace px

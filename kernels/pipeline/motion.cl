@@ -1,0 +1,36 @@
+/* The motion pass of an animated scene: where each G-buffer texel's surface point was in the
+ * previous frame, in world space, so that the denoiser's temporal passes follow a moving object
+ * and not only the camera (svgf_temporal, svgf_antialias).
+ *
+ * `tri_motion` holds per scene triangle its three vertices now (0..2) and in the previous frame
+ * (3..5) (DeviceSceneBuffers::motion). The point's barycentrics in the current triangle carry
+ * it to the previous one: prev = pos + the barycentric blend of the vertices' displacements, so
+ * a triangle that did not move gives pos back exactly. Output w: 1 on a surface, 0 on a miss
+ * (whose pos is a direction, left as it is). */
+#include "shared/types.h"
+
+kernel void gbuffer_motion(global float4* out, const global GBufferTexel* gbuf, const global float4* tri_motion,
+                           uint row0, uint rows, uint width) {
+  const uint gid = get_global_id(0);
+  if (gid >= rows * width) return;
+  const uint i = row0 * width + gid; /* full-frame buffers */
+  const global GBufferTexel* g = gbuf + i;
+  const float3 pos = (float3)(g->pos[0], g->pos[1], g->pos[2]);
+  if (g->material_class == PX_CLASS_MISS || g->prim == PX_NO_HIT) {
+    out[i] = (float4)(pos, 0.0f);
+    return;
+  }
+  const global float4* v = tri_motion + 6 * (size_t)g->prim;
+  const float3 a = v[0].xyz, e1 = v[1].xyz - a, e2 = v[2].xyz - a, ep = pos - a;
+  const float d11 = dot(e1, e1), d12 = dot(e1, e2), d22 = dot(e2, e2);
+  const float p1 = dot(ep, e1), p2 = dot(ep, e2);
+  const float den = d11 * d22 - d12 * d12;
+  float3 prev = pos;
+  if (den > 0.0f) {
+    const float u = (d22 * p1 - d12 * p2) / den, w = (d11 * p2 - d12 * p1) / den;
+    const float3 m0 = v[3].xyz - a, m1 = v[4].xyz - v[1].xyz, m2 = v[5].xyz - v[2].xyz;
+    const float3 moved = pos + (1.0f - u - w) * m0 + u * m1 + w * m2;
+    if (isfinite(moved.x) && isfinite(moved.y) && isfinite(moved.z)) prev = moved;
+  }
+  out[i] = (float4)(prev, 1.0f);
+}

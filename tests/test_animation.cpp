@@ -1,0 +1,438 @@
+// Scenes that move: keyframe sampling against values worked out by hand, glTF node animation
+// and skinning against an evaluation written here independently of the loader, the per-frame
+// device update against a fresh upload of the same pose, N devices bit-identical with
+// animation playing, and the motion pass against a quad's analytic motion.
+#include "app/scene_setup.h"
+#include "bvh/flat_bvh.h"
+#include "cl/launch.h"
+#include "pipeline/stereo_pipeline.h"
+#include "render/device_scene.h"
+#include "render/path_tracer.h"
+#include "render/scene_animator.h"
+#include "scene/animation.h"
+#include "scene/scene_loader.h"
+#include "scene/scene_rig.h"
+#include "support/gltf_builder.h"
+#include "support/test_support.h"
+
+#include <gtest/gtest.h>
+#include <glm/gtc/matrix_transform.hpp>
+
+#include <cmath>
+#include <cstring>
+#include <numbers>
+#include <random>
+
+namespace px {
+namespace {
+
+using nlohmann::json;
+using test::GltfBuilder;
+using test::TempDir;
+
+constexpr double kPi = std::numbers::pi;
+
+// ---- keyframes ----
+
+KeyframeTrack track(std::vector<double> times, std::vector<glm::dvec4> values, Interpolation i) {
+  KeyframeTrack t;
+  t.times = std::move(times);
+  t.values = std::move(values);
+  t.interpolation = i;
+  return t;
+}
+
+TEST(KeyframeTrack, StepAndLinearMatchHandValues) {
+  const KeyframeTrack step = track({1.0, 2.0, 4.0}, {{0, 0, 0, 0}, {10, 20, 30, 0}, {-4, 0, 4, 0}}, Interpolation::Step);
+  EXPECT_EQ(sample_track(step, 0.0, false), glm::dvec4(0, 0, 0, 0));  // before the first key: hold it
+  EXPECT_EQ(sample_track(step, 1.999, false), glm::dvec4(0, 0, 0, 0));
+  EXPECT_EQ(sample_track(step, 2.0, false), glm::dvec4(10, 20, 30, 0));
+  EXPECT_EQ(sample_track(step, 3.9, false), glm::dvec4(10, 20, 30, 0));
+  EXPECT_EQ(sample_track(step, 9.0, false), glm::dvec4(-4, 0, 4, 0));  // after the last: hold it
+  KeyframeTrack linear = step;
+  linear.interpolation = Interpolation::Linear;
+  const glm::dvec4 a = sample_track(linear, 1.25, false);  // a quarter of the way from key 0 to key 1
+  EXPECT_DOUBLE_EQ(a.x, 2.5);
+  EXPECT_DOUBLE_EQ(a.y, 5.0);
+  EXPECT_DOUBLE_EQ(a.z, 7.5);
+  const glm::dvec4 b = sample_track(linear, 3.0, false);  // half way from key 1 to key 2
+  EXPECT_DOUBLE_EQ(b.x, 3.0);
+  EXPECT_DOUBLE_EQ(b.y, 10.0);
+  EXPECT_DOUBLE_EQ(b.z, 17.0);
+  EXPECT_EQ(sample_track(linear, 2.0, false), glm::dvec4(10, 20, 30, 0));  // exactly a key's value at its time
+}
+
+TEST(KeyframeTrack, CubicSplineMatchesTheHermiteFormWorkedByHand) {
+  // Keys at 0 and 2 with values 0 and 1; key 0's out-tangent 1, key 1's in-tangent 0 (other
+  // tangents are never used between these keys). At t = 1: s = 0.5, interval 2,
+  //   p = h00(s) 0 + h10(s) 2 x 1 + h01(s) 1 + h11(s) 2 x 0
+  //     = 0 + (0.125 - 0.5 + 0.5) x 2 + (-0.25 + 0.75) = 0.25 + 0.5 = 0.75.
+  const KeyframeTrack t = track({0.0, 2.0},
+                                {{99, 0, 0, 0}, {0, 0, 0, 0}, {1, 0, 0, 0},     // key 0: in, value, out
+                                 {0, 0, 0, 0}, {1, 0, 0, 0}, {99, 0, 0, 0}},  // key 1
+                                Interpolation::CubicSpline);
+  EXPECT_NEAR(sample_track(t, 1.0, false).x, 0.75, 1e-12);
+  // s = 0.25: h00 = 0.84375, h10 = 0.140625, h01 = 0.15625, h11 = -0.046875:
+  // 0.140625 x 2 + 0.15625 = 0.4375.
+  EXPECT_NEAR(sample_track(t, 0.5, false).x, 0.4375, 1e-12);
+  EXPECT_EQ(sample_track(t, 0.0, false).x, 0.0);
+  EXPECT_EQ(sample_track(t, 2.0, false).x, 1.0);
+}
+
+glm::dvec4 axis_angle(glm::dvec3 axis, double angle) {  // (x, y, z, w) as glTF stores it
+  axis = glm::normalize(axis);
+  return glm::dvec4(axis * std::sin(angle / 2), std::cos(angle / 2));
+}
+
+TEST(KeyframeTrack, RotationsSlerpAlongTheShorterArc) {
+  const glm::dvec3 y(0, 1, 0);
+  const KeyframeTrack t = track({0.0, 1.0}, {axis_angle(y, 0.0), axis_angle(y, kPi / 2)}, Interpolation::Linear);
+  // Slerp turns at a constant rate: a third of the time, a third of the angle.
+  const glm::dvec4 q = sample_track(t, 1.0 / 3.0, true);
+  const glm::dvec4 want = axis_angle(y, kPi / 6);
+  for (int c = 0; c < 4; ++c) EXPECT_NEAR(q[c], want[c], 1e-12) << c;
+  // The same end rotation stored as -q: still the 30 degree turn, not the long way round.
+  const KeyframeTrack neg = track({0.0, 1.0}, {axis_angle(y, 0.0), -axis_angle(y, kPi / 2)}, Interpolation::Linear);
+  const glm::dvec4 r = sample_track(neg, 1.0 / 3.0, true);
+  for (int c = 0; c < 4; ++c) EXPECT_NEAR(std::abs(r[c]), std::abs(want[c]), 1e-12) << c;
+  EXPECT_NEAR(std::abs(r.w), std::cos(kPi / 12), 1e-12);
+  // A cubic rotation comes back normalised.
+  const KeyframeTrack cubic = track({0.0, 1.0},
+                                    {glm::dvec4(0), axis_angle(y, 0.0), glm::dvec4(0), glm::dvec4(0),
+                                     axis_angle(y, kPi / 2), glm::dvec4(0)},
+                                    Interpolation::CubicSpline);
+  EXPECT_NEAR(glm::length(sample_track(cubic, 0.4, true)), 1.0, 1e-12);
+}
+
+TEST(AnimationClip, LoopsOverItsLengthAndSelectsByNameOrIndex) {
+  AnimationClip clip;
+  clip.duration = 2.0;
+  EXPECT_DOUBLE_EQ(clip_time(clip, 0.5), 0.5);
+  EXPECT_DOUBLE_EQ(clip_time(clip, 5.0), 1.0);
+  EXPECT_DOUBLE_EQ(clip_time(clip, -0.5), 1.5);
+  AnimationClip still;  // zero length: always its start
+  EXPECT_EQ(clip_time(still, 3.0), 0.0);
+
+  std::vector<AnimationClip> clips(3);
+  clips[0].name = "walk";
+  clips[1].name = "run";
+  clips[2].name = "2";
+  EXPECT_EQ(select_clips(clips, "all"), (std::vector<int>{0, 1, 2}));
+  EXPECT_TRUE(select_clips(clips, "none").empty());
+  EXPECT_EQ(select_clips(clips, "run"), (std::vector<int>{1}));
+  EXPECT_EQ(select_clips(clips, "2"), (std::vector<int>{2}));  // a name wins over an index
+  EXPECT_EQ(select_clips(clips, "0"), (std::vector<int>{0}));
+  try {
+    select_clips(clips, "jump");
+    ADD_FAILURE() << "no error for a clip that does not exist";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("'walk'"), std::string::npos) << e.what();
+  }
+}
+
+// ---- glTF ----
+
+// A unit cube (-0.5..0.5) as 12 triangles, positions only.
+void add_cube_mesh(GltfBuilder& g, int material = -1) {
+  std::vector<float> p;
+  for (int i = 0; i < 8; ++i) {
+    p.push_back((i & 1) ? 0.5f : -0.5f);
+    p.push_back((i & 2) ? 0.5f : -0.5f);
+    p.push_back((i & 4) ? 0.5f : -0.5f);
+  }
+  const std::vector<std::uint16_t> idx = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4,
+                                          2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
+  json prim = {{"attributes", {{"POSITION", g.floats(p, "VEC3", 8)}}}, {"indices", g.uint16s(idx, "SCALAR", 36)}};
+  if (material >= 0) prim["material"] = material;
+  g.add("meshes", {{"primitives", json::array({prim})}});
+}
+
+struct Bounds {
+  glm::vec3 lo{1e30f}, hi{-1e30f};
+};
+Bounds bounds_of(const std::vector<SceneTriangle>& tris) {
+  Bounds b;
+  for (const auto& t : tris)
+    for (const auto& p : t.p) {
+      b.lo = glm::min(b.lo, p);
+      b.hi = glm::max(b.hi, p);
+    }
+  return b;
+}
+
+// A parent at (0, 3, 0) whose child cube slides from x = 0 to x = 2 and turns 90 degrees about
+// z over one second (LINEAR), then loops.
+std::string moving_cube_file(const TempDir& dir) {
+  GltfBuilder g;
+  add_cube_mesh(g);
+  const int times = g.floats({0.0f, 1.0f}, "SCALAR", 2);
+  const int moves = g.floats({0, 0, 0, 2, 0, 0}, "VEC3", 2);
+  const float h = float(std::sqrt(0.5));
+  const int turns = g.floats({0, 0, 0, 1, 0, 0, h, h}, "VEC4", 2);
+  g.doc["scene"] = 0;
+  g.doc["scenes"] = json::array({{{"nodes", {0}}}});
+  g.doc["nodes"] = json::array({{{"translation", {0, 3, 0}}, {"children", {1}}}, {{"mesh", 0}}});
+  g.doc["animations"] = json::array(
+      {{{"name", "slide"},
+        {"samplers", json::array({{{"input", times}, {"output", moves}}, {{"input", times}, {"output", turns}}})},
+        {"channels", json::array({{{"sampler", 0}, {"target", {{"node", 1}, {"path", "translation"}}}},
+                                  {{"sampler", 1}, {"target", {{"node", 1}, {"path", "rotation"}}}}})}}});
+  return dir.write("moving.gltf", g.text()).string();
+}
+
+TEST(GltfAnimation, ARotatingTranslatingNodeHasTheWorldBoundsWorkedByHand) {
+  const TempDir dir;
+  Scene scene = load_gltf(moving_cube_file(dir));
+  ASSERT_TRUE(scene.rig);
+  for (const auto& w : scene.stats.warnings) EXPECT_EQ(w.find("animations"), std::string::npos) << w;
+  SceneAnimator animator(scene, "all");
+  ASSERT_TRUE(animator.moves());
+  // At time t (looped over 1 s): the cube turned by a = 90 t degrees about z is
+  // 0.5 (|cos a| + |sin a|) wide either side in x and y, 0.5 in z, centred at (2 t, 3, 0).
+  for (double t : {0.0, 0.5, 1.25, 0.9}) {
+    animator.pose(t);
+    const double u = std::fmod(t, 1.0), a = u * kPi / 2;
+    const double half = 0.5 * (std::abs(std::cos(a)) + std::abs(std::sin(a)));
+    const Bounds b = bounds_of(scene.triangles);
+    EXPECT_NEAR(b.lo.x, 2 * u - half, 1e-5) << t;
+    EXPECT_NEAR(b.hi.x, 2 * u + half, 1e-5) << t;
+    EXPECT_NEAR(b.lo.y, 3 - half, 1e-5) << t;
+    EXPECT_NEAR(b.hi.y, 3 + half, 1e-5) << t;
+    EXPECT_NEAR(b.lo.z, -0.5, 1e-6) << t;
+    EXPECT_NEAR(b.hi.z, 0.5, 1e-6) << t;
+    EXPECT_EQ(scene.triangles.size(), 12u);
+  }
+  // --animation none: the rest pose as loaded (the child's own transform: identity).
+  Scene rest = load_gltf(moving_cube_file(dir));
+  SceneAnimator none(rest, "none");
+  EXPECT_FALSE(none.moves());
+  none.pose(0.5);
+  EXPECT_NEAR(bounds_of(rest.triangles).hi.x, 0.5, 1e-6);
+  EXPECT_THROW(SceneAnimator(rest, "jump"), std::invalid_argument);
+}
+
+// Two joints along y: joint 0 at the origin, joint 1 (its child) at (0, 1, 0), turning 90
+// degrees about z over one second. A strip of quads from y = 0 to 2 bound to them: y = 0 to
+// joint 0 alone, y = 1 half and half, y = 2 to joint 1 alone. The mesh's own node is moved
+// by (5, 0, 0), which a skinned mesh ignores.
+TEST(GltfAnimation, SkinnedVerticesMatchABruteForceEvaluation) {
+  GltfBuilder g;
+  const std::vector<float> pos = {-0.5f, 0, 0, 0.5f, 0, 0, -0.5f, 1, 0, 0.5f, 1, 0, -0.5f, 2, 0, 0.5f, 2, 0};
+  const std::vector<std::uint16_t> idx = {0, 1, 3, 0, 3, 2, 2, 3, 5, 2, 5, 4};
+  const std::vector<std::uint16_t> joints = {0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0};
+  const std::vector<float> weights = {1, 0, 0, 0, 1, 0, 0, 0, 0.5f, 0.5f, 0, 0, 0.5f, 0.5f, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0};
+  // Inverse bind matrices (column-major): identity, and a translation by (0, -1, 0).
+  const std::vector<float> ibm = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1,
+                                  1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, -1, 0, 1};
+  json attrs = {{"POSITION", g.floats(pos, "VEC3", 6)}, {"JOINTS_0", g.uint16s(joints, "VEC4", 6)},
+                {"WEIGHTS_0", g.floats(weights, "VEC4", 6)}};
+  g.add("meshes", {{"primitives", json::array({{{"attributes", attrs}, {"indices", g.uint16s(idx, "SCALAR", 12)}}})}});
+  const int times = g.floats({0.0f, 1.0f}, "SCALAR", 2);
+  const float h = float(std::sqrt(0.5));
+  const int turns = g.floats({0, 0, 0, 1, 0, 0, h, h}, "VEC4", 2);
+  g.doc["scene"] = 0;
+  g.doc["scenes"] = json::array({{{"nodes", {0, 2}}}});
+  g.doc["nodes"] = json::array({{{"children", {1}}}, {{"translation", {0, 1, 0}}}, {{"mesh", 0}, {"skin", 0}, {"translation", {5, 0, 0}}}});
+  g.doc["skins"] = json::array({{{"joints", {0, 1}}, {"inverseBindMatrices", g.floats(ibm, "MAT4", 2)}}});
+  g.doc["animations"] = json::array(
+      {{{"samplers", json::array({{{"input", times}, {"output", turns}}})},
+        {"channels", json::array({{{"sampler", 0}, {"target", {{"node", 1}, {"path", "rotation"}}}}})}}});
+  const TempDir dir;
+  Scene scene = load_gltf(dir.write("skin.gltf", g.text()).string());
+  ASSERT_TRUE(scene.rig);
+  for (const auto& w : scene.stats.warnings) EXPECT_EQ(w.find("skins"), std::string::npos) << w;
+  ASSERT_EQ(scene.triangles.size(), 4u);
+  SceneAnimator animator(scene, "all");
+  for (double t : {0.0, 0.3, 0.5, 0.75}) {
+    animator.pose(t);
+    // By hand: joint 1's world matrix is T(0, 1, 0) R_z(90 t); joint 0's the identity. Vertex
+    // v moves by sum_j w_j (J_j IBM_j) v.
+    const double a = t * kPi / 2;
+    const glm::dmat4 j1 = glm::rotate(glm::translate(glm::dmat4(1.0), glm::dvec3(0, 1, 0)), a, glm::dvec3(0, 0, 1));
+    const glm::dmat4 m1 = j1 * glm::translate(glm::dmat4(1.0), glm::dvec3(0, -1, 0));
+    for (std::size_t k = 0; k < idx.size(); ++k) {
+      const std::size_t v = idx[k];
+      const glm::dvec4 p(pos[3 * v], pos[3 * v + 1], pos[3 * v + 2], 1.0);
+      const glm::dvec4 want = double(weights[4 * v]) * p + double(weights[4 * v + 1]) * (m1 * p);
+      const glm::vec3 got = scene.triangles[k / 3].p[k % 3];
+      EXPECT_NEAR(got.x, want.x, 1e-5) << "t " << t << " corner " << k;
+      EXPECT_NEAR(got.y, want.y, 1e-5) << "t " << t << " corner " << k;
+      EXPECT_NEAR(got.z, want.z, 1e-5) << "t " << t << " corner " << k;
+    }
+  }
+  // The tip at t = 0.5: joint 1 turned 45 degrees about z carries vertex 5, (0.5, 2, 0), to
+  // (0, 1) + R45 (0.5, 1) = ((0.5 - 1) / sqrt 2, 1 + 1.5 / sqrt 2).
+  animator.pose(0.5);
+  EXPECT_NEAR(scene.triangles[2].p[2].x, -0.5 / std::sqrt(2.0), 1e-5);
+  EXPECT_NEAR(scene.triangles[2].p[2].y, 1.0 + 1.5 / std::sqrt(2.0), 1e-5);
+  // The clip loops: at t = 1 (its length) it is back at its start, the rest pose here.
+  animator.pose(1.0);
+  EXPECT_NEAR(scene.triangles[2].p[2].x, 0.5f, 1e-6);
+  EXPECT_NEAR(scene.triangles[2].p[2].y, 2.0f, 1e-6);
+}
+
+// ---- devices ----
+
+// A grey floor under a red cube that slides and turns (moving_cube_file's clip, lowered
+// onto the floor), lit by the default sky; 24 x 24 units of floor.
+std::string cube_on_floor_file(const TempDir& dir) {
+  GltfBuilder g;
+  g.add("materials", {{"pbrMetallicRoughness", {{"baseColorFactor", {0.8, 0.2, 0.1, 1}}, {"metallicFactor", 0}}}});
+  g.add("materials", {{"pbrMetallicRoughness", {{"baseColorFactor", {0.7, 0.7, 0.7, 1}}, {"metallicFactor", 0}}}});
+  add_cube_mesh(g, 0);
+  const int floor_pos = g.floats({-12, 0, -12, 12, 0, -12, 12, 0, 12, -12, 0, 12}, "VEC3", 4);
+  g.add("meshes", {{"primitives", json::array({{{"attributes", {{"POSITION", floor_pos}}},
+                                                 {"indices", g.uint16s({0, 2, 1, 0, 3, 2}, "SCALAR", 6)},
+                                                 {"material", 1}}})}});
+  const int times = g.floats({0.0f, 1.0f}, "SCALAR", 2);
+  const int moves = g.floats({-1.5f, 0.5f, 0, 1.5f, 0.5f, 0}, "VEC3", 2);
+  const float h = float(std::sqrt(0.5));
+  const int turns = g.floats({0, 0, 0, 1, 0, h, 0, h}, "VEC4", 2);
+  g.add("cameras", {{"type", "perspective"}, {"perspective", {{"yfov", 0.8}, {"znear", 0.1}}}});
+  g.doc["scene"] = 0;
+  g.doc["scenes"] = json::array({{{"nodes", {0, 1, 2}}}});
+  g.doc["nodes"] = json::array({{{"mesh", 0}, {"translation", {-1.5, 0.5, 0}}},
+                                {{"mesh", 1}},
+                                {{"camera", 0}, {"translation", {0, 2.5, 6}}, {"rotation", {-0.199, 0, 0, 0.98}}}});
+  g.doc["animations"] = json::array(
+      {{{"samplers", json::array({{{"input", times}, {"output", moves}}, {{"input", times}, {"output", turns}}})},
+        {"channels", json::array({{{"sampler", 0}, {"target", {{"node", 0}, {"path", "translation"}}}},
+                                  {{"sampler", 1}, {"target", {{"node", 0}, {"path", "rotation"}}}}})}}});
+  return dir.write("cube_on_floor.gltf", g.text()).string();
+}
+
+std::vector<float> pixels_of(const std::array<ImageRGB, 2>& eyes) {
+  std::vector<float> out = eyes[0].rgb;
+  out.insert(out.end(), eyes[1].rgb.begin(), eyes[1].rgb.end());
+  return out;
+}
+
+bool bit_identical(const std::vector<float>& a, const std::vector<float>& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0;
+}
+
+TEST(SceneAnimator, TheUpdatedDevicesRenderWhatAFreshUploadOfThePoseRenders) {
+  const TempDir dir;
+  const std::string file = cube_on_floor_file(dir);
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  PathTracer::Options opt;
+  opt.spp = 2;
+  opt.bounces = 3;
+  // Through the animator: loaded at rest, then brought to t = 0.3 and t = 0.7 on the devices.
+  LoadedScene a = load_and_build(file, /*quiet=*/true);
+  DeviceScene da(set, a.scene, a.bvh);
+  SceneAnimator animator(a.scene, "all");
+  animator.update(0.3, set, da);
+  animator.update(0.7, set, da);
+  PathTracer ta(set, da, a.scene);
+  const auto via_update = pixels_of(ta.render_stereo(0.7f, 3, 64, 48, opt));
+  // Independently: posed on the host, a tree built and uploaded from scratch.
+  Scene b = load_scene(file);  // as load_and_build loads it: with the default sky
+  SceneAnimator(b, "all").pose(0.7);
+  BvhBuildOptions fast;
+  fast.spatial_splits = false;
+  DeviceScene db(set, b, build_bvh(b.triangles, fast));
+  PathTracer tb(set, db, b);
+  const auto fresh = pixels_of(tb.render_stereo(0.7f, 3, 64, 48, opt));
+  EXPECT_TRUE(bit_identical(via_update, fresh));
+  // And the pose does show: the rest pose renders differently.
+  LoadedScene c = load_and_build(file, true);
+  DeviceScene dc(set, c.scene, c.bvh);
+  PathTracer tc(set, dc, c.scene);
+  EXPECT_FALSE(bit_identical(via_update, pixels_of(tc.render_stereo(0.7f, 3, 64, 48, opt))));
+}
+
+// Every frame of an animation, denoised, with 1 and 3 devices.
+std::vector<std::vector<float>> animated_frames(const std::string& file, int devices, unsigned frames) {
+  LoadedScene loaded = load_and_build(file, true);
+  DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
+  DeviceScene ds(set, loaded.scene, loaded.bvh);
+  SceneAnimator animator(loaded.scene, "all");
+  StereoPipeline::Options opt;
+  opt.trace.spp = 1;
+  opt.trace.bounces = 3;
+  StereoPipeline p(set, ds, loaded.scene, 64, 40, opt);
+  std::vector<std::vector<float>> out;
+  for (unsigned f = 0; f < frames; ++f) {
+    const double t = f / 8.0;
+    animator.update(t, set, ds);
+    p.render(f, static_cast<float>(t));
+    out.push_back(pixels_of(p.radiance()));
+  }
+  return out;
+}
+
+TEST(SceneAnimator, NDevicesAreBitIdenticalWithAnimationPlaying) {
+  const TempDir dir;
+  const std::string file = cube_on_floor_file(dir);
+  const auto one = animated_frames(file, 1, 4), three = animated_frames(file, 3, 4);
+  for (std::size_t f = 0; f < one.size(); ++f) EXPECT_TRUE(bit_identical(one[f], three[f])) << "frame " << f;
+  EXPECT_FALSE(bit_identical(one[0], one[3]));  // the cube moved
+}
+
+// The motion pass (kernels/pipeline/motion.cl) on a quad that turned by 20 degrees about y and
+// moved by (0.3, -0.2, 0.5) since the last frame: every point's previous position is the
+// inverse motion of where it is now.
+TEST(MotionPass, AMovingQuadsPointsGoBackAlongItsAnalyticMotion) {
+  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  const glm::dvec3 move(0.3, -0.2, 0.5);
+  const glm::dmat4 motion = glm::rotate(glm::translate(glm::dmat4(1.0), move), 20.0 * kPi / 180.0, glm::dvec3(0, 1, 0));
+  const glm::dmat4 back = glm::inverse(motion);
+  const glm::dvec3 before[4] = {{-1, 0, -1}, {1, 0.2, -1}, {1, 0.1, 1}, {-1, -0.1, 1}};
+  glm::dvec3 now[4];
+  for (int i = 0; i < 4; ++i) now[i] = glm::dvec3(motion * glm::dvec4(before[i], 1.0));
+  const int tris[2][3] = {{0, 1, 2}, {0, 2, 3}};
+  std::vector<cl_float4> tri_motion;
+  for (const auto& t : tris) {
+    for (int c = 0; c < 3; ++c) tri_motion.push_back({{float(now[t[c]].x), float(now[t[c]].y), float(now[t[c]].z), 0}});
+    for (int c = 0; c < 3; ++c)
+      tri_motion.push_back({{float(before[t[c]].x), float(before[t[c]].y), float(before[t[c]].z), 0}});
+  }
+  // 64 texels: points at random barycentrics of either triangle, and one miss.
+  const unsigned width = 8, rows = 8;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  std::vector<GBufferTexel> gbuf(width * rows);
+  std::vector<glm::dvec3> want(gbuf.size());
+  for (std::size_t i = 0; i < gbuf.size(); ++i) {
+    GBufferTexel& g = gbuf[i];
+    std::memset(&g, 0, sizeof g);
+    const int t = static_cast<int>(i % 2);
+    double b1 = u01(rng), b2 = u01(rng);
+    if (b1 + b2 > 1.0) b1 = 1.0 - b1, b2 = 1.0 - b2;
+    const glm::dvec3 p = now[tris[t][0]] + b1 * (now[tris[t][1]] - now[tris[t][0]]) + b2 * (now[tris[t][2]] - now[tris[t][0]]);
+    g.pos[0] = float(p.x), g.pos[1] = float(p.y), g.pos[2] = float(p.z);
+    g.material_class = PX_CLASS_DIFFUSE;
+    g.prim = static_cast<std::uint32_t>(t);
+    want[i] = glm::dvec3(back * glm::dvec4(glm::dvec3(g.pos[0], g.pos[1], g.pos[2]), 1.0));
+  }
+  gbuf[5].material_class = PX_CLASS_MISS;
+  gbuf[5].prim = PX_NO_HIT;
+  const cl::Context& ctx = set.context();
+  cl::CommandQueue& q = set.devices()[0].queue;
+  cl::Buffer g_buf(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, gbuf.size() * sizeof(GBufferTexel), gbuf.data());
+  cl::Buffer m_buf(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, tri_motion.size() * sizeof(cl_float4), tri_motion.data());
+  cl::Buffer out(ctx, CL_MEM_WRITE_ONLY, gbuf.size() * sizeof(cl_float4));
+  cl::Kernel k(set.program("pipeline/motion.cl"), "gbuffer_motion");
+  k.setArg(0, out);
+  k.setArg(1, g_buf);
+  k.setArg(2, m_buf);
+  k.setArg(3, cl_uint(0));
+  k.setArg(4, cl_uint(rows));
+  k.setArg(5, cl_uint(width));
+  launch_1d(q, k, gbuf.size());
+  std::vector<cl_float4> got(gbuf.size());
+  q.enqueueReadBuffer(out, CL_TRUE, 0, got.size() * sizeof(cl_float4), got.data());
+  for (std::size_t i = 0; i < gbuf.size(); ++i) {
+    if (i == 5) {  // a miss keeps its direction, marked w = 0
+      EXPECT_EQ(got[i].s[3], 0.0f);
+      EXPECT_EQ(got[i].s[0], gbuf[i].pos[0]);
+      continue;
+    }
+    EXPECT_EQ(got[i].s[3], 1.0f);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(got[i].s[c], want[i][c], 2e-5) << "texel " << i << " axis " << c;
+  }
+}
+
+}  // namespace
+}  // namespace px
