@@ -434,5 +434,83 @@ TEST(MotionPass, AMovingQuadsPointsGoBackAlongItsAnalyticMotion) {
   }
 }
 
+
+// Trail: the cube slides and turns over the floor (3 units and 90 degrees a second, 30 fps),
+// denoised at 1 spp; against a 256-spp reference of the last frame's time, the error in the
+// region the cube swept over the last eight frames (its G-buffer coverage in any of them) is
+// compared with the error of the same region in a run whose cube stood still at that last pose
+// from the start. A trail (the cube's history left on the floor, a lagging edge) is error the
+// still run does not have.
+//
+// Measured (this test, PoCL on 2 CPU cores): the moving run's error there is 4.4x the still
+// run's with motion vectors, 8.1x without them (the history then followed the camera alone).
+// SVGF alone (no anti-aliasing pass) is at 1.13x: what remains is the anti-aliasing of the
+// moving silhouette, which the still run accumulates over many jittered frames, and the lag of
+// the cube's contact shadow on the floor (SVGF's history has no temporal gradient, A-SVGF).
+// The goal is 1.5x; the bound here guards what is reached.
+TEST(MotionTrail, AMovingObjectLeavesNoMoreErrorWhereItWentThanAStillOne) {
+  const TempDir dir;
+  const std::string file = cube_on_floor_file(dir);
+  const unsigned w = 96, h = 64, frames = 24;
+  const double fps = 30.0, t_end = (frames - 1) / fps;
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  // The region: pixels whose G-buffer saw one of the cube's 12 triangles (the first mesh).
+  auto run = [&](bool moving, std::vector<char>* swept) {
+    LoadedScene loaded = load_and_build(file, true);
+    DeviceScene ds(set, loaded.scene, loaded.bvh);
+    SceneAnimator animator(loaded.scene, "all");
+    StereoPipeline::Options opt;
+    opt.trace.spp = 1;
+    opt.trace.bounces = 3;
+    StereoPipeline p(set, ds, loaded.scene, w, h, opt);
+    for (unsigned f = 0; f < frames; ++f) {
+      const double t = moving ? f / fps : t_end;
+      animator.update(t, set, ds);
+      p.render(f, static_cast<float>(t));
+      if (swept && f + 8 >= frames)
+        for (int e = 0; e < 2; ++e) {
+          const std::vector<GBufferTexel> g = p.gbuffer_of(e);
+          for (std::size_t i = 0; i < g.size(); ++i)
+            if (g[i].prim < 12) (*swept)[e * g.size() + i] = 1;
+        }
+    }
+    return pixels_of(p.radiance());
+  };
+  std::vector<char> swept(2 * w * h, 0);
+  const std::vector<float> moving = run(true, &swept), still = run(false, nullptr);
+  // The reference at the last frame's time.
+  LoadedScene loaded = load_and_build(file, true);
+  DeviceScene ds(set, loaded.scene, loaded.bvh);
+  SceneAnimator animator(loaded.scene, "all");
+  animator.update(t_end, set, ds);
+  PathTracer tracer(set, ds, loaded.scene);
+  PathTracer::Options ro;
+  ro.spp = 256;
+  ro.bounces = 3;
+  ro.first_sample_on_gbuffer_ray = false;
+  const std::vector<float> ref = pixels_of(tracer.render_stereo(static_cast<float>(t_end), 0, w, h, ro));
+  double err_moving = 0.0, err_still = 0.0, err_rest = 0.0;
+  std::size_t n = 0, rest = 0;
+  for (std::size_t i = 0; i < swept.size(); ++i) {
+    double em = 0.0, es = 0.0;
+    for (int c = 0; c < 3; ++c) {
+      em += std::pow(moving[3 * i + c] - ref[3 * i + c], 2.0);
+      es += std::pow(still[3 * i + c] - ref[3 * i + c], 2.0);
+    }
+    if (swept[i]) {
+      err_moving += em;
+      err_still += es;
+      ++n;
+    } else {
+      err_rest += em;
+      ++rest;
+    }
+  }
+  ASSERT_GT(n, 200u);
+  std::printf("swept region: %zu pixels, mse moving %.4g, still %.4g (x%.2f); elsewhere (moving run) %.4g\n", n,
+              err_moving / n, err_still / n, err_moving / err_still, err_rest / rest);
+  EXPECT_LE(err_moving / n, 6.0 * err_still / n);
+}
+
 }  // namespace
 }  // namespace px

@@ -1,27 +1,23 @@
 #include "app/commands.h"
 
 #include "app/cli_enums.h"
-#include "app/frame_report.h"
+#include "app/frame_checks.h"
+#include "app/frame_loop.h"
 #include "app/output_dir.h"
 #include "app/render_setup.h"
 #include "app/scene_setup.h"
-#include "app/video_writer.h"
 #include "cluster/cluster.h"
-#include "control/strip_balancer.h"
 #include "image/image_io.h"
 #include "image/image_metrics.h"
 #include "io/interrupt.h"
 #include "render/preview_renderer.h"
 #include "render/reference_render.h"
 #include "render/scene_animator.h"
-#include "render/stereo_camera.h"
 #include "pipeline/stereo_pipeline.h"
 
 #include <chrono>
-#include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <optional>
 
 namespace px {
 namespace {
@@ -31,48 +27,6 @@ using clock_type = std::chrono::steady_clock;
 
 double ms_since(clock_type::time_point t0) {
   return std::chrono::duration<double, std::milli>(clock_type::now() - t0).count();
-}
-
-std::string frame_name(unsigned frame, const char* what) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "frame_%04u_%s", frame, what);
-  return buf;
-}
-
-// Pixels of `image` with a NaN or infinite channel. An image is either finite or the run fails:
-// a NaN made before the path loop (camera, primary hit) is not caught by the kernels'
-// per-path guard and would otherwise be written as a silently wrong image.
-std::size_t count_nonfinite(const ImageRGB& image) {
-  std::size_t bad = 0;
-  for (std::size_t i = 0; i + 2 < image.rgb.size(); i += 3)
-    bad += !(std::isfinite(image.rgb[i]) && std::isfinite(image.rgb[i + 1]) && std::isfinite(image.rgb[i + 2]));
-  return bad;
-}
-
-void require_finite(const std::array<ImageRGB, 2>& eyes, const std::string& what) {
-  for (int e = 0; e < 2; ++e)
-    if (const std::size_t bad = count_nonfinite(eyes[e]))
-      throw std::runtime_error(what + ": " + std::to_string(bad) + " of " +
-                               std::to_string(static_cast<std::size_t>(eyes[e].width) * eyes[e].height) +
-                               " pixels of the " + (e == 0 ? "left" : "right") +
-                               " eye are NaN or infinite (not written). The scene's coordinates or camera are "
-                               "probably beyond what 32-bit floats resolve: scale or recentre it");
-}
-
-// The camera at `time_s`, checked before rendering with it. Every key of a camera path is
-// valid on load, but interpolating between two keys can still make position meet target (keys
-// that swap them) or the view parallel to up: a NaN camera, whose rays miss everything, gave a
-// silently black frame with exit 0.
-void check_camera(const Scene& scene, float time_s, const std::string& what) {
-  const Camera c = evaluate_camera(scene, time_s);
-  const glm::vec3 forward = c.target - c.position;
-  const glm::vec3 side = glm::cross(forward, c.up);
-  const float f2 = glm::dot(forward, forward), s2 = glm::dot(side, side);
-  if (std::isfinite(f2) && f2 > 0.0f && std::isfinite(s2) && s2 > 0.0f) return;
-  char when[64];
-  std::snprintf(when, sizeof when, " (t = %.4g s)", double(time_s));
-  throw std::runtime_error(what + when + ": the camera path gives no view direction there (position meets target, "
-                                         "or the view is parallel to up); adjust the camera_path keys");
 }
 
 // Writes left/right EXR + PNG and the side-by-side stereo PNG under `dir` with `prefix`.
@@ -87,35 +41,6 @@ void write_stereo(const OutputDir& dir, const std::string& prefix, const std::ar
   }
   write_png(dir.file(prefix + "stereo.png"), 2 * eyes[0].width, eyes[0].height,
             side_by_side(png[0], png[1], eyes[0].width, eyes[0].height));
-}
-
-// Frame `f` of `render`: per eye an EXR (unless --no-exr: `eyes` is then unused) and a PNG,
-// the auxiliary EXRs --aov asks for, the side-by-side stereo PNG, and the video's next frame.
-void write_render_frame(const RenderCommand& cmd, const OutputDir& dir, unsigned f,
-                        const std::array<ImageRGB, 2>& eyes, const std::array<std::vector<std::uint8_t>, 2>& png,
-                        const StereoPipeline& pipeline, VideoWriter* video) {
-  const std::string prefix = frame_name(f, "");
-  const int w = static_cast<int>(cmd.width), h = static_cast<int>(cmd.height);
-  // A build without an image codec renders for its report, timeline and video only (said once
-  // at the start).
-  const bool files = image_codec_available();
-  try {
-    for (int e = 0; e < 2 && files; ++e) {
-      const std::string name = prefix + (e == 0 ? "left" : "right");
-      if (!cmd.no_exr) write_exr(dir.file(name + ".exr"), eyes[e]);
-      write_png(dir.file(name + ".png"), w, h, png[e]);
-      if (!pipeline.albedo_aov()[e].rgb.empty()) write_exr(dir.file(name + "_albedo.exr"), pipeline.albedo_aov()[e]);
-      if (!pipeline.normal_aov()[e].rgb.empty()) write_exr(dir.file(name + "_normal.exr"), pipeline.normal_aov()[e]);
-    }
-    const auto stereo = side_by_side(png[0], png[1], w, h);
-    if (files) write_png(dir.file(prefix + "stereo.png"), 2 * w, h, stereo);
-    if (video) video->write_frame(stereo);
-  } catch (const ImageError& e) {
-    // Say what is usable: the frames before this one are complete.
-    throw std::runtime_error(std::string(e.what()) + " (frame " + std::to_string(f) + "; " +
-                             (f ? "frames 0-" + std::to_string(f - 1) + " in " + cmd.out + " are complete"
-                                : std::string("no frame was completed")) + ")");
-  }
 }
 
 }  // namespace
@@ -159,7 +84,6 @@ int run_render(const RenderCommand& cmd) {
   if (cmd.frames == 0) throw std::invalid_argument("--frames must be at least 1");
   PipelineConfig config = make_pipeline_config(cmd);
   StereoPipeline::Options& opt = config.options;
-  std::optional<FrameTimeController>& controller = config.controller;
   const bool dynamic_strips = cmd.balance == StripBalance::Dynamic;
   if (dynamic_strips && !has_movable_strips(opt.pipeline))
     throw std::invalid_argument("--balance dynamic needs the proposed or mono pipeline (baseline already spreads path "
@@ -204,268 +128,11 @@ int run_render(const RenderCommand& cmd) {
     return 0;
   }
   install_interrupt_handlers();
-  // The report and the timeline are opened before anything renders, so that an unwritable path
-  // fails at once.
-  std::optional<OutputDir> out_dir;
-  std::optional<RenderReport> report;
-  std::optional<RenderTimeline> timeline;
-  std::optional<SceneOnDevices> on_devices;
-  std::optional<StereoPipeline> pipeline_slot;
-  std::optional<VideoWriter> video;
-  std::optional<SceneAnimator> animator;
-  auto setup = [&] {
-    if (root) {
-      if (!image_codec_available())
-        std::fprintf(stderr, "render: this build has no image codec (configured with -DPX_OPENIMAGEIO=OFF): no image "
-                             "files are written; --report, --timeline and --video still are\n");
-      out_dir.emplace(cmd.out, cmd.overwrite, is_render_frame_file);
-      if (!cmd.report.empty()) report.emplace(cmd, opt, cluster.size());
-      if (!cmd.timeline.empty()) timeline.emplace(cmd.timeline);
-      if (!cmd.video.empty()) video.emplace(cmd.video, 2 * cmd.width, cmd.height, cmd.fps);
-    }
-    // Every rank loads the scene itself (the scene is replicated, not sent).
-    on_devices.emplace(cmd.scene, cmd.devices.options(), !root, cmd.sky, cmd.kernels);
-    const DeviceSet& set = on_devices->devices;
-    if (root) print_device_set(set);
-    if (root) print_scene_upload(on_devices->device_scene, set.size());
-    if (root) print_kernel_features(on_devices->device_scene);
-    // Queues sharing one device run on the same compute units: dynamic strips still move, but
-    // by times that say more about the order the queues run in than about speed.
-    if (root && dynamic_strips && set.mode() == DeviceMode::SharedQueues && set.size() > 1)
-      std::printf("balance: dynamic over %d queues on one OpenCL device: they share its compute units, so the "
-                  "strips follow the queues' measured times but the frame gets no faster\n",
-                  set.size());
-    animator.emplace(on_devices->loaded.scene, cmd.animation);
-    if (root && animator->moves()) std::fprintf(stderr, "[scene] animation: %s\n", animator->describe().c_str());
-    pipeline_slot.emplace(on_devices->devices, on_devices->device_scene, on_devices->loaded.scene, cmd.width,
-                          cmd.height, opt);
-  };
-  if (!distributed) {
-    setup();
-  } else {
-    // A rank that cannot start (a scene path missing on its node, no OpenCL device) must stop
-    // every rank with its reason, not leave the others waiting for its messages.
-    std::string why;
-    try {
-      setup();
-    } catch (const cl::Error& e) {
-      why = std::string("OpenCL: ") + describe(e);
-    } catch (const std::exception& e) {
-      why = e.what();
-    }
-    const auto failed = cluster.failures(why.empty(), why);
-    if (!failed.empty()) {
-      cluster.mark_orderly_exit();
-      if (!root) return 1;  // rank 0 says why, for every rank
-      std::string all = std::to_string(failed.size()) + " of " + std::to_string(cluster.size()) +
-                        " MPI ranks could not start, so none renders:";
-      for (const auto& f : failed) all += "\n  " + f;
-      throw std::runtime_error(all);
-    }
-    if (root)
-      std::fprintf(stderr, "[mpi] %d ranks x %d device(s) = %d devices; rank 0 owns the frame and writes the files\n",
-                   cluster.size(), cmd.devices.count, pipeline_slot->layout().count());
-  }
-  const DeviceSet& devices = on_devices->devices;
-  const Scene& scene = on_devices->loaded.scene;
-  StereoPipeline& pipeline = *pipeline_slot;
-  StageSummary summary;
-  FrameQuality last_quality = pipeline.quality();  // the quality of the last frame rendered
-  const int all_devices = pipeline.layout().count();
-  std::optional<StripBalancer> balancer;
-  if (dynamic_strips && all_devices > 1) {
-    if (cmd.height < static_cast<unsigned>(all_devices))
-      throw std::invalid_argument("--balance dynamic needs at least one row per device");
-    StripBalancer::Options b;
-    b.max_step_rows = cmd.balance_step;
-    balancer.emplace(cmd.height, all_devices, b);
-  }
-  if (root)
-    std::fprintf(stderr, "[render] %u frame(s), %ux%u per eye, %u spp, %u bounces, pipeline %s, denoise %s\n",
-                 cmd.frames, cmd.width, cmd.height, opt.trace.spp, opt.trace.bounces,
-                 cli_word(cmd.pipeline).c_str(), opt.denoise ? ("SVGF, seams " + cli_word(cmd.seams)).c_str() : "off");
-  // Whether to render the next frame, and with what. Under MPI, rank 0 decides (its interrupt,
-  // its control loop's quality, its balancer's strips) and every rank follows.
-  auto next_frame_agreed = [&]() -> bool {
-    if (!distributed) return !interrupted();
-    std::vector<std::uint32_t> order(4 + static_cast<std::size_t>(all_devices), 0);
-    if (root) {
-      const FrameQuality q = pipeline.quality();
-      order[0] = interrupted() ? 1u : 0u;
-      order[1] = q.spp;
-      order[2] = q.bounces;
-      order[3] = q.svgf_iterations;
-      if (balancer)
-        for (int d = 0; d < all_devices; ++d) order[4 + d] = pipeline.strips()[d].size();
-    }
-    cluster.broadcast(order.data(), order.size() * sizeof(std::uint32_t));
-    if (!root && order[0] == 0) {
-      pipeline.set_quality({order[1], order[2], order[3]});
-      if (balancer) pipeline.set_strips(strips_from_sizes({order.begin() + 4, order.end()}));
-    }
-    return order[0] == 0;
-  };
-  if (timeline) timeline->name_devices(devices);
-  RenderTotals totals;  // over the frames written (on rank 0)
-  AnimationTotals animation_totals;
-  unsigned done = 0;
-  // Every frame's camera is checked before the first is rendered: a bad one fails the run now.
-  for (unsigned f = 0; f < cmd.frames; ++f)
-    check_camera(scene, static_cast<float>(f) / cmd.fps, "frame " + std::to_string(f));
-  std::optional<double> predicted_ms;  // the control loop's prediction for the coming frame
-  for (unsigned f = 0; f < cmd.frames; ++f) {
-    if (!next_frame_agreed()) {
-      if (f > 0) break;
-      if (root) std::printf("interrupted by %s before the first frame: nothing written\n", interrupt_signal_name());
-      return interrupt_exit_code();
-    }
-    const FrameQuality quality = pipeline.quality();
-    last_quality = quality;
-    const std::vector<RowRange> strips = pipeline.strips();
-    // One clock: the animation and the camera path are both at f / fps (every rank poses the
-    // same triangles; the last frame's queues are finished, so the geometry may be rewritten).
-    const SceneAnimator::Update update =
-        animator->update(static_cast<double>(f) / cmd.fps, on_devices->devices, on_devices->device_scene);
-    if (animator->moves()) animation_totals.add(update);
-    const FrameStats st = pipeline.render(f, static_cast<float>(f) / cmd.fps);
-    if (!root) {  // rank 0 holds the frame, decides the next and writes everything
-      done = f + 1;
-      continue;
-    }
-    const std::optional<double> predicted_this_frame = predicted_ms;
-    // Frame 0 compiles the kernels (seconds on PoCL): it says nothing about the frame time.
-    if (controller && f > 0) {
-      pipeline.set_quality(controller->update(quality, StereoPipeline::frame_cost(st)));
-      predicted_ms = controller->predicted_ms();
-    }
-    // Frame 0's times include kernel compilation: the balancer starts from frame 1's.
-    if (balancer && f > 0) {
-      pipeline.set_strips(strips_from_sizes(
-          balancer->update(strip_sizes(strips), StereoPipeline::device_busy_ms(st, all_devices))));
-    }
-    if (st.nonfinite_pixels > 0)
-      throw std::runtime_error("frame " + std::to_string(f) + ": " + std::to_string(st.nonfinite_pixels) +
-                               " pixels are NaN or infinite (not written). The scene's coordinates or camera are "
-                               "probably beyond what 32-bit floats resolve: scale or recentre it");
-    std::array<ImageRGB, 2> eyes;
-    if (!cmd.no_exr) {
-      eyes = pipeline.radiance();
-      require_finite(eyes, "frame " + std::to_string(f));
-    }
-    write_render_frame(cmd, *out_dir, f, eyes, pipeline.rgba8(), pipeline, video ? &*video : nullptr);
-    done = f + 1;
-    summary.add(st);
-    totals.add(st);
-    std::fprintf(stderr, "[render] frame %u/%u: %.0f ms%s, %.1f%% of the right eye reprojected", f + 1, cmd.frames,
-                 st.wall_ms, f == 0 ? " (includes kernel compilation)" : "",
-                 st.right_pixels ? 100.0 * st.reprojected / st.right_pixels : 0.0);
-    if (controller)
-      std::fprintf(stderr, "; %u spp, %u bounces, %u iterations%s", quality.spp, quality.bounces,
-                   quality.svgf_iterations,
-                   predicted_this_frame ? (" (predicted " + std::to_string(int(*predicted_this_frame + 0.5)) + " ms)").c_str()
-                                        : "");
-    if (balancer) {
-      std::fprintf(stderr, "; strips");
-      for (std::size_t d = 0; d < strips.size(); ++d) std::fprintf(stderr, "%s%u", d ? "/" : " ", strips[d].size());
-      std::fprintf(stderr, " rows");
-    }
-    std::fputc('\n', stderr);
-    if (timeline) timeline->add_frame(f, st);
-    if (report) report->add_frame(f, st, strips, quality, predicted_this_frame, animator->moves() ? &update : nullptr);
-    // Under MPI the next frame's agreement stops every rank together.
-    if (!distributed && interrupted()) break;
-  }
-  if (!root) return 0;
-  const double hz = totals.hz();
-  if (pipeline.nonfinite_paths() > 0)
-    std::fprintf(stderr, "[render] warning: %llu paths had non-finite radiance and were dropped\n",
-                 static_cast<unsigned long long>(pipeline.nonfinite_paths()));
-  const bool stopped = done < cmd.frames;
-  if (report) {
-    report->finish(totals, all_devices, devices.mode(), devices.bvh_layout(), on_devices->device_scene,
-                   on_devices->loaded.times, pipeline.nonfinite_paths());
-    std::fprintf(stderr, "[render] report written to %s\n", cmd.report.c_str());
-  }
-  if (video) {
-    video->commit();
-    std::fprintf(stderr, "[render] video written to %s\n", cmd.video.c_str());
-  }
-  if (timeline) {
-    timeline->finish();
-    std::fprintf(stderr, "[render] timeline written to %s (open in chrome://tracing or ui.perfetto.dev)\n",
-                 cmd.timeline.c_str());
-  }
-  const char* eye_files = cmd.no_exr ? "png" : "{exr,png}";
-  // The one-screen summary on stdout: what ran, how fast, where the time went, where the files are.
-  if (done > 0) {
-    const FrameQuality& q = last_quality;
-    std::printf("\n== render summary ==\n");
-    std::printf("%s: pipeline %s, %d device(s) (%s%s), %ux%u per eye, %u spp, %u bounces, denoise %s%s\n",
-                scene.name.c_str(), cli_word(cmd.pipeline).c_str(), all_devices, to_string(devices.mode()),
-                distributed ? (", " + std::to_string(cluster.size()) + " MPI ranks").c_str() : "", cmd.width,
-                cmd.height, q.spp, q.bounces,
-                opt.denoise ? ("SVGF " + std::to_string(q.svgf_iterations) + " iterations, seams " + cli_word(cmd.seams)).c_str()
-                            : "off",
-                controller ? (" (last frame's; control loop " + cmd.target_ms + " ms)").c_str() : "");
-    if (done > 1)
-      std::printf("%.1f Hz over frames 1-%u (frame 0 took %.0f ms: it includes kernel compilation)\n", hz, done - 1,
-                  totals.first_frame_ms);
-    else
-      std::printf("%.1f Hz (one frame, including kernel compilation)\n", hz);
-    std::printf("median device time per stage%s:\n%s", done > 1 ? " (frames after the first)" : "",
-                summary.table(1).c_str());
-    {
-      const StartTimes& t = on_devices->loaded.times;
-      const DeviceScene& ds = on_devices->device_scene;
-      std::printf("start: scene %.0f ms, BVH %.0f ms (%s), validation %.0f ms%s, upload %.0f ms (%.1f MiB, one copy "
-                  "for the %d device(s) of the context)\n",
-                  t.load_ms, t.bvh_ms, t.bvh_from_cache ? "read from the cache" : "built", t.validate_ms,
-                  t.cache_store_ms > 0.0 ? (", cache write " + std::to_string(static_cast<long>(t.cache_store_ms)) + " ms").c_str() : "",
-                  ds.upload_ms(), static_cast<double>(ds.bytes_in_context()) / (1024.0 * 1024.0), devices.size());
-    }
-    if (animation_totals.frames > 0)
-      std::printf("animation: %s; per frame (median) pose %.1f ms, BVH rebuild %.1f ms, upload %.1f ms of %.2f MiB\n",
-                  animator->describe().c_str(), animation_totals.median(&SceneAnimator::Update::pose_ms),
-                  animation_totals.median(&SceneAnimator::Update::bvh_ms),
-                  animation_totals.median(&SceneAnimator::Update::upload_ms),
-                  static_cast<double>(animation_totals.bytes_last) / (1024.0 * 1024.0));
-    if (balancer) {
-      std::printf("strips at the end (rows per device):");
-      for (const RowRange& r : pipeline.strips()) std::printf(" %u", r.size());
-      std::printf("\n");
-    }
-    if (image_codec_available()) {
-      std::printf("files:\n  %s/frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png (NNNN = 0000-%04u)\n",
-                  cmd.out.c_str(), eye_files, done - 1);
-      if (opt.aovs.any())
-        std::printf("  %s/frame_NNNN_{left,right}_%s.exr (auxiliary images)\n", cmd.out.c_str(),
-                    opt.aovs.albedo && opt.aovs.normal ? "{albedo,normal}" : opt.aovs.albedo ? "albedo" : "normal");
-    } else {
-      std::printf("files:\n  no images (this build has no image codec)\n");
-    }
-    if (report) std::printf("  report:   %s\n", cmd.report.c_str());
-    if (timeline) std::printf("  timeline: %s\n", cmd.timeline.c_str());
-    if (video) std::printf("  video:    %s (left | right, %g fps)\n", cmd.video.c_str(), double(cmd.fps));
-    std::printf("\n");
-  }
-  if (stopped) {
-    std::printf("interrupted by %s after %u of %u frame(s): wrote frames 0-%u to %s "
-                "(frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png), every file complete%s\n",
-                interrupt_signal_name(), done, cmd.frames, done - 1, cmd.out.c_str(), eye_files,
-                report ? "; the report covers those frames" : "");
-    return interrupt_exit_code();
-  }
-  if (image_codec_available())
-    std::printf("wrote %u frame(s) to %s (frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png); ", cmd.frames,
-                cmd.out.c_str(), eye_files);
-  else
-    std::printf("rendered %u frame(s), no image files (this build has no image codec); ", cmd.frames);
-  std::printf("%.1f Hz %s\n", hz,
-              done > 1 ? "over the frames after the first (which includes kernel compilation)"
-                       : "(one frame, including kernel compilation)");
-  // A signal after the last frame: every frame is written, but the exit status still says so.
-  if (interrupted()) return interrupt_exit_code();
-  return 0;
+  // The frames themselves, and the summary after them, are the frame loop's (app/frame_loop.h).
+  RenderLoop loop(cmd, std::move(config), cluster);
+  if (const auto status = loop.start()) return *status;
+  if (const auto status = loop.run()) return *status;
+  return loop.finish();
 }
 
 int run_reference(const ReferenceCommand& cmd) {
@@ -476,23 +143,25 @@ int run_reference(const ReferenceCommand& cmd) {
   print_scene_upload(on_devices.device_scene, on_devices.devices.size());
   print_kernel_features(on_devices.device_scene);
   const Scene& scene = on_devices.loaded.scene;
-  // The scene posed at the frame's time, as `render` poses it for that frame.
+  // The scene and camera at the frame's time, on `render`'s clock: the reference of frame f is
+  // the image `render` converges to at frame f.
+  const FrameClock clock{cmd.fps};
   SceneAnimator animator(on_devices.loaded.scene, cmd.animation);
   if (animator.moves()) {
     std::fprintf(stderr, "[reference] animation: %s, at t = %.4g s\n", animator.describe().c_str(),
-                 static_cast<double>(cmd.frame) / cmd.fps);
-    animator.update(static_cast<double>(cmd.frame) / cmd.fps, on_devices.devices, on_devices.device_scene);
+                 clock.time_s(cmd.frame));
+    animator.update(clock.time_s(cmd.frame), on_devices.devices, on_devices.device_scene);
   }
   PathTracer tracer(on_devices.devices, on_devices.device_scene, scene);
   ReferenceOptions opt;
   opt.spp = cmd.spp;
   opt.pass_spp = cmd.pass_spp;
   opt.bounces = cmd.bounces;
-  check_camera(scene, static_cast<float>(cmd.frame) / cmd.fps, "reference frame " + std::to_string(cmd.frame));
+  check_camera(scene, clock.camera_time_s(cmd.frame), "reference frame " + std::to_string(cmd.frame));
   // Ctrl-C stops after the pass in flight and writes the average of the passes done.
   opt.stop = [] { return interrupted(); };
   unsigned spp_done = 0;
-  auto eyes = render_reference(tracer, static_cast<float>(cmd.frame) / cmd.fps, cmd.frame, cmd.width, cmd.height, opt,
+  auto eyes = render_reference(tracer, clock.camera_time_s(cmd.frame), cmd.frame, cmd.width, cmd.height, opt,
                                eta_printer("reference"), &spp_done);
   require_finite(eyes, "reference");
   write_stereo(out_dir, "reference_", eyes, cmd.exposure);

@@ -2,6 +2,7 @@
 
 #include "app/cli_enums.h"
 #include "app/commands.h"
+#include "app/frame_loop.h"
 #include "app/render_setup.h"
 #include "image/image_io.h"
 #include "io/interrupt.h"
@@ -72,7 +73,8 @@ void render_loop(const ViewCommand& cmd, RenderSession& session, SceneAnimator& 
   StereoPipeline& pipeline = session.pipeline;
   const Scene& scene = session.loaded.scene;
   const float duration = camera_path_duration(scene);
-  const bool scripted = cmd.frames > 0;  // --frames: frame f at time f / fps, as `render` does
+  const bool scripted = cmd.frames > 0;  // --frames: frame f on `render`'s clock (f / fps)
+  const FrameClock frame_clock{cmd.render.fps};
   double path_time = 0.0;                // interactive: seconds of camera path played so far
   double hz = 0.0;
   auto last_done = clock_type::now();
@@ -86,10 +88,10 @@ void render_loop(const ViewCommand& cmd, RenderSession& session, SceneAnimator& 
         flying = shared.flying;
         fly = shared.fly_camera;
       }
-      const float t = scripted ? static_cast<float>(f) / cmd.render.fps
+      const float t = scripted ? frame_clock.camera_time_s(f)
                                : (duration > 0.0f ? static_cast<float>(std::fmod(path_time, double(duration))) : 0.0f);
       // The animation plays on the same clock, unbounded (each clip loops over its own length).
-      animator.update(scripted ? static_cast<double>(f) / cmd.render.fps : path_time, session.devices,
+      animator.update(scripted ? frame_clock.time_s(f) : path_time, session.devices,
                       session.device_scene);
       const Camera camera = flying ? fly : evaluate_camera(scene, t);
       const FrameQuality quality = pipeline.quality();
