@@ -376,6 +376,95 @@ TEST(GltfLoader, EmissiveMeshLightsTheImageAndWithoutItTheImageIsBlack) {
   EXPECT_GT(mean_of_render(sky), 0.0);
 }
 
+// KHR_lights_punctual: the first directional light is the sun. Its illuminance E (lux) over
+// the sun disk's solid angle is the disk's radiance, and a surface facing it receives E; turned
+// 60 degrees away, E cos 60 (the 4% specular of the dielectric mapping bends the ratio by a few
+// percent, within the bounds below).
+TEST(GltfLoader, ADirectionalLightBecomesTheSunWithItsIlluminance) {
+  TempDir dir;
+  Gltf g = make_mesh({-10, -10, 0, 10, -10, 0, 10, 10, 0, -10, 10, 0}, {0, 1, 2, 0, 2, 3});
+  g.doc["cameras"] = json::array({{{"type", "perspective"}, {"perspective", {{"yfov", 0.2}, {"znear", 0.1}}}}});
+  g.doc["materials"] = json::array({{{"pbrMetallicRoughness", {{"baseColorFactor", {0.5, 0.5, 0.5, 1}}, {"metallicFactor", 0.0}}}}});
+  g.doc["meshes"][0]["primitives"][0]["material"] = 0;
+  g.doc["extensionsUsed"] = {"KHR_lights_punctual"};
+  g.doc["extensions"] = {{"KHR_lights_punctual",
+                          {{"lights", json::array({{{"type", "directional"}, {"color", {1.0, 0.5, 0.25}}, {"intensity", 3.0}}})}}}};
+  g.doc["nodes"].push_back({{"camera", 0}, {"translation", {0, 0, 5}}});
+  // The light shines along its node's -z: here straight onto the quad (which faces +z).
+  g.doc["nodes"].push_back({{"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}}});
+  g.doc["scenes"][0]["nodes"] = {0, 1, 2};
+  const Scene head_on = load_scene(write_embedded(dir, "sun.gltf", g).string());
+  ASSERT_TRUE(head_on.sun.enabled);
+  EXPECT_FALSE(head_on.sky.enabled);  // lit: no default sky added
+  EXPECT_EQ(count_warnings_containing(head_on, "KHR_lights_punctual"), 0);
+  EXPECT_NEAR(head_on.sun.direction.z, 1.0f, 1e-6);  // towards the light
+  const double omega = 2.0 * M_PI * (1.0 - std::cos(head_on.sun.angular_radius_deg * M_PI / 180.0));
+  EXPECT_NEAR(head_on.sun.radiance.x * omega, 3.0, 1e-3);
+  EXPECT_NEAR(head_on.sun.radiance.y * omega, 1.5, 1e-3);
+  // Turned 60 degrees about x.
+  const double s = std::sin(M_PI / 6), c = std::cos(M_PI / 6);
+  g.doc["nodes"][2]["rotation"] = {s, 0.0, 0.0, c};
+  const Scene slanted = load_scene(write_embedded(dir, "slanted.gltf", g).string());
+  EXPECT_NEAR(slanted.sun.direction.z, 0.5f, 1e-5);
+  const double ratio = mean_of_render(slanted) / mean_of_render(head_on);
+  EXPECT_GT(ratio, 0.45);
+  EXPECT_LT(ratio, 0.55);
+  // A diffuse 0.5 surface facing E = 3 (red channel) shows 0.5 x 3 / pi = 0.477, give or take
+  // the dielectric's 4% specular (which takes its share from the diffuse lobe and adds its own
+  // reflection): within 10%. The channels are in the light colour's ratio 1 : 0.5 : 0.25.
+  const double red = mean_of_render(head_on) / (1.0 + 0.5 + 0.25) * 3.0;
+  EXPECT_GT(red, 0.477 * 0.90);
+  EXPECT_LT(red, 0.477 * 1.10);
+}
+
+// COLOR_0 multiplies the diffuse colour: a quad whose vertices are all (1, 0.5, 0.25) renders
+// as the same quad with that colour folded into its base colour instead (a second code path:
+// the material), channel by channel; and a quad whose corners differ renders in between.
+TEST(GltfLoader, VertexColoursMultiplyTheDiffuseColour) {
+  TempDir dir;
+  auto quad = [](bool coloured, std::vector<double> base) {
+    Gltf g = make_mesh({-10, -10, 0, 10, -10, 0, 10, 10, 0, -10, 10, 0}, {0, 1, 2, 0, 2, 3});
+    g.doc["cameras"] = json::array({{{"type", "perspective"}, {"perspective", {{"yfov", 0.2}, {"znear", 0.1}}}}});
+    g.doc["nodes"].push_back({{"camera", 0}, {"translation", {0, 0, 5}}});
+    g.doc["scenes"][0]["nodes"] = {0, 1};
+    g.doc["materials"] = json::array({{{"pbrMetallicRoughness", {{"baseColorFactor", base}, {"metallicFactor", 0.0}}}}});
+    g.doc["meshes"][0]["primitives"][0]["material"] = 0;
+    if (coloured) {
+      const std::vector<float> rgb = {1, 0.5f, 0.25f, 1, 0.5f, 0.25f, 1, 0.5f, 0.25f, 1, 0.5f, 0.25f};
+      const std::string bytes(reinterpret_cast<const char*>(rgb.data()), rgb.size() * sizeof(float));
+      const std::size_t offset = g.bin.size();
+      g.bin += bytes;
+      g.doc["bufferViews"].push_back({{"buffer", 0}, {"byteOffset", offset}, {"byteLength", bytes.size()}});
+      g.doc["accessors"].push_back(
+          {{"bufferView", g.doc["bufferViews"].size() - 1}, {"componentType", 5126}, {"count", 4}, {"type", "VEC3"}});
+      g.doc["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = g.doc["accessors"].size() - 1;
+    }
+    return g;
+  };
+  auto channel_means = [](const Scene& scene) {
+    const FlatBvh bvh = build_bvh(scene.triangles);
+    DeviceScene device_scene(one_device(), scene, bvh);
+    EXPECT_EQ((device_scene.scene_features() & PX_FEATURE_VERTEX_COLOURS) != 0, !scene.vertex_colours.empty());
+    PathTracer tracer(one_device(), device_scene, scene);
+    PathTracer::Options opt;
+    opt.spp = 4;
+    const auto eyes = tracer.render_stereo(0.0f, 0, 8, 8, opt);
+    glm::dvec3 sum(0.0);
+    for (std::size_t i = 0; i < eyes[0].rgb.size(); i += 3)
+      sum += glm::dvec3(eyes[0].rgb[i], eyes[0].rgb[i + 1], eyes[0].rgb[i + 2]);
+    return sum / double(eyes[0].rgb.size() / 3);
+  };
+  const Scene coloured = load_scene(write_embedded(dir, "tinted.gltf", quad(true, {0.8, 0.8, 0.8, 1})).string());
+  ASSERT_EQ(coloured.vertex_colours.size(), coloured.triangles.size());
+  for (const auto& w : coloured.stats.warnings) EXPECT_EQ(w.find("colour"), std::string::npos) << w;
+  const Scene folded = load_scene(write_embedded(dir, "folded.gltf", quad(false, {0.8, 0.4, 0.2, 1})).string());
+  EXPECT_TRUE(folded.vertex_colours.empty());
+  const glm::dvec3 a = channel_means(coloured), b = channel_means(folded);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(a[c], b[c], 1e-4 * b[c]) << "channel " << c;
+  EXPECT_GT(a.x, 1.5 * a.y);  // the colours show
+  EXPECT_GT(a.y, 1.5 * a.z);
+}
+
 TEST(GltfLoader, UnsupportedFeaturesAreNamedInOneWarningLine) {
   TempDir dir;
   Gltf g = make_mesh(kPos, kIdx, {}, kUv);
@@ -385,14 +474,18 @@ TEST(GltfLoader, UnsupportedFeaturesAreNamedInOneWarningLine) {
   g.doc["images"] = json::array({{{"uri", "missing.png"}}});
   g.doc["samplers"] = json::array({{{"wrapS", 33071}}});
   g.doc["textures"] = json::array({{{"source", 0}, {"sampler", 0}}});
-  g.doc["extensionsUsed"] = {"KHR_lights_punctual"};
+  g.doc["extensionsUsed"] = {"KHR_lights_punctual", "KHR_materials_sheen"};
+  g.doc["extensions"] = {{"KHR_lights_punctual", {{"lights", json::array({{{"type", "point"}, {"intensity", 5.0}}})}}}};
+  g.doc["nodes"].push_back({{"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}}});
+  g.doc["scenes"][0]["nodes"] = {0, 1};
   g.doc["materials"] = json::array({{{"alphaMode", "BLEND"}, {"occlusionTexture", {{"index", 0}}},
                                      {"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}}});
   g.doc["meshes"][0]["primitives"][0]["material"] = 0;
   const Scene s = load_gltf(write_embedded(dir, "odd.gltf", g).string());
   EXPECT_EQ(s.triangles.size(), 3u);
   EXPECT_EQ(count_warnings_containing(s, "ignored glTF features"), 1);
-  for (const char* feature : {"line primitives", "alphaMode BLEND", "KHR_lights_punctual", "wrap modes", "occlusionTexture"})
+  for (const char* feature : {"line primitives", "alphaMode BLEND", "KHR_materials_sheen", "point and spot lights",
+                              "wrap modes", "occlusionTexture"})
     EXPECT_EQ(count_warnings_containing(s, feature), 1) << feature;
   EXPECT_EQ(count_warnings_containing(s, "missing.png"), 1);
   // An embedded image that is no image loses its texture, with a warning; the file loads.

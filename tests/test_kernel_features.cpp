@@ -137,6 +137,11 @@ LoadedScene every_feature_scene() {
   s.camera.target = {0.0f, -0.3f, 0.0f};
   s.camera.vfov_deg = 50.0f;
   s.camera_path = {{0.0f, {0.0f, 0.8f, 4.5f}, {0.0f, -0.3f, 0.0f}}, {1.0f, {0.6f, 1.0f, 4.0f}, {0.1f, -0.3f, 0.0f}}};
+  // Vertex colours: a different tint at each corner of every triangle.
+  s.vertex_colours.resize(s.triangles.size());
+  for (std::size_t t = 0; t < s.triangles.size(); ++t)
+    for (int c = 0; c < 3; ++c)
+      s.vertex_colours[t][std::size_t(c)] = glm::vec3(0.4f + 0.2f * float((t + c) % 4), 0.9f - 0.1f * float(c), 0.7f);
   return LoadedScene{s, build_bvh(s.triangles), {}};
 }
 

@@ -94,7 +94,7 @@ float luminance(const glm::vec3& c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0
 }  // namespace
 
 cl_uint DeviceSceneBuffers::bind(cl::Kernel& kernel, cl_uint first) const {
-  for (const cl::Buffer* b : {&nodes, &triangles, &shading, &materials, &textures, &texels, &lights})
+  for (const cl::Buffer* b : {&nodes, &triangles, &shading, &materials, &textures, &texels, &lights, &colours})
     kernel.setArg(first++, *b);
   return first;
 }
@@ -254,7 +254,19 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh) {
   light_count_ = lights.size();
   FrameParams light_params{};
   fill_light_params(scene, light_count_, light_params);
-  scene_features_ = px::kernel_features(materials, tri_flags, light_params);
+  scene_features_ = px::kernel_features(materials, tri_flags, light_params, !scene.vertex_colours.empty());
+  std::vector<cl_float4> colours;
+  if (!scene.vertex_colours.empty()) {
+    if (scene.vertex_colours.size() != scene.triangles.size())
+      throw std::logic_error("DeviceScene: " + std::to_string(scene.vertex_colours.size()) + " vertex colour entries for " +
+                             std::to_string(scene.triangles.size()) + " triangles");
+    colours.reserve(3 * scene.vertex_colours.size());
+    for (const auto& tri : scene.vertex_colours)
+      for (const glm::vec3& c : tri) colours.push_back({{c.x, c.y, c.z, 1.0f}});
+  } else {
+    // The placeholder says "none" (w = 0) to kernels built with every feature.
+    colours.push_back({{1.0f, 1.0f, 1.0f, 0.0f}});
+  }
   std::vector<TextureInfo> infos;
   std::vector<cl_float4> texels;
   for (const auto& t : scene.textures) {
@@ -276,7 +288,7 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh) {
   const auto size_of = [](const auto& v) { return std::max<std::size_t>(1, v.size()) * sizeof(v[0]); };
   const std::size_t total = (layout == BvhLayout::Binary ? size_of(flagged.nodes) : size_of(wide_words)) +
                             size_of(triangles) + size_of(shading) + size_of(materials) + size_of(infos) +
-                            size_of(texels) + size_of(lights);
+                            size_of(texels) + size_of(lights) + size_of(colours);
   if (total > limits.global_mem)
     throw std::runtime_error("the scene needs " + mib(total) + " of device memory, more than the device has: " +
                              mib(limits.global_mem) + " (CL_DEVICE_GLOBAL_MEM_SIZE)");
@@ -296,6 +308,7 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh) {
   b.textures = upload("texture table", ctx, queue, infos, limits, bytes);
   b.texels = upload("texel", ctx, queue, texels, limits, bytes);
   b.lights = upload("light", ctx, queue, lights, limits, bytes);
+  b.colours = upload("vertex colour", ctx, queue, colours, limits, bytes);
   capacity_.nodes = layout == BvhLayout::Binary ? size_of(flagged.nodes) : size_of(wide_words);
   capacity_.triangles = size_of(triangles);
   capacity_.shading = size_of(shading);

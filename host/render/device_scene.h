@@ -25,12 +25,13 @@ struct DeviceSceneBuffers {
   cl::Buffer textures;   // TextureInfo[]
   cl::Buffer texels;     // float4[] (all textures back to back)
   cl::Buffer lights;     // LightTriangle[]
+  cl::Buffer colours;    // float4[3] per scene triangle (vertex colours), or one placeholder float4
   // Animated scenes only (SceneAnimator), else null: per scene triangle six float4, its three
   // vertices now and in the previous frame (the motion pass, kernels/pipeline/motion.cl). Not
   // one of the seven scene arguments bind() sets.
   cl::Buffer motion;
 
-  // Sets the seven scene arguments starting at argument index `first`; returns the next index.
+  // Sets the eight scene arguments starting at argument index `first`; returns the next index.
   cl_uint bind(cl::Kernel& kernel, cl_uint first) const;
 };
 

@@ -24,6 +24,8 @@
 //   normalTexture                         -> normal_texture, normal_scale
 //   KHR_materials_transmission >= 0.5     -> smooth dielectric, index from KHR_materials_ior
 //   doubleSided                           -> emitters light both faces
+//   COLOR_0 (vertex colours)              -> Scene::vertex_colours, multiplying the diffuse colour
+//   KHR_lights_punctual directional       -> the sun (the first one; point and spot lights are named)
 // Everything else the file asks for is named in one warning line.
 //
 // Motion: a file with animations keeps its node hierarchy, meshes, skins and clips in
@@ -494,7 +496,8 @@ class Converter {
   }
 
   static bool handled_extension(const std::string& e) {
-    return e == "KHR_materials_emissive_strength" || e == "KHR_materials_transmission" || e == "KHR_materials_ior";
+    return e == "KHR_materials_emissive_strength" || e == "KHR_materials_transmission" || e == "KHR_materials_ior" ||
+           e == "KHR_lights_punctual";
   }
 
   std::vector<std::string> failed_images_;
@@ -721,7 +724,12 @@ class Converter {
     }
     if (n.camera >= 0) camera(n.camera, world, where, index);
     if (n.mesh >= 0) mesh(n.mesh, world, where, index, n.skin);
-    for (const auto& [ext, value] : n.extensions) unsupported_.add("node extension " + ext, where);
+    for (const auto& [ext, value] : n.extensions) {
+      if (ext == "KHR_lights_punctual" && value.IsObject() && value.Has("light") && value.Get("light").IsInt())
+        light(value.Get("light").GetNumberAsInt(), world, where);
+      else
+        unsupported_.add("node extension " + ext, where);
+    }
     for (int c : n.children) visit(c, world, index, where, depth + 1);
   }
 
@@ -755,6 +763,38 @@ class Converter {
     scene_.camera.vfov_deg = float(glm::degrees(yfov));
     camera_found_ = true;
     if (rig_) rig_->camera_node = node;
+  }
+
+  // KHR_lights_punctual. The renderer's lights are emissive triangles, one sun and a sky: the
+  // first directional light becomes the sun (its illuminance, lux, spread over the sun disk's
+  // solid angle as radiance); point and spot lights have no counterpart and are named in the
+  // warning line. The light's rest pose is used (an animated light does not move).
+  void light(int index, const glm::dmat4& world, const std::string& where) {
+    if (index < 0 || std::size_t(index) >= model_.lights.size())
+      read_.fail(where + " names light " + std::to_string(index) + ", which does not exist");
+    const tinygltf::Light& l = model_.lights[std::size_t(index)];
+    if (l.type != "directional") {
+      unsupported_.add("point and spot lights (KHR_lights_punctual)", where);
+      return;
+    }
+    if (scene_.sun.enabled) {
+      unsupported_.add("directional lights after the first (KHR_lights_punctual)", where);
+      return;
+    }
+    const glm::dvec3 travel(world * glm::dvec4(0.0, 0.0, -1.0, 0.0));
+    const double len = glm::length(travel);
+    if (!(len > 0.0) || !std::isfinite(len)) {
+      scene_.stats.warnings.push_back(path_ + ": " + where + ": directional light with a degenerate direction; ignored");
+      return;
+    }
+    glm::vec3 colour(1.0f);
+    for (std::size_t c = 0; c < 3 && c < l.color.size(); ++c) colour[int(c)] = finite_clamped(l.color[c], 0.0f, 1.0f, 1.0f);
+    const float lux = std::isfinite(l.intensity) && l.intensity > 0.0 ? float(std::min(l.intensity, 1e9)) : 0.0f;
+    Sun& sun = scene_.sun;
+    sun.enabled = lux > 0.0f;
+    sun.direction = glm::vec3(-travel / len);  // towards the light
+    const double cos_max = std::cos(glm::radians(double(sun.angular_radius_deg)));
+    sun.radiance = colour * float(lux / (2.0 * std::numbers::pi * (1.0 - cos_max)));
   }
 
   std::uint32_t default_material() {
@@ -797,7 +837,7 @@ class Converter {
     }
     for (std::size_t pi = 0; pi < model_.meshes[std::size_t(index)].primitives.size(); ++pi)
       if (auto prim = primitive(index, pi))
-        emit_primitive(*prim, world, nullptr, nullptr, nullptr, scene_.triangles, scene_.stats);
+        emit_primitive(*prim, world, nullptr, nullptr, nullptr, scene_.triangles, scene_.stats, colours_out());
   }
 
   // Primitive `pi` of mesh `index` in its own space, or nothing (with a warning) when it is not
@@ -844,9 +884,19 @@ class Converter {
       if (attr.rfind("JOINTS_", 0) == 0 || attr.rfind("WEIGHTS_", 0) == 0) {
         if (attr != "JOINTS_0" && attr != "WEIGHTS_0") unsupported_.add("more than four joints per vertex", what);
         else if (!rig_) unsupported_.add("skins", what);
-      } else if (attr.rfind("COLOR_", 0) == 0) {
-        unsupported_.add("vertex colours", what);
+      } else if (attr.rfind("COLOR_", 0) == 0 && attr != "COLOR_0") {
+        unsupported_.add("vertex colour sets other than COLOR_0", what);
       }
+    if (auto it = prim.attributes.find("COLOR_0"); it != prim.attributes.end()) {
+      // Linear RGB(A), floats or normalised integers; alpha is not rendered.
+      const auto colours = read_.floats(it->second, {TINYGLTF_TYPE_VEC3, TINYGLTF_TYPE_VEC4}, what + " COLOR_0", true);
+      if (colours.size() != nv) read_.fail(what + ": COLOR_0 and POSITION counts differ");
+      out.colours.resize(nv);
+      for (std::size_t v = 0; v < nv; ++v) {
+        const glm::vec4& c = colours[v];
+        for (int k = 0; k < 3; ++k) out.colours[v][k] = std::isfinite(c[k]) ? std::clamp(c[k], 0.0f, 1.0f) : 1.0f;
+      }
+    }
 
     std::vector<std::uint32_t> idx;
     if (prim.indices >= 0) {
@@ -985,7 +1035,7 @@ class Converter {
       const std::vector<glm::dmat4>* jm = inst.skin >= 0 ? &joints[std::size_t(inst.skin)] : nullptr;
       for (std::size_t p = 0; p < inst.primitives.size(); ++p)
         emit_primitive(rig_->primitives[std::size_t(inst.primitives[p])], world[std::size_t(inst.node)], jm, nullptr,
-                       &inst.kept[p], scene_.triangles, scene_.stats);
+                       &inst.kept[p], scene_.triangles, scene_.stats, colours_out());
     }
     rig_->triangle_count = scene_.triangles.size();
     if (!rig_->clips.empty()) scene_.rig = std::move(rig_);
@@ -999,6 +1049,16 @@ class Converter {
   Unsupported unsupported_;
   std::map<std::pair<const tinygltf::Image*, bool>, int> cache_;
   std::vector<char> visited_;
+  // Scene::vertex_colours while any primitive of the file has COLOR_0, else null.
+  std::vector<std::array<glm::vec3, 3>>* colours_out() {
+    if (!any_colours_) {
+      for (const tinygltf::Mesh& m : model_.meshes)
+        for (const tinygltf::Primitive& p : m.primitives) any_colours_ |= p.attributes.count("COLOR_0") ? 1 : 0;
+      any_colours_ |= 2;  // looked
+    }
+    return (any_colours_ & 1) ? &scene_.vertex_colours : nullptr;
+  }
+  int any_colours_ = 0;  // bit 0: the file has COLOR_0; bit 1: the file was looked at
   std::shared_ptr<SceneRig> rig_;           // while loading a scene that moves or is skinned
   std::map<int, std::vector<int>> rig_meshes_;  // glTF mesh -> its primitives in the rig
   int default_material_ = -1;

@@ -5,6 +5,7 @@
 
 #include <glm/glm.hpp>
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <stdexcept>
@@ -106,6 +107,10 @@ struct SceneStats {
 struct Scene {
   std::string name;
   std::vector<SceneTriangle> triangles;
+  // Empty, or one entry per triangle: its corners' linear RGB colours (glTF COLOR_0), which
+  // multiply the diffuse colour. Kept apart from SceneTriangle so that scenes without vertex
+  // colours (most) pay nothing for them.
+  std::vector<std::array<glm::vec3, 3>> vertex_colours;
   std::vector<Material> materials;  // at least one
   std::vector<Texture> textures;
   Camera camera;

@@ -81,7 +81,8 @@ glm::dmat4 vertex_skin(const RigPrimitive& prim, std::size_t v, const std::vecto
 
 void emit_primitive(const RigPrimitive& prim, const glm::dmat4& world, const std::vector<glm::dmat4>* joint_matrices,
                     const std::vector<std::uint32_t>* kept, std::vector<std::uint32_t>* record,
-                    std::vector<SceneTriangle>& out, SceneStats& stats) {
+                    std::vector<SceneTriangle>& out, SceneStats& stats,
+                    std::vector<std::array<glm::vec3, 3>>* colours) {
   const bool skinned = joint_matrices && !prim.joints.empty();
   // Positions (and for skins each vertex's normal matrix) once per vertex.
   std::vector<glm::vec3> world_pos(prim.positions.size());
@@ -158,6 +159,12 @@ void emit_primitive(const RigPrimitive& prim, const glm::dmat4& world, const std
       tri.uv[c] = uv;
     }
     out.push_back(tri);
+    if (colours) {
+      std::array<glm::vec3, 3> rgb{glm::vec3(1.0f), glm::vec3(1.0f), glm::vec3(1.0f)};
+      if (!prim.colours.empty())
+        for (int c = 0; c < 3; ++c) rgb[std::size_t(c)] = prim.colours[order[c]];
+      colours->push_back(rgb);
+    }
   }
 }
 

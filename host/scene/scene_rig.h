@@ -39,6 +39,7 @@ struct RigPrimitive {
   std::vector<glm::vec3> positions;
   std::vector<glm::vec3> normals;  // empty: the geometric normal
   std::vector<glm::vec2> uvs;      // empty: zero
+  std::vector<glm::vec3> colours;  // COLOR_0, linear RGB; empty: white
   std::vector<std::array<std::uint32_t, 3>> triangles;
   std::uint32_t material = 0;
   std::vector<glm::vec4> joints;   // empty: not skinned
@@ -84,9 +85,12 @@ std::vector<glm::dmat4> rig_world_matrices(const SceneRig& rig, double t, const 
 //     indices of those emitted are appended to *record (if given);
 //   kept != nullptr: exactly those triangles, in that order, whatever this pose makes of them
 //     (a triangle non-finite here collapses to a point, which no ray hits).
+// `colours` (if given) receives one entry per triangle emitted: its corners' vertex colours,
+// white for a primitive without them.
 void emit_primitive(const RigPrimitive& prim, const glm::dmat4& world, const std::vector<glm::dmat4>* joint_matrices,
                     const std::vector<std::uint32_t>* kept, std::vector<std::uint32_t>* record,
-                    std::vector<SceneTriangle>& out, SceneStats& stats);
+                    std::vector<SceneTriangle>& out, SceneStats& stats,
+                    std::vector<std::array<glm::vec3, 3>>* colours = nullptr);
 
 // The joint matrices of `skin` (joint world x inverse bind) from the world matrices.
 std::vector<glm::dmat4> skin_matrices(const RigSkin& skin, const std::vector<glm::dmat4>& world);

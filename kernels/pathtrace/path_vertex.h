@@ -140,6 +140,7 @@ inline int px_path_vertex(const SceneView* scene, const FrameParams* fp, SampleK
   float3 albedo = px_load3(mat->diffuse);
   if (PX_HAS(PX_FEATURE_TEXTURES) && mat->diffuse_texture >= 0)
     albedo *= px_texture_bilinear(scene, mat->diffuse_texture, px_interpolate_uv(sh, hit.u, hit.v)).xyz;
+  if (PX_HAS(PX_FEATURE_VERTEX_COLOURS)) albedo *= px_vertex_colour(scene, prim, hit.u, hit.v);
   const float2 uv = px_interpolate_uv(sh, hit.u, hit.v);
   if (PX_HAS(PX_FEATURE_NORMAL_MAP) && mat->normal_texture >= 0) ns = px_normal_mapped(scene, mat, sh, v0, v1, v2, uv, ns, wo);
   const Bsdf bsdf = px_material_bsdf(scene, mat, albedo, uv, outside);

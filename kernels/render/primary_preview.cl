@@ -25,6 +25,7 @@ kernel void primary_preview(global float* out_rgb, uint row0, uint rows, CameraP
     float3 albedo = px_load3(m->diffuse);
     if (PX_HAS(PX_FEATURE_TEXTURES) && m->diffuse_texture >= 0)
       albedo *= px_texture_bilinear(&scene, m->diffuse_texture, px_interpolate_uv(s, hit.u, hit.v)).xyz;
+    if (PX_HAS(PX_FEATURE_VERTEX_COLOURS)) albedo *= px_vertex_colour(&scene, hit.prim, hit.u, hit.v);
     albedo += px_load3(m->specular);
     c = albedo * (0.15f + 0.85f * fabs(dot(n, dir))) + px_load3(m->emission);
   }

@@ -1,5 +1,5 @@
 /* The scene as kernels see it: every replicated buffer, gathered in one private struct so
- * helper functions take one argument instead of seven. */
+ * helper functions take one argument instead of eight. */
 #ifndef PARALLAX_SCENE_VIEW_H
 #define PARALLAX_SCENE_VIEW_H
 
@@ -13,6 +13,10 @@ typedef struct SceneView {
   const global TextureInfo* textures;
   const global float4* texels;
   const global LightTriangle* lights;
+  /* Per scene triangle three float4: its vertices' linear RGB colours (glTF COLOR_0) with w 1,
+   * read only in kernels built with PX_FEATURE_VERTEX_COLOURS; without colours one placeholder
+   * (1, 1, 1, 0). */
+  const global float4* colours;
 } SceneView;
 
 /* Kernel parameter list for the scene buffers, always in this order and always last; the host
@@ -21,13 +25,13 @@ typedef struct SceneView {
   const global BvhNode *scene_nodes, const global BvhTriangle *scene_tris,                    \
       const global TriangleShading *scene_shading, const global GpuMaterial *scene_materials, \
       const global TextureInfo *scene_textures, const global float4 *scene_texels,            \
-      const global LightTriangle *scene_lights
+      const global LightTriangle *scene_lights, const global float4 *scene_colours
 
 inline SceneView px_scene_view(const global BvhNode* nodes, const global BvhTriangle* tris,
                                const global TriangleShading* shading,
                                const global GpuMaterial* materials,
                                const global TextureInfo* textures, const global float4* texels,
-                               const global LightTriangle* lights) {
+                               const global LightTriangle* lights, const global float4* colours) {
   SceneView s;
   s.nodes = nodes;
   s.tris = tris;
@@ -36,12 +40,13 @@ inline SceneView px_scene_view(const global BvhNode* nodes, const global BvhTria
   s.textures = textures;
   s.texels = texels;
   s.lights = lights;
+  s.colours = colours;
   return s;
 }
 
 #define PX_SCENE_VIEW()                                                                     \
   px_scene_view(scene_nodes, scene_tris, scene_shading, scene_materials, scene_textures, \
-                scene_texels, scene_lights)
+                scene_texels, scene_lights, scene_colours)
 
 inline float3 px_load3(const global float* p) { return (float3)(p[0], p[1], p[2]); }
 inline float3 px_load3_private(const float* p) { return (float3)(p[0], p[1], p[2]); }
@@ -107,6 +112,15 @@ inline int px_alpha_visible(const SceneView* s, uint prim, float u, float v) {
   const int tex = s->materials[sh->material].alpha_texture;
   if (tex < 0) return 1;
   return px_texture_bilinear(s, tex, px_interpolate_uv(sh, u, v)).w >= 0.5f;
+}
+
+/* The vertex colour at barycentrics (u, v) of scene triangle `prim`: white without
+ * PX_FEATURE_VERTEX_COLOURS, or when the scene has none (kernels built with every feature: the
+ * one-element placeholder's w is 0, a real entry's 1). */
+inline float3 px_vertex_colour(const SceneView* scene, uint prim, float u, float v) {
+  if (!PX_HAS(PX_FEATURE_VERTEX_COLOURS) || !(scene->colours[0].w > 0.0f)) return (float3)(1.0f, 1.0f, 1.0f);
+  const global float4* c = scene->colours + 3 * (size_t)prim;
+  return (1.0f - u - v) * c[0].xyz + u * c[1].xyz + v * c[2].xyz;
 }
 
 #endif

@@ -226,7 +226,8 @@ typedef struct CompressedBvh8Node {
 #define PX_FEATURE_TWO_SIDED 0x080u
 #define PX_FEATURE_SUN 0x100u
 #define PX_FEATURE_SKY 0x200u
-#define PX_FEATURES_ALL 0x3ffu
+#define PX_FEATURE_VERTEX_COLOURS 0x400u /* glTF COLOR_0: per-vertex colours multiply the diffuse colour */
+#define PX_FEATURES_ALL 0x7ffu
 #if defined(__OPENCL_C_VERSION__)
 #ifndef PX_FEATURES
 #define PX_FEATURES PX_FEATURES_ALL
