@@ -3,7 +3,7 @@
 # strips on R ranks (one device each), halo seams and strip transfers as MPI messages, a
 # 3-frame animation with denoising; plus strips that move between ranks (--balance dynamic),
 # the baseline pipeline, and a rank that cannot start (its scene file is missing) stopping
-# every rank with a message instead of a hang. Pixels are compared with `parallax compare --exact`
+# every rank with a message instead of a hang; and an animated glTF posed alike on every rank. Pixels are compared with `parallax compare --exact`
 # (every channel of every EXR pixel bit for bit, lights above 1 included).
 # Usage: mpi_render.sh PATH/TO/parallax
 set -u
@@ -85,6 +85,20 @@ rc=$?
 if [ "$rc" -ne 0 ] && [ "$rc" -ne 124 ] && grep -q "rank 1:" "$tmp/fail.log" && grep -qi "could not start" "$tmp/fail.log"; then
   ok "a rank that cannot start stops every rank (exit $rc) and is named"
 else bad "failing rank: exit $rc (124 = hang)"; tail -8 "$tmp/fail.log"; fi
+
+# An animated glTF (a cube sliding and turning): every rank poses the same triangles at frame
+# f's time f / fps, so two ranks give one process's pixels.
+if python3 "$(dirname "$0")/support/write_animated_gltf.py" "$tmp/slide.gltf"; then
+  anim=(render --scene "$tmp/slide.gltf" --width 40 --height 29 --frames 3 --fps 8 --spp 1 --bounces 3 --svgf-iterations 3
+        --overwrite)
+  "$bin" "${anim[@]}" --devices 1 --out "$tmp/anim_one" >/dev/null 2>&1 || bad "the one-process animated render failed"
+  if timeout 300 "${mpi[@]}" -np 2 "$bin" "${anim[@]}" --devices 1 --out "$tmp/anim_np2" >"$tmp/anim.log" 2>&1; then
+    same_pixels "mpirun -np 2, animated glTF" "$tmp/anim_one" "$tmp/anim_np2"
+    if "$bin" compare --exact "$tmp/anim_one/frame_0000_left.exr" "$tmp/anim_one/frame_0002_left.exr" >/dev/null 2>&1; then
+      bad "the animated cube did not move between frames 0 and 2"
+    else ok "the animated cube moves between frames"; fi
+  else bad "mpirun -np 2 animated render failed"; tail -20 "$tmp/anim.log"; fi
+else bad "could not write the animated glTF"; fi
 
 timeout 120 "${mpi[@]}" -np 2 "$bin" preview --scene cornell --out "$tmp/pv" >"$tmp/pv.log" 2>&1
 rc=$?

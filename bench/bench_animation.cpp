@@ -1,0 +1,120 @@
+// bench_animation: what a frame of an animated scene costs before it renders. N copies of a
+// 12-triangle cube, each on its own node, all turning and sliding (one clip, 2N channels), are
+// posed, their BVH rebuilt (binned SAH) and validated, and the geometry rewritten on the
+// devices, as SceneAnimator does between frames. Prints per N the median of each step and the
+// bytes sent per frame, and the same numbers per triangle.
+//
+// Scenes move today by rebuilding one BVH over all triangles every frame; instances (a top
+// level over per-mesh trees, refitted and rebuilt in milliseconds, sending only transforms)
+// are not built yet. This bench is the baseline they must beat.
+//
+//   build/bench_animation --counts 1,1000,100000 --frames 8 --devices 2
+#include "app/guarded_main.h"
+#include "bench_common.h"
+#include "bvh/flat_bvh.h"
+#include "cl/device_set.h"
+#include "render/device_scene.h"
+#include "render/scene_animator.h"
+#include "scene/scene_rig.h"
+
+#include <CLI/CLI.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <sstream>
+
+namespace {
+
+using namespace px;
+
+// N cubes on a square grid, one shared primitive, each node sliding 0.25 units and turning a
+// quarter turn about y over 2 s.
+Scene cube_field(std::size_t n) {
+  auto rig = std::make_shared<SceneRig>();
+  RigPrimitive cube;
+  for (int i = 0; i < 8; ++i)
+    cube.positions.push_back(glm::vec3((i & 1) ? 0.4f : -0.4f, (i & 2) ? 0.4f : -0.4f, (i & 4) ? 0.4f : -0.4f));
+  cube.triangles = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
+                    {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
+  rig->primitives.push_back(cube);
+  AnimationClip clip;
+  clip.name = "field";
+  clip.duration = 2.0;
+  const std::size_t side = static_cast<std::size_t>(std::ceil(std::sqrt(static_cast<double>(n))));
+  for (std::size_t i = 0; i < n; ++i) {
+    RigNode node;
+    node.translation = glm::dvec3(static_cast<double>(i % side), 0.0, static_cast<double>(i / side));
+    rig->nodes.push_back(node);
+    rig->order.push_back(static_cast<int>(i));
+    RigMeshInstance inst;
+    inst.node = static_cast<int>(i);
+    inst.primitives = {0};
+    inst.kept = {std::vector<std::uint32_t>{0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11}};
+    rig->instances.push_back(inst);
+    AnimationChannel slide;
+    slide.node = static_cast<int>(i);
+    slide.path = TrsPath::Translation;
+    slide.track.times = {0.0, 2.0};
+    slide.track.values = {glm::dvec4(node.translation, 0.0), glm::dvec4(node.translation + glm::dvec3(0.25, 0, 0), 0.0)};
+    clip.channels.push_back(slide);
+    AnimationChannel turn;
+    turn.node = static_cast<int>(i);
+    turn.path = TrsPath::Rotation;
+    turn.track.times = {0.0, 2.0};
+    turn.track.values = {glm::dvec4(0, 0, 0, 1), glm::dvec4(0, std::sin(M_PI / 4), 0, std::cos(M_PI / 4))};
+    clip.channels.push_back(turn);
+  }
+  rig->clips.push_back(clip);
+  rig->triangle_count = 12 * n;
+  Scene scene;
+  scene.name = "cube field";
+  scene.materials.push_back(Material{});
+  scene.sky.enabled = true;
+  scene.sky.zenith = scene.sky.horizon = glm::vec3(1.0f);
+  pose_rig(*rig, 0.0, {}, scene.triangles);
+  scene.rig = rig;
+  return scene;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"bench_animation: per-frame cost of posing, rebuilding and uploading an animated scene"};
+  std::string counts = "1,1000,100000";
+  unsigned frames = 8;
+  int devices = 2;
+  app.add_option("--counts", counts, "comma list of cube counts (12 triangles each)")->capture_default_str();
+  app.add_option("--frames", frames, "updates timed per count (after one untimed)")->check(CLI::Range(1u, 1000u))->capture_default_str();
+  app.add_option("--devices", devices, "OpenCL devices")->check(CLI::Range(1, 64))->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+  return run_guarded([&] {
+    DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
+    std::printf("%10s %12s %10s %10s %10s %10s %12s %12s\n", "cubes", "triangles", "pose ms", "bvh ms", "upload ms",
+                "total ms", "MiB/frame", "ns/triangle");
+    std::stringstream list(counts);
+    for (std::string item; std::getline(list, item, ',');) {
+      const std::size_t n = std::stoul(item);
+      Scene scene = cube_field(n);
+      FlatBvh bvh = build_bvh(scene.triangles);
+      DeviceScene ds(set, scene, std::move(bvh));
+      SceneAnimator animator(scene, "all");
+      animator.update(0.0, set, ds);  // untimed: the first upload and allocations
+      std::vector<double> pose, build, upload, total;
+      std::size_t bytes = 0;
+      for (unsigned f = 1; f <= frames; ++f) {
+        const SceneAnimator::Update u = animator.update(f / 30.0, set, ds);
+        pose.push_back(u.pose_ms);
+        build.push_back(u.bvh_ms);
+        upload.push_back(u.upload_ms);
+        total.push_back(u.pose_ms + u.bvh_ms + u.upload_ms);
+        bytes = u.bytes;
+      }
+      const double t = bench::median(total);
+      std::printf("%10zu %12zu %10.2f %10.2f %10.2f %10.2f %12.2f %12.1f\n", n, scene.triangles.size(),
+                  bench::median(pose), bench::median(build), bench::median(upload), t,
+                  static_cast<double>(bytes) / (1024.0 * 1024.0), t * 1e6 / static_cast<double>(scene.triangles.size()));
+    }
+    return 0;
+  });
+}
