@@ -342,6 +342,45 @@ TEST(SceneAnimator, TheUpdatedDevicesRenderWhatAFreshUploadOfThePoseRenders) {
   EXPECT_FALSE(bit_identical(via_update, pixels_of(tc.render_stereo(0.7f, 3, 64, 48, opt))));
 }
 
+// refit_bvh: a tree built for one pose, refitted to another, passes the validator (every
+// triangle inside its leaf's box, every box inside its parent's, the wide nodes collapsed
+// anew), and its SAH cost, the animator's cue to rebuild, grows when the triangles scatter.
+TEST(BvhRefit, ARefittedTreeIsValidAndItsCostShowsItsDecay) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<SceneTriangle> tris(2000);
+  for (auto& t : tris) {
+    const glm::vec3 c(u(rng), u(rng), u(rng));
+    for (int k = 0; k < 3; ++k) t.p[k] = c + 0.05f * glm::vec3(u(rng), u(rng), u(rng));
+  }
+  BvhBuildOptions binned;
+  binned.spatial_splits = false;
+  FlatBvh bvh = build_bvh(tris, binned);
+  ensure_layout(bvh, bvh_layout());
+  const double built = bvh.stats.sah_cost;
+  // A small rigid motion: still a good tree.
+  std::vector<SceneTriangle> moved = tris;
+  for (auto& t : moved)
+    for (auto& p : t.p) p += glm::vec3(0.3f, -0.2f, 0.1f);
+  refit_bvh(bvh, moved);
+  EXPECT_TRUE(bvh.nodes8.empty());  // dropped, to be collapsed anew
+  ensure_layout(bvh, bvh_layout());
+  BvhValidation check = validate_bvh(bvh, moved);
+  EXPECT_TRUE(check.ok) << (check.errors.empty() ? "" : check.errors.front());
+  EXPECT_NEAR(bvh.stats.sah_cost, built, 1e-3 * built);  // a translation keeps every ratio of areas
+  // Every other triangle thrown 50 units away: the boxes that mix both halves span the gap.
+  for (std::size_t i = 0; i < moved.size(); i += 2)
+    for (auto& p : moved[i].p) p.x += 50.0f;
+  refit_bvh(bvh, moved);
+  ensure_layout(bvh, bvh_layout());
+  check = validate_bvh(bvh, moved);
+  EXPECT_TRUE(check.ok) << (check.errors.empty() ? "" : check.errors.front());
+  EXPECT_GT(bvh.stats.sah_cost, SceneAnimator::kRebuildGrowth * built);
+  // A tree of the wrong size is refused.
+  moved.pop_back();
+  EXPECT_THROW(refit_bvh(bvh, moved), std::invalid_argument);
+}
+
 // Every frame of an animation, denoised, with 1 and 3 devices.
 std::vector<std::vector<float>> animated_frames(const std::string& file, int devices, unsigned frames) {
   LoadedScene loaded = load_and_build(file, true);

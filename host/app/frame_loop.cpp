@@ -312,7 +312,7 @@ void RenderLoop::print_summary() const {
                 ds.upload_ms(), static_cast<double>(ds.bytes_in_context()) / (1024.0 * 1024.0), devices.size());
   }
   if (animation_totals_.frames > 0)
-    std::printf("animation: %s; per frame (median) pose %.1f ms, BVH rebuild %.1f ms, upload %.1f ms of %.2f MiB\n",
+    std::printf("animation: %s; per frame (median) pose %.1f ms, BVH refit or rebuild %.1f ms, upload %.1f ms of %.2f MiB\n",
                 animator_->describe().c_str(), animation_totals_.median(&SceneAnimator::Update::pose_ms),
                 animation_totals_.median(&SceneAnimator::Update::bvh_ms),
                 animation_totals_.median(&SceneAnimator::Update::upload_ms),

@@ -64,6 +64,7 @@ void RenderReport::add_frame(unsigned frame, const FrameStats& st, const std::ve
                              {"scene_update", update ? nlohmann::json{{"pose_ms", update->pose_ms},
                                                                       {"bvh_ms", update->bvh_ms},
                                                                       {"upload_ms", update->upload_ms},
+                                                                      {"bvh_rebuilt", update->rebuilt},
                                                                       {"bytes", update->bytes}}
                                                      : nlohmann::json(nullptr)}}
                   .dump());

@@ -73,7 +73,7 @@ void add_pipeline_flags(CLI::App* cmd, px::RenderCommand& r) {
                   "tracing distributed, the rest on the owner; mono: both eyes fully path traced");
   add_size_flags(cmd, r.width, r.height);
   cmd->add_option("--fps", r.fps, "frame rate: frame f is at time f / fps on the camera path and in the animation")
-      ->check(CLI::Range(0.001f, 10000.0f))
+      ->check(CLI::Range(0.001f, 1e9f))
       ->capture_default_str();
   cmd->add_option("--animation", r.animation, kAnimationHelp)->capture_default_str();
   cmd->add_option("--spp", r.trace.spp, "samples per pixel")->check(CLI::Range(1u, 1u << 20))->capture_default_str();
@@ -226,7 +226,7 @@ int main(int argc, char** argv) {
   reference_cmd->add_option("--pass-spp", reference.pass_spp, "samples per progressive pass")->check(CLI::Range(1u, 4096u))->capture_default_str();
   reference_cmd->add_option("--frame", reference.frame, "frame number on the camera path (time = frame / fps)")->capture_default_str();
   reference_cmd->add_option("--fps", reference.fps, "frame rate of the animation the reference belongs to")
-      ->check(CLI::Range(0.001f, 10000.0f))
+      ->check(CLI::Range(0.001f, 1e9f))
       ->capture_default_str();
   reference_cmd->add_option("--animation", reference.animation, kAnimationHelp)->capture_default_str();
   reference_cmd->add_option("--bounces", reference.bounces, "maximum path length")->check(CLI::Range(0u, px::PathTracer::kMaxBounces))->capture_default_str();

@@ -606,9 +606,11 @@ double half_area(const float lo[3], const float hi[3]) {
   return dx * dy + dy * dz + dz * dx;
 }
 
+}  // namespace
+
 // Depth and SAH cost of the flattened tree (traversal cost 1 per node visit, intersection
 // cost 1 per triangle), measured on what the kernels will actually traverse.
-void compute_stats(FlatBvh& bvh) {
+void compute_bvh_stats(FlatBvh& bvh) {
   BvhBuildStats& s = bvh.stats;
   s.nodes = bvh.nodes.size();
   s.leaf_triangles = bvh.triangles.size();
@@ -655,6 +657,8 @@ void compute_stats(FlatBvh& bvh) {
   s.depth = depth;
   s.sah_cost = cost;
 }
+
+namespace {
 
 // One rtcBuildBVH run. Returns false if Embree failed (message in `error`) or, with spatial
 // splits, if the split budget ran out (`over_budget` set); throws for failures a retry cannot
@@ -807,7 +811,7 @@ FlatBvh build_bvh(const std::vector<SceneTriangle>& triangles, const BvhBuildOpt
                                "maxDepth " + std::to_string(kRelaxedDepth) + ": " + second_error);
   }
 
-  compute_stats(bvh);
+  compute_bvh_stats(bvh);
   bvh.stats.scene_triangles = triangles.size();
   // The wide nodes the kernels traverse (when the process uses a wide layout).
   const BvhLayout layout = bvh_layout();

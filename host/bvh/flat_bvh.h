@@ -139,6 +139,19 @@ double ensure_layout(FlatBvh& bvh, BvhLayout layout);
 // flattens the result. Throws std::runtime_error on an empty input or an Embree error.
 FlatBvh build_bvh(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options = {});
 
+// Fills bvh.stats' node and leaf counts, depth and SAH cost from the binary nodes (the builder
+// calls it; so does refit_bvh).
+void compute_bvh_stats(FlatBvh& bvh);
+
+// Refits `bvh` to `triangles` moved since it was built (same triangles, same order: an animated
+// scene posed anew): the leaf triangles take their new vertices, every binary node's child
+// boxes are recomputed bottom-up, the wide nodes are dropped (ensure_layout collapses them
+// again) and the stats recomputed (a refit tree's SAH cost grows as the pose departs from the
+// one it was built for: the caller rebuilds when it has grown too much). The tree must hold
+// every scene triangle once (built without spatial splits, whose leaves hold clipped parts):
+// throws std::invalid_argument otherwise. Returns the time taken in ms.
+double refit_bvh(FlatBvh& bvh, const std::vector<SceneTriangle>& triangles);
+
 // Sets BvhTriangle::flags of every leaf triangle from a per-scene-triangle table
 // (PX_TRI_* bits). Throws std::out_of_range if the table is shorter than the scene.
 void set_triangle_flags(FlatBvh& bvh, const std::vector<std::uint32_t>& flags_per_scene_triangle);

@@ -319,7 +319,7 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh) {
   per_device_.assign(devices.devices().size(), b);
 }
 
-std::size_t DeviceScene::update_geometry(DeviceSet& devices, const Scene& scene, FlatBvh bvh,
+std::size_t DeviceScene::update_geometry(DeviceSet& devices, const Scene& scene, FlatBvh& bvh,
                                          const std::vector<SceneTriangle>* previous) {
   if (per_device_.empty()) throw std::logic_error("DeviceScene::update_geometry before any upload");
   if (scene.triangles.size() != tri_flags_.size())

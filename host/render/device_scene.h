@@ -61,7 +61,9 @@ class DeviceScene {
   // and textures stay. Buffers are rewritten in place, or replaced by larger ones when the new
   // data does not fit (a tree of more nodes). The caller makes sure no device still reads them
   // (StereoPipeline::render returns with every queue finished). Returns the bytes written.
-  std::size_t update_geometry(DeviceSet& devices, const Scene& scene, FlatBvh bvh,
+  // `bvh` gets the triangle flags and the set's node layout (collapsed if missing) in place, so
+  // that a caller keeping its tree for the next frame's refit (SceneAnimator) need not copy it.
+  std::size_t update_geometry(DeviceSet& devices, const Scene& scene, FlatBvh& bvh,
                               const std::vector<SceneTriangle>* previous);
   // Bytes of scene data in the set's context, shared by all its devices (one copy per context).
   std::size_t bytes_in_context() const { return bytes_in_context_; }

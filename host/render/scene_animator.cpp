@@ -58,18 +58,27 @@ SceneAnimator::Update SceneAnimator::update(double time_s, DeviceSet& devices, D
   pose(time_s);
   u.pose_ms = ms_since(t0);
   t0 = clock_type::now();
-  BvhBuildOptions options;
-  options.spatial_splits = false;  // every frame: the fast binned build
-  FlatBvh bvh = build_bvh(scene_.triangles, options);
-  const BvhValidation check = validate_bvh(bvh, scene_.triangles);
-  if (!check.ok)
-    throw std::runtime_error("internal error: the BVH of the posed scene at t = " + std::to_string(time_s) +
-                             " s failed validation: " + (check.errors.empty() ? "" : check.errors.front()));
+  bool rebuild = bvh_.nodes.empty();
+  if (!rebuild) {
+    refit_bvh(bvh_, scene_.triangles);
+    rebuild = !(bvh_.stats.sah_cost <= kRebuildGrowth * built_sah_);
+  }
+  if (rebuild) {
+    BvhBuildOptions options;
+    options.spatial_splits = false;  // leaves of whole triangles, which refit_bvh can refit
+    bvh_ = build_bvh(scene_.triangles, options);
+    const BvhValidation check = validate_bvh(bvh_, scene_.triangles);
+    if (!check.ok)
+      throw std::runtime_error("internal error: the BVH of the posed scene at t = " + std::to_string(time_s) +
+                               " s failed validation: " + (check.errors.empty() ? "" : check.errors.front()));
+    built_sah_ = bvh_.stats.sah_cost;
+  }
+  ensure_layout(bvh_, device_scene.layout());  // the wide nodes, collapsed anew after a refit
+  u.rebuilt = rebuild;
   u.bvh_ms = ms_since(t0);
   t0 = clock_type::now();
   // The first frame has no previous pose: its motion is none (the history is empty anyway).
-  u.bytes = device_scene.update_geometry(devices, scene_, std::move(bvh),
-                                         previous_.empty() ? &scene_.triangles : &previous_);
+  u.bytes = device_scene.update_geometry(devices, scene_, bvh_, previous_.empty() ? &scene_.triangles : &previous_);
   u.upload_ms = ms_since(t0);
   previous_ = scene_.triangles;
   return u;

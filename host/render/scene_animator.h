@@ -3,12 +3,15 @@
 // One clock: the caller passes frame f's time f / fps, the same in `render`, `reference`,
 // `view` and on every MPI rank, so every rank and device poses the same triangles bit for bit.
 //
-// The scene is rebuilt, not refitted, every frame: a binned-SAH build (no spatial splits) of
-// the posed triangles, validated, then uploaded whole. What that costs is measured per frame
-// (Update) and reported; a two-level BVH that sends only what changed is the next step for
-// scenes large enough to feel it.
+// The tree follows the pose by refitting: the first frame builds a binned-SAH tree (no spatial
+// splits, so every leaf holds whole triangles) and validates it; later frames recompute its
+// boxes around the moved triangles (refit_bvh), until its SAH cost has grown past
+// kRebuildGrowth x the cost it was built with, when it is built anew. The geometry is then
+// uploaded whole. What that costs is measured per frame (Update) and reported; a two-level BVH
+// that sends only what changed is the next step for scenes large enough to feel it.
 #pragma once
 
+#include "bvh/flat_bvh.h"
 #include "cl/device_set.h"
 #include "render/device_scene.h"
 #include "scene/scene.h"
@@ -37,7 +40,10 @@ class SceneAnimator {
   struct Update {
     double pose_ms = 0.0, bvh_ms = 0.0, upload_ms = 0.0;
     std::size_t bytes = 0;  // written to the devices' context
+    bool rebuilt = false;   // the tree was built anew (else refitted)
   };
+  // How much a refitted tree's SAH cost may grow over its build's before it is rebuilt.
+  static constexpr double kRebuildGrowth = 1.3;
   // pose(), then a BVH over the posed triangles and the devices' geometry rewritten, with the
   // last frame's positions as motion (the first call: none, so no motion). Call between
   // frames, with every queue finished.
@@ -50,6 +56,8 @@ class SceneAnimator {
   bool follow_camera_ = false;  // the scene's camera is the rig's glTF camera
   Camera base_camera_;
   std::vector<SceneTriangle> previous_;
+  FlatBvh bvh_;              // the tree on the devices, refitted from frame to frame
+  double built_sah_ = 0.0;   // its SAH cost when it was built
 };
 
 }  // namespace px
