@@ -381,6 +381,84 @@ TEST(BvhRefit, ARefittedTreeIsValidAndItsCostShowsItsDecay) {
   EXPECT_THROW(refit_bvh(bvh, moved), std::invalid_argument);
 }
 
+// A room that stands still around one moving thing: `still` cubes on a grid and, last, one cube
+// that slides along x, built as a rig directly (no file), lit by a white sky.
+Scene still_room_with_one_mover(std::size_t still) {
+  auto rig = std::make_shared<SceneRig>();
+  RigPrimitive cube;
+  for (int i = 0; i < 8; ++i)
+    cube.positions.push_back(glm::vec3((i & 1) ? 0.3f : -0.3f, (i & 2) ? 0.3f : -0.3f, (i & 4) ? 0.3f : -0.3f));
+  cube.triangles = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
+                    {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
+  rig->primitives.push_back(cube);
+  const std::size_t side = 50;
+  for (std::size_t i = 0; i <= still; ++i) {
+    RigNode node;
+    node.translation = i < still ? glm::dvec3(double(i % side) - 25.0, -2.0, -double(i / side) - 3.0)
+                                 : glm::dvec3(0.0, 0.0, -4.0);
+    rig->nodes.push_back(node);
+    rig->order.push_back(static_cast<int>(i));
+    RigMeshInstance inst;
+    inst.node = static_cast<int>(i);
+    inst.primitives = {0};
+    inst.kept = {std::vector<std::uint32_t>{0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11}};
+    rig->instances.push_back(inst);
+  }
+  AnimationClip clip;
+  clip.duration = 1.0;
+  AnimationChannel slide;
+  slide.node = static_cast<int>(still);
+  slide.track.times = {0.0, 1.0};
+  slide.track.values = {glm::dvec4(0.0, 0.0, -4.0, 0.0), glm::dvec4(2.0, 0.0, -4.0, 0.0)};
+  clip.channels.push_back(slide);
+  rig->clips.push_back(clip);
+  rig->triangle_count = 12 * (still + 1);
+  Scene scene;
+  scene.name = "still room";
+  scene.materials.push_back(Material{});
+  scene.sky.enabled = true;
+  scene.sky.zenith = scene.sky.horizon = glm::vec3(1.0f);
+  scene.camera.position = glm::vec3(0.0f, 1.0f, 2.0f);
+  scene.camera.target = glm::vec3(0.0f, -1.0f, -6.0f);
+  pose_rig(*rig, 0.0, {}, scene.triangles);
+  scene.rig = rig;
+  return scene;
+}
+
+// Only what changed travels: with one cube of 2,001 moving, a frame writes a small part of the
+// geometry (whole 16 KiB pieces around what moved), a frame that changes nothing writes
+// nothing, and the devices still render what a fresh upload of the pose renders.
+TEST(SceneAnimator, AFrameSendsOnlyThePiecesThatChanged) {
+  Scene scene = still_room_with_one_mover(2000);
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  DeviceScene ds(set, scene, build_bvh(scene.triangles));
+  SceneAnimator animator(scene, "all");
+  const SceneAnimator::Update first = animator.update(0.0, set, ds);  // writes everything
+  const SceneAnimator::Update moved = animator.update(0.25, set, ds);
+  EXPECT_FALSE(moved.rebuilt);
+  EXPECT_GT(moved.bytes, 0u);
+  std::printf("one cube of 2,001 moving: the first update wrote %zu bytes, a moving frame %zu\n", first.bytes,
+              moved.bytes);
+  EXPECT_LT(moved.bytes, first.bytes / 4);
+  const SceneAnimator::Update held = animator.update(0.25, set, ds);  // the same instant again
+  EXPECT_LT(held.bytes, moved.bytes);  // only the motion buffer: no motion now
+  const SceneAnimator::Update again = animator.update(0.25, set, ds);
+  EXPECT_EQ(again.bytes, 0u);
+  PathTracer::Options opt;
+  opt.spp = 2;
+  opt.bounces = 2;
+  PathTracer ta(set, ds, scene);
+  const auto via_update = pixels_of(ta.render_stereo(0.25f, 1, 48, 32, opt));
+  Scene fresh = still_room_with_one_mover(2000);
+  SceneAnimator(fresh, "all").pose(0.25);
+  BvhBuildOptions binned;
+  binned.spatial_splits = false;
+  FlatBvh tree = build_bvh(fresh.triangles, binned);
+  DeviceScene df(set, fresh, std::move(tree));
+  PathTracer tf(set, df, fresh);
+  EXPECT_TRUE(bit_identical(via_update, pixels_of(tf.render_stereo(0.25f, 1, 48, 32, opt))));
+}
+
 // Every frame of an animation, denoised, with 1 and 3 devices.
 std::vector<std::vector<float>> animated_frames(const std::string& file, int devices, unsigned frames) {
   LoadedScene loaded = load_and_build(file, true);

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 
@@ -64,12 +65,18 @@ cl::Buffer upload(const char* name, const cl::Context& ctx, cl::CommandQueue& qu
   return buffer;
 }
 
-// Rewrites `buffer` with `data`, or replaces it by one a quarter larger than needed when the
-// data does not fit its `capacity` (bytes; updated). Adds the bytes written to `written`.
+// Bytes compared as one piece when a buffer is rewritten: a piece that changed is written whole.
+constexpr std::size_t kRewritePiece = 16 * 1024;
+
+// Rewrites `buffer` with `data`, writing only the pieces that differ from `shadow` (what the
+// buffer holds, as last written; updated), or replaces it by one a quarter larger than needed
+// when the data does not fit its `capacity` (bytes; updated). An animated scene whose moving
+// part is small sends little: a static room's triangles, shading and nodes pose to the same
+// bytes every frame. Adds the bytes written to `written`.
 template <typename T>
-void rewrite(const char* name, cl::Buffer& buffer, std::size_t& capacity, const cl::Context& ctx,
-             cl::CommandQueue& queue, const std::vector<T>& data, const AllocationLimits& limits,
-             std::size_t& written) {
+void rewrite(const char* name, cl::Buffer& buffer, std::size_t& capacity, std::vector<std::uint8_t>& shadow,
+             const cl::Context& ctx, cl::CommandQueue& queue, const std::vector<T>& data,
+             const AllocationLimits& limits, std::size_t& written) {
   const std::size_t bytes = std::max<std::size_t>(1, data.size()) * sizeof(T);
   if (bytes > capacity || !buffer()) {
     if (bytes > limits.max_alloc)
@@ -78,9 +85,28 @@ void rewrite(const char* name, cl::Buffer& buffer, std::size_t& capacity, const 
                                mib(limits.max_alloc) + " (CL_DEVICE_MAX_MEM_ALLOC_SIZE)");
     capacity = std::min(limits.max_alloc, bytes + bytes / 4);
     buffer = cl::Buffer(ctx, CL_MEM_READ_ONLY, capacity);
+    shadow.clear();  // the new buffer holds nothing yet
   }
-  if (!data.empty()) queue.enqueueWriteBuffer(buffer, CL_TRUE, 0, data.size() * sizeof(T), data.data());
-  written += data.size() * sizeof(T);
+  const auto* p = reinterpret_cast<const std::uint8_t*>(data.data());
+  const std::size_t n = data.size() * sizeof(T);
+  // Runs of changed pieces, each written with one call.
+  std::size_t run = n;  // start of the current run, n = none
+  for (std::size_t off = 0; off <= n; off += kRewritePiece) {
+    const std::size_t len = std::min(kRewritePiece, n - std::min(n, off));
+    const bool changed = len > 0 && (off + len > shadow.size() || std::memcmp(p + off, shadow.data() + off, len) != 0);
+    if (changed && run == n) run = off;
+    if (!changed && run != n) {
+      queue.enqueueWriteBuffer(buffer, CL_TRUE, run, off - run, p + run);
+      written += off - run;
+      run = n;
+    }
+    if (len == 0) break;
+  }
+  if (run != n) {
+    queue.enqueueWriteBuffer(buffer, CL_TRUE, run, n - run, p + run);
+    written += n - run;
+  }
+  shadow.assign(p, p + n);
 }
 
 void copy3(float* dst, const glm::vec3& v) {
@@ -351,14 +377,15 @@ std::size_t DeviceScene::update_geometry(DeviceSet& devices, const Scene& scene,
   const cl::Context& ctx = devices.context();
   DeviceSceneBuffers b = per_device_.front();
   std::size_t written = 0;
+  Shadows& sh = shadows_;
   if (layout_ == BvhLayout::Binary)
-    rewrite("BVH node", b.nodes, capacity_.nodes, ctx, queue, bvh.nodes, limits, written);
+    rewrite("BVH node", b.nodes, capacity_.nodes, sh.nodes, ctx, queue, bvh.nodes, limits, written);
   else
-    rewrite("BVH node", b.nodes, capacity_.nodes, ctx, queue, wide_words, limits, written);
-  rewrite("triangle", b.triangles, capacity_.triangles, ctx, queue, bvh.triangles, limits, written);
-  rewrite("shading", b.shading, capacity_.shading, ctx, queue, shading, limits, written);
-  rewrite("light", b.lights, capacity_.lights, ctx, queue, lights, limits, written);
-  if (previous) rewrite("motion", b.motion, capacity_.motion, ctx, queue, motion, limits, written);
+    rewrite("BVH node", b.nodes, capacity_.nodes, sh.nodes, ctx, queue, wide_words, limits, written);
+  rewrite("triangle", b.triangles, capacity_.triangles, sh.triangles, ctx, queue, bvh.triangles, limits, written);
+  rewrite("shading", b.shading, capacity_.shading, sh.shading, ctx, queue, shading, limits, written);
+  rewrite("light", b.lights, capacity_.lights, sh.lights, ctx, queue, lights, limits, written);
+  if (previous) rewrite("motion", b.motion, capacity_.motion, sh.motion, ctx, queue, motion, limits, written);
   per_device_.assign(per_device_.size(), b);
   return written;
 }

@@ -60,7 +60,9 @@ class DeviceScene {
   // light table and, with `previous` (the last frame's triangles), the motion buffer. Materials
   // and textures stay. Buffers are rewritten in place, or replaced by larger ones when the new
   // data does not fit (a tree of more nodes). The caller makes sure no device still reads them
-  // (StereoPipeline::render returns with every queue finished). Returns the bytes written.
+  // (StereoPipeline::render returns with every queue finished). Only the 16 KiB pieces whose
+  // bytes changed since the last call are written (the first call writes all). Returns the
+  // bytes written.
   // `bvh` gets the triangle flags and the set's node layout (collapsed if missing) in place, so
   // that a caller keeping its tree for the next frame's refit (SceneAnimator) need not copy it.
   std::size_t update_geometry(DeviceSet& devices, const Scene& scene, FlatBvh& bvh,
@@ -91,6 +93,11 @@ class DeviceScene {
     std::size_t nodes = 0, triangles = 0, shading = 0, lights = 0, motion = 0;
   } capacity_;
   std::vector<std::uint32_t> tri_flags_;  // triangle_flags(scene): fixed by the materials
+  // What update_geometry last wrote to each of those buffers (empty until its first call, which
+  // writes them whole), so that later calls write only the pieces that changed.
+  struct Shadows {
+    std::vector<std::uint8_t> nodes, triangles, shading, lights, motion;
+  } shadows_;
   std::size_t bytes_in_context_ = 0;
   double upload_ms_ = 0.0;
   std::size_t light_count_ = 0;
