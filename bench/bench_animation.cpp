@@ -33,12 +33,7 @@ using namespace px;
 // quarter turn about y over 2 s.
 Scene cube_field(std::size_t n) {
   auto rig = std::make_shared<SceneRig>();
-  RigPrimitive cube;
-  for (int i = 0; i < 8; ++i)
-    cube.positions.push_back(glm::vec3((i & 1) ? 0.4f : -0.4f, (i & 2) ? 0.4f : -0.4f, (i & 4) ? 0.4f : -0.4f));
-  cube.triangles = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
-                    {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
-  rig->primitives.push_back(cube);
+  rig->primitives.push_back(cube_primitive(0.4f));
   AnimationClip clip;
   clip.name = "field";
   clip.duration = 2.0;
@@ -46,13 +41,7 @@ Scene cube_field(std::size_t n) {
   for (std::size_t i = 0; i < n; ++i) {
     RigNode node;
     node.translation = glm::dvec3(static_cast<double>(i % side), 0.0, static_cast<double>(i / side));
-    rig->nodes.push_back(node);
-    rig->order.push_back(static_cast<int>(i));
-    RigMeshInstance inst;
-    inst.node = static_cast<int>(i);
-    inst.primitives = {0};
-    inst.kept = {std::vector<std::uint32_t>{0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11}};
-    rig->instances.push_back(inst);
+    add_rig_node(*rig, node, 0);
     AnimationChannel slide;
     slide.node = static_cast<int>(i);
     slide.path = TrsPath::Translation;
@@ -67,15 +56,7 @@ Scene cube_field(std::size_t n) {
     clip.channels.push_back(turn);
   }
   rig->clips.push_back(clip);
-  rig->triangle_count = 12 * n;
-  Scene scene;
-  scene.name = "cube field";
-  scene.materials.push_back(Material{});
-  scene.sky.enabled = true;
-  scene.sky.zenith = scene.sky.horizon = glm::vec3(1.0f);
-  pose_rig(*rig, 0.0, {}, scene.triangles);
-  scene.rig = rig;
-  return scene;
+  return rig_scene(rig, "cube field");
 }
 
 }  // namespace

@@ -385,24 +385,13 @@ TEST(BvhRefit, ARefittedTreeIsValidAndItsCostShowsItsDecay) {
 // that slides along x, built as a rig directly (no file), lit by a white sky.
 Scene still_room_with_one_mover(std::size_t still) {
   auto rig = std::make_shared<SceneRig>();
-  RigPrimitive cube;
-  for (int i = 0; i < 8; ++i)
-    cube.positions.push_back(glm::vec3((i & 1) ? 0.3f : -0.3f, (i & 2) ? 0.3f : -0.3f, (i & 4) ? 0.3f : -0.3f));
-  cube.triangles = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
-                    {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
-  rig->primitives.push_back(cube);
+  rig->primitives.push_back(cube_primitive(0.3f));
   const std::size_t side = 50;
   for (std::size_t i = 0; i <= still; ++i) {
     RigNode node;
     node.translation = i < still ? glm::dvec3(double(i % side) - 25.0, -2.0, -double(i / side) - 3.0)
                                  : glm::dvec3(0.0, 0.0, -4.0);
-    rig->nodes.push_back(node);
-    rig->order.push_back(static_cast<int>(i));
-    RigMeshInstance inst;
-    inst.node = static_cast<int>(i);
-    inst.primitives = {0};
-    inst.kept = {std::vector<std::uint32_t>{0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11}};
-    rig->instances.push_back(inst);
+    add_rig_node(*rig, node, 0);
   }
   AnimationClip clip;
   clip.duration = 1.0;
@@ -412,16 +401,9 @@ Scene still_room_with_one_mover(std::size_t still) {
   slide.track.values = {glm::dvec4(0.0, 0.0, -4.0, 0.0), glm::dvec4(2.0, 0.0, -4.0, 0.0)};
   clip.channels.push_back(slide);
   rig->clips.push_back(clip);
-  rig->triangle_count = 12 * (still + 1);
-  Scene scene;
-  scene.name = "still room";
-  scene.materials.push_back(Material{});
-  scene.sky.enabled = true;
-  scene.sky.zenith = scene.sky.horizon = glm::vec3(1.0f);
+  Scene scene = rig_scene(rig, "still room");
   scene.camera.position = glm::vec3(0.0f, 1.0f, 2.0f);
   scene.camera.target = glm::vec3(0.0f, -1.0f, -6.0f);
-  pose_rig(*rig, 0.0, {}, scene.triangles);
-  scene.rig = rig;
   return scene;
 }
 

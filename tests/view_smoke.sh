@@ -51,8 +51,10 @@ check "render of the same frames" 0 "wrote 2 frame" -- \
 check "view with the control loop" 0 "" -- \
   "${xvfb[@]}" "$bin" view --scene cornell --width 32 --height 18 --frames 3 --svgf-iterations 2 --target-ms 1000:2000
 
-if [ -s "$tmp/shot.png" ] && [ -s "$tmp/r/frame_0001_left.png" ]; then
-  if "$py" - "$tmp/shot.png" "$tmp/r/frame_0001_left.png" "$tmp/r/frame_0001_right.png" <<'PY'
+# same_as_render NAME SHOT LEFT.png RIGHT.png: the screenshot's halves equal render's PNGs.
+same_as_render() {
+  if [ -s "$2" ] && [ -s "$3" ]; then
+    if "$py" - "$2" "$3" "$4" <<'PY'
 import sys
 import numpy as np
 import OpenImageIO as oiio
@@ -73,16 +75,28 @@ for name, half, ref in (("left", shot[:, :w], left), ("right", shot[:, w:], righ
         print(f"{name} half is constant or black (mean {half.mean():.1f}, std {half.std():.2f})")
         status = 1
     diff = np.abs(half - ref)
-    print(f"{name} half vs render's frame_0001_{name}.png: max difference {diff.max()}, mean {diff.mean():.4f}")
+    print(f"{name} half vs render's {name} PNG of that frame: max difference {diff.max()}, mean {diff.mean():.4f}")
     if diff.max() > 1:
         status = 1
 sys.exit(status)
 PY
-  then ok "screenshot halves show an image equal to render's left and right PNGs"
-  else bad "screenshot halves differ from render's images (or are empty)"; fi
-else
-  bad "screenshot or rendered frame missing"
-fi
+    then ok "$1: screenshot halves show an image equal to render's left and right PNGs"
+    else bad "$1: screenshot halves differ from render's images (or are empty)"; fi
+  else
+    bad "$1: screenshot or rendered frame missing"
+  fi
+}
+same_as_render "cornell" "$tmp/shot.png" "$tmp/r/frame_0001_left.png" "$tmp/r/frame_0001_right.png"
+
+# An animated glTF: the viewer's frame f is at f / fps like render's, so its third frame shows
+# the cube where render's frame 2 has it.
+if python3 "$(dirname "$0")/support/write_animated_gltf.py" "$tmp/slide.gltf"; then
+  check "view plays an animated glTF" 0 "wrote .*anim\.png" -- \
+    "${xvfb[@]}" "$bin" view --scene "$tmp/slide.gltf" --width 96 --height 54 --frames 3 --fps 8 --screenshot "$tmp/anim.png"
+  check "render of the same animated frames" 0 "wrote 3 frame" -- \
+    "$bin" render --scene "$tmp/slide.gltf" --width 96 --height 54 --frames 3 --fps 8 --out "$tmp/ra"
+  same_as_render "animated glTF, frame 2" "$tmp/anim.png" "$tmp/ra/frame_0002_left.png" "$tmp/ra/frame_0002_right.png"
+else bad "could not write the animated glTF"; fi
 
 echo "$passes passed, $fails failed"
 [ "$fails" -eq 0 ]

@@ -6,6 +6,41 @@
 
 namespace px {
 
+RigPrimitive cube_primitive(float half) {
+  RigPrimitive cube;
+  for (int i = 0; i < 8; ++i)
+    cube.positions.push_back(glm::vec3((i & 1) ? half : -half, (i & 2) ? half : -half, (i & 4) ? half : -half));
+  cube.triangles = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
+                    {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
+  return cube;
+}
+
+int add_rig_node(SceneRig& rig, const RigNode& node, int primitive) {
+  const int index = static_cast<int>(rig.nodes.size());
+  rig.nodes.push_back(node);
+  rig.order.push_back(index);
+  RigMeshInstance inst;
+  inst.node = index;
+  inst.primitives = {primitive};
+  std::vector<std::uint32_t> all(rig.primitives.at(static_cast<std::size_t>(primitive)).triangles.size());
+  for (std::size_t t = 0; t < all.size(); ++t) all[t] = static_cast<std::uint32_t>(t);
+  inst.kept = {all};
+  rig.instances.push_back(inst);
+  rig.triangle_count += all.size();
+  return index;
+}
+
+Scene rig_scene(std::shared_ptr<const SceneRig> rig, const std::string& name) {
+  Scene scene;
+  scene.name = name;
+  scene.materials.push_back(Material{});
+  scene.sky.enabled = true;
+  scene.sky.zenith = scene.sky.horizon = glm::vec3(1.0f);
+  pose_rig(*rig, 0.0, {}, scene.triangles);
+  scene.rig = std::move(rig);
+  return scene;
+}
+
 glm::dmat4 trs_matrix(const glm::dvec3& t, const glm::dquat& r, const glm::dvec3& s) {
   glm::dmat4 m = glm::mat4_cast(r);
   m[0] *= s.x;

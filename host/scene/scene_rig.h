@@ -16,6 +16,8 @@
 #include <glm/gtc/quaternion.hpp>
 
 #include <array>
+#include <memory>
+#include <string>
 #include <cstdint>
 #include <vector>
 
@@ -70,6 +72,14 @@ struct SceneRig {
   int camera_node = -1;  // the node of the scene's camera (-1: not a glTF camera)
   std::size_t triangle_count = 0;
 };
+
+// Rigs made in code (benches, tests): a cube of half-size `half` about the origin, 12
+// triangles facing out; and a node with its mesh instance appended to `rig` (a root, every
+// triangle of `primitive` kept). Returns the node's index.
+RigPrimitive cube_primitive(float half);
+int add_rig_node(SceneRig& rig, const RigNode& node, int primitive);
+// A scene around such a rig: one grey material, a uniform white sky, the triangles at rest.
+Scene rig_scene(std::shared_ptr<const SceneRig> rig, const std::string& name);
 
 // A node's transform from translation, rotation and scale (T * R * S).
 glm::dmat4 trs_matrix(const glm::dvec3& t, const glm::dquat& r, const glm::dvec3& s);
