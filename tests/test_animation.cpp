@@ -441,6 +441,26 @@ TEST(SceneAnimator, AFrameSendsOnlyThePiecesThatChanged) {
   EXPECT_TRUE(bit_identical(via_update, pixels_of(tf.render_stereo(0.25f, 1, 48, 32, opt))));
 }
 
+// Once on the devices, a static scene's host triangles are released (their count and bounds
+// kept), and it still renders what it rendered; an animated scene keeps them to pose them.
+TEST(SceneOnDevices, AStaticScenesHostTrianglesAreReleasedAnAnimatedOnesKept) {
+  const TempDir dir;
+  SceneOnDevices still("cornell", {1, DeviceMode::Auto, ""}, /*quiet=*/true);
+  EXPECT_TRUE(still.loaded.scene.triangles.empty());
+  EXPECT_GT(still.loaded.triangle_count, 10u);
+  EXPECT_LT(still.loaded.bounds_lo.x, still.loaded.bounds_hi.x);
+  EXPECT_GT(still.loaded.times.host_rss_after_start_mib, 0.0);
+  PathTracer::Options opt;
+  opt.spp = 1;
+  const auto released = pixels_of(PathTracer(still.devices, still.device_scene, still.loaded.scene)
+                                      .render_stereo(0.0f, 0, 16, 12, opt));
+  const LoadedScene kept = load_and_build("cornell", true);
+  DeviceScene ds(still.devices, kept.scene, kept.bvh);
+  EXPECT_TRUE(bit_identical(released, pixels_of(PathTracer(still.devices, ds, kept.scene).render_stereo(0.0f, 0, 16, 12, opt))));
+  SceneOnDevices moving(cube_on_floor_file(dir), {1, DeviceMode::Auto, ""}, true);
+  EXPECT_EQ(moving.loaded.scene.triangles.size(), moving.loaded.triangle_count);
+}
+
 // Every frame of an animation, denoised, with 1 and 3 devices.
 std::vector<std::vector<float>> animated_frames(const std::string& file, int devices, unsigned frames) {
   LoadedScene loaded = load_and_build(file, true);

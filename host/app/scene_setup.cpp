@@ -14,6 +14,18 @@ namespace px {
 namespace {
 // Below this a BVH builds in well under the time it takes to read it back.
 constexpr std::size_t kBvhCacheMinTriangles = 20000;
+
+// VmRSS of this process in MiB (0 without /proc).
+double resident_mib() {
+  std::FILE* f = std::fopen("/proc/self/status", "r");
+  if (!f) return 0.0;
+  char line[256];
+  double kib = 0.0;
+  while (std::fgets(line, sizeof line, f))
+    if (std::sscanf(line, "VmRSS: %lf kB", &kib) == 1) break;
+  std::fclose(f);
+  return kib / 1024.0;
+}
 }  // namespace
 
 LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
@@ -27,6 +39,15 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
     out.scene = load_scene(spec, sky);
   }
   const auto& st = out.scene.stats;
+  out.triangle_count = out.scene.triangles.size();
+  if (!out.scene.triangles.empty()) {
+    out.bounds_lo = out.bounds_hi = out.scene.triangles.front().p[0];
+    for (const SceneTriangle& t : out.scene.triangles)
+      for (const glm::vec3& p : t.p) {
+        out.bounds_lo = glm::min(out.bounds_lo, p);
+        out.bounds_hi = glm::max(out.bounds_hi, p);
+      }
+  }
   auto t1 = clock::now();
   const auto ms = [](clock::time_point a, clock::time_point b) { return std::chrono::duration<double, std::milli>(b - a).count(); };
   out.times.load_ms = ms(t0, t1);
@@ -134,6 +155,11 @@ SceneOnDevices::SceneOnDevices(LoadedScene scene, const DeviceOptions& device_op
       // The tree's host copy is not needed once its nodes are on the devices.
       device_scene(devices, loaded.scene, std::move(loaded.bvh)) {
   device_scene.set_kernel_choice(kernels);
+  if (!loaded.scene.rig) {
+    std::vector<SceneTriangle>().swap(loaded.scene.triangles);
+    std::vector<std::array<glm::vec3, 3>>().swap(loaded.scene.vertex_colours);
+  }
+  loaded.times.host_rss_after_start_mib = resident_mib();
 }
 
 }  // namespace px

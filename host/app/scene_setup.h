@@ -20,12 +20,18 @@ struct StartTimes {
   bool bvh_from_cache = false;
   double validate_ms = 0.0;  // the BVH validator
   double cache_store_ms = 0.0;
+  // The process's resident memory once the scene is on the devices and the host's copies are
+  // released (VmRSS, MiB; 0 where /proc is not there): what rendering starts with.
+  double host_rss_after_start_mib = 0.0;
 };
 
 struct LoadedScene {
   Scene scene;
   FlatBvh bvh;
   StartTimes times;
+  // The triangles' count and bounds, kept when SceneOnDevices releases the triangles.
+  std::size_t triangle_count = 0;
+  glm::vec3 bounds_lo{0.0f}, bounds_hi{0.0f};
 };
 
 // Throws SceneError / std::runtime_error with a user-facing message on failure.
@@ -35,7 +41,10 @@ LoadedScene load_and_build(const std::string& spec, bool quiet = false, SkyMode 
 // (DeviceSet::create), the scene uploaded to every one of them. Members in dependency order;
 // built in place and never moved, since what renders on them refers to `devices` and
 // `device_scene`. Says nothing about the devices: callers print them as they see fit.
-// `loaded.bvh` is moved into the upload: empty afterwards (the devices hold the nodes).
+// `loaded.bvh` is moved into the upload: empty afterwards (the devices hold the nodes). So are
+// the host's triangles of a static scene (about 100 bytes each: 1 GB at 10M triangles), which
+// nothing reads once the devices have them; `loaded.triangle_count` and the bounds stay. An
+// animated scene (Scene::rig) keeps them: they are posed anew every frame.
 struct SceneOnDevices {
   SceneOnDevices(const std::string& spec, const DeviceOptions& device_options, bool quiet = false,
                  SkyMode sky = SkyMode::kAuto, KernelChoice kernels = KernelChoice::Scene);

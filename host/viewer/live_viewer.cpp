@@ -258,14 +258,10 @@ void save_screenshot(const std::string& path, int fb_w, int fb_h) {
   write_png(path, fb_w, fb_h, top_down);
 }
 
-float scene_size(const Scene& scene) {
-  glm::vec3 lo(INFINITY), hi(-INFINITY);
-  for (const auto& t : scene.triangles)
-    for (const auto& p : t.p) {
-      lo = glm::min(lo, p);
-      hi = glm::max(hi, p);
-    }
-  const float size = scene.triangles.empty() ? 1.0f : glm::length(hi - lo);
+// The diagonal of the scene's bounds as loaded (the triangles themselves are released once
+// uploaded: SceneOnDevices).
+float scene_size(const LoadedScene& loaded) {
+  const float size = loaded.triangle_count == 0 ? 1.0f : glm::length(loaded.bounds_hi - loaded.bounds_lo);
   return std::isfinite(size) && size > 0.0f ? size : 1.0f;
 }
 
@@ -324,7 +320,7 @@ int run_view(const ViewCommand& cmd) {
     }
   } joiner{shared, renderer};
 
-  const float speed = cmd.move_speed > 0.0f ? cmd.move_speed : 0.25f * scene_size(session.loaded.scene);
+  const float speed = cmd.move_speed > 0.0f ? cmd.move_speed : 0.25f * scene_size(session.loaded);
   std::optional<FlyCamera> fly;  // set while steering
   bool dragging = false;
   double drag_x = 0.0, drag_y = 0.0;
