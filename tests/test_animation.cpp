@@ -211,6 +211,36 @@ TEST(GltfAnimation, ARotatingTranslatingNodeHasTheWorldBoundsWorkedByHand) {
   EXPECT_THROW(SceneAnimator(rest, "jump"), std::invalid_argument);
 }
 
+// A glTF camera on an animated node follows it; one a scene file placed does not.
+TEST(GltfAnimation, ACameraOnAnAnimatedNodeFollowsIt) {
+  GltfBuilder g;
+  add_cube_mesh(g);
+  const int times = g.floats({0.0f, 1.0f}, "SCALAR", 2);
+  const int moves = g.floats({0, 0, 5, 4, 0, 5}, "VEC3", 2);
+  g.add("cameras", {{"type", "perspective"}, {"perspective", {{"yfov", 0.8}, {"znear", 0.1}}}});
+  g.doc["scene"] = 0;
+  g.doc["scenes"] = json::array({{{"nodes", {0, 1}}}});
+  g.doc["nodes"] = json::array({{{"mesh", 0}}, {{"camera", 0}, {"translation", {0, 0, 5}}}});
+  g.doc["animations"] = json::array(
+      {{{"samplers", json::array({{{"input", times}, {"output", moves}}})},
+        {"channels", json::array({{{"sampler", 0}, {"target", {{"node", 1}, {"path", "translation"}}}}})}}});
+  const TempDir dir;
+  const std::string file = dir.write("dolly.gltf", g.text()).string();
+  Scene scene = load_scene(file);
+  SceneAnimator animator(scene, "all");
+  ASSERT_TRUE(animator.moves());
+  animator.pose(0.25);
+  EXPECT_NEAR(scene.camera.position.x, 1.0f, 1e-6);
+  EXPECT_NEAR(scene.camera.target.x, 1.0f, 1e-6);  // still looking down -z
+  EXPECT_NEAR(scene.camera.target.z, 4.0f, 1e-6);
+  // A scene file's camera stays where the file put it.
+  const std::string json_file =
+      dir.write("placed.json", R"({"mesh": "dolly.gltf", "camera": {"position": [9, 1, 9], "target": [0, 0, 0]}})").string();
+  Scene placed = load_scene(json_file);
+  SceneAnimator(placed, "all").pose(0.25);
+  EXPECT_EQ(placed.camera.position, glm::vec3(9, 1, 9));
+}
+
 // Two joints along y: joint 0 at the origin, joint 1 (its child) at (0, 1, 0), turning 90
 // degrees about z over one second. A strip of quads from y = 0 to 2 bound to them: y = 0 to
 // joint 0 alone, y = 1 half and half, y = 2 to joint 1 alone. The mesh's own node is moved
