@@ -4,6 +4,7 @@
 #include "scene/scene_rig.h"
 
 #include <chrono>
+#include <cstdio>
 #include <stdexcept>
 
 namespace px {
