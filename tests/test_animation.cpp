@@ -591,11 +591,12 @@ TEST(MotionPass, AMovingQuadsPointsGoBackAlongItsAnalyticMotion) {
 // from the start. A trail (the cube's history left on the floor, a lagging edge) is error the
 // still run does not have.
 //
-// Measured (this test, PoCL on 2 CPU cores): the moving run's error there is 4.4x the still
-// run's with motion vectors, 8.1x without them (the history then followed the camera alone).
-// SVGF alone (no anti-aliasing pass) is at 1.13x: what remains is the anti-aliasing of the
-// moving silhouette, which the still run accumulates over many jittered frames, and the lag of
-// the cube's contact shadow on the floor (SVGF's history has no temporal gradient, A-SVGF).
+// Measured (this test, PoCL on 2 CPU cores): the moving run's error there is 3.3x the still
+// run's with motion vectors and the anti-aliasing's silhouette rule (4.4x without that rule,
+// 8.1x without motion vectors: the history then followed the camera alone). SVGF alone (no
+// anti-aliasing pass) is at 1.13x: what remains is the anti-aliasing of the moving silhouette,
+// which the still run accumulates over many jittered frames, and the lag of the cube's contact
+// shadow on the floor (SVGF's history has no temporal gradient, A-SVGF).
 // The goal is 1.5x; the bound here guards what is reached.
 TEST(MotionTrail, AMovingObjectLeavesNoMoreErrorWhereItWentThanAStillOne) {
   const TempDir dir;
@@ -658,7 +659,7 @@ TEST(MotionTrail, AMovingObjectLeavesNoMoreErrorWhereItWentThanAStillOne) {
   ASSERT_GT(n, 200u);
   std::printf("swept region: %zu pixels, mse moving %.4g, still %.4g (x%.2f); elsewhere (moving run) %.4g\n", n,
               err_moving / n, err_still / n, err_moving / err_still, err_rest / rest);
-  EXPECT_LE(err_moving / n, 6.0 * err_still / n);
+  EXPECT_LE(err_moving / n, 4.5 * err_still / n);
 }
 
 }  // namespace

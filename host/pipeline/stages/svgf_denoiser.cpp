@@ -106,6 +106,8 @@ void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& albedo, c
                             RowRange rows, RowRange readable, const cl::Buffer* scene_motion) {
   if (rows.size() == 0) return;
   motion_this_frame_ = scene_motion != nullptr;
+  prev_gbuf_ = &prev_gbuf;
+  scene_motion_ = scene_motion;
   if (scene_motion) {
     if (!motion_())
       motion_ = cl::Buffer(devices_.context(), CL_MEM_READ_WRITE,
@@ -114,10 +116,13 @@ void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& albedo, c
     km.setArg(0, motion_);
     km.setArg(1, gbuf);
     km.setArg(2, *scene_motion);
-    km.setArg(3, static_cast<cl_uint>(rows.begin));
-    km.setArg(4, static_cast<cl_uint>(rows.size()));
+    // Anti-aliasing reads the motion of the rows beside its own too (moving silhouettes).
+    const RowRange wide = widen(rows, 1, height_);
+    const RowRange covered{std::max(wide.begin, readable.begin), std::min(wide.end, readable.end)};
+    km.setArg(3, static_cast<cl_uint>(covered.begin));
+    km.setArg(4, static_cast<cl_uint>(covered.size()));
     km.setArg(5, static_cast<cl_uint>(width_));
-    launch(km, rows, "motion");
+    launch(km, covered, "motion");
   }
   cl::Kernel k(devices_.program("denoise/svgf.cl"), "svgf_temporal");
   current_ = 0;
@@ -220,6 +225,9 @@ void SvgfDenoiser::antialias(const cl::Buffer& out_color, const cl::Buffer& gbuf
   k.setArg(8, options_.taa_alpha);
   // The motion pass covered temporal()'s rows, which are these (the strip).
   set_optional_buffer(k, 9, motion_this_frame_ ? &motion_ : nullptr);
+  if (motion_this_frame_) k.setArg(10, *prev_gbuf_);
+  else set_optional_buffer(k, 10, nullptr);
+  set_optional_buffer(k, 11, motion_this_frame_ ? scene_motion_ : nullptr);
   launch(k, rows, "anti-aliasing");
   copy_rows(resolved, out_color, rows, Stage::Denoise, "anti-aliased copy");
 }

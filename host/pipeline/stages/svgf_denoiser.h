@@ -67,7 +67,8 @@ class SvgfDenoiser {
   // After remodulate(): temporal anti-aliasing of `out_color` (svgf_antialias) with last
   // frame's result, reprojected through `gbuf` (traced with `cam`) into `prev_cam`. Reads
   // `out_color` within 1 row of `rows` (readable ones) and history within temporal_rows.
-  // Nothing with Options::taa_alpha >= 1. Follows object motion where temporal() was given it.
+  // Nothing with Options::taa_alpha >= 1. Follows object motion where temporal() was given it,
+  // and on a moving object's silhouette the object's edge (svgf_antialias).
   void antialias(const cl::Buffer& out_color, const cl::Buffer& gbuf, const CameraParams& cam,
                  const CameraParams& prev_cam, RowRange rows, RowRange readable);
   // The paper's bilateral seam filter on `color` (rows within `band` of a seam; -1 = none),
@@ -121,6 +122,10 @@ class SvgfDenoiser {
   cl::Buffer hist_resolved_[2];  // anti-aliased radiance (rgb, history length), as hist_illum_
   cl::Buffer motion_;            // float4 per pixel: the previous frame's surface point (motion.cl)
   bool motion_this_frame_ = false;
+  // This frame's previous G-buffer and the scene's triangle motion, from temporal() for
+  // antialias()'s moving silhouettes (null: a static scene).
+  const cl::Buffer* prev_gbuf_ = nullptr;
+  const cl::Buffer* scene_motion_ = nullptr;
   int current_ = 0;
   int frame_parity_ = 0;
   bool have_history_ = false;
