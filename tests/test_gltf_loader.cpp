@@ -44,49 +44,26 @@ int count_warnings_containing(const Scene& s, const std::string& needle) {
   return n;
 }
 
-template <typename T>
-void append(std::string& buf, const std::vector<T>& v) {
-  buf.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
-  while (buf.size() % 4) buf.push_back('\0');
-}
-
 // One triangle mesh as a glTF document with its binary buffer; the document's buffer[0]
 // has no uri yet (each writer below sets it).
-struct Gltf {
-  json doc;
-  std::string bin;
-};
+using Gltf = test::GltfBuilder;
 
 // positions (xyz per vertex), optional normals and uvs, uint16 indices (empty = non-indexed).
 Gltf make_mesh(const std::vector<float>& pos, const std::vector<std::uint16_t>& idx,
                const std::vector<float>& normals = {}, const std::vector<float>& uvs = {}) {
   Gltf g;
-  json views = json::array(), accessors = json::array(), attributes = json::object();
-  auto add = [&](const std::string& bytes, int component, std::size_t count, const char* type) {
-    const std::size_t offset = g.bin.size();
-    g.bin += bytes;
-    while (g.bin.size() % 4) g.bin.push_back('\0');
-    views.push_back({{"buffer", 0}, {"byteOffset", offset}, {"byteLength", bytes.size()}});
-    accessors.push_back({{"bufferView", views.size() - 1}, {"componentType", component}, {"count", count}, {"type", type}});
-    return int(accessors.size()) - 1;
-  };
-  auto bytes_of = [](const auto& v) {
-    return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(v[0]));
-  };
+  json attributes = json::object();
   const std::size_t nv = pos.size() / 3;
-  attributes["POSITION"] = add(bytes_of(pos), 5126, nv, "VEC3");
-  if (!normals.empty()) attributes["NORMAL"] = add(bytes_of(normals), 5126, nv, "VEC3");
-  if (!uvs.empty()) attributes["TEXCOORD_0"] = add(bytes_of(uvs), 5126, nv, "VEC2");
+  attributes["POSITION"] = g.floats(pos, "VEC3", nv);
+  if (!normals.empty()) attributes["NORMAL"] = g.floats(normals, "VEC3", nv);
+  if (!uvs.empty()) attributes["TEXCOORD_0"] = g.floats(uvs, "VEC2", nv);
   json prim = {{"attributes", attributes}};
-  if (!idx.empty()) prim["indices"] = add(bytes_of(idx), 5123, idx.size(), "SCALAR");
-  g.doc = {{"asset", {{"version", "2.0"}}},
-           {"scene", 0},
-           {"scenes", json::array({{{"nodes", json::array({0})}}})},
-           {"nodes", json::array({{{"mesh", 0}}})},
-           {"meshes", json::array({{{"primitives", json::array({prim})}}})},
-           {"bufferViews", views},
-           {"accessors", accessors},
-           {"buffers", json::array({{{"byteLength", 0}}})}};
+  if (!idx.empty()) prim["indices"] = g.uint16s(idx, "SCALAR", idx.size());
+  g.doc["scene"] = 0;
+  g.doc["scenes"] = json::array({{{"nodes", json::array({0})}}});
+  g.doc["nodes"] = json::array({{{"mesh", 0}}});
+  g.doc["meshes"] = json::array({{{"primitives", json::array({prim})}}});
+  g.doc["buffers"] = json::array({{{"byteLength", 0}}});
   return g;
 }
 
@@ -431,13 +408,7 @@ TEST(GltfLoader, VertexColoursMultiplyTheDiffuseColour) {
     g.doc["meshes"][0]["primitives"][0]["material"] = 0;
     if (coloured) {
       const std::vector<float> rgb = {1, 0.5f, 0.25f, 1, 0.5f, 0.25f, 1, 0.5f, 0.25f, 1, 0.5f, 0.25f};
-      const std::string bytes(reinterpret_cast<const char*>(rgb.data()), rgb.size() * sizeof(float));
-      const std::size_t offset = g.bin.size();
-      g.bin += bytes;
-      g.doc["bufferViews"].push_back({{"buffer", 0}, {"byteOffset", offset}, {"byteLength", bytes.size()}});
-      g.doc["accessors"].push_back(
-          {{"bufferView", g.doc["bufferViews"].size() - 1}, {"componentType", 5126}, {"count", 4}, {"type", "VEC3"}});
-      g.doc["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = g.doc["accessors"].size() - 1;
+      g.doc["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = g.floats(rgb, "VEC3", 4);
     }
     return g;
   };

@@ -47,18 +47,23 @@ std::string mib(std::size_t bytes) {
   return s;
 }
 
-// One buffer of the scene, written through `queue`; refused (before anything is allocated on
-// the device) where it exceeds what one allocation may hold: a clear error naming the buffer,
-// never a failed allocation deep in the driver or a wrong image.
+// Refuses (before anything is allocated on the device) a scene buffer that exceeds what one
+// allocation may hold: a clear error naming the buffer, never a failed allocation deep in the
+// driver or a wrong image.
+void require_allocation(const char* name, std::size_t bytes, const AllocationLimits& limits) {
+  if (bytes > limits.max_alloc)
+    throw std::runtime_error(std::string("the scene's ") + name + " buffer needs " + mib(bytes) +
+                             ", more than one allocation may hold on " + limits.device + ": " + mib(limits.max_alloc) +
+                             " (CL_DEVICE_MAX_MEM_ALLOC_SIZE); the scene is too large for this device");
+}
+
+// One buffer of the scene, written through `queue` (require_allocation first).
 template <typename T>
 cl::Buffer upload(const char* name, const cl::Context& ctx, cl::CommandQueue& queue, const std::vector<T>& data,
                   const AllocationLimits& limits, std::size_t& total) {
   // A zero-sized buffer is invalid in OpenCL; keep one element so kernels always get a buffer.
   const std::size_t bytes = std::max<std::size_t>(1, data.size()) * sizeof(T);
-  if (bytes > limits.max_alloc)
-    throw std::runtime_error(std::string("the scene's ") + name + " buffer needs " + mib(bytes) +
-                             ", more than one allocation may hold on " + limits.device + ": " + mib(limits.max_alloc) +
-                             " (CL_DEVICE_MAX_MEM_ALLOC_SIZE); the scene is too large for this device");
+  require_allocation(name, bytes, limits);
   cl::Buffer buffer(ctx, CL_MEM_READ_ONLY, bytes);
   if (!data.empty()) queue.enqueueWriteBuffer(buffer, CL_TRUE, 0, data.size() * sizeof(T), data.data());
   total += bytes;
@@ -79,10 +84,7 @@ void rewrite(const char* name, cl::Buffer& buffer, std::size_t& capacity, std::v
              const AllocationLimits& limits, std::size_t& written) {
   const std::size_t bytes = std::max<std::size_t>(1, data.size()) * sizeof(T);
   if (bytes > capacity || !buffer()) {
-    if (bytes > limits.max_alloc)
-      throw std::runtime_error(std::string("the scene's ") + name + " buffer needs " + mib(bytes) +
-                               ", more than one allocation may hold on " + limits.device + ": " +
-                               mib(limits.max_alloc) + " (CL_DEVICE_MAX_MEM_ALLOC_SIZE)");
+    require_allocation(name, bytes, limits);
     capacity = std::min(limits.max_alloc, bytes + bytes / 4);
     buffer = cl::Buffer(ctx, CL_MEM_READ_ONLY, capacity);
     shadow.clear();  // the new buffer holds nothing yet

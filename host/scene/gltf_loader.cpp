@@ -748,18 +748,11 @@ class Converter {
                                       " has an unusable yfov; framing the scene instead");
       return;
     }
-    const glm::dvec3 pos(world * glm::dvec4(0, 0, 0, 1));
-    const glm::dvec3 fwd = glm::dvec3(world * glm::dvec4(0, 0, -1, 0));
-    const glm::dvec3 up = glm::dvec3(world * glm::dvec4(0, 1, 0, 0));
-    const double fl = glm::length(fwd);
-    if (!(fl > 0.0) || !(glm::length(glm::cross(fwd, up)) > 0.0)) {
+    if (!camera_from_node(world, scene_.camera)) {
       scene_.stats.warnings.push_back(path_ + ": camera " + std::to_string(index) +
                                       " has a degenerate orientation; framing the scene instead");
       return;
     }
-    scene_.camera.position = glm::vec3(pos);
-    scene_.camera.target = glm::vec3(pos + fwd / fl);
-    scene_.camera.up = glm::vec3(glm::normalize(up));
     scene_.camera.vfov_deg = float(glm::degrees(yfov));
     camera_found_ = true;
     if (rig_) rig_->camera_node = node;
@@ -1027,17 +1020,7 @@ class Converter {
   // The scene's triangles at the rest pose (the nodes' own transforms, skins bound by them):
   // the triangles kept here are the rig's for good. A scene without clips keeps no rig.
   void pose_at_rest() {
-    const std::vector<glm::dmat4> world = rig_world_matrices(*rig_, 0.0, {});
-    std::vector<std::vector<glm::dmat4>> joints(rig_->skins.size());
-    for (std::size_t s = 0; s < rig_->skins.size(); ++s) joints[s] = skin_matrices(rig_->skins[s], world);
-    for (RigMeshInstance& inst : rig_->instances) {
-      inst.kept.assign(inst.primitives.size(), {});
-      const std::vector<glm::dmat4>* jm = inst.skin >= 0 ? &joints[std::size_t(inst.skin)] : nullptr;
-      for (std::size_t p = 0; p < inst.primitives.size(); ++p)
-        emit_primitive(rig_->primitives[std::size_t(inst.primitives[p])], world[std::size_t(inst.node)], jm, nullptr,
-                       &inst.kept[p], scene_.triangles, scene_.stats, colours_out());
-    }
-    rig_->triangle_count = scene_.triangles.size();
+    settle_rig(*rig_, scene_.triangles, scene_.stats, colours_out());
     if (!rig_->clips.empty()) scene_.rig = std::move(rig_);
     rig_.reset();
   }

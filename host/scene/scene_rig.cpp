@@ -203,34 +203,59 @@ void emit_primitive(const RigPrimitive& prim, const glm::dmat4& world, const std
   }
 }
 
-void pose_rig(const SceneRig& rig, double t, const std::vector<int>& clips, std::vector<SceneTriangle>& out) {
-  const std::vector<glm::dmat4> world = rig_world_matrices(rig, t, clips);
-  out.clear();
-  out.reserve(rig.triangle_count);
-  SceneStats unused;
+namespace {
+
+// Every instance's triangles at the world matrices `world`: the kept ones (record == null), or,
+// at load, all but the degenerate ones, whose indices go to (*record)[instance][primitive].
+void emit_rig(const SceneRig& rig, const std::vector<glm::dmat4>& world,
+              std::vector<std::vector<std::vector<std::uint32_t>>>* record, std::vector<SceneTriangle>& out,
+              SceneStats& stats, std::vector<std::array<glm::vec3, 3>>* colours) {
   std::vector<std::vector<glm::dmat4>> joints(rig.skins.size());
   for (std::size_t s = 0; s < rig.skins.size(); ++s) joints[s] = skin_matrices(rig.skins[s], world);
-  for (const RigMeshInstance& inst : rig.instances) {
+  for (std::size_t i = 0; i < rig.instances.size(); ++i) {
+    const RigMeshInstance& inst = rig.instances[i];
     const glm::dmat4& w = world.at(static_cast<std::size_t>(inst.node));
     const std::vector<glm::dmat4>* jm = inst.skin >= 0 ? &joints[static_cast<std::size_t>(inst.skin)] : nullptr;
     for (std::size_t p = 0; p < inst.primitives.size(); ++p)
-      emit_primitive(rig.primitives[static_cast<std::size_t>(inst.primitives[p])], w, jm, &inst.kept[p], nullptr, out,
-                     unused);
+      emit_primitive(rig.primitives[static_cast<std::size_t>(inst.primitives[p])], w, jm,
+                     record ? nullptr : &inst.kept[p], record ? &(*record)[i][p] : nullptr, out, stats, colours);
   }
 }
 
-Camera rig_camera(const SceneRig& rig, const std::vector<glm::dmat4>& world, const Camera& base) {
-  if (rig.camera_node < 0) return base;
-  const glm::dmat4& m = world.at(static_cast<std::size_t>(rig.camera_node));
-  const glm::dvec3 pos(m * glm::dvec4(0, 0, 0, 1));
-  const glm::dvec3 fwd(m * glm::dvec4(0, 0, -1, 0));
-  const glm::dvec3 up(m * glm::dvec4(0, 1, 0, 0));
+}  // namespace
+
+void pose_rig(const SceneRig& rig, double t, const std::vector<int>& clips, std::vector<SceneTriangle>& out) {
+  out.clear();
+  out.reserve(rig.triangle_count);
+  SceneStats unused;
+  emit_rig(rig, rig_world_matrices(rig, t, clips), nullptr, out, unused, nullptr);
+}
+
+void settle_rig(SceneRig& rig, std::vector<SceneTriangle>& out, SceneStats& stats,
+                std::vector<std::array<glm::vec3, 3>>* colours) {
+  std::vector<std::vector<std::vector<std::uint32_t>>> kept(rig.instances.size());
+  for (std::size_t i = 0; i < rig.instances.size(); ++i) kept[i].resize(rig.instances[i].primitives.size());
+  const std::size_t first = out.size();
+  emit_rig(rig, rig_world_matrices(rig, 0.0, {}), &kept, out, stats, colours);
+  for (std::size_t i = 0; i < rig.instances.size(); ++i) rig.instances[i].kept = std::move(kept[i]);
+  rig.triangle_count = out.size() - first;
+}
+
+bool camera_from_node(const glm::dmat4& world, Camera& cam) {
+  const glm::dvec3 pos(world * glm::dvec4(0, 0, 0, 1));
+  const glm::dvec3 fwd(world * glm::dvec4(0, 0, -1, 0));
+  const glm::dvec3 up(world * glm::dvec4(0, 1, 0, 0));
   const double fl = glm::length(fwd);
-  if (!(fl > 0.0) || !(glm::length(glm::cross(fwd, up)) > 0.0)) return base;  // degenerate: keep the last view
+  if (!(fl > 0.0) || !(glm::length(glm::cross(fwd, up)) > 0.0)) return false;
+  cam.position = glm::vec3(pos);
+  cam.target = glm::vec3(pos + fwd / fl);
+  cam.up = glm::vec3(glm::normalize(up));
+  return true;
+}
+
+Camera rig_camera(const SceneRig& rig, const std::vector<glm::dmat4>& world, const Camera& base) {
   Camera c = base;
-  c.position = glm::vec3(pos);
-  c.target = glm::vec3(pos + fwd / fl);
-  c.up = glm::vec3(glm::normalize(up));
+  if (rig.camera_node >= 0) camera_from_node(world.at(static_cast<std::size_t>(rig.camera_node)), c);
   return c;
 }
 

@@ -109,8 +109,19 @@ std::vector<glm::dmat4> skin_matrices(const RigSkin& skin, const std::vector<glm
 // overwritten; rig.triangle_count triangles).
 void pose_rig(const SceneRig& rig, double t, const std::vector<int>& clips, std::vector<SceneTriangle>& out);
 
+// The loader's last step: the rig at its rest pose appended to `out` (and `colours`, if given),
+// dropping degenerate and non-finite triangles (counted in `stats`); what is kept becomes each
+// instance's `kept` list and rig.triangle_count, for good.
+void settle_rig(SceneRig& rig, std::vector<SceneTriangle>& out, SceneStats& stats,
+                std::vector<std::array<glm::vec3, 3>>* colours);
+
+// A glTF camera's view from its node's world matrix (the camera looks down its local -z, up
+// its local +y) into `cam`'s position, target and up; false (cam untouched) when the matrix
+// makes the view degenerate.
+bool camera_from_node(const glm::dmat4& world, Camera& cam);
+
 // The camera of `rig.camera_node` at these world matrices, keeping `base`'s field of view; base
-// unchanged when the rig has no camera node.
+// unchanged when the rig has no camera node (or its view degenerates there).
 Camera rig_camera(const SceneRig& rig, const std::vector<glm::dmat4>& world, const Camera& base);
 
 // Whether any of `clips` drives a node (so the scene's pose changes with time).
