@@ -417,5 +417,30 @@ if python3 "$src/tests/support/write_animated_gltf.py" "$tmp/slide.gltf"; then
     --animation none --width 16 --height 9 --out "$tmp/anim_none"
 else bad "could not write the animated glTF"; fi
 
+# Instances: in a static file, the cube mesh that 13 nodes draw is stored once and traversed
+# through a top level. Two devices give one device's pixels, the scene's kernels the general
+# kernels' pixels, and the image is the one of a copy per node (PX_INSTANCING=off) but for
+# rounding (the vertices are placed on the device instead of the host).
+if python3 "$src/tests/support/write_animated_gltf.py" "$tmp/ring.gltf" --still --copies 12; then
+  inst=(render --scene "$tmp/ring.gltf" --width 48 --height 27 --frames 2 --spp 2 --svgf-iterations 2)
+  check "a mesh that several nodes draw is stored once" 0 \
+    "13 instances of 1 mesh\(es\) draw 156 of the 158 triangles; 14 triangles stored" -- "$bin" "${inst[@]}" \
+    --devices 2 --out "$tmp/inst2"
+  check "instances are compiled in" 0 "compiled for the scene's features: .*instances" -- "$bin" "${inst[@]}" \
+    --devices 1 --out "$tmp/inst1"
+  check "instances: 2 devices give 1 device's pixels" 0 "^identical$" -- "$bin" compare --exact \
+    "$tmp/inst1/frame_0001_left.exr" "$tmp/inst2/frame_0001_left.exr"
+  check "instances: --kernels general renders" 0 "wrote 2 frame" -- "$bin" "${inst[@]}" --devices 1 \
+    --kernels general --out "$tmp/inst_general"
+  check "instances: --kernels scene and general give identical pixels" 0 "^identical$" -- "$bin" compare --exact \
+    "$tmp/inst1/frame_0001_right.exr" "$tmp/inst_general/frame_0001_right.exr"
+  check "PX_INSTANCING=off stores a copy per node" 0 "158 triangles" -- env PX_INSTANCING=off "$bin" "${inst[@]}" \
+    --devices 1 --out "$tmp/inst_flat"
+  psnr=$("$bin" compare "$tmp/inst1/frame_0001_left.exr" "$tmp/inst_flat/frame_0001_left.exr" 2>/dev/null |
+    awk '/^psnr_db/ {print $2}')
+  if awk -v p="${psnr:-0}" 'BEGIN {exit !(p > 40)}'; then ok "instances render the flat copies' image (PSNR $psnr dB)"
+  else bad "instances against flat copies: PSNR ${psnr:-none} dB (want > 40)"; fi
+else bad "could not write the instanced glTF"; fi
+
 echo "$passes passed, $fails failed"
 [ "$fails" -eq 0 ]

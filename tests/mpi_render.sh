@@ -100,6 +100,16 @@ if python3 "$(dirname "$0")/support/write_animated_gltf.py" "$tmp/slide.gltf"; t
   else bad "mpirun -np 2 animated render failed"; tail -20 "$tmp/anim.log"; fi
 else bad "could not write the animated glTF"; fi
 
+# Instances (a static file whose cube mesh 13 nodes draw): two ranks give one process's pixels.
+if python3 "$(dirname "$0")/support/write_animated_gltf.py" "$tmp/ring.gltf" --still --copies 12; then
+  inst=(render --scene "$tmp/ring.gltf" --width 40 --height 29 --frames 3 --spp 1 --bounces 3 --svgf-iterations 3
+        --overwrite)
+  "$bin" "${inst[@]}" --devices 1 --out "$tmp/inst_one" >/dev/null 2>&1 || bad "the one-process instanced render failed"
+  if timeout 300 "${mpi[@]}" -np 2 "$bin" "${inst[@]}" --devices 1 --out "$tmp/inst_np2" >"$tmp/inst.log" 2>&1; then
+    same_pixels "mpirun -np 2, instances" "$tmp/inst_one" "$tmp/inst_np2"
+  else bad "mpirun -np 2 instanced render failed"; tail -20 "$tmp/inst.log"; fi
+else bad "could not write the instanced glTF"; fi
+
 timeout 120 "${mpi[@]}" -np 2 "$bin" preview --scene cornell --out "$tmp/pv" >"$tmp/pv.log" 2>&1
 rc=$?
 if [ "$rc" -ne 0 ] && [ "$rc" -ne 124 ] && grep -q "only .render" "$tmp/pv.log"; then ok "preview under mpirun is refused clearly"

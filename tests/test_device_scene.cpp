@@ -24,7 +24,7 @@ std::size_t size_of(const cl::Buffer& b) { return b.getInfo<CL_MEM_SIZE>(); }
 
 std::size_t total_size(const DeviceSceneBuffers& b) {
   return size_of(b.nodes) + size_of(b.triangles) + size_of(b.shading) + size_of(b.materials) + size_of(b.textures) +
-         size_of(b.texels) + size_of(b.lights) + size_of(b.colours);
+         size_of(b.texels) + size_of(b.lights) + size_of(b.colours) + size_of(b.instances);
 }
 
 TEST(DeviceScene, OneCopyPerContextServesEveryDevice) {

@@ -4,6 +4,7 @@
 // the shared real scenes. A feature missing from the derivation (one the scene uses) makes the
 // images differ: a build without GGX renders cornell-glossy's glossy box as diffuse.
 #include "app/scene_setup.h"
+#include "bvh/scene_bvhs.h"
 #include "pipeline/stereo_pipeline.h"
 #include "render/device_scene.h"
 #include "render/kernel_features.h"
@@ -12,6 +13,7 @@
 #include "scene/primitives.h"
 #include "support/test_support.h"
 
+#include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -124,8 +126,17 @@ LoadedScene every_feature_scene() {
   append_quad(s.triangles, {-3, -1, -3}, {-3, -1, 3}, {3, -1, 3}, {3, -1, -3}, 0, {glm::vec2(0, 0), glm::vec2(0, 3), glm::vec2(3, 3), glm::vec2(3, 0)});
   append_icosphere(s.triangles, {-0.9f, -0.2f, 0.0f}, 0.7f, 2, 1);
   append_box(s.triangles, {0.3f, -1.0f, -1.2f}, {1.2f, 0.2f, -0.4f}, 2);
-  append_box(s.triangles, {0.4f, -1.0f, 0.3f}, {1.3f, -0.3f, 1.1f}, 3);
   append_quad(s.triangles, {-1.0f, 1.6f, -1.0f}, {1.0f, 1.6f, -1.0f}, {1.0f, 1.6f, 1.0f}, {-1.0f, 1.6f, 1.0f}, 4);
+  // Instances: a glossy box stored once in its own space, drawn twice (PX_FEATURE_INSTANCES).
+  s.instancing.world_triangles = s.triangles.size();
+  s.instancing.meshes.push_back({s.triangles.size(), 0});
+  append_box(s.triangles, {-0.45f, -0.35f, -0.4f}, {0.45f, 0.35f, 0.4f}, 3);
+  s.instancing.meshes[0].count = s.triangles.size() - s.instancing.meshes[0].first;
+  s.instancing.instances.push_back({0, glm::translate(glm::mat4(1.0f), glm::vec3(0.85f, -0.65f, 0.7f))});
+  s.instancing.instances.push_back(
+      {0, glm::scale(glm::rotate(glm::translate(glm::mat4(1.0f), glm::vec3(-1.8f, -0.7f, 1.2f)), 0.6f,
+                                 glm::vec3(0.0f, 1.0f, 0.0f)),
+                     glm::vec3(0.5f, 0.4f, 0.6f))});
   s.sun.enabled = true;
   s.sun.direction = glm::normalize(glm::vec3(0.4f, 1.0f, 0.3f));
   s.sun.radiance = {30.0f, 28.0f, 25.0f};
@@ -142,7 +153,7 @@ LoadedScene every_feature_scene() {
   for (std::size_t t = 0; t < s.triangles.size(); ++t)
     for (int c = 0; c < 3; ++c)
       s.vertex_colours[t][std::size_t(c)] = glm::vec3(0.4f + 0.2f * float((t + c) % 4), 0.9f - 0.1f * float(c), 0.7f);
-  return LoadedScene{s, build_bvh(s.triangles), {}};
+  return LoadedScene{s, build_world_bvh(s), {}};
 }
 
 bool same_bits(const ImageRGB& a, const ImageRGB& b) {

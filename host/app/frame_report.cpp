@@ -92,6 +92,8 @@ void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode de
       {"kernels", cli_word(cmd_.kernels)},
       {"kernel_features", kernel_feature_list(scene.kernel_features())},
       {"scene_device_bytes", scene.bytes_in_context()},
+      {"instances", scene.instance_count()},
+      {"instance_bytes", scene.instance_bytes()},
       {"start", {{"scene_load_ms", start.load_ms},
                  {"bvh_ms", start.bvh_ms},
                  {"bvh_from_cache", start.bvh_from_cache},

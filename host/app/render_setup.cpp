@@ -72,6 +72,9 @@ void print_device_set(const DeviceSet& set) {
 void print_scene_upload(const DeviceScene& scene, int devices) {
   std::fprintf(stderr, "[scene] on the devices: %.1f MiB, one copy in the context of its %d device(s) (%.0f ms)\n",
                static_cast<double>(scene.bytes_in_context()) / (1024.0 * 1024.0), devices, scene.upload_ms());
+  if (scene.instance_count() > 0)
+    std::fprintf(stderr, "[scene] %zu instances: their top level and records take %.1f KiB of that\n",
+                 scene.instance_count(), static_cast<double>(scene.instance_bytes()) / 1024.0);
 }
 
 void print_kernel_features(const DeviceScene& scene) {

@@ -1,6 +1,8 @@
 #include "app/scene_setup.h"
 
 #include "bvh/bvh_cache.h"
+#include "bvh/scene_bvhs.h"
+#include "scene/instancing.h"
 #include "io/progress_ticker.h"
 #include "scene/scene_loader.h"
 
@@ -39,14 +41,18 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
     out.scene = load_scene(spec, sky);
   }
   const auto& st = out.scene.stats;
-  out.triangle_count = out.scene.triangles.size();
+  out.triangle_count = drawn_triangle_count(out.scene);
   if (!out.scene.triangles.empty()) {
     out.bounds_lo = out.bounds_hi = out.scene.triangles.front().p[0];
-    for (const SceneTriangle& t : out.scene.triangles)
-      for (const glm::vec3& p : t.p) {
-        out.bounds_lo = glm::min(out.bounds_lo, p);
-        out.bounds_hi = glm::max(out.bounds_hi, p);
+    bool first = true;
+    for_each_drawn_triangle(out.scene, [&](const glm::vec3* p, std::size_t) {
+      if (first) out.bounds_lo = out.bounds_hi = p[0];
+      first = false;
+      for (int c = 0; c < 3; ++c) {
+        out.bounds_lo = glm::min(out.bounds_lo, p[c]);
+        out.bounds_hi = glm::max(out.bounds_hi, p[c]);
       }
+    });
   }
   auto t1 = clock::now();
   const auto ms = [](clock::time_point a, clock::time_point b) { return std::chrono::duration<double, std::milli>(b - a).count(); };
@@ -57,6 +63,38 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
                  out.scene.textures.size(), std::chrono::duration<double, std::milli>(t1 - t0).count());
     // Dropped triangles are reported once, by the loader's warnings (which name the file).
     for (const auto& w : st.warnings) std::fprintf(stderr, "[scene] warning: %s\n", w.c_str());
+    const SceneInstancing& in = out.scene.instancing;
+    if (!in.empty())
+      std::fprintf(stderr,
+                   "[scene] instances: %zu instances of %zu mesh(es) draw %zu of the %zu triangles; %zu triangles "
+                   "stored (PX_INSTANCING=off stores a copy per instance)\n",
+                   in.instances.size(), in.meshes.size(), out.triangle_count - in.world_triangles, out.triangle_count,
+                   out.scene.triangles.size());
+  }
+  if (!out.scene.instancing.empty()) {
+    // A two-level scene: the world tree and one tree per instanced mesh, built here every time
+    // (the cache keys one tree on all of a scene's triangles), validated by build_mesh_bvhs and
+    // below; the top level is made with the upload (DeviceScene).
+    const ProgressTicker ticker(quiet ? "" : "[bvh] still building the BVHs of " + out.scene.name);
+    const auto t2 = clock::now();
+    const SceneInstancing& in = out.scene.instancing;
+    out.bvh = build_world_bvh(out.scene);
+    if (!out.bvh.nodes.empty()) ensure_layout(out.bvh, bvh_layout());
+    out.mesh_bvhs = build_mesh_bvhs(out.scene, bvh_layout());
+    out.times.bvh_ms = ms(t2, clock::now());
+    const auto t3 = clock::now();
+    if (!out.bvh.nodes.empty()) {
+      const BvhValidation check = validate_bvh(out.bvh, triangle_range(out.scene, 0, in.world_triangles));
+      if (!check.ok) throw std::runtime_error("internal error: the world BVH failed validation: " + check.errors.front());
+    }
+    out.times.validate_ms = ms(t3, clock::now());
+    if (!quiet) {
+      std::size_t mesh_nodes = 0;
+      for (const FlatBvh& t : out.mesh_bvhs) mesh_nodes += t.stats.nodes;
+      std::fprintf(stderr, "[bvh] world: %zu nodes over %zu triangles; %zu mesh trees: %zu nodes (%.0f ms)\n",
+                   out.bvh.stats.nodes, in.world_triangles, out.mesh_bvhs.size(), mesh_nodes, out.times.bvh_ms);
+    }
+    return out;
   }
   // Large scenes go through the disk cache (small ones build faster than a file is read).
   const BvhBuildOptions build_options;
@@ -153,7 +191,7 @@ SceneOnDevices::SceneOnDevices(LoadedScene scene, const DeviceOptions& device_op
     : loaded(std::move(scene)),
       devices(DeviceSet::create(device_options)),
       // The tree's host copy is not needed once its nodes are on the devices.
-      device_scene(devices, loaded.scene, std::move(loaded.bvh)) {
+      device_scene(devices, loaded.scene, std::move(loaded.bvh), std::move(loaded.mesh_bvhs)) {
   device_scene.set_kernel_choice(kernels);
   if (!loaded.scene.rig) {
     std::vector<SceneTriangle>().swap(loaded.scene.triangles);

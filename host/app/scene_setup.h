@@ -27,7 +27,8 @@ struct StartTimes {
 
 struct LoadedScene {
   Scene scene;
-  FlatBvh bvh;
+  FlatBvh bvh;  // the world tree (scene_bvhs.h): every triangle's in a scene without instances
+  std::vector<FlatBvh> mesh_bvhs;  // one per instanced mesh (Scene::instancing), else none
   StartTimes times;
   // The triangles' count and bounds, kept when SceneOnDevices releases the triangles.
   std::size_t triangle_count = 0;

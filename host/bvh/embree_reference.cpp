@@ -136,6 +136,7 @@ Hit EmbreeReference::intersect(const Ray& ray) const {
   rtcIntersect1(scene_, &context, &rayhit);
 
   Hit hit;
+  hit.inst = PX_NO_INSTANCE;
   if (rayhit.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
     hit.t = ray.tmax;
     hit.u = hit.v = 0.0f;

@@ -40,7 +40,11 @@ static_assert(offsetof(BvhTriangle, flags) == 28 && offsetof(BvhTriangle, v2) ==
 static_assert(offsetof(BvhTriangle, material) == 44);
 
 static_assert(sizeof(Ray) == 32 && offsetof(Ray, tmin) == 12 && offsetof(Ray, tmax) == 28);
-static_assert(sizeof(Hit) == 16 && offsetof(Hit, prim) == 12);
+static_assert(sizeof(Hit) == 20 && offsetof(Hit, prim) == 12 && offsetof(Hit, inst) == 16);
+
+static_assert(sizeof(SceneInstances) == 16 && offsetof(SceneInstances, world_triangles) == 12);
+static_assert(sizeof(SceneInstance) == 112 && offsetof(SceneInstance, object_to_world) == 48);
+static_assert(offsetof(SceneInstance, node_offset) == 96 && offsetof(SceneInstance, triangle_offset) == 100);
 
 static_assert(sizeof(TriangleShading) == 64);
 static_assert(offsetof(TriangleShading, uv0) == 12 && offsetof(TriangleShading, n1) == 20);

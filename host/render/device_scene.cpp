@@ -1,5 +1,9 @@
 #include "render/device_scene.h"
 
+#include "bvh/scene_bvhs.h"
+#include "bvh/top_level_bvh.h"
+#include "scene/instancing.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -122,7 +126,7 @@ float luminance(const glm::vec3& c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0
 }  // namespace
 
 cl_uint DeviceSceneBuffers::bind(cl::Kernel& kernel, cl_uint first) const {
-  for (const cl::Buffer* b : {&nodes, &triangles, &shading, &materials, &textures, &texels, &lights, &colours})
+  for (const cl::Buffer* b : {&nodes, &triangles, &shading, &materials, &textures, &texels, &lights, &colours, &instances})
     kernel.setArg(first++, *b);
   return first;
 }
@@ -256,33 +260,98 @@ std::string DeviceScene::kernel_options() const {
   return "-DPX_BVH_WIDTH=" + std::to_string(bvh_layout_width(layout_)) + " -DPX_FEATURES=" + features;
 }
 
-DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh) {
+namespace {
+
+// The flagged tree `tree` in `layout`, its nodes made and validated against `tris` if the caller's
+// tree did not carry them (a GPU set's cwbvh from a tree load_and_build collapsed for CPUs: nodes
+// made here have not met the validator the loader ran).
+void prepare_tree(FlatBvh& tree, BvhLayout layout, const std::vector<SceneTriangle>& tris, const char* what) {
+  if (has_layout(tree, layout)) return;
+  ensure_layout(tree, layout);
+  const BvhValidation check = validate_bvh(tree, tris);
+  if (!check.ok)
+    throw std::runtime_error(std::string("internal error: the ") + to_string(layout) + " nodes of " + what +
+                             " failed validation: " + (check.errors.empty() ? "" : check.errors.front()));
+}
+
+// The words of `tree`'s nodes as the set's kernels read them.
+std::vector<std::uint32_t> node_words(const FlatBvh& tree, BvhLayout layout) {
+  if (layout != BvhLayout::Binary) return device_wide_nodes(tree, layout);
+  std::vector<std::uint32_t> words(tree.nodes.size() * sizeof(BvhNode) / 4);
+  std::memcpy(words.data(), tree.nodes.data(), words.size() * 4);
+  return words;
+}
+
+}  // namespace
+
+DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, std::vector<FlatBvh> mesh_bvhs) {
   FlatBvh& flagged = bvh;
   const std::vector<std::uint32_t> tri_flags = triangle_flags(scene);
-  set_triangle_flags(flagged, tri_flags);
-  // The nodes of the layout the set's kernels are built for (DeviceSet::bvh_layout), collapsed
-  // or compressed here if the caller's tree does not carry them (a GPU set's cwbvh from a tree
-  // load_and_build collapsed for CPUs). Nodes made here have not met the validator the loader
-  // ran, so they meet it now.
   const BvhLayout layout = devices.bvh_layout();
   layout_ = layout;
-  if (!has_layout(flagged, layout)) {
-    ensure_layout(flagged, layout);
-    const BvhValidation check = validate_bvh(flagged, scene.triangles);
-    if (!check.ok)
-      throw std::runtime_error(std::string("internal error: the ") + to_string(layout) +
-                               " nodes failed validation: " + (check.errors.empty() ? "" : check.errors.front()));
+  const bool instanced = !scene.instancing.empty();
+  // Without instances: the one tree's nodes (binary: flagged.nodes as they are), its leaf
+  // triangles, and an instance buffer that says "none". With instances: the world tree, then
+  // each mesh's tree at a 64-byte aligned word offset, and their leaf triangles likewise back
+  // to back (types.h: Instances).
+  std::vector<std::uint32_t> wide_words;
+  std::vector<BvhTriangle> instanced_triangles;
+  std::vector<std::uint32_t> instance_words;
+  if (!instanced) {
+    set_triangle_flags(flagged, tri_flags);
+    prepare_tree(flagged, layout, scene.triangles, "the scene's BVH");
+    if (layout != BvhLayout::Binary) wide_words = device_wide_nodes(flagged, layout);
+    instance_words = instance_buffer_words(scene, {}, scene.triangles.size());
+  } else {
+    check_instancing(scene);
+    const SceneInstancing& in = scene.instancing;
+    for (std::size_t i = in.world_triangles; i < scene.triangles.size(); ++i)
+      if (tri_flags[i] & PX_TRI_EMISSIVE)
+        throw std::logic_error("DeviceScene: an instanced mesh emits light (the light table holds world triangles only)");
+    if (mesh_bvhs.empty()) mesh_bvhs = build_mesh_bvhs(scene, layout);
+    if (mesh_bvhs.size() != in.meshes.size())
+      throw std::logic_error("DeviceScene: " + std::to_string(mesh_bvhs.size()) + " mesh trees for " +
+                             std::to_string(in.meshes.size()) + " instanced meshes");
+    if (in.world_triangles > 0) {
+      if (flagged.nodes.empty()) flagged = build_world_bvh(scene);
+      set_triangle_flags(flagged, tri_flags);
+      prepare_tree(flagged, layout, triangle_range(scene, 0, in.world_triangles), "the world's BVH");
+      wide_words = node_words(flagged, layout);
+      instanced_triangles = flagged.triangles;
+    } else {
+      wide_words.assign(sizeof(BvhNode) / 4, 0u);  // a placeholder the kernels never enter
+    }
+    std::vector<MeshPlacement> placements(in.meshes.size());
+    for (std::size_t k = 0; k < in.meshes.size(); ++k) {
+      FlatBvh& tree = mesh_bvhs[k];
+      const InstancedMesh& m = in.meshes[k];
+      const std::vector<std::uint32_t> flags(tri_flags.begin() + std::ptrdiff_t(m.first),
+                                             tri_flags.begin() + std::ptrdiff_t(m.first + m.count));
+      set_triangle_flags(tree, flags);
+      prepare_tree(tree, layout, triangle_range(scene, m.first, m.count), "an instanced mesh's BVH");
+      wide_words.resize((wide_words.size() + 15) / 16 * 16, 0u);
+      placements[k].node_offset = static_cast<std::uint32_t>(wide_words.size());
+      placements[k].triangle_offset = static_cast<std::uint32_t>(instanced_triangles.size());
+      const std::vector<std::uint32_t> words = node_words(tree, layout);
+      wide_words.insert(wide_words.end(), words.begin(), words.end());
+      for (BvhTriangle t : tree.triangles) {
+        t.prim += static_cast<std::uint32_t>(m.first);
+        instanced_triangles.push_back(t);
+      }
+      if (wide_words.size() >= kWideIndexLimit * std::size_t(4) || instanced_triangles.size() >= kWideIndexLimit)
+        throw std::runtime_error("the scene's instanced meshes hold more nodes or triangles than the kernels address");
+    }
+    instance_words = instance_buffer_words(scene, placements, in.world_triangles);
+    std::vector<FlatBvh>().swap(mesh_bvhs);
   }
-  const std::vector<std::uint32_t> wide_words =
-      layout == BvhLayout::Binary ? std::vector<std::uint32_t>{} : device_wide_nodes(flagged, layout);
-  const auto& triangles = flagged.triangles;
+  const auto& triangles = instanced ? instanced_triangles : flagged.triangles;
   const auto shading = make_triangle_shading(scene);
   const auto materials = make_gpu_materials(scene);
   const auto lights = make_light_table(scene);
   light_count_ = lights.size();
   FrameParams light_params{};
   fill_light_params(scene, light_count_, light_params);
-  scene_features_ = px::kernel_features(materials, tri_flags, light_params, !scene.vertex_colours.empty());
+  scene_features_ = px::kernel_features(materials, tri_flags, light_params, !scene.vertex_colours.empty(), instanced);
   std::vector<cl_float4> colours;
   if (!scene.vertex_colours.empty()) {
     if (scene.vertex_colours.size() != scene.triangles.size())
@@ -314,9 +383,10 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh) {
   const AllocationLimits limits = allocation_limits(devices);
   // The whole scene against the device's memory first, before anything is allocated.
   const auto size_of = [](const auto& v) { return std::max<std::size_t>(1, v.size()) * sizeof(v[0]); };
-  const std::size_t total = (layout == BvhLayout::Binary ? size_of(flagged.nodes) : size_of(wide_words)) +
-                            size_of(triangles) + size_of(shading) + size_of(materials) + size_of(infos) +
-                            size_of(texels) + size_of(lights) + size_of(colours);
+  const bool binary_nodes = layout == BvhLayout::Binary && !instanced;  // else the nodes are words
+  const std::size_t total = (binary_nodes ? size_of(flagged.nodes) : size_of(wide_words)) + size_of(triangles) +
+                            size_of(shading) + size_of(materials) + size_of(infos) + size_of(texels) +
+                            size_of(lights) + size_of(colours) + size_of(instance_words);
   if (total > limits.global_mem)
     throw std::runtime_error("the scene needs " + mib(total) + " of device memory, more than the device has: " +
                              mib(limits.global_mem) + " (CL_DEVICE_GLOBAL_MEM_SIZE)");
@@ -324,12 +394,10 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh) {
   const cl::Context& ctx = devices.context();
   std::size_t bytes = 0;
   DeviceSceneBuffers b;
-  switch (layout) {
-    case BvhLayout::Binary: b.nodes = upload("BVH node", ctx, queue, flagged.nodes, limits, bytes); break;
-    case BvhLayout::Wide4:
-    case BvhLayout::Wide8:
-    case BvhLayout::Compressed8: b.nodes = upload("BVH node", ctx, queue, wide_words, limits, bytes); break;
-  }
+  if (binary_nodes)
+    b.nodes = upload("BVH node", ctx, queue, flagged.nodes, limits, bytes);
+  else
+    b.nodes = upload("BVH node", ctx, queue, wide_words, limits, bytes);
   b.triangles = upload("triangle", ctx, queue, triangles, limits, bytes);
   b.shading = upload("shading", ctx, queue, shading, limits, bytes);
   b.materials = upload("material", ctx, queue, materials, limits, bytes);
@@ -337,7 +405,10 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh) {
   b.texels = upload("texel", ctx, queue, texels, limits, bytes);
   b.lights = upload("light", ctx, queue, lights, limits, bytes);
   b.colours = upload("vertex colour", ctx, queue, colours, limits, bytes);
-  capacity_.nodes = layout == BvhLayout::Binary ? size_of(flagged.nodes) : size_of(wide_words);
+  b.instances = upload("instance", ctx, queue, instance_words, limits, bytes);
+  instance_count_ = scene.instancing.instances.size();
+  instance_bytes_ = size_of(instance_words);
+  capacity_.nodes = binary_nodes ? size_of(flagged.nodes) : size_of(wide_words);
   capacity_.triangles = size_of(triangles);
   capacity_.shading = size_of(shading);
   capacity_.lights = size_of(lights);
@@ -350,6 +421,7 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh) {
 std::size_t DeviceScene::update_geometry(DeviceSet& devices, const Scene& scene, FlatBvh& bvh,
                                          const std::vector<SceneTriangle>* previous) {
   if (per_device_.empty()) throw std::logic_error("DeviceScene::update_geometry before any upload");
+  if (instance_count_ > 0) throw std::logic_error("DeviceScene::update_geometry on a scene with instances");
   if (scene.triangles.size() != tri_flags_.size())
     throw std::logic_error("DeviceScene::update_geometry: the scene has " + std::to_string(scene.triangles.size()) +
                            " triangles, not the " + std::to_string(tri_flags_.size()) + " uploaded");

@@ -26,12 +26,13 @@ struct DeviceSceneBuffers {
   cl::Buffer texels;     // float4[] (all textures back to back)
   cl::Buffer lights;     // LightTriangle[]
   cl::Buffer colours;    // float4[3] per scene triangle (vertex colours), or one placeholder float4
+  cl::Buffer instances;  // SceneInstances header, top-level BvhNode[], SceneInstance[] (types.h)
   // Animated scenes only (SceneAnimator), else null: per scene triangle six float4, its three
   // vertices now and in the previous frame (the motion pass, kernels/pipeline/motion.cl). Not
-  // one of the seven scene arguments bind() sets.
+  // one of the nine scene arguments bind() sets.
   cl::Buffer motion;
 
-  // Sets the eight scene arguments starting at argument index `first`; returns the next index.
+  // Sets the nine scene arguments starting at argument index `first`; returns the next index.
   cl_uint bind(cl::Kernel& kernel, cl_uint first) const;
 };
 
@@ -51,7 +52,11 @@ class DeviceScene {
   // Uploads `bvh` and the scene's shading data once into the context of `devices` (blocking).
   // `bvh` is taken by value: a caller that no longer needs its tree moves it in, and its
   // memory is gone when the upload is done (SceneOnDevices does).
-  DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh);
+  // A scene with instances (Scene::instancing): `bvh` is the world tree (build_world_bvh; empty
+  // nodes are built here), `mesh_bvhs` the instanced meshes' trees (build_mesh_bvhs; built here
+  // when empty). Their nodes go into the one node buffer, mesh after mesh, and the instances'
+  // top level into the instance buffer. Such a scene cannot be updated (update_geometry).
+  DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, std::vector<FlatBvh> mesh_bvhs = {});
 
   const DeviceSceneBuffers& on(int device_index) const { return per_device_.at(device_index); }
 
@@ -72,6 +77,9 @@ class DeviceScene {
   // Host time to create and write those buffers (blocking writes), ms.
   double upload_ms() const { return upload_ms_; }
   std::size_t light_count() const { return light_count_; }
+  // Instances uploaded (0 without), and the instance buffer's bytes (top level and records).
+  std::size_t instance_count() const { return instance_count_; }
+  std::size_t instance_bytes() const { return instance_bytes_; }
   // The node layout uploaded (the set's bvh_layout() at construction), and the kernel build
   // option that matches it (DeviceSet::program uses the set's current layout when none is given).
   BvhLayout layout() const { return layout_; }
@@ -101,6 +109,7 @@ class DeviceScene {
   std::size_t bytes_in_context_ = 0;
   double upload_ms_ = 0.0;
   std::size_t light_count_ = 0;
+  std::size_t instance_count_ = 0, instance_bytes_ = 0;
   BvhLayout layout_ = BvhLayout::Binary;
   std::uint32_t scene_features_ = PX_FEATURES_ALL;
   KernelChoice choice_ = KernelChoice::Scene;

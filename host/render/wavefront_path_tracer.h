@@ -21,15 +21,15 @@ PathTraceKernel parse_path_trace_kernel(const std::string& name);  // throws std
 class WavefrontPathTracer {
  public:
   // One device's path buffers (types.h: PX_PATH_STATE_FLOAT4S), grown on demand and reused
-  // frame after frame: kBytesPerPath (96 + 48 + 16 + 4 * 4) per path of a launch, e.g. 162 MB
+  // frame after frame: kBytesPerPath (96 + 48 + 20 + 4 * 4) per path of a launch, e.g. 166 MB
   // for 1280x720 pixels at 1 spp, plus 32 bytes per pixel for sums across launches.
   struct Scratch {
     cl::Buffer states, shadows, hits, path_pixel, queue[2], shadow_queue, counts, sums;
     std::size_t paths = 0, slots = 0;
     void reserve(const cl::Context& context, std::size_t paths, std::size_t slots);
   };
-  static constexpr std::size_t kBytesPerPath = 176;
-  // The most paths one launch holds (704 MB of buffers): a pixel's samples beyond it come in
+  static constexpr std::size_t kBytesPerPath = 180;
+  // The most paths one launch holds (720 MiB of buffers): a pixel's samples beyond it come in
   // further launches (batches of samples), their sums carried over in order, so the images do
   // not depend on it. Every pixel's first batch has at least one sample.
   static constexpr std::size_t kMaxPathsPerLaunch = std::size_t{1} << 22;

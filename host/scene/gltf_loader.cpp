@@ -34,6 +34,10 @@
 // WEIGHTS_0, inverse bind matrices) are evaluated on the host. A file without animations is
 // posed once here (skins included, at their rest pose) and keeps no rig. Morph targets are named
 // in the warning line.
+//
+// Instances: in a static file, a mesh that several nodes draw is stored once in its own space,
+// with one matrix per node (Scene::instancing), and traversed through a two-level BVH
+// (PX_INSTANCING=off in the environment flattens it into copies instead).
 #include "image/image_io.h"
 #include "scene/primitives.h"
 #include "scene/scene_rig.h"
@@ -49,6 +53,7 @@
 #include <array>
 #include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -481,6 +486,8 @@ class Converter {
       skins();
       animations();
       pose_at_rest();
+    } else {
+      place_meshes();
     }
   }
 
@@ -828,9 +835,71 @@ class Converter {
       rig_->instances.push_back(std::move(inst));
       return;
     }
-    for (std::size_t pi = 0; pi < model_.meshes[std::size_t(index)].primitives.size(); ++pi)
-      if (auto prim = primitive(index, pi))
-        emit_primitive(*prim, world, nullptr, nullptr, nullptr, scene_.triangles, scene_.stats, colours_out());
+    // Placed once every node is visited (place_meshes): a mesh that several nodes draw may be
+    // stored once, as instances.
+    placements_.push_back({index, world});
+  }
+
+  // The primitives of mesh `index` in its own space (read once, whichever nodes draw it).
+  const std::vector<RigPrimitive>& mesh_primitives(int index) {
+    auto [it, fresh] = static_meshes_.try_emplace(index);
+    if (fresh)
+      for (std::size_t pi = 0; pi < model_.meshes[std::size_t(index)].primitives.size(); ++pi)
+        if (auto prim = primitive(index, pi)) it->second.push_back(std::move(*prim));
+    return it->second;
+  }
+
+  // Emits every mesh a node draws, in the order the nodes were visited. A mesh that two or more
+  // nodes draw becomes instances (Scene::instancing: one copy in its own space, a matrix per
+  // node), unless it emits light (the light table samples emitters by their world triangles)
+  // or PX_INSTANCING=off asks for flat copies. A node whose transform mirrors draws its own flat
+  // copy (turning the winding round is done per triangle, as emit_primitive does).
+  void place_meshes() {
+    const char* env = std::getenv("PX_INSTANCING");
+    const bool instancing = !(env && std::string(env) == "off");
+    std::map<int, int> uses;
+    for (const Placement& pl : placements_)
+      if (glm::determinant(glm::dmat3(pl.world)) > 0.0) ++uses[pl.mesh];
+    std::map<int, bool> instanced;
+    for (const auto& [mesh, n] : uses) {
+      bool ok = instancing && n >= 2;
+      for (const RigPrimitive& prim : mesh_primitives(mesh))
+        ok &= !scene_.materials.at(prim.material).is_emissive();
+      instanced[mesh] = ok;
+    }
+    std::vector<std::array<glm::vec3, 3>>* colours = colours_out();
+    for (const Placement& pl : placements_) {
+      const auto it = instanced.find(pl.mesh);
+      if (it != instanced.end() && it->second && glm::determinant(glm::dmat3(pl.world)) > 0.0) continue;
+      for (const RigPrimitive& prim : mesh_primitives(pl.mesh))
+        emit_primitive(prim, pl.world, nullptr, nullptr, nullptr, scene_.triangles, scene_.stats, colours);
+    }
+    SceneInstancing in;
+    in.world_triangles = scene_.triangles.size();
+    std::map<int, std::uint32_t> mesh_slot;
+    for (const Placement& pl : placements_) {
+      const auto it = instanced.find(pl.mesh);
+      if (it == instanced.end() || !it->second || !(glm::determinant(glm::dmat3(pl.world)) > 0.0)) continue;
+      auto [slot, fresh] = mesh_slot.try_emplace(pl.mesh, std::uint32_t(in.meshes.size()));
+      if (fresh) {
+        InstancedMesh m;
+        m.first = scene_.triangles.size();
+        for (const RigPrimitive& prim : mesh_primitives(pl.mesh))
+          emit_primitive(prim, glm::dmat4(1.0), nullptr, nullptr, nullptr, scene_.triangles, scene_.stats, colours);
+        m.count = scene_.triangles.size() - m.first;
+        if (m.count == 0) {  // nothing drawable: no instances either
+          slot->second = std::numeric_limits<std::uint32_t>::max();
+        } else {
+          in.meshes.push_back(m);
+        }
+      }
+      if (slot->second == std::numeric_limits<std::uint32_t>::max()) continue;
+      MeshInstance inst;
+      inst.mesh = slot->second;
+      inst.object_to_world = glm::mat4(pl.world);
+      in.instances.push_back(inst);
+    }
+    if (!in.instances.empty()) scene_.instancing = std::move(in);
   }
 
   // Primitive `pi` of mesh `index` in its own space, or nothing (with a warning) when it is not
@@ -1044,6 +1113,14 @@ class Converter {
   int any_colours_ = 0;  // bit 0: the file has COLOR_0; bit 1: the file was looked at
   std::shared_ptr<SceneRig> rig_;           // while loading a scene that moves or is skinned
   std::map<int, std::vector<int>> rig_meshes_;  // glTF mesh -> its primitives in the rig
+  // A static scene's meshes as the nodes place them (emitted by place_meshes), and each mesh's
+  // primitives read once.
+  struct Placement {
+    int mesh;
+    glm::dmat4 world;
+  };
+  std::vector<Placement> placements_;
+  std::map<int, std::vector<RigPrimitive>> static_meshes_;
   int default_material_ = -1;
   bool camera_found_ = false;
 };

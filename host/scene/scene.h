@@ -104,6 +104,26 @@ struct SceneStats {
   std::vector<std::string> warnings;   // e.g. "missing texture x.png, material y: using Kd"
 };
 
+// Meshes that several glTF nodes draw, stored once (instancing.h). Scene::triangles then holds
+// first the world's own triangles (world_triangles of them, in world space), then each mesh's
+// triangles in its own space, mesh after mesh; the instances place them in the world.
+struct InstancedMesh {
+  std::size_t first = 0;  // index of its first triangle in Scene::triangles
+  std::size_t count = 0;
+};
+
+struct MeshInstance {
+  std::uint32_t mesh = 0;         // index into SceneInstancing::meshes
+  glm::mat4 object_to_world{1.0f};  // affine, with a positive determinant
+};
+
+struct SceneInstancing {
+  std::size_t world_triangles = 0;
+  std::vector<InstancedMesh> meshes;
+  std::vector<MeshInstance> instances;
+  bool empty() const { return instances.empty(); }
+};
+
 struct Scene {
   std::string name;
   std::vector<SceneTriangle> triangles;
@@ -123,6 +143,9 @@ struct Scene {
   // How the scene moves (a glTF file with animations; scene_rig.h), or null for a static scene.
   // `triangles` then hold its rest pose until a SceneAnimator poses them for a frame's time.
   std::shared_ptr<const SceneRig> rig;
+  // Meshes drawn by several nodes (a static scene only; never together with `rig`), or empty:
+  // then every triangle is in world space.
+  SceneInstancing instancing;
 
   // Interpupillary distance in scene units.
   float ipd_units() const { return ipd_m / meters_per_unit; }

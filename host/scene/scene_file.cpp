@@ -2,6 +2,7 @@
 // name) to a Scene. The JSON format is documented in scenes/README.md; every check here has a
 // line there.
 #include "scene/builtin_scenes.h"
+#include "scene/instancing.h"
 #include "scene/scene_loader.h"
 
 #include <algorithm>
@@ -35,11 +36,12 @@ std::string builtin_list() {
 // exporters conventionally face), up = +y.
 Camera frame_bounds(const Scene& scene) {
   glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
-  for (const SceneTriangle& t : scene.triangles)
-    for (const glm::vec3& p : t.p) {
-      lo = glm::min(lo, p);
-      hi = glm::max(hi, p);
+  for_each_drawn_triangle(scene, [&](const glm::vec3* p, std::size_t) {
+    for (int c = 0; c < 3; ++c) {
+      lo = glm::min(lo, p[c]);
+      hi = glm::max(hi, p[c]);
     }
+  });
   Camera cam;
   cam.vfov_deg = 45.0f;
   const glm::vec3 center = 0.5f * (lo + hi);
@@ -405,13 +407,17 @@ void check_coordinate_range(Scene& scene, const std::string& source, bool warn) 
   };
   glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
   float far = 0.0f;
-  for (std::size_t i = 0; i < scene.triangles.size(); ++i)
-    for (const glm::vec3& p : scene.triangles[i].p) {
+  // Instances are checked where they place their meshes (a mesh's own coordinates may be small
+  // and its instances far).
+  for_each_drawn_triangle(scene, [&](const glm::vec3* ps, std::size_t i) {
+    for (int c = 0; c < 3; ++c) {
+      const glm::vec3& p = ps[c];
       check(p, "triangle " + std::to_string(i));
       lo = glm::min(lo, p);
       hi = glm::max(hi, p);
       far = std::max({far, std::abs(p.x), std::abs(p.y), std::abs(p.z)});
     }
+  });
   check(scene.camera.position, "the camera position");
   check(scene.camera.target, "the camera target");
   for (std::size_t i = 0; i < scene.camera_path.size(); ++i) {

@@ -15,17 +15,18 @@ kernel void primary_preview(global float* out_rgb, uint row0, uint rows, CameraP
   const uint y = row0 + i / cam.width;
   const float3 org = px_camera_origin(&cam);
   const float3 dir = px_camera_dir(&cam, x, y, 0.5f, 0.5f);
-  const Hit hit = px_trace_closest(&scene, org, dir, 0.0f, INFINITY);
+  const Hit hit = px_trace_closest_leaf(&scene, org, dir, 0.0f, INFINITY);
   float3 c = (float3)(0.0f, 0.0f, 0.0f);
   if (hit.prim != PX_NO_HIT) {
-    const global TriangleShading* s = scene.shading + hit.prim;
-    const float w = 1.0f - hit.u - hit.v;
-    const float3 n = normalize(w * px_load3(s->n0) + hit.u * px_load3(s->n1) + hit.v * px_load3(s->n2));
-    const global GpuMaterial* m = scene.materials + s->material;
+    /* The shading normal in world space (an instance's mesh keeps its own). */
+    const SurfaceHit surf = px_surface_hit(&scene, hit);
+    const global TriangleShading* s = surf.sh;
+    const float3 n = surf.ns;
+    const global GpuMaterial* m = surf.mat;
     float3 albedo = px_load3(m->diffuse);
     if (PX_HAS(PX_FEATURE_TEXTURES) && m->diffuse_texture >= 0)
       albedo *= px_texture_bilinear(&scene, m->diffuse_texture, px_interpolate_uv(s, hit.u, hit.v)).xyz;
-    if (PX_HAS(PX_FEATURE_VERTEX_COLOURS)) albedo *= px_vertex_colour(&scene, hit.prim, hit.u, hit.v);
+    if (PX_HAS(PX_FEATURE_VERTEX_COLOURS)) albedo *= px_vertex_colour(&scene, surf.prim, hit.u, hit.v);
     albedo += px_load3(m->specular);
     c = albedo * (0.15f + 0.85f * fabs(dot(n, dir))) + px_load3(m->emission);
   }

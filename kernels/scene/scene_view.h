@@ -17,21 +17,26 @@ typedef struct SceneView {
    * read only in kernels built with PX_FEATURE_VERTEX_COLOURS; without colours one placeholder
    * (1, 1, 1, 0). */
   const global float4* colours;
+  /* The instance buffer (types.h: SceneInstances, its top level and SceneInstance records),
+   * read only in kernels built with PX_FEATURE_INSTANCES. */
+  const global SceneInstances* instances;
 } SceneView;
 
-/* Kernel parameter list for the scene buffers, always in this order and always last; the host
+/* Kernel parameter list for the nine scene buffers, always in this order and always last; the host
  * binds them with DeviceSceneBuffers::bind (host/render/device_scene.h). */
 #define PX_SCENE_PARAMS                                                                       \
   const global BvhNode *scene_nodes, const global BvhTriangle *scene_tris,                    \
       const global TriangleShading *scene_shading, const global GpuMaterial *scene_materials, \
       const global TextureInfo *scene_textures, const global float4 *scene_texels,            \
-      const global LightTriangle *scene_lights, const global float4 *scene_colours
+      const global LightTriangle *scene_lights, const global float4 *scene_colours,             \
+      const global SceneInstances *scene_instances
 
 inline SceneView px_scene_view(const global BvhNode* nodes, const global BvhTriangle* tris,
                                const global TriangleShading* shading,
                                const global GpuMaterial* materials,
                                const global TextureInfo* textures, const global float4* texels,
-                               const global LightTriangle* lights, const global float4* colours) {
+                               const global LightTriangle* lights, const global float4* colours,
+                               const global SceneInstances* instances) {
   SceneView s;
   s.nodes = nodes;
   s.tris = tris;
@@ -41,15 +46,40 @@ inline SceneView px_scene_view(const global BvhNode* nodes, const global BvhTria
   s.texels = texels;
   s.lights = lights;
   s.colours = colours;
+  s.instances = instances;
   return s;
 }
 
 #define PX_SCENE_VIEW()                                                                     \
   px_scene_view(scene_nodes, scene_tris, scene_shading, scene_materials, scene_textures, \
-                scene_texels, scene_lights, scene_colours)
+                scene_texels, scene_lights, scene_colours, scene_instances)
 
 inline float3 px_load3(const global float* p) { return (float3)(p[0], p[1], p[2]); }
 inline float3 px_load3_private(const float* p) { return (float3)(p[0], p[1], p[2]); }
+
+/* Instance `k`'s record (types.h: the instance buffer's layout). */
+inline const global SceneInstance* px_instance(const SceneView* scene, uint k) {
+  const global uchar* base = (const global uchar*)scene->instances;
+  return (const global SceneInstance*)(base + 16 * (size_t)scene->instances->records) + k;
+}
+
+/* A 3x4 row-major affine matrix applied to a point, and to a direction. */
+inline float3 px_xform_point(const global float* m, float3 p) {
+  return (float3)(m[0] * p.x + m[1] * p.y + m[2] * p.z + m[3], m[4] * p.x + m[5] * p.y + m[6] * p.z + m[7],
+                  m[8] * p.x + m[9] * p.y + m[10] * p.z + m[11]);
+}
+inline float3 px_xform_dir(const global float* m, float3 d) {
+  return (float3)(m[0] * d.x + m[1] * d.y + m[2] * d.z, m[4] * d.x + m[5] * d.y + m[6] * d.z,
+                  m[8] * d.x + m[9] * d.y + m[10] * d.z);
+}
+/* A normal by the transpose of m's 3x3 (m = world_to_object: the inverse transpose of
+ * object_to_world, as normals need), normalised; `fallback` where that degenerates. */
+inline float3 px_xform_normal(const global float* m, float3 n, float3 fallback) {
+  const float3 w = (float3)(m[0] * n.x + m[4] * n.y + m[8] * n.z, m[1] * n.x + m[5] * n.y + m[9] * n.z,
+                            m[2] * n.x + m[6] * n.y + m[10] * n.z);
+  const float len = length(w);
+  return len > 0.0f && isfinite(len) ? w / len : fallback;
+}
 
 /* What a closest hit (hit.prim != PX_NO_HIT) found, before anything is faced towards the ray:
  * the scene triangle `prim` with its shading record and material, its vertices, the hit point,
@@ -72,10 +102,22 @@ inline SurfaceHit px_surface_hit(const SceneView* scene, Hit hit) {
   s.v0 = px_load3(tri->v0);
   s.v1 = px_load3(tri->v1);
   s.v2 = px_load3(tri->v2);
+  float3 n0 = px_load3(s.sh->n0), n1 = px_load3(s.sh->n1), n2 = px_load3(s.sh->n2);
+  if (PX_HAS(PX_FEATURE_INSTANCES) && hit.inst != PX_NO_INSTANCE) {
+    /* A mesh's vertices and normals are in its own space: placed as a flat copy of the mesh
+     * would place them (instancing.cpp, place_triangle), vertex by vertex. */
+    const global SceneInstance* in = px_instance(scene, hit.inst);
+    s.v0 = px_xform_point(in->object_to_world, s.v0);
+    s.v1 = px_xform_point(in->object_to_world, s.v1);
+    s.v2 = px_xform_point(in->object_to_world, s.v2);
+    n0 = px_xform_normal(in->world_to_object, n0, n0);
+    n1 = px_xform_normal(in->world_to_object, n1, n1);
+    n2 = px_xform_normal(in->world_to_object, n2, n2);
+  }
   const float w = 1.0f - hit.u - hit.v;
   s.p = w * s.v0 + hit.u * s.v1 + hit.v * s.v2;
   s.ng = normalize(cross(s.v1 - s.v0, s.v2 - s.v0));
-  const float3 n = w * px_load3(s.sh->n0) + hit.u * px_load3(s.sh->n1) + hit.v * px_load3(s.sh->n2);
+  const float3 n = w * n0 + hit.u * n1 + hit.v * n2;
   const float len = length(n);
   s.ns = len > 0.0f && isfinite(len) ? n / len : s.ng;
   return s;

@@ -215,7 +215,10 @@ typedef struct CompressedBvh8Node {
  *   NORMAL_MAP     tangent-space normal maps
  *   EMISSIVE       emissive triangles: emission on hit, next-event estimation of triangles
  *   TWO_SIDED      emitters that emit from both faces
- *   SUN, SKY       the environment's sun disk and analytic sky */
+ *   SUN, SKY       the environment's sun disk and analytic sky
+ *   VERTEX_COLOURS per-vertex colours (glTF COLOR_0)
+ *   INSTANCES      the two-level traversal: after the world tree, the top level over the
+ *                  instances (SceneInstances below) and each hit instance's own mesh tree */
 #define PX_FEATURE_TEXTURES 0x001u
 #define PX_FEATURE_ALPHA_TEST 0x002u
 #define PX_FEATURE_DIELECTRIC 0x004u
@@ -227,7 +230,8 @@ typedef struct CompressedBvh8Node {
 #define PX_FEATURE_SUN 0x100u
 #define PX_FEATURE_SKY 0x200u
 #define PX_FEATURE_VERTEX_COLOURS 0x400u /* glTF COLOR_0: per-vertex colours multiply the diffuse colour */
-#define PX_FEATURES_ALL 0x7ffu
+#define PX_FEATURE_INSTANCES 0x800u /* meshes drawn by several nodes: a top level over instances */
+#define PX_FEATURES_ALL 0xfffu
 #if defined(__OPENCL_C_VERSION__)
 #ifndef PX_FEATURES
 #define PX_FEATURES PX_FEATURES_ALL
@@ -262,6 +266,46 @@ typedef struct BvhTriangle {
 #define PX_TRI_ALPHA_TESTED 1u
 #define PX_TRI_EMISSIVE 2u
 
+/* Instances (PX_FEATURE_INSTANCES). A mesh that several glTF nodes draw is stored once, in its
+ * own space: its tree's nodes follow the world tree in the node buffer (at a word offset that is
+ * a multiple of 16, so its 64-byte lines stay aligned) and its leaf triangles follow the
+ * world's in the triangle buffer. Every index inside a mesh tree counts from the tree's own
+ * start, so traversal enters it by shifting the two buffer pointers: nothing is rebased.
+ * The instance buffer (its ninth scene buffer) holds, from byte 0:
+ *   SceneInstances   the header, 16 bytes
+ *   BvhNode[]        the top level: binary nodes over the instances' world boxes, a leaf's
+ *                    `left` / `right` the first of `count` instances in SceneInstance order
+ *   SceneInstance[]  at byte 16 * records (each 112 bytes)
+ * A scene without instances uploads the header alone, with count 0. */
+typedef struct SceneInstances {
+  uint count;          /* instances */
+  uint nodes;          /* top-level nodes (0 when count is 0) */
+  uint records;        /* where the SceneInstance array starts, in 16-byte units */
+  uint world_triangles; /* 0: the world tree is a placeholder with nothing in it, never entered */
+} SceneInstances;
+
+/* One instance, 112 bytes: two 3x4 row-major affine matrices (the columns' fourth entry is the
+ * translation) and where its mesh lies in the node and triangle buffers.
+ *    0..47  world_to_object[12]  a world-space ray enters the mesh through it (direction
+ *                                unnormalised, so hit distances t stay the world's)
+ *   48..95  object_to_world[12]  hit vertices back to world space; normals go by the
+ *                                transpose of world_to_object's 3x3
+ *   96..99  node_offset          the mesh tree's first word in the node buffer
+ *  100..103 triangle_offset      its first leaf triangle in the triangle buffer
+ *  104..111 pad[2] */
+typedef struct SceneInstance {
+  float world_to_object[12];
+  float object_to_world[12];
+  uint node_offset;
+  uint triangle_offset;
+  uint pad[2];
+} SceneInstance;
+
+/* Top-level traversal stack: the host builds the top level by median splits, so it is at most
+ * log2(instances) + 1 deep; 64 covers any instance count a uint holds. */
+#define PX_TLAS_STACK_SIZE 64
+#define PX_TLAS_MAX_LEAF 2
+
 /* A ray, 32 bytes. Hits count in the open interval (tmin, tmax), closest hit and occlusion
  * alike (tmin is exclusive as in Embree: a ray starting on a surface does not hit it at t = 0). */
 typedef struct Ray {
@@ -271,15 +315,19 @@ typedef struct Ray {
   float tmax;
 } Ray;
 
-/* Closest-hit result, 16 bytes. prim = PX_NO_HIT on a miss; (u, v) are the barycentrics of
- * v1 and v2, so the hit point is (1 - u - v) v0 + u v1 + v v2. */
+/* Closest-hit result, 20 bytes. prim = PX_NO_HIT on a miss; (u, v) are the barycentrics of
+ * v1 and v2, so the hit point is (1 - u - v) v0 + u v1 + v v2. `inst` is the instance whose
+ * mesh was hit (its vertices are then in the mesh's own space: SceneInstance), PX_NO_INSTANCE
+ * for the world's own triangles (always, in a scene without instances). */
 typedef struct Hit {
   float t;
   float u;
   float v;
   uint prim;
+  uint inst;
 } Hit;
 
+#define PX_NO_INSTANCE 0xffffffffu
 #define PX_NO_HIT 0xffffffffu
 
 /* Per-scene-triangle shading attributes, 64 bytes, indexed by Hit::prim (scene order, not

@@ -45,15 +45,12 @@ inline int px_intersect_leaf(const SceneView* scene, uint first, uint count,
 
 #if PX_BVH_WIDTH == 2
 
-/* Closest hit along the ray within (tmin, tmax). hit.prim is the index into scene->tris (leaf
- * order, so the caller can read the vertices), PX_NO_HIT on a miss. */
-inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
+/* Closest hit in one tree along the ray within (tmin, io->t): *io is updated where a nearer hit
+ * is found (io->prim the index into scene->tris, leaf order, so the caller can read the
+ * vertices), and left as it is otherwise. */
+inline void px_tree_closest(const SceneView* scene, float3 org, float3 dir, float tmin, Hit* io) {
   const global BvhNode* nodes = scene->nodes;
-  Hit best;
-  best.t = tmax;
-  best.u = 0.0f;
-  best.v = 0.0f;
-  best.prim = PX_NO_HIT;
+  Hit best = *io;
   const RayShear shear = px_make_shear(org, dir);
   const float3 inv_dir = px_safe_inverse(dir);
 
@@ -90,11 +87,11 @@ inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir,
       node_index = stack[--sp];
     }
   }
-  return best;
+  *io = best;
 }
 
-/* 1 when anything blocks the ray within (tmin, tmax) (shadow rays). */
-inline int px_trace_any(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
+/* 1 when anything in one tree blocks the ray within (tmin, tmax) (shadow rays). */
+inline int px_tree_any(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
   const global BvhNode* nodes = scene->nodes;
   const RayShear shear = px_make_shear(org, dir);
   const float3 inv_dir = px_safe_inverse(dir);
@@ -411,13 +408,9 @@ inline int px_intersect_block(const SceneView* scene, const global float* block,
  * entry distances the higher child slot goes first, as a stable sort of all hit children
  * would pop them. The stack bound is that of PX_WBVH_STACK_SIZE: a node pops one entry and
  * pushes at most W - 1. */
-inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
+inline void px_tree_closest(const SceneView* scene, float3 org, float3 dir, float tmin, Hit* io) {
   const global float* nodes = (const global float*)scene->nodes;
-  Hit best;
-  best.t = tmax;
-  best.u = 0.0f;
-  best.v = 0.0f;
-  best.prim = PX_NO_HIT;
+  Hit best = *io;
   const RayShear shear = px_make_shear(org, dir);
   const WideRay wray = px_make_wide_ray(org, px_safe_inverse(dir));
 
@@ -484,11 +477,11 @@ inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir,
     }
     if (!found) break;
   }
-  return best;
+  *io = best;
 }
 
-/* 1 when anything blocks the ray within (tmin, tmax) (shadow rays). */
-inline int px_trace_any(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
+/* 1 when anything in one tree blocks the ray within (tmin, tmax) (shadow rays). */
+inline int px_tree_any(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
   const global float* nodes = (const global float*)scene->nodes;
   const RayShear shear = px_make_shear(org, dir);
   const WideRay wray = px_make_wide_ray(org, px_safe_inverse(dir));
@@ -519,6 +512,129 @@ inline int px_trace_any(const SceneView* scene, float3 org, float3 dir, float tm
 }
 
 #endif /* PX_BVH_WIDTH */
+
+/* ---------------------------------------------------------------------------------------
+ * Instances (PX_FEATURE_INSTANCES; types.h documents the instance buffer). After the world's
+ * own tree, the top level (binary nodes over the instances' world boxes) is walked like the
+ * binary tree above, near child first; at an instance the ray enters its mesh's tree in the
+ * mesh's own space: origin and direction by world_to_object, the direction left unnormalised
+ * so that t, tmin and the closest t so far mean the same distances in both spaces. Inside, the
+ * watertight test runs unchanged on the mesh's stored vertices. The mesh tree is found by
+ * shifting the node and triangle pointers (SceneInstance::node_offset, triangle_offset). */
+
+/* The scene as the tree of instance `in`'s mesh sees it. */
+inline SceneView px_instance_view(const SceneView* scene, const global SceneInstance* in) {
+  SceneView v = *scene;
+  v.nodes = (const global BvhNode*)((const global uint*)scene->nodes + in->node_offset);
+  v.tris = scene->tris + in->triangle_offset;
+  return v;
+}
+
+/* Closest hit among instances [first, first + count) (top-level leaf order); updates *best. */
+inline void px_instances_leaf_closest(const SceneView* scene, uint first, uint count, float3 org, float3 dir,
+                                      float tmin, Hit* best) {
+  for (uint k = first; k < first + count; ++k) {
+    const global SceneInstance* in = px_instance(scene, k);
+    const SceneView v = px_instance_view(scene, in);
+    Hit h = *best;
+    h.prim = PX_NO_HIT;
+    px_tree_closest(&v, px_xform_point(in->world_to_object, org), px_xform_dir(in->world_to_object, dir), tmin, &h);
+    if (h.prim != PX_NO_HIT) {
+      *best = h;
+      best->prim = h.prim + in->triangle_offset;
+      best->inst = k;
+    }
+  }
+}
+
+inline int px_instances_leaf_any(const SceneView* scene, uint first, uint count, float3 org, float3 dir, float tmin,
+                                 float tmax) {
+  for (uint k = first; k < first + count; ++k) {
+    const global SceneInstance* in = px_instance(scene, k);
+    const SceneView v = px_instance_view(scene, in);
+    if (px_tree_any(&v, px_xform_point(in->world_to_object, org), px_xform_dir(in->world_to_object, dir), tmin, tmax))
+      return 1;
+  }
+  return 0;
+}
+
+/* The top level, closest hit (any = 0) or any hit (any = 1: returns 1 at the first). */
+inline int px_top_level(const SceneView* scene, float3 org, float3 dir, float tmin, Hit* best, int any) {
+  const global SceneInstances* header = scene->instances;
+  if (header->count == 0u) return 0;
+  const global BvhNode* nodes = (const global BvhNode*)(header + 1);
+  const float3 inv_dir = px_safe_inverse(dir);
+  uint stack[PX_TLAS_STACK_SIZE];
+  int sp = 0;
+  uint node_index = 0;
+  for (;;) {
+    const BvhNode n = nodes[node_index];
+    float tl = px_child_absent(n.left, n.left_count) ? INFINITY
+                                                     : px_intersect_box(org, inv_dir, n.lmin, n.lmax, tmin, best->t);
+    float tr = px_child_absent(n.right, n.right_count) ? INFINITY
+                                                       : px_intersect_box(org, inv_dir, n.rmin, n.rmax, tmin, best->t);
+    if (tl != INFINITY && n.left_count > 0) {
+      if (any) {
+        if (px_instances_leaf_any(scene, n.left, n.left_count, org, dir, tmin, best->t)) return 1;
+      } else {
+        px_instances_leaf_closest(scene, n.left, n.left_count, org, dir, tmin, best);
+      }
+      tl = INFINITY;
+    }
+    if (tr != INFINITY && n.right_count > 0) {
+      if (any) {
+        if (px_instances_leaf_any(scene, n.right, n.right_count, org, dir, tmin, best->t)) return 1;
+      } else {
+        px_instances_leaf_closest(scene, n.right, n.right_count, org, dir, tmin, best);
+      }
+      tr = INFINITY;
+    }
+    if (tl > best->t) tl = INFINITY;
+    if (tr > best->t) tr = INFINITY;
+    if (tl != INFINITY && tr != INFINITY) {
+      const int left_first = tl <= tr;
+      node_index = left_first ? n.left : n.right;
+      if (sp < PX_TLAS_STACK_SIZE) stack[sp++] = left_first ? n.right : n.left;
+    } else if (tl != INFINITY) {
+      node_index = n.left;
+    } else if (tr != INFINITY) {
+      node_index = n.right;
+    } else {
+      if (sp == 0) break;
+      node_index = stack[--sp];
+    }
+  }
+  return 0;
+}
+
+/* Closest hit along the ray within (tmin, tmax): the world's tree, then (with instances) the
+ * top level. hit.prim is the index into scene->tris (leaf order, so the caller can read the
+ * vertices), PX_NO_HIT on a miss; hit.inst the instance (PX_NO_INSTANCE for the world's own). */
+inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
+  Hit best;
+  best.t = tmax;
+  best.u = 0.0f;
+  best.v = 0.0f;
+  best.prim = PX_NO_HIT;
+  best.inst = PX_NO_INSTANCE;
+  if (!PX_HAS(PX_FEATURE_INSTANCES) || scene->instances->world_triangles != 0u)
+    px_tree_closest(scene, org, dir, tmin, &best);
+  if (PX_HAS(PX_FEATURE_INSTANCES)) px_top_level(scene, org, dir, tmin, &best, 0);
+  return best;
+}
+
+/* 1 when anything blocks the ray within (tmin, tmax) (shadow rays). */
+inline int px_trace_any(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
+  if ((!PX_HAS(PX_FEATURE_INSTANCES) || scene->instances->world_triangles != 0u) &&
+      px_tree_any(scene, org, dir, tmin, tmax))
+    return 1;
+  if (PX_HAS(PX_FEATURE_INSTANCES)) {
+    Hit scratch;
+    scratch.t = tmax;
+    return px_top_level(scene, org, dir, tmin, &scratch, 1);
+  }
+  return 0;
+}
 
 /* Closest hit with hit.prim the scene triangle index (BvhTriangle::prim). */
 inline Hit px_trace_closest(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {

@@ -3,12 +3,14 @@
 // three float positions and three uint32 indices) so that external "uri"s are reached too.
 // The contract: a Scene or a SceneError with a message; anything else is a finding.
 #include "fuzz_common.h"
+#include "scene/instancing.h"
 #include "scene/scene_loader.h"
 
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
+#include <stdexcept>
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   static const std::string bin = [] {
@@ -29,6 +31,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       for (const auto& p : t.p)
         if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) std::abort();
     }
+    // Instancing, when the file shares a mesh among nodes, describes the triangles it has.
+    try {
+      px::check_instancing(scene);
+    } catch (const std::logic_error&) {
+      std::abort();
+    }
+    if (!scene.vertex_colours.empty() && scene.vertex_colours.size() != scene.triangles.size()) std::abort();
     for (const px::Material& m : scene.materials)
       for (int tex : {m.diffuse_texture, m.specular_texture, m.normal_texture, m.alpha_texture})
         if (tex >= int(scene.textures.size())) std::abort();

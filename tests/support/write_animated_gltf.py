@@ -3,13 +3,23 @@
 a red unit cube that slides from x = -1.5 to 1.5 and turns 90 degrees about y over one second
 (clip "slide", LINEAR), seen by the file's own camera.
 
-Usage: write_animated_gltf.py OUT.gltf
+Usage: write_animated_gltf.py OUT.gltf [--still] [--copies N]
+  --still     no animation: a static file
+  --copies N  N more nodes draw the cube's mesh, standing still in a ring on the floor (in a
+              static file the loader stores the mesh once and draws it as instances)
 """
 import base64
 import json
 import math
 import struct
 import sys
+
+args = sys.argv[1:]
+if not args or args[0].startswith("-"):
+    sys.exit(__doc__)
+out_path, still, copies = args[0], "--still" in args, 0
+if "--copies" in args:
+    copies = int(args[args.index("--copies") + 1])
 
 buf = bytearray()
 views, accessors = [], []
@@ -62,5 +72,14 @@ doc = {
     "accessors": accessors, "bufferViews": views,
     "buffers": [{"byteLength": len(buf), "uri": "data:application/octet-stream;base64," + base64.b64encode(bytes(buf)).decode()}],
 }
-with open(sys.argv[1], "w") as f:
+# The ring of still copies: turned, scaled and lifted so that no two are alike.
+for i in range(copies):
+    a = 2 * math.pi * i / max(1, copies)
+    s = 0.35 + 0.25 * ((i * 7) % 5) / 4
+    doc["nodes"].append({"mesh": 0, "translation": [2.6 * math.cos(a), s / 2, -1.0 + 1.6 * math.sin(a)],
+                         "rotation": [0, math.sin(a / 2), 0, math.cos(a / 2)], "scale": [s, s, s]})
+    doc["scenes"][0]["nodes"].append(len(doc["nodes"]) - 1)
+if still:
+    del doc["animations"]
+with open(out_path, "w") as f:
     json.dump(doc, f)
