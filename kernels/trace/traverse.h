@@ -45,12 +45,16 @@ inline int px_intersect_leaf(const SceneView* scene, uint first, uint count,
 
 #if PX_BVH_WIDTH == 2
 
-/* Closest hit in one tree along the ray within (tmin, io->t): *io is updated where a nearer hit
- * is found (io->prim the index into scene->tris, leaf order, so the caller can read the
- * vertices), and left as it is otherwise. */
-inline void px_tree_closest(const SceneView* scene, float3 org, float3 dir, float tmin, Hit* io) {
+/* Closest hit in one tree along the ray within (tmin, tmax): hit.prim is the index into
+ * scene->tris (leaf order, so the caller can read the vertices), PX_NO_HIT on a miss. */
+inline Hit px_tree_closest(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
   const global BvhNode* nodes = scene->nodes;
-  Hit best = *io;
+  Hit best;
+  best.t = tmax;
+  best.u = 0.0f;
+  best.v = 0.0f;
+  best.prim = PX_NO_HIT;
+  best.inst = PX_NO_INSTANCE;
   const RayShear shear = px_make_shear(org, dir);
   const float3 inv_dir = px_safe_inverse(dir);
 
@@ -87,7 +91,7 @@ inline void px_tree_closest(const SceneView* scene, float3 org, float3 dir, floa
       node_index = stack[--sp];
     }
   }
-  *io = best;
+  return best;
 }
 
 /* 1 when anything in one tree blocks the ray within (tmin, tmax) (shadow rays). */
@@ -408,9 +412,14 @@ inline int px_intersect_block(const SceneView* scene, const global float* block,
  * entry distances the higher child slot goes first, as a stable sort of all hit children
  * would pop them. The stack bound is that of PX_WBVH_STACK_SIZE: a node pops one entry and
  * pushes at most W - 1. */
-inline void px_tree_closest(const SceneView* scene, float3 org, float3 dir, float tmin, Hit* io) {
+inline Hit px_tree_closest(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
   const global float* nodes = (const global float*)scene->nodes;
-  Hit best = *io;
+  Hit best;
+  best.t = tmax;
+  best.u = 0.0f;
+  best.v = 0.0f;
+  best.prim = PX_NO_HIT;
+  best.inst = PX_NO_INSTANCE;
   const RayShear shear = px_make_shear(org, dir);
   const WideRay wray = px_make_wide_ray(org, px_safe_inverse(dir));
 
@@ -477,7 +486,7 @@ inline void px_tree_closest(const SceneView* scene, float3 org, float3 dir, floa
     }
     if (!found) break;
   }
-  *io = best;
+  return best;
 }
 
 /* 1 when anything in one tree blocks the ray within (tmin, tmax) (shadow rays). */
@@ -536,9 +545,8 @@ inline void px_instances_leaf_closest(const SceneView* scene, uint first, uint c
   for (uint k = first; k < first + count; ++k) {
     const global SceneInstance* in = px_instance(scene, k);
     const SceneView v = px_instance_view(scene, in);
-    Hit h = *best;
-    h.prim = PX_NO_HIT;
-    px_tree_closest(&v, px_xform_point(in->world_to_object, org), px_xform_dir(in->world_to_object, dir), tmin, &h);
+    const Hit h = px_tree_closest(&v, px_xform_point(in->world_to_object, org), px_xform_dir(in->world_to_object, dir),
+                                  tmin, best->t);
     if (h.prim != PX_NO_HIT) {
       *best = h;
       best->prim = h.prim + in->triangle_offset;
@@ -611,29 +619,28 @@ inline int px_top_level(const SceneView* scene, float3 org, float3 dir, float tm
  * top level. hit.prim is the index into scene->tris (leaf order, so the caller can read the
  * vertices), PX_NO_HIT on a miss; hit.inst the instance (PX_NO_INSTANCE for the world's own). */
 inline Hit px_trace_closest_leaf(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
+  if (!PX_HAS(PX_FEATURE_INSTANCES)) return px_tree_closest(scene, org, dir, tmin, tmax);
   Hit best;
-  best.t = tmax;
-  best.u = 0.0f;
-  best.v = 0.0f;
-  best.prim = PX_NO_HIT;
-  best.inst = PX_NO_INSTANCE;
-  if (!PX_HAS(PX_FEATURE_INSTANCES) || scene->instances->world_triangles != 0u)
-    px_tree_closest(scene, org, dir, tmin, &best);
-  if (PX_HAS(PX_FEATURE_INSTANCES)) px_top_level(scene, org, dir, tmin, &best, 0);
+  if (scene->instances->world_triangles != 0u) {
+    best = px_tree_closest(scene, org, dir, tmin, tmax);
+  } else {
+    best.t = tmax;
+    best.u = 0.0f;
+    best.v = 0.0f;
+    best.prim = PX_NO_HIT;
+    best.inst = PX_NO_INSTANCE;
+  }
+  px_top_level(scene, org, dir, tmin, &best, 0);
   return best;
 }
 
 /* 1 when anything blocks the ray within (tmin, tmax) (shadow rays). */
 inline int px_trace_any(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
-  if ((!PX_HAS(PX_FEATURE_INSTANCES) || scene->instances->world_triangles != 0u) &&
-      px_tree_any(scene, org, dir, tmin, tmax))
-    return 1;
-  if (PX_HAS(PX_FEATURE_INSTANCES)) {
-    Hit scratch;
-    scratch.t = tmax;
-    return px_top_level(scene, org, dir, tmin, &scratch, 1);
-  }
-  return 0;
+  if (!PX_HAS(PX_FEATURE_INSTANCES)) return px_tree_any(scene, org, dir, tmin, tmax);
+  if (scene->instances->world_triangles != 0u && px_tree_any(scene, org, dir, tmin, tmax)) return 1;
+  Hit scratch;
+  scratch.t = tmax;
+  return px_top_level(scene, org, dir, tmin, &scratch, 1);
 }
 
 /* Closest hit with hit.prim the scene triangle index (BvhTriangle::prim). */
