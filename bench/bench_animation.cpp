@@ -5,14 +5,17 @@
 // Prints per N the median of each step, how many timed frames rebuilt, the bytes sent per
 // frame, and the first update's full build beside them.
 //
-// Scenes move today by rebuilding one BVH over all triangles every frame; instances (a top
-// level over per-mesh trees, refitted and rebuilt in milliseconds, sending only transforms)
-// are not built yet. This bench is the baseline they must beat.
+// Two ways, side by side per N: `posed` (every cube's triangles posed into the world's, one
+// tree refitted over them: what an animated file's skins get, and everything with
+// PX_INSTANCING=off) and `instances` (one cube mesh stored once, each node an instance: only
+// the matrices change, the top level over them is rebuilt and the instance buffer rewritten;
+// what the loader makes of rigid meshes on moving nodes).
 //
 //   build/bench_animation --counts 1,1000,100000 --frames 8 --devices 2
 #include "app/guarded_main.h"
 #include "bench_common.h"
 #include "bvh/flat_bvh.h"
+#include "bvh/scene_bvhs.h"
 #include "cl/device_set.h"
 #include "render/device_scene.h"
 #include "render/scene_animator.h"
@@ -31,7 +34,7 @@ using namespace px;
 
 // N cubes on a square grid, one shared primitive, each node sliding 0.25 units and turning a
 // quarter turn about y over 2 s.
-Scene cube_field(std::size_t n) {
+Scene cube_field(std::size_t n, bool instances) {
   auto rig = std::make_shared<SceneRig>();
   rig->primitives.push_back(cube_primitive(0.4f));
   AnimationClip clip;
@@ -56,7 +59,20 @@ Scene cube_field(std::size_t n) {
     clip.channels.push_back(turn);
   }
   rig->clips.push_back(clip);
-  return rig_scene(rig, "cube field");
+  if (!instances) return rig_scene(rig, "cube field");
+  // As the loader does for rigid meshes on moving nodes: the cube stored once, N instances.
+  for (RigMeshInstance& inst : rig->instances) inst.instance = 0;
+  std::vector<SceneTriangle> meshes;
+  SceneInstancing instancing;
+  SceneStats stats;
+  settle_rig_instances(*rig, meshes, stats, nullptr, instancing);
+  Scene scene = rig_scene(rig, "cube field (instances)");  // no world triangles of its own
+  const std::size_t world = scene.triangles.size();
+  scene.triangles.insert(scene.triangles.end(), meshes.begin(), meshes.end());
+  for (InstancedMesh& m : instancing.meshes) m.first += world;
+  instancing.world_triangles = world;
+  scene.instancing = std::move(instancing);
+  return scene;
 }
 
 }  // namespace
@@ -72,14 +88,15 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   return run_guarded([&] {
     DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
-    std::printf("%10s %12s %10s %10s %10s %10s %9s %12s %12s %14s\n", "cubes", "triangles", "pose ms", "bvh ms",
-                "upload ms", "total ms", "rebuilds", "MiB/frame", "ns/triangle", "first bvh ms");
+    std::printf("%10s %10s %12s %10s %10s %10s %10s %9s %12s %12s %14s\n", "cubes", "as", "triangles", "pose ms",
+                "bvh ms", "upload ms", "total ms", "rebuilds", "MiB/frame", "ns/triangle", "first bvh ms");
     std::stringstream list(counts);
-    for (std::string item; std::getline(list, item, ',');) {
+    for (std::string item; std::getline(list, item, ',');)
+      for (const bool instances : {false, true}) {
       const std::size_t n = std::stoul(item);
-      Scene scene = cube_field(n);
-      FlatBvh bvh = build_bvh(scene.triangles);
-      DeviceScene ds(set, scene, std::move(bvh));
+      Scene scene = cube_field(n, instances);
+      const std::size_t drawn = 12 * n;
+      DeviceScene ds(set, scene, build_world_bvh(scene));
       SceneAnimator animator(scene, "all");
       // Untimed: the first update builds the tree and allocates.
       const double first_bvh_ms = animator.update(0.0, set, ds).bvh_ms;
@@ -96,10 +113,10 @@ int main(int argc, char** argv) {
         rebuilds += u.rebuilt ? 1u : 0u;
       }
       const double t = bench::median(total);
-      std::printf("%10zu %12zu %10.2f %10.2f %10.2f %10.2f %5u/%-3u %12.2f %12.1f %14.2f\n", n, scene.triangles.size(),
-                  bench::median(pose), bench::median(build), bench::median(upload), t, rebuilds, frames,
-                  static_cast<double>(bytes) / (1024.0 * 1024.0), t * 1e6 / static_cast<double>(scene.triangles.size()),
-                  first_bvh_ms);
+      std::printf("%10zu %10s %12zu %10.2f %10.2f %10.2f %10.2f %5u/%-3u %12.2f %12.1f %14.2f\n", n,
+                  instances ? "instances" : "posed", drawn, bench::median(pose), bench::median(build),
+                  bench::median(upload), t, rebuilds, frames, static_cast<double>(bytes) / (1024.0 * 1024.0),
+                  t * 1e6 / static_cast<double>(drawn), first_bvh_ms);
     }
     return 0;
   });

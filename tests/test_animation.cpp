@@ -4,12 +4,16 @@
 // animation playing, and the motion pass against a quad's analytic motion.
 #include "app/scene_setup.h"
 #include "bvh/flat_bvh.h"
+#include "bvh/scene_bvhs.h"
+#include "bvh/top_level_bvh.h"
 #include "cl/launch.h"
 #include "pipeline/stereo_pipeline.h"
 #include "render/device_scene.h"
 #include "render/path_tracer.h"
 #include "render/scene_animator.h"
 #include "scene/animation.h"
+#include "scene/instancing.h"
+#include "scene/primitives.h"
 #include "scene/scene_loader.h"
 #include "scene/scene_rig.h"
 #include "support/gltf_builder.h"
@@ -18,7 +22,10 @@
 #include <gtest/gtest.h>
 #include <glm/gtc/matrix_transform.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <numbers>
 #include <random>
@@ -193,20 +200,25 @@ TEST(GltfAnimation, ARotatingTranslatingNodeHasTheWorldBoundsWorkedByHand) {
     animator.pose(t);
     const double u = std::fmod(t, 1.0), a = u * kPi / 2;
     const double half = 0.5 * (std::abs(std::cos(a)) + std::abs(std::sin(a)));
-    const Bounds b = bounds_of(scene.triangles);
+    // The cube is drawn as an instance (a rigid mesh on a moving node): its world triangles
+    // are the flat copy's.
+    Scene flat = scene;
+    flatten_instances(flat);
+    const Bounds b = bounds_of(flat.triangles);
     EXPECT_NEAR(b.lo.x, 2 * u - half, 1e-5) << t;
     EXPECT_NEAR(b.hi.x, 2 * u + half, 1e-5) << t;
     EXPECT_NEAR(b.lo.y, 3 - half, 1e-5) << t;
     EXPECT_NEAR(b.hi.y, 3 + half, 1e-5) << t;
     EXPECT_NEAR(b.lo.z, -0.5, 1e-6) << t;
     EXPECT_NEAR(b.hi.z, 0.5, 1e-6) << t;
-    EXPECT_EQ(scene.triangles.size(), 12u);
+    EXPECT_EQ(flat.triangles.size(), 12u);
   }
   // --animation none: the rest pose as loaded (the child's own transform: identity).
   Scene rest = load_gltf(moving_cube_file(dir));
   SceneAnimator none(rest, "none");
   EXPECT_FALSE(none.moves());
   none.pose(0.5);
+  flatten_instances(rest);
   EXPECT_NEAR(bounds_of(rest.triangles).hi.x, 0.5, 1e-6);
   EXPECT_THROW(SceneAnimator(rest, "jump"), std::invalid_argument);
 }
@@ -361,7 +373,7 @@ TEST(SceneAnimator, TheUpdatedDevicesRenderWhatAFreshUploadOfThePoseRenders) {
   SceneAnimator(b, "all").pose(0.7);
   BvhBuildOptions fast;
   fast.spatial_splits = false;
-  DeviceScene db(set, b, build_bvh(b.triangles, fast));
+  DeviceScene db(set, b, build_world_bvh(b, fast));
   PathTracer tb(set, db, b);
   const auto fresh = pixels_of(tb.render_stereo(0.7f, 3, 64, 48, opt));
   EXPECT_TRUE(bit_identical(via_update, fresh));
@@ -519,6 +531,48 @@ TEST(SceneAnimator, NDevicesAreBitIdenticalWithAnimationPlaying) {
   EXPECT_FALSE(bit_identical(one[0], one[3]));  // the cube moved
 }
 
+// The sliding cube is a rigid mesh on a moving node: drawn as an instance, its matrix moves it
+// and its triangles are neither posed nor refitted; with PX_INSTANCING=off it is posed into
+// the world's triangles as before. Both render the same denoised frames (SVGF's history and the
+// anti-aliasing follow the cube through the instance's matrices or through its vertices) but
+// for rounding (the cube's vertices placed on the device or on the host).
+TEST(SceneAnimator, AMovingInstanceRendersTheFramesOfItsPosedCopy) {
+  const TempDir dir;
+  const std::string file = cube_on_floor_file(dir);
+  {
+    const Scene s = load_gltf(file);
+    ASSERT_EQ(s.instancing.instances.size(), 1u) << "the moving cube is an instance";
+    EXPECT_EQ(s.instancing.world_triangles, 2u) << "the floor is the world's";
+  }
+  const auto instanced = animated_frames(file, 2, 4);
+  std::vector<std::vector<float>> posed;
+  {
+    const char* old = std::getenv("PX_INSTANCING");
+    const std::string saved = old ? old : "";
+    setenv("PX_INSTANCING", "off", 1);
+    {
+      const Scene s = load_gltf(file);
+      EXPECT_TRUE(s.instancing.empty());
+    }
+    posed = animated_frames(file, 2, 4);
+    if (old) setenv("PX_INSTANCING", saved.c_str(), 1);
+    else unsetenv("PX_INSTANCING");
+  }
+  ASSERT_EQ(instanced.size(), posed.size());
+  for (std::size_t f = 0; f < posed.size(); ++f) {
+    double se = 0.0, peak = 0.0;
+    for (std::size_t i = 0; i < posed[f].size(); ++i) {
+      se += (double(instanced[f][i]) - posed[f][i]) * (double(instanced[f][i]) - posed[f][i]);
+      peak = std::max(peak, double(posed[f][i]));
+    }
+    const double mse = se / double(posed[f].size());
+    const double psnr = mse > 0.0 ? 10.0 * std::log10(peak * peak / mse) : 200.0;
+    EXPECT_GT(psnr, 45.0) << "frame " << f;
+    std::printf("frame %zu: PSNR %.1f dB against the posed copy\n", f, psnr);
+  }
+  EXPECT_FALSE(bit_identical(instanced[0], instanced[3]));  // the cube moved
+}
+
 // The motion pass (kernels/pipeline/motion.cl) on a quad that turned by 20 degrees about y and
 // moved by (0.3, -0.2, 0.5) since the last frame: every point's previous position is the
 // inverse motion of where it is now.
@@ -553,22 +607,39 @@ TEST(MotionPass, AMovingQuadsPointsGoBackAlongItsAnalyticMotion) {
     g.pos[0] = float(p.x), g.pos[1] = float(p.y), g.pos[2] = float(p.z);
     g.material_class = PX_CLASS_DIFFUSE;
     g.prim = static_cast<std::uint32_t>(t);
+    g.inst = PX_NO_INSTANCE;
     want[i] = glm::dvec3(back * glm::dvec4(glm::dvec3(g.pos[0], g.pos[1], g.pos[2]), 1.0));
+    // Every third texel lies on the quad as the mesh of an instance instead (placed by `motion`
+    // now, by the identity before): the instance's matrices move it, not the triangle's vertices.
+    if (i % 3 == 2) g.inst = 0;
   }
   gbuf[5].material_class = PX_CLASS_MISS;
   gbuf[5].prim = PX_NO_HIT;
+  gbuf[5].inst = PX_NO_INSTANCE;
+  Scene inst_scene;
+  inst_scene.materials.resize(1);
+  for (const auto& t : tris) append_triangle(inst_scene.triangles, glm::vec3(before[t[0]]), glm::vec3(before[t[1]]),
+                                             glm::vec3(before[t[2]]), 0);
+  inst_scene.instancing.meshes.push_back({0, inst_scene.triangles.size()});
+  inst_scene.instancing.instances.push_back({0, glm::mat4(motion)});
+  const std::vector<glm::mat4> previous{glm::mat4(1.0f)};
+  const std::vector<std::uint32_t> inst_words =
+      instance_buffer_words(inst_scene, {MeshPlacement{}}, 0, nullptr, &previous);
   const cl::Context& ctx = set.context();
   cl::CommandQueue& q = set.devices()[0].queue;
   cl::Buffer g_buf(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, gbuf.size() * sizeof(GBufferTexel), gbuf.data());
   cl::Buffer m_buf(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, tri_motion.size() * sizeof(cl_float4), tri_motion.data());
+  cl::Buffer i_buf(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, inst_words.size() * 4,
+                   const_cast<std::uint32_t*>(inst_words.data()));
   cl::Buffer out(ctx, CL_MEM_WRITE_ONLY, gbuf.size() * sizeof(cl_float4));
   cl::Kernel k(set.program("pipeline/motion.cl"), "gbuffer_motion");
   k.setArg(0, out);
   k.setArg(1, g_buf);
   k.setArg(2, m_buf);
-  k.setArg(3, cl_uint(0));
-  k.setArg(4, cl_uint(rows));
-  k.setArg(5, cl_uint(width));
+  k.setArg(3, i_buf);
+  k.setArg(4, cl_uint(0));
+  k.setArg(5, cl_uint(rows));
+  k.setArg(6, cl_uint(width));
   launch_1d(q, k, gbuf.size());
   std::vector<cl_float4> got(gbuf.size());
   q.enqueueReadBuffer(out, CL_TRUE, 0, got.size() * sizeof(cl_float4), got.data());

@@ -122,12 +122,13 @@ TopLevelBvh build_top_level(const std::vector<InstanceBox>& boxes) {
 }
 
 std::vector<std::uint32_t> instance_buffer_words(const Scene& scene, const std::vector<MeshPlacement>& meshes,
-                                                 std::size_t world_triangles, TopLevelBvh* top_out) {
+                                                 std::size_t world_triangles, TopLevelBvh* top_out,
+                                                 const std::vector<glm::mat4>* previous) {
   const SceneInstancing& in = scene.instancing;
   SceneInstances header{};
   header.world_triangles = static_cast<std::uint32_t>(std::min<std::size_t>(world_triangles, 0xffffffffu));
   if (in.empty()) {
-    std::vector<std::uint32_t> words(4);
+    std::vector<std::uint32_t> words(sizeof header / 4);
     std::memcpy(words.data(), &header, sizeof header);
     return words;
   }
@@ -150,17 +151,24 @@ std::vector<std::uint32_t> instance_buffer_words(const Scene& scene, const std::
   TopLevelBvh top = build_top_level(boxes);
   header.count = static_cast<std::uint32_t>(in.instances.size());
   header.nodes = static_cast<std::uint32_t>(top.nodes.size());
-  header.records = static_cast<std::uint32_t>((sizeof header + top.nodes.size() * sizeof(BvhNode)) / 16);
-  std::vector<std::uint32_t> words((header.records * 16 + in.instances.size() * sizeof(SceneInstance)) / 4);
+  const std::size_t order_at = sizeof header + top.nodes.size() * sizeof(BvhNode);  // 16-byte aligned
+  header.order = static_cast<std::uint32_t>(order_at / 16);
+  header.records = static_cast<std::uint32_t>((order_at + top.order.size() * 4 + 15) / 16);
+  std::vector<std::uint32_t> words((header.records * std::size_t(16) + in.instances.size() * sizeof(SceneInstance)) / 4);
   auto* bytes = reinterpret_cast<std::uint8_t*>(words.data());
   std::memcpy(bytes, &header, sizeof header);
   std::memcpy(bytes + sizeof header, top.nodes.data(), top.nodes.size() * sizeof(BvhNode));
-  for (std::size_t i = 0; i < top.order.size(); ++i) {
-    const MeshInstance& inst = in.instances[top.order[i]];
+  std::memcpy(bytes + order_at, top.order.data(), top.order.size() * 4);
+  if (previous && previous->size() != in.instances.size())
+    throw std::logic_error("instance_buffer_words: " + std::to_string(previous->size()) + " previous matrices for " +
+                           std::to_string(in.instances.size()) + " instances");
+  for (std::size_t i = 0; i < in.instances.size(); ++i) {
+    const MeshInstance& inst = in.instances[i];
     SceneInstance rec{};
     const glm::dmat4 m(inst.object_to_world);
     matrix_rows(rec.object_to_world, m);
     matrix_rows(rec.world_to_object, glm::inverse(m));
+    matrix_rows(rec.previous_object_to_world, previous ? glm::dmat4((*previous)[i]) : m);
     rec.node_offset = meshes[inst.mesh].node_offset;
     rec.triangle_offset = meshes[inst.mesh].triangle_offset;
     std::memcpy(bytes + std::size_t(header.records) * 16 + i * sizeof(SceneInstance), &rec, sizeof rec);

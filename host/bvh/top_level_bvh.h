@@ -35,11 +35,13 @@ struct MeshPlacement {
   std::uint32_t triangle_offset = 0;  // in BvhTriangle entries
 };
 
-// The instance buffer of `scene` as 4-byte words: the header, the top level over its instances
-// and their records in leaf order. A scene without instances gets the header alone (count 0,
-// world_triangles = every triangle). `world_triangles`: how many triangles the world tree holds
-// (0 = none: the kernels skip it).
+// The instance buffer of `scene` as 4-byte words (types.h: SceneInstances): the header, the top
+// level over its instances, the leaf order and their records in the scene's instance order. A
+// scene without instances gets the header alone (count 0, world_triangles = every triangle).
+// `world_triangles`: how many triangles the world tree holds (0 = none: the kernels skip it).
+// `previous`: each instance's matrix in the last frame (the motion pass), or null (not moving).
 std::vector<std::uint32_t> instance_buffer_words(const Scene& scene, const std::vector<MeshPlacement>& meshes,
-                                                 std::size_t world_triangles, TopLevelBvh* top = nullptr);
+                                                 std::size_t world_triangles, TopLevelBvh* top = nullptr,
+                                                 const std::vector<glm::mat4>* previous = nullptr);
 
 }  // namespace px

@@ -42,9 +42,11 @@ static_assert(offsetof(BvhTriangle, material) == 44);
 static_assert(sizeof(Ray) == 32 && offsetof(Ray, tmin) == 12 && offsetof(Ray, tmax) == 28);
 static_assert(sizeof(Hit) == 20 && offsetof(Hit, prim) == 12 && offsetof(Hit, inst) == 16);
 
-static_assert(sizeof(SceneInstances) == 16 && offsetof(SceneInstances, world_triangles) == 12);
-static_assert(sizeof(SceneInstance) == 112 && offsetof(SceneInstance, object_to_world) == 48);
-static_assert(offsetof(SceneInstance, node_offset) == 96 && offsetof(SceneInstance, triangle_offset) == 100);
+static_assert(sizeof(SceneInstances) == 32 && offsetof(SceneInstances, world_triangles) == 12);
+static_assert(offsetof(SceneInstances, order) == 16);
+static_assert(sizeof(SceneInstance) == 160 && offsetof(SceneInstance, object_to_world) == 48);
+static_assert(offsetof(SceneInstance, previous_object_to_world) == 96 && offsetof(SceneInstance, node_offset) == 144);
+static_assert(offsetof(SceneInstance, triangle_offset) == 148);
 
 static_assert(sizeof(TriangleShading) == 64);
 static_assert(offsetof(TriangleShading, uv0) == 12 && offsetof(TriangleShading, n1) == 20);
@@ -72,9 +74,8 @@ static_assert(offsetof(FrameParams, p_sun) == 28 && offsetof(FrameParams, light_
 static_assert(offsetof(FrameParams, frame) == 80 && offsetof(FrameParams, rr_start_bounce) == 104);
 static_assert(offsetof(FrameParams, row0) == 108 && offsetof(FrameParams, rows) == 112);
 static_assert(offsetof(FrameParams, sample_offset) == 116 && offsetof(FrameParams, first_sample_on_gbuffer_ray) == 120);
-static_assert(sizeof(GBufferTexel) == 36);
 static_assert(offsetof(GBufferTexel, depth) == 12 && offsetof(GBufferTexel, material_class) == 28);
-static_assert(offsetof(GBufferTexel, prim) == 32);
+static_assert(offsetof(GBufferTexel, prim) == 32 && offsetof(GBufferTexel, inst) == 36 && sizeof(GBufferTexel) == 40);
 static_assert(sizeof(SvgfParams) == 64);
 static_assert(offsetof(SvgfParams, jitter) == 56);
 static_assert(offsetof(SvgfParams, temporal_rows) == 24 && offsetof(SvgfParams, lo_row) == 40);

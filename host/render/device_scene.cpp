@@ -284,6 +284,29 @@ std::vector<std::uint32_t> node_words(const FlatBvh& tree, BvhLayout layout) {
 
 }  // namespace
 
+std::vector<MeshPlacement> DeviceScene::assemble_instanced(const FlatBvh* world, std::vector<std::uint32_t>& words,
+                                                           std::vector<BvhTriangle>& triangles) const {
+  words.clear();
+  triangles.clear();
+  if (world) {
+    words = node_words(*world, layout_);
+    triangles = world->triangles;
+  } else {
+    words.assign(sizeof(BvhNode) / 4, 0u);  // a placeholder the kernels never enter
+  }
+  std::vector<MeshPlacement> placements(mesh_words_.size());
+  for (std::size_t k = 0; k < mesh_words_.size(); ++k) {
+    words.resize((words.size() + 15) / 16 * 16, 0u);
+    placements[k].node_offset = static_cast<std::uint32_t>(words.size());
+    placements[k].triangle_offset = static_cast<std::uint32_t>(triangles.size());
+    words.insert(words.end(), mesh_words_[k].begin(), mesh_words_[k].end());
+    triangles.insert(triangles.end(), mesh_triangles_[k].begin(), mesh_triangles_[k].end());
+    if (words.size() >= 0xffffffffu || triangles.size() >= kWideIndexLimit)
+      throw std::runtime_error("the scene's instanced meshes hold more nodes or triangles than the kernels address");
+  }
+  return placements;
+}
+
 DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, std::vector<FlatBvh> mesh_bvhs) {
   FlatBvh& flagged = bvh;
   const std::vector<std::uint32_t> tri_flags = triangle_flags(scene);
@@ -293,7 +316,7 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
   // Without instances: the one tree's nodes (binary: flagged.nodes as they are), its leaf
   // triangles, and an instance buffer that says "none". With instances: the world tree, then
   // each mesh's tree at a 64-byte aligned word offset, and their leaf triangles likewise back
-  // to back (types.h: Instances).
+  // to back (types.h: the instance buffer).
   std::vector<std::uint32_t> wide_words;
   std::vector<BvhTriangle> instanced_triangles;
   std::vector<std::uint32_t> instance_words;
@@ -312,16 +335,13 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
     if (mesh_bvhs.size() != in.meshes.size())
       throw std::logic_error("DeviceScene: " + std::to_string(mesh_bvhs.size()) + " mesh trees for " +
                              std::to_string(in.meshes.size()) + " instanced meshes");
+    if (in.world_triangles > 0 && flagged.nodes.empty()) flagged = build_world_bvh(scene);
     if (in.world_triangles > 0) {
-      if (flagged.nodes.empty()) flagged = build_world_bvh(scene);
       set_triangle_flags(flagged, tri_flags);
       prepare_tree(flagged, layout, triangle_range(scene, 0, in.world_triangles), "the world's BVH");
-      wide_words = node_words(flagged, layout);
-      instanced_triangles = flagged.triangles;
-    } else {
-      wide_words.assign(sizeof(BvhNode) / 4, 0u);  // a placeholder the kernels never enter
     }
-    std::vector<MeshPlacement> placements(in.meshes.size());
+    mesh_words_.assign(in.meshes.size(), {});
+    mesh_triangles_.assign(in.meshes.size(), {});
     for (std::size_t k = 0; k < in.meshes.size(); ++k) {
       FlatBvh& tree = mesh_bvhs[k];
       const InstancedMesh& m = in.meshes[k];
@@ -329,20 +349,18 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
                                              tri_flags.begin() + std::ptrdiff_t(m.first + m.count));
       set_triangle_flags(tree, flags);
       prepare_tree(tree, layout, triangle_range(scene, m.first, m.count), "an instanced mesh's BVH");
-      wide_words.resize((wide_words.size() + 15) / 16 * 16, 0u);
-      placements[k].node_offset = static_cast<std::uint32_t>(wide_words.size());
-      placements[k].triangle_offset = static_cast<std::uint32_t>(instanced_triangles.size());
-      const std::vector<std::uint32_t> words = node_words(tree, layout);
-      wide_words.insert(wide_words.end(), words.begin(), words.end());
-      for (BvhTriangle t : tree.triangles) {
-        t.prim += static_cast<std::uint32_t>(m.first);
-        instanced_triangles.push_back(t);
-      }
-      if (wide_words.size() >= kWideIndexLimit * std::size_t(4) || instanced_triangles.size() >= kWideIndexLimit)
-        throw std::runtime_error("the scene's instanced meshes hold more nodes or triangles than the kernels address");
+      mesh_words_[k] = node_words(tree, layout);
+      mesh_triangles_[k] = std::move(tree.triangles);
+      for (BvhTriangle& t : mesh_triangles_[k]) t.prim += static_cast<std::uint32_t>(m.first);
     }
-    instance_words = instance_buffer_words(scene, placements, in.world_triangles);
     std::vector<FlatBvh>().swap(mesh_bvhs);
+    const std::vector<MeshPlacement> placements =
+        assemble_instanced(in.world_triangles > 0 ? &flagged : nullptr, wide_words, instanced_triangles);
+    instance_words = instance_buffer_words(scene, placements, in.world_triangles);
+    if (!scene.rig) {  // nothing moves: the meshes' parts are on the devices for good
+      std::vector<std::vector<std::uint32_t>>().swap(mesh_words_);
+      std::vector<std::vector<BvhTriangle>>().swap(mesh_triangles_);
+    }
   }
   const auto& triangles = instanced ? instanced_triangles : flagged.triangles;
   const auto shading = make_triangle_shading(scene);
@@ -412,6 +430,7 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
   capacity_.triangles = size_of(triangles);
   capacity_.shading = size_of(shading);
   capacity_.lights = size_of(lights);
+  capacity_.instances = size_of(instance_words);
   tri_flags_ = tri_flags;
   bytes_in_context_ = bytes;
   upload_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - upload_start).count();
@@ -419,16 +438,34 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
 }
 
 std::size_t DeviceScene::update_geometry(DeviceSet& devices, const Scene& scene, FlatBvh& bvh,
-                                         const std::vector<SceneTriangle>* previous) {
+                                         const std::vector<SceneTriangle>* previous,
+                                         const std::vector<glm::mat4>* previous_instances) {
   if (per_device_.empty()) throw std::logic_error("DeviceScene::update_geometry before any upload");
-  if (instance_count_ > 0) throw std::logic_error("DeviceScene::update_geometry on a scene with instances");
   if (scene.triangles.size() != tri_flags_.size())
     throw std::logic_error("DeviceScene::update_geometry: the scene has " + std::to_string(scene.triangles.size()) +
                            " triangles, not the " + std::to_string(tri_flags_.size()) + " uploaded");
-  set_triangle_flags(bvh, tri_flags_);
-  ensure_layout(bvh, layout_);
-  const std::vector<std::uint32_t> wide_words =
-      layout_ == BvhLayout::Binary ? std::vector<std::uint32_t>{} : device_wide_nodes(bvh, layout_);
+  const bool instanced = instance_count_ > 0;
+  if (instanced != !scene.instancing.empty() || scene.instancing.instances.size() != instance_count_ ||
+      (instanced && mesh_words_.size() != scene.instancing.meshes.size()))
+    throw std::logic_error("DeviceScene::update_geometry: the scene's instances are not those uploaded");
+  std::vector<std::uint32_t> wide_words;
+  std::vector<BvhTriangle> instanced_triangles;
+  std::vector<std::uint32_t> instance_words;
+  const bool has_world = !bvh.nodes.empty();
+  if (has_world) {
+    set_triangle_flags(bvh, tri_flags_);
+    ensure_layout(bvh, layout_);
+  }
+  if (!instanced) {
+    if (layout_ != BvhLayout::Binary) wide_words = device_wide_nodes(bvh, layout_);
+  } else {
+    const std::vector<MeshPlacement> placements =
+        assemble_instanced(has_world ? &bvh : nullptr, wide_words, instanced_triangles);
+    if (previous_instances && previous_instances->size() != instance_count_)
+      throw std::logic_error("DeviceScene::update_geometry: previous matrices for another instance count");
+    instance_words =
+        instance_buffer_words(scene, placements, scene.instancing.world_triangles, nullptr, previous_instances);
+  }
   const auto shading = make_triangle_shading(scene);
   const auto lights = make_light_table(scene);
   // An emitter posed edge-on to nothing (zero area) leaves the table for this frame.
@@ -452,11 +489,14 @@ std::size_t DeviceScene::update_geometry(DeviceSet& devices, const Scene& scene,
   DeviceSceneBuffers b = per_device_.front();
   std::size_t written = 0;
   Shadows& sh = shadows_;
-  if (layout_ == BvhLayout::Binary)
+  if (layout_ == BvhLayout::Binary && !instanced)
     rewrite("BVH node", b.nodes, capacity_.nodes, sh.nodes, ctx, queue, bvh.nodes, limits, written);
   else
     rewrite("BVH node", b.nodes, capacity_.nodes, sh.nodes, ctx, queue, wide_words, limits, written);
-  rewrite("triangle", b.triangles, capacity_.triangles, sh.triangles, ctx, queue, bvh.triangles, limits, written);
+  rewrite("triangle", b.triangles, capacity_.triangles, sh.triangles, ctx, queue,
+          instanced ? instanced_triangles : bvh.triangles, limits, written);
+  if (instanced)
+    rewrite("instance", b.instances, capacity_.instances, sh.instances, ctx, queue, instance_words, limits, written);
   rewrite("shading", b.shading, capacity_.shading, sh.shading, ctx, queue, shading, limits, written);
   rewrite("light", b.lights, capacity_.lights, sh.lights, ctx, queue, lights, limits, written);
   if (previous) rewrite("motion", b.motion, capacity_.motion, sh.motion, ctx, queue, motion, limits, written);

@@ -8,6 +8,7 @@
 #pragma once
 
 #include "bvh/flat_bvh.h"
+#include "bvh/top_level_bvh.h"
 #include "cl/device_set.h"
 #include "render/kernel_features.h"
 #include "scene/scene.h"
@@ -70,8 +71,13 @@ class DeviceScene {
   // bytes written.
   // `bvh` gets the triangle flags and the set's node layout (collapsed if missing) in place, so
   // that a caller keeping its tree for the next frame's refit (SceneAnimator) need not copy it.
+  // With instances (Scene::instancing, an animated file's rigid meshes on moving nodes): `bvh`
+  // is the world tree (empty nodes when the world has no triangles of its own), the meshes'
+  // trees stay as uploaded, and the instance buffer (top level, matrices and, from
+  // `previous_instances`, last frame's matrices) is rewritten.
   std::size_t update_geometry(DeviceSet& devices, const Scene& scene, FlatBvh& bvh,
-                              const std::vector<SceneTriangle>* previous);
+                              const std::vector<SceneTriangle>* previous,
+                              const std::vector<glm::mat4>* previous_instances = nullptr);
   // Bytes of scene data in the set's context, shared by all its devices (one copy per context).
   std::size_t bytes_in_context() const { return bytes_in_context_; }
   // Host time to create and write those buffers (blocking writes), ms.
@@ -98,13 +104,21 @@ class DeviceScene {
   std::vector<DeviceSceneBuffers> per_device_;
   // Allocated bytes of the buffers update_geometry rewrites.
   struct Capacity {
-    std::size_t nodes = 0, triangles = 0, shading = 0, lights = 0, motion = 0;
+    std::size_t nodes = 0, triangles = 0, shading = 0, lights = 0, motion = 0, instances = 0;
   } capacity_;
+  // An animated scene with instances: the meshes' node words and leaf triangles (prims in scene
+  // order), kept to be placed behind each frame's world tree.
+  std::vector<std::vector<std::uint32_t>> mesh_words_;
+  std::vector<std::vector<BvhTriangle>> mesh_triangles_;
+  // The node words and leaf triangles of the world tree (null: none) with the meshes' behind it
+  // (64-byte aligned), and where each mesh went.
+  std::vector<MeshPlacement> assemble_instanced(const FlatBvh* world, std::vector<std::uint32_t>& words,
+                                                std::vector<BvhTriangle>& triangles) const;
   std::vector<std::uint32_t> tri_flags_;  // triangle_flags(scene): fixed by the materials
   // What update_geometry last wrote to each of those buffers (empty until its first call, which
   // writes them whole), so that later calls write only the pieces that changed.
   struct Shadows {
-    std::vector<std::uint8_t> nodes, triangles, shading, lights, motion;
+    std::vector<std::uint8_t> nodes, triangles, shading, lights, motion, instances;
   } shadows_;
   std::size_t bytes_in_context_ = 0;
   double upload_ms_ = 0.0;

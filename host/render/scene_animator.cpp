@@ -3,6 +3,7 @@
 #include "bvh/flat_bvh.h"
 #include "scene/scene_rig.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <stdexcept>
@@ -47,7 +48,17 @@ std::string SceneAnimator::describe() const {
 
 void SceneAnimator::pose(double time_s) {
   if (!moves_) return;
-  pose_rig(*scene_.rig, time_s, clips_, scene_.triangles);
+  if (scene_.instancing.empty()) {
+    pose_rig(*scene_.rig, time_s, clips_, scene_.triangles);
+  } else {
+    // The world's triangles come first in scene.triangles; the instances' meshes after them
+    // never change (their matrices move them).
+    pose_rig(*scene_.rig, time_s, clips_, world_);
+    if (world_.size() != scene_.instancing.world_triangles)
+      throw std::logic_error("SceneAnimator: the posed world has another triangle count");
+    std::copy(world_.begin(), world_.end(), scene_.triangles.begin());
+    rig_instance_matrices(*scene_.rig, rig_world_matrices(*scene_.rig, time_s, clips_), scene_.instancing);
+  }
   if (follow_camera_)
     scene_.camera = rig_camera(*scene_.rig, rig_world_matrices(*scene_.rig, time_s, clips_), base_camera_);
 }
@@ -59,29 +70,40 @@ SceneAnimator::Update SceneAnimator::update(double time_s, DeviceSet& devices, D
   pose(time_s);
   u.pose_ms = ms_since(t0);
   t0 = clock_type::now();
-  bool rebuild = bvh_.nodes.empty();
-  if (!rebuild) {
-    refit_bvh(bvh_, scene_.triangles);
-    rebuild = !(bvh_.stats.sah_cost <= kRebuildGrowth * built_sah_);
+  // The world tree covers the world's own triangles: all of them, or those before the
+  // instances' meshes (none: no world tree; the instances' top level is built with the upload).
+  const bool instanced = !scene_.instancing.empty();
+  const std::vector<SceneTriangle>& world = instanced ? world_ : scene_.triangles;
+  bool rebuild = false;
+  if (!world.empty()) {
+    rebuild = bvh_.nodes.empty();
+    if (!rebuild) {
+      refit_bvh(bvh_, world);
+      rebuild = !(bvh_.stats.sah_cost <= kRebuildGrowth * built_sah_);
+    }
+    if (rebuild) {
+      BvhBuildOptions options;
+      options.spatial_splits = false;  // leaves of whole triangles, which refit_bvh can refit
+      bvh_ = build_bvh(world, options);
+      const BvhValidation check = validate_bvh(bvh_, world);
+      if (!check.ok)
+        throw std::runtime_error("internal error: the BVH of the posed scene at t = " + std::to_string(time_s) +
+                                 " s failed validation: " + (check.errors.empty() ? "" : check.errors.front()));
+      built_sah_ = bvh_.stats.sah_cost;
+    }
+    ensure_layout(bvh_, device_scene.layout());  // the wide nodes, collapsed anew after a refit
   }
-  if (rebuild) {
-    BvhBuildOptions options;
-    options.spatial_splits = false;  // leaves of whole triangles, which refit_bvh can refit
-    bvh_ = build_bvh(scene_.triangles, options);
-    const BvhValidation check = validate_bvh(bvh_, scene_.triangles);
-    if (!check.ok)
-      throw std::runtime_error("internal error: the BVH of the posed scene at t = " + std::to_string(time_s) +
-                               " s failed validation: " + (check.errors.empty() ? "" : check.errors.front()));
-    built_sah_ = bvh_.stats.sah_cost;
-  }
-  ensure_layout(bvh_, device_scene.layout());  // the wide nodes, collapsed anew after a refit
   u.rebuilt = rebuild;
   u.bvh_ms = ms_since(t0);
   t0 = clock_type::now();
   // The first frame has no previous pose: its motion is none (the history is empty anyway).
-  u.bytes = device_scene.update_geometry(devices, scene_, bvh_, previous_.empty() ? &scene_.triangles : &previous_);
+  std::vector<glm::mat4> matrices;
+  for (const MeshInstance& inst : scene_.instancing.instances) matrices.push_back(inst.object_to_world);
+  u.bytes = device_scene.update_geometry(devices, scene_, bvh_, previous_.empty() ? &scene_.triangles : &previous_,
+                                         previous_matrices_.empty() ? &matrices : &previous_matrices_);
   u.upload_ms = ms_since(t0);
   previous_ = scene_.triangles;
+  previous_matrices_ = std::move(matrices);
   return u;
 }
 

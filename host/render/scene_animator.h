@@ -6,9 +6,10 @@
 // The tree follows the pose by refitting: the first frame builds a binned-SAH tree (no spatial
 // splits, so every leaf holds whole triangles) and validates it; later frames recompute its
 // boxes around the moved triangles (refit_bvh), until its SAH cost has grown past
-// kRebuildGrowth x the cost it was built with, when it is built anew. The geometry is then
-// uploaded whole. What that costs is measured per frame (Update) and reported; a two-level BVH
-// that sends only what changed is the next step for scenes large enough to feel it.
+// kRebuildGrowth x the cost it was built with, when it is built anew. Rigid meshes on moving
+// nodes are instances (Scene::instancing): only their matrices change, and the top level over
+// them is rebuilt with the upload. Only the pieces of the device buffers that changed are
+// written. What that costs is measured per frame (Update) and reported.
 #pragma once
 
 #include "bvh/flat_bvh.h"
@@ -56,7 +57,9 @@ class SceneAnimator {
   bool follow_camera_ = false;  // the scene's camera is the rig's glTF camera
   Camera base_camera_;
   std::vector<SceneTriangle> previous_;
-  FlatBvh bvh_;              // the tree on the devices, refitted from frame to frame
+  std::vector<glm::mat4> previous_matrices_;  // the instances' last frame (Scene::instancing)
+  std::vector<SceneTriangle> world_;          // with instances: the world's triangles posed
+  FlatBvh bvh_;              // the world tree on the devices, refitted from frame to frame
   double built_sah_ = 0.0;   // its SAH cost when it was built
 };
 

@@ -36,8 +36,9 @@
 // in the warning line.
 //
 // Instances: in a static file, a mesh that several nodes draw is stored once in its own space,
-// with one matrix per node (Scene::instancing), and traversed through a two-level BVH
-// (PX_INSTANCING=off in the environment flattens it into copies instead).
+// with one matrix per node (Scene::instancing), and traversed through a two-level BVH; in a file
+// that moves, so is each rigid mesh on a node that a clip moves (its matrix changes, its
+// triangles do not). PX_INSTANCING=off in the environment draws copies instead.
 #include "image/image_io.h"
 #include "scene/primitives.h"
 #include "scene/scene_rig.h"
@@ -1089,7 +1090,26 @@ class Converter {
   // The scene's triangles at the rest pose (the nodes' own transforms, skins bound by them):
   // the triangles kept here are the rig's for good. A scene without clips keeps no rig.
   void pose_at_rest() {
+    // A rigid mesh on a node that a clip moves is drawn as an instance: its node's matrix places
+    // it every frame, and its triangles are neither posed nor refitted. Not for skins, emitters
+    // (the light table samples world triangles), a node that mirrors at rest, or with
+    // PX_INSTANCING=off.
+    const char* env = std::getenv("PX_INSTANCING");
+    const bool instancing = !(env && std::string(env) == "off") && !rig_->clips.empty();
+    if (instancing) {
+      std::vector<int> all(rig_->clips.size());
+      for (std::size_t c = 0; c < all.size(); ++c) all[c] = int(c);
+      const std::vector<char> moves = moving_nodes(*rig_, all);
+      const std::vector<glm::dmat4> world = rig_world_matrices(*rig_, 0.0, {});
+      for (RigMeshInstance& inst : rig_->instances) {
+        bool ok = inst.skin < 0 && moves[std::size_t(inst.node)] &&
+                  glm::determinant(glm::dmat3(world[std::size_t(inst.node)])) > 0.0;
+        for (int p : inst.primitives) ok &= !scene_.materials.at(rig_->primitives[std::size_t(p)].material).is_emissive();
+        inst.instance = ok ? 0 : -1;  // numbered by settle_rig_instances
+      }
+    }
     settle_rig(*rig_, scene_.triangles, scene_.stats, colours_out());
+    if (instancing) settle_rig_instances(*rig_, scene_.triangles, scene_.stats, colours_out(), scene_.instancing);
     if (!rig_->clips.empty()) scene_.rig = std::move(rig_);
     rig_.reset();
   }

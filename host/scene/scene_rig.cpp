@@ -214,6 +214,7 @@ void emit_rig(const SceneRig& rig, const std::vector<glm::dmat4>& world,
   for (std::size_t s = 0; s < rig.skins.size(); ++s) joints[s] = skin_matrices(rig.skins[s], world);
   for (std::size_t i = 0; i < rig.instances.size(); ++i) {
     const RigMeshInstance& inst = rig.instances[i];
+    if (inst.instance >= 0) continue;  // an instance: placed by its matrix (rig_instance_matrices)
     const glm::dmat4& w = world.at(static_cast<std::size_t>(inst.node));
     const std::vector<glm::dmat4>* jm = inst.skin >= 0 ? &joints[static_cast<std::size_t>(inst.skin)] : nullptr;
     for (std::size_t p = 0; p < inst.primitives.size(); ++p)
@@ -239,6 +240,64 @@ void settle_rig(SceneRig& rig, std::vector<SceneTriangle>& out, SceneStats& stat
   emit_rig(rig, rig_world_matrices(rig, 0.0, {}), &kept, out, stats, colours);
   for (std::size_t i = 0; i < rig.instances.size(); ++i) rig.instances[i].kept = std::move(kept[i]);
   rig.triangle_count = out.size() - first;
+}
+
+void rig_instance_matrices(const SceneRig& rig, const std::vector<glm::dmat4>& world, SceneInstancing& instancing) {
+  for (const RigMeshInstance& inst : rig.instances)
+    if (inst.instance >= 0)
+      instancing.instances.at(static_cast<std::size_t>(inst.instance)).object_to_world =
+          glm::mat4(world.at(static_cast<std::size_t>(inst.node)));
+}
+
+std::vector<char> moving_nodes(const SceneRig& rig, const std::vector<int>& clips) {
+  std::vector<char> moves(rig.nodes.size(), 0);
+  for (int c : clips)
+    for (const AnimationChannel& ch : rig.clips.at(static_cast<std::size_t>(c)).channels)
+      if (ch.node >= 0 && static_cast<std::size_t>(ch.node) < moves.size()) moves[static_cast<std::size_t>(ch.node)] = 1;
+  // rig.order lists each node after its parent: one pass hands motion down the hierarchy.
+  for (int n : rig.order) {
+    const int parent = rig.nodes[static_cast<std::size_t>(n)].parent;
+    if (parent >= 0 && moves[static_cast<std::size_t>(parent)]) moves[static_cast<std::size_t>(n)] = 1;
+  }
+  return moves;
+}
+
+void settle_rig_instances(SceneRig& rig, std::vector<SceneTriangle>& out, SceneStats& stats,
+                          std::vector<std::array<glm::vec3, 3>>* colours, SceneInstancing& instancing) {
+  instancing = SceneInstancing{};
+  instancing.world_triangles = out.size();
+  const std::vector<glm::dmat4> world = rig_world_matrices(rig, 0.0, {});
+  std::vector<std::pair<std::vector<int>, std::uint32_t>> stored;  // primitives -> mesh slot
+  int next = 0;
+  for (RigMeshInstance& inst : rig.instances) {
+    if (inst.instance < 0) continue;
+    std::uint32_t slot = 0;
+    bool found = false;
+    for (const auto& [prims, k] : stored)
+      if (prims == inst.primitives) slot = k, found = true;
+    if (!found) {
+      InstancedMesh mesh;
+      mesh.first = out.size();
+      inst.kept.assign(inst.primitives.size(), {});
+      for (std::size_t p = 0; p < inst.primitives.size(); ++p)
+        emit_primitive(rig.primitives[static_cast<std::size_t>(inst.primitives[p])], glm::dmat4(1.0), nullptr, nullptr,
+                       &inst.kept[p], out, stats, colours);
+      mesh.count = out.size() - mesh.first;
+      if (mesh.count == 0) {  // nothing drawable: posed with the world's (none) instead
+        inst.instance = -1;
+        continue;
+      }
+      slot = static_cast<std::uint32_t>(instancing.meshes.size());
+      instancing.meshes.push_back(mesh);
+      stored.emplace_back(inst.primitives, slot);
+    }
+    inst.instance = next++;
+    MeshInstance m;
+    m.mesh = slot;
+    m.object_to_world = glm::mat4(world.at(static_cast<std::size_t>(inst.node)));
+    instancing.instances.push_back(m);
+  }
+  if (instancing.instances.empty()) instancing = SceneInstancing{};
 }
 
 bool camera_from_node(const glm::dmat4& world, Camera& cam) {

@@ -55,6 +55,9 @@ struct RigMeshInstance {
   int skin = -1;
   std::vector<int> primitives;                   // indices into SceneRig::primitives
   std::vector<std::vector<std::uint32_t>> kept;  // per primitive: its triangles kept, in order
+  // Drawn as Scene::instancing's instance `instance` (its mesh stored once in its own space, its
+  // node's world matrix placing it every frame), or -1: posed into the world's triangles.
+  int instance = -1;
 };
 
 struct RigSkin {
@@ -106,8 +109,25 @@ void emit_primitive(const RigPrimitive& prim, const glm::dmat4& world, const std
 std::vector<glm::dmat4> skin_matrices(const RigSkin& skin, const std::vector<glm::dmat4>& world);
 
 // Every instance's kept triangles at time `t` with `clips` playing, in load order (`out` is
-// overwritten; rig.triangle_count triangles).
+// overwritten; rig.triangle_count triangles). Mesh instances drawn as instances
+// (RigMeshInstance::instance >= 0) are not among them: rig_instance_matrices places those.
 void pose_rig(const SceneRig& rig, double t, const std::vector<int>& clips, std::vector<SceneTriangle>& out);
+
+// The world matrix of every mesh instance drawn as an instance, at these world matrices, into
+// `instancing` (its instances' object_to_world, by RigMeshInstance::instance).
+void rig_instance_matrices(const SceneRig& rig, const std::vector<glm::dmat4>& world, SceneInstancing& instancing);
+
+// Which nodes a clip moves: a node any of `clips`' channels drives, or a descendant of one
+// (indexed as rig.nodes; 1 = moves).
+std::vector<char> moving_nodes(const SceneRig& rig, const std::vector<int>& clips);
+
+// The loader's step after settle_rig for a rig with instances: the meshes of the mesh instances
+// marked as instances (RigMeshInstance::instance), each stored once in its own space (mesh
+// instances with the same primitives share it), appended to `out` (and `colours`), and
+// `instancing` filled: world_triangles = the triangles before them, a mesh per stored mesh, the
+// instances at the rest pose. Degenerate triangles are dropped in the mesh's space.
+void settle_rig_instances(SceneRig& rig, std::vector<SceneTriangle>& out, SceneStats& stats,
+                          std::vector<std::array<glm::vec3, 3>>* colours, SceneInstancing& instancing);
 
 // The loader's last step: the rig at its rest pose appended to `out` (and `colours`, if given),
 // dropping degenerate and non-finite triangles (counted in `stats`); what is kept becomes each

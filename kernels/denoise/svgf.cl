@@ -851,17 +851,27 @@ inline float3 px_from_ycocg(float3 c) { return (float3)(c.x + c.y - c.z, c.x + c
 #define PX_TAA_CLIP_SIGMA 1.25f
 #define PX_TAA_MOTION_ALPHA 1.0f
 #define PX_TAA_MOTION_ALPHA_MAX 0.5f
-/* Did scene triangle `prim` move since the last frame (tri_motion: motion.cl's layout)? */
-inline int px_triangle_moved(const global float4* tri_motion, uint prim) {
-  if (prim == PX_NO_HIT) return 0;
-  const global float4* v = tri_motion + 6 * (size_t)prim;
+/* Did the surface of texel `g` move since the last frame? Scene triangle g->prim (tri_motion:
+ * motion.cl's layout), or the instance g->inst whose mesh holds it (its matrix changed). */
+inline int px_triangle_moved(const global float4* tri_motion, const global SceneInstances* instances,
+                             const global GBufferTexel* g) {
+  if (g->prim == PX_NO_HIT) return 0;
+  if (instances && g->inst != PX_NO_INSTANCE && g->inst < instances->count) {
+    const global SceneInstance* in =
+        (const global SceneInstance*)((const global uchar*)instances + 16 * (size_t)instances->records) + g->inst;
+    for (int k = 0; k < 12; ++k)
+      if (in->object_to_world[k] != in->previous_object_to_world[k]) return 1;
+    return 0;
+  }
+  const global float4* v = tri_motion + 6 * (size_t)g->prim;
   return any(v[0] != v[3]) || any(v[1] != v[4]) || any(v[2] != v[5]);
 }
 
 kernel void svgf_antialias(global float4* resolved, global float4* history, const global float4* color,
                            const global float4* prev, const global GBufferTexel* gbuf, SvgfParams p,
                            CameraParams prev_cam, uint have_history, float alpha, const global float4* motion,
-                           const global GBufferTexel* prev_gbuf, const global float4* tri_motion) {
+                           const global GBufferTexel* prev_gbuf, const global float4* tri_motion,
+                           const global SceneInstances* instances) {
   const uint gid = get_global_id(0);
   if (gid >= p.rows * p.width) return;
   const uint i = p.row0 * p.width + gid;
@@ -884,7 +894,7 @@ kernel void svgf_antialias(global float4* resolved, global float4* history, cons
      * reached, and a moving edge never anti-aliased (trail test: 4.4x the still run's error in
      * the swept region, 3.3x with it, the rest of the image unchanged); unchecked, every
      * background pixel beside the object followed it and the image as a whole got worse. */
-    if (motion && tri_motion && !px_triangle_moved(tri_motion, g->prim)) {
+    if (motion && tri_motion && !px_triangle_moved(tri_motion, instances, g)) {
       int bx = x, by = y;
       float nearest = g->material_class == PX_CLASS_MISS ? INFINITY : g->depth;
       for (int dy = -1; dy <= 1; ++dy)
@@ -892,7 +902,7 @@ kernel void svgf_antialias(global float4* resolved, global float4* history, cons
           const int tx = x + dx, ty = y + dy;
           if ((dx == 0 && dy == 0) || !px_pixel_readable(tx, ty, &p)) continue;
           const global GBufferTexel* q = gbuf + (uint)ty * p.width + (uint)tx;
-          if (q->material_class != PX_CLASS_MISS && q->depth < nearest && px_triangle_moved(tri_motion, q->prim)) {
+          if (q->material_class != PX_CLASS_MISS && q->depth < nearest && px_triangle_moved(tri_motion, instances, q)) {
             nearest = q->depth;
             bx = tx;
             by = ty;
@@ -906,7 +916,7 @@ kernel void svgf_antialias(global float4* resolved, global float4* history, cons
           gy -= (float)(by - y);
           const int cx = (int)floor(gx + 0.5f), cy = (int)floor(gy + 0.5f);
           if (px_history_tap_readable(cx, cy, y, &p) &&
-              px_triangle_moved(tri_motion, prev_gbuf[(uint)cy * p.width + (uint)cx].prim)) {
+              px_triangle_moved(tri_motion, instances, prev_gbuf + (uint)cy * p.width + (uint)cx)) {
             fx = gx;
             fy = gy;
             found = 1;

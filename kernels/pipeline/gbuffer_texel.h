@@ -23,6 +23,7 @@ inline GBufferTexel px_gbuffer_texel(const SceneView* scene, float3 dir, Hit hit
     g.normal[0] = g.normal[1] = g.normal[2] = 0.0f;
     g.material_class = PX_CLASS_MISS;
     g.prim = PX_NO_HIT;
+    g.inst = PX_NO_INSTANCE;
     return g;
   }
   const SurfaceHit s = px_surface_hit(scene, hit);
@@ -34,6 +35,7 @@ inline GBufferTexel px_gbuffer_texel(const SceneView* scene, float3 dir, Hit hit
   g.depth = hit.t;
   g.normal[0] = n.x; g.normal[1] = n.y; g.normal[2] = n.z;
   g.prim = s.prim;
+  g.inst = hit.inst;
   g.material_class = (m->flags & PX_MAT_EMISSIVE)     ? PX_CLASS_EMISSIVE
                      : (m->flags & PX_MAT_DIELECTRIC) ? PX_CLASS_DIELECTRIC
                      : (m->flags & PX_MAT_MIRROR)  ? PX_CLASS_MIRROR

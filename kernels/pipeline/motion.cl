@@ -6,11 +6,21 @@
  * (3..5) (DeviceSceneBuffers::motion). The point's barycentrics in the current triangle carry
  * it to the previous one: prev = pos + the barycentric blend of the vertices' displacements, so
  * a triangle that did not move gives pos back exactly. Output w: 1 on a surface, 0 on a miss
- * (whose pos is a direction, left as it is). */
+ * (whose pos is a direction, left as it is). An instance's mesh triangles move with their
+ * instance instead (below); their entries in tri_motion are not read. */
 #include "shared/types.h"
 
+/* A 3x4 row-major affine matrix applied to a point. */
+inline float3 px_motion_xform(const global float* m, float3 p) {
+  return (float3)(m[0] * p.x + m[1] * p.y + m[2] * p.z + m[3], m[4] * p.x + m[5] * p.y + m[6] * p.z + m[7],
+                  m[8] * p.x + m[9] * p.y + m[10] * p.z + m[11]);
+}
+
+/* `instances`: the scene's instance buffer (types.h), or null for a scene without. A texel on an
+ * instance's mesh moves with the instance: back into the mesh's space by this frame's
+ * world_to_object, out again by the last frame's object_to_world. */
 kernel void gbuffer_motion(global float4* out, const global GBufferTexel* gbuf, const global float4* tri_motion,
-                           uint row0, uint rows, uint width) {
+                           const global SceneInstances* instances, uint row0, uint rows, uint width) {
   const uint gid = get_global_id(0);
   if (gid >= rows * width) return;
   const uint i = row0 * width + gid; /* full-frame buffers */
@@ -18,6 +28,13 @@ kernel void gbuffer_motion(global float4* out, const global GBufferTexel* gbuf, 
   const float3 pos = (float3)(g->pos[0], g->pos[1], g->pos[2]);
   if (g->material_class == PX_CLASS_MISS || g->prim == PX_NO_HIT) {
     out[i] = (float4)(pos, 0.0f);
+    return;
+  }
+  if (instances && g->inst != PX_NO_INSTANCE && g->inst < instances->count) {
+    const global SceneInstance* in =
+        (const global SceneInstance*)((const global uchar*)instances + 16 * (size_t)instances->records) + g->inst;
+    const float3 moved = px_motion_xform(in->previous_object_to_world, px_motion_xform(in->world_to_object, pos));
+    out[i] = (float4)(isfinite(moved.x) && isfinite(moved.y) && isfinite(moved.z) ? moved : pos, 1.0f);
     return;
   }
   const global float4* v = tri_motion + 6 * (size_t)g->prim;

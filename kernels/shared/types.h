@@ -272,30 +272,39 @@ typedef struct BvhTriangle {
  * world's in the triangle buffer. Every index inside a mesh tree counts from the tree's own
  * start, so traversal enters it by shifting the two buffer pointers: nothing is rebased.
  * The instance buffer (its ninth scene buffer) holds, from byte 0:
- *   SceneInstances   the header, 16 bytes
- *   BvhNode[]        the top level: binary nodes over the instances' world boxes, a leaf's
- *                    `left` / `right` the first of `count` instances in SceneInstance order
- *   SceneInstance[]  at byte 16 * records (each 112 bytes)
+ *   SceneInstances   the header, 32 bytes
+ *   BvhNode[]        at byte 32, the top level: binary nodes over the instances' world boxes; a
+ *                    leaf's `left` / `right` is the first of its `count` entries of leaf_order
+ *   uint leaf_order[count]  at byte 16 * order: the instance of each leaf entry
+ *   SceneInstance[count]    at byte 16 * records, in the scene's instance order (so an
+ *                    instance keeps its index, Hit::inst, from frame to frame while the top
+ *                    level is rebuilt around it)
  * A scene without instances uploads the header alone, with count 0. */
 typedef struct SceneInstances {
-  uint count;          /* instances */
-  uint nodes;          /* top-level nodes (0 when count is 0) */
-  uint records;        /* where the SceneInstance array starts, in 16-byte units */
+  uint count;           /* instances */
+  uint nodes;           /* top-level nodes (0 when count is 0) */
+  uint records;         /* where the SceneInstance array starts, in 16-byte units */
   uint world_triangles; /* 0: the world tree is a placeholder with nothing in it, never entered */
+  uint order;           /* where leaf_order starts, in 16-byte units */
+  uint pad[3];
 } SceneInstances;
 
-/* One instance, 112 bytes: two 3x4 row-major affine matrices (the columns' fourth entry is the
- * translation) and where its mesh lies in the node and triangle buffers.
+/* One instance, 160 bytes: three 3x4 row-major affine matrices (the columns' fourth entry is
+ * the translation) and where its mesh lies in the node and triangle buffers.
  *    0..47  world_to_object[12]  a world-space ray enters the mesh through it (direction
  *                                unnormalised, so hit distances t stay the world's)
  *   48..95  object_to_world[12]  hit vertices back to world space; normals go by the
  *                                transpose of world_to_object's 3x3
- *   96..99  node_offset          the mesh tree's first word in the node buffer
- *  100..103 triangle_offset      its first leaf triangle in the triangle buffer
- *  104..111 pad[2] */
+ *   96..143 previous_object_to_world[12]  the last frame's (the motion pass: where a point of
+ *                                the mesh was); object_to_world again for an instance that stood
+ *                                still or a scene that does not move
+ *  144..147 node_offset          the mesh tree's first word in the node buffer
+ *  148..151 triangle_offset      its first leaf triangle in the triangle buffer
+ *  152..159 pad[2] */
 typedef struct SceneInstance {
   float world_to_object[12];
   float object_to_world[12];
+  float previous_object_to_world[12];
   uint node_offset;
   uint triangle_offset;
   uint pad[2];
@@ -516,20 +525,23 @@ typedef struct FrameParams {
 #define PX_WAVEFRONT_COUNTERS (PX_WF_SHADOWS + PX_MAX_BOUNCES_LIMIT + 1u)
 
 
-/* One G-buffer texel (stage 3): what the primary ray through the pixel centre hit, 36 bytes.
+/* One G-buffer texel (stage 3): what the primary ray through the pixel centre hit, 40 bytes.
  * (No albedo: the denoiser demodulates by the path tracer's per-pixel mean albedo of the
  * samples themselves, which the centre's albedo is not.)
  *
  *   0..11 pos[3] (world hit point; on a miss the ray's unit direction)
  *                                        12..15 depth (distance along the ray; 0 on a miss)
  *  16..27 normal[3] (shading, facing the eye)  28..31 material_class (PX_CLASS_*)
- *  32..35 prim (scene triangle, PX_NO_HIT on a miss) */
+ *  32..35 prim (scene triangle, PX_NO_HIT on a miss)
+ *  36..39 inst (the instance whose mesh holds `prim`, PX_NO_INSTANCE for the world's own
+ *         triangles and on a miss: the motion pass moves its point by the instance's matrices) */
 typedef struct GBufferTexel {
   float pos[3];
   float depth;
   float normal[3];
   uint material_class;
   uint prim;
+  uint inst;
 } GBufferTexel;
 
 #define PX_CLASS_MISS 0u

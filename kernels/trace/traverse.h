@@ -539,10 +539,16 @@ inline SceneView px_instance_view(const SceneView* scene, const global SceneInst
   return v;
 }
 
-/* Closest hit among instances [first, first + count) (top-level leaf order); updates *best. */
+/* The instance of top-level leaf entry `j` (the header's leaf_order). */
+inline uint px_leaf_instance(const SceneView* scene, uint j) {
+  return ((const global uint*)((const global uchar*)scene->instances + 16 * (size_t)scene->instances->order))[j];
+}
+
+/* Closest hit among the instances of leaf entries [first, first + count); updates *best. */
 inline void px_instances_leaf_closest(const SceneView* scene, uint first, uint count, float3 org, float3 dir,
                                       float tmin, Hit* best) {
-  for (uint k = first; k < first + count; ++k) {
+  for (uint j = first; j < first + count; ++j) {
+    const uint k = px_leaf_instance(scene, j);
     const global SceneInstance* in = px_instance(scene, k);
     const SceneView v = px_instance_view(scene, in);
     const Hit h = px_tree_closest(&v, px_xform_point(in->world_to_object, org), px_xform_dir(in->world_to_object, dir),
@@ -557,8 +563,8 @@ inline void px_instances_leaf_closest(const SceneView* scene, uint first, uint c
 
 inline int px_instances_leaf_any(const SceneView* scene, uint first, uint count, float3 org, float3 dir, float tmin,
                                  float tmax) {
-  for (uint k = first; k < first + count; ++k) {
-    const global SceneInstance* in = px_instance(scene, k);
+  for (uint j = first; j < first + count; ++j) {
+    const global SceneInstance* in = px_instance(scene, px_leaf_instance(scene, j));
     const SceneView v = px_instance_view(scene, in);
     if (px_tree_any(&v, px_xform_point(in->world_to_object, org), px_xform_dir(in->world_to_object, dir), tmin, tmax))
       return 1;
@@ -570,7 +576,7 @@ inline int px_instances_leaf_any(const SceneView* scene, uint first, uint count,
 inline int px_top_level(const SceneView* scene, float3 org, float3 dir, float tmin, Hit* best, int any) {
   const global SceneInstances* header = scene->instances;
   if (header->count == 0u) return 0;
-  const global BvhNode* nodes = (const global BvhNode*)(header + 1);
+  const global BvhNode* nodes = (const global BvhNode*)(header + 1); /* byte 32 */
   const float3 inv_dir = px_safe_inverse(dir);
   uint stack[PX_TLAS_STACK_SIZE];
   int sp = 0;

@@ -107,7 +107,8 @@ void DenoiseStage::denoise_eye(int e, const std::vector<RowRange>& strip, const 
     if (env_.local(d))
       svgf(d).temporal(env_.images[d].radiance[e], env_.images[d].albedo[e], env_.images[d].gbuffer[e],
                        dev_[d].gbuffer_prev[e], in.cams[e], prev, strip[d], readable(d),
-                       env_.scene_on(d).motion() ? &env_.scene_on(d).motion : nullptr);
+                       env_.scene_on(d).motion() ? &env_.scene_on(d).motion : nullptr,
+                       env_.scene_on(d).motion() ? &env_.scene_on(d).instances : nullptr);
   if (halo) {
     exchange_halo([&](int d) -> const cl::Buffer& { return svgf(d).illum(); }, 3);
     // Moments (with the filtered flag) are read within the variance pass's 7x7 window; farther

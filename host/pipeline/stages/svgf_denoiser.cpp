@@ -103,11 +103,13 @@ void SvgfDenoiser::copy_rows(const cl::Buffer& from, const cl::Buffer& to, RowRa
 
 void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& albedo, const cl::Buffer& gbuf,
                             const cl::Buffer& prev_gbuf, const CameraParams& cam, const CameraParams& prev_cam,
-                            RowRange rows, RowRange readable, const cl::Buffer* scene_motion) {
+                            RowRange rows, RowRange readable, const cl::Buffer* scene_motion,
+                            const cl::Buffer* scene_instances) {
   if (rows.size() == 0) return;
   motion_this_frame_ = scene_motion != nullptr;
   prev_gbuf_ = &prev_gbuf;
   scene_motion_ = scene_motion;
+  scene_instances_ = scene_instances;
   if (scene_motion) {
     if (!motion_())
       motion_ = cl::Buffer(devices_.context(), CL_MEM_READ_WRITE,
@@ -116,12 +118,13 @@ void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& albedo, c
     km.setArg(0, motion_);
     km.setArg(1, gbuf);
     km.setArg(2, *scene_motion);
+    set_optional_buffer(km, 3, scene_instances);
     // Anti-aliasing reads the motion of the rows beside its own too (moving silhouettes).
     const RowRange wide = widen(rows, 1, height_);
     const RowRange covered{std::max(wide.begin, readable.begin), std::min(wide.end, readable.end)};
-    km.setArg(3, static_cast<cl_uint>(covered.begin));
-    km.setArg(4, static_cast<cl_uint>(covered.size()));
-    km.setArg(5, static_cast<cl_uint>(width_));
+    km.setArg(4, static_cast<cl_uint>(covered.begin));
+    km.setArg(5, static_cast<cl_uint>(covered.size()));
+    km.setArg(6, static_cast<cl_uint>(width_));
     launch(km, covered, "motion");
   }
   cl::Kernel k(devices_.program("denoise/svgf.cl"), "svgf_temporal");
@@ -228,6 +231,7 @@ void SvgfDenoiser::antialias(const cl::Buffer& out_color, const cl::Buffer& gbuf
   if (motion_this_frame_) k.setArg(10, *prev_gbuf_);
   else set_optional_buffer(k, 10, nullptr);
   set_optional_buffer(k, 11, motion_this_frame_ ? scene_motion_ : nullptr);
+  set_optional_buffer(k, 12, motion_this_frame_ ? scene_instances_ : nullptr);
   launch(k, rows, "anti-aliasing");
   copy_rows(resolved, out_color, rows, Stage::Denoise, "anti-aliased copy");
 }

@@ -50,9 +50,11 @@ class SvgfDenoiser {
   // `scene_motion` (an animated scene's DeviceSceneBuffers::motion, else null): the history is
   // found where each pixel's surface point was in the previous frame, through its object's
   // motion as well as the camera's (a motion pass, kernels/pipeline/motion.cl, over `rows`).
+  // `scene_instances` (the scene's instance buffer, DeviceSceneBuffers::instances; null for none):
+  // a point on an instance's mesh moves with the instance.
   void temporal(const cl::Buffer& color, const cl::Buffer& albedo, const cl::Buffer& gbuf, const cl::Buffer& prev_gbuf,
                 const CameraParams& cam, const CameraParams& prev_cam, RowRange rows, RowRange readable,
-                const cl::Buffer* scene_motion = nullptr);
+                const cl::Buffer* scene_motion = nullptr, const cl::Buffer* scene_instances = nullptr);
   // Pass 2: variance from moments (spatial estimate for short histories). Its output, before
   // any a-trous step, is also next frame's colour history.
   void variance(RowRange rows, RowRange readable);
@@ -126,6 +128,7 @@ class SvgfDenoiser {
   // antialias()'s moving silhouettes (null: a static scene).
   const cl::Buffer* prev_gbuf_ = nullptr;
   const cl::Buffer* scene_motion_ = nullptr;
+  const cl::Buffer* scene_instances_ = nullptr;
   int current_ = 0;
   int frame_parity_ = 0;
   bool have_history_ = false;
