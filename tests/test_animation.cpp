@@ -675,9 +675,11 @@ TEST(MotionTrail, AMovingObjectLeavesNoMoreErrorWhereItWentThanAStillOne) {
   const unsigned w = 96, h = 64, frames = 24;
   const double fps = 30.0, t_end = (frames - 1) / fps;
   DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
-  // The region: pixels whose G-buffer saw one of the cube's 12 triangles (the first mesh).
+  // The region: pixels whose G-buffer saw the cube: its instance (a rigid mesh on a moving
+  // node), or with PX_INSTANCING=off one of its 12 posed triangles (the first mesh).
   auto run = [&](bool moving, std::vector<char>* swept) {
     LoadedScene loaded = load_and_build(file, true);
+    const bool instanced = !loaded.scene.instancing.empty();
     DeviceScene ds(set, loaded.scene, loaded.bvh);
     SceneAnimator animator(loaded.scene, "all");
     StereoPipeline::Options opt;
@@ -692,7 +694,7 @@ TEST(MotionTrail, AMovingObjectLeavesNoMoreErrorWhereItWentThanAStillOne) {
         for (int e = 0; e < 2; ++e) {
           const std::vector<GBufferTexel> g = p.gbuffer_of(e);
           for (std::size_t i = 0; i < g.size(); ++i)
-            if (g[i].prim < 12) (*swept)[e * g.size() + i] = 1;
+            if (instanced ? g[i].inst != PX_NO_INSTANCE : g[i].prim < 12) (*swept)[e * g.size() + i] = 1;
         }
     }
     return pixels_of(p.radiance());

@@ -53,11 +53,14 @@ void SceneAnimator::pose(double time_s) {
   } else {
     // The world's triangles come first in scene.triangles; the instances' meshes after them
     // never change (their matrices move them).
-    pose_rig(*scene_.rig, time_s, clips_, world_);
+    const std::vector<glm::dmat4> world = rig_world_matrices(*scene_.rig, time_s, clips_);
+    pose_rig(*scene_.rig, world, world_);
     if (world_.size() != scene_.instancing.world_triangles)
       throw std::logic_error("SceneAnimator: the posed world has another triangle count");
     std::copy(world_.begin(), world_.end(), scene_.triangles.begin());
-    rig_instance_matrices(*scene_.rig, rig_world_matrices(*scene_.rig, time_s, clips_), scene_.instancing);
+    rig_instance_matrices(*scene_.rig, world, scene_.instancing);
+    if (follow_camera_) scene_.camera = rig_camera(*scene_.rig, world, base_camera_);
+    return;
   }
   if (follow_camera_)
     scene_.camera = rig_camera(*scene_.rig, rig_world_matrices(*scene_.rig, time_s, clips_), base_camera_);

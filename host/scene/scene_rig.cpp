@@ -226,10 +226,14 @@ void emit_rig(const SceneRig& rig, const std::vector<glm::dmat4>& world,
 }  // namespace
 
 void pose_rig(const SceneRig& rig, double t, const std::vector<int>& clips, std::vector<SceneTriangle>& out) {
+  pose_rig(rig, rig_world_matrices(rig, t, clips), out);
+}
+
+void pose_rig(const SceneRig& rig, const std::vector<glm::dmat4>& world, std::vector<SceneTriangle>& out) {
   out.clear();
   out.reserve(rig.triangle_count);
   SceneStats unused;
-  emit_rig(rig, rig_world_matrices(rig, t, clips), nullptr, out, unused, nullptr);
+  emit_rig(rig, world, nullptr, out, unused, nullptr);
 }
 
 void settle_rig(SceneRig& rig, std::vector<SceneTriangle>& out, SceneStats& stats,

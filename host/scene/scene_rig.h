@@ -112,6 +112,8 @@ std::vector<glm::dmat4> skin_matrices(const RigSkin& skin, const std::vector<glm
 // overwritten; rig.triangle_count triangles). Mesh instances drawn as instances
 // (RigMeshInstance::instance >= 0) are not among them: rig_instance_matrices places those.
 void pose_rig(const SceneRig& rig, double t, const std::vector<int>& clips, std::vector<SceneTriangle>& out);
+// The same at world matrices already evaluated (rig_world_matrices).
+void pose_rig(const SceneRig& rig, const std::vector<glm::dmat4>& world, std::vector<SceneTriangle>& out);
 
 // The world matrix of every mesh instance drawn as an instance, at these world matrices, into
 // `instancing` (its instances' object_to_world, by RigMeshInstance::instance).
