@@ -28,6 +28,99 @@ double resident_mib() {
   std::fclose(f);
   return kib / 1024.0;
 }
+
+// The world tree of `out` over `tree_triangles` (every triangle, or the world's own with instances):
+// read from the disk cache or built (and cached), validated, its build and validation times in
+// out.times.
+void build_world_tree(LoadedScene& out, const std::vector<SceneTriangle>& tree_triangles, bool quiet) {
+  using clock = std::chrono::steady_clock;
+  const auto ms = [](clock::time_point a, clock::time_point b) { return std::chrono::duration<double, std::milli>(b - a).count(); };
+  // Large scenes go through the disk cache (small ones build faster than a file is read).
+  const BvhBuildOptions build_options;
+  const bool cacheable = tree_triangles.size() >= kBvhCacheMinTriangles;
+  const BvhCache cache(cacheable ? BvhCache::default_dir() : std::string());
+  const auto t2 = clock::now();
+  std::optional<FlatBvh> cached;
+  {
+    const ProgressTicker ticker(quiet || !cacheable ? "" : "[bvh] still reading the BVH cache");
+    cached = cache.load(tree_triangles, build_options);
+  }
+  const bool from_cache = cached.has_value();
+  if (from_cache) {
+    out.bvh = std::move(*cached);
+  } else {
+    const ProgressTicker ticker(quiet ? "" : "[bvh] still building the BVH of " +
+                                                 std::to_string(tree_triangles.size()) + " triangles");
+    out.bvh = build_bvh(tree_triangles, build_options);
+  }
+  // The cache holds the binary tree; the wide nodes the kernels traverse are collapsed from it
+  // (a few percent of a build), so that the validator below checks them too.
+  if (from_cache) ensure_layout(out.bvh, bvh_layout());
+  out.times.bvh_ms = ms(t2, clock::now());
+  out.times.bvh_from_cache = from_cache;
+  const auto& bs = out.bvh.stats;
+  if (!quiet)
+    std::fprintf(stderr, "[bvh] %zu nodes, %zu leaf triangles, depth %d, SAH %.1f (%s)%s%s\n", bs.nodes,
+                 bs.leaf_triangles, bs.depth, bs.sah_cost,
+                 from_cache ? ("read from the cache in " +
+                               std::to_string(static_cast<long>(
+                                   std::chrono::duration<double, std::milli>(clock::now() - t2).count())) +
+                               " ms; built in " + std::to_string(static_cast<long>(bs.build_ms)) + " ms")
+                                  .c_str()
+                            : (std::to_string(static_cast<long>(bs.build_ms)) + " ms").c_str(),
+                 bvh_layout() == BvhLayout::Binary ? ""
+                 : (std::string("; ") + to_string(bvh_layout()) + ", " +
+                    std::to_string(bvh_layout() == BvhLayout::Wide4   ? out.bvh.nodes4.size()
+                                   : bvh_layout() == BvhLayout::Wide8 ? out.bvh.nodes8.size()
+                                                                      : out.bvh.cnodes.size()) +
+                    " nodes").c_str(),
+                 bs.split_budget_exceeded ? "; spatial splits stopped at their budget (heavily overlapping "
+                                            "triangles): binned SAH instead"
+                                          : "");
+  // A tree is validated before the cache stores it, and the file's checksum and key (the
+  // triangles, the options, the builder's sources) guard it since: read back, only the wide
+  // nodes collapsed from it in this run are checked (atrium, 550k triangles: 265 -> 135 ms).
+  const auto t3 = clock::now();
+  BvhValidation check;
+  {
+    const ProgressTicker ticker(quiet ? "" : "[bvh] still validating the BVH");
+    check = validate_bvh(out.bvh, tree_triangles, /*binary_tree=*/!from_cache);
+  }
+  out.times.validate_ms = ms(t3, clock::now());
+  if (!check.ok && from_cache) {
+    // A cached file that passed its checksum but not the validator (a builder bug fixed since,
+    // with the same sources hash?): rebuild rather than fail.
+    if (!quiet) std::fprintf(stderr, "[bvh] the cached BVH failed validation: rebuilding\n");
+    const auto t5 = clock::now();
+    out.bvh = build_bvh(tree_triangles, build_options);
+    ensure_layout(out.bvh, bvh_layout());
+    out.times.bvh_ms += ms(t5, clock::now());
+    out.times.bvh_from_cache = false;
+    const auto t6 = clock::now();
+    check = validate_bvh(out.bvh, tree_triangles);
+    out.times.validate_ms += ms(t6, clock::now());
+    cached.reset();
+  }
+  if (!check.ok) {
+    std::string msg = "internal error: BVH failed validation:";
+    for (const auto& e : check.errors) msg += "\n  " + e;
+    throw std::runtime_error(msg);
+  }
+  if (cacheable && !from_cache) {
+    std::string why;
+    const auto t4 = clock::now();
+    std::string path;
+    {
+      const ProgressTicker ticker(quiet ? "" : "[bvh] still writing the BVH cache");
+      path = cache.store(out.bvh, tree_triangles, build_options, &why);
+    }
+    out.times.cache_store_ms = ms(t4, clock::now());
+    if (!quiet && !path.empty()) std::fprintf(stderr, "[bvh] cached in %s for the next run\n", path.c_str());
+    if (!quiet && path.empty() && !BvhCache::default_dir().empty())
+      std::fprintf(stderr, "[bvh] warning: could not cache the BVH (%s)\n", why.c_str());
+  }
+}
+
 }  // namespace
 
 LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
@@ -71,114 +164,27 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
                    in.instances.size(), in.meshes.size(), out.triangle_count - in.world_triangles, out.triangle_count,
                    out.scene.triangles.size());
   }
-  if (!out.scene.instancing.empty()) {
-    // A two-level scene: the world tree and one tree per instanced mesh, built here every time
-    // (the cache keys one tree on all of a scene's triangles), validated by build_mesh_bvhs and
-    // below; the top level is made with the upload (DeviceScene).
-    const ProgressTicker ticker(quiet ? "" : "[bvh] still building the BVHs of " + out.scene.name);
-    const auto t2 = clock::now();
-    const SceneInstancing& in = out.scene.instancing;
-    out.bvh = build_world_bvh(out.scene);
-    if (!out.bvh.nodes.empty()) ensure_layout(out.bvh, bvh_layout());
+  // The world tree goes through the cache and the validator below: over every triangle, or, with
+  // instances, over the world's own (a copy of that part, dropped after the start). The
+  // instanced meshes' trees are built after it (small as a rule; validated by build_mesh_bvhs),
+  // the instances' top level with the upload (DeviceScene).
+  const bool instanced = !out.scene.instancing.empty();
+  std::vector<SceneTriangle> world_part;
+  if (instanced) world_part = triangle_range(out.scene, 0, out.scene.instancing.world_triangles);
+  const std::vector<SceneTriangle>& tree_triangles = instanced ? world_part : out.scene.triangles;
+  if (!tree_triangles.empty()) build_world_tree(out, tree_triangles, quiet);
+  if (instanced) {
+    const ProgressTicker ticker(quiet ? "" : "[bvh] still building the instanced meshes' BVHs");
+    const auto t = clock::now();
     out.mesh_bvhs = build_mesh_bvhs(out.scene, bvh_layout());
-    out.times.bvh_ms = ms(t2, clock::now());
-    const auto t3 = clock::now();
-    if (!out.bvh.nodes.empty()) {
-      const BvhValidation check = validate_bvh(out.bvh, triangle_range(out.scene, 0, in.world_triangles));
-      if (!check.ok) throw std::runtime_error("internal error: the world BVH failed validation: " + check.errors.front());
-    }
-    out.times.validate_ms = ms(t3, clock::now());
+    const double mesh_ms = ms(t, clock::now());
+    out.times.bvh_ms += mesh_ms;
     if (!quiet) {
-      std::size_t mesh_nodes = 0;
-      for (const FlatBvh& t : out.mesh_bvhs) mesh_nodes += t.stats.nodes;
-      std::fprintf(stderr, "[bvh] world: %zu nodes over %zu triangles; %zu mesh trees: %zu nodes (%.0f ms)\n",
-                   out.bvh.stats.nodes, in.world_triangles, out.mesh_bvhs.size(), mesh_nodes, out.times.bvh_ms);
+      std::size_t nodes = 0;
+      for (const FlatBvh& tree : out.mesh_bvhs) nodes += tree.stats.nodes;
+      std::fprintf(stderr, "[bvh] %zu instanced mesh(es): %zu nodes (%.0f ms)%s\n", out.mesh_bvhs.size(), nodes,
+                   mesh_ms, tree_triangles.empty() ? "; the world has no triangles of its own" : "");
     }
-    return out;
-  }
-  // Large scenes go through the disk cache (small ones build faster than a file is read).
-  const BvhBuildOptions build_options;
-  const bool cacheable = out.scene.triangles.size() >= kBvhCacheMinTriangles;
-  const BvhCache cache(cacheable ? BvhCache::default_dir() : std::string());
-  const auto t2 = clock::now();
-  std::optional<FlatBvh> cached;
-  {
-    const ProgressTicker ticker(quiet || !cacheable ? "" : "[bvh] still reading the BVH cache");
-    cached = cache.load(out.scene.triangles, build_options);
-  }
-  const bool from_cache = cached.has_value();
-  if (from_cache) {
-    out.bvh = std::move(*cached);
-  } else {
-    const ProgressTicker ticker(quiet ? "" : "[bvh] still building the BVH of " +
-                                                 std::to_string(out.scene.triangles.size()) + " triangles");
-    out.bvh = build_bvh(out.scene.triangles, build_options);
-  }
-  // The cache holds the binary tree; the wide nodes the kernels traverse are collapsed from it
-  // (a few percent of a build), so that the validator below checks them too.
-  if (from_cache) ensure_layout(out.bvh, bvh_layout());
-  out.times.bvh_ms = ms(t2, clock::now());
-  out.times.bvh_from_cache = from_cache;
-  const auto& bs = out.bvh.stats;
-  if (!quiet)
-    std::fprintf(stderr, "[bvh] %zu nodes, %zu leaf triangles, depth %d, SAH %.1f (%s)%s%s\n", bs.nodes,
-                 bs.leaf_triangles, bs.depth, bs.sah_cost,
-                 from_cache ? ("read from the cache in " +
-                               std::to_string(static_cast<long>(
-                                   std::chrono::duration<double, std::milli>(clock::now() - t2).count())) +
-                               " ms; built in " + std::to_string(static_cast<long>(bs.build_ms)) + " ms")
-                                  .c_str()
-                            : (std::to_string(static_cast<long>(bs.build_ms)) + " ms").c_str(),
-                 bvh_layout() == BvhLayout::Binary ? ""
-                 : (std::string("; ") + to_string(bvh_layout()) + ", " +
-                    std::to_string(bvh_layout() == BvhLayout::Wide4   ? out.bvh.nodes4.size()
-                                   : bvh_layout() == BvhLayout::Wide8 ? out.bvh.nodes8.size()
-                                                                      : out.bvh.cnodes.size()) +
-                    " nodes").c_str(),
-                 bs.split_budget_exceeded ? "; spatial splits stopped at their budget (heavily overlapping "
-                                            "triangles): binned SAH instead"
-                                          : "");
-  // A tree is validated before the cache stores it, and the file's checksum and key (the
-  // triangles, the options, the builder's sources) guard it since: read back, only the wide
-  // nodes collapsed from it in this run are checked (atrium, 550k triangles: 265 -> 135 ms).
-  const auto t3 = clock::now();
-  BvhValidation check;
-  {
-    const ProgressTicker ticker(quiet ? "" : "[bvh] still validating the BVH");
-    check = validate_bvh(out.bvh, out.scene.triangles, /*binary_tree=*/!from_cache);
-  }
-  out.times.validate_ms = ms(t3, clock::now());
-  if (!check.ok && from_cache) {
-    // A cached file that passed its checksum but not the validator (a builder bug fixed since,
-    // with the same sources hash?): rebuild rather than fail.
-    if (!quiet) std::fprintf(stderr, "[bvh] the cached BVH failed validation: rebuilding\n");
-    const auto t5 = clock::now();
-    out.bvh = build_bvh(out.scene.triangles, build_options);
-    ensure_layout(out.bvh, bvh_layout());
-    out.times.bvh_ms += ms(t5, clock::now());
-    out.times.bvh_from_cache = false;
-    const auto t6 = clock::now();
-    check = validate_bvh(out.bvh, out.scene.triangles);
-    out.times.validate_ms += ms(t6, clock::now());
-    cached.reset();
-  }
-  if (!check.ok) {
-    std::string msg = "internal error: BVH failed validation:";
-    for (const auto& e : check.errors) msg += "\n  " + e;
-    throw std::runtime_error(msg);
-  }
-  if (cacheable && !from_cache) {
-    std::string why;
-    const auto t4 = clock::now();
-    std::string path;
-    {
-      const ProgressTicker ticker(quiet ? "" : "[bvh] still writing the BVH cache");
-      path = cache.store(out.bvh, out.scene.triangles, build_options, &why);
-    }
-    out.times.cache_store_ms = ms(t4, clock::now());
-    if (!quiet && !path.empty()) std::fprintf(stderr, "[bvh] cached in %s for the next run\n", path.c_str());
-    if (!quiet && path.empty() && !BvhCache::default_dir().empty())
-      std::fprintf(stderr, "[bvh] warning: could not cache the BVH (%s)\n", why.c_str());
   }
   return out;
 }

@@ -1091,9 +1091,9 @@ class Converter {
   // the triangles kept here are the rig's for good. A scene without clips keeps no rig.
   void pose_at_rest() {
     // A rigid mesh on a node that a clip moves is drawn as an instance: its node's matrix places
-    // it every frame, and its triangles are neither posed nor refitted. Not for skins, emitters
-    // (the light table samples world triangles), a node that mirrors at rest, or with
-    // PX_INSTANCING=off.
+    // it every frame, and its triangles are neither posed nor refitted; so is a still mesh that
+    // several nodes draw. Not for skins, emitters (the light table samples world triangles), a
+    // node that mirrors at rest, or with PX_INSTANCING=off.
     const char* env = std::getenv("PX_INSTANCING");
     const bool instancing = !(env && std::string(env) == "off") && !rig_->clips.empty();
     if (instancing) {
@@ -1101,8 +1101,12 @@ class Converter {
       for (std::size_t c = 0; c < all.size(); ++c) all[c] = int(c);
       const std::vector<char> moves = moving_nodes(*rig_, all);
       const std::vector<glm::dmat4> world = rig_world_matrices(*rig_, 0.0, {});
+      std::map<std::vector<int>, int> uses;  // rigid mesh instances per mesh (its primitives)
+      for (const RigMeshInstance& inst : rig_->instances)
+        if (inst.skin < 0) ++uses[inst.primitives];
       for (RigMeshInstance& inst : rig_->instances) {
-        bool ok = inst.skin < 0 && moves[std::size_t(inst.node)] &&
+        // Still meshes that other nodes draw too are stored once as well, as in a static file.
+        bool ok = inst.skin < 0 && (moves[std::size_t(inst.node)] || uses[inst.primitives] >= 2) &&
                   glm::determinant(glm::dmat3(world[std::size_t(inst.node)])) > 0.0;
         for (int p : inst.primitives) ok &= !scene_.materials.at(rig_->primitives[std::size_t(p)].material).is_emissive();
         inst.instance = ok ? 0 : -1;  // numbered by settle_rig_instances
