@@ -13,6 +13,7 @@
 #include "scene/primitives.h"
 #include "scene/scene_loader.h"
 #include "support/brute_force.h"
+#include "support/bvh_layout_test.h"
 #include "support/gltf_builder.h"
 #include "support/test_support.h"
 #include "trace/ray_batch_tracer.h"
@@ -36,19 +37,11 @@ DeviceSet& one_device() {
   return set;
 }
 
-glm::vec3 random_unit(std::mt19937& rng) {
-  std::normal_distribution<float> n;
-  glm::vec3 v;
-  do v = glm::vec3(n(rng), n(rng), n(rng));
-  while (glm::dot(v, v) < 1e-6f);
-  return glm::normalize(v);
-}
-
 // A random placement: rotation about a random axis, non-uniform scale, translation in a box.
 glm::mat4 random_placement(std::mt19937& rng, float spread) {
   std::uniform_real_distribution<float> u(-1.0f, 1.0f), s(0.5f, 1.5f);
   glm::mat4 m = glm::translate(glm::mat4(1.0f), spread * glm::vec3(u(rng), u(rng), u(rng)));
-  m = glm::rotate(m, 3.14159265f * u(rng), random_unit(rng));
+  m = glm::rotate(m, 3.14159265f * u(rng), test::random_unit(rng));
   return glm::scale(m, glm::vec3(s(rng), s(rng), s(rng)));
 }
 
@@ -100,7 +93,7 @@ std::vector<Ray> rays_through(const Scene& flat, int count, std::uint32_t seed) 
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
   std::vector<Ray> rays;
-  for (int i = 0; i < count; ++i) rays.push_back(test::make_ray(c + h * glm::vec3(u(rng), u(rng), u(rng)), random_unit(rng)));
+  for (int i = 0; i < count; ++i) rays.push_back(test::make_ray(c + h * glm::vec3(u(rng), u(rng), u(rng)), test::random_unit(rng)));
   return rays;
 }
 
@@ -303,17 +296,7 @@ TEST(Instancing, TheLoaderStoresASharedMeshOnceAndDrawsWhatAFlatLoadDraws) {
 // ---------------------------------------------------------------------------------------------
 // Traversal, in every node layout.
 
-class InstancedTrace : public ::testing::TestWithParam<BvhLayout> {
- protected:
-  void SetUp() override {
-    saved_ = requested_bvh_layout();
-    set_bvh_layout(GetParam());
-  }
-  void TearDown() override { set_bvh_layout(saved_); }
-
- private:
-  std::optional<BvhLayout> saved_;
-};
+class InstancedTrace : public test::BvhLayoutTest {};
 
 // Closest hits and occlusion of the instanced scene on the device against Embree on its flat
 // copy: the same distance where both hit, the same answer nearly everywhere (a ray that grazes
@@ -357,12 +340,7 @@ TEST_P(InstancedTrace, HitsWhatEmbreeHitsInTheSceneFlattened) {
   expect_traces_like_embree(instanced_scene(1, true, 7), "one instance");
 }
 
-INSTANTIATE_TEST_SUITE_P(Layouts, InstancedTrace,
-                         ::testing::Values(BvhLayout::Binary, BvhLayout::Wide4, BvhLayout::Wide8,
-                                           BvhLayout::Compressed8),
-                         [](const ::testing::TestParamInfo<BvhLayout>& info) {
-                           return std::string(to_string(info.param));
-                         });
+INSTANTIATE_TEST_SUITE_P(Layouts, InstancedTrace, test::all_bvh_layouts(), test::bvh_layout_name);
 
 // ---------------------------------------------------------------------------------------------
 // Images and memory.

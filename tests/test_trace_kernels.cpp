@@ -8,6 +8,7 @@
 #include "scene/primitives.h"
 #include "scene/scene_loader.h"
 #include "support/brute_force.h"
+#include "support/bvh_layout_test.h"
 #include "trace/ray_batch_tracer.h"
 
 #include <gtest/gtest.h>
@@ -48,17 +49,7 @@ struct TraceFixture {
 
 // Every trace test runs once per BVH node layout (binary, 4-wide, 8-wide, compressed 8-wide): the layout is
 // process-wide, so the fixture sets it before the test builds its tree and device scene.
-class TraceKernels : public ::testing::TestWithParam<BvhLayout> {
- protected:
-  void SetUp() override {
-    saved_ = requested_bvh_layout();
-    set_bvh_layout(GetParam());
-  }
-  void TearDown() override { set_bvh_layout(saved_); }
-
- private:
-  std::optional<BvhLayout> saved_;
-};
+class TraceKernels : public test::BvhLayoutTest {};
 
 DeviceSet& one_device() {
   static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
@@ -86,14 +77,6 @@ std::vector<SceneTriangle> random_soup(int count, std::uint32_t seed, float exte
   return tris;
 }
 
-glm::vec3 random_unit(std::mt19937& rng) {
-  std::normal_distribution<float> n;
-  glm::vec3 v;
-  do v = glm::vec3(n(rng), n(rng), n(rng));
-  while (glm::dot(v, v) < 1e-6f);
-  return glm::normalize(v);
-}
-
 struct BoundsF {
   glm::vec3 lo{1e30f}, hi{-1e30f};
 };
@@ -115,7 +98,7 @@ std::vector<Ray> random_rays(const std::vector<SceneTriangle>& tris, int count, 
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
   std::vector<Ray> rays;
   for (int i = 0; i < count; ++i)
-    rays.push_back(make_ray(c + h * glm::vec3(u(rng), u(rng), u(rng)), random_unit(rng)));
+    rays.push_back(make_ray(c + h * glm::vec3(u(rng), u(rng), u(rng)), test::random_unit(rng)));
   return rays;
 }
 
@@ -418,8 +401,8 @@ TEST_P(TraceKernels, NoSelfIntersectionFarFromOrigin) {
     std::mt19937 rng(static_cast<std::uint32_t>(offset) + 1);
     std::vector<Ray> primary;
     for (int i = 0; i < 2000; ++i) {
-      const glm::vec3 o = shift + 6.0f * scale * random_unit(rng);
-      const glm::vec3 target = shift + 0.5f * scale * random_unit(rng);
+      const glm::vec3 o = shift + 6.0f * scale * test::random_unit(rng);
+      const glm::vec3 target = shift + 0.5f * scale * test::random_unit(rng);
       primary.push_back(make_ray(o, glm::normalize(target - o)));
     }
     auto hits = f.tracer->closest(primary);
@@ -445,7 +428,7 @@ TEST_P(TraceKernels, NoSelfIntersectionFarFromOrigin) {
       const double side = glm::dot(glm::dvec3(origins[i]) - glm::dvec3(t.p[0]), glm::dvec3(normals[i]));
       EXPECT_GT(side, 0.0) << "offset " << offset << " point " << i;
       // Directions in the outer hemisphere: a convex closed mesh is never hit again.
-      glm::vec3 d = random_unit(rng);
+      glm::vec3 d = test::random_unit(rng);
       if (glm::dot(d, normals[i]) < 0.0f) d = -d;
       secondary.push_back(make_ray(origins[i], d));
     }
@@ -474,7 +457,7 @@ TEST_P(TraceKernels, RaysStartingOnATriangleDoNotHitItAtZeroDistance) {
       // z dominant: the shear then keeps the floor's z differences exactly 0, so t is exactly
       // +-0 (with another dominant axis t is the rounding noise of a ray in the plane, ~1e-7
       // either way, which is what offset origins exist for).
-      glm::vec3 d = random_unit(rng);
+      glm::vec3 d = test::random_unit(rng);
       d.z = std::copysign(std::max(std::abs(d.z), 1.01f * std::max(std::abs(d.x), std::abs(d.y))), d.z);
       rays.push_back(make_ray({in(rng), in(rng), 0.0f}, glm::normalize(d)));
     }
@@ -611,12 +594,7 @@ TEST(BvhLayoutChoice, DeviceSceneMakesTheNodesItsSetTraverses) {
   expect_matches_brute_force(scene.triangles, rays, tracer.closest(rays));
 }
 
-INSTANTIATE_TEST_SUITE_P(Layouts, TraceKernels,
-                         ::testing::Values(BvhLayout::Binary, BvhLayout::Wide4, BvhLayout::Wide8,
-                                           BvhLayout::Compressed8),
-                         [](const ::testing::TestParamInfo<BvhLayout>& info) {
-                           return std::string(to_string(info.param));
-                         });
+INSTANTIATE_TEST_SUITE_P(Layouts, TraceKernels, test::all_bvh_layouts(), test::bvh_layout_name);
 
 }  // namespace
 }  // namespace px

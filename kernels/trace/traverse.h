@@ -43,6 +43,27 @@ inline int px_intersect_leaf(const SceneView* scene, uint first, uint count,
   return any;
 }
 
+/* One step of a near-first walk over binary nodes (the binary layout's closest hit, the
+ * instances' top level), once node `n`'s two children have their entry distances tl, tr
+ * (INFINITY: not entered, or a leaf already intersected): on into the nearer, the farther
+ * pushed (while the stack has room: the host bounds the depth so that it always has); with
+ * neither, the stack's top. Returns 0 when the walk is over. */
+inline int px_binary_step(const BvhNode* n, float tl, float tr, uint* node_index, uint* stack, int* sp, int capacity) {
+  if (tl != INFINITY && tr != INFINITY) {
+    const int left_first = tl <= tr;
+    *node_index = left_first ? n->left : n->right;
+    if (*sp < capacity) stack[(*sp)++] = left_first ? n->right : n->left;
+  } else if (tl != INFINITY) {
+    *node_index = n->left;
+  } else if (tr != INFINITY) {
+    *node_index = n->right;
+  } else {
+    if (*sp == 0) return 0;
+    *node_index = stack[--*sp];
+  }
+  return 1;
+}
+
 #if PX_BVH_WIDTH == 2
 
 /* Closest hit in one tree along the ray within (tmin, tmax): hit.prim is the index into
@@ -78,18 +99,7 @@ inline Hit px_tree_closest(const SceneView* scene, float3 org, float3 dir, float
     /* A leaf hit may have shortened best.t below an interior child's entry: skip it then. */
     if (tl > best.t) tl = INFINITY;
     if (tr > best.t) tr = INFINITY;
-    if (tl != INFINITY && tr != INFINITY) {
-      const int left_first = tl <= tr;
-      node_index = left_first ? n.left : n.right;
-      if (sp < PX_BVH_STACK_SIZE) stack[sp++] = left_first ? n.right : n.left;
-    } else if (tl != INFINITY) {
-      node_index = n.left;
-    } else if (tr != INFINITY) {
-      node_index = n.right;
-    } else {
-      if (sp == 0) break;
-      node_index = stack[--sp];
-    }
+    if (!px_binary_step(&n, tl, tr, &node_index, stack, &sp, PX_BVH_STACK_SIZE)) break;
   }
   return best;
 }
@@ -605,18 +615,7 @@ inline int px_top_level(const SceneView* scene, float3 org, float3 dir, float tm
     }
     if (tl > best->t) tl = INFINITY;
     if (tr > best->t) tr = INFINITY;
-    if (tl != INFINITY && tr != INFINITY) {
-      const int left_first = tl <= tr;
-      node_index = left_first ? n.left : n.right;
-      if (sp < PX_TLAS_STACK_SIZE) stack[sp++] = left_first ? n.right : n.left;
-    } else if (tl != INFINITY) {
-      node_index = n.left;
-    } else if (tr != INFINITY) {
-      node_index = n.right;
-    } else {
-      if (sp == 0) break;
-      node_index = stack[--sp];
-    }
+    if (!px_binary_step(&n, tl, tr, &node_index, stack, &sp, PX_TLAS_STACK_SIZE)) break;
   }
   return 0;
 }

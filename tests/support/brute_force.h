@@ -10,6 +10,7 @@
 
 #include <cmath>
 #include <limits>
+#include <random>
 #include <vector>
 
 namespace px::test {
@@ -50,6 +51,15 @@ inline BruteHit brute_force_closest(const std::vector<SceneTriangle>& tris, cons
     best.edge_distance = std::min({u, v, 1.0 - u - v});
   }
   return best;
+}
+
+// A direction uniform on the unit sphere (a normalised Gaussian vector).
+inline glm::vec3 random_unit(std::mt19937& rng) {
+  std::normal_distribution<float> n;
+  glm::vec3 v;
+  do v = glm::vec3(n(rng), n(rng), n(rng));
+  while (glm::dot(v, v) < 1e-6f);
+  return glm::normalize(v);
 }
 
 inline Ray make_ray(glm::vec3 o, glm::vec3 d, float tmin = 0.0f,
