@@ -869,18 +869,26 @@ class Converter {
       instanced[mesh] = ok;
     }
     std::vector<std::array<glm::vec3, 3>>* colours = colours_out();
-    for (const Placement& pl : placements_) {
+    const auto flat = [&](const Placement& pl) {
       const auto it = instanced.find(pl.mesh);
-      if (it != instanced.end() && it->second && glm::determinant(glm::dmat3(pl.world)) > 0.0) continue;
+      return it == instanced.end() || !it->second || !(glm::determinant(glm::dmat3(pl.world)) > 0.0);
+    };
+    // A mesh's primitives are released after its last flat copy (unless it is instanced too), so
+    // that a file of many meshes holds one at a time, as it did before placements were deferred.
+    std::map<int, int> copies_left;
+    for (const Placement& pl : placements_)
+      if (flat(pl)) ++copies_left[pl.mesh];
+    for (const Placement& pl : placements_) {
+      if (!flat(pl)) continue;
       for (const RigPrimitive& prim : mesh_primitives(pl.mesh))
         emit_primitive(prim, pl.world, nullptr, nullptr, nullptr, scene_.triangles, scene_.stats, colours);
+      if (--copies_left[pl.mesh] == 0 && !instanced[pl.mesh]) static_meshes_.erase(pl.mesh);
     }
     SceneInstancing in;
     in.world_triangles = scene_.triangles.size();
     std::map<int, std::uint32_t> mesh_slot;
     for (const Placement& pl : placements_) {
-      const auto it = instanced.find(pl.mesh);
-      if (it == instanced.end() || !it->second || !(glm::determinant(glm::dmat3(pl.world)) > 0.0)) continue;
+      if (flat(pl)) continue;
       auto [slot, fresh] = mesh_slot.try_emplace(pl.mesh, std::uint32_t(in.meshes.size()));
       if (fresh) {
         InstancedMesh m;
@@ -888,6 +896,7 @@ class Converter {
         for (const RigPrimitive& prim : mesh_primitives(pl.mesh))
           emit_primitive(prim, glm::dmat4(1.0), nullptr, nullptr, nullptr, scene_.triangles, scene_.stats, colours);
         m.count = scene_.triangles.size() - m.first;
+        static_meshes_.erase(pl.mesh);  // stored: its primitives are no longer needed
         if (m.count == 0) {  // nothing drawable: no instances either
           slot->second = std::numeric_limits<std::uint32_t>::max();
         } else {
