@@ -1,6 +1,8 @@
 // Scene data every device reads whole (sort-first rendering partitions the image, never the
-// scene): BVH nodes, leaf-order triangles, per-triangle shading, materials, textures and the
-// emissive-triangle table. One set of read-only buffers in the set's OpenCL context, shared by
+// scene): BVH nodes, leaf-order triangles, per-triangle shading, materials, textures, the
+// emissive-triangle table, vertex colours and the instances (their top level and matrices). A
+// scene with instances keeps each instanced mesh's tree and leaf triangles after the world's in
+// the same node and triangle buffers (types.h: the instance buffer). One set of read-only buffers in the set's OpenCL context, shared by
 // all its devices (on(d) gives every device the same buffers); a buffer larger than a device's
 // CL_DEVICE_MAX_MEM_ALLOC_SIZE (or PX_MAX_ALLOC_BYTES) is refused with an error naming it.
 // Kernels take these as their last parameters (PX_SCENE_PARAMS in kernels/scene/scene_view.h);
