@@ -46,6 +46,46 @@ TEST(BvhCache, ReadsBackExactlyWhatWasBuilt) {
   EXPECT_TRUE(validate_bvh(*loaded, tris).ok);
 }
 
+// A start that reads a tree back skips validating the wide nodes recorded as validated with it:
+// sound only if collapsing the tree read back gives the very nodes that were validated. Checked
+// here byte for byte for each wide layout, and the record itself: what the stored tree carried.
+TEST(BvhCache, RecordsTheValidatedLayoutsWhoseNodesCollapseAgainToTheSameBytes) {
+  test::TempDir dir;
+  const BvhCache cache(dir.path().string());
+  const auto tris = slivers(3000, 4);
+  const BvhBuildOptions options;
+  FlatBvh built = build_bvh(tris, options);
+  for (const BvhLayout l : {BvhLayout::Wide4, BvhLayout::Wide8, BvhLayout::Compressed8}) ensure_layout(built, l);
+  ASSERT_TRUE(validate_bvh(built, tris).ok);
+  ASSERT_FALSE(cache.store(built, tris, options).empty());
+  std::uint32_t validated = 0;
+  auto loaded = cache.load(tris, options, &validated);
+  ASSERT_TRUE(loaded.has_value());
+  EXPECT_EQ(validated, bvh_layout_bit(BvhLayout::Wide4) | bvh_layout_bit(BvhLayout::Wide8) |
+                           bvh_layout_bit(BvhLayout::Compressed8));
+  EXPECT_TRUE(loaded->nodes8.empty()) << "the file holds the binary tree only";
+  for (const BvhLayout l : {BvhLayout::Wide4, BvhLayout::Wide8, BvhLayout::Compressed8}) ensure_layout(*loaded, l);
+  ASSERT_EQ(loaded->nodes4.size(), built.nodes4.size());
+  ASSERT_EQ(loaded->nodes8.size(), built.nodes8.size());
+  ASSERT_EQ(loaded->cnodes.size(), built.cnodes.size());
+  EXPECT_EQ(std::memcmp(loaded->nodes4.data(), built.nodes4.data(), built.nodes4.size() * sizeof(Bvh4Node)), 0);
+  EXPECT_EQ(std::memcmp(loaded->nodes8.data(), built.nodes8.data(), built.nodes8.size() * sizeof(Bvh8Node)), 0);
+  EXPECT_EQ(std::memcmp(loaded->cnodes.data(), built.cnodes.data(), built.cnodes.size() * sizeof(CompressedBvh8Node)), 0);
+  EXPECT_EQ(loaded->cleaf_first, built.cleaf_first);
+  // A tree stored with its binary nodes alone records no layout: the next start validates.
+  const auto other = slivers(2000, 5);
+  FlatBvh binary_only = build_bvh(other, options);
+  binary_only.nodes4.clear();
+  binary_only.nodes8.clear();
+  binary_only.cnodes.clear();
+  binary_only.cleaf_first.clear();
+  ASSERT_FALSE(cache.store(binary_only, other, options).empty());
+  ASSERT_TRUE(cache.load(other, options, &validated).has_value());
+  EXPECT_EQ(validated, 0u);
+  EXPECT_FALSE(cache.load(slivers(2000, 6), options, &validated).has_value());
+  EXPECT_EQ(validated, 0u) << "a miss records nothing";
+}
+
 TEST(BvhCache, AnotherSceneOrOptionIsAMiss) {
   test::TempDir dir;
   const BvhCache cache(dir.path().string());

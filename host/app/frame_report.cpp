@@ -98,6 +98,7 @@ void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode de
                  {"bvh_ms", start.bvh_ms},
                  {"bvh_from_cache", start.bvh_from_cache},
                  {"bvh_validate_ms", start.validate_ms},
+                 {"bvh_validated_when_cached", start.bvh_validated_when_cached},
                  {"bvh_cache_store_ms", start.cache_store_ms},
                  {"upload_ms", scene.upload_ms()},
                  {"host_rss_after_start_mib", start.host_rss_after_start_mib}}},

@@ -19,6 +19,9 @@ struct StartTimes {
   double bvh_ms = 0.0;       // building the BVH, or reading it from the cache
   bool bvh_from_cache = false;
   double validate_ms = 0.0;  // the BVH validator
+  // The tree came from the cache with its wide nodes validated when it was stored (bvh_cache.h):
+  // not validated again.
+  bool bvh_validated_when_cached = false;
   double cache_store_ms = 0.0;
   // The process's resident memory once the scene is on the devices and the host's copies are
   // released (VmRSS, MiB; 0 where /proc is not there): what rendering starts with.

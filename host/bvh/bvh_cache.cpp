@@ -14,7 +14,7 @@ namespace px {
 namespace {
 
 constexpr char kMagic[8] = {'P', 'X', 'B', 'V', 'H', 'C', '0', '1'};
-constexpr std::uint32_t kFormatVersion = 1;
+constexpr std::uint32_t kFormatVersion = 2;  // 2: validated_layouts
 #ifndef PX_BVH_BUILDER_SHA
 #define PX_BVH_BUILDER_SHA "unknown"
 #endif
@@ -43,6 +43,7 @@ struct Header {
   std::uint64_t scene_triangles, nodes, triangles;
   std::uint64_t depth, split_budget_exceeded, split_calls;
   double build_ms, sah_cost;
+  std::uint64_t validated_layouts;  // bvh_layout_bit of each wide layout the tree carried when stored
 };
 
 std::uint64_t payload_checksum(const Header& h, const FlatBvh& bvh) {
@@ -86,8 +87,11 @@ std::string BvhCache::path_for(std::uint64_t key) const {
   return dir_ + "/" + name;
 }
 
-std::optional<FlatBvh> BvhCache::load(const std::vector<SceneTriangle>& triangles,
-                                      const BvhBuildOptions& options) const {
+std::uint32_t bvh_layout_bit(BvhLayout layout) { return 1u << static_cast<unsigned>(bvh_layout_width(layout)); }
+
+std::optional<FlatBvh> BvhCache::load(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options,
+                                      std::uint32_t* validated_layouts) const {
+  if (validated_layouts) *validated_layouts = 0;
   if (dir_.empty()) return std::nullopt;
   const std::uint64_t key = bvh_input_hash(triangles, options);
   std::ifstream in(path_for(key), std::ios::binary);
@@ -119,6 +123,7 @@ std::optional<FlatBvh> BvhCache::load(const std::vector<SceneTriangle>& triangle
   bvh.stats.split_calls = h.split_calls;
   bvh.stats.build_ms = h.build_ms;
   bvh.stats.sah_cost = h.sah_cost;
+  if (validated_layouts) *validated_layouts = static_cast<std::uint32_t>(h.validated_layouts);
   return bvh;
 }
 
@@ -144,6 +149,8 @@ std::string BvhCache::store(const FlatBvh& bvh, const std::vector<SceneTriangle>
     h.split_calls = bvh.stats.split_calls;
     h.build_ms = bvh.stats.build_ms;
     h.sah_cost = bvh.stats.sah_cost;
+    for (const BvhLayout l : {BvhLayout::Wide4, BvhLayout::Wide8, BvhLayout::Compressed8})
+      if (has_layout(bvh, l)) h.validated_layouts |= bvh_layout_bit(l);
     const std::uint64_t checksum = payload_checksum(h, bvh);
     const std::string path = path_for(h.key);
     AtomicFileWriter out(path);

@@ -9,6 +9,12 @@
 // header (the key, the counts, the build's statistics), the nodes, the triangles and a
 // checksum of all that; a truncated, corrupted or foreign file is a miss too, never an error.
 // Files are written atomically (temporary + rename), so concurrent runs never read half a file.
+//
+// Validated when written: a tree is stored only after validate_bvh passed on it and on the wide
+// nodes it carried, and the header records which layouts those were. Collapsing is
+// deterministic and its sources (wide_bvh.cpp, compressed_bvh.cpp) are in the key, as is the
+// validator's, so the wide nodes collapsed again from a tree read back are the very nodes that
+// were validated: a start that reads the tree need not validate them again.
 #pragma once
 
 #include "bvh/flat_bvh.h"
@@ -22,6 +28,9 @@ namespace px {
 
 std::uint64_t bvh_input_hash(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options);
 
+// A layout's bit in BvhCache's validated-layouts mask.
+std::uint32_t bvh_layout_bit(BvhLayout layout);
+
 class BvhCache {
  public:
   // $PARALLAX_CACHE_DIR, else $XDG_CACHE_HOME/parallax, else $HOME/.cache/parallax; "" when
@@ -31,8 +40,12 @@ class BvhCache {
   explicit BvhCache(std::string dir) : dir_(std::move(dir)) {}
 
   // The cached BVH for these triangles and options, or nullopt (miss, or an unreadable file).
-  std::optional<FlatBvh> load(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options) const;
-  // Stores `bvh` (built from these triangles and options). Returns the file written, or "" with
+  // `validated_layouts` (if given): the bvh_layout_bit of each wide layout validated with the
+  // tree before it was stored (0 on a miss).
+  std::optional<FlatBvh> load(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options,
+                              std::uint32_t* validated_layouts = nullptr) const;
+  // Stores `bvh` (built from these triangles and options), which must have passed validate_bvh
+  // with the wide nodes it carries (recorded as validated). Returns the file written, or "" with
   // `why` set when it could not be (a cache never fails a run).
   std::string store(const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options,
                     std::string* why = nullptr) const;
