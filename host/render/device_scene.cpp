@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <memory>
 #include <stdexcept>
 #include <string>
 
@@ -61,16 +62,25 @@ void require_allocation(const char* name, std::size_t bytes, const AllocationLim
                              " (CL_DEVICE_MAX_MEM_ALLOC_SIZE); the scene is too large for this device");
 }
 
-// One buffer of the scene, written through `queue` (require_allocation first).
+// One buffer of the scene (require_allocation first): written through `queue`, or, with `keep`
+// (devices that read the host's memory: CPU devices), over `data` itself (CL_MEM_USE_HOST_PTR),
+// whose array then moves into *keep to live as long as the buffer. The scene is then in memory
+// once, not twice, and nothing is copied.
 template <typename T>
-cl::Buffer upload(const char* name, const cl::Context& ctx, cl::CommandQueue& queue, const std::vector<T>& data,
-                  const AllocationLimits& limits, std::size_t& total) {
+cl::Buffer upload(const char* name, const cl::Context& ctx, cl::CommandQueue& queue, std::vector<T>& data,
+                  const AllocationLimits& limits, std::size_t& total, std::vector<std::shared_ptr<void>>* keep) {
   // A zero-sized buffer is invalid in OpenCL; keep one element so kernels always get a buffer.
   const std::size_t bytes = std::max<std::size_t>(1, data.size()) * sizeof(T);
   require_allocation(name, bytes, limits);
+  total += bytes;
+  if (keep && !data.empty()) {
+    auto owned = std::make_shared<std::vector<T>>(std::move(data));
+    cl::Buffer buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR, bytes, owned->data());
+    keep->push_back(std::move(owned));
+    return buffer;
+  }
   cl::Buffer buffer(ctx, CL_MEM_READ_ONLY, bytes);
   if (!data.empty()) queue.enqueueWriteBuffer(buffer, CL_TRUE, 0, data.size() * sizeof(T), data.data());
-  total += bytes;
   return buffer;
 }
 
@@ -362,10 +372,10 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
       std::vector<std::vector<BvhTriangle>>().swap(mesh_triangles_);
     }
   }
-  const auto& triangles = instanced ? instanced_triangles : flagged.triangles;
-  const auto shading = make_triangle_shading(scene);
-  const auto materials = make_gpu_materials(scene);
-  const auto lights = make_light_table(scene);
+  auto& triangles = instanced ? instanced_triangles : flagged.triangles;
+  auto shading = make_triangle_shading(scene);
+  auto materials = make_gpu_materials(scene);
+  auto lights = make_light_table(scene);
   light_count_ = lights.size();
   FrameParams light_params{};
   fill_light_params(scene, light_count_, light_params);
@@ -410,20 +420,6 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
                              mib(limits.global_mem) + " (CL_DEVICE_GLOBAL_MEM_SIZE)");
   auto& queue = devices.devices().front().queue;
   const cl::Context& ctx = devices.context();
-  std::size_t bytes = 0;
-  DeviceSceneBuffers b;
-  if (binary_nodes)
-    b.nodes = upload("BVH node", ctx, queue, flagged.nodes, limits, bytes);
-  else
-    b.nodes = upload("BVH node", ctx, queue, wide_words, limits, bytes);
-  b.triangles = upload("triangle", ctx, queue, triangles, limits, bytes);
-  b.shading = upload("shading", ctx, queue, shading, limits, bytes);
-  b.materials = upload("material", ctx, queue, materials, limits, bytes);
-  b.textures = upload("texture table", ctx, queue, infos, limits, bytes);
-  b.texels = upload("texel", ctx, queue, texels, limits, bytes);
-  b.lights = upload("light", ctx, queue, lights, limits, bytes);
-  b.colours = upload("vertex colour", ctx, queue, colours, limits, bytes);
-  b.instances = upload("instance", ctx, queue, instance_words, limits, bytes);
   instance_count_ = scene.instancing.instances.size();
   instance_bytes_ = size_of(instance_words);
   capacity_.nodes = binary_nodes ? size_of(flagged.nodes) : size_of(wide_words);
@@ -431,6 +427,25 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
   capacity_.shading = size_of(shading);
   capacity_.lights = size_of(lights);
   capacity_.instances = size_of(instance_words);
+  // CPU devices read the host's memory: their buffers are the host arrays themselves. Not for an
+  // animated scene, whose buffers update_geometry rewrites and may replace.
+  host_backed_ = !scene.rig && std::all_of(devices.devices().begin(), devices.devices().end(),
+                                           [](const ComputeDevice& d) { return d.is_cpu(); });
+  std::vector<std::shared_ptr<void>>* keep = host_backed_ ? &host_arrays_ : nullptr;
+  std::size_t bytes = 0;
+  DeviceSceneBuffers b;
+  if (binary_nodes)
+    b.nodes = upload("BVH node", ctx, queue, flagged.nodes, limits, bytes, keep);
+  else
+    b.nodes = upload("BVH node", ctx, queue, wide_words, limits, bytes, keep);
+  b.triangles = upload("triangle", ctx, queue, triangles, limits, bytes, keep);
+  b.shading = upload("shading", ctx, queue, shading, limits, bytes, keep);
+  b.materials = upload("material", ctx, queue, materials, limits, bytes, keep);
+  b.textures = upload("texture table", ctx, queue, infos, limits, bytes, keep);
+  b.texels = upload("texel", ctx, queue, texels, limits, bytes, keep);
+  b.lights = upload("light", ctx, queue, lights, limits, bytes, keep);
+  b.colours = upload("vertex colour", ctx, queue, colours, limits, bytes, keep);
+  b.instances = upload("instance", ctx, queue, instance_words, limits, bytes, keep);
   tri_flags_ = tri_flags;
   bytes_in_context_ = bytes;
   upload_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - upload_start).count();

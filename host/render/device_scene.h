@@ -15,6 +15,7 @@
 #include "render/kernel_features.h"
 #include "scene/scene.h"
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -84,6 +85,8 @@ class DeviceScene {
   std::size_t bytes_in_context() const { return bytes_in_context_; }
   // Host time to create and write those buffers (blocking writes), ms.
   double upload_ms() const { return upload_ms_; }
+  // Whether the buffers are the host's own arrays (every device a CPU device: no second copy).
+  bool host_backed() const { return host_backed_; }
   std::size_t light_count() const { return light_count_; }
   // Instances uploaded (0 without), and the instance buffer's bytes (top level and records).
   std::size_t instance_count() const { return instance_count_; }
@@ -126,6 +129,9 @@ class DeviceScene {
   double upload_ms_ = 0.0;
   std::size_t light_count_ = 0;
   std::size_t instance_count_ = 0, instance_bytes_ = 0;
+  // CPU devices: the buffers are the host arrays themselves (CL_MEM_USE_HOST_PTR), kept here.
+  bool host_backed_ = false;
+  std::vector<std::shared_ptr<void>> host_arrays_;
   BvhLayout layout_ = BvhLayout::Binary;
   std::uint32_t scene_features_ = PX_FEATURES_ALL;
   KernelChoice choice_ = KernelChoice::Scene;
