@@ -318,6 +318,7 @@ std::vector<MeshPlacement> DeviceScene::assemble_instanced(const FlatBvh* world,
 }
 
 DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, std::vector<FlatBvh> mesh_bvhs) {
+  const auto layout_start = std::chrono::steady_clock::now();
   FlatBvh& flagged = bvh;
   const std::vector<std::uint32_t> tri_flags = triangle_flags(scene);
   const BvhLayout layout = devices.bvh_layout();
@@ -408,6 +409,7 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
   // share memory (sub-devices, queues: PoCL) then share the one copy; separate GPUs of a
   // platform each get their copy from the runtime on first use.
   const auto upload_start = std::chrono::steady_clock::now();
+  layout_ms_ = std::chrono::duration<double, std::milli>(upload_start - layout_start).count();
   const AllocationLimits limits = allocation_limits(devices);
   // The whole scene against the device's memory first, before anything is allocated.
   const auto size_of = [](const auto& v) { return std::max<std::size_t>(1, v.size()) * sizeof(v[0]); };

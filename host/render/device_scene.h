@@ -85,6 +85,9 @@ class DeviceScene {
   std::size_t bytes_in_context() const { return bytes_in_context_; }
   // Host time to create and write those buffers (blocking writes), ms.
   double upload_ms() const { return upload_ms_; }
+  // Host time to make the device layout before that (triangle flags, wide nodes and leaf blocks,
+  // shading records, the light table, instances), ms.
+  double layout_ms() const { return layout_ms_; }
   // Whether the buffers are the host's own arrays (every device a CPU device: no second copy).
   bool host_backed() const { return host_backed_; }
   std::size_t light_count() const { return light_count_; }
@@ -127,6 +130,7 @@ class DeviceScene {
   } shadows_;
   std::size_t bytes_in_context_ = 0;
   double upload_ms_ = 0.0;
+  double layout_ms_ = 0.0;
   std::size_t light_count_ = 0;
   std::size_t instance_count_ = 0, instance_bytes_ = 0;
   // CPU devices: the buffers are the host arrays themselves (CL_MEM_USE_HOST_PTR), kept here.
