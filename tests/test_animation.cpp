@@ -223,6 +223,33 @@ TEST(GltfAnimation, ARotatingTranslatingNodeHasTheWorldBoundsWorkedByHand) {
   EXPECT_THROW(SceneAnimator(rest, "jump"), std::invalid_argument);
 }
 
+// A file without a camera is framed on where its clips take it, not only on its rest pose: the
+// sliding cube stays inside the framed view (45 degrees vertically, square or wider) all along.
+TEST(GltfAnimation, AFileWithoutACameraIsFramedOnEverywhereItsClipsGo) {
+  const TempDir dir;
+  const std::string file = moving_cube_file(dir);
+  Scene scene = load_scene(file);
+  const Camera cam = scene.camera;
+  const glm::vec3 axis = glm::normalize(cam.target - cam.position);
+  const double half_angle = 0.5 * double(cam.vfov_deg) * kPi / 180.0;
+  SceneAnimator animator(scene, "all");
+  double widest = 0.0;
+  for (double t : {0.0, 0.25, 0.5, 0.75, 0.99}) {
+    animator.pose(t);
+    Scene flat = scene;
+    flatten_instances(flat);
+    for (const SceneTriangle& tri : flat.triangles)
+      for (const glm::vec3& p : tri.p) {
+        const double angle = std::acos(std::clamp(double(glm::dot(glm::normalize(p - cam.position), axis)), -1.0, 1.0));
+        widest = std::max(widest, angle);
+        EXPECT_LE(angle, half_angle) << "t = " << t << ": a corner of the cube leaves the view";
+      }
+  }
+  // The rest pose alone (the cube at x 0) would have been framed tighter: the cube at x 2 would
+  // then have left the view. The framing is not just wide: the cube fills a fair part of it.
+  EXPECT_GT(widest, 0.5 * half_angle);
+}
+
 // A glTF camera on an animated node follows it; one a scene file placed does not.
 TEST(GltfAnimation, ACameraOnAnAnimatedNodeFollowsIt) {
   GltfBuilder g;

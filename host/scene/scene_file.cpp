@@ -3,6 +3,7 @@
 // line there.
 #include "scene/builtin_scenes.h"
 #include "scene/instancing.h"
+#include "scene/scene_rig.h"
 #include "scene/scene_loader.h"
 
 #include <algorithm>
@@ -32,8 +33,45 @@ std::string builtin_list() {
   return list;
 }
 
+// Grows [lo, hi] by the scene as its clips pose it over their length (a scene that moves: its
+// triangles hold the rest pose), at kFramingSamples instants of the longest clip.
+constexpr int kFramingSamples = 16;
+void add_animated_bounds(const Scene& scene, glm::vec3& lo, glm::vec3& hi) {
+  if (!scene.rig || scene.rig->clips.empty()) return;
+  const SceneRig& rig = *scene.rig;
+  std::vector<int> clips(rig.clips.size());
+  double longest = 0.0;
+  for (std::size_t c = 0; c < clips.size(); ++c) {
+    clips[c] = static_cast<int>(c);
+    longest = std::max(longest, rig.clips[c].duration);
+  }
+  if (!(longest > 0.0)) return;
+  const auto grow = [&](const glm::vec3& p) {
+    if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)) {
+      lo = glm::min(lo, p);
+      hi = glm::max(hi, p);
+    }
+  };
+  std::vector<SceneTriangle> world;
+  SceneInstancing instancing = scene.instancing;
+  for (int k = 1; k <= kFramingSamples; ++k) {
+    const std::vector<glm::dmat4> matrices = rig_world_matrices(rig, longest * k / kFramingSamples, clips);
+    pose_rig(rig, matrices, world);
+    for (const SceneTriangle& t : world)
+      for (const glm::vec3& p : t.p) grow(p);
+    if (instancing.empty()) continue;
+    rig_instance_matrices(rig, matrices, instancing);
+    for (const MeshInstance& inst : instancing.instances) {
+      const InstancedMesh& m = instancing.meshes[inst.mesh];
+      for (std::size_t i = m.first; i < m.first + m.count; ++i)
+        for (const glm::vec3& p : scene.triangles[i].p) grow(glm::vec3(inst.object_to_world * glm::vec4(p, 1.0f)));
+    }
+  }
+}
+
 // A camera that sees the whole bounding sphere of the scene from the +z side (the side OBJ
-// exporters conventionally face), up = +y.
+// exporters conventionally face), up = +y; of a scene that moves, the sphere around everywhere
+// its clips take it, so that nothing leaves the view as it plays.
 Camera frame_bounds(const Scene& scene) {
   glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
   for_each_drawn_triangle(scene, [&](const glm::vec3* p, std::size_t) {
@@ -42,6 +80,7 @@ Camera frame_bounds(const Scene& scene) {
       hi = glm::max(hi, p[c]);
     }
   });
+  add_animated_bounds(scene, lo, hi);
   Camera cam;
   cam.vfov_deg = 45.0f;
   const glm::vec3 center = 0.5f * (lo + hi);
