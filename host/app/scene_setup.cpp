@@ -17,6 +17,9 @@ namespace {
 // Below this a BVH builds in well under the time it takes to read it back.
 constexpr std::size_t kBvhCacheMinTriangles = 20000;
 
+using Clock = std::chrono::steady_clock;
+double ms(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double, std::milli>(b - a).count(); }
+
 // VmRSS of this process in MiB (0 without /proc).
 double resident_mib() {
   std::FILE* f = std::fopen("/proc/self/status", "r");
@@ -33,8 +36,7 @@ double resident_mib() {
 // read from the disk cache or built (and cached), validated, its build and validation times in
 // out.times.
 void build_world_tree(LoadedScene& out, const std::vector<SceneTriangle>& tree_triangles, bool quiet) {
-  using clock = std::chrono::steady_clock;
-  const auto ms = [](clock::time_point a, clock::time_point b) { return std::chrono::duration<double, std::milli>(b - a).count(); };
+  using clock = Clock;
   // Large scenes go through the disk cache (small ones build faster than a file is read).
   const BvhBuildOptions build_options;
   const bool cacheable = tree_triangles.size() >= kBvhCacheMinTriangles;
@@ -130,7 +132,7 @@ void build_world_tree(LoadedScene& out, const std::vector<SceneTriangle>& tree_t
 }  // namespace
 
 LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
-  using clock = std::chrono::steady_clock;
+  using clock = Clock;
   LoadedScene out;
   auto t0 = clock::now();
   if (!quiet) std::fprintf(stderr, "[scene] loading %s ...\n", spec.c_str());
@@ -142,7 +144,6 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
   const auto& st = out.scene.stats;
   out.triangle_count = drawn_triangle_count(out.scene);
   if (!out.scene.triangles.empty()) {
-    out.bounds_lo = out.bounds_hi = out.scene.triangles.front().p[0];
     bool first = true;
     for_each_drawn_triangle(out.scene, [&](const glm::vec3* p, std::size_t) {
       if (first) out.bounds_lo = out.bounds_hi = p[0];
@@ -154,7 +155,6 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
     });
   }
   auto t1 = clock::now();
-  const auto ms = [](clock::time_point a, clock::time_point b) { return std::chrono::duration<double, std::milli>(b - a).count(); };
   out.times.load_ms = ms(t0, t1);
   if (!quiet) {
     std::fprintf(stderr, "[scene] %s: %zu triangles, %zu materials, %zu textures (%.0f ms)\n",
