@@ -29,6 +29,26 @@ assert magic == 0x46546C67 and version == 2 and total == len(glb)
 assert doc["accessors"][0]["count"] == 3 * t
 PY
 if grep -q "^| 0.00M" "$tmp/out"; then ok "table printed"; else fail "table"; cat "$tmp/out"; fi
+# Past the cache's threshold (20k triangles): the warm start maps the device layout the filling
+# run stored, and renders the very pixels of a start without any cache.
+if "$src/bench/scale_series.py" --sizes 0.05 --build "$build" --work "$tmp/w2" --width 32 --height 18 --offline \
+  >"$tmp/out2" 2>"$tmp/err2"; then
+  warm="$(ls "$tmp"/w2/logs/parallax-warm-*.txt)" cold="$(ls "$tmp"/w2/logs/parallax-cold-*.txt)"
+  if grep -q "BVH [0-9]* ms (its device layout mapped from the cache)" "$warm"; then ok "warm start maps the device layout"
+  else fail "warm start did not map the device layout"; grep "start:" "$warm"; fi
+  if grep -q "BVH [0-9]* ms (built)" "$cold" && ! grep -q "device layout mapped" "$cold"; then ok "cold start builds"
+  else fail "cold start"; grep "start:" "$cold"; fi
+  json="$(ls "$tmp"/w2/heightfield-*.json)"
+  common=(render --scene "$json" --frames 1 --spp 1 --width 32 --height 18 --devices 2)
+  PARALLAX_BVH_CACHE=off "$build/parallax" "${common[@]}" --out "$tmp/none" >/dev/null 2>&1
+  PARALLAX_CACHE_DIR="$tmp/w2/bvh-cache" "$build/parallax" "${common[@]}" --out "$tmp/mapped" >"$tmp/mapped.log" 2>&1
+  grep -q "device layout mapped from the cache" "$tmp/mapped.log" || fail "the render did not map the layout"
+  for eye in left right; do
+    if "$build/parallax" compare --exact "$tmp/none/frame_0000_$eye.exr" "$tmp/mapped/frame_0000_$eye.exr" |
+      grep -q "^identical$"; then ok "mapped layout gives the uncached pixels ($eye)"
+    else fail "mapped layout changed the $eye image"; fi
+  done
+else fail "scale_series at 0.05M: exit $?"; tail -5 "$tmp/err2"; fi
 if "$src/bench/scale_series.py" --sizes abc --build "$build" --work "$tmp/x" >/dev/null 2>"$tmp/e1"; then
   fail "bad --sizes accepted"; else grep -q "needs numbers" "$tmp/e1" && ok "bad --sizes refused" || fail "message"; fi
 if "$src/bench/scale_series.py" --sizes 1 --build "$tmp/nothing" --work "$tmp/y" >/dev/null 2>"$tmp/e2"; then

@@ -307,9 +307,17 @@ void RenderLoop::print_summary() const {
     const DeviceScene& ds = on_devices_->device_scene;
     std::printf("start: scene %.0f ms, BVH %.0f ms (%s), validation %.0f ms%s%s, device layout %.0f ms, upload %.0f ms "
                 "(%.1f MiB, one copy for the %d device(s) of the context%s); host memory after the start %.0f MiB\n",
-                t.load_ms, t.bvh_ms, t.bvh_from_cache ? "read from the cache" : "built", t.validate_ms,
+                t.load_ms, t.bvh_ms,
+                t.device_layout_from_cache ? "its device layout mapped from the cache"
+                : t.bvh_from_cache         ? "read from the cache"
+                                           : "built",
+                t.validate_ms,
                 t.bvh_validated_when_cached ? " (validated when cached)" : "",
-                t.cache_store_ms > 0.0 ? (", cache write " + std::to_string(static_cast<long>(t.cache_store_ms)) + " ms").c_str() : "",
+                t.cache_store_ms + ds.layout_store_ms() > 0.0
+                    ? (", cache write " + std::to_string(static_cast<long>(t.cache_store_ms + ds.layout_store_ms())) +
+                       " ms")
+                          .c_str()
+                    : "",
                 ds.layout_ms(), ds.upload_ms(), static_cast<double>(ds.bytes_in_context()) / (1024.0 * 1024.0),
                 devices.size(), ds.host_backed() ? ", the host's own arrays" : "", t.host_rss_after_start_mib);
   }

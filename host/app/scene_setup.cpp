@@ -2,6 +2,7 @@
 
 #include "bvh/bvh_cache.h"
 #include "bvh/scene_bvhs.h"
+#include "render/device_layout_cache.h"
 #include "scene/instancing.h"
 #include "io/progress_ticker.h"
 #include "scene/scene_loader.h"
@@ -131,7 +132,7 @@ void build_world_tree(LoadedScene& out, const std::vector<SceneTriangle>& tree_t
 
 }  // namespace
 
-LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
+LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky, bool map_device_layout) {
   using clock = Clock;
   LoadedScene out;
   auto t0 = clock::now();
@@ -178,6 +179,32 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
   std::vector<SceneTriangle> world_part;
   if (instanced) world_part = triangle_range(out.scene, 0, out.scene.instancing.world_triangles);
   const std::vector<SceneTriangle>& tree_triangles = instanced ? world_part : out.scene.triangles;
+  out.quiet = quiet;
+  // A large static scene without instances may have its whole device layout cached: then no
+  // tree is read (device_layout_cache.h).
+  if (map_device_layout && !instanced && !out.scene.rig && tree_triangles.size() >= kBvhCacheMinTriangles &&
+      !DeviceLayoutCache::default_dir().empty()) {
+    const auto t = clock::now();
+    out.content_key = scene_content_key(out.scene);
+    out.times.scene_hash_ms = ms(t, clock::now());
+    out.device_layout = DeviceLayoutCache(DeviceLayoutCache::default_dir())
+                            .open(out.content_key, bvh_layout(), BvhBuildOptions{}, out.scene.triangles.size());
+    if (out.device_layout) {
+      out.times.bvh_ms = ms(t, clock::now());
+      out.times.bvh_from_cache = out.times.bvh_validated_when_cached = out.times.device_layout_from_cache = true;
+      out.bvh.stats = out.device_layout->stats();
+      const auto& bs = out.bvh.stats;
+      if (!quiet)
+        std::fprintf(stderr,
+                     "[bvh] %zu nodes, %zu leaf triangles, depth %d, SAH %.1f (built in %.0f ms); %s, %zu nodes: the "
+                     "device layout mapped from the cache in %.0f ms (%.0f MiB, %s)\n",
+                     bs.nodes, bs.leaf_triangles, bs.depth, bs.sah_cost, bs.build_ms, to_string(bvh_layout()),
+                     out.device_layout->layout_nodes(), out.times.bvh_ms,
+                     static_cast<double>(out.device_layout->file_bytes()) / (1024.0 * 1024.0),
+                     out.device_layout->path().c_str());
+      return out;
+    }
+  }
   if (!tree_triangles.empty()) build_world_tree(out, tree_triangles, quiet);
   if (instanced) {
     const ProgressTicker ticker(quiet ? "" : "[bvh] still building the instanced meshes' BVHs");
@@ -197,13 +224,37 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky) {
 
 SceneOnDevices::SceneOnDevices(const std::string& spec, const DeviceOptions& device_options, bool quiet, SkyMode sky,
                                KernelChoice kernels)
-    : SceneOnDevices(load_and_build(spec, quiet, sky), device_options, kernels) {}
+    : SceneOnDevices(load_and_build(spec, quiet, sky, /*map_device_layout=*/true), device_options, kernels) {}
+
+namespace {
+
+// The scene on `devices`: from the mapped device layout when the cache held one in the set's
+// layout, else laid out from the tree (read or built now if the start had mapped another
+// layout: a GPU set's), and stored for the next start when the scene is cacheable.
+DeviceScene make_device_scene(DeviceSet& devices, LoadedScene& loaded) {
+  const BvhLayout layout = devices.bvh_layout();
+  if (loaded.device_layout && loaded.device_layout->layout() != layout) {
+    loaded.device_layout = DeviceLayoutCache(DeviceLayoutCache::default_dir())
+                               .open(loaded.content_key, layout, BvhBuildOptions{}, loaded.scene.triangles.size());
+    if (!loaded.device_layout) {
+      loaded.times.device_layout_from_cache = false;
+      build_world_tree(loaded, loaded.scene.triangles, loaded.quiet);
+    }
+  }
+  if (loaded.device_layout) return DeviceScene(devices, loaded.scene, std::move(loaded.device_layout));
+  const DeviceLayoutCache cache(loaded.content_key != 0 ? DeviceLayoutCache::default_dir() : std::string());
+  DeviceLayoutStore store;
+  store.cache = &cache;
+  store.content_key = loaded.content_key;
+  store.quiet = loaded.quiet;
+  // The tree's host copy is not needed once its nodes are on the devices.
+  return DeviceScene(devices, loaded.scene, std::move(loaded.bvh), std::move(loaded.mesh_bvhs), store);
+}
+
+}  // namespace
 
 SceneOnDevices::SceneOnDevices(LoadedScene scene, const DeviceOptions& device_options, KernelChoice kernels)
-    : loaded(std::move(scene)),
-      devices(DeviceSet::create(device_options)),
-      // The tree's host copy is not needed once its nodes are on the devices.
-      device_scene(devices, loaded.scene, std::move(loaded.bvh), std::move(loaded.mesh_bvhs)) {
+    : loaded(std::move(scene)), devices(DeviceSet::create(device_options)), device_scene(make_device_scene(devices, loaded)) {
   device_scene.set_kernel_choice(kernels);
   if (!loaded.scene.rig) {
     std::vector<SceneTriangle>().swap(loaded.scene.triangles);

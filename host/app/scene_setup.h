@@ -9,6 +9,7 @@
 #include "scene/scene.h"
 #include "scene/scene_loader.h"
 
+#include <memory>
 #include <string>
 
 namespace px {
@@ -23,6 +24,11 @@ struct StartTimes {
   // not validated again.
   bool bvh_validated_when_cached = false;
   double cache_store_ms = 0.0;
+  // The tree came as its device layout, mapped from the device layout cache
+  // (device_layout_cache.h): no tree was read, laid out or validated. bvh_ms is then the time to
+  // hash the scene and map the file.
+  bool device_layout_from_cache = false;
+  double scene_hash_ms = 0.0;  // the cache key (scene_content_key), ms
   // The process's resident memory once the scene is on the devices and the host's copies are
   // released (VmRSS, MiB; 0 where /proc is not there): what rendering starts with.
   double host_rss_after_start_mib = 0.0;
@@ -32,6 +38,12 @@ struct LoadedScene {
   Scene scene;
   FlatBvh bvh;  // the world tree (scene_bvhs.h): every triangle's in a scene without instances
   std::vector<FlatBvh> mesh_bvhs;  // one per instanced mesh (Scene::instancing), else none
+  // A large static scene without instances, with a cache folder: scene_content_key (0: none of
+  // that), and the device layout the cache held for it in bvh_layout() (null: none; `bvh` is
+  // then empty). SceneOnDevices uploads the mapping, or stores the layout it makes.
+  std::uint64_t content_key = 0;
+  std::shared_ptr<const MappedDeviceLayout> device_layout;
+  bool quiet = false;
   StartTimes times;
   // The triangles' count and bounds, kept when SceneOnDevices releases the triangles.
   std::size_t triangle_count = 0;
@@ -39,7 +51,11 @@ struct LoadedScene {
 };
 
 // Throws SceneError / std::runtime_error with a user-facing message on failure.
-LoadedScene load_and_build(const std::string& spec, bool quiet = false, SkyMode sky = SkyMode::kAuto);
+// `map_device_layout`: a caller that uploads through SceneOnDevices lets a large static scene
+// come as its cached device layout, without a tree (LoadedScene::device_layout); every other
+// caller gets the tree.
+LoadedScene load_and_build(const std::string& spec, bool quiet = false, SkyMode sky = SkyMode::kAuto,
+                           bool map_device_layout = false);
 
 // A scene on a set of devices: loaded and its BVH built (load_and_build), the devices made
 // (DeviceSet::create), the scene uploaded to every one of them. Members in dependency order;

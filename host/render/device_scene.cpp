@@ -2,6 +2,7 @@
 
 #include "bvh/scene_bvhs.h"
 #include "bvh/top_level_bvh.h"
+#include "io/progress_ticker.h"
 #include "scene/instancing.h"
 
 #include <algorithm>
@@ -62,25 +63,43 @@ void require_allocation(const char* name, std::size_t bytes, const AllocationLim
                              " (CL_DEVICE_MAX_MEM_ALLOC_SIZE); the scene is too large for this device");
 }
 
-// One buffer of the scene (require_allocation first): written through `queue`, or, with `keep`
-// (devices that read the host's memory: CPU devices), over `data` itself (CL_MEM_USE_HOST_PTR),
-// whose array then moves into *keep to live as long as the buffer. The scene is then in memory
-// once, not twice, and nothing is copied.
+}  // namespace
+
+// A scene buffer's bytes on the host: an array the constructor made, or a mapped file's section
+// (device_layout_cache.h). `owner` keeps them alive.
+struct DeviceScene::HostBytes {
+  const void* data = nullptr;
+  std::size_t bytes = 0;    // 0: none (the buffer gets one placeholder element)
+  std::size_t element = 1;  // the size of one element
+  std::shared_ptr<const void> owner;
+};
+
+namespace {
+
 template <typename T>
-cl::Buffer upload(const char* name, const cl::Context& ctx, cl::CommandQueue& queue, std::vector<T>& data,
-                  const AllocationLimits& limits, std::size_t& total, std::vector<std::shared_ptr<void>>* keep) {
+DeviceScene::HostBytes owned_bytes(std::vector<T>&& v) {
+  auto owner = std::make_shared<const std::vector<T>>(std::move(v));
+  return {owner->data(), owner->size() * sizeof(T), sizeof(T), owner};
+}
+
+// One buffer of the scene (require_allocation first): written through `queue`, or, with `keep`
+// (devices that read the host's memory: CPU devices), over the host bytes themselves
+// (CL_MEM_USE_HOST_PTR), whose owner then goes into *keep to live as long as the buffer. The
+// scene is then in memory once, not twice, and nothing is copied. Read-only buffers: no kernel
+// writes them, so a read-only mapping serves as well as an array.
+cl::Buffer upload(const char* name, const cl::Context& ctx, cl::CommandQueue& queue, const DeviceScene::HostBytes& data,
+                  const AllocationLimits& limits, std::size_t& total, std::vector<std::shared_ptr<const void>>* keep) {
   // A zero-sized buffer is invalid in OpenCL; keep one element so kernels always get a buffer.
-  const std::size_t bytes = std::max<std::size_t>(1, data.size()) * sizeof(T);
+  const std::size_t bytes = std::max(data.element, data.bytes);
   require_allocation(name, bytes, limits);
   total += bytes;
-  if (keep && !data.empty()) {
-    auto owned = std::make_shared<std::vector<T>>(std::move(data));
-    cl::Buffer buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR, bytes, owned->data());
-    keep->push_back(std::move(owned));
+  if (keep && data.bytes > 0) {
+    cl::Buffer buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR, bytes, const_cast<void*>(data.data));
+    keep->push_back(data.owner);
     return buffer;
   }
   cl::Buffer buffer(ctx, CL_MEM_READ_ONLY, bytes);
-  if (!data.empty()) queue.enqueueWriteBuffer(buffer, CL_TRUE, 0, data.size() * sizeof(T), data.data());
+  if (data.bytes > 0) queue.enqueueWriteBuffer(buffer, CL_TRUE, 0, data.bytes, data.data);
   return buffer;
 }
 
@@ -188,10 +207,13 @@ std::vector<GpuMaterial> make_gpu_materials(const Scene& scene) {
 std::vector<LightTriangle> make_light_table(const Scene& scene) {
   std::vector<LightTriangle> out;
   double total = 0.0;
+  std::vector<char> emissive(scene.materials.size());
+  for (std::size_t k = 0; k < emissive.size(); ++k) emissive[k] = scene.materials[k].is_emissive();
+  if (std::find(emissive.begin(), emissive.end(), 1) == emissive.end()) return out;  // no emitter at all
   for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
     const SceneTriangle& t = scene.triangles[i];
-    const Material& m = scene.materials.at(t.material);
-    if (!m.is_emissive()) continue;
+    if (!emissive.at(t.material)) continue;
+    const Material& m = scene.materials[t.material];
     const float area = 0.5f * glm::length(glm::cross(t.p[1] - t.p[0], t.p[2] - t.p[0]));
     // Emitted power is pi * area * radiance per emitting face.
     const double power = static_cast<double>(area) * luminance(m.emission) * (m.two_sided ? 2.0 : 1.0);
@@ -218,11 +240,14 @@ std::vector<LightTriangle> make_light_table(const Scene& scene) {
 }
 
 std::vector<std::uint32_t> triangle_flags(const Scene& scene) {
-  std::vector<std::uint32_t> out(scene.triangles.size());
-  for (std::size_t i = 0; i < out.size(); ++i) {
-    const Material& m = scene.materials.at(scene.triangles[i].material);
-    out[i] = (m.alpha_texture >= 0 ? PX_TRI_ALPHA_TESTED : 0u) | (m.is_emissive() ? PX_TRI_EMISSIVE : 0u);
+  // By material first: a scene has few materials and may have 10M triangles.
+  std::vector<std::uint32_t> by_material(scene.materials.size());
+  for (std::size_t k = 0; k < by_material.size(); ++k) {
+    const Material& m = scene.materials[k];
+    by_material[k] = (m.alpha_texture >= 0 ? PX_TRI_ALPHA_TESTED : 0u) | (m.is_emissive() ? PX_TRI_EMISSIVE : 0u);
   }
+  std::vector<std::uint32_t> out(scene.triangles.size());
+  for (std::size_t i = 0; i < out.size(); ++i) out[i] = by_material.at(scene.triangles[i].material);
   return out;
 }
 
@@ -317,7 +342,8 @@ std::vector<MeshPlacement> DeviceScene::assemble_instanced(const FlatBvh* world,
   return placements;
 }
 
-DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, std::vector<FlatBvh> mesh_bvhs) {
+DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, std::vector<FlatBvh> mesh_bvhs,
+                         const DeviceLayoutStore& store) {
   const auto layout_start = std::chrono::steady_clock::now();
   FlatBvh& flagged = bvh;
   const std::vector<std::uint32_t> tri_flags = triangle_flags(scene);
@@ -375,6 +401,74 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
   }
   auto& triangles = instanced ? instanced_triangles : flagged.triangles;
   auto shading = make_triangle_shading(scene);
+  const bool binary_nodes = layout == BvhLayout::Binary && !instanced;  // else the nodes are words
+  if (store.cache && store.cache->enabled() && !instanced && !scene.rig) {
+    // The layout as it goes to the devices, for the next start to map (device_layout_cache.h).
+    const auto t = std::chrono::steady_clock::now();
+    DeviceLayoutParts parts;
+    parts.layout = layout;
+    parts.stats = flagged.stats;
+    parts.layout_nodes = layout == BvhLayout::Wide4   ? flagged.nodes4.size()
+                         : layout == BvhLayout::Wide8 ? flagged.nodes8.size()
+                         : layout == BvhLayout::Compressed8 ? flagged.cnodes.size()
+                                                            : flagged.nodes.size();
+    parts.nodes = binary_nodes ? static_cast<const void*>(flagged.nodes.data()) : wide_words.data();
+    parts.node_bytes = binary_nodes ? flagged.nodes.size() * sizeof(BvhNode) : wide_words.size() * 4;
+    parts.triangles = &triangles;
+    parts.shading = &shading;
+    std::string why;
+    std::string path;
+    {
+      const ProgressTicker ticker(store.quiet ? "" : "[bvh] still writing the device layout cache");
+      path = store.cache->store(store.content_key, store.options, scene.triangles.size(), parts, &why);
+    }
+    layout_store_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+    if (!store.quiet && !path.empty())
+      std::fprintf(stderr, "[bvh] the %s device layout cached in %s for the next run (%.0f ms)\n", to_string(layout),
+                   path.c_str(), layout_store_ms_);
+    if (!store.quiet && path.empty())
+      std::fprintf(stderr, "[bvh] warning: could not cache the device layout (%s)\n", why.c_str());
+  }
+  if (!scene.rig) {
+    // Nothing rewrites a static scene's buffers: its host tree goes now, not after the upload.
+    std::vector<Bvh4Node>().swap(flagged.nodes4);
+    std::vector<Bvh8Node>().swap(flagged.nodes8);
+    std::vector<CompressedBvh8Node>().swap(flagged.cnodes);
+    std::vector<std::uint32_t>().swap(flagged.cleaf_first);
+    if (!binary_nodes) std::vector<BvhNode>().swap(flagged.nodes);
+  }
+  HostBytes node_bytes = binary_nodes ? owned_bytes(std::move(flagged.nodes)) : owned_bytes(std::move(wide_words));
+  upload_all(devices, scene, std::move(node_bytes), owned_bytes(std::move(triangles)), owned_bytes(std::move(shading)),
+             std::move(instance_words), tri_flags, instanced, layout_start);
+}
+
+DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, std::shared_ptr<const MappedDeviceLayout> mapped) {
+  const auto layout_start = std::chrono::steady_clock::now();
+  if (!mapped) throw std::logic_error("DeviceScene: no mapped layout");
+  layout_ = devices.bvh_layout();
+  if (mapped->layout() != layout_)
+    throw std::logic_error(std::string("DeviceScene: a mapped ") + to_string(mapped->layout()) + " layout for a " +
+                           to_string(layout_) + " device set");
+  if (!scene.instancing.empty() || scene.rig || mapped->shading_count() != scene.triangles.size())
+    throw std::logic_error("DeviceScene: a mapped layout serves a static scene without instances, of its own triangles");
+  layout_from_cache_ = true;
+  const std::vector<std::uint32_t> tri_flags = triangle_flags(scene);
+  std::vector<std::uint32_t> instance_words = instance_buffer_words(scene, {}, scene.triangles.size());
+  // The three sections, each kept alive by the mapping.
+  const std::shared_ptr<const void> owner = mapped;
+  HostBytes nodes{mapped->node_bytes(), mapped->node_byte_count(), layout_ == BvhLayout::Binary ? sizeof(BvhNode) : 4,
+                  owner};
+  HostBytes triangles{mapped->triangles(), mapped->triangle_count() * sizeof(BvhTriangle), sizeof(BvhTriangle), owner};
+  HostBytes shading{mapped->shading(), mapped->shading_count() * sizeof(TriangleShading), sizeof(TriangleShading),
+                    owner};
+  upload_all(devices, scene, std::move(nodes), std::move(triangles), std::move(shading), std::move(instance_words),
+             tri_flags, false, layout_start);
+}
+
+void DeviceScene::upload_all(DeviceSet& devices, const Scene& scene, HostBytes nodes, HostBytes triangles,
+                             HostBytes shading, std::vector<std::uint32_t> instance_words,
+                             const std::vector<std::uint32_t>& tri_flags, bool instanced,
+                             std::chrono::steady_clock::time_point layout_start) {
   auto materials = make_gpu_materials(scene);
   auto lights = make_light_table(scene);
   light_count_ = lights.size();
@@ -409,14 +503,14 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
   // share memory (sub-devices, queues: PoCL) then share the one copy; separate GPUs of a
   // platform each get their copy from the runtime on first use.
   const auto upload_start = std::chrono::steady_clock::now();
-  layout_ms_ = std::chrono::duration<double, std::milli>(upload_start - layout_start).count();
+  layout_ms_ = std::chrono::duration<double, std::milli>(upload_start - layout_start).count() - layout_store_ms_;
   const AllocationLimits limits = allocation_limits(devices);
   // The whole scene against the device's memory first, before anything is allocated.
   const auto size_of = [](const auto& v) { return std::max<std::size_t>(1, v.size()) * sizeof(v[0]); };
-  const bool binary_nodes = layout == BvhLayout::Binary && !instanced;  // else the nodes are words
-  const std::size_t total = (binary_nodes ? size_of(flagged.nodes) : size_of(wide_words)) + size_of(triangles) +
-                            size_of(shading) + size_of(materials) + size_of(infos) + size_of(texels) +
-                            size_of(lights) + size_of(colours) + size_of(instance_words);
+  const auto host_size = [](const HostBytes& h) { return std::max(h.element, h.bytes); };
+  const std::size_t total = host_size(nodes) + host_size(triangles) + host_size(shading) + size_of(materials) +
+                            size_of(infos) + size_of(texels) + size_of(lights) + size_of(colours) +
+                            size_of(instance_words);
   if (total > limits.global_mem)
     throw std::runtime_error("the scene needs " + mib(total) + " of device memory, more than the device has: " +
                              mib(limits.global_mem) + " (CL_DEVICE_GLOBAL_MEM_SIZE)");
@@ -424,31 +518,29 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
   const cl::Context& ctx = devices.context();
   instance_count_ = scene.instancing.instances.size();
   instance_bytes_ = size_of(instance_words);
-  capacity_.nodes = binary_nodes ? size_of(flagged.nodes) : size_of(wide_words);
-  capacity_.triangles = size_of(triangles);
-  capacity_.shading = size_of(shading);
+  capacity_.nodes = host_size(nodes);
+  capacity_.triangles = host_size(triangles);
+  capacity_.shading = host_size(shading);
   capacity_.lights = size_of(lights);
   capacity_.instances = size_of(instance_words);
   // CPU devices read the host's memory: their buffers are the host arrays themselves. Not for an
   // animated scene, whose buffers update_geometry rewrites and may replace.
   host_backed_ = !scene.rig && std::all_of(devices.devices().begin(), devices.devices().end(),
                                            [](const ComputeDevice& d) { return d.is_cpu(); });
-  std::vector<std::shared_ptr<void>>* keep = host_backed_ ? &host_arrays_ : nullptr;
+  std::vector<std::shared_ptr<const void>>* keep = host_backed_ ? &host_arrays_ : nullptr;
   std::size_t bytes = 0;
   DeviceSceneBuffers b;
-  if (binary_nodes)
-    b.nodes = upload("BVH node", ctx, queue, flagged.nodes, limits, bytes, keep);
-  else
-    b.nodes = upload("BVH node", ctx, queue, wide_words, limits, bytes, keep);
+  b.nodes = upload("BVH node", ctx, queue, nodes, limits, bytes, keep);
   b.triangles = upload("triangle", ctx, queue, triangles, limits, bytes, keep);
   b.shading = upload("shading", ctx, queue, shading, limits, bytes, keep);
-  b.materials = upload("material", ctx, queue, materials, limits, bytes, keep);
-  b.textures = upload("texture table", ctx, queue, infos, limits, bytes, keep);
-  b.texels = upload("texel", ctx, queue, texels, limits, bytes, keep);
-  b.lights = upload("light", ctx, queue, lights, limits, bytes, keep);
-  b.colours = upload("vertex colour", ctx, queue, colours, limits, bytes, keep);
-  b.instances = upload("instance", ctx, queue, instance_words, limits, bytes, keep);
-  tri_flags_ = tri_flags;
+  b.materials = upload("material", ctx, queue, owned_bytes(std::move(materials)), limits, bytes, keep);
+  b.textures = upload("texture table", ctx, queue, owned_bytes(std::move(infos)), limits, bytes, keep);
+  b.texels = upload("texel", ctx, queue, owned_bytes(std::move(texels)), limits, bytes, keep);
+  b.lights = upload("light", ctx, queue, owned_bytes(std::move(lights)), limits, bytes, keep);
+  b.colours = upload("vertex colour", ctx, queue, owned_bytes(std::move(colours)), limits, bytes, keep);
+  b.instances = upload("instance", ctx, queue, owned_bytes(std::move(instance_words)), limits, bytes, keep);
+  // Only update_geometry reads the flags again: a static scene does not keep them.
+  if (scene.rig) tri_flags_ = tri_flags;
   bytes_in_context_ = bytes;
   upload_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - upload_start).count();
   per_device_.assign(devices.devices().size(), b);

@@ -12,9 +12,11 @@
 #include "bvh/flat_bvh.h"
 #include "bvh/top_level_bvh.h"
 #include "cl/device_set.h"
+#include "render/device_layout_cache.h"
 #include "render/kernel_features.h"
 #include "scene/scene.h"
 
+#include <chrono>
 #include <memory>
 #include <string>
 #include <vector>
@@ -51,6 +53,15 @@ std::vector<std::uint32_t> triangle_flags(const Scene& scene);
 // fields (the per-launch fields are left for the caller).
 void fill_light_params(const Scene& scene, std::size_t light_count, FrameParams& params);
 
+// Where a DeviceScene that lays a static scene without instances out stores that layout for the
+// next start to map (device_layout_cache.h). No cache: nothing is stored.
+struct DeviceLayoutStore {
+  const DeviceLayoutCache* cache = nullptr;
+  std::uint64_t content_key = 0;  // scene_content_key(scene)
+  BvhBuildOptions options;        // those the tree was built with
+  bool quiet = true;              // else say where it went (stderr)
+};
+
 class DeviceScene {
  public:
   // Uploads `bvh` and the scene's shading data once into the context of `devices` (blocking).
@@ -60,7 +71,13 @@ class DeviceScene {
   // nodes are built here), `mesh_bvhs` the instanced meshes' trees (build_mesh_bvhs; built here
   // when empty). Their nodes go into the one node buffer, mesh after mesh, and the instances'
   // top level into the instance buffer. Such a scene cannot be updated (update_geometry).
-  DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, std::vector<FlatBvh> mesh_bvhs = {});
+  // With `store`, a static scene's layout also goes to the device layout cache.
+  DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, std::vector<FlatBvh> mesh_bvhs = {},
+              const DeviceLayoutStore& store = {});
+  // A static scene without instances whose layout a start mapped from the cache
+  // (DeviceLayoutCache::open) in the set's layout: its sections are the node, triangle and
+  // shading buffers (CPU devices read the mapping itself), nothing is laid out.
+  DeviceScene(DeviceSet& devices, const Scene& scene, std::shared_ptr<const MappedDeviceLayout> mapped);
 
   const DeviceSceneBuffers& on(int device_index) const { return per_device_.at(device_index); }
 
@@ -90,6 +107,11 @@ class DeviceScene {
   double layout_ms() const { return layout_ms_; }
   // Whether the buffers are the host's own arrays (every device a CPU device: no second copy).
   bool host_backed() const { return host_backed_; }
+  // Whether the layout came mapped from the device layout cache, and the time spent storing it
+  // there (ms, 0 when it was not; not part of layout_ms).
+  bool layout_from_cache() const { return layout_from_cache_; }
+  double layout_store_ms() const { return layout_store_ms_; }
+  struct HostBytes;  // device_scene.cpp
   std::size_t light_count() const { return light_count_; }
   // Instances uploaded (0 without), and the instance buffer's bytes (top level and records).
   std::size_t instance_count() const { return instance_count_; }
@@ -122,7 +144,12 @@ class DeviceScene {
   // (64-byte aligned), and where each mesh went.
   std::vector<MeshPlacement> assemble_instanced(const FlatBvh* world, std::vector<std::uint32_t>& words,
                                                 std::vector<BvhTriangle>& triangles) const;
-  std::vector<std::uint32_t> tri_flags_;  // triangle_flags(scene): fixed by the materials
+  // The constructors' common part: everything but the three large buffers, then the upload.
+  void upload_all(DeviceSet& devices, const Scene& scene, HostBytes nodes, HostBytes triangles, HostBytes shading,
+                  std::vector<std::uint32_t> instance_words, const std::vector<std::uint32_t>& tri_flags,
+                  bool instanced, std::chrono::steady_clock::time_point layout_start);
+  // triangle_flags(scene), fixed by the materials: kept for update_geometry (animated scenes).
+  std::vector<std::uint32_t> tri_flags_;
   // What update_geometry last wrote to each of those buffers (empty until its first call, which
   // writes them whole), so that later calls write only the pieces that changed.
   struct Shadows {
@@ -135,7 +162,9 @@ class DeviceScene {
   std::size_t instance_count_ = 0, instance_bytes_ = 0;
   // CPU devices: the buffers are the host arrays themselves (CL_MEM_USE_HOST_PTR), kept here.
   bool host_backed_ = false;
-  std::vector<std::shared_ptr<void>> host_arrays_;
+  std::vector<std::shared_ptr<const void>> host_arrays_;
+  bool layout_from_cache_ = false;
+  double layout_store_ms_ = 0.0;
   BvhLayout layout_ = BvhLayout::Binary;
   std::uint32_t scene_features_ = PX_FEATURES_ALL;
   KernelChoice choice_ = KernelChoice::Scene;

@@ -878,6 +878,16 @@ class Converter {
     std::map<int, int> copies_left;
     for (const Placement& pl : placements_)
       if (flat(pl)) ++copies_left[pl.mesh];
+    {
+      // Room for every triangle at once: growing a 10M-triangle array by doubling had copied it
+      // and touched twice its memory.
+      std::size_t expected = scene_.triangles.size();
+      std::set<int> stored;  // an instanced mesh is stored once
+      for (const Placement& pl : placements_)
+        if (flat(pl) || stored.insert(pl.mesh).second)
+          for (const RigPrimitive& prim : mesh_primitives(pl.mesh)) expected += prim.triangles.size();
+      scene_.triangles.reserve(expected);
+    }
     for (const Placement& pl : placements_) {
       if (!flat(pl)) continue;
       for (const RigPrimitive& prim : mesh_primitives(pl.mesh))

@@ -444,19 +444,37 @@ void check_coordinate_range(Scene& scene, const std::string& source, bool warn) 
     for (int c = 0; c < 3; ++c)
       if (!(std::abs(p[c]) <= kMaxSceneCoordinate)) refuse(what, p[c]);
   };
+  // Per vertex, the name is made only when it is needed (30M strings at 10M triangles had taken
+  // a sixth of a warm start).
+  auto check_vertex = [&](const glm::vec3& p, std::size_t triangle) {
+    if (!(std::abs(p.x) <= kMaxSceneCoordinate && std::abs(p.y) <= kMaxSceneCoordinate &&
+          std::abs(p.z) <= kMaxSceneCoordinate))
+      check(p, "triangle " + std::to_string(triangle));
+  };
   glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
   float far = 0.0f;
   // Instances are checked where they place their meshes (a mesh's own coordinates may be small
   // and its instances far).
-  for_each_drawn_triangle(scene, [&](const glm::vec3* ps, std::size_t i) {
+  // One pass for the bounds and whether every coordinate is in range (NaN is not); only when one
+  // is not are the triangles searched again, to name the first such.
+  bool in_range = true, any = false;
+  for_each_drawn_triangle(scene, [&](const glm::vec3* ps, std::size_t) {
+    any = true;
     for (int c = 0; c < 3; ++c) {
       const glm::vec3& p = ps[c];
-      check(p, "triangle " + std::to_string(i));
+      in_range &= std::abs(p.x) <= kMaxSceneCoordinate && std::abs(p.y) <= kMaxSceneCoordinate &&
+                  std::abs(p.z) <= kMaxSceneCoordinate;
       lo = glm::min(lo, p);
       hi = glm::max(hi, p);
-      far = std::max({far, std::abs(p.x), std::abs(p.y), std::abs(p.z)});
     }
   });
+  if (!in_range)
+    for_each_drawn_triangle(scene, [&](const glm::vec3* ps, std::size_t i) {
+      for (int c = 0; c < 3; ++c) check_vertex(ps[c], i);
+    });
+  // Every vertex is within [lo, hi], so the farthest coordinate is a corner's.
+  if (any)
+    far = std::max({std::abs(lo.x), std::abs(lo.y), std::abs(lo.z), std::abs(hi.x), std::abs(hi.y), std::abs(hi.z)});
   check(scene.camera.position, "the camera position");
   check(scene.camera.target, "the camera target");
   for (std::size_t i = 0; i < scene.camera_path.size(); ++i) {

@@ -141,6 +141,24 @@ void emit_primitive(const RigPrimitive& prim, const glm::dmat4& world, const std
     for (std::size_t v = 0; v < prim.positions.size(); ++v)
       world_pos[v] = glm::vec3(world * glm::dvec4(glm::dvec3(prim.positions[v]), 1.0));
   }
+  // Normals and uvs once per vertex as well, not once per corner (a heightfield's vertex is a
+  // corner of six triangles). A normal that degenerates is marked invalid: its corners take the
+  // triangle's geometric normal.
+  std::vector<glm::vec3> world_normal(prim.normals.size());
+  std::vector<char> normal_valid(prim.normals.size());
+  for (std::size_t v = 0; v < prim.normals.size(); ++v) {
+    const glm::dmat3& nm = skinned ? vertex_normal_matrix[v] : normal_matrix;
+    const glm::vec3 wn(nm * glm::dvec3(prim.normals[v]));
+    const float len = glm::length(wn);
+    normal_valid[v] = len > 0.0f && std::isfinite(len);
+    if (normal_valid[v]) world_normal[v] = wn / len;
+  }
+  std::vector<glm::vec2> uvs(prim.uvs.size());
+  for (std::size_t v = 0; v < prim.uvs.size(); ++v) {
+    const glm::vec2& a = prim.uvs[v];
+    // glTF's v runs down the image, the renderer's (OBJ's) up.
+    uvs[v] = std::isfinite(a.x) && std::isfinite(a.y) ? glm::vec2(a.x, 1.0f - a.y) : glm::vec2(0.0f);
+  }
   const std::size_t count = kept ? kept->size() : prim.triangles.size();
   for (std::size_t k = 0; k < count; ++k) {
     const std::uint32_t ti = kept ? (*kept)[k] : static_cast<std::uint32_t>(k);
@@ -177,21 +195,8 @@ void emit_primitive(const RigPrimitive& prim, const glm::dmat4& world, const std
       if (!finite3(ng) || ng == glm::vec3(0.0f)) ng = glm::vec3(0.0f, 0.0f, 1.0f);
     }
     for (int c = 0; c < 3; ++c) {
-      glm::vec3 n = ng;
-      if (!prim.normals.empty()) {
-        const glm::dmat3& nm = skinned ? vertex_normal_matrix[order[c]] : normal_matrix;
-        const glm::vec3 wn(nm * glm::dvec3(prim.normals[order[c]]));
-        const float len = glm::length(wn);
-        if (len > 0.0f && std::isfinite(len)) n = wn / len;
-      }
-      tri.n[c] = n;
-      glm::vec2 uv(0.0f);
-      if (!prim.uvs.empty()) {
-        const glm::vec2& a = prim.uvs[order[c]];
-        // glTF's v runs down the image, the renderer's (OBJ's) up.
-        if (std::isfinite(a.x) && std::isfinite(a.y)) uv = glm::vec2(a.x, 1.0f - a.y);
-      }
-      tri.uv[c] = uv;
+      tri.n[c] = !prim.normals.empty() && normal_valid[order[c]] ? world_normal[order[c]] : ng;
+      tri.uv[c] = prim.uvs.empty() ? glm::vec2(0.0f) : uvs[order[c]];
     }
     out.push_back(tri);
     if (colours) {

@@ -1,0 +1,317 @@
+// The device layout cache (render/device_layout_cache.h): a start maps the scene's three large
+// buffers from disk instead of reading, collapsing and laying out its tree. What is mapped must
+// be byte for byte what the layout code makes from the tree (made again here, apart from the
+// cache), must trace like it (closest hits against a brute-force loop, through a DeviceScene
+// made from the mapping), and anything that is not exactly that file (another scene, another
+// material flag, another layout, a cut or damaged file) must be a miss, never an error. Also
+// ContentHash, the key's hash: independent of how its input is split, and sensitive to a bit.
+#include "render/device_layout_cache.h"
+#include "render/device_scene.h"
+#include "io/content_hash.h"
+#include "scene/primitives.h"
+#include "support/brute_force.h"
+#include "support/test_support.h"
+#include "trace/ray_batch_tracer.h"
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+namespace px {
+namespace {
+
+TEST(ContentHash, DoesNotDependOnHowTheInputIsSplitAndSeesEveryBit) {
+  std::mt19937 rng(7);
+  std::vector<unsigned char> bytes(1000);
+  for (auto& b : bytes) b = static_cast<unsigned char>(rng());
+  const std::uint64_t whole = content_hash(bytes.data(), bytes.size());
+  for (const std::size_t cut : {0, 1, 7, 31, 32, 33, 500, 999, 1000}) {
+    for (const std::size_t cut2 : {cut, std::min<std::size_t>(1000, cut + 5), std::min<std::size_t>(1000, cut + 64)}) {
+      ContentHash h;
+      h.bytes(bytes.data(), cut);
+      h.bytes(bytes.data() + cut, cut2 - cut);
+      h.bytes(bytes.data() + cut2, bytes.size() - cut2);
+      EXPECT_EQ(h.digest(), whole) << "split at " << cut << " and " << cut2;
+    }
+  }
+  // One bit anywhere, the length, or the seed: another value (2,000 flips, no collision).
+  std::vector<std::uint64_t> seen{whole};
+  for (std::size_t i = 0; i < bytes.size(); i += 1)
+    for (const int bit : {0, 7}) {
+      auto flipped = bytes;
+      flipped[i] ^= static_cast<unsigned char>(1u << bit);
+      seen.push_back(content_hash(flipped.data(), flipped.size()));
+    }
+  seen.push_back(content_hash(bytes.data(), bytes.size() - 1));
+  seen.push_back(content_hash(bytes.data(), bytes.size(), 1));
+  std::sort(seen.begin(), seen.end());
+  EXPECT_EQ(std::adjacent_find(seen.begin(), seen.end()), seen.end()) << "two inputs hashed alike";
+}
+
+// Enough triangles for several leaves per node level, with two materials: one plain, one
+// emissive (its triangles carry PX_TRI_EMISSIVE in the leaf triangles and leaf blocks).
+Scene test_scene() {
+  Scene s;
+  s.name = "slivers and spheres";
+  Material plain;
+  Material lamp;
+  lamp.emission = glm::vec3(4.0f);
+  s.materials = {plain, lamp};
+  append_slivers(s.triangles, 3000, 11, 0);
+  append_icosphere(s.triangles, {0.0f, 2.0f, 0.0f}, 0.5f, 2, 1);
+  return s;
+}
+
+// The three buffers as the device layout code makes them, made here from the tree apart from
+// any cache: flags from the materials, the node words of `layout`, the shading records.
+struct ExpectedLayout {
+  std::vector<std::uint8_t> nodes;
+  std::vector<BvhTriangle> triangles;
+  std::vector<TriangleShading> shading;
+};
+ExpectedLayout expected_layout(const Scene& scene, const FlatBvh& built, BvhLayout layout) {
+  FlatBvh tree = built;
+  set_triangle_flags(tree, triangle_flags(scene));
+  ensure_layout(tree, layout);
+  ExpectedLayout e;
+  if (layout == BvhLayout::Binary) {
+    const auto* p = reinterpret_cast<const std::uint8_t*>(tree.nodes.data());
+    e.nodes.assign(p, p + tree.nodes.size() * sizeof(BvhNode));
+  } else {
+    const auto words = device_wide_nodes(tree, layout);
+    const auto* p = reinterpret_cast<const std::uint8_t*>(words.data());
+    e.nodes.assign(p, p + words.size() * 4);
+  }
+  e.triangles = tree.triangles;
+  e.shading = make_triangle_shading(scene);
+  return e;
+}
+
+bool same_bytes(const void* a, const void* b, std::size_t n) { return std::memcmp(a, b, n) == 0; }
+
+// A DeviceScene on `set` stores the layout; the cache maps back exactly the expected bytes.
+std::shared_ptr<const MappedDeviceLayout> store_and_open(DeviceSet& set, const Scene& scene, const FlatBvh& built,
+                                                         const DeviceLayoutCache& cache, std::uint64_t key) {
+  DeviceLayoutStore store;
+  store.cache = &cache;
+  store.content_key = key;
+  DeviceScene stored(set, scene, built, {}, store);
+  EXPECT_GT(stored.layout_store_ms(), 0.0);
+  EXPECT_FALSE(stored.layout_from_cache());
+  return cache.open(key, set.bvh_layout(), BvhBuildOptions{}, scene.triangles.size());
+}
+
+TEST(DeviceLayoutCache, MapsBackExactlyTheLayoutOfEachNodeLayout) {
+  test::TempDir dir;
+  const DeviceLayoutCache cache(dir.path().string());
+  const Scene scene = test_scene();
+  const FlatBvh built = build_bvh(scene.triangles);
+  const std::uint64_t key = scene_content_key(scene);
+  for (const BvhLayout layout : {BvhLayout::Binary, BvhLayout::Wide4, BvhLayout::Wide8, BvhLayout::Compressed8}) {
+    SCOPED_TRACE(to_string(layout));
+    set_bvh_layout(layout);
+    DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+    ASSERT_EQ(set.bvh_layout(), layout);
+    EXPECT_EQ(cache.open(key, layout, BvhBuildOptions{}, scene.triangles.size()), nullptr) << "nothing stored yet";
+    const auto mapped = store_and_open(set, scene, built, cache, key);
+    ASSERT_NE(mapped, nullptr);
+    const ExpectedLayout e = expected_layout(scene, built, layout);
+    EXPECT_EQ(mapped->layout(), layout);
+    ASSERT_EQ(mapped->node_byte_count(), e.nodes.size());
+    EXPECT_TRUE(same_bytes(mapped->node_bytes(), e.nodes.data(), e.nodes.size()));
+    ASSERT_EQ(mapped->triangle_count(), e.triangles.size());
+    EXPECT_TRUE(same_bytes(mapped->triangles(), e.triangles.data(), e.triangles.size() * sizeof(BvhTriangle)));
+    ASSERT_EQ(mapped->shading_count(), e.shading.size());
+    EXPECT_TRUE(same_bytes(mapped->shading(), e.shading.data(), e.shading.size() * sizeof(TriangleShading)));
+    EXPECT_EQ(mapped->stats().nodes, built.stats.nodes);
+    EXPECT_EQ(mapped->stats().depth, built.stats.depth);
+    EXPECT_DOUBLE_EQ(mapped->stats().sah_cost, built.stats.sah_cost);
+    EXPECT_TRUE(mapped->verify_payload());
+    // The sections are page-aligned (CL_MEM_USE_HOST_PTR).
+    EXPECT_EQ(reinterpret_cast<std::uintptr_t>(mapped->node_bytes()) % 4096, 0u);
+    EXPECT_EQ(reinterpret_cast<std::uintptr_t>(mapped->triangles()) % 4096, 0u);
+    EXPECT_EQ(reinterpret_cast<std::uintptr_t>(mapped->shading()) % 4096, 0u);
+  }
+  set_bvh_layout(std::nullopt);
+}
+
+// A DeviceScene made from the mapping traces as the scene's triangles say: closest hits of rays
+// from inside and outside the scene against a brute-force loop over every triangle, and the same
+// hits as the DeviceScene laid out from the tree.
+TEST(DeviceLayoutCache, ASceneMadeFromTheMappingTracesLikeTheBruteForceLoop) {
+  test::TempDir dir;
+  const DeviceLayoutCache cache(dir.path().string());
+  const Scene scene = test_scene();
+  const FlatBvh built = build_bvh(scene.triangles);
+  const std::uint64_t key = scene_content_key(scene);
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  auto mapped = store_and_open(set, scene, built, cache, key);
+  ASSERT_NE(mapped, nullptr);
+  DeviceScene laid_out(set, scene, built);
+  DeviceScene from_file(set, scene, mapped);
+  EXPECT_TRUE(from_file.layout_from_cache());
+  EXPECT_EQ(from_file.bytes_in_context(), laid_out.bytes_in_context());
+  EXPECT_EQ(from_file.scene_features(), laid_out.scene_features());
+  EXPECT_EQ(from_file.light_count(), laid_out.light_count());
+  mapped.reset();  // the DeviceScene keeps the mapping alive
+  // Rays from far away at a random point of a random triangle, and rays in random directions
+  // from a random triangle's centre.
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<std::size_t> pick(0, scene.triangles.size() - 1);
+  std::uniform_real_distribution<float> u01(0.0f, 1.0f);
+  std::vector<Ray> rays;
+  for (int i = 0; i < 600; ++i) {
+    const SceneTriangle& t = scene.triangles[pick(rng)];
+    float a = u01(rng), b = u01(rng);
+    if (a + b > 1.0f) a = 1.0f - a, b = 1.0f - b;
+    const glm::vec3 target = t.p[0] + a * (t.p[1] - t.p[0]) + b * (t.p[2] - t.p[0]);
+    const glm::vec3 centre = (t.p[0] + t.p[1] + t.p[2]) / 3.0f;
+    if (i % 2)
+      rays.push_back(test::make_ray(centre, test::random_unit(rng), 1e-3f));
+    else {
+      const glm::vec3 o = target + 20.0f * test::random_unit(rng);
+      rays.push_back(test::make_ray(o, glm::normalize(target - o)));
+    }
+  }
+  RayBatchTracer a(set, laid_out), b(set, from_file);
+  const std::vector<Hit> ha = a.closest(rays), hb = b.closest(rays);
+  int hits = 0, agreed = 0, checked = 0;
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    EXPECT_EQ(ha[i].prim, hb[i].prim) << "ray " << i;
+    EXPECT_EQ(ha[i].t, hb[i].t) << "ray " << i;
+    const test::BruteHit ref = test::brute_force_closest(scene.triangles, rays[i]);
+    if (ref.edge_distance < 1e-4) continue;  // grazing an edge: either triangle may claim it
+    ++checked;
+    hits += ref.prim != PX_NO_HIT;
+    // The same triangle (or both a miss); or, where slivers cross, another triangle at the same
+    // distance to float precision.
+    const bool both_hit = hb[i].prim != PX_NO_HIT && ref.prim != PX_NO_HIT;
+    agreed += hb[i].prim == ref.prim || (both_hit && std::abs(hb[i].t - ref.t) <= 1e-4 * ref.t);
+  }
+  EXPECT_GT(hits, 200) << "the rays must mostly hit something to test anything";
+  EXPECT_EQ(agreed, checked);
+}
+
+TEST(DeviceLayoutCache, AnotherSceneFlagOrLayoutIsAMiss) {
+  test::TempDir dir;
+  const DeviceLayoutCache cache(dir.path().string());
+  const Scene scene = test_scene();
+  const FlatBvh built = build_bvh(scene.triangles);
+  const std::uint64_t key = scene_content_key(scene);
+  set_bvh_layout(BvhLayout::Wide8);
+  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  ASSERT_NE(store_and_open(set, scene, built, cache, key), nullptr);
+  const std::size_t n = scene.triangles.size();
+  EXPECT_EQ(cache.open(key, BvhLayout::Wide4, BvhBuildOptions{}, n), nullptr) << "another layout";
+  BvhBuildOptions binned;
+  binned.spatial_splits = false;
+  EXPECT_EQ(cache.open(key, BvhLayout::Wide8, binned, n), nullptr) << "other build options";
+  EXPECT_EQ(cache.open(key, BvhLayout::Wide8, BvhBuildOptions{}, n + 1), nullptr) << "another triangle count";
+  // The key sees what the layout holds: a normal (shading), a uv, a material's flags.
+  Scene normal = scene;
+  normal.triangles[1234].n[2].x += 1e-3f;
+  EXPECT_NE(scene_content_key(normal), key);
+  Scene uv = scene;
+  uv.triangles[5].uv[0].y = 0.25f;
+  EXPECT_NE(scene_content_key(uv), key);
+  Scene cut_out = scene;
+  cut_out.materials[0].alpha_texture = 0;
+  EXPECT_NE(scene_content_key(cut_out), key);
+  Scene dark = scene;
+  dark.materials[1].emission = glm::vec3(0.0f);
+  EXPECT_NE(scene_content_key(dark), key);
+  // ... but not what it does not hold: a material's colour.
+  Scene red = scene;
+  red.materials[0].diffuse = glm::vec3(0.9f, 0.1f, 0.1f);
+  EXPECT_EQ(scene_content_key(red), key);
+  set_bvh_layout(std::nullopt);
+}
+
+TEST(DeviceLayoutCache, DamagedFilesAreMissesAndVerifyPayloadFindsAnyChangedByte) {
+  test::TempDir dir;
+  const DeviceLayoutCache cache(dir.path().string());
+  const Scene scene = test_scene();
+  const FlatBvh built = build_bvh(scene.triangles);
+  const std::uint64_t key = scene_content_key(scene);
+  set_bvh_layout(BvhLayout::Wide8);
+  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  const auto mapped = store_and_open(set, scene, built, cache, key);
+  ASSERT_NE(mapped, nullptr);
+  const std::string path = mapped->path();
+  const std::size_t length = mapped->file_bytes();
+  ASSERT_EQ(std::filesystem::file_size(path), length);
+  std::ifstream in(path, std::ios::binary);
+  const std::string original((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_EQ(original.size(), length);
+  const auto write = [&](const std::string& bytes) {
+    std::filesystem::remove(path);  // a new file: the mapping above keeps the old one
+    std::ofstream(path, std::ios::binary) << bytes;
+  };
+  const auto open = [&] { return cache.open(key, BvhLayout::Wide8, BvhBuildOptions{}, scene.triangles.size()); };
+  write(original.substr(0, length - 100));
+  EXPECT_EQ(open(), nullptr) << "truncated";
+  write(original + std::string(4096, '\0'));
+  EXPECT_EQ(open(), nullptr) << "grown";
+  for (const std::size_t at : {std::size_t(0), std::size_t(8), std::size_t(100), std::size_t(200)}) {
+    std::string bad = original;
+    bad[at] ^= 0x10;
+    write(bad);
+    EXPECT_EQ(open(), nullptr) << "header byte " << at;
+  }
+  // The first payload page is always among the samples a start checks.
+  {
+    std::string bad = original;
+    bad[4096 + 17] ^= 0x01;
+    write(bad);
+    EXPECT_EQ(open(), nullptr) << "a sampled payload byte";
+  }
+  // The payload's second page: with more than 64 payload pages the samples (the first page of
+  // every 64th of the payload) are at least two pages apart, so a start maps the file;
+  // verify_payload reads every byte and finds it.
+  ASSERT_GT(length, 4096u * 70) << "the scene is too small for the samples to skip a page";
+  {
+    std::string bad = original;
+    bad[2 * 4096 + 100] ^= 0x01;
+    write(bad);
+    const auto damaged = open();
+    ASSERT_NE(damaged, nullptr) << "an unsampled page is not read at the start";
+    EXPECT_FALSE(damaged->verify_payload());
+  }
+  write(original);
+  const auto intact = open();
+  ASSERT_NE(intact, nullptr);
+  EXPECT_TRUE(intact->verify_payload());
+  set_bvh_layout(std::nullopt);
+}
+
+TEST(DeviceLayoutCache, NoFolderMeansNoCacheAndNoError) {
+  const DeviceLayoutCache cache("");
+  EXPECT_FALSE(cache.enabled());
+  const Scene scene = test_scene();
+  EXPECT_EQ(cache.open(scene_content_key(scene), BvhLayout::Wide8, BvhBuildOptions{}, scene.triangles.size()), nullptr);
+  std::string why;
+  DeviceLayoutParts parts;
+  EXPECT_EQ(cache.store(1, BvhBuildOptions{}, 1, parts, &why), "");
+  EXPECT_FALSE(why.empty());
+  // A folder that cannot be made: a miss and a reason, no exception.
+  test::TempDir dir;
+  const auto file = dir.write("plain-file", "x");
+  const DeviceLayoutCache blocked((file / "sub").string());
+  EXPECT_EQ(blocked.open(1, BvhLayout::Wide8, BvhBuildOptions{}, 1), nullptr);
+  const std::vector<BvhTriangle> tris(1);
+  const std::vector<TriangleShading> shading(1);
+  const std::uint32_t word = 0;
+  parts.nodes = &word;
+  parts.node_bytes = 4;
+  parts.triangles = &tris;
+  parts.shading = &shading;
+  why.clear();
+  EXPECT_EQ(blocked.store(1, BvhBuildOptions{}, 1, parts, &why), "");
+  EXPECT_FALSE(why.empty());
+}
+
+}  // namespace
+}  // namespace px
