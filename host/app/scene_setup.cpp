@@ -115,7 +115,7 @@ void build_world_tree(LoadedScene& out, const std::vector<SceneTriangle>& tree_t
     for (const auto& e : check.errors) msg += "\n  " + e;
     throw std::runtime_error(msg);
   }
-  if (cacheable && !from_cache) {
+  if (cacheable && !from_cache && !BvhCache::default_dir().empty()) {
     std::string why;
     const auto t4 = clock::now();
     std::string path;

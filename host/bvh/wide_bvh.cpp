@@ -198,22 +198,26 @@ std::vector<std::uint32_t> device_form(const std::vector<Node>& nodes, const std
   const std::size_t total_units = (nodes.size() * sizeof(Node) + leaves * sizeof(BvhLeafBlock)) / 16;
   if (total_units >= kWideIndexLimit)
     throw std::runtime_error("BVH: wide node buffer too large for 29-bit leaf offsets");
-  std::vector<Node> out_nodes = nodes;
-  std::vector<BvhLeafBlock> blocks(leaves);
+  // Written in place, node by node and block by block: no second copy of the nodes and no array
+  // of blocks beside the buffer (at 10M triangles those had doubled the layout's 1.4 GB).
+  std::vector<std::uint32_t> words(node_words + leaves * sizeof(BvhLeafBlock) / 4);
+  auto* bytes = reinterpret_cast<unsigned char*>(words.data());
   std::size_t next = 0;
-  for (Node& n : out_nodes)
+  for (std::size_t k = 0; k < nodes.size(); ++k) {
+    Node n = nodes[k];
     for (int i = 0; i < W; ++i) {
       if (n.count[i] == 0) continue;
       const std::uint32_t first = n.child[i], count = n.count[i];
       if (count > 4 || first + std::uint64_t{count} > tris.size())
         throw std::runtime_error("BVH: leaf out of range in the wide layout");
-      blocks[next] = leaf_block(tris, first, count);
-      n.child[i] = static_cast<std::uint32_t>((nodes.size() * sizeof(Node) + next * sizeof(BvhLeafBlock)) / 16);
+      const BvhLeafBlock block = leaf_block(tris, first, count);
+      const std::size_t at = nodes.size() * sizeof(Node) + next * sizeof(BvhLeafBlock);
+      std::memcpy(bytes + at, &block, sizeof block);
+      n.child[i] = static_cast<std::uint32_t>(at / 16);
       ++next;
     }
-  std::vector<std::uint32_t> words(node_words + leaves * sizeof(BvhLeafBlock) / 4);
-  std::memcpy(words.data(), out_nodes.data(), out_nodes.size() * sizeof(Node));
-  if (leaves > 0) std::memcpy(words.data() + node_words, blocks.data(), blocks.size() * sizeof(BvhLeafBlock));
+    std::memcpy(bytes + k * sizeof(Node), &n, sizeof n);
+  }
   return words;
 }
 
