@@ -92,6 +92,15 @@ ExpectedLayout expected_layout(const Scene& scene, const FlatBvh& built, BvhLayo
 
 bool same_bytes(const void* a, const void* b, std::size_t n) { return std::memcmp(a, b, n) == 0; }
 
+// A cache in a fresh folder and the test scene with its tree and key.
+struct Stored {
+  test::TempDir dir;
+  DeviceLayoutCache cache{dir.path().string()};
+  Scene scene = test_scene();
+  FlatBvh built = build_bvh(scene.triangles);
+  std::uint64_t key = scene_content_key(scene);
+};
+
 // A DeviceScene on `set` stores the layout; the cache maps back exactly the expected bytes.
 std::shared_ptr<const MappedDeviceLayout> store_and_open(DeviceSet& set, const Scene& scene, const FlatBvh& built,
                                                          const DeviceLayoutCache& cache, std::uint64_t key) {
@@ -105,11 +114,11 @@ std::shared_ptr<const MappedDeviceLayout> store_and_open(DeviceSet& set, const S
 }
 
 TEST(DeviceLayoutCache, MapsBackExactlyTheLayoutOfEachNodeLayout) {
-  test::TempDir dir;
-  const DeviceLayoutCache cache(dir.path().string());
-  const Scene scene = test_scene();
-  const FlatBvh built = build_bvh(scene.triangles);
-  const std::uint64_t key = scene_content_key(scene);
+  const Stored f;
+  const DeviceLayoutCache& cache = f.cache;
+  const Scene& scene = f.scene;
+  const FlatBvh& built = f.built;
+  const std::uint64_t key = f.key;
   for (const BvhLayout layout : {BvhLayout::Binary, BvhLayout::Wide4, BvhLayout::Wide8, BvhLayout::Compressed8}) {
     SCOPED_TRACE(to_string(layout));
     set_bvh_layout(layout);
@@ -142,11 +151,11 @@ TEST(DeviceLayoutCache, MapsBackExactlyTheLayoutOfEachNodeLayout) {
 // from inside and outside the scene against a brute-force loop over every triangle, and the same
 // hits as the DeviceScene laid out from the tree.
 TEST(DeviceLayoutCache, ASceneMadeFromTheMappingTracesLikeTheBruteForceLoop) {
-  test::TempDir dir;
-  const DeviceLayoutCache cache(dir.path().string());
-  const Scene scene = test_scene();
-  const FlatBvh built = build_bvh(scene.triangles);
-  const std::uint64_t key = scene_content_key(scene);
+  const Stored f;
+  const DeviceLayoutCache& cache = f.cache;
+  const Scene& scene = f.scene;
+  const FlatBvh& built = f.built;
+  const std::uint64_t key = f.key;
   DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
   auto mapped = store_and_open(set, scene, built, cache, key);
   ASSERT_NE(mapped, nullptr);
@@ -196,11 +205,11 @@ TEST(DeviceLayoutCache, ASceneMadeFromTheMappingTracesLikeTheBruteForceLoop) {
 }
 
 TEST(DeviceLayoutCache, AnotherSceneFlagOrLayoutIsAMiss) {
-  test::TempDir dir;
-  const DeviceLayoutCache cache(dir.path().string());
-  const Scene scene = test_scene();
-  const FlatBvh built = build_bvh(scene.triangles);
-  const std::uint64_t key = scene_content_key(scene);
+  const Stored f;
+  const DeviceLayoutCache& cache = f.cache;
+  const Scene& scene = f.scene;
+  const FlatBvh& built = f.built;
+  const std::uint64_t key = f.key;
   set_bvh_layout(BvhLayout::Wide8);
   DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
   ASSERT_NE(store_and_open(set, scene, built, cache, key), nullptr);
@@ -231,11 +240,11 @@ TEST(DeviceLayoutCache, AnotherSceneFlagOrLayoutIsAMiss) {
 }
 
 TEST(DeviceLayoutCache, DamagedFilesAreMissesAndVerifyPayloadFindsAnyChangedByte) {
-  test::TempDir dir;
-  const DeviceLayoutCache cache(dir.path().string());
-  const Scene scene = test_scene();
-  const FlatBvh built = build_bvh(scene.triangles);
-  const std::uint64_t key = scene_content_key(scene);
+  const Stored f;
+  const DeviceLayoutCache& cache = f.cache;
+  const Scene& scene = f.scene;
+  const FlatBvh& built = f.built;
+  const std::uint64_t key = f.key;
   set_bvh_layout(BvhLayout::Wide8);
   DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
   const auto mapped = store_and_open(set, scene, built, cache, key);
