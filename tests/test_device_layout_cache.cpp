@@ -5,6 +5,7 @@
 // made from the mapping), and anything that is not exactly that file (another scene, another
 // material flag, another layout, a cut or damaged file) must be a miss, never an error. Also
 // ContentHash, the key's hash: independent of how its input is split, and sensitive to a bit.
+#include "app/scene_setup.h"
 #include "render/device_layout_cache.h"
 #include "render/device_scene.h"
 #include "io/content_hash.h"
@@ -15,6 +16,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -294,6 +296,90 @@ TEST(DeviceLayoutCache, DamagedFilesAreMissesAndVerifyPayloadFindsAnyChangedByte
   ASSERT_NE(intact, nullptr);
   EXPECT_TRUE(intact->verify_payload());
   set_bvh_layout(std::nullopt);
+}
+
+// A start through SceneOnDevices, as `render` makes it: the first fills the cache, the second
+// maps the layout. A cache that holds another layout only (a GPU set's cwbvh) is mapped by the
+// loader (it cannot know the devices yet) and then set aside for a tree: the start still traces
+// the scene's triangles, and stores its own layout for the next one.
+TEST(DeviceLayoutCache, StartsMapTheSetsLayoutAndSetAnotherLayoutAside) {
+  test::TempDir dir;
+  setenv("PARALLAX_CACHE_DIR", (dir.path() / "cache").string().c_str(), 1);
+  unsetenv("PARALLAX_BVH_CACHE");
+  // A 120 x 100 grid of quads, 24,000 triangles: past the cache's threshold of 20,000.
+  std::string obj;
+  const int nx = 120, ny = 100;
+  for (int j = 0; j <= ny; ++j)
+    for (int i = 0; i <= nx; ++i)
+      obj += "v " + std::to_string(0.05 * i) + " " + std::to_string(0.3 * std::sin(0.2 * i) * std::cos(0.3 * j)) + " " +
+             std::to_string(0.05 * j) + "\n";
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const int a = j * (nx + 1) + i + 1, b = a + 1, c = a + nx + 1, d = c + 1;
+      obj += "f " + std::to_string(a) + " " + std::to_string(c) + " " + std::to_string(b) + "\n";
+      obj += "f " + std::to_string(b) + " " + std::to_string(c) + " " + std::to_string(d) + "\n";
+    }
+  const std::string spec = dir.write("grid.obj", obj).string();
+  const DeviceOptions one{1, DeviceMode::Auto, ""};
+  // Rays down onto the grid from above, and the hits of a start without any cache to match.
+  std::vector<Ray> rays;
+  for (int k = 0; k < 200; ++k)
+    rays.push_back(test::make_ray({0.03f * (k % 20) + 0.1f, 2.0f, 0.025f * (k / 10) + 0.1f}, {0.0f, -1.0f, 0.0f}));
+  const auto hits_of = [&](SceneOnDevices& s) { return RayBatchTracer(s.devices, s.device_scene).closest(rays); };
+  std::vector<Hit> expected;
+  {
+    setenv("PARALLAX_BVH_CACHE", "off", 1);
+    SceneOnDevices none(spec, one, /*quiet=*/true);
+    unsetenv("PARALLAX_BVH_CACHE");
+    EXPECT_FALSE(none.device_scene.layout_from_cache());
+    expected = hits_of(none);
+  }
+  const auto same_hits = [&](const std::vector<Hit>& h) {
+    int hits = 0;
+    for (std::size_t i = 0; i < h.size(); ++i) {
+      if (h[i].prim != expected[i].prim || h[i].t != expected[i].t) return false;
+      hits += h[i].prim != PX_NO_HIT;
+    }
+    return hits == static_cast<int>(h.size());  // every ray comes down on the grid
+  };
+  {
+    SceneOnDevices fill(spec, one, true);
+    EXPECT_FALSE(fill.device_scene.layout_from_cache());
+    EXPECT_GT(fill.device_scene.layout_store_ms(), 0.0);
+    EXPECT_TRUE(same_hits(hits_of(fill)));
+  }
+  {
+    SceneOnDevices warm(spec, one, true);
+    EXPECT_TRUE(warm.device_scene.layout_from_cache());
+    EXPECT_TRUE(warm.loaded.times.device_layout_from_cache);
+    EXPECT_TRUE(same_hits(hits_of(warm)));
+  }
+  // Only a cwbvh layout in the cache: the wide8 file goes, a cwbvh one is made.
+  for (const auto& e : std::filesystem::directory_iterator(dir.path() / "cache"))
+    if (e.path().filename().string().rfind("device-layout-", 0) == 0) std::filesystem::remove(e.path());
+  set_bvh_layout(BvhLayout::Compressed8);
+  { SceneOnDevices gpu_like(spec, one, true); }
+  set_bvh_layout(std::nullopt);
+  int files = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir.path() / "cache"))
+    files += e.path().filename().string().rfind("device-layout-", 0) == 0;
+  EXPECT_EQ(files, 1) << "the cwbvh start stored its layout";
+  {
+    testing::internal::CaptureStderr();
+    SceneOnDevices other(spec, one, /*quiet=*/false);
+    const std::string said = testing::internal::GetCapturedStderr();
+    EXPECT_NE(said.find("cwbvh"), std::string::npos) << said;
+    EXPECT_NE(said.find("not in this device set's wide8 layout"), std::string::npos) << said;
+    EXPECT_FALSE(other.device_scene.layout_from_cache()) << "a cwbvh file for a wide8 set";
+    EXPECT_FALSE(other.loaded.times.device_layout_from_cache);
+    EXPECT_TRUE(same_hits(hits_of(other)));
+  }
+  {
+    SceneOnDevices again(spec, one, true);
+    EXPECT_TRUE(again.device_scene.layout_from_cache()) << "the last start stored its own layout";
+    EXPECT_TRUE(same_hits(hits_of(again)));
+  }
+  unsetenv("PARALLAX_CACHE_DIR");
 }
 
 TEST(DeviceLayoutCache, NoFolderMeansNoCacheAndNoError) {

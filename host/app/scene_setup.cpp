@@ -187,8 +187,13 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky, boo
     const auto t = clock::now();
     out.content_key = scene_content_key(out.scene);
     out.times.scene_hash_ms = ms(t, clock::now());
-    out.device_layout = DeviceLayoutCache(DeviceLayoutCache::default_dir())
-                            .open(out.content_key, bvh_layout(), BvhBuildOptions{}, out.scene.triangles.size());
+    // The devices are not made yet: the CPU sets' layout (or the one requested) first, then the
+    // GPU sets' (a GPU machine's cache holds that one only). make_device_scene sorts out a
+    // mapping in another layout than the set's.
+    const DeviceLayoutCache cache(DeviceLayoutCache::default_dir());
+    for (const BvhLayout layout : {bvh_layout(), bvh_layout_for(/*all_gpus=*/true)})
+      if (!out.device_layout)
+        out.device_layout = cache.open(out.content_key, layout, BvhBuildOptions{}, out.scene.triangles.size());
     if (out.device_layout) {
       out.times.bvh_ms = ms(t, clock::now());
       out.times.bvh_from_cache = out.times.bvh_validated_when_cached = out.times.device_layout_from_cache = true;
@@ -198,7 +203,8 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky, boo
         std::fprintf(stderr,
                      "[bvh] %zu nodes, %zu leaf triangles, depth %d, SAH %.1f (built in %.0f ms); %s, %zu nodes: the "
                      "device layout mapped from the cache in %.0f ms (%.0f MiB, %s)\n",
-                     bs.nodes, bs.leaf_triangles, bs.depth, bs.sah_cost, bs.build_ms, to_string(bvh_layout()),
+                     bs.nodes, bs.leaf_triangles, bs.depth, bs.sah_cost, bs.build_ms,
+                     to_string(out.device_layout->layout()),
                      out.device_layout->layout_nodes(), out.times.bvh_ms,
                      static_cast<double>(out.device_layout->file_bytes()) / (1024.0 * 1024.0),
                      out.device_layout->path().c_str());
@@ -237,6 +243,9 @@ DeviceScene make_device_scene(DeviceSet& devices, LoadedScene& loaded) {
     loaded.device_layout = DeviceLayoutCache(DeviceLayoutCache::default_dir())
                                .open(loaded.content_key, layout, BvhBuildOptions{}, loaded.scene.triangles.size());
     if (!loaded.device_layout) {
+      if (!loaded.quiet)
+        std::fprintf(stderr, "[bvh] the cached device layout is not in this device set's %s layout: making it\n",
+                     to_string(layout));
       loaded.times.device_layout_from_cache = false;
       build_world_tree(loaded, loaded.scene.triangles, loaded.quiet);
     }
