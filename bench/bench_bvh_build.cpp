@@ -1,4 +1,4 @@
-// bench_bvh_build: build_bvh (with and without spatial splits) against Embree's own BVH build of
+// bench_bvh_build: build_bvh (with and without spatial splits, and with splits on trial) against Embree's own BVH build of
 // the same triangles (an RTCScene with one triangle geometry, rtcCommitScene), side by side in
 // one process. Embree's scene build is the reference for what a build of this input should cost
 // on this machine: `high` (RTC_BUILD_QUALITY_HIGH, its spatial-split builder) is the counterpart
@@ -65,9 +65,9 @@ double embree_build_ms(const std::vector<px::SceneTriangle>& triangles, RTCBuild
 struct Row {
   std::string scene;
   std::size_t triangles = 0;
-  double split_ms = 0, binned_ms = 0, high_ms = 0, medium_ms = 0, unbounded_ms = 0;
+  double split_ms = 0, binned_ms = 0, high_ms = 0, medium_ms = 0, unbounded_ms = 0, trial_ms = 0;
   double collapse_ms = 0;  // the share of split_ms spent collapsing to the wide layout
-  px::BvhBuildStats split, binned, unbounded;
+  px::BvhBuildStats split, binned, unbounded, trial;
 };
 
 Row measure(const std::string& name, const std::vector<px::SceneTriangle>& tris, int repeats,
@@ -78,9 +78,14 @@ Row measure(const std::string& name, const std::vector<px::SceneTriangle>& tris,
   px::BvhBuildOptions split_options, binned_options;
   split_options.spatial_splits = true;
   binned_options.spatial_splits = false;
+  // split and binned as asked at every size; trial: the large-scene rule (binned first, splits
+  // tried on every 16th triangle) forced at every size, to check its prediction against both.
+  split_options.split_trial_triangles = binned_options.split_trial_triangles = 0;
+  px::BvhBuildOptions trial_options;
+  trial_options.split_trial_triangles = 1;
   px::BvhBuildOptions unbounded_options = split_options;
   unbounded_options.split_calls_per_triangle = 0;
-  std::vector<double> split_ms, binned_ms, high_ms, medium_ms, unbounded_ms, collapse_ms;
+  std::vector<double> split_ms, binned_ms, high_ms, medium_ms, unbounded_ms, collapse_ms, trial_ms;
   for (int r = 0; r < repeats; ++r) {
     if (with_unbounded) {
       const px::FlatBvh unbounded = px::build_bvh(tris, unbounded_options);
@@ -94,10 +99,13 @@ Row measure(const std::string& name, const std::vector<px::SceneTriangle>& tris,
     const px::FlatBvh binned = px::build_bvh(tris, binned_options);
     binned_ms.push_back(binned.stats.build_ms);
     row.binned = binned.stats;
+    const px::FlatBvh trial = px::build_bvh(tris, trial_options);
+    trial_ms.push_back(trial.stats.build_ms);
+    row.trial = trial.stats;
     high_ms.push_back(embree_build_ms(tris, RTC_BUILD_QUALITY_HIGH));
     medium_ms.push_back(embree_build_ms(tris, RTC_BUILD_QUALITY_MEDIUM));
-    std::fprintf(stderr, "[bench] %s round %d: split %.1f ms, binned %.1f ms, embree high %.1f ms, "
-                 "medium %.1f ms\n", name.c_str(), r + 1, split_ms.back(), binned_ms.back(),
+    std::fprintf(stderr, "[bench] %s round %d: split %.1f ms, binned %.1f ms, trial %.1f ms, embree high %.1f ms, "
+                 "medium %.1f ms\n", name.c_str(), r + 1, split_ms.back(), binned_ms.back(), trial_ms.back(),
                  high_ms.back(), medium_ms.back());
   }
   row.split_ms = median(split_ms);
@@ -106,6 +114,7 @@ Row measure(const std::string& name, const std::vector<px::SceneTriangle>& tris,
   row.medium_ms = median(medium_ms);
   row.unbounded_ms = median(unbounded_ms);
   row.collapse_ms = median(collapse_ms);
+  row.trial_ms = median(trial_ms);
   return row;
 }
 
@@ -161,6 +170,16 @@ int main(int argc, char** argv) {
     for (const auto& r : rows)
       std::printf("%-10s collapse %.2f ms of px split %.1f ms (%.1f%%)\n", r.scene.c_str(), r.collapse_ms,
                   r.split_ms, r.split_ms > 0 ? 100.0 * r.collapse_ms / r.split_ms : 0.0);
+    std::printf("\nspatial splits on trial (the rule for scenes of %zu triangles or more, forced here): binned "
+                "first, splits tried on every 16th triangle, the scene rebuilt with them if they gain %.0f%% there\n",
+                px::BvhBuildOptions{}.split_trial_triangles, 100.0 * px::BvhBuildOptions{}.split_min_gain);
+    std::printf("%-10s %10s %9s %10s %10s %10s %9s %9s\n", "scene", "trial ms", "trial/hi", "sampled",
+                "gain there", "gain whole", "splits?", "SAH");
+    for (const auto& r : rows)
+      std::printf("%-10s %10.1f %9.2f %10zu %9.1f%% %9.1f%% %9s %9.2f\n", r.scene.c_str(), r.trial_ms,
+                  r.trial_ms / r.high_ms, r.trial.split_trial_sampled, 100.0 * r.trial.split_trial_gain,
+                  r.binned.sah_cost > 0 ? 100.0 * (1.0 - r.split.sah_cost / r.binned.sah_cost) : 0.0,
+                  r.trial.split_trial_taken ? "yes" : "no", r.trial.sah_cost);
     if (unbounded) {
       std::printf("\n%-10s %12s %12s %10s %11s %11s\n", "scene", "unbounded ms", "bounded ms",
                   "emb high", "unbnd/high", "bound/high");
@@ -176,14 +195,17 @@ int main(int argc, char** argv) {
       std::ofstream out(csv);
       out << "scene,triangles,px_split_ms,px_binned_ms,embree_high_ms,embree_medium_ms,"
              "split_over_high,binned_over_medium,sah_split,sah_binned,refs_per_triangle,depth,"
-             "split_calls_per_triangle,split_budget_exceeded\n";
+             "split_calls_per_triangle,split_budget_exceeded,trial_ms,trial_sampled,trial_gain,"
+             "trial_took_splits,sah_trial\n";
       for (const auto& r : rows)
         out << r.scene << ',' << r.triangles << ',' << r.split_ms << ',' << r.binned_ms << ','
             << r.high_ms << ',' << r.medium_ms << ',' << r.split_ms / r.high_ms << ','
             << r.binned_ms / r.medium_ms << ',' << r.split.sah_cost << ',' << r.binned.sah_cost
             << ',' << double(r.split.leaf_triangles) / double(r.triangles) << ',' << r.split.depth
             << ',' << double(r.split.split_calls) / double(r.triangles) << ','
-            << r.split.split_budget_exceeded << '\n';
+            << r.split.split_budget_exceeded << ',' << r.trial_ms << ',' << r.trial.split_trial_sampled
+            << ',' << r.trial.split_trial_gain << ',' << r.trial.split_trial_taken << ',' << r.trial.sah_cost
+            << '\n';
     }
     return 0;
   });

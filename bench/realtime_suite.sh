@@ -8,8 +8,8 @@
 #                        not only the scene's; its log also lists each kernel's private memory
 #                        per work-item for both builds), baseline and mono, with PSNR / relMSE
 #                        against a reference at frame 0 and at the last frame
-#   3. frame_wide8*.csv  the same with the uncompressed 8-wide BVH (PX_BVH_LAYOUT=wide8; a GPU's
-#                        default is cwbvh, so 2 and 3 compare the layouts on whole frames)
+#   3. frame_wide8*.csv  the same with the 8-wide BVH (PX_BVH_LAYOUT=wide8; a GPU's default is
+#                        binary, so 2 and 3 compare the layouts on whole frames)
 #   4. frame_wavefront*.csv  the same with the wavefront path tracer (--path-tracer wavefront),
 #                        no reference: its images are the megakernel's to the bit
 #   5. render.json, timeline.json

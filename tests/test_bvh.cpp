@@ -567,6 +567,87 @@ TEST(Bvh, SpatialSplitsWithinTheBudgetOnOrdinaryScenes) {
   EXPECT_LT(bvh.stats.split_calls, split_call_budget(tris.size()) / 2);
 }
 
+// The large-scene rule (BvhBuildOptions::split_trial_triangles), forced here on small scenes: a
+// binned build, spatial splits tried on every 16th triangle, the scene rebuilt with them only
+// where they gain. Each decision is checked against the full builds both ways.
+BvhBuildOptions forced_trial() {
+  BvhBuildOptions options;
+  options.split_trial_triangles = 1;
+  return options;
+}
+
+// A heightfield of n x n quads: small triangles that share their edges, where splits find
+// nothing to gain (the 1M-triangle one: 5x the binned build's time for an equal SAH).
+std::vector<SceneTriangle> heightfield(int n) {
+  std::vector<SceneTriangle> tris;
+  auto p = [n](int i, int j) {
+    const float x = float(i) / n, z = float(j) / n;
+    return glm::vec3(x, 0.1f * std::sin(9.0f * x) * std::cos(7.0f * z), z);
+  };
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      tris.push_back(make_triangle(p(i, j), p(i, j + 1), p(i + 1, j)));
+      tris.push_back(make_triangle(p(i + 1, j), p(i, j + 1), p(i + 1, j + 1)));
+    }
+  return tris;
+}
+
+TEST(Bvh, SplitTrialKeepsBinnedSahWhereSplitsGainNothing) {
+  const auto tris = heightfield(150);  // 45,000 triangles
+  const FlatBvh trial = build_bvh(tris, forced_trial());
+  BvhBuildOptions binned_options = with_splits(false), split_options = with_splits(true);
+  binned_options.split_trial_triangles = split_options.split_trial_triangles = 0;
+  const FlatBvh binned = build_bvh(tris, binned_options);
+  const FlatBvh split = build_bvh(tris, split_options);
+  expect_valid(trial, tris);
+  ASSERT_TRUE(trial.stats.split_trial);
+  EXPECT_EQ(trial.stats.split_trial_sampled, (tris.size() + 15) / 16);
+  EXPECT_LT(trial.stats.split_trial_gain, BvhBuildOptions{}.split_min_gain);
+  EXPECT_FALSE(trial.stats.split_trial_taken);
+  EXPECT_EQ(trial.stats.leaf_triangles, tris.size()) << "binned: no fragments";
+  EXPECT_DOUBLE_EQ(trial.stats.sah_cost, binned.stats.sah_cost) << "the binned tree itself";
+  // The decision was right: the whole scene's splits gain less than the threshold too.
+  EXPECT_GT(split.stats.sah_cost, (1.0 - BvhBuildOptions{}.split_min_gain) * binned.stats.sah_cost)
+      << "binned " << binned.stats.sah_cost << ", split " << split.stats.sah_cost;
+  expect_traversal_matches_brute_force(trial, tris, 500, 52);
+}
+
+TEST(Bvh, SplitTrialTakesSplitsWhereTheyPay) {
+  auto tris = diagonal_strips(400);  // splits: ~35% lower SAH (SpatialSplitsLowerSahOnDiagonalStrips)
+  const FlatBvh trial = build_bvh(tris, forced_trial());
+  BvhBuildOptions split_options = with_splits(true);
+  split_options.split_trial_triangles = 0;
+  const FlatBvh split = build_bvh(tris, split_options);
+  expect_valid(trial, tris);
+  ASSERT_TRUE(trial.stats.split_trial);
+  EXPECT_GE(trial.stats.split_trial_gain, BvhBuildOptions{}.split_min_gain);
+  EXPECT_TRUE(trial.stats.split_trial_taken);
+  EXPECT_GT(trial.stats.leaf_triangles, tris.size());
+  EXPECT_DOUBLE_EQ(trial.stats.sah_cost, split.stats.sah_cost) << "the spatial-split tree itself";
+  expect_traversal_matches_brute_force(trial, tris, 500, 53);
+}
+
+TEST(Bvh, SplitTrialOnlyFromItsSizeAndNeverOnOverlappingSlivers) {
+  // Below split_trial_triangles the build is as asked: no trial.
+  const auto tris = diagonal_strips(50);
+  BvhBuildOptions options = with_splits(true);
+  options.split_trial_triangles = tris.size() + 1;
+  EXPECT_FALSE(build_bvh(tris, options).stats.split_trial);
+  options.split_trial_triangles = tris.size();
+  EXPECT_TRUE(build_bvh(tris, options).stats.split_trial);
+  // Slivers whose splits would run out of budget: the sample runs out too, so the scene is not
+  // built a second time only to be cancelled.
+  std::vector<SceneTriangle> slivers;
+  append_slivers(slivers, 20000, 14);
+  const FlatBvh trial = build_bvh(slivers, forced_trial());
+  EXPECT_FALSE(trial.stats.split_trial_taken);
+  EXPECT_EQ(trial.stats.leaf_triangles, slivers.size());
+  expect_valid(trial, slivers);
+  BvhBuildOptions bad = forced_trial();
+  bad.split_min_gain = -0.1;
+  EXPECT_THROW(build_bvh(tris, bad), std::invalid_argument);
+}
+
 TEST(Bvh, DepthLimitHoldsOnAGeometricProgression) {
   // Embree alone fails here ("depth limit reached"); build_bvh must still deliver a tree no
   // deeper than the kernels' stack allows, and a correct one.

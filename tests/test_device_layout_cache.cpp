@@ -299,7 +299,7 @@ TEST(DeviceLayoutCache, DamagedFilesAreMissesAndVerifyPayloadFindsAnyChangedByte
 }
 
 // A start through SceneOnDevices, as `render` makes it: the first fills the cache, the second
-// maps the layout. A cache that holds another layout only (a GPU set's cwbvh) is mapped by the
+// maps the layout. A cache that holds another layout only (a GPU set's) is mapped by the
 // loader (it cannot know the devices yet) and then set aside for a tree: the start still traces
 // the scene's triangles, and stores its own layout for the next one.
 TEST(DeviceLayoutCache, StartsMapTheSetsLayoutAndSetAnotherLayoutAside) {
@@ -354,23 +354,28 @@ TEST(DeviceLayoutCache, StartsMapTheSetsLayoutAndSetAnotherLayoutAside) {
     EXPECT_TRUE(warm.loaded.times.device_layout_from_cache);
     EXPECT_TRUE(same_hits(hits_of(warm)));
   }
-  // Only a cwbvh layout in the cache: the wide8 file goes, a cwbvh one is made.
+  // Only a GPU set's layout in the cache (binary, bvh_layout_for(true)): the wide8 file goes, a
+  // binary one is made. The loader maps it (it cannot know the devices yet); the wide8 set sets
+  // it aside.
   for (const auto& e : std::filesystem::directory_iterator(dir.path() / "cache"))
     if (e.path().filename().string().rfind("device-layout-", 0) == 0) std::filesystem::remove(e.path());
-  set_bvh_layout(BvhLayout::Compressed8);
+  set_bvh_layout(std::nullopt);
+  const BvhLayout gpu_layout = bvh_layout_for(/*all_gpus=*/true);
+  ASSERT_NE(gpu_layout, bvh_layout()) << "the test needs the two device types' layouts to differ";
+  set_bvh_layout(gpu_layout);
   { SceneOnDevices gpu_like(spec, one, true); }
   set_bvh_layout(std::nullopt);
   int files = 0;
   for (const auto& e : std::filesystem::directory_iterator(dir.path() / "cache"))
     files += e.path().filename().string().rfind("device-layout-", 0) == 0;
-  EXPECT_EQ(files, 1) << "the cwbvh start stored its layout";
+  EXPECT_EQ(files, 1) << "the GPU-layout start stored its layout";
   {
     testing::internal::CaptureStderr();
     SceneOnDevices other(spec, one, /*quiet=*/false);
     const std::string said = testing::internal::GetCapturedStderr();
-    EXPECT_NE(said.find("cwbvh"), std::string::npos) << said;
+    EXPECT_NE(said.find(to_string(gpu_layout)), std::string::npos) << said;
     EXPECT_NE(said.find("not in this device set's wide8 layout"), std::string::npos) << said;
-    EXPECT_FALSE(other.device_scene.layout_from_cache()) << "a cwbvh file for a wide8 set";
+    EXPECT_FALSE(other.device_scene.layout_from_cache()) << "a GPU set's file for a wide8 set";
     EXPECT_FALSE(other.loaded.times.device_layout_from_cache);
     EXPECT_TRUE(same_hits(hits_of(other)));
   }

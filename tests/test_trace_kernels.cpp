@@ -566,20 +566,20 @@ TEST(BvhLayoutChoice, EachDeviceTypeHasItsDefaultUnlessALayoutIsRequested) {
   set_bvh_layout(std::nullopt);
   EXPECT_FALSE(requested_bvh_layout().has_value());
   EXPECT_EQ(bvh_layout_for(false), BvhLayout::Wide8);
-  EXPECT_EQ(bvh_layout_for(true), BvhLayout::Compressed8);
+  EXPECT_EQ(bvh_layout_for(true), BvhLayout::Binary);
   EXPECT_EQ(bvh_layout(), BvhLayout::Wide8);
   DeviceSet& set = one_device();
   const bool gpus = std::all_of(set.devices().begin(), set.devices().end(),
                                 [](const ComputeDevice& d) { return d.is_gpu(); });
-  EXPECT_EQ(set.bvh_layout(), gpus ? BvhLayout::Compressed8 : BvhLayout::Wide8);
+  EXPECT_EQ(set.bvh_layout(), gpus ? BvhLayout::Binary : BvhLayout::Wide8);
   set_bvh_layout(BvhLayout::Binary);
   EXPECT_EQ(bvh_layout_for(false), BvhLayout::Binary);
   EXPECT_EQ(bvh_layout_for(true), BvhLayout::Binary);
   EXPECT_EQ(set.bvh_layout(), BvhLayout::Binary);
 }
 
-// A GPU set's DeviceScene gets a tree collapsed for CPUs (load_and_build) and makes its own
-// compressed nodes: here a binary-only tree uploaded to a set that traverses cwbvh.
+// A DeviceScene may get a tree made for another layout (load_and_build collapses for CPUs) and
+// makes the nodes its set traverses: here a binary-only tree uploaded to a set asked for cwbvh.
 TEST(BvhLayoutChoice, DeviceSceneMakesTheNodesItsSetTraverses) {
   LayoutRequestGuard guard;
   set_bvh_layout(BvhLayout::Binary);

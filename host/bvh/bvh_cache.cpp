@@ -65,6 +65,8 @@ std::uint64_t bvh_input_hash(const std::vector<SceneTriangle>& triangles, const 
   f.value(static_cast<std::uint8_t>(options.spatial_splits));
   f.value(options.max_leaf_size);
   f.value(options.split_calls_per_triangle);
+  f.value(static_cast<std::uint64_t>(options.split_trial_triangles));
+  f.value(options.split_min_gain);
   f.value(static_cast<std::uint64_t>(triangles.size()));
   for (const SceneTriangle& t : triangles) {
     f.bytes(t.p, sizeof t.p);

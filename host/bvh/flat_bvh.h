@@ -22,6 +22,14 @@ struct BvhBuildOptions {
   // split_call_budget); past it the build is redone with binned SAH. 0: unbounded (only for
   // measuring what the bound saves: overlapping slivers then take ~5-8x Embree's own build).
   std::uint32_t split_calls_per_triangle = 96;
+  // Spatial splits on trial for large scenes. A scene of at least split_trial_triangles triangles
+  // is first built with binned SAH; every 16th triangle is then built both ways, and the whole
+  // scene is built again with splits only if they lowered that sample's SAH cost by at least
+  // split_min_gain (and kept within their work rate). On a 1M-triangle heightfield the splits
+  // cost 5x the binned build and gain nothing (the sample: 0.1%); on atrium they gain 12% (the
+  // sample: 18%). 0: no trial, spatial_splits as asked.
+  std::size_t split_trial_triangles = 1000000;
+  double split_min_gain = 0.02;
 };
 
 struct BvhBuildStats {
@@ -39,6 +47,14 @@ struct BvhBuildStats {
   // in per-thread batches of 256, so it may be short by up to 255 per build thread).
   bool split_budget_exceeded = false;
   std::uint64_t split_calls = 0;
+  // The spatial-split trial (BvhBuildOptions::split_trial_triangles), when one ran: the sampled
+  // subtrees' relative SAH gain from splits, their triangles, and whether the scene was then built
+  // with splits. Not kept in the BVH caches: a cached tree reports split_trial false.
+  bool split_trial = false;
+  double split_trial_gain = 0.0;
+  std::size_t split_trial_sampled = 0;
+  bool split_trial_taken = false;
+  double split_trial_ms = 0.0;
 };
 
 // The most split-callback calls one spatial-split build of `triangles` triangles may make:
@@ -63,10 +79,11 @@ void set_bvh_layout(std::optional<BvhLayout> layout);
 // The layout a device set traverses: the requested one, else by device type.
 //  - CPUs (and sets that mix device kinds): Wide8. Measured on PoCL: 8 boxes per float8 test
 //    in one work-item, 0.77-1.00 of Embree's single-ray speed; cwbvh's decode costs 5-17% there.
-//  - Sets of GPUs only: Compressed8. The same tree in 80-byte nodes instead of 256 (atrium:
-//    7.5 MiB of nodes against 24.0), since GPU traversal is bound by node fetches (Ylitie,
-//    Karras, Laine 2017: compressed 8-wide nodes ~2x binary on incoherent rays). Not yet
-//    measured on a GPU here: bench/realtime_suite.sh compares both layouts there.
+//  - Sets of GPUs only: Binary. Measured on an NVIDIA H200 (bench/realtime_suite.sh, atrium,
+//    1280x720): the binary kernel traces 2178 Mrays/s primary and 1010 diffuse, against 1502 / 626
+//    for wide8 and 1292 / 513 for cwbvh, and the stereo frame takes 14.1 ms against 19.3 (wide8)
+//    and 25.8 (cwbvh). A GPU work-item walks one node of two boxes at a time; the wide layouts'
+//    loops over 8 children and their private stacks (2.3 KB a work-item) cost it occupancy.
 BvhLayout bvh_layout_for(bool all_gpus);
 // The layout of a CPU set (bvh_layout_for(false)): what the host collapses a freshly built tree
 // into ahead of time (build_bvh); a GPU set's DeviceScene compresses its own copy.

@@ -17,7 +17,7 @@ namespace {
 
 // The defaults per device type when no layout is requested (flat_bvh.h: bvh_layout_for says why).
 constexpr BvhLayout kCpuBvhLayout = BvhLayout::Wide8;
-constexpr BvhLayout kGpuBvhLayout = BvhLayout::Compressed8;
+constexpr BvhLayout kGpuBvhLayout = BvhLayout::Binary;
 
 // The requested layout: 0 = PX_BVH_LAYOUT not read yet, -1 = read, and nothing requested.
 std::atomic<int> g_layout{0};

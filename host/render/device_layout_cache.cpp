@@ -94,6 +94,8 @@ std::uint64_t device_layout_key(std::uint64_t content_key, BvhLayout layout, con
   h.value(static_cast<std::uint8_t>(options.spatial_splits));
   h.value(options.max_leaf_size);
   h.value(options.split_calls_per_triangle);
+  h.value(static_cast<std::uint64_t>(options.split_trial_triangles));
+  h.value(options.split_min_gain);
   return h.digest();
 }
 

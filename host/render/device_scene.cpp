@@ -298,7 +298,7 @@ std::string DeviceScene::kernel_options() const {
 namespace {
 
 // The flagged tree `tree` in `layout`, its nodes made and validated against `tris` if the caller's
-// tree did not carry them (a GPU set's cwbvh from a tree load_and_build collapsed for CPUs: nodes
+// tree did not carry them (a cwbvh set given the tree load_and_build collapsed for CPUs: nodes
 // made here have not met the validator the loader ran).
 void prepare_tree(FlatBvh& tree, BvhLayout layout, const std::vector<SceneTriangle>& tris, const char* what) {
   if (has_layout(tree, layout)) return;
