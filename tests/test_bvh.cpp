@@ -930,6 +930,43 @@ void expect_rejected(const FlatBvh& bad, const std::vector<SceneTriangle>& tris,
   EXPECT_TRUE(has_error(v, std::string(layout) + " ", message)) << what;
 }
 
+// Large trees are validated one layout per thread: each layout's errors must still be found, and
+// reported in the layouts' order (binary, then wide8) whichever thread finishes first.
+TEST(WideBvh, ValidatorOnThreadsReportsEveryLayoutInOrder) {
+  const auto tris = random_soup(120000, 64);  // past the validator's threading threshold
+  FlatBvh bvh = build_bvh(tris, with_splits(false));
+  collapse_bvh(bvh, 8);
+  ASSERT_TRUE(validate_bvh(bvh, tris).ok);
+  // One leaf of one triangle in each layout, its box halved: one message each ("not inside the
+  // box of its leaf"), so neither is pushed out of the report's first ten.
+  std::uint32_t leaf_node = ~0u, binary_node = ~0u;
+  int leaf_slot = -1;
+  for (std::uint32_t n = 0; n < bvh.nodes8.size() && leaf_slot < 0; ++n)
+    for (int i = 0; i < 8 && leaf_slot < 0; ++i)
+      if (bvh.nodes8[n].lo_x[i] <= bvh.nodes8[n].hi_x[i] && bvh.nodes8[n].count[i] == 1) leaf_node = n, leaf_slot = i;
+  for (std::uint32_t n = bvh.nodes.size(); n-- > 0 && binary_node == ~0u;)
+    if (bvh.nodes[n].left_count == 1) binary_node = n;
+  ASSERT_GE(leaf_slot, 0);
+  ASSERT_NE(binary_node, ~0u);
+  Bvh8Node& w = bvh.nodes8[leaf_node];
+  w.hi_y[leaf_slot] = 0.5f * (w.lo_y[leaf_slot] + w.hi_y[leaf_slot]);
+  BvhNode& b = bvh.nodes[binary_node];
+  b.lmax[1] = 0.5f * (b.lmin[1] + b.lmax[1]);
+  for (int run = 0; run < 3; ++run) {
+    const BvhValidation check = validate_bvh(bvh, tris);
+    ASSERT_FALSE(check.ok);
+    std::size_t binary_at = check.errors.size(), wide_at = check.errors.size();
+    for (std::size_t i = 0; i < check.errors.size(); ++i) {
+      if (check.errors[i].find("is not inside the box of its leaf") == std::string::npos) continue;
+      if (check.errors[i].rfind("wide8 ", 0) == 0) wide_at = std::min(wide_at, i);
+      else binary_at = std::min(binary_at, i);
+    }
+    ASSERT_LT(binary_at, check.errors.size()) << "the binary tree's halved leaf box";
+    ASSERT_LT(wide_at, check.errors.size()) << "the wide8 tree's halved leaf box";
+    EXPECT_LT(binary_at, wide_at);
+  }
+}
+
 TEST(WideBvh, ValidatorDetectsCorruptWideNodes) {
   const auto tris = random_soup(2000, 62);
   FlatBvh bvh = build_bvh(tris, with_splits(false));
