@@ -61,6 +61,13 @@ for p in proposed baseline mono; do
     fails=$((fails + 1)); echo "FAIL report for $p lacks schema or device times"
   fi
 done
+# The report's BVH block: cornell's 32 triangles all in leaves (no spatial split pays there), a
+# SAH cost of at least the root's visit, no trial below its size.
+if /usr/bin/python3 -c 'import json, sys; b = json.load(open(sys.argv[1]))["bvh"]; sys.exit(not (b["nodes"] >= 1 and b["leaf_triangles"] >= 32 and b["sah_cost"] >= 1.0 and b["depth"] >= 2 and b["spatial_splits"] in ("yes", "none taken or off") and b["split_trial_gain"] is None))' "$tmp/r_proposed.json"; then
+  passes=$((passes + 1)); echo "ok   report gives the BVH's size, SAH cost and splits"
+else
+  fails=$((fails + 1)); echo "FAIL report's bvh block: $(/usr/bin/python3 -c 'import json, sys; print(json.load(open(sys.argv[1])).get("bvh"))' "$tmp/r_proposed.json" 2>&1)"
+fi
 check "denoised render with independent seams" 0 "wrote 2 frame" -- "$bin" render --scene cornell --width 32 --height 18 \
   --frames 2 --devices 2 --seams independent --svgf-iterations 2 --out "$tmp/dn"
 check "timeline is written" 0 "timeline written" -- "$bin" render --scene cornell --width 32 --height 18 --devices 2 \

@@ -245,7 +245,7 @@ int RenderLoop::finish() {
   const bool stopped = done_ < cmd_.frames;
   if (report_) {
     report_->finish(totals_, all_devices_, devices.mode(), devices.bvh_layout(), on_devices_->device_scene,
-                    on_devices_->loaded.times, pipeline.nonfinite_paths());
+                    on_devices_->loaded.times, pipeline.nonfinite_paths(), on_devices_->loaded.bvh.stats);
     std::fprintf(stderr, "[render] report written to %s\n", cmd_.report.c_str());
   }
   if (video_) {

@@ -72,7 +72,15 @@ void RenderReport::add_frame(unsigned frame, const FrameStats& st, const std::ve
 }
 
 void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode device_mode, BvhLayout bvh_layout,
-                          const DeviceScene& scene, const StartTimes& start, std::uint64_t nonfinite_paths) {
+                          const DeviceScene& scene, const StartTimes& start, std::uint64_t nonfinite_paths,
+                          const BvhBuildStats& bvh) {
+  // How the tree was built: spatial splits as asked, stopped at their budget, or put on trial
+  // (large scenes: BvhBuildOptions::split_trial_triangles) and taken or not. A tree from a cache
+  // keeps its stats but not its trial.
+  const char* splits = bvh.split_trial ? (bvh.split_trial_taken ? "trial: taken" : "trial: binned kept")
+                       : bvh.split_budget_exceeded ? "over budget: binned"
+                       : bvh.leaf_triangles > bvh.scene_triangles ? "yes"
+                                                                  : "none taken or off";
   const nlohmann::json r = {
       {"schema", "parallax-render-report/1"},
       {"scene", cmd_.scene},
@@ -91,6 +99,15 @@ void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode de
       {"bvh_layout", to_string(bvh_layout)},
       {"kernels", cli_word(cmd_.kernels)},
       {"kernel_features", kernel_feature_list(scene.kernel_features())},
+      {"bvh", {{"nodes", bvh.nodes},
+               {"leaf_triangles", bvh.leaf_triangles},
+               {"depth", bvh.depth},
+               {"sah_cost", bvh.sah_cost},
+               {"build_ms", bvh.build_ms},
+               {"spatial_splits", splits},
+               {"split_trial_gain", bvh.split_trial ? nlohmann::json(bvh.split_trial_gain) : nlohmann::json(nullptr)},
+               {"split_trial_sampled", bvh.split_trial_sampled},
+               {"split_trial_ms", bvh.split_trial_ms}}},
       {"scene_device_bytes", scene.bytes_in_context()},
       {"instances", scene.instance_count()},
       {"instance_bytes", scene.instance_bytes()},

@@ -62,7 +62,8 @@ class RenderReport {
                  const SceneAnimator::Update* update = nullptr);
   // The summary, then the file appears under its name.
   void finish(const RenderTotals& totals, int devices, DeviceMode device_mode, BvhLayout bvh_layout,
-              const DeviceScene& scene, const StartTimes& start, std::uint64_t nonfinite_paths);
+              const DeviceScene& scene, const StartTimes& start, std::uint64_t nonfinite_paths,
+              const BvhBuildStats& bvh);
 
  private:
   const RenderCommand& cmd_;
