@@ -367,6 +367,18 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
                    : layout == BvhLayout::Wide8       ? flagged.nodes8.size()
                    : layout == BvhLayout::Compressed8 ? flagged.cnodes.size()
                                                       : flagged.nodes.size();
+    if (!scene.rig && layout != BvhLayout::Binary) {
+      // The binary nodes and the other layouts' nodes are not part of this layout's words: they
+      // go before the words are made (the 10M heightfield: 335 MB of binary nodes less at the
+      // peak of a start without cache).
+      std::vector<BvhNode>().swap(flagged.nodes);
+      if (layout != BvhLayout::Wide4) std::vector<Bvh4Node>().swap(flagged.nodes4);
+      if (layout != BvhLayout::Wide8) std::vector<Bvh8Node>().swap(flagged.nodes8);
+      if (layout != BvhLayout::Compressed8) {
+        std::vector<CompressedBvh8Node>().swap(flagged.cnodes);
+        std::vector<std::uint32_t>().swap(flagged.cleaf_first);
+      }
+    }
     if (layout != BvhLayout::Binary) wide_words = device_wide_nodes(flagged, layout);
     if (!scene.rig) {
       // Nothing rewrites a static scene's buffers: the host's nodes go as soon as the device's
