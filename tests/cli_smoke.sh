@@ -187,15 +187,16 @@ else
   bad "long render did not start"; kill "$pid" 2>/dev/null; wait "$pid"
 fi
 
-# A second signal stops at once (here during a frame of about a second), and still leaves no
-# partial file and no lock. The second signal is sent only once the first has been seen, so
-# that the two are not merged into one pending signal.
-"$bin" render --scene cornell --width 160 --height 90 --spp 16 --frames 100000 --devices 2 --out "$tmp/sig2" \
+# A second signal stops at once (here during a frame of about a second: 320x180 at 64 spp; at
+# 160x90 and 16 spp a frame had become 0.09 s, and the work in flight could finish before the
+# second signal came), and still leaves no partial file and no lock. The second signal is sent
+# only once the first has been seen, so that the two are not merged into one pending signal.
+"$bin" render --scene cornell --width 320 --height 180 --spp 64 --frames 100000 --devices 2 --out "$tmp/sig2" \
   >/dev/null 2>"$tmp/sig2.err" &
 pid=$!
 if wait_for "$tmp/sig2/frame_0000_stereo.png" "$pid"; then
   kill -TERM "$pid"
-  while ! grep -q "finishing the work in flight" "$tmp/sig2.err" && kill -0 "$pid" 2>/dev/null; do sleep 0.05; done
+  while ! grep -q "finishing the work in flight" "$tmp/sig2.err" && kill -0 "$pid" 2>/dev/null; do sleep 0.01; done
   kill -TERM "$pid" 2>/dev/null
   wait "$pid"; rc=$?
   if [ "$rc" -eq 143 ]; then ok "SIGTERM exits 143"; else bad "SIGTERM: exit $rc, expected 143"; fi
