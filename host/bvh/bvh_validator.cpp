@@ -546,21 +546,20 @@ BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>&
   constexpr std::size_t kThreadedFrom = 100000;
   const std::size_t cores = std::max(1u, std::thread::hardware_concurrency());
   const bool threaded = bvh.triangles.size() >= kThreadedFrom && cores > 1 && jobs.size() > 1;
+  // Jobs 1..spawned on their own threads, the rest (job 0 first) on this one; there may be none
+  // (a cached binary tree without wide nodes).
+  const std::size_t spawned = threaded ? std::min(jobs.size(), cores) - 1 : 0;
+  const auto run = [&](std::size_t i) {
+    try {
+      jobs[i](reports[i]);
+    } catch (...) {
+      failures[i] = std::current_exception();  // rethrown once the threads are joined
+    }
+  };
   std::vector<std::thread> threads;
-  for (std::size_t i = 1; threaded && i < jobs.size() && threads.size() + 1 < cores; ++i)
-    threads.emplace_back([&, i] {
-      try {
-        jobs[i](reports[i]);
-      } catch (...) {
-        failures[i] = std::current_exception();
-      }
-    });
+  for (std::size_t i = 1; i <= spawned; ++i) threads.emplace_back(run, i);
   for (std::size_t i = 0; i < jobs.size(); ++i)
-    if (i == 0 || i > threads.size()) try {
-        jobs[i](reports[i]);
-      } catch (...) {
-        failures[i] = std::current_exception();  // rethrown once the threads are joined
-      }
+    if (i == 0 || i > spawned) run(i);
   for (std::thread& t : threads) t.join();
   for (const std::exception_ptr& f : failures)
     if (f) std::rethrow_exception(f);

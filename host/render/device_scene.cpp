@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -297,6 +298,17 @@ std::string DeviceScene::kernel_options() const {
 
 namespace {
 
+// Frees `tree`'s node arrays but those of `keep` (none: all of them).
+void release_nodes(FlatBvh& tree, std::optional<BvhLayout> keep) {
+  if (keep != BvhLayout::Binary) std::vector<BvhNode>().swap(tree.nodes);
+  if (keep != BvhLayout::Wide4) std::vector<Bvh4Node>().swap(tree.nodes4);
+  if (keep != BvhLayout::Wide8) std::vector<Bvh8Node>().swap(tree.nodes8);
+  if (keep != BvhLayout::Compressed8) {
+    std::vector<CompressedBvh8Node>().swap(tree.cnodes);
+    std::vector<std::uint32_t>().swap(tree.cleaf_first);
+  }
+}
+
 // The flagged tree `tree` in `layout`, its nodes made and validated against `tris` if the caller's
 // tree did not carry them (a cwbvh set given the tree load_and_build collapsed for CPUs: nodes
 // made here have not met the validator the loader ran).
@@ -367,29 +379,13 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
                    : layout == BvhLayout::Wide8       ? flagged.nodes8.size()
                    : layout == BvhLayout::Compressed8 ? flagged.cnodes.size()
                                                       : flagged.nodes.size();
-    if (!scene.rig && layout != BvhLayout::Binary) {
-      // The binary nodes and the other layouts' nodes are not part of this layout's words: they
-      // go before the words are made (the 10M heightfield: 335 MB of binary nodes less at the
-      // peak of a start without cache).
-      std::vector<BvhNode>().swap(flagged.nodes);
-      if (layout != BvhLayout::Wide4) std::vector<Bvh4Node>().swap(flagged.nodes4);
-      if (layout != BvhLayout::Wide8) std::vector<Bvh8Node>().swap(flagged.nodes8);
-      if (layout != BvhLayout::Compressed8) {
-        std::vector<CompressedBvh8Node>().swap(flagged.cnodes);
-        std::vector<std::uint32_t>().swap(flagged.cleaf_first);
-      }
-    }
+    // Nothing rewrites a static scene's buffers, so its host nodes go as early as they may:
+    // those the layout's device words are not made from before the words (the 10M heightfield:
+    // 335 MB of binary nodes less at the peak of a start without cache), the rest once they are
+    // made, before the shading records (0.9 GB less). Binary nodes are uploaded as they are.
+    if (!scene.rig) release_nodes(flagged, layout);
     if (layout != BvhLayout::Binary) wide_words = device_wide_nodes(flagged, layout);
-    if (!scene.rig) {
-      // Nothing rewrites a static scene's buffers: the host's nodes go as soon as the device's
-      // words are made, before the shading records are (the 10M heightfield: 0.9 GB less at
-      // the peak of a start without cache).
-      std::vector<Bvh4Node>().swap(flagged.nodes4);
-      std::vector<Bvh8Node>().swap(flagged.nodes8);
-      std::vector<CompressedBvh8Node>().swap(flagged.cnodes);
-      std::vector<std::uint32_t>().swap(flagged.cleaf_first);
-      if (layout != BvhLayout::Binary) std::vector<BvhNode>().swap(flagged.nodes);
-    }
+    if (!scene.rig && layout != BvhLayout::Binary) release_nodes(flagged, std::nullopt);
     instance_words = instance_buffer_words(scene, {}, scene.triangles.size());
   } else {
     check_instancing(scene);
