@@ -14,8 +14,10 @@ PoCL's kernel cache is primed first with a small mesh (the kernels are the same 
 so that no run pays for compiling them.
 
 Usage: bench/scale_series.py [--sizes 0.25,1,4,10] [--build build] [--work build/scale-series]
-                             [--width 320] [--height 180] [--devices 2] [--offline]
-Sizes are in millions of triangles. Writes <work>/results.csv and prints a Markdown table.
+                             [--width 320] [--height 180] [--devices 2] [--repeat 3] [--offline]
+Sizes are in millions of triangles. Each start runs --repeat times (cold parallax and Mitsuba
+alternating); the table gives the median time, its range and the highest peak. Writes
+<work>/results.csv and prints a Markdown table.
 """
 import argparse
 import csv
@@ -181,6 +183,8 @@ def main():
     ap.add_argument("--height", type=int, default=180)
     ap.add_argument("--devices", type=int, default=2)
     ap.add_argument("--offline", action="store_true", help="never ask PyPI (Mitsuba columns n/a unless installed)")
+    ap.add_argument("--repeat", type=int, default=3,
+                    help="runs of each start (cold parallax and Mitsuba alternate); the table gives medians")
     a = ap.parse_args()
     try:
         sizes = [float(s) for s in a.sizes.split(",") if s]
@@ -188,8 +192,8 @@ def main():
         die(f"--sizes needs numbers, got '{a.sizes}'")
     if not sizes or any(s <= 0 or s > 200 for s in sizes):
         die("--sizes: each size must be in (0, 200] million triangles")
-    if a.width < 1 or a.height < 1 or a.devices < 1:
-        die("--width, --height and --devices must be positive")
+    if a.width < 1 or a.height < 1 or a.devices < 1 or a.repeat < 1:
+        die("--width, --height, --devices and --repeat must be positive")
     parallax = os.path.join(a.build, "parallax")
     if not os.access(parallax, os.X_OK):
         die(f"{parallax} not found: build first (scripts/build), or pass --build DIR")
@@ -225,41 +229,65 @@ def main():
                   str(a.width), "--height", str(a.height), "--no-denoise", "--overwrite"]
         cache = os.path.join(work, "bvh-cache")
         env = dict(os.environ, PARALLAX_CACHE_DIR=cache)
-        # Cold: no BVH cache at all. Warm: a cache the first of two runs fills.
-        for kind in ("cold", "warm"):
-            run_env = dict(env, PARALLAX_BVH_CACHE="off") if kind == "cold" else env
-            if kind == "warm":
-                timed([parallax] + common + ["--out", os.path.join(work, "out")], run_env)  # fills the cache
-            print(f"[scale_series] {tris} triangles: parallax {kind}", file=sys.stderr)
-            rc, wall, rss = timed([parallax] + common + ["--out", os.path.join(work, "out")], run_env,
-                                  os.path.join(work, "logs", f"parallax-{kind}-{tag}.txt"))
-            if rc != 0:
-                die(f"parallax failed on {tris} triangles ({kind}): see {work}/logs/parallax-{kind}-{tag}.txt")
-            row[f"{kind}_s"], row[f"{kind}_mib"] = wall, rss
+        out = ["--out", os.path.join(work, "out")]
+        script = os.path.join(work, "mitsuba_render.py")
         if mpy:
-            script = os.path.join(work, "mitsuba_render.py")
             with open(script, "w") as f:
                 f.write(MITSUBA_SCRIPT)
-            print(f"[scale_series] {tris} triangles: Mitsuba 3", file=sys.stderr)
-            rc, wall, rss = timed([mpy, script, ply, str(a.width), str(a.height)], None,
-                                  os.path.join(work, "logs", f"mitsuba-{tag}.txt"))
-            row["mitsuba_s"], row["mitsuba_mib"] = (wall, rss) if rc == 0 else (None, None)
+        # Cold (no BVH cache at all) and Mitsuba alternate, run after run: on a virtual machine the
+        # time to touch fresh memory varies from run to run (a 10M cold start: 8.6 to 16 s, with
+        # 1.5 to 9 s of system time), and both then meet the machine in the same states.
+        runs = {"cold": [], "warm": [], "mitsuba": []}
+        for r in range(a.repeat):
+            print(f"[scale_series] {tris} triangles: parallax cold ({r + 1}/{a.repeat})", file=sys.stderr)
+            rc, wall, rss = timed([parallax] + common + out, dict(env, PARALLAX_BVH_CACHE="off"),
+                                  os.path.join(work, "logs", f"parallax-cold-{tag}-{r + 1}.txt"))
+            if rc != 0:
+                die(f"parallax failed on {tris} triangles (cold): see {work}/logs/parallax-cold-{tag}-{r + 1}.txt")
+            runs["cold"].append((wall, rss))
+            if mpy:
+                print(f"[scale_series] {tris} triangles: Mitsuba 3 ({r + 1}/{a.repeat})", file=sys.stderr)
+                rc, wall, rss = timed([mpy, script, ply, str(a.width), str(a.height)], None,
+                                      os.path.join(work, "logs", f"mitsuba-{tag}-{r + 1}.txt"))
+                if rc == 0:
+                    runs["mitsuba"].append((wall, rss))
+        # Warm: a cache the first run fills, then the timed runs.
+        timed([parallax] + common + out, env)
+        for r in range(a.repeat):
+            print(f"[scale_series] {tris} triangles: parallax warm ({r + 1}/{a.repeat})", file=sys.stderr)
+            rc, wall, rss = timed([parallax] + common + out, env,
+                                  os.path.join(work, "logs", f"parallax-warm-{tag}-{r + 1}.txt"))
+            if rc != 0:
+                die(f"parallax failed on {tris} triangles (warm): see {work}/logs/parallax-warm-{tag}-{r + 1}.txt")
+            runs["warm"].append((wall, rss))
+        for kind, key in (("cold", "cold"), ("warm", "warm"), ("mitsuba", "mitsuba")):
+            if runs[kind]:
+                walls = sorted(w for w, _ in runs[kind])
+                row[f"{key}_s"] = float(np.median(walls))
+                row[f"{key}_s_min"], row[f"{key}_s_max"] = walls[0], walls[-1]
+                row[f"{key}_mib"] = max(m for _, m in runs[kind])  # the highest peak of the runs
         rows.append(row)
-    fields = ["triangles", "glb_mib", "cold_s", "cold_mib", "warm_s", "warm_mib", "mitsuba_s", "mitsuba_mib"]
+    fields = ["triangles", "glb_mib", "runs", "cold_s", "cold_s_min", "cold_s_max", "cold_mib", "warm_s", "warm_s_min",
+              "warm_s_max", "warm_mib", "mitsuba_s", "mitsuba_s_min", "mitsuba_s_max", "mitsuba_mib"]
     with open(os.path.join(work, "results.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=fields)
         w.writeheader()
         for r in rows:
-            w.writerow({k: r.get(k) for k in fields})
+            w.writerow({k: (a.repeat if k == "runs" else r.get(k)) for k in fields})
     fmt = lambda v, d=1: "n/a" if v is None else f"{v:.{d}f}"
     bpt = lambda mib, t: "n/a" if mib is None else f"{mib * 2**20 / t:.0f}"
-    print("| triangles | parallax cold s | peak MiB | B/triangle | warm s | peak MiB | Mitsuba 3 s | peak MiB | B/triangle |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    span = lambda r, k: "" if a.repeat == 1 or r.get(k + "_s") is None else f" ({r[k + '_s_min']:.1f}-{r[k + '_s_max']:.1f})"
+    ratio = lambda r: "n/a" if not r.get("mitsuba_s") else f"{r['cold_s'] / r['mitsuba_s']:.2f}"
+    print(f"Median of {a.repeat} run(s) (range); peak: the highest of the runs.")
+    print("| triangles | parallax cold s | peak MiB | B/triangle | warm s | peak MiB | B/triangle | Mitsuba 3 s | peak MiB "
+          "| B/triangle | cold / Mitsuba |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         t = r["triangles"]
-        print(f"| {t / 1e6:.2f}M | {fmt(r['cold_s'])} | {fmt(r['cold_mib'], 0)} | {bpt(r['cold_mib'], t)} | "
-              f"{fmt(r['warm_s'])} | {fmt(r['warm_mib'], 0)} | {fmt(r.get('mitsuba_s'))} | "
-              f"{fmt(r.get('mitsuba_mib'), 0)} | {bpt(r.get('mitsuba_mib'), t)} |")
+        print(f"| {t / 1e6:.2f}M | {fmt(r['cold_s'])}{span(r, 'cold')} | {fmt(r['cold_mib'], 0)} | "
+              f"{bpt(r['cold_mib'], t)} | {fmt(r['warm_s'])}{span(r, 'warm')} | {fmt(r['warm_mib'], 0)} | "
+              f"{bpt(r['warm_mib'], t)} | {fmt(r.get('mitsuba_s'))}{span(r, 'mitsuba')} | "
+              f"{fmt(r.get('mitsuba_mib'), 0)} | {bpt(r.get('mitsuba_mib'), t)} | {ratio(r)} |")
     print(f"(results: {work}/results.csv; logs: {work}/logs)", file=sys.stderr)
 
 

@@ -8,7 +8,7 @@ set -u
 source "$(dirname "$0")/support/script_checks.sh"
 
 if "$src/bench/scale_series.py" --sizes 0.002 --build "$build" --work "$tmp/w" --width 32 --height 18 --offline \
-  >"$tmp/out" 2>"$tmp/err"; then ok "ran"; else fail "exit $?"; tail -5 "$tmp/err"; fi
+  --repeat 2 >"$tmp/out" 2>"$tmp/err"; then ok "ran"; else fail "exit $?"; tail -5 "$tmp/err"; fi
 /usr/bin/python3 - "$tmp/w" <<'PY' && ok "meshes and CSV" || fail "meshes and CSV"
 import csv, json, math, struct, sys, glob
 w = sys.argv[1]
@@ -17,8 +17,10 @@ assert len(rows) == 1, rows
 r = rows[0]
 t = int(r["triangles"])
 assert t == 2 * 32 * 32, t  # 0.002M asked: the nearest square grid, 32 x 32 quads
-for k in ("cold_s", "cold_mib", "warm_s", "warm_mib"):
+for k in ("cold_s", "cold_mib", "warm_s", "warm_mib", "cold_s_min", "cold_s_max"):
     assert math.isfinite(float(r[k])) and float(r[k]) > 0, (k, r[k])
+assert int(r["runs"]) == 2 and float(r["cold_s_min"]) <= float(r["cold_s"]) <= float(r["cold_s_max"]), r
+assert len(glob.glob(f"{w}/logs/parallax-cold-*.txt")) == 2 and len(glob.glob(f"{w}/logs/parallax-warm-*.txt")) == 2
 ply = open(glob.glob(f"{w}/heightfield-{t}.ply")[0], "rb").read(400).decode("latin-1")
 assert f"element face {t}" in ply and f"element vertex {33 * 33}" in ply, ply[:200]
 glb = open(glob.glob(f"{w}/heightfield-{t}.glb")[0], "rb").read()
@@ -32,7 +34,7 @@ if grep -q "^| 0.00M" "$tmp/out"; then ok "table printed"; else fail "table"; ca
 # Past the cache's threshold (20k triangles): the warm start maps the device layout the filling
 # run stored, and renders the very pixels of a start without any cache.
 if "$src/bench/scale_series.py" --sizes 0.05 --build "$build" --work "$tmp/w2" --width 32 --height 18 --offline \
-  >"$tmp/out2" 2>"$tmp/err2"; then
+  --repeat 1 >"$tmp/out2" 2>"$tmp/err2"; then
   warm="$(ls "$tmp"/w2/logs/parallax-warm-*.txt)" cold="$(ls "$tmp"/w2/logs/parallax-cold-*.txt)"
   if grep -q "BVH [0-9]* ms (its device layout mapped from the cache)" "$warm"; then ok "warm start maps the device layout"
   else fail "warm start did not map the device layout"; grep "start:" "$warm"; fi
@@ -53,4 +55,6 @@ if "$src/bench/scale_series.py" --sizes abc --build "$build" --work "$tmp/x" >/d
   fail "bad --sizes accepted"; else grep -q "needs numbers" "$tmp/e1" && ok "bad --sizes refused" || fail "message"; fi
 if "$src/bench/scale_series.py" --sizes 1 --build "$tmp/nothing" --work "$tmp/y" >/dev/null 2>"$tmp/e2"; then
   fail "missing build accepted"; else grep -q "build first" "$tmp/e2" && ok "missing build refused" || fail "message"; fi
+if "$src/bench/scale_series.py" --sizes 1 --repeat 0 --build "$build" --work "$tmp/z" >/dev/null 2>"$tmp/e3"; then
+  fail "--repeat 0 accepted"; else grep -q "must be positive" "$tmp/e3" && ok "--repeat 0 refused" || fail "message"; fi
 finish scale_series_smoke

@@ -919,6 +919,55 @@ TEST(WideBvh, DeviceFormHoldsEveryLeafAsABlock) {
   for (std::size_t i = 0; i < refs.size(); ++i) EXPECT_EQ(refs[i], 1) << "entry " << i;
 }
 
+// device_wide_nodes_from (the start's path: it frees the wide nodes as it writes the words, no
+// zero fill) against device_wide_nodes (the test above checks that one block by block): the same
+// words, for both widths, and the nodes gone afterwards.
+TEST(WideBvh, DeviceFormFromFreedNodesIsTheSameWords) {
+  const auto tris = random_soup(1500, 64);
+  for (int width : {4, 8}) {
+    FlatBvh bvh = build_bvh(tris, with_splits(false));
+    collapse_bvh(bvh, width);
+    bvh.triangles[7].flags = PX_TRI_ALPHA_TESTED | PX_TRI_EMISSIVE;
+    const BvhLayout layout = width == 4 ? BvhLayout::Wide4 : BvhLayout::Wide8;
+    const std::vector<std::uint32_t> want = device_wide_nodes(bvh, layout);
+    const DeviceWords got = device_wide_nodes_from(bvh, layout);
+    ASSERT_EQ(got.size(), want.size()) << "width " << width;
+    EXPECT_TRUE(std::equal(got.begin(), got.end(), want.begin())) << "width " << width;
+    EXPECT_TRUE(width == 4 ? bvh.nodes4.empty() : bvh.nodes8.empty()) << "the wide nodes are freed";
+    EXPECT_FALSE(bvh.triangles.empty()) << "the leaf triangles stay";
+  }
+  FlatBvh binary = build_bvh(tris, with_splits(false));
+  binary.nodes4.clear();
+  binary.nodes8.clear();
+  EXPECT_THROW(device_wide_nodes_from(binary, BvhLayout::Wide8), std::invalid_argument) << "no wide nodes built";
+  EXPECT_THROW(device_wide_nodes_from(binary, BvhLayout::Binary), std::invalid_argument);
+}
+
+// A triangle that spatial splits put in several leaves is checked against all of their boxes
+// (gathered by a second walk of the tree): each must overlap it, and together they must cover it.
+TEST(Validator, DetectsALeafBoxThatMissesASplitTriangle) {
+  const auto tris = diagonal_strips(400);
+  const FlatBvh split = build_bvh(tris, with_splits(true));
+  ASSERT_TRUE(validate_bvh(split, tris).ok);
+  ASSERT_GT(split.stats.leaf_triangles, tris.size()) << "splits happened";
+  // A binary leaf (a left child) holding a reference of a triangle that is referenced more than once.
+  std::vector<int> refs(tris.size(), 0);
+  for (const BvhTriangle& t : split.triangles) ++refs[t.prim];
+  std::uint32_t node = ~0u, prim_index = 0;
+  for (std::uint32_t n = 0; n < split.nodes.size() && node == ~0u; ++n)
+    for (std::uint32_t i = 0; i < split.nodes[n].left_count && node == ~0u; ++i)
+      if (refs[split.triangles[split.nodes[n].left + i].prim] > 1)
+        node = n, prim_index = split.triangles[split.nodes[n].left + i].prim;
+  ASSERT_NE(node, ~0u);
+  const std::string prim = "scene triangle " + std::to_string(prim_index);
+  // Moved far away: that box no longer overlaps the triangle (and the part it held is uncovered).
+  FlatBvh moved = split;
+  for (int k = 0; k < 3; ++k) moved.nodes[node].lmin[k] += 1e4f, moved.nodes[node].lmax[k] += 1e4f;
+  const BvhValidation v = validate_bvh(moved, tris);
+  EXPECT_FALSE(v.ok);
+  EXPECT_TRUE(has_error(v, "", prim + " does not overlap the box of a leaf holding it"));
+}
+
 // The validator rejects `bad`, its first error names the layout at fault (`layout`), and one of
 // its errors is the one this corruption must cause: `layout` then `message`.
 void expect_rejected(const FlatBvh& bad, const std::vector<SceneTriangle>& tris, const char* layout,

@@ -265,8 +265,16 @@ DeviceScene make_device_scene(DeviceSet& devices, LoadedScene& loaded) {
   store.cache = &cache;
   store.content_key = loaded.content_key;
   store.quiet = loaded.quiet;
-  // The tree's host copy is not needed once its nodes are on the devices.
-  return DeviceScene(devices, loaded.scene, std::move(loaded.bvh), std::move(loaded.mesh_bvhs), store);
+  // The tree's host copy is not needed once its nodes are on the devices, nor a static scene's
+  // triangles once the device scene has made what it makes of them (before its largest part).
+  Scene& scene = loaded.scene;
+  const auto release_triangles = [&scene] {
+    if (scene.rig) return;  // posed again every frame (SceneAnimator)
+    std::vector<SceneTriangle>().swap(scene.triangles);
+    std::vector<std::array<glm::vec3, 3>>().swap(scene.vertex_colours);
+  };
+  return DeviceScene(devices, loaded.scene, std::move(loaded.bvh), std::move(loaded.mesh_bvhs), store,
+                     release_triangles);
 }
 
 }  // namespace

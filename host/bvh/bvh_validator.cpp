@@ -247,20 +247,14 @@ struct CompressedNodes {
   static const char* side_name(int side) { return WideNodes<8, Bvh8Node>::side_name(side); }
 };
 
-template <typename Nodes>
-void validate_tree(const Nodes& tree, const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles,
-                   Report& report) {
+// Walks the tree from the root depth first, checking every node and slot, and hands each leaf
+// (its box as the parent stores it, first entry, count) to `on_leaf` once its index range is
+// known to be in bounds. Returns the nodes reached (node_seen).
+template <typename Nodes, typename OnLeaf>
+std::vector<std::uint8_t> walk_tree(const Nodes& tree, std::size_t tri_count, Report& report, OnLeaf&& on_leaf) {
   const bool wide = Nodes::kWidth > 2;
   const std::size_t node_count = tree.size();
-  const std::size_t tri_count = bvh.triangles.size();
   std::vector<std::uint8_t> node_seen(node_count, 0);
-  std::vector<std::uint32_t> entry_refs(tri_count, 0);  // leaves covering each triangle entry
-
-  // (scene triangle, leaf box) for every leaf reference, checked per triangle afterwards.
-  std::vector<Box> leaf_boxes;
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> references;  // (prim, leaf box index)
-  references.reserve(tri_count);
-
   struct Entry {
     std::uint32_t node;
     int depth;  // root = 1, as BvhBuildStats::depth counts
@@ -337,9 +331,38 @@ void validate_tree(const Nodes& tree, const FlatBvh& bvh, const std::vector<Scen
                        first + count[side] - 1, " but there are ", tri_count);
           continue;
         }
-        const auto box_index = static_cast<std::uint32_t>(leaf_boxes.size());
-        leaf_boxes.push_back(box);
-        for (std::uint64_t i = first; i < first + count[side]; ++i) {
+        on_leaf(box, first, count[side]);
+      } else {
+        if (index[side] == 0 || index[side] >= node_count) {
+          report.error(tree.name, "node ", e.node, " ", side_name[side], " child index ", index[side],
+                       index[side] == 0 ? " points at the root" : " is out of range");
+          continue;
+        }
+        stack.push_back({index[side], child_depth, box, true});
+      }
+    }
+    if (present == 0) report.error(tree.name, "node ", e.node, " has no children");
+  }
+  return node_seen;
+}
+
+// The tree against the scene. Memory is what limits this at paper scale (it runs on a tree of
+// 10M triangles beside the scene and the tree itself): the first walk keeps per triangle entry
+// a leaf count and per scene triangle a reference count and whether a leaf box failed to hold
+// it whole, about 9 bytes per triangle. Only scene triangles in several leaves (spatial splits)
+// need their leaf boxes side by side; a second walk, run only when there are such triangles,
+// gathers those boxes alone. (Keeping every leaf box and every (triangle, leaf) pair for a
+// sort took about 50 bytes per triangle, twice over when two layouts are checked at once.)
+template <typename Nodes>
+void validate_tree(const Nodes& tree, const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles,
+                   Report& report) {
+  const std::size_t tri_count = bvh.triangles.size();
+  std::vector<std::uint32_t> entry_refs(tri_count, 0);     // leaves covering each triangle entry
+  std::vector<std::uint32_t> prim_refs(triangles.size(), 0);  // leaf entries of each scene triangle
+  std::vector<std::uint8_t> outside(triangles.size(), 0);  // some leaf box does not hold it whole
+  const std::vector<std::uint8_t> node_seen =
+      walk_tree(tree, tri_count, report, [&](const Box& box, std::uint64_t first, std::uint32_t count) {
+        for (std::uint64_t i = first; i < first + count; ++i) {
           ++entry_refs[i];
           const BvhTriangle& t = bvh.triangles[i];
           if (t.prim >= triangles.size()) {
@@ -354,20 +377,12 @@ void validate_tree(const Nodes& tree, const FlatBvh& bvh, const std::vector<Scen
           if (!same)
             report.error(tree.name, "triangle entry ", i, " does not match scene triangle ", t.prim,
                          " (vertices or material)");
-          references.emplace_back(t.prim, box_index);
+          ++prim_refs[t.prim];
+          if (!contains(box, triangle_box(s), tolerance(box, &s))) outside[t.prim] = 1;
         }
-      } else {
-        if (index[side] == 0 || index[side] >= node_count) {
-          report.error(tree.name, "node ", e.node, " ", side_name[side], " child index ", index[side],
-                       index[side] == 0 ? " points at the root" : " is out of range");
-          continue;
-        }
-        stack.push_back({index[side], child_depth, box, true});
-      }
-    }
-    if (present == 0) report.error(tree.name, "node ", e.node, " has no children");
-  }
+      });
 
+  const std::size_t node_count = tree.size();
   std::size_t unreached = 0, first_unreached = 0;
   for (std::size_t i = node_count; i-- > 0;)
     if (!node_seen[i]) ++unreached, first_unreached = i;
@@ -377,36 +392,44 @@ void validate_tree(const Nodes& tree, const FlatBvh& bvh, const std::vector<Scen
   for (std::size_t i = 0; i < tri_count; ++i)
     if (entry_refs[i] != 1)
       report.error(tree.name, "triangle entry ", i, " is in ", entry_refs[i], " leaves (expected 1)");
+  std::vector<std::uint32_t>().swap(entry_refs);
+
+  // Scene triangles in several leaves: their leaf boxes, grouped by triangle with a counting
+  // sort, in walk order within a triangle. `slot[p]` is where triangle p's boxes start.
+  std::vector<std::uint32_t> slot;
+  std::vector<Box> split_boxes;
+  std::size_t split_refs = 0;
+  for (std::uint32_t r : prim_refs)
+    if (r > 1) split_refs += r;
+  if (split_refs > 0) {
+    slot.assign(triangles.size() + 1, 0);
+    for (std::size_t p = 0; p < triangles.size(); ++p) slot[p + 1] = slot[p] + (prim_refs[p] > 1 ? prim_refs[p] : 0);
+    std::vector<std::uint32_t> next(slot.begin(), slot.end() - 1);
+    split_boxes.resize(split_refs);
+    Report ignored;  // the first walk reported what is wrong with the tree itself
+    walk_tree(tree, tri_count, ignored, [&](const Box& box, std::uint64_t first, std::uint32_t count) {
+      for (std::uint64_t i = first; i < first + count; ++i) {
+        const std::uint32_t p = bvh.triangles[i].prim;
+        if (p < triangles.size() && prim_refs[p] > 1) split_boxes[next[p]++] = box;
+      }
+    });
+  }
 
   // Per scene triangle: referenced at all; a single leaf box must contain the whole triangle;
   // with several (spatial splits), each must overlap it and together they must cover it.
-  // Grouped by prim with a counting sort (one pass to count, one to place; 10M references took
-  // std::sort 1.5 s): the leaf boxes of prim p are leaf_of[first[p] .. first[p + 1]), in walk
-  // order, as a stable sort by prim would leave them.
-  std::vector<std::uint32_t> first(triangles.size() + 1, 0);
-  for (const auto& ref : references) ++first[ref.first + 1];
-  for (std::size_t p = 0; p < triangles.size(); ++p) first[p + 1] += first[p];
-  std::vector<std::uint32_t> leaf_of(references.size());
-  {
-    std::vector<std::uint32_t> next(first.begin(), first.end() - 1);
-    for (const auto& ref : references) leaf_of[next[ref.first]++] = ref.second;
-  }
-  std::vector<std::pair<std::uint32_t, std::uint32_t>>().swap(references);
   for (std::uint32_t prim = 0; prim < triangles.size(); ++prim) {
-    const std::size_t begin = first[prim], r = first[prim + 1];
     const SceneTriangle& tri = triangles[prim];
-    if (r == begin) {
+    if (prim_refs[prim] == 0) {
       report.error(tree.name, "scene triangle ", prim, " is not referenced by any leaf");
       continue;
     }
-    if (r - begin == 1) {
-      const Box& box = leaf_boxes[leaf_of[begin]];
-      if (!contains(box, triangle_box(tri), tolerance(box, &tri)))
-        report.error(tree.name, "scene triangle ", prim, " is not inside the box of its leaf");
+    if (prim_refs[prim] == 1) {
+      if (outside[prim]) report.error(tree.name, "scene triangle ", prim, " is not inside the box of its leaf");
       continue;
     }
-    for (std::size_t j = begin; j < r; ++j) {
-      const Box& box = leaf_boxes[leaf_of[j]];
+    const std::size_t begin = slot[prim], end = slot[prim + 1];
+    for (std::size_t j = begin; j < end; ++j) {
+      const Box& box = split_boxes[j];
       if (!triangle_overlaps_box(tri, box, tolerance(box, &tri)))
         report.error(tree.name, "scene triangle ", prim, " does not overlap the box of a leaf holding it");
     }
@@ -415,18 +438,18 @@ void validate_tree(const Nodes& tree, const FlatBvh& bvh, const std::vector<Scen
                        w[0] * tri.p[0].y + w[1] * tri.p[1].y + w[2] * tri.p[2].y,
                        w[0] * tri.p[0].z + w[1] * tri.p[1].z + w[2] * tri.p[2].z};
       bool covered = false;
-      for (std::size_t j = begin; j < r && !covered; ++j) {
-        const Box& box = leaf_boxes[leaf_of[j]];
+      for (std::size_t j = begin; j < end && !covered; ++j) {
+        const Box& box = split_boxes[j];
         covered = contains_point(box, p, tolerance(box, &tri));
       }
       if (!covered) {
         report.error(tree.name, "scene triangle ", prim, ": point (", p.x, ", ", p.y, ", ", p.z,
-                     ") lies in none of its ", r - begin, " leaf boxes");
+                     ") lies in none of its ", end - begin, " leaf boxes");
         break;
       }
     }
   }
-  // References to prims >= triangles.size() were reported above and never enter this list.
+  // References to prims >= triangles.size() were reported above and are counted nowhere.
 }
 
 // What the generic walk cannot see in the compressed layout: the encoding itself, and each

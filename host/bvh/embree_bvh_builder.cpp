@@ -729,6 +729,10 @@ bool build_once(const std::vector<SceneTriangle>& triangles, const BvhBuildOptio
   args.userPtr = &context;
 
   void* root = rtcBuildBVH(&args);
+  // The tree's leaves hold their triangle indices: the primitives (32 bytes a triangle, twice
+  // that with splits) are not read again, and go before the flat copy is made beside the tree.
+  std::vector<RTCBuildPrimitive>().swap(primitives);
+  std::vector<std::array<float, 9>>().swap(context.positions);
   error = take_embree_error();
   if (options.spatial_splits) out.stats.split_calls = context.split_calls.load();
   if (context.over_budget) {

@@ -7,6 +7,9 @@
 #include "shared/types.h"
 
 #include <cstdint>
+#include <memory>
+#include <type_traits>
+#include <utility>
 #include <optional>
 #include <string>
 #include <vector>
@@ -141,6 +144,34 @@ bool is_absent_slot(const WideNode& n, int i) {
 // Reads the triangles' flags, so call it after set_triangle_flags. Throws if the wide nodes are
 // absent.
 std::vector<std::uint32_t> device_wide_nodes(const FlatBvh& bvh, BvhLayout layout);
+// An allocator whose resize() leaves new elements uninitialised: the pages of a large array are
+// touched, and counted as resident, only as they are written, not all at once by a zero fill.
+template <typename T>
+struct UninitializedAllocator : std::allocator<T> {
+  template <typename U>
+  struct rebind {
+    using other = UninitializedAllocator<U>;
+  };
+  UninitializedAllocator() = default;
+  template <typename U>
+  UninitializedAllocator(const UninitializedAllocator<U>&) noexcept {}
+  template <typename U>
+  void construct(U* p) noexcept(std::is_nothrow_default_constructible_v<U>) {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <typename U, typename... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+};
+using DeviceWords = std::vector<std::uint32_t, UninitializedAllocator<std::uint32_t>>;
+
+// device_wide_nodes for Wide4 and Wide8, the same words, made from nodes it frees on the way: the
+// wide nodes are copied into the words (every word written, none zero-filled first), freed, and
+// the leaf blocks then written behind them. At 10M triangles the nodes (0.5 GB) and the words
+// (1.4 GB) are then never held whole side by side. Throws std::invalid_argument for another
+// layout or absent nodes.
+DeviceWords device_wide_nodes_from(FlatBvh& bvh, BvhLayout layout);
 // The leaf block (types.h: BvhLeafBlock) of the `count` triangles from `first`; throws if they
 // are out of range or count is not 1..4.
 BvhLeafBlock leaf_block(const std::vector<BvhTriangle>& tris, std::uint32_t first, std::uint32_t count);

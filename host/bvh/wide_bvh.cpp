@@ -221,7 +221,52 @@ std::vector<std::uint32_t> device_form(const std::vector<Node>& nodes, const std
   return words;
 }
 
+template <int W, typename Node>
+DeviceWords device_form_from(std::vector<Node>& nodes, const std::vector<BvhTriangle>& tris) {
+  static_assert(sizeof(Node) % 16 == 0 && sizeof(BvhLeafBlock) % 16 == 0);
+  if (nodes.empty()) throw std::invalid_argument("device_wide_nodes: the wide nodes are not built");
+  std::size_t leaves = 0;
+  for (const Node& n : nodes)
+    for (int i = 0; i < W; ++i) leaves += n.count[i] > 0 ? 1 : 0;
+  const std::size_t node_count = nodes.size();
+  const std::size_t node_bytes = node_count * sizeof(Node);
+  if ((node_bytes + leaves * sizeof(BvhLeafBlock)) / 16 >= kWideIndexLimit)
+    throw std::runtime_error("BVH: wide node buffer too large for 29-bit leaf offsets");
+  DeviceWords words;
+  words.resize((node_bytes + leaves * sizeof(BvhLeafBlock)) / 4);  // uninitialised: written below
+  auto* bytes = reinterpret_cast<unsigned char*>(words.data());
+  std::memcpy(bytes, nodes.data(), node_bytes);
+  std::vector<Node>().swap(nodes);
+  // The nodes' leaf slots still hold their first triangle: each becomes its block's offset.
+  std::size_t next = 0;
+  for (std::size_t k = 0; k < node_count; ++k) {
+    Node n;
+    std::memcpy(&n, bytes + k * sizeof(Node), sizeof n);
+    bool leaf = false;
+    for (int i = 0; i < W; ++i) {
+      if (n.count[i] == 0) continue;
+      const std::uint32_t first = n.child[i], count = n.count[i];
+      if (count > 4 || first + std::uint64_t{count} > tris.size())
+        throw std::runtime_error("BVH: leaf out of range in the wide layout");
+      const BvhLeafBlock block = leaf_block(tris, first, count);
+      const std::size_t at = node_bytes + next * sizeof(BvhLeafBlock);
+      std::memcpy(bytes + at, &block, sizeof block);
+      n.child[i] = static_cast<std::uint32_t>(at / 16);
+      ++next;
+      leaf = true;
+    }
+    if (leaf) std::memcpy(bytes + k * sizeof(Node), &n, sizeof n);
+  }
+  return words;
+}
+
 }  // namespace
+
+DeviceWords device_wide_nodes_from(FlatBvh& bvh, BvhLayout layout) {
+  if (layout == BvhLayout::Wide4) return device_form_from<4>(bvh.nodes4, bvh.triangles);
+  if (layout == BvhLayout::Wide8) return device_form_from<8>(bvh.nodes8, bvh.triangles);
+  throw std::invalid_argument("device_wide_nodes_from: not Wide4 or Wide8");
+}
 
 std::vector<std::uint32_t> device_wide_nodes(const FlatBvh& bvh, BvhLayout layout) {
   if (layout == BvhLayout::Wide4) return device_form<4>(bvh.nodes4, bvh.triangles);

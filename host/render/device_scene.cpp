@@ -75,11 +75,20 @@ struct DeviceScene::HostBytes {
   std::shared_ptr<const void> owner;
 };
 
+// The small tables made from the scene beside the three large buffers.
+struct DeviceScene::SceneTables {
+  std::vector<GpuMaterial> materials;
+  std::vector<LightTriangle> lights;
+  std::vector<cl_float4> colours;
+  std::vector<TextureInfo> infos;
+  std::vector<cl_float4> texels;
+};
+
 namespace {
 
-template <typename T>
-DeviceScene::HostBytes owned_bytes(std::vector<T>&& v) {
-  auto owner = std::make_shared<const std::vector<T>>(std::move(v));
+template <typename T, typename A>
+DeviceScene::HostBytes owned_bytes(std::vector<T, A>&& v) {
+  auto owner = std::make_shared<const std::vector<T, A>>(std::move(v));
   return {owner->data(), owner->size() * sizeof(T), sizeof(T), owner};
 }
 
@@ -355,13 +364,14 @@ std::vector<MeshPlacement> DeviceScene::assemble_instanced(const FlatBvh* world,
 }
 
 DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, std::vector<FlatBvh> mesh_bvhs,
-                         const DeviceLayoutStore& store) {
+                         const DeviceLayoutStore& store, const std::function<void()>& triangles_done) {
   const auto layout_start = std::chrono::steady_clock::now();
   FlatBvh& flagged = bvh;
   const std::vector<std::uint32_t> tri_flags = triangle_flags(scene);
   const BvhLayout layout = devices.bvh_layout();
   layout_ = layout;
   const bool instanced = !scene.instancing.empty();
+  const std::size_t scene_triangles = scene.triangles.size();
   // Without instances: the one tree's nodes (binary: flagged.nodes as they are), its leaf
   // triangles, and an instance buffer that says "none". With instances: the world tree, then
   // each mesh's tree at a 64-byte aligned word offset, and their leaf triangles likewise back
@@ -372,6 +382,9 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
   // The tree's node count in the layout (the cache records it), before the static case below
   // frees those nodes.
   std::size_t layout_nodes = 0;
+  // A static scene without instances makes its wide words last, after the scene's triangles may
+  // have gone (triangles_done), from nodes it then frees as it goes (device_wide_nodes_from).
+  bool words_last = false;
   if (!instanced) {
     set_triangle_flags(flagged, tri_flags);
     prepare_tree(flagged, layout, scene.triangles, "the scene's BVH");
@@ -380,13 +393,13 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
                    : layout == BvhLayout::Compressed8 ? flagged.cnodes.size()
                                                       : flagged.nodes.size();
     // Nothing rewrites a static scene's buffers, so its host nodes go as early as they may:
-    // those the layout's device words are not made from before the words (the 10M heightfield:
-    // 335 MB of binary nodes less at the peak of a start without cache), the rest once they are
-    // made, before the shading records (0.9 GB less). Binary nodes are uploaded as they are.
+    // those the layout's device words are not made from at once (the 10M heightfield: 335 MB of
+    // binary nodes), the rest while the words are made. Binary nodes are uploaded as they are.
     if (!scene.rig) release_nodes(flagged, layout);
-    if (layout != BvhLayout::Binary) wide_words = device_wide_nodes(flagged, layout);
-    if (!scene.rig && layout != BvhLayout::Binary) release_nodes(flagged, std::nullopt);
-    instance_words = instance_buffer_words(scene, {}, scene.triangles.size());
+    words_last = !scene.rig && (layout == BvhLayout::Wide4 || layout == BvhLayout::Wide8);
+    if (layout != BvhLayout::Binary && !words_last) wide_words = device_wide_nodes(flagged, layout);
+    if (!scene.rig && layout == BvhLayout::Compressed8) release_nodes(flagged, std::nullopt);
+    instance_words = instance_buffer_words(scene, {}, scene_triangles);
   } else {
     check_instancing(scene);
     const SceneInstancing& in = scene.instancing;
@@ -426,6 +439,12 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
   }
   auto& triangles = instanced ? instanced_triangles : flagged.triangles;
   auto shading = make_triangle_shading(scene);
+  SceneTables tables = make_tables(scene, tri_flags, instanced);
+  if (triangles_done) triangles_done();  // scene.triangles may be gone from here on
+  DeviceWords words_made_last;
+  if (words_last) words_made_last = device_wide_nodes_from(flagged, layout);
+  const std::uint32_t* words = words_last ? words_made_last.data() : wide_words.data();
+  const std::size_t word_count = words_last ? words_made_last.size() : wide_words.size();
   const bool binary_nodes = layout == BvhLayout::Binary && !instanced;  // else the nodes are words
   if (store.cache && store.cache->enabled() && !instanced && !scene.rig) {
     // The layout as it goes to the devices, for the next start to map (device_layout_cache.h).
@@ -434,15 +453,15 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
     parts.layout = layout;
     parts.stats = flagged.stats;
     parts.layout_nodes = layout_nodes;
-    parts.nodes = binary_nodes ? static_cast<const void*>(flagged.nodes.data()) : wide_words.data();
-    parts.node_bytes = binary_nodes ? flagged.nodes.size() * sizeof(BvhNode) : wide_words.size() * 4;
+    parts.nodes = binary_nodes ? static_cast<const void*>(flagged.nodes.data()) : words;
+    parts.node_bytes = binary_nodes ? flagged.nodes.size() * sizeof(BvhNode) : word_count * 4;
     parts.triangles = &triangles;
     parts.shading = &shading;
     std::string why;
     std::string path;
     {
       const ProgressTicker ticker(store.quiet ? "" : "[bvh] still writing the device layout cache");
-      path = store.cache->store(store.content_key, store.options, scene.triangles.size(), parts, &why);
+      path = store.cache->store(store.content_key, store.options, scene_triangles, parts, &why);
     }
     layout_store_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
     if (!store.quiet && !path.empty())
@@ -451,9 +470,11 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
     if (!store.quiet && path.empty())
       std::fprintf(stderr, "[bvh] warning: could not cache the device layout (%s)\n", why.c_str());
   }
-  HostBytes node_bytes = binary_nodes ? owned_bytes(std::move(flagged.nodes)) : owned_bytes(std::move(wide_words));
+  HostBytes node_bytes = binary_nodes ? owned_bytes(std::move(flagged.nodes))
+                         : words_last ? owned_bytes(std::move(words_made_last))
+                                      : owned_bytes(std::move(wide_words));
   upload_all(devices, scene, std::move(node_bytes), owned_bytes(std::move(triangles)), owned_bytes(std::move(shading)),
-             std::move(instance_words), tri_flags, instanced, layout_start);
+             std::move(instance_words), std::move(tables), tri_flags, layout_start);
 }
 
 DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, std::shared_ptr<const MappedDeviceLayout> mapped) {
@@ -476,42 +497,50 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, std::shared_ptr
   HostBytes shading{mapped->shading(), mapped->shading_count() * sizeof(TriangleShading), sizeof(TriangleShading),
                     owner};
   upload_all(devices, scene, std::move(nodes), std::move(triangles), std::move(shading), std::move(instance_words),
-             tri_flags, false, layout_start);
+             make_tables(scene, tri_flags, false), tri_flags, layout_start);
 }
 
-void DeviceScene::upload_all(DeviceSet& devices, const Scene& scene, HostBytes nodes, HostBytes triangles,
-                             HostBytes shading, std::vector<std::uint32_t> instance_words,
-                             const std::vector<std::uint32_t>& tri_flags, bool instanced,
-                             std::chrono::steady_clock::time_point layout_start) {
-  auto materials = make_gpu_materials(scene);
-  auto lights = make_light_table(scene);
-  light_count_ = lights.size();
+DeviceScene::SceneTables DeviceScene::make_tables(const Scene& scene, const std::vector<std::uint32_t>& tri_flags,
+                                                  bool instanced) {
+  SceneTables t;
+  t.materials = make_gpu_materials(scene);
+  t.lights = make_light_table(scene);
+  light_count_ = t.lights.size();
   FrameParams light_params{};
   fill_light_params(scene, light_count_, light_params);
-  scene_features_ = px::kernel_features(materials, tri_flags, light_params, !scene.vertex_colours.empty(), instanced);
-  std::vector<cl_float4> colours;
+  scene_features_ = px::kernel_features(t.materials, tri_flags, light_params, !scene.vertex_colours.empty(), instanced);
   if (!scene.vertex_colours.empty()) {
     if (scene.vertex_colours.size() != scene.triangles.size())
       throw std::logic_error("DeviceScene: " + std::to_string(scene.vertex_colours.size()) + " vertex colour entries for " +
                              std::to_string(scene.triangles.size()) + " triangles");
-    colours.reserve(3 * scene.vertex_colours.size());
+    t.colours.reserve(3 * scene.vertex_colours.size());
     for (const auto& tri : scene.vertex_colours)
-      for (const glm::vec3& c : tri) colours.push_back({{c.x, c.y, c.z, 1.0f}});
+      for (const glm::vec3& c : tri) t.colours.push_back({{c.x, c.y, c.z, 1.0f}});
   } else {
     // The placeholder says "none" (w = 0) to kernels built with every feature.
-    colours.push_back({{1.0f, 1.0f, 1.0f, 0.0f}});
+    t.colours.push_back({{1.0f, 1.0f, 1.0f, 0.0f}});
   }
-  std::vector<TextureInfo> infos;
-  std::vector<cl_float4> texels;
-  for (const auto& t : scene.textures) {
+  for (const auto& tex : scene.textures) {
     TextureInfo info{};
-    info.offset = static_cast<std::uint32_t>(texels.size());
-    info.width = static_cast<std::uint32_t>(t.width);
-    info.height = static_cast<std::uint32_t>(t.height);
-    infos.push_back(info);
-    for (std::size_t i = 0; i < t.rgba.size() / 4; ++i)
-      texels.push_back({{t.rgba[4 * i], t.rgba[4 * i + 1], t.rgba[4 * i + 2], t.rgba[4 * i + 3]}});
+    info.offset = static_cast<std::uint32_t>(t.texels.size());
+    info.width = static_cast<std::uint32_t>(tex.width);
+    info.height = static_cast<std::uint32_t>(tex.height);
+    t.infos.push_back(info);
+    for (std::size_t i = 0; i < tex.rgba.size() / 4; ++i)
+      t.texels.push_back({{tex.rgba[4 * i], tex.rgba[4 * i + 1], tex.rgba[4 * i + 2], tex.rgba[4 * i + 3]}});
   }
+  return t;
+}
+
+void DeviceScene::upload_all(DeviceSet& devices, const Scene& scene, HostBytes nodes, HostBytes triangles,
+                             HostBytes shading, std::vector<std::uint32_t> instance_words, SceneTables tables,
+                             const std::vector<std::uint32_t>& tri_flags,
+                             std::chrono::steady_clock::time_point layout_start) {
+  auto& materials = tables.materials;
+  auto& lights = tables.lights;
+  auto& colours = tables.colours;
+  auto& infos = tables.infos;
+  auto& texels = tables.texels;
   // One copy per OpenCL context: every ComputeDevice of a set (sub-devices, queues or platform
   // devices) shares the set's context, and a read-only buffer serves all of them. Devices that
   // share memory (sub-devices, queues: PoCL) then share the one copy; separate GPUs of a

@@ -17,6 +17,7 @@
 #include "scene/scene.h"
 
 #include <chrono>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -72,8 +73,13 @@ class DeviceScene {
   // when empty). Their nodes go into the one node buffer, mesh after mesh, and the instances'
   // top level into the instance buffer. Such a scene cannot be updated (update_geometry).
   // With `store`, a static scene's layout also goes to the device layout cache.
+  // `triangles_done`, if given, is called once everything made from the scene's triangles is
+  // made (flags, shading records, the light table, vertex colours), before the device words are:
+  // a caller that needs the triangles no more may free them then (SceneOnDevices does for a
+  // static scene: at 10M triangles their 1 GB is then gone before the layout's largest part is
+  // made). After it, the constructor reads nothing of `scene.triangles`.
   DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, std::vector<FlatBvh> mesh_bvhs = {},
-              const DeviceLayoutStore& store = {});
+              const DeviceLayoutStore& store = {}, const std::function<void()>& triangles_done = {});
   // A static scene without instances whose layout a start mapped from the cache
   // (DeviceLayoutCache::open) in the set's layout: its sections are the node, triangle and
   // shading buffers (CPU devices read the mapping itself), nothing is laid out.
@@ -144,10 +150,14 @@ class DeviceScene {
   // (64-byte aligned), and where each mesh went.
   std::vector<MeshPlacement> assemble_instanced(const FlatBvh* world, std::vector<std::uint32_t>& words,
                                                 std::vector<BvhTriangle>& triangles) const;
-  // The constructors' common part: everything but the three large buffers, then the upload.
+  // The constructors' common part: the small tables made from the scene (materials, textures,
+  // lights, vertex colours; the kernel features), made before the scene's triangles may go ...
+  struct SceneTables;  // device_scene.cpp
+  SceneTables make_tables(const Scene& scene, const std::vector<std::uint32_t>& tri_flags, bool instanced);
+  // ... and the upload of everything.
   void upload_all(DeviceSet& devices, const Scene& scene, HostBytes nodes, HostBytes triangles, HostBytes shading,
-                  std::vector<std::uint32_t> instance_words, const std::vector<std::uint32_t>& tri_flags,
-                  bool instanced, std::chrono::steady_clock::time_point layout_start);
+                  std::vector<std::uint32_t> instance_words, SceneTables tables, const std::vector<std::uint32_t>& tri_flags,
+                  std::chrono::steady_clock::time_point layout_start);
   // triangle_flags(scene), fixed by the materials: kept for update_geometry (animated scenes).
   std::vector<std::uint32_t> tri_flags_;
   // What update_geometry last wrote to each of those buffers (empty until its first call, which
