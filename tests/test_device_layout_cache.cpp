@@ -409,7 +409,8 @@ TEST(DeviceLayoutCache, NoFolderMeansNoCacheAndNoError) {
   parts.nodes = &word;
   parts.node_bytes = 4;
   parts.triangles = &tris;
-  parts.shading = &shading;
+  parts.shading = shading.data();
+  parts.shading_count = shading.size();
   why.clear();
   EXPECT_EQ(blocked.store(1, BvhBuildOptions{}, 1, parts, &why), "");
   EXPECT_FALSE(why.empty());

@@ -7,7 +7,11 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <cstring>
+#include <random>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace px {
 namespace {
@@ -76,6 +80,57 @@ TEST(DeviceScene, ABufferOverTheAllocationLimitIsRefusedNamingItAndTheSizes) {
   // At exactly its size it fits (every other buffer of this scene is smaller).
   const ScopedEnv exact("PX_MAX_ALLOC_BYTES", std::to_string(nodes));
   EXPECT_NO_THROW(DeviceScene(set, scene, bvh));
+}
+
+std::vector<std::uint8_t> read_back(DeviceSet& set, const cl::Buffer& b) {
+  std::vector<std::uint8_t> out(size_of(b));
+  set.devices().front().queue.enqueueReadBuffer(b, CL_TRUE, 0, out.size(), out.data());
+  return out;
+}
+
+// A caller that hands its triangles over (take_triangles: SceneOnDevices for a static scene)
+// gets the shading records made in the triangles' own memory, with the pages behind them given
+// back: the buffers must hold the very bytes of a scene whose triangles stay with the caller,
+// and the shading records those make_triangle_shading makes. 300k triangles: the released tail
+// (36 bytes a triangle) passes the 8 MiB from which pages are handed back.
+TEST(DeviceScene, ShadingMadeInTheHandedOverTrianglesIsTheSameBuffer) {
+  Scene scene;
+  scene.name = "soup";
+  scene.materials = {Material{}, Material{}};
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  for (int i = 0; i < 300000; ++i) {
+    SceneTriangle t;
+    const glm::vec3 c(50.0f * u(rng), 50.0f * u(rng), 50.0f * u(rng));
+    for (int k = 0; k < 3; ++k) {
+      t.p[k] = c + glm::vec3(u(rng), u(rng), u(rng));
+      t.n[k] = glm::normalize(glm::vec3(u(rng), u(rng), 1.5f));
+      t.uv[k] = glm::vec2(u(rng), u(rng));
+    }
+    t.material = static_cast<std::uint32_t>(i % 2);
+    scene.triangles.push_back(t);
+  }
+  const std::vector<TriangleShading> want = make_triangle_shading(scene);
+  const FlatBvh bvh = build_bvh(scene.triangles);
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  const DeviceScene kept(set, scene, bvh);
+  Scene handed = scene;
+  const DeviceScene taken(set, handed, bvh, {}, {}, [&handed] { return std::exchange(handed.triangles, {}); });
+  EXPECT_TRUE(handed.triangles.empty()) << "the triangles were handed over";
+  const auto shading = read_back(set, taken.on(0).shading);
+  ASSERT_EQ(shading.size(), want.size() * sizeof(TriangleShading));
+  EXPECT_EQ(std::memcmp(shading.data(), want.data(), shading.size()), 0) << "the records make_triangle_shading makes";
+  EXPECT_EQ(shading, read_back(set, kept.on(0).shading));
+  EXPECT_EQ(read_back(set, taken.on(0).nodes), read_back(set, kept.on(0).nodes)) << "node words";
+  EXPECT_EQ(read_back(set, taken.on(0).triangles), read_back(set, kept.on(0).triangles));
+  // Handing over another number of triangles than the scene's is a caller's error.
+  Scene short_scene = scene;
+  EXPECT_THROW(DeviceScene(set, short_scene, bvh, {}, {},
+                           [&short_scene] {
+                             short_scene.triangles.pop_back();
+                             return std::exchange(short_scene.triangles, {});
+                           }),
+               std::logic_error);
 }
 
 }  // namespace

@@ -8,9 +8,11 @@
 #include "scene/scene_loader.h"
 
 #include <chrono>
+#include <functional>
 #include <cstdio>
 #include <optional>
 #include <string>
+#include <utility>
 
 namespace px {
 
@@ -267,14 +269,15 @@ DeviceScene make_device_scene(DeviceSet& devices, LoadedScene& loaded) {
   store.quiet = loaded.quiet;
   // The tree's host copy is not needed once its nodes are on the devices, nor a static scene's
   // triangles once the device scene has made what it makes of them (before its largest part).
+  // An animated scene's triangles are posed again every frame (SceneAnimator): they stay.
   Scene& scene = loaded.scene;
-  const auto release_triangles = [&scene] {
-    if (scene.rig) return;  // posed again every frame (SceneAnimator)
-    std::vector<SceneTriangle>().swap(scene.triangles);
-    std::vector<std::array<glm::vec3, 3>>().swap(scene.vertex_colours);
-  };
-  return DeviceScene(devices, loaded.scene, std::move(loaded.bvh), std::move(loaded.mesh_bvhs), store,
-                     release_triangles);
+  std::function<std::vector<SceneTriangle>()> take_triangles;
+  if (!scene.rig)
+    take_triangles = [&scene] {
+      std::vector<std::array<glm::vec3, 3>>().swap(scene.vertex_colours);
+      return std::exchange(scene.triangles, {});
+    };
+  return DeviceScene(devices, loaded.scene, std::move(loaded.bvh), std::move(loaded.mesh_bvhs), store, take_triangles);
 }
 
 }  // namespace

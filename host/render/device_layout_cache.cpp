@@ -191,7 +191,7 @@ std::string DeviceLayoutCache::store(std::uint64_t content_key, const BvhBuildOp
   }
   try {
     if (!parts.nodes || parts.node_bytes == 0 || !parts.triangles || parts.triangles->empty() || !parts.shading ||
-        parts.shading->size() != scene_triangles)
+        parts.shading_count != scene_triangles)
       throw std::invalid_argument("incomplete device layout");
     std::filesystem::create_directories(dir_);
     DeviceLayoutHeader h{};
@@ -209,7 +209,7 @@ std::string DeviceLayoutCache::store(std::uint64_t content_key, const BvhBuildOp
     h.triangles_offset = round_up(h.nodes_offset + h.node_bytes);
     h.triangle_count = parts.triangles->size();
     h.shading_offset = round_up(h.triangles_offset + h.triangle_count * sizeof(BvhTriangle));
-    h.shading_count = parts.shading->size();
+    h.shading_count = parts.shading_count;
     h.file_bytes = h.shading_offset + h.shading_count * sizeof(TriangleShading);
     h.layout_nodes = parts.layout_nodes;
     h.stat_leaf_triangles = parts.stats.leaf_triangles;
@@ -232,7 +232,7 @@ std::string DeviceLayoutCache::store(std::uint64_t content_key, const BvhBuildOp
         {zeros.data(), h.triangles_offset - (h.nodes_offset + h.node_bytes)},
         {parts.triangles->data(), h.triangle_count * sizeof(BvhTriangle)},
         {zeros.data(), h.shading_offset - (h.triangles_offset + h.triangle_count * sizeof(BvhTriangle))},
-        {parts.shading->data(), h.shading_count * sizeof(TriangleShading)}};
+        {parts.shading, h.shading_count * sizeof(TriangleShading)}};
     ContentHash full(2), sample(1);
     const std::size_t stride = sample_stride(h.file_bytes - h.nodes_offset);
     std::size_t at = 0;  // payload offset

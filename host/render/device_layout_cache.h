@@ -95,7 +95,8 @@ struct DeviceLayoutParts {
   const void* nodes = nullptr;
   std::size_t node_bytes = 0;
   const std::vector<BvhTriangle>* triangles = nullptr;
-  const std::vector<TriangleShading>* shading = nullptr;
+  const TriangleShading* shading = nullptr;  // shading_count records (scene order)
+  std::size_t shading_count = 0;
 };
 
 class DeviceLayoutCache {

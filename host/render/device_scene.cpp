@@ -15,6 +15,10 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
+
+#include <sys/mman.h>
+#include <unistd.h>
 
 namespace px {
 namespace {
@@ -170,19 +174,50 @@ cl_uint DeviceSceneBuffers::bind(cl::Kernel& kernel, cl_uint first) const {
   return first;
 }
 
+namespace {
+
+TriangleShading shading_of(const SceneTriangle& t) {
+  TriangleShading s;
+  copy3(s.n0, t.n[0]);
+  copy3(s.n1, t.n[1]);
+  copy3(s.n2, t.n[2]);
+  s.uv0[0] = t.uv[0].x; s.uv0[1] = t.uv[0].y;
+  s.uv1[0] = t.uv[1].x; s.uv1[1] = t.uv[1].y;
+  s.uv2[0] = t.uv[2].x; s.uv2[1] = t.uv[2].y;
+  s.material = t.material;
+  return s;
+}
+
+// The shading records of `triangles`, written over the triangles themselves: record i (64
+// bytes at 64 i) is written after triangle i (100 bytes at 100 i) is read, and ends before
+// triangle i + 1 begins, so nothing is overwritten before it is read. The whole pages past the
+// last record are handed back to the system (MADV_DONTNEED; a block that large is a private
+// mapping of its own). The result owns the triangles' block.
+DeviceScene::HostBytes shading_in_place(std::vector<SceneTriangle>&& triangles) {
+  static_assert(sizeof(TriangleShading) <= sizeof(SceneTriangle), "records must fit where the triangles were");
+  static_assert(std::is_trivially_copyable_v<SceneTriangle> && std::is_trivially_copyable_v<TriangleShading>);
+  auto owner = std::make_shared<std::vector<SceneTriangle>>(std::move(triangles));
+  const std::size_t n = owner->size();
+  auto* bytes = reinterpret_cast<unsigned char*>(owner->data());
+  for (std::size_t i = 0; i < n; ++i) {
+    SceneTriangle t;
+    std::memcpy(&t, bytes + i * sizeof(SceneTriangle), sizeof t);
+    const TriangleShading s = shading_of(t);
+    std::memcpy(bytes + i * sizeof(TriangleShading), &s, sizeof s);
+  }
+  constexpr std::size_t kReleaseFrom = std::size_t{8} << 20;
+  const auto page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
+  const auto begin = (reinterpret_cast<std::uintptr_t>(bytes + n * sizeof(TriangleShading)) + page - 1) / page * page;
+  const auto end = reinterpret_cast<std::uintptr_t>(bytes + n * sizeof(SceneTriangle)) / page * page;
+  if (end > begin && end - begin >= kReleaseFrom) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_DONTNEED);
+  return {bytes, n * sizeof(TriangleShading), sizeof(TriangleShading), owner};
+}
+
+}  // namespace
+
 std::vector<TriangleShading> make_triangle_shading(const Scene& scene) {
   std::vector<TriangleShading> out(scene.triangles.size());
-  for (std::size_t i = 0; i < out.size(); ++i) {
-    const SceneTriangle& t = scene.triangles[i];
-    TriangleShading& s = out[i];
-    copy3(s.n0, t.n[0]);
-    copy3(s.n1, t.n[1]);
-    copy3(s.n2, t.n[2]);
-    s.uv0[0] = t.uv[0].x; s.uv0[1] = t.uv[0].y;
-    s.uv1[0] = t.uv[1].x; s.uv1[1] = t.uv[1].y;
-    s.uv2[0] = t.uv[2].x; s.uv2[1] = t.uv[2].y;
-    s.material = t.material;
-  }
+  for (std::size_t i = 0; i < out.size(); ++i) out[i] = shading_of(scene.triangles[i]);
   return out;
 }
 
@@ -364,7 +399,8 @@ std::vector<MeshPlacement> DeviceScene::assemble_instanced(const FlatBvh* world,
 }
 
 DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, std::vector<FlatBvh> mesh_bvhs,
-                         const DeviceLayoutStore& store, const std::function<void()>& triangles_done) {
+                         const DeviceLayoutStore& store,
+                         const std::function<std::vector<SceneTriangle>()>& take_triangles) {
   const auto layout_start = std::chrono::steady_clock::now();
   FlatBvh& flagged = bvh;
   const std::vector<std::uint32_t> tri_flags = triangle_flags(scene);
@@ -383,7 +419,7 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
   // frees those nodes.
   std::size_t layout_nodes = 0;
   // A static scene without instances makes its wide words last, after the scene's triangles may
-  // have gone (triangles_done), from nodes it then frees as it goes (device_wide_nodes_from).
+  // have gone (take_triangles), from nodes it then frees as it goes (device_wide_nodes_from).
   bool words_last = false;
   if (!instanced) {
     set_triangle_flags(flagged, tri_flags);
@@ -438,9 +474,17 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
     }
   }
   auto& triangles = instanced ? instanced_triangles : flagged.triangles;
-  auto shading = make_triangle_shading(scene);
   SceneTables tables = make_tables(scene, tri_flags, instanced);
-  if (triangles_done) triangles_done();  // scene.triangles may be gone from here on
+  HostBytes shading;
+  if (take_triangles) {  // scene.triangles are gone from here on
+    std::vector<SceneTriangle> taken = take_triangles();
+    if (taken.size() != scene_triangles)
+      throw std::logic_error("DeviceScene: take_triangles handed over " + std::to_string(taken.size()) +
+                             " triangles, not the scene's " + std::to_string(scene_triangles));
+    shading = shading_in_place(std::move(taken));
+  } else {
+    shading = owned_bytes(make_triangle_shading(scene));
+  }
   DeviceWords words_made_last;
   if (words_last) words_made_last = device_wide_nodes_from(flagged, layout);
   const std::uint32_t* words = words_last ? words_made_last.data() : wide_words.data();
@@ -456,7 +500,8 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
     parts.nodes = binary_nodes ? static_cast<const void*>(flagged.nodes.data()) : words;
     parts.node_bytes = binary_nodes ? flagged.nodes.size() * sizeof(BvhNode) : word_count * 4;
     parts.triangles = &triangles;
-    parts.shading = &shading;
+    parts.shading = static_cast<const TriangleShading*>(shading.data);
+    parts.shading_count = shading.bytes / sizeof(TriangleShading);
     std::string why;
     std::string path;
     {
@@ -473,7 +518,7 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
   HostBytes node_bytes = binary_nodes ? owned_bytes(std::move(flagged.nodes))
                          : words_last ? owned_bytes(std::move(words_made_last))
                                       : owned_bytes(std::move(wide_words));
-  upload_all(devices, scene, std::move(node_bytes), owned_bytes(std::move(triangles)), owned_bytes(std::move(shading)),
+  upload_all(devices, scene, std::move(node_bytes), owned_bytes(std::move(triangles)), std::move(shading),
              std::move(instance_words), std::move(tables), tri_flags, layout_start);
 }
 

@@ -73,13 +73,17 @@ class DeviceScene {
   // when empty). Their nodes go into the one node buffer, mesh after mesh, and the instances'
   // top level into the instance buffer. Such a scene cannot be updated (update_geometry).
   // With `store`, a static scene's layout also goes to the device layout cache.
-  // `triangles_done`, if given, is called once everything made from the scene's triangles is
-  // made (flags, shading records, the light table, vertex colours), before the device words are:
-  // a caller that needs the triangles no more may free them then (SceneOnDevices does for a
-  // static scene: at 10M triangles their 1 GB is then gone before the layout's largest part is
-  // made). After it, the constructor reads nothing of `scene.triangles`.
+  // `take_triangles`, if given, is called once the triangles' flags, the light table and the
+  // vertex colours are made, before the shading records and the device words: it hands over the
+  // scene's triangles (moved out of the scene, which keeps none), and the shading records are
+  // made in their memory (64 of each triangle's 100 bytes; the rest goes back to the system).
+  // For a caller that needs the triangles no more (SceneOnDevices, for a static scene): at 10M
+  // triangles their 1 GB then holds the shading records instead of standing beside them, and is
+  // gone before the layout's largest part is made. After it, the constructor reads nothing of
+  // `scene.triangles`.
   DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, std::vector<FlatBvh> mesh_bvhs = {},
-              const DeviceLayoutStore& store = {}, const std::function<void()>& triangles_done = {});
+              const DeviceLayoutStore& store = {},
+              const std::function<std::vector<SceneTriangle>()>& take_triangles = {});
   // A static scene without instances whose layout a start mapped from the cache
   // (DeviceLayoutCache::open) in the set's layout: its sections are the node, triangle and
   // shading buffers (CPU devices read the mapping itself), nothing is laid out.
