@@ -592,6 +592,31 @@ std::vector<SceneTriangle> heightfield(int n) {
   return tris;
 }
 
+// Leaves sized for 4-triangle blocks (BvhBuildOptions::block_leaves_from): from the threshold
+// on, leaves hold more triangles (fewer leaves, so fewer nodes and leaf blocks), the tree is
+// valid and traces what brute force finds; below it the tree is exactly the per-triangle one.
+TEST(Bvh, LeavesSizedForBlocksFromTheirThresholdOnly) {
+  const auto tris = heightfield(100);  // 20,000 triangles
+  BvhBuildOptions per_triangle = with_splits(false), blocks = with_splits(false);
+  per_triangle.block_leaves_from = 0;
+  blocks.block_leaves_from = tris.size();
+  const FlatBvh a = build_bvh(tris, per_triangle), b = build_bvh(tris, blocks);
+  expect_valid(b, tris);
+  EXPECT_FALSE(a.stats.block_leaves);
+  EXPECT_TRUE(b.stats.block_leaves);
+  const double leaf_size_a = double(a.stats.leaf_triangles) / double(a.stats.nodes + 1);
+  const double leaf_size_b = double(b.stats.leaf_triangles) / double(b.stats.nodes + 1);
+  EXPECT_GT(leaf_size_b, 1.4 * leaf_size_a) << "triangles per leaf: " << leaf_size_a << " -> " << leaf_size_b;
+  EXPECT_LT(b.stats.nodes, a.stats.nodes * 3 / 4);
+  expect_traversal_matches_brute_force(b, tris, 2000, 71);
+  // One triangle short of the threshold: the per-triangle tree, node for node.
+  blocks.block_leaves_from = tris.size() + 1;
+  const FlatBvh c = build_bvh(tris, blocks);
+  EXPECT_FALSE(c.stats.block_leaves);
+  ASSERT_EQ(c.nodes.size(), a.nodes.size());
+  EXPECT_EQ(std::memcmp(c.nodes.data(), a.nodes.data(), a.nodes.size() * sizeof(BvhNode)), 0);
+}
+
 TEST(Bvh, SplitTrialKeepsBinnedSahWhereSplitsGainNothing) {
   const auto tris = heightfield(150);  // 45,000 triangles
   const FlatBvh trial = build_bvh(tris, forced_trial());

@@ -103,6 +103,7 @@ void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode de
                {"leaf_triangles", bvh.leaf_triangles},
                {"depth", bvh.depth},
                {"sah_cost", bvh.sah_cost},
+               {"block_leaves", bvh.block_leaves},
                {"build_ms", bvh.build_ms},
                {"spatial_splits", splits},
                {"split_trial_gain", bvh.split_trial ? nlohmann::json(bvh.split_trial_gain) : nlohmann::json(nullptr)},

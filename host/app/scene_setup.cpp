@@ -62,11 +62,15 @@ void build_world_tree(LoadedScene& out, const std::vector<SceneTriangle>& tree_t
   // The cache holds the binary tree; the wide nodes the kernels traverse are collapsed from it
   // (a few percent of a build), so that the validator below checks them too.
   if (from_cache) ensure_layout(out.bvh, bvh_layout());
+  // A cached tree was built with the options of its key: the leaves' sizing follows from them.
+  if (from_cache)
+    out.bvh.stats.block_leaves =
+        build_options.block_leaves_from > 0 && tree_triangles.size() >= build_options.block_leaves_from;
   out.times.bvh_ms = ms(t2, clock::now());
   out.times.bvh_from_cache = from_cache;
   const auto& bs = out.bvh.stats;
   if (!quiet)
-    std::fprintf(stderr, "[bvh] %zu nodes, %zu leaf triangles, depth %d, SAH %.1f (%s)%s%s\n", bs.nodes,
+    std::fprintf(stderr, "[bvh] %zu nodes, %zu leaf triangles, depth %d, SAH %.1f (%s)%s%s%s\n", bs.nodes,
                  bs.leaf_triangles, bs.depth, bs.sah_cost,
                  from_cache ? ("read from the cache in " +
                                std::to_string(static_cast<long>(
@@ -82,7 +86,11 @@ void build_world_tree(LoadedScene& out, const std::vector<SceneTriangle>& tree_t
                     " nodes").c_str(),
                  bs.split_budget_exceeded ? "; spatial splits stopped at their budget (heavily overlapping "
                                             "triangles): binned SAH instead"
-                                          : "");
+                                          : "",
+                 bs.block_leaves ? ("; leaves sized for 4-triangle blocks (" +
+                                    std::to_string(build_options.block_leaves_from) + " triangles or more)")
+                                       .c_str()
+                                 : "");
   if (!quiet && bs.split_trial && !from_cache)
     std::fprintf(stderr,
                  "[bvh] spatial splits on trial (%zu triangles or more): on %zu sampled triangles they lower the SAH "

@@ -349,7 +349,7 @@ std::vector<std::uint8_t> walk_tree(const Nodes& tree, std::size_t tri_count, Re
 // The tree against the scene. Memory is what limits this at paper scale (it runs on a tree of
 // 10M triangles beside the scene and the tree itself): the first walk keeps per triangle entry
 // a leaf count and per scene triangle a reference count and whether a leaf box failed to hold
-// it whole, about 9 bytes per triangle. Only scene triangles in several leaves (spatial splits)
+// it whole, about 6 bytes per triangle. Only scene triangles in several leaves (spatial splits)
 // need their leaf boxes side by side; a second walk, run only when there are such triangles,
 // gathers those boxes alone. (Keeping every leaf box and every (triangle, leaf) pair for a
 // sort took about 50 bytes per triangle, twice over when two layouts are checked at once.)
@@ -357,13 +357,13 @@ template <typename Nodes>
 void validate_tree(const Nodes& tree, const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles,
                    Report& report) {
   const std::size_t tri_count = bvh.triangles.size();
-  std::vector<std::uint32_t> entry_refs(tri_count, 0);     // leaves covering each triangle entry
+  std::vector<std::uint8_t> entry_refs(tri_count, 0);      // leaves covering each triangle entry (up to 255)
   std::vector<std::uint32_t> prim_refs(triangles.size(), 0);  // leaf entries of each scene triangle
   std::vector<std::uint8_t> outside(triangles.size(), 0);  // some leaf box does not hold it whole
   const std::vector<std::uint8_t> node_seen =
       walk_tree(tree, tri_count, report, [&](const Box& box, std::uint64_t first, std::uint32_t count) {
         for (std::uint64_t i = first; i < first + count; ++i) {
-          ++entry_refs[i];
+          if (entry_refs[i] < 255) ++entry_refs[i];
           const BvhTriangle& t = bvh.triangles[i];
           if (t.prim >= triangles.size()) {
             report.error(tree.name, "triangle entry ", i, " has prim ", t.prim, " but the scene has ",
@@ -391,8 +391,9 @@ void validate_tree(const Nodes& tree, const FlatBvh& bvh, const std::vector<Scen
                  ")");
   for (std::size_t i = 0; i < tri_count; ++i)
     if (entry_refs[i] != 1)
-      report.error(tree.name, "triangle entry ", i, " is in ", entry_refs[i], " leaves (expected 1)");
-  std::vector<std::uint32_t>().swap(entry_refs);
+      report.error(tree.name, "triangle entry ", i, " is in ", int(entry_refs[i]), entry_refs[i] == 255 ? " or more" : "",
+                   " leaves (expected 1)");
+  std::vector<std::uint8_t>().swap(entry_refs);
 
   // Scene triangles in several leaves: their leaf boxes, grouped by triangle with a counting
   // sort, in walk order within a triangle. `slot[p]` is where triangle p's boxes start.

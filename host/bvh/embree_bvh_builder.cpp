@@ -427,8 +427,11 @@ void annotate(TempNode* node) {
 
 class Flattener {
  public:
-  Flattener(const std::vector<SceneTriangle>& scene, FlatBvh& out, int max_depth)
-      : scene_(scene), out_(out), max_depth_(max_depth) {}
+  // Writes the nodes to out.nodes and the leaves' scene triangle indices, in leaf order, to
+  // `leaf_prims` (leaf_triangles makes the BvhTriangles from them once Embree's tree is gone).
+  Flattener(const std::vector<SceneTriangle>& scene, FlatBvh& out, std::vector<std::uint32_t>& leaf_prims,
+            int max_depth)
+      : scene_(scene), out_(out), leaf_prims_(leaf_prims), max_depth_(max_depth) {}
 
   void flatten(TempNode* root) {
     if (root->is_leaf) {
@@ -480,21 +483,8 @@ class Flattener {
 
   // Appends the leaf's triangles; returns the index of the first.
   std::uint32_t emit_leaf(const TempLeaf* leaf) {
-    const auto first = static_cast<std::uint32_t>(out_.triangles.size());
-    for (std::uint32_t i = 0; i < leaf->count; ++i) {
-      const std::uint32_t prim = leaf->prims[i];
-      const SceneTriangle& tri = scene_[prim];
-      BvhTriangle t;
-      for (int k = 0; k < 3; ++k) {
-        t.v0[k] = tri.p[0][k];
-        t.v1[k] = tri.p[1][k];
-        t.v2[k] = tri.p[2][k];
-      }
-      t.prim = prim;
-      t.flags = 0;  // filled from materials by set_triangle_flags()
-      t.material = tri.material;
-      out_.triangles.push_back(t);
-    }
+    const auto first = static_cast<std::uint32_t>(leaf_prims_.size());
+    leaf_prims_.insert(leaf_prims_.end(), leaf->prims, leaf->prims + leaf->count);
     return first;
   }
 
@@ -597,6 +587,7 @@ class Flattener {
 
   const std::vector<SceneTriangle>& scene_;
   FlatBvh& out_;
+  std::vector<std::uint32_t>& leaf_prims_;
   int max_depth_;
 };
 
@@ -663,7 +654,7 @@ namespace {
 // One rtcBuildBVH run. Returns false if Embree failed (message in `error`) or, with spatial
 // splits, if the split budget ran out (`over_budget` set); throws for failures a retry cannot
 // fix.
-bool build_once(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options,
+bool build_once(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options, unsigned int sah_block,
                 unsigned int max_depth, FlatBvh& out, std::string& error, bool& over_budget) {
   over_budget = false;
   RTCDevice device = embree_device();
@@ -710,7 +701,7 @@ bool build_once(const std::vector<SceneTriangle>& triangles, const BvhBuildOptio
   args.buildFlags = RTC_BUILD_FLAG_NONE;
   args.maxBranchingFactor = 2;
   args.maxDepth = max_depth;
-  args.sahBlockSize = 1;
+  args.sahBlockSize = sah_block;
   args.minLeafSize = 1;
   args.maxLeafSize = static_cast<unsigned int>(options.max_leaf_size);
   // The same unit costs as BvhBuildStats::sah_cost, so the builder minimises what we report.
@@ -748,6 +739,7 @@ bool build_once(const std::vector<SceneTriangle>& triangles, const BvhBuildOptio
     return false;
   }
 
+  std::vector<std::uint32_t> leaf_prims;  // the leaves' scene triangles, in leaf order
   try {
     if (context.out_of_memory) throw std::runtime_error("BVH: Embree allocator out of memory");
     if (context.unexpected_arity)
@@ -757,13 +749,29 @@ bool build_once(const std::vector<SceneTriangle>& triangles, const BvhBuildOptio
     out.nodes.clear();
     out.triangles.clear();
     out.nodes.reserve(count);  // about count / 2 nodes for leaves of ~2 triangles
-    out.triangles.reserve(count);
-    Flattener(triangles, out, PX_BVH_MAX_DEPTH).flatten(static_cast<TempNode*>(root));
+    leaf_prims.reserve(count);
+    Flattener(triangles, out, leaf_prims, PX_BVH_MAX_DEPTH).flatten(static_cast<TempNode*>(root));
   } catch (...) {
     rtcReleaseBVH(bvh);
     throw;
   }
   rtcReleaseBVH(bvh);  // node memory goes with it; the flat copy is complete
+  // The leaf triangles (48 bytes each) only now, after Embree's tree (about 35 bytes a triangle)
+  // is gone: the two are never held side by side.
+  out.triangles.reserve(leaf_prims.size());
+  for (const std::uint32_t prim : leaf_prims) {
+    const SceneTriangle& tri = triangles[prim];
+    BvhTriangle t;
+    for (int k = 0; k < 3; ++k) {
+      t.v0[k] = tri.p[0][k];
+      t.v1[k] = tri.p[1][k];
+      t.v2[k] = tri.p[2][k];
+    }
+    t.prim = prim;
+    t.flags = 0;  // filled from materials by set_triangle_flags()
+    t.material = tri.material;
+    out.triangles.push_back(t);
+  }
   return true;
 }
 
@@ -779,27 +787,28 @@ namespace {
 // One tree over `triangles` with `options`, whatever it takes: spatial splits past their work
 // budget are redone with binned SAH, and a build that hits Embree's depth limit is redone with a
 // relaxed one (the flattener restores the limit). Leaves the stats to the caller.
-void build_tree(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options, FlatBvh& bvh) {
+void build_tree(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options, unsigned int sah_block,
+                FlatBvh& bvh) {
   BvhBuildOptions used = options;
   std::string first_error;
   bool over_budget = false;
-  bool built = build_once(triangles, used, PX_BVH_MAX_DEPTH, bvh, first_error, over_budget);
+  bool built = build_once(triangles, used, sah_block, PX_BVH_MAX_DEPTH, bvh, first_error, over_budget);
   if (!built && over_budget) {
     // Spatial splits would cost far more than they gain here (see split_call_budget).
     bvh.stats.split_budget_exceeded = true;
     used.spatial_splits = false;
-    built = build_once(triangles, used, PX_BVH_MAX_DEPTH, bvh, first_error, over_budget);
+    built = build_once(triangles, used, sah_block, PX_BVH_MAX_DEPTH, bvh, first_error, over_budget);
   }
   if (!built) {
     // Almost always "depth limit reached": more primitives than median splits can separate in
     // the last levels. Build without the tight limit; the flattener restores it.
     constexpr unsigned int kRelaxedDepth = 256;  // Embree recurses: keep its stack bounded
     std::string second_error;
-    built = build_once(triangles, used, kRelaxedDepth, bvh, second_error, over_budget);
+    built = build_once(triangles, used, sah_block, kRelaxedDepth, bvh, second_error, over_budget);
     if (!built && over_budget) {
       bvh.stats.split_budget_exceeded = true;
       used.spatial_splits = false;
-      built = build_once(triangles, used, kRelaxedDepth, bvh, second_error, over_budget);
+      built = build_once(triangles, used, sah_block, kRelaxedDepth, bvh, second_error, over_budget);
     }
     if (!built)
       throw std::runtime_error("Embree: rtcBuildBVH failed: " + first_error + "; retry with " +
@@ -815,7 +824,7 @@ void build_tree(const std::vector<SceneTriangle>& triangles, const BvhBuildOptio
 // than missing it. A compact sample (a subtree of the binned tree) was tried first: it missed
 // atrium's 12% gain, which lives in its top levels.
 double sampled_split_gain(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options,
-                          std::size_t& sampled) {
+                          unsigned int sah_block, std::size_t& sampled) {
   constexpr std::size_t kStride = 16;
   std::vector<SceneTriangle> part;
   part.reserve(triangles.size() / kStride + 1);
@@ -827,8 +836,8 @@ double sampled_split_gain(const std::vector<SceneTriangle>& triangles, const Bvh
   plain.spatial_splits = false;
   split.split_trial_triangles = plain.split_trial_triangles = 0;
   FlatBvh with_splits, without;
-  build_tree(part, split, with_splits);
-  build_tree(part, plain, without);
+  build_tree(part, split, sah_block, with_splits);
+  build_tree(part, plain, sah_block, without);
   compute_bvh_stats(with_splits);
   compute_bvh_stats(without);
   // Splits that ran out of their budget on the sample would do so on the scene: no gain. The
@@ -859,20 +868,24 @@ FlatBvh build_bvh(const std::vector<SceneTriangle>& triangles, const BvhBuildOpt
                                  " has a non-finite vertex");
 
   FlatBvh bvh;
+  // Leaves sized for the wide layouts' 4-triangle blocks (BvhBuildOptions::block_leaves_from):
+  // Embree's SAH then counts a leaf's intersection cost per started block of 4 triangles.
+  const bool block_leaves = options.block_leaves_from > 0 && triangles.size() >= options.block_leaves_from;
+  const unsigned int sah_block = block_leaves ? 4u : 1u;
   const bool trial = options.spatial_splits && options.split_trial_triangles > 0 &&
                      triangles.size() >= options.split_trial_triangles;
   if (trial) {
     BvhBuildOptions binned = options;
     binned.spatial_splits = false;
-    build_tree(triangles, binned, bvh);
+    build_tree(triangles, binned, sah_block, bvh);
     const auto t = std::chrono::steady_clock::now();
     std::size_t sampled = 0;
-    const double gain = sampled_split_gain(triangles, options, sampled);
+    const double gain = sampled_split_gain(triangles, options, sah_block, sampled);
     const double trial_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
     const bool take = gain >= options.split_min_gain;
     if (take) {
       bvh = FlatBvh{};
-      build_tree(triangles, options, bvh);
+      build_tree(triangles, options, sah_block, bvh);
     }
     bvh.stats.split_trial = true;
     bvh.stats.split_trial_gain = gain;
@@ -880,11 +893,12 @@ FlatBvh build_bvh(const std::vector<SceneTriangle>& triangles, const BvhBuildOpt
     bvh.stats.split_trial_taken = take;
     bvh.stats.split_trial_ms = trial_ms;
   } else {
-    build_tree(triangles, options, bvh);
+    build_tree(triangles, options, sah_block, bvh);
   }
 
   compute_bvh_stats(bvh);
   bvh.stats.scene_triangles = triangles.size();
+  bvh.stats.block_leaves = block_leaves;
   // The wide nodes the kernels traverse (when the process uses a wide layout).
   const BvhLayout layout = bvh_layout();
   if (layout != BvhLayout::Binary) bvh.stats.collapse_ms = ensure_layout(bvh, layout);

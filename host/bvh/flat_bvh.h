@@ -34,6 +34,15 @@ struct BvhBuildOptions {
   // 1.1x its time). 0: no trial, spatial_splits as asked.
   std::size_t split_trial_triangles = 500000;
   double split_min_gain = 0.02;
+  // Scenes of at least this many triangles get leaves sized for the wide layouts' leaf blocks
+  // (BvhLeafBlock: 4 triangles tested at once): the SAH counts a leaf's intersection cost per
+  // started block of 4 triangles, not per triangle (Embree's sahBlockSize), so leaves fill up to
+  // 4. A 4M-triangle heightfield then has half the nodes and leaf blocks (device layout 236 -> 173
+  // bytes per triangle on CPUs; 1.9 -> 3.8 triangles per leaf; SAH counted per triangle +5%).
+  // Smaller scenes keep per-triangle leaves: their trees, and so their images, stay as they
+  // were (a tree changes which of two hits at exactly the same distance a ray takes, e.g. on
+  // coplanar faces). 0: never.
+  std::size_t block_leaves_from = 1000000;
 };
 
 struct BvhBuildStats {
@@ -51,6 +60,9 @@ struct BvhBuildStats {
   // in per-thread batches of 256, so it may be short by up to 255 per build thread).
   bool split_budget_exceeded = false;
   std::uint64_t split_calls = 0;
+  // Whether the leaves were sized for 4-triangle blocks (BvhBuildOptions::block_leaves_from).
+  // Not kept in the BVH caches (a cached tree reports false).
+  bool block_leaves = false;
   // The spatial-split trial (BvhBuildOptions::split_trial_triangles), when one ran: the sampled
   // subtrees' relative SAH gain from splits, their triangles, and whether the scene was then built
   // with splits. Not kept in the BVH caches: a cached tree reports split_trial false.
