@@ -187,75 +187,64 @@ BvhLeafBlock leaf_block(const std::vector<BvhTriangle>& tris, std::uint32_t firs
 
 namespace {
 
+// The bytes of the device form of `nodes`: the nodes, then one leaf block per leaf slot.
 template <int W, typename Node>
-std::vector<std::uint32_t> device_form(const std::vector<Node>& nodes, const std::vector<BvhTriangle>& tris) {
+std::size_t device_form_bytes(const std::vector<Node>& nodes) {
   static_assert(sizeof(Node) % 16 == 0 && sizeof(BvhLeafBlock) % 16 == 0);
   if (nodes.empty()) throw std::invalid_argument("device_wide_nodes: the wide nodes are not built");
   std::size_t leaves = 0;
   for (const Node& n : nodes)
     for (int i = 0; i < W; ++i) leaves += n.count[i] > 0 ? 1 : 0;
-  const std::size_t node_words = nodes.size() * sizeof(Node) / 4;
-  const std::size_t total_units = (nodes.size() * sizeof(Node) + leaves * sizeof(BvhLeafBlock)) / 16;
-  if (total_units >= kWideIndexLimit)
-    throw std::runtime_error("BVH: wide node buffer too large for 29-bit leaf offsets");
+  const std::size_t bytes = nodes.size() * sizeof(Node) + leaves * sizeof(BvhLeafBlock);
+  if (bytes / 16 >= kWideIndexLimit) throw std::runtime_error("BVH: wide node buffer too large for 29-bit leaf offsets");
+  return bytes;
+}
+
+// Writes node `k` (`n`, whose leaf slots hold their first triangle) into the device form at
+// `bytes`: its leaves' blocks go behind the `node_count` nodes, at block `next` on (counted up),
+// and its leaf slots point at them.
+template <int W, typename Node>
+void write_device_node(Node n, std::size_t k, std::size_t node_count, const std::vector<BvhTriangle>& tris,
+                       unsigned char* bytes, std::size_t& next) {
+  for (int i = 0; i < W; ++i) {
+    if (n.count[i] == 0) continue;
+    const std::uint32_t first = n.child[i], count = n.count[i];
+    if (count > 4 || first + std::uint64_t{count} > tris.size())
+      throw std::runtime_error("BVH: leaf out of range in the wide layout");
+    const BvhLeafBlock block = leaf_block(tris, first, count);
+    const std::size_t at = node_count * sizeof(Node) + next * sizeof(BvhLeafBlock);
+    std::memcpy(bytes + at, &block, sizeof block);
+    n.child[i] = static_cast<std::uint32_t>(at / 16);
+    ++next;
+  }
+  std::memcpy(bytes + k * sizeof(Node), &n, sizeof n);
+}
+
+template <int W, typename Node>
+std::vector<std::uint32_t> device_form(const std::vector<Node>& nodes, const std::vector<BvhTriangle>& tris) {
   // Written in place, node by node and block by block: no second copy of the nodes and no array
   // of blocks beside the buffer (at 10M triangles those had doubled the layout's 1.4 GB).
-  std::vector<std::uint32_t> words(node_words + leaves * sizeof(BvhLeafBlock) / 4);
-  auto* bytes = reinterpret_cast<unsigned char*>(words.data());
+  std::vector<std::uint32_t> words(device_form_bytes<W>(nodes) / 4);
   std::size_t next = 0;
-  for (std::size_t k = 0; k < nodes.size(); ++k) {
-    Node n = nodes[k];
-    for (int i = 0; i < W; ++i) {
-      if (n.count[i] == 0) continue;
-      const std::uint32_t first = n.child[i], count = n.count[i];
-      if (count > 4 || first + std::uint64_t{count} > tris.size())
-        throw std::runtime_error("BVH: leaf out of range in the wide layout");
-      const BvhLeafBlock block = leaf_block(tris, first, count);
-      const std::size_t at = nodes.size() * sizeof(Node) + next * sizeof(BvhLeafBlock);
-      std::memcpy(bytes + at, &block, sizeof block);
-      n.child[i] = static_cast<std::uint32_t>(at / 16);
-      ++next;
-    }
-    std::memcpy(bytes + k * sizeof(Node), &n, sizeof n);
-  }
+  for (std::size_t k = 0; k < nodes.size(); ++k)
+    write_device_node<W>(nodes[k], k, nodes.size(), tris, reinterpret_cast<unsigned char*>(words.data()), next);
   return words;
 }
 
 template <int W, typename Node>
 DeviceWords device_form_from(std::vector<Node>& nodes, const std::vector<BvhTriangle>& tris) {
-  static_assert(sizeof(Node) % 16 == 0 && sizeof(BvhLeafBlock) % 16 == 0);
-  if (nodes.empty()) throw std::invalid_argument("device_wide_nodes: the wide nodes are not built");
-  std::size_t leaves = 0;
-  for (const Node& n : nodes)
-    for (int i = 0; i < W; ++i) leaves += n.count[i] > 0 ? 1 : 0;
-  const std::size_t node_count = nodes.size();
-  const std::size_t node_bytes = node_count * sizeof(Node);
-  if ((node_bytes + leaves * sizeof(BvhLeafBlock)) / 16 >= kWideIndexLimit)
-    throw std::runtime_error("BVH: wide node buffer too large for 29-bit leaf offsets");
   DeviceWords words;
-  words.resize((node_bytes + leaves * sizeof(BvhLeafBlock)) / 4);  // uninitialised: written below
+  words.resize(device_form_bytes<W>(nodes) / 4);  // uninitialised: every byte is written below
   auto* bytes = reinterpret_cast<unsigned char*>(words.data());
-  std::memcpy(bytes, nodes.data(), node_bytes);
+  const std::size_t node_count = nodes.size();
+  std::memcpy(bytes, nodes.data(), node_count * sizeof(Node));
   std::vector<Node>().swap(nodes);
-  // The nodes' leaf slots still hold their first triangle: each becomes its block's offset.
+  // The copied nodes' leaf slots still hold their first triangle: each becomes its block's offset.
   std::size_t next = 0;
   for (std::size_t k = 0; k < node_count; ++k) {
     Node n;
     std::memcpy(&n, bytes + k * sizeof(Node), sizeof n);
-    bool leaf = false;
-    for (int i = 0; i < W; ++i) {
-      if (n.count[i] == 0) continue;
-      const std::uint32_t first = n.child[i], count = n.count[i];
-      if (count > 4 || first + std::uint64_t{count} > tris.size())
-        throw std::runtime_error("BVH: leaf out of range in the wide layout");
-      const BvhLeafBlock block = leaf_block(tris, first, count);
-      const std::size_t at = node_bytes + next * sizeof(BvhLeafBlock);
-      std::memcpy(bytes + at, &block, sizeof block);
-      n.child[i] = static_cast<std::uint32_t>(at / 16);
-      ++next;
-      leaf = true;
-    }
-    if (leaf) std::memcpy(bytes + k * sizeof(Node), &n, sizeof n);
+    write_device_node<W>(n, k, node_count, tris, bytes, next);
   }
   return words;
 }
