@@ -348,18 +348,22 @@ std::vector<std::uint8_t> walk_tree(const Nodes& tree, std::size_t tri_count, Re
 
 // The tree against the scene. Memory is what limits this at paper scale (it runs on a tree of
 // 10M triangles beside the scene and the tree itself): the first walk keeps per triangle entry
-// a leaf count and per scene triangle a reference count and whether a leaf box failed to hold
-// it whole, about 6 bytes per triangle. Only scene triangles in several leaves (spatial splits)
-// need their leaf boxes side by side; a second walk, run only when there are such triangles,
-// gathers those boxes alone. (Keeping every leaf box and every (triangle, leaf) pair for a
-// sort took about 50 bytes per triangle, twice over when two layouts are checked at once.)
+// a leaf count and per scene triangle one byte, its reference count (up to 127) and whether a
+// leaf box failed to hold it whole: 2 bytes per triangle. Only scene triangles in several
+// leaves (spatial splits) need their leaf boxes side by side; two more walks, run only when
+// there are such triangles, count their references exactly and gather those boxes alone.
+// (Keeping every leaf box and every (triangle, leaf) pair for a sort took about 50 bytes per
+// triangle, twice over when two layouts are checked at once.)
 template <typename Nodes>
 void validate_tree(const Nodes& tree, const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles,
                    Report& report) {
   const std::size_t tri_count = bvh.triangles.size();
   std::vector<std::uint8_t> entry_refs(tri_count, 0);      // leaves covering each triangle entry (up to 255)
-  std::vector<std::uint32_t> prim_refs(triangles.size(), 0);  // leaf entries of each scene triangle
-  std::vector<std::uint8_t> outside(triangles.size(), 0);  // some leaf box does not hold it whole
+  // Per scene triangle: kRefMask, its leaf entries (saturating); kOutside, some leaf box does
+  // not hold it whole.
+  constexpr std::uint8_t kRefMask = 0x7f, kOutside = 0x80;
+  std::vector<std::uint8_t> prim_state(triangles.size(), 0);
+  const auto refs = [&](std::size_t p) { return prim_state[p] & kRefMask; };
   const std::vector<std::uint8_t> node_seen =
       walk_tree(tree, tri_count, report, [&](const Box& box, std::uint64_t first, std::uint32_t count) {
         for (std::uint64_t i = first; i < first + count; ++i) {
@@ -377,8 +381,9 @@ void validate_tree(const Nodes& tree, const FlatBvh& bvh, const std::vector<Scen
           if (!same)
             report.error(tree.name, "triangle entry ", i, " does not match scene triangle ", t.prim,
                          " (vertices or material)");
-          ++prim_refs[t.prim];
-          if (!contains(box, triangle_box(s), tolerance(box, &s))) outside[t.prim] = 1;
+          std::uint8_t& state = prim_state[t.prim];
+          if ((state & kRefMask) < kRefMask) ++state;
+          if (!contains(box, triangle_box(s), tolerance(box, &s))) state |= kOutside;
         }
       });
 
@@ -399,19 +404,25 @@ void validate_tree(const Nodes& tree, const FlatBvh& bvh, const std::vector<Scen
   // sort, in walk order within a triangle. `slot[p]` is where triangle p's boxes start.
   std::vector<std::uint32_t> slot;
   std::vector<Box> split_boxes;
-  std::size_t split_refs = 0;
-  for (std::uint32_t r : prim_refs)
-    if (r > 1) split_refs += r;
-  if (split_refs > 0) {
-    slot.assign(triangles.size() + 1, 0);
-    for (std::size_t p = 0; p < triangles.size(); ++p) slot[p + 1] = slot[p] + (prim_refs[p] > 1 ? prim_refs[p] : 0);
-    std::vector<std::uint32_t> next(slot.begin(), slot.end() - 1);
-    split_boxes.resize(split_refs);
+  bool any_split = false;
+  for (std::size_t p = 0; p < triangles.size() && !any_split; ++p) any_split = refs(p) > 1;
+  if (any_split) {
     Report ignored;  // the first walk reported what is wrong with the tree itself
+    // Each split triangle's exact reference count (its byte saturates), then where its boxes go.
+    slot.assign(triangles.size() + 1, 0);
+    walk_tree(tree, tri_count, ignored, [&](const Box&, std::uint64_t first, std::uint32_t count) {
+      for (std::uint64_t i = first; i < first + count; ++i) {
+        const std::uint32_t p = bvh.triangles[i].prim;
+        if (p < triangles.size() && refs(p) > 1) ++slot[p + 1];
+      }
+    });
+    for (std::size_t p = 0; p < triangles.size(); ++p) slot[p + 1] += slot[p];
+    std::vector<std::uint32_t> next(slot.begin(), slot.end() - 1);
+    split_boxes.resize(slot.back());
     walk_tree(tree, tri_count, ignored, [&](const Box& box, std::uint64_t first, std::uint32_t count) {
       for (std::uint64_t i = first; i < first + count; ++i) {
         const std::uint32_t p = bvh.triangles[i].prim;
-        if (p < triangles.size() && prim_refs[p] > 1) split_boxes[next[p]++] = box;
+        if (p < triangles.size() && refs(p) > 1) split_boxes[next[p]++] = box;
       }
     });
   }
@@ -420,12 +431,12 @@ void validate_tree(const Nodes& tree, const FlatBvh& bvh, const std::vector<Scen
   // with several (spatial splits), each must overlap it and together they must cover it.
   for (std::uint32_t prim = 0; prim < triangles.size(); ++prim) {
     const SceneTriangle& tri = triangles[prim];
-    if (prim_refs[prim] == 0) {
+    if (refs(prim) == 0) {
       report.error(tree.name, "scene triangle ", prim, " is not referenced by any leaf");
       continue;
     }
-    if (prim_refs[prim] == 1) {
-      if (outside[prim]) report.error(tree.name, "scene triangle ", prim, " is not inside the box of its leaf");
+    if (refs(prim) == 1) {
+      if (prim_state[prim] & kOutside) report.error(tree.name, "scene triangle ", prim, " is not inside the box of its leaf");
       continue;
     }
     const std::size_t begin = slot[prim], end = slot[prim + 1];
