@@ -8,8 +8,8 @@
 #include "scene/scene_loader.h"
 
 #include <chrono>
-#include <functional>
 #include <cstdio>
+#include <functional>
 #include <optional>
 #include <string>
 #include <utility>
@@ -64,8 +64,7 @@ void build_world_tree(LoadedScene& out, const std::vector<SceneTriangle>& tree_t
   if (from_cache) ensure_layout(out.bvh, bvh_layout());
   // A cached tree was built with the options of its key: the leaves' sizing follows from them.
   if (from_cache)
-    out.bvh.stats.block_leaves =
-        build_options.block_leaves_from > 0 && tree_triangles.size() >= build_options.block_leaves_from;
+    out.bvh.stats.block_leaves = build_options.block_leaves(tree_triangles.size());
   out.times.bvh_ms = ms(t2, clock::now());
   out.times.bvh_from_cache = from_cache;
   const auto& bs = out.bvh.stats;

@@ -428,7 +428,7 @@ void annotate(TempNode* node) {
 class Flattener {
  public:
   // Writes the nodes to out.nodes and the leaves' scene triangle indices, in leaf order, to
-  // `leaf_prims` (leaf_triangles makes the BvhTriangles from them once Embree's tree is gone).
+  // `leaf_prims` (leaf_triangles makes the BvhTriangles of them once Embree's tree is gone).
   Flattener(const std::vector<SceneTriangle>& scene, FlatBvh& out, std::vector<std::uint32_t>& leaf_prims,
             int max_depth)
       : scene_(scene), out_(out), leaf_prims_(leaf_prims), max_depth_(max_depth) {}
@@ -651,6 +651,27 @@ void compute_bvh_stats(FlatBvh& bvh) {
 
 namespace {
 
+// The BvhTriangles of the scene triangles `leaf_prims`, in that (leaf) order.
+std::vector<BvhTriangle> leaf_triangles(const std::vector<SceneTriangle>& triangles,
+                                        const std::vector<std::uint32_t>& leaf_prims) {
+  std::vector<BvhTriangle> out;
+  out.reserve(leaf_prims.size());
+  for (const std::uint32_t prim : leaf_prims) {
+    const SceneTriangle& tri = triangles[prim];
+    BvhTriangle t;
+    for (int k = 0; k < 3; ++k) {
+      t.v0[k] = tri.p[0][k];
+      t.v1[k] = tri.p[1][k];
+      t.v2[k] = tri.p[2][k];
+    }
+    t.prim = prim;
+    t.flags = 0;  // filled from materials by set_triangle_flags()
+    t.material = tri.material;
+    out.push_back(t);
+  }
+  return out;
+}
+
 // One rtcBuildBVH run. Returns false if Embree failed (message in `error`) or, with spatial
 // splits, if the split budget ran out (`over_budget` set); throws for failures a retry cannot
 // fix.
@@ -758,20 +779,7 @@ bool build_once(const std::vector<SceneTriangle>& triangles, const BvhBuildOptio
   rtcReleaseBVH(bvh);  // node memory goes with it; the flat copy is complete
   // The leaf triangles (48 bytes each) only now, after Embree's tree (about 35 bytes a triangle)
   // is gone: the two are never held side by side.
-  out.triangles.reserve(leaf_prims.size());
-  for (const std::uint32_t prim : leaf_prims) {
-    const SceneTriangle& tri = triangles[prim];
-    BvhTriangle t;
-    for (int k = 0; k < 3; ++k) {
-      t.v0[k] = tri.p[0][k];
-      t.v1[k] = tri.p[1][k];
-      t.v2[k] = tri.p[2][k];
-    }
-    t.prim = prim;
-    t.flags = 0;  // filled from materials by set_triangle_flags()
-    t.material = tri.material;
-    out.triangles.push_back(t);
-  }
+  out.triangles = leaf_triangles(triangles, leaf_prims);
   return true;
 }
 
@@ -870,7 +878,7 @@ FlatBvh build_bvh(const std::vector<SceneTriangle>& triangles, const BvhBuildOpt
   FlatBvh bvh;
   // Leaves sized for the wide layouts' 4-triangle blocks (BvhBuildOptions::block_leaves_from):
   // Embree's SAH then counts a leaf's intersection cost per started block of 4 triangles.
-  const bool block_leaves = options.block_leaves_from > 0 && triangles.size() >= options.block_leaves_from;
+  const bool block_leaves = options.block_leaves(triangles.size());
   const unsigned int sah_block = block_leaves ? 4u : 1u;
   const bool trial = options.spatial_splits && options.split_trial_triangles > 0 &&
                      triangles.size() >= options.split_trial_triangles;

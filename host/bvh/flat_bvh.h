@@ -43,6 +43,8 @@ struct BvhBuildOptions {
   // were (a tree changes which of two hits at exactly the same distance a ray takes, e.g. on
   // coplanar faces). 0: never.
   std::size_t block_leaves_from = 1000000;
+  // Whether a scene of `triangles` triangles gets such leaves.
+  bool block_leaves(std::size_t triangles) const { return block_leaves_from > 0 && triangles >= block_leaves_from; }
 };
 
 struct BvhBuildStats {
