@@ -968,6 +968,95 @@ TEST(WideBvh, DeviceFormFromFreedNodesIsTheSameWords) {
   EXPECT_THROW(device_wide_nodes_from(binary, BvhLayout::Binary), std::invalid_argument);
 }
 
+// Leaf blocks go in leaf order, and with LeafRefs the leaf triangles become 16-byte records in
+// their own memory: each names its scene triangle, flags and material, and the block whose lane
+// holds its very vertices. 200k triangles, so that the 48-byte array (9.6 MB) passes the 8 MiB
+// from which its dead pages are handed back while the blocks are written.
+TEST(WideBvh, LeafRefsPointAtTheBlocksHoldingTheirVertices) {
+  const auto tris = random_soup(200000, 65);
+  for (int width : {4, 8}) {
+    FlatBvh bvh = build_bvh(tris, with_splits(false));
+    collapse_bvh(bvh, width);
+    for (std::size_t i = 0; i < bvh.triangles.size(); i += 97) bvh.triangles[i].flags = PX_TRI_ALPHA_TESTED;
+    const BvhLayout layout = width == 4 ? BvhLayout::Wide4 : BvhLayout::Wide8;
+    const std::vector<BvhTriangle> leaf = bvh.triangles;
+    const std::vector<std::uint32_t> want = device_wide_nodes(bvh, layout);
+    LeafRefs refs;
+    const DeviceWords got = device_wide_nodes_from(bvh, layout, &refs);
+    ASSERT_EQ(got.size(), want.size()) << "width " << width;
+    EXPECT_TRUE(std::equal(got.begin(), got.end(), want.begin())) << "the same words with or without refs";
+    EXPECT_TRUE(bvh.triangles.empty()) << "the leaf triangles were moved into the refs";
+    ASSERT_EQ(refs.count, leaf.size());
+    std::uint32_t last_first = 0;
+    std::size_t last_block = 0, bad = 0;
+    for (std::size_t i = 0; i < leaf.size() && bad < 5; ++i) {
+      const BvhLeafRef r = refs.data()[i];
+      const BvhTriangle& t = leaf[i];
+      BvhLeafBlock b;
+      ASSERT_LE((std::size_t{r.block} * 16 + sizeof b) / 4, got.size());
+      std::memcpy(&b, got.data() + std::size_t{r.block} * 4, sizeof b);
+      bool ok = r.prim == t.prim && r.flags == t.flags && r.material == t.material && b.first <= i &&
+                i < b.first + b.count;
+      const std::size_t lane = i - b.first;
+      for (int k = 0; k < 3 && ok; ++k)
+        ok = b.v[k][lane] == t.v0[k] && b.v[3 + k][lane] == t.v1[k] && b.v[6 + k][lane] == t.v2[k];
+      // Leaf order: a later leaf's block lies further on.
+      if (b.first != last_first || i == 0) {
+        ok = ok && (i == 0 || r.block > last_block);
+        last_first = b.first;
+        last_block = r.block;
+      }
+      if (!ok) {
+        ++bad;
+        ADD_FAILURE() << "width " << width << ": leaf triangle " << i << " and its block disagree";
+      }
+    }
+  }
+}
+
+// Wide nodes made after the scene's triangles are gone are validated with the leaf entries'
+// own vertices: a correct tree passes (with spatial splits too), a leaf box that misses its
+// triangle and a leaf entry dropped from the tree are found.
+TEST(Validator, WideNodesCheckedAgainstTheLeafTriangles) {
+  const auto tris = diagonal_strips(400);
+  for (bool splits : {false, true}) {
+    FlatBvh bvh = build_bvh(tris, with_splits(splits), /*collapse=*/false);
+    EXPECT_TRUE(bvh.nodes8.empty() && bvh.nodes4.empty()) << "collapse false: no wide nodes";
+    ASSERT_TRUE(validate_bvh(bvh, tris).ok);
+    collapse_bvh(bvh, 8);
+    collapse_bvh(bvh, 4);
+    const BvhValidation good = validate_wide_from_leaves(bvh, tris.size());
+    EXPECT_TRUE(good.ok) << (good.errors.empty() ? "" : good.errors.front());
+    // A leaf slot's box pulled away from its triangles.
+    FlatBvh shrunk = bvh;
+    bool done = false;
+    for (Bvh8Node& n : shrunk.nodes8)
+      for (int i = 0; i < 8 && !done; ++i)
+        if (n.count[i] > 0) {
+          n.hi_x[i] = n.lo_x[i];
+          n.lo_x[i] -= 1.0f;
+          done = true;
+        }
+    ASSERT_TRUE(done);
+    shrunk.nodes4.clear();
+    EXPECT_FALSE(validate_wide_from_leaves(shrunk, tris.size()).ok) << "splits " << splits;
+    // A leaf slot that forgets its last triangle.
+    FlatBvh dropped = bvh;
+    dropped.nodes8.clear();
+    done = false;
+    for (Bvh4Node& n : dropped.nodes4)
+      for (int i = 0; i < 4 && !done; ++i)
+        if (n.count[i] > 1) {
+          --n.count[i];
+          done = true;
+        }
+    ASSERT_TRUE(done);
+    EXPECT_FALSE(validate_wide_from_leaves(dropped, tris.size()).ok) << "splits " << splits;
+  }
+  FlatBvh none = build_bvh(tris, with_splits(false), false);
+  EXPECT_FALSE(validate_wide_from_leaves(none, tris.size()).ok) << "no wide nodes to check";
+}
+
 // A triangle that spatial splits put in several leaves is checked against all of their boxes
 // (gathered by a second walk of the tree): each must overlap it, and together they must cover it.
 TEST(Validator, DetectsALeafBoxThatMissesASplitTriangle) {

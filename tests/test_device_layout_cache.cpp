@@ -408,7 +408,8 @@ TEST(DeviceLayoutCache, NoFolderMeansNoCacheAndNoError) {
   const std::uint32_t word = 0;
   parts.nodes = &word;
   parts.node_bytes = 4;
-  parts.triangles = &tris;
+  parts.triangles = tris.data();
+  parts.triangle_count = tris.size();
   parts.shading = shading.data();
   parts.shading_count = shading.size();
   why.clear();

@@ -121,8 +121,38 @@ TEST(DeviceScene, ShadingMadeInTheHandedOverTrianglesIsTheSameBuffer) {
   ASSERT_EQ(shading.size(), want.size() * sizeof(TriangleShading));
   EXPECT_EQ(std::memcmp(shading.data(), want.data(), shading.size()), 0) << "the records make_triangle_shading makes";
   EXPECT_EQ(shading, read_back(set, kept.on(0).shading));
-  EXPECT_EQ(read_back(set, taken.on(0).nodes), read_back(set, kept.on(0).nodes)) << "node words";
-  EXPECT_EQ(read_back(set, taken.on(0).triangles), read_back(set, kept.on(0).triangles));
+  const auto nodes = read_back(set, taken.on(0).nodes);
+  EXPECT_EQ(nodes, read_back(set, kept.on(0).nodes)) << "node words";
+  // The CPU set's wide layout: the handed-over scene's leaf triangles are BvhLeafRef records,
+  // each the kept scene's triangle without its vertices, which its block holds.
+  ASSERT_TRUE(taken.leaf_refs());
+  EXPECT_FALSE(kept.leaf_refs());
+  EXPECT_NE(taken.kernel_options().find("-DPX_LEAF_REFS=1"), std::string::npos);
+  const auto kept_tris = read_back(set, kept.on(0).triangles);
+  const auto refs = read_back(set, taken.on(0).triangles);
+  const std::size_t n = kept_tris.size() / sizeof(BvhTriangle);
+  ASSERT_EQ(refs.size(), n * sizeof(BvhLeafRef));
+  std::size_t bad = 0;
+  for (std::size_t i = 0; i < n && bad < 5; ++i) {
+    BvhTriangle t;
+    BvhLeafRef r;
+    BvhLeafBlock b;
+    std::memcpy(&t, kept_tris.data() + i * sizeof t, sizeof t);
+    std::memcpy(&r, refs.data() + i * sizeof r, sizeof r);
+    ASSERT_LE(std::size_t{r.block} * 16 + sizeof b, nodes.size());
+    std::memcpy(&b, nodes.data() + std::size_t{r.block} * 16, sizeof b);
+    bool ok = r.prim == t.prim && r.flags == t.flags && r.material == t.material && b.first <= i && i < b.first + b.count;
+    for (int k = 0; k < 3 && ok; ++k)
+      ok = b.v[k][i - b.first] == t.v0[k] && b.v[3 + k][i - b.first] == t.v1[k] && b.v[6 + k][i - b.first] == t.v2[k];
+    if (!ok) ++bad, ADD_FAILURE() << "leaf triangle " << i;
+  }
+  // A tree handed over without its wide nodes (load_and_build's for SceneOnDevices): they are
+  // made after the shading records, validated against the leaf triangles, and the same words.
+  Scene late = scene;
+  const DeviceScene collapsed_late(set, late, build_bvh(scene.triangles, {}, /*collapse=*/false), {}, {},
+                                   [&late] { return std::exchange(late.triangles, {}); });
+  EXPECT_EQ(read_back(set, collapsed_late.on(0).nodes), nodes);
+  EXPECT_EQ(read_back(set, collapsed_late.on(0).triangles), refs);
   // Handing over another number of triangles than the scene's is a caller's error.
   Scene short_scene = scene;
   EXPECT_THROW(DeviceScene(set, short_scene, bvh, {}, {},

@@ -167,28 +167,36 @@ struct Images {
 
 // The proposed pipeline on 2 devices over 2 frames (denoised), a jittered reference pass and
 // the preview, with the given kernels.
-Images render_with(const LoadedScene& loaded, KernelChoice kernels, PathTraceKernel path_kernel, unsigned w, unsigned h) {
+// `hand_over`: the device scene takes the triangles of a copy of the scene (SceneOnDevices' way:
+// leaf triangles as BvhLeafRef records in the wide layouts), which the renderers then get.
+Images render_with(const LoadedScene& loaded, KernelChoice kernels, PathTraceKernel path_kernel, unsigned w, unsigned h,
+                   bool hand_over = false) {
   DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
-  DeviceScene ds(set, loaded.scene, loaded.bvh);
+  Scene copy = loaded.scene;
+  DeviceScene ds = hand_over ? DeviceScene(set, copy, loaded.bvh, {}, {}, [&copy] { return std::exchange(copy.triangles, {}); })
+                             : DeviceScene(set, loaded.scene, loaded.bvh);
+  EXPECT_EQ(ds.leaf_refs(), hand_over && set.bvh_layout() != BvhLayout::Binary &&
+                                set.bvh_layout() != BvhLayout::Compressed8);
+  const Scene& scene = hand_over ? copy : loaded.scene;
   ds.set_kernel_choice(kernels);
   StereoPipeline::Options opt;
   opt.pipeline = PipelineKind::Proposed;
   opt.trace.spp = 2;
   opt.trace.bounces = 4;
   opt.path_kernel = path_kernel;
-  StereoPipeline p(set, ds, loaded.scene, w, h, opt);
+  StereoPipeline p(set, ds, scene, w, h, opt);
   Images out;
   for (unsigned f = 0; f < 2; ++f) {
     p.render(f, 0.3f * f);
     out.frames.push_back(p.radiance());
   }
-  PathTracer tracer(set, ds, loaded.scene);
+  PathTracer tracer(set, ds, scene);
   PathTracer::Options ref;
   ref.spp = 2;
   ref.bounces = 4;
   ref.first_sample_on_gbuffer_ray = false;
   out.reference = tracer.render_stereo(0.0f, 0, w, h, ref);
-  out.preview = PreviewRenderer(set, ds).render(loaded.scene, 0.0f, w, h);
+  out.preview = PreviewRenderer(set, ds).render(scene, 0.0f, w, h);
   return out;
 }
 
@@ -245,6 +253,37 @@ TEST(KernelFeatures, SceneKernelsGiveTheGeneralKernelsImagesOnTheSharedScenes) {
     SCOPED_TRACE(file.string());
     expect_same_images(loaded);
   }
+}
+
+// Leaf triangles as BvhLeafRef records (the vertices read from the leaf blocks, in the surface
+// hit and in the one-by-one test of alpha-tested leaves and edge hits) render every image bit for
+// bit as full leaf triangles do, in both wide layouts: the built-in scenes and the every-feature
+// scene without its instances (a scene with instances keeps full leaf triangles).
+TEST(KernelFeatures, LeafRefsRenderTheImagesOfFullLeafTriangles) {
+  LoadedScene every = every_feature_scene();
+  every.scene.instancing = {};
+  every.bvh = build_world_bvh(every.scene);
+  std::vector<LoadedScene> scenes;
+  scenes.push_back(std::move(every));
+  for (const char* name : {"cornell", "atrium"}) scenes.push_back(load_and_build(name, true));
+  for (const BvhLayout layout : {BvhLayout::Wide8, BvhLayout::Wide4}) {
+    set_bvh_layout(layout);
+    for (const LoadedScene& loaded : scenes) {
+      SCOPED_TRACE(loaded.scene.name + std::string(", ") + to_string(layout));
+      FlatBvh tree = loaded.bvh;
+      ensure_layout(tree, layout);
+      LoadedScene in_layout{loaded.scene, tree, {}};
+      const auto full = render_with(in_layout, KernelChoice::Scene, PathTraceKernel::Megakernel, 40, 28);
+      const auto refs = render_with(in_layout, KernelChoice::Scene, PathTraceKernel::Megakernel, 40, 28, true);
+      for (std::size_t f = 0; f < full.frames.size(); ++f)
+        for (int e = 0; e < 2; ++e) EXPECT_TRUE(same_bits(full.frames[f][e], refs.frames[f][e])) << "frame " << f << ", eye " << e;
+      for (int e = 0; e < 2; ++e) {
+        EXPECT_TRUE(same_bits(full.reference[e], refs.reference[e])) << "reference, eye " << e;
+        EXPECT_TRUE(same_bits(full.preview[e], refs.preview[e])) << "preview, eye " << e;
+      }
+    }
+  }
+  set_bvh_layout(std::nullopt);
 }
 
 }  // namespace

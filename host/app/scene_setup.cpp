@@ -38,7 +38,11 @@ double resident_mib() {
 // The world tree of `out` over `tree_triangles` (every triangle, or the world's own with instances):
 // read from the disk cache or built (and cached), validated, its build and validation times in
 // out.times.
-void build_world_tree(LoadedScene& out, const std::vector<SceneTriangle>& tree_triangles, bool quiet) {
+// `collapse_later`: the wide nodes are left to the device scene (a static scene without
+// instances in a wide layout), which makes them once the scene's triangles have become shading
+// records; here the binary tree alone is validated (and cached).
+void build_world_tree(LoadedScene& out, const std::vector<SceneTriangle>& tree_triangles, bool quiet,
+                      bool collapse_later = false) {
   using clock = Clock;
   // Large scenes go through the disk cache (small ones build faster than a file is read).
   const BvhBuildOptions build_options;
@@ -57,11 +61,11 @@ void build_world_tree(LoadedScene& out, const std::vector<SceneTriangle>& tree_t
   } else {
     const ProgressTicker ticker(quiet ? "" : "[bvh] still building the BVH of " +
                                                  std::to_string(tree_triangles.size()) + " triangles");
-    out.bvh = build_bvh(tree_triangles, build_options);
+    out.bvh = build_bvh(tree_triangles, build_options, !collapse_later);
   }
   // The cache holds the binary tree; the wide nodes the kernels traverse are collapsed from it
   // (a few percent of a build), so that the validator below checks them too.
-  if (from_cache) ensure_layout(out.bvh, bvh_layout());
+  if (from_cache && !collapse_later) ensure_layout(out.bvh, bvh_layout());
   // A cached tree was built with the options of its key: the leaves' sizing follows from them.
   if (from_cache)
     out.bvh.stats.block_leaves = build_options.block_leaves(tree_triangles.size());
@@ -78,6 +82,7 @@ void build_world_tree(LoadedScene& out, const std::vector<SceneTriangle>& tree_t
                                   .c_str()
                             : (std::to_string(static_cast<long>(bs.build_ms)) + " ms").c_str(),
                  bvh_layout() == BvhLayout::Binary ? ""
+                 : collapse_later ? (std::string("; ") + to_string(bvh_layout()) + " nodes made with the device layout").c_str()
                  : (std::string("; ") + to_string(bvh_layout()) + ", " +
                     std::to_string(bvh_layout() == BvhLayout::Wide4   ? out.bvh.nodes4.size()
                                    : bvh_layout() == BvhLayout::Wide8 ? out.bvh.nodes8.size()
@@ -119,8 +124,7 @@ void build_world_tree(LoadedScene& out, const std::vector<SceneTriangle>& tree_t
     // with the same sources hash?): rebuild rather than fail.
     if (!quiet) std::fprintf(stderr, "[bvh] the cached BVH failed validation: rebuilding\n");
     const auto t5 = clock::now();
-    out.bvh = build_bvh(tree_triangles, build_options);
-    ensure_layout(out.bvh, bvh_layout());
+    out.bvh = build_bvh(tree_triangles, build_options, !collapse_later);
     out.times.bvh_ms += ms(t5, clock::now());
     out.times.bvh_from_cache = false;
     const auto t6 = clock::now();
@@ -146,6 +150,14 @@ void build_world_tree(LoadedScene& out, const std::vector<SceneTriangle>& tree_t
     if (!quiet && path.empty() && !BvhCache::default_dir().empty())
       std::fprintf(stderr, "[bvh] warning: could not cache the BVH (%s)\n", why.c_str());
   }
+}
+
+// Whether the device scene will make the wide nodes (DeviceScene: a static scene without
+// instances whose triangles SceneOnDevices hands over, in a wide layout): then the start never
+// holds them beside the scene's triangles (at 10M triangles, 205 MiB of wide8 nodes beside 954).
+bool collapse_later(const LoadedScene& out, bool for_devices) {
+  return for_devices && out.scene.instancing.empty() && !out.scene.rig &&
+         (bvh_layout() == BvhLayout::Wide4 || bvh_layout() == BvhLayout::Wide8);
 }
 
 }  // namespace
@@ -229,7 +241,7 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky, boo
       return out;
     }
   }
-  if (!tree_triangles.empty()) build_world_tree(out, tree_triangles, quiet);
+  if (!tree_triangles.empty()) build_world_tree(out, tree_triangles, quiet, collapse_later(out, map_device_layout));
   if (instanced) {
     const ProgressTicker ticker(quiet ? "" : "[bvh] still building the instanced meshes' BVHs");
     const auto t = clock::now();
@@ -265,7 +277,7 @@ DeviceScene make_device_scene(DeviceSet& devices, LoadedScene& loaded) {
         std::fprintf(stderr, "[bvh] the cached device layout is not in this device set's %s layout: making it\n",
                      to_string(layout));
       loaded.times.device_layout_from_cache = false;
-      build_world_tree(loaded, loaded.scene.triangles, loaded.quiet);
+      build_world_tree(loaded, loaded.scene.triangles, loaded.quiet, collapse_later(loaded, true));
     }
   }
   if (loaded.device_layout) return DeviceScene(devices, loaded.scene, std::move(loaded.device_layout));

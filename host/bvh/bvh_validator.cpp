@@ -354,33 +354,61 @@ std::vector<std::uint8_t> walk_tree(const Nodes& tree, std::size_t tri_count, Re
 // there are such triangles, count their references exactly and gather those boxes alone.
 // (Keeping every leaf box and every (triangle, leaf) pair for a sort took about 50 bytes per
 // triangle, twice over when two layouts are checked at once.)
-template <typename Nodes>
-void validate_tree(const Nodes& tree, const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles,
-                   Report& report) {
+// Where validate_tree reads a triangle's vertices: the scene's triangles (each leaf entry is also
+// checked to be a copy of its scene triangle), or, for nodes made after the scene's triangles
+// are gone (DeviceScene), the leaf entries themselves, which a validation against the scene has
+// found to be such copies.
+struct SceneSource {
+  const std::vector<SceneTriangle>& triangles;
+  std::size_t size() const { return triangles.size(); }
+  const SceneTriangle& at(std::uint32_t prim, std::uint64_t /*entry*/) const { return triangles[prim]; }
+  template <typename Name>
+  void check_entry(const Name& name, std::uint64_t i, const BvhTriangle& t, Report& report) const {
+    const SceneTriangle& s = triangles[t.prim];
+    bool same = t.material == s.material;
+    for (int k = 0; k < 3; ++k)
+      same = same && t.v0[k] == s.p[0][k] && t.v1[k] == s.p[1][k] && t.v2[k] == s.p[2][k];
+    if (!same) report.error(name, "triangle entry ", i, " does not match scene triangle ", t.prim, " (vertices or material)");
+  }
+};
+struct LeafSource {
+  const FlatBvh& bvh;
+  std::size_t scene_triangles;
+  std::size_t size() const { return scene_triangles; }
+  SceneTriangle at(std::uint32_t /*prim*/, std::uint64_t entry) const {
+    const BvhTriangle& t = bvh.triangles[entry];
+    SceneTriangle s{};
+    s.p[0] = {t.v0[0], t.v0[1], t.v0[2]};
+    s.p[1] = {t.v1[0], t.v1[1], t.v1[2]};
+    s.p[2] = {t.v2[0], t.v2[1], t.v2[2]};
+    s.material = t.material;
+    return s;
+  }
+  template <typename Name>
+  void check_entry(const Name&, std::uint64_t, const BvhTriangle&, Report&) const {}
+};
+
+template <typename Nodes, typename Source>
+void validate_tree(const Nodes& tree, const FlatBvh& bvh, const Source& source, Report& report) {
   const std::size_t tri_count = bvh.triangles.size();
   std::vector<std::uint8_t> entry_refs(tri_count, 0);      // leaves covering each triangle entry (up to 255)
   // Per scene triangle: kRefMask, its leaf entries (saturating); kOutside, some leaf box does
   // not hold it whole.
   constexpr std::uint8_t kRefMask = 0x7f, kOutside = 0x80;
-  std::vector<std::uint8_t> prim_state(triangles.size(), 0);
+  const std::size_t scene_count = source.size();
+  std::vector<std::uint8_t> prim_state(scene_count, 0);
   const auto refs = [&](std::size_t p) { return prim_state[p] & kRefMask; };
   const std::vector<std::uint8_t> node_seen =
       walk_tree(tree, tri_count, report, [&](const Box& box, std::uint64_t first, std::uint32_t count) {
         for (std::uint64_t i = first; i < first + count; ++i) {
           if (entry_refs[i] < 255) ++entry_refs[i];
           const BvhTriangle& t = bvh.triangles[i];
-          if (t.prim >= triangles.size()) {
-            report.error(tree.name, "triangle entry ", i, " has prim ", t.prim, " but the scene has ",
-                         triangles.size());
+          if (t.prim >= scene_count) {
+            report.error(tree.name, "triangle entry ", i, " has prim ", t.prim, " but the scene has ", scene_count);
             continue;
           }
-          const SceneTriangle& s = triangles[t.prim];
-          bool same = t.material == s.material;
-          for (int k = 0; k < 3; ++k)
-            same = same && t.v0[k] == s.p[0][k] && t.v1[k] == s.p[1][k] && t.v2[k] == s.p[2][k];
-          if (!same)
-            report.error(tree.name, "triangle entry ", i, " does not match scene triangle ", t.prim,
-                         " (vertices or material)");
+          source.check_entry(tree.name, i, t, report);
+          const auto& s = source.at(t.prim, i);
           std::uint8_t& state = prim_state[t.prim];
           if ((state & kRefMask) < kRefMask) ++state;
           if (!contains(box, triangle_box(s), tolerance(box, &s))) state |= kOutside;
@@ -404,33 +432,37 @@ void validate_tree(const Nodes& tree, const FlatBvh& bvh, const std::vector<Scen
   // sort, in walk order within a triangle. `slot[p]` is where triangle p's boxes start.
   std::vector<std::uint32_t> slot;
   std::vector<Box> split_boxes;
+  std::vector<std::uint64_t> split_entries;  // the leaf entry of each box (LeafSource reads its vertices)
   bool any_split = false;
-  for (std::size_t p = 0; p < triangles.size() && !any_split; ++p) any_split = refs(p) > 1;
+  for (std::size_t p = 0; p < scene_count && !any_split; ++p) any_split = refs(p) > 1;
   if (any_split) {
     Report ignored;  // the first walk reported what is wrong with the tree itself
     // Each split triangle's exact reference count (its byte saturates), then where its boxes go.
-    slot.assign(triangles.size() + 1, 0);
+    slot.assign(scene_count + 1, 0);
     walk_tree(tree, tri_count, ignored, [&](const Box&, std::uint64_t first, std::uint32_t count) {
       for (std::uint64_t i = first; i < first + count; ++i) {
         const std::uint32_t p = bvh.triangles[i].prim;
-        if (p < triangles.size() && refs(p) > 1) ++slot[p + 1];
+        if (p < scene_count && refs(p) > 1) ++slot[p + 1];
       }
     });
-    for (std::size_t p = 0; p < triangles.size(); ++p) slot[p + 1] += slot[p];
+    for (std::size_t p = 0; p < scene_count; ++p) slot[p + 1] += slot[p];
     std::vector<std::uint32_t> next(slot.begin(), slot.end() - 1);
     split_boxes.resize(slot.back());
+    split_entries.resize(slot.back());
     walk_tree(tree, tri_count, ignored, [&](const Box& box, std::uint64_t first, std::uint32_t count) {
       for (std::uint64_t i = first; i < first + count; ++i) {
         const std::uint32_t p = bvh.triangles[i].prim;
-        if (p < triangles.size() && refs(p) > 1) split_boxes[next[p]++] = box;
+        if (p < scene_count && refs(p) > 1) {
+          split_entries[next[p]] = i;
+          split_boxes[next[p]++] = box;
+        }
       }
     });
   }
 
   // Per scene triangle: referenced at all; a single leaf box must contain the whole triangle;
   // with several (spatial splits), each must overlap it and together they must cover it.
-  for (std::uint32_t prim = 0; prim < triangles.size(); ++prim) {
-    const SceneTriangle& tri = triangles[prim];
+  for (std::uint32_t prim = 0; prim < scene_count; ++prim) {
     if (refs(prim) == 0) {
       report.error(tree.name, "scene triangle ", prim, " is not referenced by any leaf");
       continue;
@@ -440,6 +472,7 @@ void validate_tree(const Nodes& tree, const FlatBvh& bvh, const std::vector<Scen
       continue;
     }
     const std::size_t begin = slot[prim], end = slot[prim + 1];
+    const auto& tri = source.at(prim, split_entries[begin]);
     for (std::size_t j = begin; j < end; ++j) {
       const Box& box = split_boxes[j];
       if (!triangle_overlaps_box(tri, box, tolerance(box, &tri)))
@@ -565,14 +598,15 @@ BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>&
   // heightfield's binary and wide8 trees: 5.2 s one after the other on two cores). Their reports
   // are merged in this order, so the messages do not depend on the threads.
   std::vector<std::function<void(Report&)>> jobs;
-  if (binary_tree) jobs.push_back([&](Report& r) { validate_tree(BinaryNodes{bvh.nodes}, bvh, triangles, r); });
+  const SceneSource source{triangles};
+  if (binary_tree) jobs.push_back([&](Report& r) { validate_tree(BinaryNodes{bvh.nodes}, bvh, source, r); });
   if (!bvh.nodes4.empty())
-    jobs.push_back([&](Report& r) { validate_tree(WideNodes<4, Bvh4Node>{bvh.nodes4, "wide4 "}, bvh, triangles, r); });
+    jobs.push_back([&](Report& r) { validate_tree(WideNodes<4, Bvh4Node>{bvh.nodes4, "wide4 "}, bvh, source, r); });
   if (!bvh.nodes8.empty())
-    jobs.push_back([&](Report& r) { validate_tree(WideNodes<8, Bvh8Node>{bvh.nodes8, "wide8 "}, bvh, triangles, r); });
+    jobs.push_back([&](Report& r) { validate_tree(WideNodes<8, Bvh8Node>{bvh.nodes8, "wide8 "}, bvh, source, r); });
   if (!bvh.cnodes.empty())
     jobs.push_back([&](Report& r) {
-      validate_tree(CompressedNodes{bvh.cnodes, bvh.cleaf_first, "cwbvh "}, bvh, triangles, r);
+      validate_tree(CompressedNodes{bvh.cnodes, bvh.cleaf_first, "cwbvh "}, bvh, source, r);
       validate_compressed(bvh, r);
     });
   std::vector<Report> reports(jobs.size());
@@ -599,6 +633,18 @@ BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>&
   for (const std::exception_ptr& f : failures)
     if (f) std::rethrow_exception(f);
   for (const Report& r : reports) report.merge(r);
+  return report.finish();
+}
+
+BvhValidation validate_wide_from_leaves(const FlatBvh& bvh, std::size_t scene_triangles) {
+  Report report;
+  if (bvh.nodes4.empty() && bvh.nodes8.empty()) {
+    report.error("no wide nodes to validate");
+    return report.finish();
+  }
+  const LeafSource source{bvh, scene_triangles};
+  if (!bvh.nodes4.empty()) validate_tree(WideNodes<4, Bvh4Node>{bvh.nodes4, "wide4 "}, bvh, source, report);
+  if (!bvh.nodes8.empty()) validate_tree(WideNodes<8, Bvh8Node>{bvh.nodes8, "wide8 "}, bvh, source, report);
   return report.finish();
 }
 

@@ -154,7 +154,8 @@ bool is_absent_slot(const WideNode& n, int i) {
 }
 
 // The node buffer the kernels read for a wide layout (Wide4, Wide8, Compressed8): the wide
-// nodes followed by one BvhLeafBlock per leaf (types.h), leaf slots pointing at their blocks.
+// nodes followed by one BvhLeafBlock per leaf (types.h), leaf slots pointing at their blocks
+// (Wide4 / Wide8: the blocks in leaf order, that of their first triangle).
 // Reads the triangles' flags, so call it after set_triangle_flags. Throws if the wide nodes are
 // absent.
 std::vector<std::uint32_t> device_wide_nodes(const FlatBvh& bvh, BvhLayout layout);
@@ -180,12 +181,22 @@ struct UninitializedAllocator : std::allocator<T> {
 };
 using DeviceWords = std::vector<std::uint32_t, UninitializedAllocator<std::uint32_t>>;
 
-// device_wide_nodes for Wide4 and Wide8, the same words, made from nodes it frees on the way: the
-// wide nodes are copied into the words (every word written, none zero-filled first), freed, and
-// the leaf blocks then written behind them. At 10M triangles the nodes (0.5 GB) and the words
-// (1.4 GB) are then never held whole side by side. Throws std::invalid_argument for another
-// layout or absent nodes.
-DeviceWords device_wide_nodes_from(FlatBvh& bvh, BvhLayout layout);
+// Leaf triangles as BvhLeafRef records (types.h: no vertices, its leaf block's offset instead),
+// made in the memory of the BvhTriangle array they replace; the pages past the records are
+// handed back to the system. `memory` owns that block; its first `count` records are the refs.
+struct LeafRefs {
+  std::vector<BvhTriangle> memory;
+  std::size_t count = 0;
+  const BvhLeafRef* data() const { return reinterpret_cast<const BvhLeafRef*>(memory.data()); }
+  std::size_t bytes() const { return count * sizeof(BvhLeafRef); }
+};
+// device_wide_nodes for Wide4 and Wide8, the same words, made from nodes it frees on the way:
+// the leaf blocks first, then the nodes (every word written once, none zero-filled first), each
+// node's pages handed back once copied. At 10M triangles the nodes and the words are then never
+// held whole side by side. With `refs`, the leaf triangles are moved out of `bvh` and become
+// BvhLeafRef records as their blocks are written (kernels built with PX_LEAF_REFS read those).
+// Throws std::invalid_argument for another layout or absent nodes.
+DeviceWords device_wide_nodes_from(FlatBvh& bvh, BvhLayout layout, LeafRefs* refs = nullptr);
 // The leaf block (types.h: BvhLeafBlock) of the `count` triangles from `first`; throws if they
 // are out of range or count is not 1..4.
 BvhLeafBlock leaf_block(const std::vector<BvhTriangle>& tris, std::uint32_t first, std::uint32_t count);
@@ -200,7 +211,10 @@ double ensure_layout(FlatBvh& bvh, BvhLayout layout);
 
 // Builds with Embree's rtcBuildBVH (SAH, maxBranchingFactor 2, maxDepth PX_BVH_MAX_DEPTH) and
 // flattens the result. Throws std::runtime_error on an empty input or an Embree error.
-FlatBvh build_bvh(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options = {});
+// `collapse` false: the tree is returned without the process layout's wide nodes (a caller that
+// makes them later, once the scene's triangles are gone: DeviceScene).
+FlatBvh build_bvh(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options = {},
+                  bool collapse = true);
 
 // Fills bvh.stats' node and leaf counts, depth and SAH cost from the binary nodes (the builder
 // calls it; so does refit_bvh).
@@ -239,5 +253,10 @@ struct BvhValidation {
 // derived from them, are still checked): for a tree read back from the BVH cache, whose binary
 // nodes were validated before they were written and are protected by the file's checksum.
 BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles, bool binary_tree = true);
+// The wide nodes present (nodes4, nodes8) checked as validate_bvh checks them, with each leaf
+// entry's own vertices standing for its scene triangle's (of `scene_triangles`): for nodes
+// collapsed after the scene's triangles are gone (DeviceScene), from a tree whose leaf entries
+// validate_bvh found to be copies of the scene's triangles.
+BvhValidation validate_wide_from_leaves(const FlatBvh& bvh, std::size_t scene_triangles);
 
 }  // namespace px

@@ -38,6 +38,8 @@ static_assert(sizeof(BvhTriangle) == 48);
 static_assert(offsetof(BvhTriangle, prim) == 12 && offsetof(BvhTriangle, v1) == 16);
 static_assert(offsetof(BvhTriangle, flags) == 28 && offsetof(BvhTriangle, v2) == 32);
 static_assert(offsetof(BvhTriangle, material) == 44);
+static_assert(sizeof(BvhLeafRef) == 16 && offsetof(BvhLeafRef, flags) == 4);
+static_assert(offsetof(BvhLeafRef, material) == 8 && offsetof(BvhLeafRef, block) == 12);
 
 static_assert(sizeof(Ray) == 32 && offsetof(Ray, tmin) == 12 && offsetof(Ray, tmax) == 28);
 static_assert(sizeof(Hit) == 20 && offsetof(Hit, prim) == 12 && offsetof(Hit, inst) == 16);

@@ -140,13 +140,15 @@ std::shared_ptr<const MappedDeviceLayout> DeviceLayoutCache::open(std::uint64_t 
       std::memcmp(h.magic, kMagic, sizeof kMagic) == 0 && h.format == kFormatVersion &&
       h.header_checksum == header_checksum(h) && h.key == key &&
       h.layout == static_cast<std::uint64_t>(bvh_layout_width(layout)) &&
-      h.node_size == (layout == BvhLayout::Binary ? sizeof(BvhNode) : 4) && h.triangle_size == sizeof(BvhTriangle) &&
+      h.node_size == (layout == BvhLayout::Binary ? sizeof(BvhNode) : 4) &&
+      (h.triangle_size == sizeof(BvhTriangle) ||
+       (h.triangle_size == sizeof(BvhLeafRef) && (layout == BvhLayout::Wide4 || layout == BvhLayout::Wide8))) &&
       h.shading_size == sizeof(TriangleShading) && h.leaf_block_size == sizeof(BvhLeafBlock) &&
       h.scene_triangles == scene_triangles && h.shading_count == scene_triangles && h.file_bytes == length &&
       h.nodes_offset == kPage && h.node_bytes > 0 && h.triangle_count > 0 &&
       h.triangles_offset == round_up(h.nodes_offset + h.node_bytes) &&
-      h.triangle_count <= (length / sizeof(BvhTriangle)) &&
-      h.shading_offset == round_up(h.triangles_offset + h.triangle_count * sizeof(BvhTriangle)) &&
+      h.triangle_count <= (length / h.triangle_size) &&
+      h.shading_offset == round_up(h.triangles_offset + h.triangle_count * h.triangle_size) &&
       h.shading_offset + h.shading_count * sizeof(TriangleShading) == length;
   if (!header_ok) {
     ::close(fd);
@@ -167,6 +169,7 @@ std::shared_ptr<const MappedDeviceLayout> DeviceLayoutCache::open(std::uint64_t 
   m->node_bytes_ = h.node_bytes;
   m->triangles_offset_ = h.triangles_offset;
   m->triangle_count_ = h.triangle_count;
+  m->triangle_size_ = h.triangle_size;
   m->shading_offset_ = h.shading_offset;
   m->shading_count_ = h.shading_count;
   m->payload_checksum_ = h.payload_checksum;
@@ -191,7 +194,8 @@ std::string DeviceLayoutCache::store(std::uint64_t content_key, const BvhBuildOp
     return "";
   }
   try {
-    if (!parts.nodes || parts.node_bytes == 0 || !parts.triangles || parts.triangles->empty() || !parts.shading ||
+    if (!parts.nodes || parts.node_bytes == 0 || !parts.triangles || parts.triangle_count == 0 ||
+        (parts.triangle_size != sizeof(BvhTriangle) && parts.triangle_size != sizeof(BvhLeafRef)) || !parts.shading ||
         parts.shading_count != scene_triangles)
       throw std::invalid_argument("incomplete device layout");
     std::filesystem::create_directories(dir_);
@@ -201,15 +205,15 @@ std::string DeviceLayoutCache::store(std::uint64_t content_key, const BvhBuildOp
     h.key = device_layout_key(content_key, parts.layout, options);
     h.layout = static_cast<std::uint64_t>(bvh_layout_width(parts.layout));
     h.node_size = parts.layout == BvhLayout::Binary ? sizeof(BvhNode) : 4;
-    h.triangle_size = sizeof(BvhTriangle);
+    h.triangle_size = parts.triangle_size;
     h.shading_size = sizeof(TriangleShading);
     h.leaf_block_size = sizeof(BvhLeafBlock);
     h.scene_triangles = scene_triangles;
     h.nodes_offset = kPage;
     h.node_bytes = parts.node_bytes;
     h.triangles_offset = round_up(h.nodes_offset + h.node_bytes);
-    h.triangle_count = parts.triangles->size();
-    h.shading_offset = round_up(h.triangles_offset + h.triangle_count * sizeof(BvhTriangle));
+    h.triangle_count = parts.triangle_count;
+    h.shading_offset = round_up(h.triangles_offset + h.triangle_count * h.triangle_size);
     h.shading_count = parts.shading_count;
     h.file_bytes = h.shading_offset + h.shading_count * sizeof(TriangleShading);
     h.layout_nodes = parts.layout_nodes;
@@ -231,8 +235,8 @@ std::string DeviceLayoutCache::store(std::uint64_t content_key, const BvhBuildOp
     const Piece pieces[] = {
         {parts.nodes, parts.node_bytes},
         {zeros.data(), h.triangles_offset - (h.nodes_offset + h.node_bytes)},
-        {parts.triangles->data(), h.triangle_count * sizeof(BvhTriangle)},
-        {zeros.data(), h.shading_offset - (h.triangles_offset + h.triangle_count * sizeof(BvhTriangle))},
+        {parts.triangles, h.triangle_count * h.triangle_size},
+        {zeros.data(), h.shading_offset - (h.triangles_offset + h.triangle_count * h.triangle_size)},
         {parts.shading, h.shading_count * sizeof(TriangleShading)}};
     ContentHash full(2), sample(1);
     const std::size_t stride = sample_stride(h.file_bytes - h.nodes_offset);

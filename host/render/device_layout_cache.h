@@ -23,7 +23,8 @@
 // arrays are page-aligned as CL_MEM_USE_HOST_PTR wants them):
 //   0       DeviceLayoutHeader (below), zero-padded to 4096 bytes
 //   nodes   the node buffer's bytes (uint words)
-//   tris    BvhTriangle[triangle_count]
+//   tris    the leaf triangles, triangle_count records of triangle_size bytes: BvhTriangle, or
+//           BvhLeafRef in the Wide4 and Wide8 layouts (DeviceScene::leaf_refs)
 //   shading TriangleShading[shading_count] (scene order)
 #pragma once
 
@@ -60,8 +61,10 @@ class MappedDeviceLayout {
 
   const void* node_bytes() const { return at(nodes_offset_); }
   std::size_t node_byte_count() const { return node_bytes_; }
-  const BvhTriangle* triangles() const { return static_cast<const BvhTriangle*>(at(triangles_offset_)); }
+  // The leaf triangles: triangle_count records of triangle_size bytes (BvhTriangle or BvhLeafRef).
+  const void* triangles() const { return at(triangles_offset_); }
   std::size_t triangle_count() const { return triangle_count_; }
+  std::size_t triangle_size() const { return triangle_size_; }
   const TriangleShading* shading() const { return static_cast<const TriangleShading*>(at(shading_offset_)); }
   std::size_t shading_count() const { return shading_count_; }
   std::size_t file_bytes() const { return length_; }
@@ -82,7 +85,7 @@ class MappedDeviceLayout {
   BvhBuildStats stats_;
   std::size_t layout_nodes_ = 0;
   std::size_t nodes_offset_ = 0, node_bytes_ = 0;
-  std::size_t triangles_offset_ = 0, triangle_count_ = 0;
+  std::size_t triangles_offset_ = 0, triangle_count_ = 0, triangle_size_ = sizeof(BvhTriangle);
   std::size_t shading_offset_ = 0, shading_count_ = 0;
   std::uint64_t payload_checksum_ = 0;
 };
@@ -94,7 +97,9 @@ struct DeviceLayoutParts {
   std::size_t layout_nodes = 0;
   const void* nodes = nullptr;
   std::size_t node_bytes = 0;
-  const std::vector<BvhTriangle>* triangles = nullptr;
+  const void* triangles = nullptr;  // triangle_count records of triangle_size bytes
+  std::size_t triangle_count = 0;
+  std::size_t triangle_size = sizeof(BvhTriangle);  // or sizeof(BvhLeafRef) (Wide4, Wide8)
   const TriangleShading* shading = nullptr;  // shading_count records (scene order)
   std::size_t shading_count = 0;
 };

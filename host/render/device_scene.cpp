@@ -337,7 +337,8 @@ void fill_light_params(const Scene& scene, std::size_t light_count, FrameParams&
 std::string DeviceScene::kernel_options() const {
   char features[16];
   std::snprintf(features, sizeof features, "0x%03x", kernel_features());
-  return "-DPX_BVH_WIDTH=" + std::to_string(bvh_layout_width(layout_)) + " -DPX_FEATURES=" + features;
+  return "-DPX_BVH_WIDTH=" + std::to_string(bvh_layout_width(layout_)) + " -DPX_FEATURES=" + features +
+         (leaf_refs_ ? " -DPX_LEAF_REFS=1" : "");
 }
 
 namespace {
@@ -421,18 +422,26 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
   // A static scene without instances makes its wide words last, after the scene's triangles may
   // have gone (take_triangles), from nodes it then frees as it goes (device_wide_nodes_from).
   bool words_last = false;
+  // A static scene without instances whose triangles are handed over, in a wide layout: its leaf
+  // triangles go as BvhLeafRef records (the blocks hold the vertices), and a tree that comes
+  // without the layout's nodes (load_and_build leaves the collapse to here) is collapsed once the
+  // scene's triangles have become shading records, and validated against the leaf triangles,
+  // which the loader's validator has found equal to the scene's.
+  const bool static_wide = !instanced && !scene.rig && (layout == BvhLayout::Wide4 || layout == BvhLayout::Wide8);
+  const bool leaf_refs = static_wide && take_triangles;
+  const bool collapse_late = leaf_refs && !has_layout(flagged, layout);
   if (!instanced) {
     set_triangle_flags(flagged, tri_flags);
-    prepare_tree(flagged, layout, scene.triangles, "the scene's BVH");
+    if (!collapse_late) prepare_tree(flagged, layout, scene.triangles, "the scene's BVH");
     layout_nodes = layout == BvhLayout::Wide4         ? flagged.nodes4.size()
                    : layout == BvhLayout::Wide8       ? flagged.nodes8.size()
                    : layout == BvhLayout::Compressed8 ? flagged.cnodes.size()
                                                       : flagged.nodes.size();
     // Nothing rewrites a static scene's buffers, so its host nodes go as early as they may:
-    // those the layout's device words are not made from at once (the 10M heightfield: 335 MB of
+    // those the layout's device words are not made from at once (the 10M heightfield: 79 MiB of
     // binary nodes), the rest while the words are made. Binary nodes are uploaded as they are.
-    if (!scene.rig) release_nodes(flagged, layout);
-    words_last = !scene.rig && (layout == BvhLayout::Wide4 || layout == BvhLayout::Wide8);
+    if (!scene.rig && !collapse_late) release_nodes(flagged, layout);
+    words_last = static_wide;
     if (layout != BvhLayout::Binary && !words_last) wide_words = device_wide_nodes(flagged, layout);
     if (!scene.rig && layout == BvhLayout::Compressed8) release_nodes(flagged, std::nullopt);
     instance_words = instance_buffer_words(scene, {}, scene_triangles);
@@ -485,8 +494,20 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
   } else {
     shading = owned_bytes(make_triangle_shading(scene));
   }
+  if (collapse_late) {
+    ensure_layout(flagged, layout);
+    layout_nodes = layout == BvhLayout::Wide4 ? flagged.nodes4.size() : flagged.nodes8.size();
+    release_nodes(flagged, layout);
+    const BvhValidation check = validate_wide_from_leaves(flagged, scene_triangles);
+    if (!check.ok)
+      throw std::runtime_error(std::string("internal error: the ") + to_string(layout) +
+                               " nodes of the scene's BVH failed validation: " +
+                               (check.errors.empty() ? "" : check.errors.front()));
+  }
   DeviceWords words_made_last;
-  if (words_last) words_made_last = device_wide_nodes_from(flagged, layout);
+  LeafRefs refs;
+  if (words_last) words_made_last = device_wide_nodes_from(flagged, layout, leaf_refs ? &refs : nullptr);
+  leaf_refs_ = leaf_refs;
   const std::uint32_t* words = words_last ? words_made_last.data() : wide_words.data();
   const std::size_t word_count = words_last ? words_made_last.size() : wide_words.size();
   const bool binary_nodes = layout == BvhLayout::Binary && !instanced;  // else the nodes are words
@@ -499,7 +520,9 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
     parts.layout_nodes = layout_nodes;
     parts.nodes = binary_nodes ? static_cast<const void*>(flagged.nodes.data()) : words;
     parts.node_bytes = binary_nodes ? flagged.nodes.size() * sizeof(BvhNode) : word_count * 4;
-    parts.triangles = &triangles;
+    parts.triangles = leaf_refs ? static_cast<const void*>(refs.data()) : triangles.data();
+    parts.triangle_count = leaf_refs ? refs.count : triangles.size();
+    parts.triangle_size = leaf_refs ? sizeof(BvhLeafRef) : sizeof(BvhTriangle);
     parts.shading = static_cast<const TriangleShading*>(shading.data);
     parts.shading_count = shading.bytes / sizeof(TriangleShading);
     std::string why;
@@ -518,7 +541,14 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
   HostBytes node_bytes = binary_nodes ? owned_bytes(std::move(flagged.nodes))
                          : words_last ? owned_bytes(std::move(words_made_last))
                                       : owned_bytes(std::move(wide_words));
-  upload_all(devices, scene, std::move(node_bytes), owned_bytes(std::move(triangles)), std::move(shading),
+  HostBytes triangle_bytes;
+  if (leaf_refs) {
+    auto owner = std::make_shared<LeafRefs>(std::move(refs));
+    triangle_bytes = {owner->data(), owner->bytes(), sizeof(BvhLeafRef), owner};
+  } else {
+    triangle_bytes = owned_bytes(std::move(triangles));
+  }
+  upload_all(devices, scene, std::move(node_bytes), std::move(triangle_bytes), std::move(shading),
              std::move(instance_words), std::move(tables), tri_flags, layout_start);
 }
 
@@ -538,7 +568,9 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, std::shared_ptr
   const std::shared_ptr<const void> owner = mapped;
   HostBytes nodes{mapped->node_bytes(), mapped->node_byte_count(), layout_ == BvhLayout::Binary ? sizeof(BvhNode) : 4,
                   owner};
-  HostBytes triangles{mapped->triangles(), mapped->triangle_count() * sizeof(BvhTriangle), sizeof(BvhTriangle), owner};
+  leaf_refs_ = mapped->triangle_size() == sizeof(BvhLeafRef);
+  HostBytes triangles{mapped->triangles(), mapped->triangle_count() * mapped->triangle_size(), mapped->triangle_size(),
+                      owner};
   HostBytes shading{mapped->shading(), mapped->shading_count() * sizeof(TriangleShading), sizeof(TriangleShading),
                     owner};
   upload_all(devices, scene, std::move(nodes), std::move(triangles), std::move(shading), std::move(instance_words),

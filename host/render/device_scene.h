@@ -26,7 +26,7 @@ namespace px {
 
 struct DeviceSceneBuffers {
   cl::Buffer nodes;      // BvhNode[], Bvh4Node[], Bvh8Node[] or CompressedBvh8Node[] (DeviceSet::bvh_layout())
-  cl::Buffer triangles;  // BvhTriangle[] (leaf order, flags filled from materials)
+  cl::Buffer triangles;  // BvhTriangle[] (leaf order, flags filled from materials), or BvhLeafRef[] (leaf_refs())
   cl::Buffer shading;    // TriangleShading[] (scene order)
   cl::Buffer materials;  // GpuMaterial[]
   cl::Buffer textures;   // TextureInfo[]
@@ -129,6 +129,10 @@ class DeviceScene {
   // The node layout uploaded (the set's bvh_layout() at construction), and the kernel build
   // option that matches it (DeviceSet::program uses the set's current layout when none is given).
   BvhLayout layout() const { return layout_; }
+  // Whether the triangle buffer holds BvhLeafRef records (types.h), the leaf blocks in the node
+  // buffer holding the vertices: a static scene without instances, handed over (take_triangles)
+  // or mapped, in the Wide4 or Wide8 layout. kernel_options() then says PX_LEAF_REFS.
+  bool leaf_refs() const { return leaf_refs_; }
   // The build options of the scene-dependent kernels (path tracers, G-buffer, trace, preview):
   // the node layout and the PX_FEATURES the kernels carry (kernel_features.h).
   std::string kernel_options() const;
@@ -180,6 +184,7 @@ class DeviceScene {
   bool layout_from_cache_ = false;
   double layout_store_ms_ = 0.0;
   BvhLayout layout_ = BvhLayout::Binary;
+  bool leaf_refs_ = false;
   std::uint32_t scene_features_ = PX_FEATURES_ALL;
   KernelChoice choice_ = KernelChoice::Scene;
 };

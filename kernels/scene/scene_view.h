@@ -7,7 +7,7 @@
 
 typedef struct SceneView {
   const global BvhNode* nodes;
-  const global BvhTriangle* tris;
+  const global PxLeafTriangle* tris;  /* leaf order: BvhTriangle, or BvhLeafRef (PX_LEAF_REFS) */
   const global TriangleShading* shading;
   const global GpuMaterial* materials;
   const global TextureInfo* textures;
@@ -25,13 +25,13 @@ typedef struct SceneView {
 /* Kernel parameter list for the nine scene buffers, always in this order and always last; the host
  * binds them with DeviceSceneBuffers::bind (host/render/device_scene.h). */
 #define PX_SCENE_PARAMS                                                                       \
-  const global BvhNode *scene_nodes, const global BvhTriangle *scene_tris,                    \
+  const global BvhNode *scene_nodes, const global PxLeafTriangle *scene_tris,                 \
       const global TriangleShading *scene_shading, const global GpuMaterial *scene_materials, \
       const global TextureInfo *scene_textures, const global float4 *scene_texels,            \
       const global LightTriangle *scene_lights, const global float4 *scene_colours,             \
       const global SceneInstances *scene_instances
 
-inline SceneView px_scene_view(const global BvhNode* nodes, const global BvhTriangle* tris,
+inline SceneView px_scene_view(const global BvhNode* nodes, const global PxLeafTriangle* tris,
                                const global TriangleShading* shading,
                                const global GpuMaterial* materials,
                                const global TextureInfo* textures, const global float4* texels,
@@ -95,13 +95,22 @@ typedef struct SurfaceHit {
 
 inline SurfaceHit px_surface_hit(const SceneView* scene, Hit hit) {
   SurfaceHit s;
-  const global BvhTriangle* tri = scene->tris + hit.prim;
+  const global PxLeafTriangle* tri = scene->tris + hit.prim;
   s.prim = tri->prim;
   s.sh = scene->shading + s.prim;
   s.mat = scene->materials + s.sh->material;
+#if defined(PX_LEAF_REFS) && PX_LEAF_REFS
+  /* The vertices are in the leaf's block (types.h: BvhLeafBlock rows, lane = this triangle). */
+  const global float* b = (const global float*)scene->nodes + 4 * (size_t)tri->block;
+  const uint lane = hit.prim - ((const global uint*)(b + 36))[0];
+  s.v0 = (float3)(b[lane], b[4 + lane], b[8 + lane]);
+  s.v1 = (float3)(b[12 + lane], b[16 + lane], b[20 + lane]);
+  s.v2 = (float3)(b[24 + lane], b[28 + lane], b[32 + lane]);
+#else
   s.v0 = px_load3(tri->v0);
   s.v1 = px_load3(tri->v1);
   s.v2 = px_load3(tri->v2);
+#endif
   float3 n0 = px_load3(s.sh->n0), n1 = px_load3(s.sh->n1), n2 = px_load3(s.sh->n2);
   if (PX_HAS(PX_FEATURE_INSTANCES) && hit.inst != PX_NO_INSTANCE) {
     /* A mesh's vertices and normals are in its own space: placed as a flat copy of the mesh

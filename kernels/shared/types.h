@@ -114,13 +114,13 @@ typedef struct Bvh8Node {
 
 /* Leaf block of the wide layouts, 160 bytes: the (at most 4) triangles of one leaf as
  * structure-of-arrays, so the watertight test runs on all of them with float4 ops. Device form
- * only: DeviceScene appends one block per leaf after the wide nodes in the node buffer and
- * points the leaf slot's `child` at its block, in 16-byte units from the buffer's start (the
- * host's Bvh4Node / Bvh8Node keep the first triangle index, as the binary nodes do).
+ * only: DeviceScene appends one block per leaf after the wide nodes in the node buffer (Bvh4Node,
+ * Bvh8Node: in leaf order, that of their first triangles) and points the leaf slot's `child` at
+ * its block, in 16-byte units from the buffer's start (the host's Bvh4Node / Bvh8Node keep the first triangle index, as the binary nodes do).
  *
  *     0..143  v[9][4]  rows v0.x v0.y v0.z v1.x v1.y v1.z v2.x v2.y v2.z; lane j = triangle
  *                      first + j; lanes >= count repeat lane 0
- *   144..147  first    leaf-order index (BvhTriangle array) of lane 0's triangle
+ *   144..147  first    leaf-order index (triangle buffer) of lane 0's triangle
  *   148..151  count    triangles in the leaf, 1..4
  *   152..155  flags    OR of the triangles' PX_TRI_* bits (alpha-tested leaves take the
  *                      one-by-one path)
@@ -132,6 +132,24 @@ typedef struct BvhLeafBlock {
   uint flags;
   uint pad;
 } BvhLeafBlock;
+
+/* Leaf triangle without its vertices, 16 bytes: the triangle buffer's element in kernels built
+ * with PX_LEAF_REFS (a static scene without instances in a wide layout, DeviceScene), where the
+ * leaf blocks already hold every vertex, so the 36 bytes of BvhTriangle's vertices would be a
+ * second copy (at 10M triangles, 343 MiB). Same order as BvhTriangle (leaf order).
+ *
+ *    0..3   prim      scene triangle (TriangleShading index)
+ *    4..7   flags     PX_TRI_* bits
+ *    8..11  material  GpuMaterial index
+ *   12..15  block     its leaf's BvhLeafBlock, in 16-byte units from the node buffer's start;
+ *                     the triangle is lane (leaf-order index - block's first) */
+typedef struct BvhLeafRef {
+  uint prim;
+  uint flags;
+  uint material;
+  uint block;
+} BvhLeafRef;
+
 
 /* Compressed 8-wide BVH node ("cwbvh"), 80 bytes, after Ylitie, Karras & Laine 2017
  * ("Efficient incoherent ray traversal on GPUs through compressed wide BVHs"): the same tree as
@@ -262,6 +280,15 @@ typedef struct BvhTriangle {
   float v2[3];
   uint material;
 } BvhTriangle;
+
+#ifdef __OPENCL_C_VERSION__
+/* The triangle buffer's element type as kernels see it. */
+#if defined(PX_LEAF_REFS) && PX_LEAF_REFS
+typedef BvhLeafRef PxLeafTriangle;
+#else
+typedef BvhTriangle PxLeafTriangle;
+#endif
+#endif
 
 #define PX_TRI_ALPHA_TESTED 1u
 #define PX_TRI_EMISSIVE 2u

@@ -52,16 +52,20 @@ inline RayShear px_make_shear(float3 org, float3 dir) {
  * a closed lower end it did whenever the edge functions put the origin inside it.
  * Vertices are read component-wise in the ray's permuted axis order straight from memory
  * (indexed loads), which is cheaper than permuting float3 values with selects. */
-inline int px_intersect_triangle_mem(const RayShear* s, const global float* v0, const global float* v1,
-                                     const global float* v2, float tmin, float tmax, float* t, float* u, float* v) {
+/* `stride`: floats between a vertex's x, y and z (1 for float[3]; 4 for a lane of a leaf
+ * block's rows). */
+inline int px_intersect_triangle_strided(const RayShear* s, const global float* v0, const global float* v1,
+                                         const global float* v2, int stride, float tmin, float tmax, float* t,
+                                         float* u, float* v) {
   const float ox = px_axis(s->org, s->kx), oy = px_axis(s->org, s->ky), oz = px_axis(s->org, s->kz);
-  const float az = v0[s->kz] - oz, bz = v1[s->kz] - oz, cz = v2[s->kz] - oz;
-  const float ax = (v0[s->kx] - ox) - s->sx * az;
-  const float ay = (v0[s->ky] - oy) - s->sy * az;
-  const float bx = (v1[s->kx] - ox) - s->sx * bz;
-  const float by = (v1[s->ky] - oy) - s->sy * bz;
-  const float cx = (v2[s->kx] - ox) - s->sx * cz;
-  const float cy = (v2[s->ky] - oy) - s->sy * cz;
+  const int kx = stride * s->kx, ky = stride * s->ky, kz = stride * s->kz;
+  const float az = v0[kz] - oz, bz = v1[kz] - oz, cz = v2[kz] - oz;
+  const float ax = (v0[kx] - ox) - s->sx * az;
+  const float ay = (v0[ky] - oy) - s->sy * az;
+  const float bx = (v1[kx] - ox) - s->sx * bz;
+  const float by = (v1[ky] - oy) - s->sy * bz;
+  const float cx = (v2[kx] - ox) - s->sx * cz;
+  const float cy = (v2[ky] - oy) - s->sy * cz;
   float eu = cx * by - cy * bx;
   float ev = ax * cy - ay * cx;
   float ew = bx * ay - by * ax;
@@ -92,6 +96,11 @@ inline int px_intersect_triangle_mem(const RayShear* s, const global float* v0, 
   *u = ev * inv;
   *v = ew * inv;
   return 1;
+}
+
+inline int px_intersect_triangle_mem(const RayShear* s, const global float* v0, const global float* v1,
+                                     const global float* v2, float tmin, float tmax, float* t, float* u, float* v) {
+  return px_intersect_triangle_strided(s, v0, v1, v2, 1, tmin, tmax, t, u, v);
 }
 
 /* Reciprocal direction without infinities: a zero component becomes a huge finite value of
