@@ -1025,7 +1025,7 @@ TEST(Validator, WideNodesCheckedAgainstTheLeafTriangles) {
     ASSERT_TRUE(validate_bvh(bvh, tris).ok);
     collapse_bvh(bvh, 8);
     collapse_bvh(bvh, 4);
-    const BvhValidation good = validate_wide_from_leaves(bvh, tris.size());
+    const BvhValidation good = validate_layout_from_leaves(bvh, tris.size());
     EXPECT_TRUE(good.ok) << (good.errors.empty() ? "" : good.errors.front());
     // A leaf slot's box pulled away from its triangles.
     FlatBvh shrunk = bvh;
@@ -1039,7 +1039,7 @@ TEST(Validator, WideNodesCheckedAgainstTheLeafTriangles) {
         }
     ASSERT_TRUE(done);
     shrunk.nodes4.clear();
-    EXPECT_FALSE(validate_wide_from_leaves(shrunk, tris.size()).ok) << "splits " << splits;
+    EXPECT_FALSE(validate_layout_from_leaves(shrunk, tris.size()).ok) << "splits " << splits;
     // A leaf slot that forgets its last triangle.
     FlatBvh dropped = bvh;
     dropped.nodes8.clear();
@@ -1051,10 +1051,10 @@ TEST(Validator, WideNodesCheckedAgainstTheLeafTriangles) {
           done = true;
         }
     ASSERT_TRUE(done);
-    EXPECT_FALSE(validate_wide_from_leaves(dropped, tris.size()).ok) << "splits " << splits;
+    EXPECT_FALSE(validate_layout_from_leaves(dropped, tris.size()).ok) << "splits " << splits;
   }
   FlatBvh none = build_bvh(tris, with_splits(false), false);
-  EXPECT_FALSE(validate_wide_from_leaves(none, tris.size()).ok) << "no wide nodes to check";
+  EXPECT_FALSE(validate_layout_from_leaves(none, tris.size()).ok) << "no wide nodes to check";
 }
 
 // A triangle that spatial splits put in several leaves is checked against all of their boxes

@@ -3,6 +3,7 @@
 // names it and both sizes (PX_MAX_ALLOC_BYTES lowers the device's limit for the test).
 #include "render/device_scene.h"
 #include "scene/primitives.h"
+#include "scene/scene_rig.h"
 
 #include <gtest/gtest.h>
 
@@ -161,6 +162,46 @@ TEST(DeviceScene, ShadingMadeInTheHandedOverTrianglesIsTheSameBuffer) {
                              return std::exchange(short_scene.triangles, {});
                            }),
                std::logic_error);
+}
+
+// The two steps SceneOnDevices takes for a static scene (prepare_host before the devices are
+// made, then the layout of the set) give the buffers of the one-step constructor, in every node
+// layout; in the layouts without leaf blocks in leaf order (binary, cwbvh) the leaf triangles
+// stay BvhTriangle, byte for byte those of a scene that keeps its triangles. Trees come without
+// the layout's nodes, as load_and_build leaves them: made here, validated against the leaves.
+TEST(DeviceScene, TwoStepsBeforeTheDevicesGiveTheOneStepBuffers) {
+  const Scene scene = spheres();
+  for (const BvhLayout layout : {BvhLayout::Binary, BvhLayout::Wide4, BvhLayout::Wide8, BvhLayout::Compressed8}) {
+    SCOPED_TRACE(to_string(layout));
+    set_bvh_layout(layout);
+    Scene first = scene;
+    const auto host = DeviceScene::prepare_host(first, [&first] { return std::exchange(first.triangles, {}); });
+    EXPECT_TRUE(first.triangles.empty()) << "handed over before any device exists";
+    DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+    ASSERT_EQ(set.bvh_layout(), layout);
+    const DeviceScene two(set, host, first, build_bvh(scene.triangles, {}, /*collapse=*/false));
+    Scene second = scene;
+    const DeviceScene one(set, second, build_bvh(scene.triangles), {}, {},
+                          [&second] { return std::exchange(second.triangles, {}); });
+    const DeviceScene kept(set, scene, build_bvh(scene.triangles));
+    EXPECT_EQ(two.leaf_refs(), layout == BvhLayout::Wide4 || layout == BvhLayout::Wide8);
+    EXPECT_EQ(one.leaf_refs(), two.leaf_refs());
+    EXPECT_EQ(two.kernel_options(), one.kernel_options());
+    EXPECT_EQ(two.scene_features(), kept.scene_features());
+    EXPECT_EQ(two.light_count(), kept.light_count());
+    for (const auto member : {&DeviceSceneBuffers::nodes, &DeviceSceneBuffers::triangles, &DeviceSceneBuffers::shading,
+                              &DeviceSceneBuffers::materials})  // lights: a placeholder (no emitter)
+      EXPECT_EQ(read_back(set, two.on(1).*member), read_back(set, one.on(0).*member));
+    EXPECT_EQ(read_back(set, two.on(0).nodes), read_back(set, kept.on(0).nodes));
+    EXPECT_EQ(read_back(set, two.on(0).shading), read_back(set, kept.on(0).shading));
+    if (!two.leaf_refs()) EXPECT_EQ(read_back(set, two.on(0).triangles), read_back(set, kept.on(0).triangles));
+  }
+  set_bvh_layout(std::nullopt);
+  Scene animated = scene;
+  animated.rig = std::make_shared<SceneRig>();
+  EXPECT_THROW(DeviceScene::prepare_host(animated, [&animated] { return std::exchange(animated.triangles, {}); }),
+               std::logic_error)
+      << "an animated scene keeps its triangles";
 }
 
 }  // namespace

@@ -267,7 +267,21 @@ namespace {
 // The scene on `devices`: from the mapped device layout when the cache held one in the set's
 // layout, else laid out from the tree (read or built now if the start had mapped another
 // layout: a GPU set's), and stored for the next start when the scene is cacheable.
-DeviceScene make_device_scene(DeviceSet& devices, LoadedScene& loaded) {
+// The device-independent part of a static scene's layout, made before the devices (null for
+// other scenes and for a layout mapped from the cache).
+std::shared_ptr<DeviceScene::HostPart> prepare_host_part(LoadedScene& loaded) {
+  Scene& scene = loaded.scene;
+  if (loaded.device_layout || scene.rig || !scene.instancing.empty() || scene.triangles.empty() ||
+      loaded.bvh.nodes.empty())
+    return nullptr;
+  return DeviceScene::prepare_host(scene, [&scene] {
+    std::vector<std::array<glm::vec3, 3>>().swap(scene.vertex_colours);
+    return std::exchange(scene.triangles, {});
+  });
+}
+
+DeviceScene make_device_scene(DeviceSet& devices, LoadedScene& loaded,
+                              std::shared_ptr<DeviceScene::HostPart>& host_part) {
   const BvhLayout layout = devices.bvh_layout();
   if (loaded.device_layout && loaded.device_layout->layout() != layout) {
     loaded.device_layout = DeviceLayoutCache(DeviceLayoutCache::default_dir())
@@ -286,6 +300,7 @@ DeviceScene make_device_scene(DeviceSet& devices, LoadedScene& loaded) {
   store.cache = &cache;
   store.content_key = loaded.content_key;
   store.quiet = loaded.quiet;
+  if (host_part) return DeviceScene(devices, std::exchange(host_part, {}), loaded.scene, std::move(loaded.bvh), store);
   // The tree's host copy is not needed once its nodes are on the devices, nor a static scene's
   // triangles once the device scene has made what it makes of them (before its largest part).
   // An animated scene's triangles are posed again every frame (SceneAnimator): they stay.
@@ -302,7 +317,10 @@ DeviceScene make_device_scene(DeviceSet& devices, LoadedScene& loaded) {
 }  // namespace
 
 SceneOnDevices::SceneOnDevices(LoadedScene scene, const DeviceOptions& device_options, KernelChoice kernels)
-    : loaded(std::move(scene)), devices(DeviceSet::create(device_options)), device_scene(make_device_scene(devices, loaded)) {
+    : loaded(std::move(scene)),
+      host_part(prepare_host_part(loaded)),
+      devices(DeviceSet::create(device_options)),
+      device_scene(make_device_scene(devices, loaded, host_part)) {
   device_scene.set_kernel_choice(kernels);
   if (!loaded.scene.rig) {
     std::vector<SceneTriangle>().swap(loaded.scene.triangles);

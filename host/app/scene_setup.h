@@ -74,6 +74,11 @@ struct SceneOnDevices {
   SceneOnDevices& operator=(const SceneOnDevices&) = delete;
 
   LoadedScene loaded;
+  // A static scene without instances (not mapped from the cache): its shading records are made
+  // from its triangles before the devices are (DeviceScene::prepare_host), so that the
+  // triangles (about 100 bytes each) are gone when PoCL's device set comes; handed to the
+  // device scene and released (null) afterwards.
+  std::shared_ptr<DeviceScene::HostPart> host_part;
   DeviceSet devices;
   DeviceScene device_scene;
 };

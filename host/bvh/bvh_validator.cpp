@@ -636,15 +636,19 @@ BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>&
   return report.finish();
 }
 
-BvhValidation validate_wide_from_leaves(const FlatBvh& bvh, std::size_t scene_triangles) {
+BvhValidation validate_layout_from_leaves(const FlatBvh& bvh, std::size_t scene_triangles) {
   Report report;
-  if (bvh.nodes4.empty() && bvh.nodes8.empty()) {
-    report.error("no wide nodes to validate");
+  if (bvh.nodes4.empty() && bvh.nodes8.empty() && bvh.cnodes.empty()) {
+    report.error("no wide or compressed nodes to validate");
     return report.finish();
   }
   const LeafSource source{bvh, scene_triangles};
   if (!bvh.nodes4.empty()) validate_tree(WideNodes<4, Bvh4Node>{bvh.nodes4, "wide4 "}, bvh, source, report);
   if (!bvh.nodes8.empty()) validate_tree(WideNodes<8, Bvh8Node>{bvh.nodes8, "wide8 "}, bvh, source, report);
+  if (!bvh.cnodes.empty()) {
+    validate_tree(CompressedNodes{bvh.cnodes, bvh.cleaf_first, "cwbvh "}, bvh, source, report);
+    validate_compressed(bvh, report);
+  }
   return report.finish();
 }
 

@@ -253,10 +253,10 @@ struct BvhValidation {
 // derived from them, are still checked): for a tree read back from the BVH cache, whose binary
 // nodes were validated before they were written and are protected by the file's checksum.
 BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles, bool binary_tree = true);
-// The wide nodes present (nodes4, nodes8) checked as validate_bvh checks them, with each leaf
-// entry's own vertices standing for its scene triangle's (of `scene_triangles`): for nodes
-// collapsed after the scene's triangles are gone (DeviceScene), from a tree whose leaf entries
-// validate_bvh found to be copies of the scene's triangles.
-BvhValidation validate_wide_from_leaves(const FlatBvh& bvh, std::size_t scene_triangles);
+// The wide and compressed nodes present (nodes4, nodes8, cnodes) checked as validate_bvh checks
+// them, with each leaf entry's own vertices standing for its scene triangle's (of
+// `scene_triangles`): for nodes made after the scene's triangles are gone (DeviceScene), from a
+// tree whose leaf entries validate_bvh found to be copies of the scene's triangles.
+BvhValidation validate_layout_from_leaves(const FlatBvh& bvh, std::size_t scene_triangles);
 
 }  // namespace px

@@ -86,6 +86,8 @@ struct DeviceScene::SceneTables {
   std::vector<cl_float4> colours;
   std::vector<TextureInfo> infos;
   std::vector<cl_float4> texels;
+  std::size_t light_count = 0;
+  std::uint32_t features = PX_FEATURES_ALL;  // the kernel features the scene uses
 };
 
 namespace {
@@ -403,11 +405,15 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
                          const DeviceLayoutStore& store,
                          const std::function<std::vector<SceneTriangle>()>& take_triangles) {
   const auto layout_start = std::chrono::steady_clock::now();
+  const bool instanced = !scene.instancing.empty();
+  if (!instanced && !scene.rig && take_triangles) {
+    lay_out_static(devices, scene, std::move(bvh), prepare_host(scene, take_triangles), store, layout_start);
+    return;
+  }
   FlatBvh& flagged = bvh;
   const std::vector<std::uint32_t> tri_flags = triangle_flags(scene);
   const BvhLayout layout = devices.bvh_layout();
   layout_ = layout;
-  const bool instanced = !scene.instancing.empty();
   const std::size_t scene_triangles = scene.triangles.size();
   // Without instances: the one tree's nodes (binary: flagged.nodes as they are), its leaf
   // triangles, and an instance buffer that says "none". With instances: the world tree, then
@@ -422,17 +428,10 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
   // A static scene without instances makes its wide words last, after the scene's triangles may
   // have gone (take_triangles), from nodes it then frees as it goes (device_wide_nodes_from).
   bool words_last = false;
-  // A static scene without instances whose triangles are handed over, in a wide layout: its leaf
-  // triangles go as BvhLeafRef records (the blocks hold the vertices), and a tree that comes
-  // without the layout's nodes (load_and_build leaves the collapse to here) is collapsed once the
-  // scene's triangles have become shading records, and validated against the leaf triangles,
-  // which the loader's validator has found equal to the scene's.
   const bool static_wide = !instanced && !scene.rig && (layout == BvhLayout::Wide4 || layout == BvhLayout::Wide8);
-  const bool leaf_refs = static_wide && take_triangles;
-  const bool collapse_late = leaf_refs && !has_layout(flagged, layout);
   if (!instanced) {
     set_triangle_flags(flagged, tri_flags);
-    if (!collapse_late) prepare_tree(flagged, layout, scene.triangles, "the scene's BVH");
+    prepare_tree(flagged, layout, scene.triangles, "the scene's BVH");
     layout_nodes = layout == BvhLayout::Wide4         ? flagged.nodes4.size()
                    : layout == BvhLayout::Wide8       ? flagged.nodes8.size()
                    : layout == BvhLayout::Compressed8 ? flagged.cnodes.size()
@@ -440,7 +439,7 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
     // Nothing rewrites a static scene's buffers, so its host nodes go as early as they may:
     // those the layout's device words are not made from at once (the 10M heightfield: 79 MiB of
     // binary nodes), the rest while the words are made. Binary nodes are uploaded as they are.
-    if (!scene.rig && !collapse_late) release_nodes(flagged, layout);
+    if (!scene.rig) release_nodes(flagged, layout);
     words_last = static_wide;
     if (layout != BvhLayout::Binary && !words_last) wide_words = device_wide_nodes(flagged, layout);
     if (!scene.rig && layout == BvhLayout::Compressed8) release_nodes(flagged, std::nullopt);
@@ -484,8 +483,10 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
   }
   auto& triangles = instanced ? instanced_triangles : flagged.triangles;
   SceneTables tables = make_tables(scene, tri_flags, instanced);
+  light_count_ = tables.light_count;
+  scene_features_ = tables.features;
   HostBytes shading;
-  if (take_triangles) {  // scene.triangles are gone from here on
+  if (take_triangles) {  // scene.triangles are gone from here on (an animated or instanced scene's)
     std::vector<SceneTriangle> taken = take_triangles();
     if (taken.size() != scene_triangles)
       throw std::logic_error("DeviceScene: take_triangles handed over " + std::to_string(taken.size()) +
@@ -494,62 +495,142 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
   } else {
     shading = owned_bytes(make_triangle_shading(scene));
   }
-  if (collapse_late) {
-    ensure_layout(flagged, layout);
-    layout_nodes = layout == BvhLayout::Wide4 ? flagged.nodes4.size() : flagged.nodes8.size();
-    release_nodes(flagged, layout);
-    const BvhValidation check = validate_wide_from_leaves(flagged, scene_triangles);
-    if (!check.ok)
-      throw std::runtime_error(std::string("internal error: the ") + to_string(layout) +
-                               " nodes of the scene's BVH failed validation: " +
-                               (check.errors.empty() ? "" : check.errors.front()));
-  }
   DeviceWords words_made_last;
-  LeafRefs refs;
-  if (words_last) words_made_last = device_wide_nodes_from(flagged, layout, leaf_refs ? &refs : nullptr);
-  leaf_refs_ = leaf_refs;
+  if (words_last) words_made_last = device_wide_nodes_from(flagged, layout);
   const std::uint32_t* words = words_last ? words_made_last.data() : wide_words.data();
   const std::size_t word_count = words_last ? words_made_last.size() : wide_words.size();
   const bool binary_nodes = layout == BvhLayout::Binary && !instanced;  // else the nodes are words
   if (store.cache && store.cache->enabled() && !instanced && !scene.rig) {
     // The layout as it goes to the devices, for the next start to map (device_layout_cache.h).
-    const auto t = std::chrono::steady_clock::now();
     DeviceLayoutParts parts;
     parts.layout = layout;
     parts.stats = flagged.stats;
     parts.layout_nodes = layout_nodes;
     parts.nodes = binary_nodes ? static_cast<const void*>(flagged.nodes.data()) : words;
     parts.node_bytes = binary_nodes ? flagged.nodes.size() * sizeof(BvhNode) : word_count * 4;
-    parts.triangles = leaf_refs ? static_cast<const void*>(refs.data()) : triangles.data();
-    parts.triangle_count = leaf_refs ? refs.count : triangles.size();
-    parts.triangle_size = leaf_refs ? sizeof(BvhLeafRef) : sizeof(BvhTriangle);
+    parts.triangles = triangles.data();
+    parts.triangle_count = triangles.size();
+    parts.triangle_size = sizeof(BvhTriangle);
     parts.shading = static_cast<const TriangleShading*>(shading.data);
     parts.shading_count = shading.bytes / sizeof(TriangleShading);
-    std::string why;
-    std::string path;
-    {
-      const ProgressTicker ticker(store.quiet ? "" : "[bvh] still writing the device layout cache");
-      path = store.cache->store(store.content_key, store.options, scene_triangles, parts, &why);
-    }
-    layout_store_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
-    if (!store.quiet && !path.empty())
-      std::fprintf(stderr, "[bvh] the %s device layout cached in %s for the next run (%.0f ms)\n", to_string(layout),
-                   path.c_str(), layout_store_ms_);
-    if (!store.quiet && path.empty())
-      std::fprintf(stderr, "[bvh] warning: could not cache the device layout (%s)\n", why.c_str());
+    store_layout(store, parts, scene_triangles);
   }
   HostBytes node_bytes = binary_nodes ? owned_bytes(std::move(flagged.nodes))
                          : words_last ? owned_bytes(std::move(words_made_last))
                                       : owned_bytes(std::move(wide_words));
+  upload_all(devices, scene, std::move(node_bytes), owned_bytes(std::move(triangles)), std::move(shading),
+             std::move(instance_words), std::move(tables), tri_flags, layout_start);
+}
+
+void DeviceScene::store_layout(const DeviceLayoutStore& store, const DeviceLayoutParts& parts, std::size_t scene_triangles) {
+  const auto t = std::chrono::steady_clock::now();
+  std::string why;
+  std::string path;
+  {
+    const ProgressTicker ticker(store.quiet ? "" : "[bvh] still writing the device layout cache");
+    path = store.cache->store(store.content_key, store.options, scene_triangles, parts, &why);
+  }
+  layout_store_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+  if (!store.quiet && !path.empty())
+    std::fprintf(stderr, "[bvh] the %s device layout cached in %s for the next run (%.0f ms)\n", to_string(parts.layout),
+                 path.c_str(), layout_store_ms_);
+  if (!store.quiet && path.empty())
+    std::fprintf(stderr, "[bvh] warning: could not cache the device layout (%s)\n", why.c_str());
+}
+
+// The device-independent part of a static scene's layout (prepare_host).
+struct DeviceScene::HostPart {
+  std::vector<std::uint32_t> tri_flags;
+  SceneTables tables;
+  HostBytes shading;
+  std::size_t scene_triangles = 0;
+};
+
+std::shared_ptr<DeviceScene::HostPart> DeviceScene::prepare_host(
+    const Scene& scene, const std::function<std::vector<SceneTriangle>()>& take_triangles) {
+  if (!scene.instancing.empty() || scene.rig || !take_triangles)
+    throw std::logic_error("DeviceScene::prepare_host: a static scene without instances, its triangles handed over");
+  auto host = std::make_shared<HostPart>();
+  host->scene_triangles = scene.triangles.size();
+  host->tri_flags = triangle_flags(scene);
+  host->tables = make_tables(scene, host->tri_flags, false);
+  std::vector<SceneTriangle> taken = take_triangles();  // scene.triangles are gone from here on
+  if (taken.size() != host->scene_triangles)
+    throw std::logic_error("DeviceScene: take_triangles handed over " + std::to_string(taken.size()) +
+                           " triangles, not the scene's " + std::to_string(host->scene_triangles));
+  host->shading = shading_in_place(std::move(taken));
+  return host;
+}
+
+DeviceScene::DeviceScene(DeviceSet& devices, std::shared_ptr<HostPart> host, const Scene& scene, FlatBvh bvh,
+                         const DeviceLayoutStore& store) {
+  const auto layout_start = std::chrono::steady_clock::now();
+  if (!host) throw std::logic_error("DeviceScene: no host part");
+  lay_out_static(devices, scene, std::move(bvh), std::move(host), store, layout_start);
+}
+
+void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh bvh, std::shared_ptr<HostPart> host,
+                                 const DeviceLayoutStore& store, std::chrono::steady_clock::time_point layout_start) {
+  const BvhLayout layout = devices.bvh_layout();
+  layout_ = layout;
+  const std::size_t scene_triangles = host->scene_triangles;
+  set_triangle_flags(bvh, host->tri_flags);
+  // The scene's triangles are shading records now: nodes the tree lacks (load_and_build leaves
+  // the wide ones to here) are made and validated against the leaf triangles, which the loader's
+  // validator has found to be copies of the scene's.
+  if (!has_layout(bvh, layout)) {
+    ensure_layout(bvh, layout);
+    const BvhValidation check = validate_layout_from_leaves(bvh, scene_triangles);
+    if (!check.ok)
+      throw std::runtime_error(std::string("internal error: the ") + to_string(layout) +
+                               " nodes of the scene's BVH failed validation: " +
+                               (check.errors.empty() ? "" : check.errors.front()));
+  }
+  const std::size_t layout_nodes = layout == BvhLayout::Wide4         ? bvh.nodes4.size()
+                                   : layout == BvhLayout::Wide8       ? bvh.nodes8.size()
+                                   : layout == BvhLayout::Compressed8 ? bvh.cnodes.size()
+                                                                      : bvh.nodes.size();
+  // Nothing rewrites a static scene's buffers, so its host nodes go as early as they may: those
+  // the layout's device words are not made from at once, the rest while the words are made.
+  release_nodes(bvh, layout);
+  // Wide4 / Wide8: the leaf triangles go as BvhLeafRef records (the blocks hold the vertices),
+  // made as the blocks are written. Binary nodes are uploaded as they are.
+  leaf_refs_ = layout == BvhLayout::Wide4 || layout == BvhLayout::Wide8;
+  LeafRefs refs;
+  HostBytes node_bytes;
+  if (leaf_refs_) {
+    node_bytes = owned_bytes(device_wide_nodes_from(bvh, layout, &refs));
+  } else if (layout == BvhLayout::Compressed8) {
+    node_bytes = owned_bytes(device_wide_nodes(bvh, layout));
+    release_nodes(bvh, std::nullopt);
+  }
+  if (store.cache && store.cache->enabled()) {
+    // The layout as it goes to the devices, for the next start to map (device_layout_cache.h).
+    DeviceLayoutParts parts;
+    parts.layout = layout;
+    parts.stats = bvh.stats;
+    parts.layout_nodes = layout_nodes;
+    parts.nodes = layout == BvhLayout::Binary ? static_cast<const void*>(bvh.nodes.data()) : node_bytes.data;
+    parts.node_bytes = layout == BvhLayout::Binary ? bvh.nodes.size() * sizeof(BvhNode) : node_bytes.bytes;
+    parts.triangles = leaf_refs_ ? static_cast<const void*>(refs.data()) : bvh.triangles.data();
+    parts.triangle_count = leaf_refs_ ? refs.count : bvh.triangles.size();
+    parts.triangle_size = leaf_refs_ ? sizeof(BvhLeafRef) : sizeof(BvhTriangle);
+    parts.shading = static_cast<const TriangleShading*>(host->shading.data);
+    parts.shading_count = host->shading.bytes / sizeof(TriangleShading);
+    store_layout(store, parts, scene_triangles);
+  }
+  if (layout == BvhLayout::Binary) node_bytes = owned_bytes(std::move(bvh.nodes));
   HostBytes triangle_bytes;
-  if (leaf_refs) {
+  if (leaf_refs_) {
     auto owner = std::make_shared<LeafRefs>(std::move(refs));
     triangle_bytes = {owner->data(), owner->bytes(), sizeof(BvhLeafRef), owner};
   } else {
-    triangle_bytes = owned_bytes(std::move(triangles));
+    triangle_bytes = owned_bytes(std::move(bvh.triangles));
   }
-  upload_all(devices, scene, std::move(node_bytes), std::move(triangle_bytes), std::move(shading),
-             std::move(instance_words), std::move(tables), tri_flags, layout_start);
+  light_count_ = host->tables.light_count;
+  scene_features_ = host->tables.features;
+  upload_all(devices, scene, std::move(node_bytes), std::move(triangle_bytes), std::move(host->shading),
+             instance_buffer_words(scene, {}, scene_triangles), std::move(host->tables), host->tri_flags, layout_start);
 }
 
 DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, std::shared_ptr<const MappedDeviceLayout> mapped) {
@@ -573,8 +654,11 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, std::shared_ptr
                       owner};
   HostBytes shading{mapped->shading(), mapped->shading_count() * sizeof(TriangleShading), sizeof(TriangleShading),
                     owner};
+  SceneTables tables = make_tables(scene, tri_flags, false);
+  light_count_ = tables.light_count;
+  scene_features_ = tables.features;
   upload_all(devices, scene, std::move(nodes), std::move(triangles), std::move(shading), std::move(instance_words),
-             make_tables(scene, tri_flags, false), tri_flags, layout_start);
+             std::move(tables), tri_flags, layout_start);
 }
 
 DeviceScene::SceneTables DeviceScene::make_tables(const Scene& scene, const std::vector<std::uint32_t>& tri_flags,
@@ -582,10 +666,10 @@ DeviceScene::SceneTables DeviceScene::make_tables(const Scene& scene, const std:
   SceneTables t;
   t.materials = make_gpu_materials(scene);
   t.lights = make_light_table(scene);
-  light_count_ = t.lights.size();
+  t.light_count = t.lights.size();
   FrameParams light_params{};
-  fill_light_params(scene, light_count_, light_params);
-  scene_features_ = px::kernel_features(t.materials, tri_flags, light_params, !scene.vertex_colours.empty(), instanced);
+  fill_light_params(scene, t.light_count, light_params);
+  t.features = px::kernel_features(t.materials, tri_flags, light_params, !scene.vertex_colours.empty(), instanced);
   if (!scene.vertex_colours.empty()) {
     if (scene.vertex_colours.size() != scene.triangles.size())
       throw std::logic_error("DeviceScene: " + std::to_string(scene.vertex_colours.size()) + " vertex colour entries for " +

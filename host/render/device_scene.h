@@ -77,6 +77,7 @@ class DeviceScene {
   // vertex colours are made, before the shading records and the device words: it hands over the
   // scene's triangles (moved out of the scene, which keeps none), and the shading records are
   // made in their memory (64 of each triangle's 100 bytes; the rest goes back to the system).
+  // A static scene without instances then takes the two steps below (prepare_host first).
   // For a caller that needs the triangles no more (SceneOnDevices, for a static scene): at 10M
   // triangles their 1 GB then holds the shading records instead of standing beside them, and is
   // gone before the layout's largest part is made. After it, the constructor reads nothing of
@@ -84,6 +85,19 @@ class DeviceScene {
   DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, std::vector<FlatBvh> mesh_bvhs = {},
               const DeviceLayoutStore& store = {},
               const std::function<std::vector<SceneTriangle>()>& take_triangles = {});
+  // A static scene without instances in two steps, so that its largest host array is gone before
+  // the devices are made (SceneOnDevices): prepare_host makes what does not depend on the
+  // devices (the small tables and the triangle flags, then the shading records in the memory of
+  // the triangles `take_triangles` hands over, as above), and this constructor the layout of the
+  // set (nodes the tree lacks are made here and validated against its leaf triangles:
+  // validate_layout_from_leaves; in Wide4 and Wide8 the leaf triangles go as BvhLeafRef records,
+  // leaf_refs()). The same buffers as the constructor above with `take_triangles`, which runs
+  // these two steps itself for such a scene.
+  struct HostPart;
+  static std::shared_ptr<HostPart> prepare_host(const Scene& scene,
+                                                const std::function<std::vector<SceneTriangle>()>& take_triangles);
+  DeviceScene(DeviceSet& devices, std::shared_ptr<HostPart> host, const Scene& scene, FlatBvh bvh,
+              const DeviceLayoutStore& store = {});
   // A static scene without instances whose layout a start mapped from the cache
   // (DeviceLayoutCache::open) in the set's layout: its sections are the node, triangle and
   // shading buffers (CPU devices read the mapping itself), nothing is laid out.
@@ -161,7 +175,12 @@ class DeviceScene {
   // The constructors' common part: the small tables made from the scene (materials, textures,
   // lights, vertex colours; the kernel features), made before the scene's triangles may go ...
   struct SceneTables;  // device_scene.cpp
-  SceneTables make_tables(const Scene& scene, const std::vector<std::uint32_t>& tri_flags, bool instanced);
+  static SceneTables make_tables(const Scene& scene, const std::vector<std::uint32_t>& tri_flags, bool instanced);
+  // The static scene's layout from its host part (both constructors of such a scene).
+  void lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh bvh, std::shared_ptr<HostPart> host,
+                      const DeviceLayoutStore& store, std::chrono::steady_clock::time_point layout_start);
+  // Writes `parts` to the store's cache, saying so unless quiet; layout_store_ms_ is its time.
+  void store_layout(const DeviceLayoutStore& store, const DeviceLayoutParts& parts, std::size_t scene_triangles);
   // ... and the upload of everything.
   void upload_all(DeviceSet& devices, const Scene& scene, HostBytes nodes, HostBytes triangles, HostBytes shading,
                   std::vector<std::uint32_t> instance_words, SceneTables tables, const std::vector<std::uint32_t>& tri_flags,
