@@ -425,8 +425,9 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
   // The tree's node count in the layout (the cache records it), before the static case below
   // frees those nodes.
   std::size_t layout_nodes = 0;
-  // A static scene without instances makes its wide words last, after the scene's triangles may
-  // have gone (take_triangles), from nodes it then frees as it goes (device_wide_nodes_from).
+  // A static scene without instances that keeps its triangles (a handed-over one took
+  // lay_out_static above) makes its wide words last, from nodes it frees as it goes
+  // (device_wide_nodes_from).
   bool words_last = false;
   const bool static_wide = !instanced && !scene.rig && (layout == BvhLayout::Wide4 || layout == BvhLayout::Wide8);
   if (!instanced) {
