@@ -407,7 +407,9 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
   const auto layout_start = std::chrono::steady_clock::now();
   const bool instanced = !scene.instancing.empty();
   if (!instanced && !scene.rig && take_triangles) {
-    lay_out_static(devices, scene, std::move(bvh), prepare_host(scene, take_triangles), store, layout_start);
+    std::shared_ptr<HostPart> host = prepare_host(scene, take_triangles);
+    // lay_out_static counts the host part's time itself.
+    lay_out_static(devices, scene, std::move(bvh), std::move(host), store, std::chrono::steady_clock::now());
     return;
   }
   FlatBvh& flagged = bvh;
@@ -545,12 +547,14 @@ struct DeviceScene::HostPart {
   SceneTables tables;
   HostBytes shading;
   std::size_t scene_triangles = 0;
+  double ms = 0.0;  // the time it took, counted in layout_ms()
 };
 
 std::shared_ptr<DeviceScene::HostPart> DeviceScene::prepare_host(
     const Scene& scene, const std::function<std::vector<SceneTriangle>()>& take_triangles) {
   if (!scene.instancing.empty() || scene.rig || !take_triangles)
     throw std::logic_error("DeviceScene::prepare_host: a static scene without instances, its triangles handed over");
+  const auto start = std::chrono::steady_clock::now();
   auto host = std::make_shared<HostPart>();
   host->scene_triangles = scene.triangles.size();
   host->tri_flags = triangle_flags(scene);
@@ -560,6 +564,7 @@ std::shared_ptr<DeviceScene::HostPart> DeviceScene::prepare_host(
     throw std::logic_error("DeviceScene: take_triangles handed over " + std::to_string(taken.size()) +
                            " triangles, not the scene's " + std::to_string(host->scene_triangles));
   host->shading = shading_in_place(std::move(taken));
+  host->ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return host;
 }
 
@@ -630,6 +635,9 @@ void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh
   }
   light_count_ = host->tables.light_count;
   scene_features_ = host->tables.features;
+  // The host part's time (made before the devices, when it was) is part of the layout's.
+  layout_start -= std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double, std::milli>(host->ms));
   upload_all(devices, scene, std::move(node_bytes), std::move(triangle_bytes), std::move(host->shading),
              instance_buffer_words(scene, {}, scene_triangles), std::move(host->tables), host->tri_flags, layout_start);
 }

@@ -127,7 +127,7 @@ class DeviceScene {
   // Host time to create and write those buffers (blocking writes), ms.
   double upload_ms() const { return upload_ms_; }
   // Host time to make the device layout before that (triangle flags, wide nodes and leaf blocks,
-  // shading records, the light table, instances), ms.
+  // shading records, the light table, instances; prepare_host's part included), ms.
   double layout_ms() const { return layout_ms_; }
   // Whether the buffers are the host's own arrays (every device a CPU device: no second copy).
   bool host_backed() const { return host_backed_; }
