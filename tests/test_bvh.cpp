@@ -990,7 +990,8 @@ TEST(WideBvh, LeafRefsPointAtTheBlocksHoldingTheirVertices) {
     std::uint32_t last_first = 0;
     std::size_t last_block = 0, bad = 0;
     for (std::size_t i = 0; i < leaf.size() && bad < 5; ++i) {
-      const BvhLeafRef r = refs.data()[i];
+      BvhLeafRef r;
+      std::memcpy(&r, reinterpret_cast<const unsigned char*>(refs.memory.data()) + i * sizeof r, sizeof r);
       const BvhTriangle& t = leaf[i];
       BvhLeafBlock b;
       ASSERT_LE((std::size_t{r.block} * 16 + sizeof b) / 4, got.size());

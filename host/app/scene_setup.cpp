@@ -264,9 +264,6 @@ SceneOnDevices::SceneOnDevices(const std::string& spec, const DeviceOptions& dev
 
 namespace {
 
-// The scene on `devices`: from the mapped device layout when the cache held one in the set's
-// layout, else laid out from the tree (read or built now if the start had mapped another
-// layout: a GPU set's), and stored for the next start when the scene is cacheable.
 // The device-independent part of a static scene's layout, made before the devices (null for
 // other scenes and for a layout mapped from the cache).
 std::shared_ptr<DeviceScene::HostPart> prepare_host_part(LoadedScene& loaded) {
@@ -280,6 +277,10 @@ std::shared_ptr<DeviceScene::HostPart> prepare_host_part(LoadedScene& loaded) {
   });
 }
 
+// The scene on `devices`: from the mapped device layout when the cache held one in the set's
+// layout, else laid out from the tree (read or built now if the start had mapped another
+// layout: a GPU set's) and the host part when there is one, and stored for the next start when
+// the scene is cacheable.
 DeviceScene make_device_scene(DeviceSet& devices, LoadedScene& loaded,
                               std::shared_ptr<DeviceScene::HostPart>& host_part) {
   const BvhLayout layout = devices.bvh_layout();

@@ -1172,7 +1172,7 @@ class Converter {
 
 Scene load_gltf(const std::string& path, bool* has_camera) {
   if (has_camera) *has_camera = false;
-  const std::string bytes = read_binary_file(path);
+  std::string bytes = read_binary_file(path);
   const bool binary = bytes.size() >= 4 && read_u32(bytes, 0) == kGlbMagic;
   std::string json_text;
   if (binary) {
@@ -1197,6 +1197,8 @@ Scene load_gltf(const std::string& path, bool* has_camera) {
       binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(bytes.data()),
                                            unsigned(bytes.size()), base_dir)
              : loader.LoadASCIIFromString(&model, &err, &warn, bytes.data(), unsigned(bytes.size()), base_dir);
+  // The model holds copies of the buffers: the file's bytes go before the triangles are made.
+  std::string().swap(bytes);
   if (!ok) {
     const std::string why = one_line(err);
     throw SceneError(path + ": cannot load glTF: " + (why.empty() ? "unknown error" : why));
