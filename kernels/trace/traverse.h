@@ -27,39 +27,26 @@ inline int px_cut_out(const SceneView* scene, const global PxLeafTriangle* tri, 
 #if defined(PX_LEAF_REFS) && PX_LEAF_REFS && PX_BVH_WIDTH == 2
 #error "PX_LEAF_REFS needs a wide layout: the vertices are in the leaf blocks"
 #endif
-#if defined(PX_LEAF_REFS) && PX_LEAF_REFS
-/* Intersects the `count` triangles of the leaf block `block` one by one, reading each lane's
- * vertices from the block's rows (the leaf triangles carry none): the same floats, the same
- * operations and the same order as px_intersect_leaf on BvhTriangle vertices. Updates *best;
- * returns 1 on any hit. */
-inline int px_intersect_block_lanes(const SceneView* scene, const global float* block, uint first, uint count,
-                                    const RayShear* shear, float tmin, Hit* best) {
+/* Intersects `count` leaf triangles starting at `first` one by one; updates *best. Returns 1 on
+ * any hit. With PX_LEAF_REFS the leaf triangles carry no vertices: each is read from its lane of
+ * the leaf's block `block` (types.h: BvhLeafBlock rows, 4 floats apart), the same floats, the
+ * same operations and the same order; without it `block` is not read (the binary layout passes
+ * none). */
+inline int px_intersect_leaf(const SceneView* scene, const global float* block, uint first, uint count,
+                             const RayShear* shear, float tmin, Hit* best) {
   int any = 0;
   for (uint j = 0; j < count; ++j) {
     const uint i = first + j;
     const global PxLeafTriangle* tri = scene->tris + i;
-    float t, u, v;
-    if (px_intersect_triangle_strided(shear, block + j, block + 12 + j, block + 24 + j, 4, tmin, best->t, &t, &u,
-                                      &v) &&
-        !px_cut_out(scene, tri, u, v)) {
-      best->t = t;
-      best->u = u;
-      best->v = v;
-      best->prim = i; /* leaf index; px_trace_closest maps it to the scene index */
-      any = 1;
-    }
-  }
-  return any;
-}
+#if defined(PX_LEAF_REFS) && PX_LEAF_REFS
+    const global float *v0 = block + j, *v1 = block + 12 + j, *v2 = block + 24 + j;
+    const int stride = 4;
 #else
-/* Intersects `count` leaf triangles starting at `first`; updates *best. Returns 1 on any hit. */
-inline int px_intersect_leaf(const SceneView* scene, uint first, uint count,
-                             const RayShear* shear, float tmin, Hit* best) {
-  int any = 0;
-  for (uint i = first; i < first + count; ++i) {
-    const global PxLeafTriangle* tri = scene->tris + i;
+    const global float *v0 = tri->v0, *v1 = tri->v1, *v2 = tri->v2;
+    const int stride = 1;
+#endif
     float t, u, v;
-    if (px_intersect_triangle_mem(shear, tri->v0, tri->v1, tri->v2, tmin, best->t, &t, &u, &v) &&
+    if (px_intersect_triangle_strided(shear, v0, v1, v2, stride, tmin, best->t, &t, &u, &v) &&
         !px_cut_out(scene, tri, u, v)) {
       best->t = t;
       best->u = u;
@@ -70,7 +57,6 @@ inline int px_intersect_leaf(const SceneView* scene, uint first, uint count,
   }
   return any;
 }
-#endif
 
 /* One step of a near-first walk over binary nodes (the binary layout's closest hit, the
  * instances' top level), once node `n`'s two children have their entry distances tl, tr
@@ -118,11 +104,11 @@ inline Hit px_tree_closest(const SceneView* scene, float3 org, float3 dir, float
     float tr = px_child_absent(n.right, n.right_count) ? INFINITY
                                                        : px_intersect_box(org, inv_dir, n.rmin, n.rmax, tmin, best.t);
     if (tl != INFINITY && n.left_count > 0) {
-      px_intersect_leaf(scene, n.left, n.left_count, &shear, tmin, &best);
+      px_intersect_leaf(scene, 0, n.left, n.left_count, &shear, tmin, &best);
       tl = INFINITY;
     }
     if (tr != INFINITY && n.right_count > 0) {
-      px_intersect_leaf(scene, n.right, n.right_count, &shear, tmin, &best);
+      px_intersect_leaf(scene, 0, n.right, n.right_count, &shear, tmin, &best);
       tr = INFINITY;
     }
     /* A leaf hit may have shortened best.t below an interior child's entry: skip it then. */
@@ -151,12 +137,12 @@ inline int px_tree_any(const SceneView* scene, float3 org, float3 dir, float tmi
     int go_left = tl != INFINITY, go_right = tr != INFINITY;
     if (go_left && n.left_count > 0) {
       scratch.t = tmax;
-      if (px_intersect_leaf(scene, n.left, n.left_count, &shear, tmin, &scratch)) return 1;
+      if (px_intersect_leaf(scene, 0, n.left, n.left_count, &shear, tmin, &scratch)) return 1;
       go_left = 0;
     }
     if (go_right && n.right_count > 0) {
       scratch.t = tmax;
-      if (px_intersect_leaf(scene, n.right, n.right_count, &shear, tmin, &scratch)) return 1;
+      if (px_intersect_leaf(scene, 0, n.right, n.right_count, &shear, tmin, &scratch)) return 1;
       go_right = 0;
     }
     if (go_left && go_right) {
@@ -370,18 +356,8 @@ inline void pxw_prefetch_node_rest(const global float* node) { PX_PREFETCH(node 
 
 inline uint px_lowest_bit(uint m) { return 31u - clz(m & (0u - m)); }
 
-/* The one-by-one test of a block's leaf: from the block's rows when the leaf triangles carry
- * no vertices (PX_LEAF_REFS), else from the leaf triangles. */
-#if defined(PX_LEAF_REFS) && PX_LEAF_REFS
-#define PX_INTERSECT_LEAF_OF_BLOCK(scene, block, first, count, s, tmin, best) \
-  px_intersect_block_lanes(scene, block, first, count, s, tmin, best)
-#else
-#define PX_INTERSECT_LEAF_OF_BLOCK(scene, block, first, count, s, tmin, best) \
-  px_intersect_leaf(scene, first, count, s, tmin, best)
-#endif
-
 /* Intersects the leaf whose BvhLeafBlock starts at `block` (types.h): the watertight test of
- * px_intersect_triangle_mem on all four lanes at once, the same operations in the same order,
+ * px_intersect_triangle_strided on all four lanes at once, the same operations in the same order,
  * so each lane computes exactly what the one-triangle test would. Where any lane's edge
  * function is exactly zero (a ray through an edge or vertex, decided in double precision
  * there), and for alpha-tested leaves, the leaf is intersected triangle by triangle instead.
@@ -393,7 +369,7 @@ inline int px_intersect_block(const SceneView* scene, const global float* block,
   const global uint* header = (const global uint*)(block + 36);
   const uint first = header[0];
   if (PX_HAS(PX_FEATURE_ALPHA_TEST) && (header[2] & PX_TRI_ALPHA_TESTED))
-    return PX_INTERSECT_LEAF_OF_BLOCK(scene, block, first, count, s, tmin, best);
+    return px_intersect_leaf(scene, block, first, count, s, tmin, best);
   const float ox = px_axis(s->org, s->kx), oy = px_axis(s->org, s->ky), oz = px_axis(s->org, s->kz);
   const int kx = 4 * s->kx, ky = 4 * s->ky, kz = 4 * s->kz;
   const float4 az = vload4(0, block + kz) - oz;
@@ -409,7 +385,7 @@ inline int px_intersect_block(const SceneView* scene, const global float* block,
   float4 ev = ax * cy - ay * cx;
   float4 ew = bx * ay - by * ax;
   if (any((eu == 0.0f) | (ev == 0.0f) | (ew == 0.0f)))
-    return PX_INTERSECT_LEAF_OF_BLOCK(scene, block, first, count, s, tmin, best);
+    return px_intersect_leaf(scene, block, first, count, s, tmin, best);
   int4 ok = !(((eu < 0.0f) | (ev < 0.0f) | (ew < 0.0f)) & ((eu > 0.0f) | (ev > 0.0f) | (ew > 0.0f)));
   float4 det = eu + ev + ew;
   ok &= det != 0.0f;

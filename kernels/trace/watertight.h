@@ -51,8 +51,8 @@ inline RayShear px_make_shear(float3 org, float3 dir) {
  * (t = +0 or -0 in float) must not hit that triangle at distance zero, which with tmin = 0 and
  * a closed lower end it did whenever the edge functions put the origin inside it.
  * Vertices are read component-wise in the ray's permuted axis order straight from memory
- * (indexed loads), which is cheaper than permuting float3 values with selects. */
-/* `stride`: floats between a vertex's x, y and z (1 for float[3]; 4 for a lane of a leaf
+ * (indexed loads), which is cheaper than permuting float3 values with selects; `stride` is the
+ * distance in floats between a vertex's x, y and z (1 for float[3]; 4 for a lane of a leaf
  * block's rows). */
 inline int px_intersect_triangle_strided(const RayShear* s, const global float* v0, const global float* v1,
                                          const global float* v2, int stride, float tmin, float tmax, float* t,
@@ -96,11 +96,6 @@ inline int px_intersect_triangle_strided(const RayShear* s, const global float* 
   *u = ev * inv;
   *v = ew * inv;
   return 1;
-}
-
-inline int px_intersect_triangle_mem(const RayShear* s, const global float* v0, const global float* v1,
-                                     const global float* v2, float tmin, float tmax, float* t, float* u, float* v) {
-  return px_intersect_triangle_strided(s, v0, v1, v2, 1, tmin, tmax, t, u, v);
 }
 
 /* Reciprocal direction without infinities: a zero component becomes a huge finite value of
