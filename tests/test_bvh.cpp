@@ -652,6 +652,31 @@ TEST(Bvh, SplitTrialTakesSplitsWhereTheyPay) {
   expect_traversal_matches_brute_force(trial, tris, 500, 53);
 }
 
+// Past 16 x split_trial_max_sample triangles the sample thins out to that many: forced here with
+// a small cap. It holds exactly ceil(n / stride) triangles and decides as every 16th did, both
+// where splits gain nothing and where they pay.
+TEST(Bvh, SplitTrialSampleCappedDecidesAsTheFullSample) {
+  const auto flat = heightfield(150);          // 45,000 triangles
+  const auto strips = diagonal_strips(400);    // splits pay
+  for (const auto* tris : {&flat, &strips}) {
+    SCOPED_TRACE(tris == &flat ? "heightfield" : "diagonal strips");
+    const FlatBvh every16 = build_bvh(*tris, forced_trial());
+    BvhBuildOptions capped_options = forced_trial();
+    capped_options.split_trial_max_sample = tris->size() / 40;
+    const FlatBvh capped = build_bvh(*tris, capped_options);
+    const std::size_t stride = (tris->size() + capped_options.split_trial_max_sample - 1) /
+                               capped_options.split_trial_max_sample;
+    ASSERT_GT(stride, 16u);
+    EXPECT_EQ(capped.stats.split_trial_sampled, (tris->size() + stride - 1) / stride);
+    EXPECT_LE(capped.stats.split_trial_sampled, capped_options.split_trial_max_sample);
+    EXPECT_EQ(every16.stats.split_trial_sampled, (tris->size() + 15) / 16);
+    EXPECT_EQ(capped.stats.split_trial_taken, every16.stats.split_trial_taken)
+        << "gain " << capped.stats.split_trial_gain << " against " << every16.stats.split_trial_gain;
+    EXPECT_EQ(capped.stats.split_trial_taken, tris == &strips);
+    expect_valid(capped, *tris);
+  }
+}
+
 TEST(Bvh, SplitTrialOnlyFromItsSizeAndNeverOnOverlappingSlivers) {
   // Below split_trial_triangles the build is as asked: no trial.
   const auto tris = diagonal_strips(50);
@@ -1128,6 +1153,54 @@ TEST(WideBvh, ValidatorOnThreadsReportsEveryLayoutInOrder) {
     ASSERT_LT(binary_at, check.errors.size()) << "the binary tree's halved leaf box";
     ASSERT_LT(wide_at, check.errors.size()) << "the wide8 tree's halved leaf box";
     EXPECT_LT(binary_at, wide_at);
+  }
+}
+
+// A single large tree is validated by several threads, each over its own range of the leaf
+// entries (validate_tree's parts; this VM's two cores make two). A correct tree passes, with
+// spatial splits too, whose triangles are counted by both parts and must be added up, not
+// judged twice as single references; corruptions in the last part are found, with the count of
+// problems the same as when the tree is checked beside a wide layout (one thread a layout).
+TEST(Validator, OneLargeTreeOnSeveralThreadsFindsWhatOneThreadFinds) {
+  const auto tris = random_soup(120000, 65);  // past the validator's threading threshold
+  for (bool splits : {false, true}) {
+    SCOPED_TRACE(splits ? "spatial splits" : "binned");
+    const FlatBvh bvh = build_bvh(tris, with_splits(splits), /*collapse=*/false);
+    if (splits) ASSERT_GT(bvh.triangles.size(), tris.size()) << "splits referenced some triangles twice";
+    const BvhValidation good = validate_bvh(bvh, tris);
+    EXPECT_TRUE(good.ok) << (good.errors.empty() ? "" : good.errors.front());
+    FlatBvh with_wide = bvh;
+    collapse_bvh(with_wide, 8);
+    const BvhValidation good_wide = validate_layout_from_leaves(with_wide, tris.size());
+    EXPECT_TRUE(good_wide.ok) << (good_wide.errors.empty() ? "" : good_wide.errors.front());
+    // In the last tenth of the entries: one entry whose vertex is not its scene triangle's, and
+    // one binary leaf of one triangle whose box no longer holds it.
+    FlatBvh bad = bvh;
+    const std::size_t entry = bad.triangles.size() - bad.triangles.size() / 20;
+    bad.triangles[entry].v0[0] += 1e-3f;
+    std::uint32_t leaf_node = ~0u;
+    for (std::uint32_t n = 0; n < bad.nodes.size() && leaf_node == ~0u; ++n)
+      if (bad.nodes[n].left_count == 1 && bad.nodes[n].left > bad.triangles.size() * 9 / 10 &&
+          tris[bad.triangles[bad.nodes[n].left].prim].p[0].y > bad.nodes[n].lmin[1])
+        leaf_node = n;
+    ASSERT_NE(leaf_node, ~0u);
+    BvhNode& b = bad.nodes[leaf_node];
+    b.lmax[1] = b.lmin[1];
+    const BvhValidation alone = validate_bvh(bad, tris);
+    EXPECT_FALSE(alone.ok);
+    EXPECT_TRUE(has_error(alone, "", "triangle entry " + std::to_string(entry) + " does not match scene triangle"));
+    const std::string moved = "scene triangle " + std::to_string(bad.triangles[b.left].prim);
+    EXPECT_TRUE(has_error(alone, "", moved + " is not inside the box of its leaf") ||
+                has_error(alone, "", moved + " does not overlap the box of a leaf holding it"));
+    // Beside wide8 nodes each layout gets one thread: the binary tree's problems, counted the same.
+    FlatBvh bad_wide = bad;
+    collapse_bvh(bad_wide, 8);
+    const BvhValidation beside = validate_bvh(bad_wide, tris);
+    EXPECT_FALSE(beside.ok);
+    std::size_t binary_alone = 0, binary_beside = 0;
+    for (const std::string& e : alone.errors) binary_alone += e.rfind("wide8 ", 0) != 0 && e.rfind("...", 0) != 0;
+    for (const std::string& e : beside.errors) binary_beside += e.rfind("wide8 ", 0) != 0 && e.rfind("...", 0) != 0;
+    EXPECT_EQ(binary_alone, binary_beside) << "first: " << alone.errors.front();
   }
 }
 

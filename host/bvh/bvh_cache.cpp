@@ -67,6 +67,7 @@ std::uint64_t bvh_input_hash(const std::vector<SceneTriangle>& triangles, const 
   f.value(options.split_calls_per_triangle);
   f.value(static_cast<std::uint64_t>(options.split_trial_triangles));
   f.value(options.split_min_gain);
+  f.value(static_cast<std::uint64_t>(options.split_trial_max_sample));
   f.value(static_cast<std::uint64_t>(options.block_leaves_from));
   f.value(static_cast<std::uint64_t>(triangles.size()));
   for (const SceneTriangle& t : triangles) {

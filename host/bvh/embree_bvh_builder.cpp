@@ -834,18 +834,20 @@ void build_tree(const std::vector<SceneTriangle>& triangles, const BvhBuildOptio
 }
 
 // The spatial-split trial (BvhBuildOptions::split_trial_triangles): every 16th triangle of the
-// scene is built both ways, and the result is the relative SAH gain of the splits. Spatial splits
-// pay where triangles are large against the nodes they land in (long walls, floors, slivers
-// across a room), and a sparse sample keeps the triangles' sizes against the scene's extent.
-// Its triangles lie further apart than the scene's, so the sample over-states the gain rather
-// than missing it. A compact sample (a subtree of the binned tree) was tried first: it missed
-// atrium's 12% gain, which lives in its top levels.
+// scene (sparser past split_trial_max_sample) is built both ways, and the result is the relative
+// SAH gain of the splits. Spatial splits pay where triangles are large against the nodes they
+// land in (long walls, floors, slivers across a room), and a sparse sample keeps the triangles'
+// sizes against the scene's extent. Its triangles lie further apart than the scene's, so the
+// sample over-states the gain rather than missing it. A compact sample (a subtree of the binned
+// tree) was tried first: it missed atrium's 12% gain, which lives in its top levels.
 double sampled_split_gain(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options,
                           unsigned int sah_block, std::size_t& sampled) {
-  constexpr std::size_t kStride = 16;
+  std::size_t stride = 16;
+  const std::size_t cap = options.split_trial_max_sample;
+  if (cap > 0 && triangles.size() > stride * cap) stride = (triangles.size() + cap - 1) / cap;
   std::vector<SceneTriangle> part;
-  part.reserve(triangles.size() / kStride + 1);
-  for (std::size_t i = 0; i < triangles.size(); i += kStride) part.push_back(triangles[i]);
+  part.reserve(triangles.size() / stride + 1);
+  for (std::size_t i = 0; i < triangles.size(); i += stride) part.push_back(triangles[i]);
   sampled = part.size();
   if (part.size() < 2) return 0.0;
   BvhBuildOptions split = options, plain = options;

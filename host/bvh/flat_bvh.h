@@ -26,7 +26,8 @@ struct BvhBuildOptions {
   // measuring what the bound saves: overlapping slivers then take ~5-8x Embree's own build).
   std::uint32_t split_calls_per_triangle = 96;
   // Spatial splits on trial for large scenes. A scene of at least split_trial_triangles triangles
-  // is first built with binned SAH; every 16th triangle is then built both ways, and the whole
+  // is first built with binned SAH; every 16th triangle (or sparser: split_trial_max_sample) is then
+  // built both ways, and the whole
   // scene is built again with splits only if they lowered that sample's SAH cost by at least
   // split_min_gain (and kept within their work rate). On a 1M-triangle heightfield the splits
   // cost 5x the binned build and gain nothing (the sample: 0.1%); on atrium they gain 12% (the
@@ -34,6 +35,11 @@ struct BvhBuildOptions {
   // 1.1x its time). 0: no trial, spatial_splits as asked.
   std::size_t split_trial_triangles = 500000;
   double split_min_gain = 0.02;
+  // At most this many triangles in the trial's sample: past 16 x this (4.2M triangles) the
+  // stride grows beyond 16. The sample's two builds cost about 1 us per sampled triangle on a
+  // 2-core VM, and a sample of this size already decides as every-16th did (the 10M heightfield:
+  // 0.0% either way; the trial 630 -> 250 ms). 0: no cap.
+  std::size_t split_trial_max_sample = 262144;
   // Scenes of at least this many triangles get leaves sized for the wide layouts' leaf blocks
   // (BvhLeafBlock: 4 triangles tested at once): the SAH counts a leaf's intersection cost per
   // started block of 4 triangles, not per triangle (Embree's sahBlockSize), so leaves fill up to

@@ -96,6 +96,7 @@ std::uint64_t device_layout_key(std::uint64_t content_key, BvhLayout layout, con
   h.value(options.split_calls_per_triangle);
   h.value(static_cast<std::uint64_t>(options.split_trial_triangles));
   h.value(options.split_min_gain);
+  h.value(static_cast<std::uint64_t>(options.split_trial_max_sample));
   h.value(static_cast<std::uint64_t>(options.block_leaves_from));
   return h.digest();
 }
