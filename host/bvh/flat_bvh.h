@@ -25,15 +25,16 @@ struct BvhBuildOptions {
   // split_call_budget); past it the build is redone with binned SAH. 0: unbounded (only for
   // measuring what the bound saves: overlapping slivers then take ~5-8x Embree's own build).
   std::uint32_t split_calls_per_triangle = 96;
-  // Spatial splits on trial for large scenes. A scene of at least split_trial_triangles triangles
-  // is first built with binned SAH; every 16th triangle (or sparser: split_trial_max_sample) is then
-  // built both ways, and the whole
-  // scene is built again with splits only if they lowered that sample's SAH cost by at least
-  // split_min_gain (and kept within their work rate). On a 1M-triangle heightfield the splits
-  // cost 5x the binned build and gain nothing (the sample: 0.1%); on atrium they gain 12% (the
-  // sample: 18%, so the trial takes them and builds the very tree a plain split build makes, at
-  // 1.1x its time). 0: no trial, spatial_splits as asked.
-  std::size_t split_trial_triangles = 500000;
+  // Spatial splits on trial for large scenes. For a scene of at least split_trial_triangles
+  // triangles, every 16th triangle (or sparser: split_trial_max_sample) is first built both ways,
+  // and the scene is built with splits only if they lowered that sample's SAH cost by at least
+  // split_min_gain (and kept within their work rate), else with binned SAH. On a 1M-triangle
+  // heightfield the splits cost 5x the binned build and gain nothing (the sample: 0.1%); on
+  // atrium they gain 12% (the sample: 18%, so the trial takes them and builds the very tree a
+  // plain split build makes, at 1.1x its time). From 200k triangles (it was 500k, under which
+  // a 0.25M heightfield's start, 2.0 s, took longer than a 1M one's, 1.6 s: its BVH 1.36 s with
+  // splits that gained 0.1%). 0: no trial, spatial_splits as asked.
+  std::size_t split_trial_triangles = 200000;
   double split_min_gain = 0.02;
   // At most this many triangles in the trial's sample: past 16 x this (4.2M triangles) the
   // stride grows beyond 16. The sample's two builds cost about 1 us per sampled triangle on a
