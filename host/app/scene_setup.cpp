@@ -2,6 +2,7 @@
 
 #include "bvh/bvh_cache.h"
 #include "bvh/scene_bvhs.h"
+#include "image/image_io.h"
 #include "render/device_layout_cache.h"
 #include "scene/instancing.h"
 #include "io/progress_ticker.h"
@@ -165,6 +166,9 @@ bool collapse_later(const LoadedScene& out, bool for_devices) {
 LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky, bool map_device_layout) {
   using clock = Clock;
   LoadedScene out;
+  // Textures, and the frames' files after the start, need the image codec: its libraries load
+  // on another core while the scene does.
+  preload_image_codec();
   auto t0 = clock::now();
   if (!quiet) std::fprintf(stderr, "[scene] loading %s ...\n", spec.c_str());
   {

@@ -9,6 +9,8 @@ const char* const kNoCodec = "this build of parallax has no image codec (configu
 
 }  // namespace
 
+void preload_image_codec() {}
+
 bool image_codec_available() { return false; }
 
 void write_exr(const std::string& path, const ImageRGB&) { throw ImageError("cannot write " + path + ": " + kNoCodec); }

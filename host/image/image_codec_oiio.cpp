@@ -1,7 +1,6 @@
-// The image codec: OpenImageIO reads and writes every image file (see image_io.h).
-#include "image/image_io.h"
-
-#include "io/atomic_file.h"
+// The OpenImageIO codec module (libparallax_image_oiio.so): encodes and decodes image files for
+// the program, which loads it at run time (oiio_codec.h says why). It writes no file itself.
+#include "image/oiio_codec.h"
 
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
@@ -11,28 +10,24 @@
 namespace px {
 namespace {
 
-// Encodes into memory (an OIIO IOProxy) and hands the bytes to write_file_atomic: OIIO's own
-// file output does not report every failed write or close (a full disk gave 0-byte files and
-// success), and a file written in place is truncated under its final name if the run stops.
-void write_image(const std::string& path, int width, int height, int channels, OIIO::TypeDesc type,
-                 const void* pixels) {
-  std::vector<unsigned char> encoded;
+// Encodes into memory (an OIIO IOProxy); the program writes the bytes (write_file_atomic): OIIO's
+// own file output does not report every failed write or close (a full disk gave 0-byte files
+// and success), and a file written in place is truncated under its final name if the run stops.
+std::string encode(const std::string& path, int width, int height, int channels, bool floats, const void* pixels,
+                   std::vector<unsigned char>& encoded) {
+  const OIIO::TypeDesc type = floats ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8;
+  encoded.clear();
   OIIO::Filesystem::IOVecOutput proxy(encoded);
   auto out = OIIO::ImageOutput::create(path, &proxy);
-  if (!out) throw ImageError("cannot write " + path + ": " + OIIO::geterror());
+  if (!out) return "cannot write " + path + ": " + OIIO::geterror();
   if (!out->supports("ioproxy"))
-    throw ImageError("cannot write " + path + ": the " + out->format_name() +
-                     " writer of this OpenImageIO cannot encode into memory");
+    return "cannot write " + path + ": the " + std::string(out->format_name()) +
+           " writer of this OpenImageIO cannot encode into memory";
   OIIO::ImageSpec spec(width, height, channels, type);
-  if (!out->open(path, spec)) throw ImageError("cannot encode " + path + ": " + out->geterror());
-  if (!out->write_image(type, pixels)) throw ImageError("cannot encode " + path + ": " + out->geterror());
-  if (!out->close()) throw ImageError("cannot encode " + path + ": " + out->geterror());
-  out.reset();
-  try {
-    write_file_atomic(path, std::string_view(reinterpret_cast<const char*>(encoded.data()), encoded.size()));
-  } catch (const WriteError& e) {
-    throw ImageError(e.what());
-  }
+  if (!out->open(path, spec)) return "cannot encode " + path + ": " + out->geterror();
+  if (!out->write_image(type, pixels)) return "cannot encode " + path + ": " + out->geterror();
+  if (!out->close()) return "cannot encode " + path + ": " + out->geterror();
+  return {};
 }
 
 // Reads the first subimage of an opened input as float. Returns the reason on failure.
@@ -62,48 +57,32 @@ OIIO::ImageSpec straight_alpha_config() {
   return config;
 }
 
-}  // namespace
-
-bool image_codec_available() { return true; }
-
-void write_exr(const std::string& path, const ImageRGB& image) {
-  write_image(path, image.width, image.height, 3, OIIO::TypeDesc::FLOAT, image.rgb.data());
-}
-
-ImageRGB read_image_rgb(const std::string& path) {
+std::string read_rgb(const std::string& path, ImageRGB& img) {
   auto in = OIIO::ImageInput::open(path);
-  if (!in) throw ImageError("cannot read " + path + ": " + OIIO::geterror());
+  if (!in) return "cannot read " + path + ": " + OIIO::geterror();
   const OIIO::ImageSpec& spec = in->spec();
-  if (spec.nchannels < 1) throw ImageError(path + ": image has no channels");
+  if (spec.nchannels < 1) return path + ": image has no channels";
   std::vector<float> all(static_cast<std::size_t>(spec.width) * spec.height * spec.nchannels);
   if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, all.data()))
-    throw ImageError("cannot read " + path + ": " + in->geterror());
-  ImageRGB img;
+    return "cannot read " + path + ": " + in->geterror();
   img.width = spec.width;
   img.height = spec.height;
   img.rgb.resize(static_cast<std::size_t>(img.width) * img.height * 3);
   for (std::size_t i = 0; i < static_cast<std::size_t>(img.width) * img.height; ++i)
     for (int c = 0; c < 3; ++c)
       img.rgb[i * 3 + c] = all[i * spec.nchannels + std::min(c, spec.nchannels - 1)];
-  return img;
+  return {};
 }
 
-void write_png(const std::string& path, int width, int height, const std::vector<std::uint8_t>& rgba) {
-  if (rgba.size() != static_cast<std::size_t>(width) * height * 4)
-    throw ImageError("write_png " + path + ": buffer size does not match " + std::to_string(width) +
-                     "x" + std::to_string(height));
-  write_image(path, width, height, 4, OIIO::TypeDesc::UINT8, rgba.data());
-}
-
-std::string decode_image_file(const std::string& path, DecodedImage& out) {
+std::string decode_file(const std::string& path, DecodedImage& out) {
   const OIIO::ImageSpec config = straight_alpha_config();
   auto in = OIIO::ImageInput::open(path, &config);
   if (!in) return OIIO::geterror();
   return read_decoded(*in, out);
 }
 
-std::string decode_image_memory(const unsigned char* bytes, std::size_t size, const std::string& name,
-                                DecodedImage& out) {
+std::string decode_memory(const unsigned char* bytes, std::size_t size, const std::string& name,
+                          DecodedImage& out) {
   if (size == 0) return "empty image";
   OIIO::Filesystem::IOMemReader memory(bytes, size);
   OIIO::ImageSpec config = straight_alpha_config();
@@ -116,4 +95,10 @@ std::string decode_image_memory(const unsigned char* bytes, std::size_t size, co
   return read_decoded(*in, out);
 }
 
+}  // namespace
 }  // namespace px
+
+extern "C" __attribute__((visibility("default"))) const px::OiioCodec* px_oiio_codec_table() {
+  static const px::OiioCodec table{px::encode, px::read_rgb, px::decode_file, px::decode_memory};
+  return &table;
+}

@@ -1,6 +1,7 @@
 // Image files: linear float EXR (radiance, for references and error figures) and 8-bit PNG
 // (what a person looks at), and the decoding of texture images. Thin wrappers over OpenImageIO
-// (image_codec_oiio.cpp) that throw ImageError with the path on failure.
+// (image_codec_oiio_front.cpp, the codec itself a module loaded at run time: oiio_codec.h) that
+// throw ImageError with the path on failure.
 //
 // A build configured with -DPX_OPENIMAGEIO=OFF has no image codec (image_codec_none.cpp): it
 // still renders and measures (reports, timelines, in-memory error figures) but writes no image
@@ -26,6 +27,12 @@ struct ImageRGB {
   int height = 0;
   std::vector<float> rgb;  // width * height * 3
 };
+
+// Starts loading the image codec on a thread of its own where the codec is loaded at run time
+// (OpenImageIO's module, oiio_codec.h), so that it is ready by the first image call; a no-op
+// where it is not, and when it is loaded or loading already. Never fails: a codec that cannot be
+// loaded says so at its first use.
+void preload_image_codec();
 
 // False in a build without an image codec: every function below then fails with a message that
 // says so (decode_image_* return it; the others throw ImageError).

@@ -1,0 +1,43 @@
+// The OpenImageIO codec as a table of four functions, loaded at run time.
+//
+// OpenImageIO's Debian build pulls in about 260 shared libraries; linked into the program, the
+// dynamic linker resolved them all before main (0.25-0.37 s for every run, `parallax --help`
+// included, a tenth of a 10M-triangle warm start). So the codec lives in a module of its own
+// (libparallax_image_oiio.so, image_codec_oiio.cpp) beside the executable, which
+// image_codec_module.cpp opens: at the first image call, or earlier on another thread where a
+// run is about to load a scene (preload_image_codec, image_io.h, called by load_and_build: the
+// libraries then load while the scene does). image_codec_oiio_front.cpp implements image_io.h on top of
+// the table; the files are written by this process (atomic_file.h), never by the module.
+//
+// The table's functions return an empty string on success, else the reason; they never throw.
+// Both sides are built by this project with one compiler and standard library, so the table
+// may hold C++ types.
+#pragma once
+
+#include "image/image_io.h"
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+namespace px {
+
+struct OiioCodec {
+  // Encodes pixels (float or 8-bit, `channels` interleaved, rows top to bottom) into the bytes
+  // of the file format `path`'s extension names.
+  std::string (*encode)(const std::string& path, int width, int height, int channels, bool floats,
+                        const void* pixels, std::vector<unsigned char>& bytes);
+  std::string (*read_rgb)(const std::string& path, ImageRGB& out);
+  std::string (*decode_file)(const std::string& path, DecodedImage& out);
+  std::string (*decode_memory)(const unsigned char* bytes, std::size_t size, const std::string& name,
+                               DecodedImage& out);
+};
+
+// The module's table, loading it on first use (thread-safe); null with the reason in `error`
+// when it cannot be loaded.
+const OiioCodec* oiio_codec(std::string& error);
+
+}  // namespace px
+
+// The one symbol the module exports.
+extern "C" const px::OiioCodec* px_oiio_codec_table();
