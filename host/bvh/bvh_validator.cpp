@@ -256,22 +256,25 @@ unsigned validation_parts(std::size_t entries) {
   return entries >= kThreadedFrom ? std::min(cores, 8u) : 1u;
 }
 
-// Runs job(0) .. job(parts - 1), parts 1.. on threads of their own and part 0 on this one;
-// an exception of any is rethrown once all have finished.
+// Runs job(0) .. job(count - 1): jobs 1 .. threads - 1 on threads of their own, the rest (job 0
+// first) on this one; an exception of any is rethrown once all have finished.
 template <typename Job>
-void run_parts(unsigned parts, const Job& job) {
-  std::vector<std::exception_ptr> failures(parts);
-  const auto run = [&](unsigned i) {
+void run_jobs(std::size_t count, std::size_t threads, const Job& job) {
+  if (count == 0) return;
+  std::vector<std::exception_ptr> failures(count);
+  const auto run = [&](std::size_t i) {
     try {
       job(i);
     } catch (...) {
       failures[i] = std::current_exception();
     }
   };
-  std::vector<std::thread> threads;
-  for (unsigned i = 1; i < parts; ++i) threads.emplace_back(run, i);
-  run(0);
-  for (std::thread& t : threads) t.join();
+  const std::size_t spawned = std::min(count, std::max<std::size_t>(threads, 1)) - 1;
+  std::vector<std::thread> pool;
+  for (std::size_t i = 1; i <= spawned; ++i) pool.emplace_back(run, i);
+  for (std::size_t i = 0; i < count; ++i)
+    if (i == 0 || i > spawned) run(i);
+  for (std::thread& t : pool) t.join();
   for (const std::exception_ptr& f : failures)
     if (f) std::rethrow_exception(f);
 }
@@ -437,7 +440,7 @@ void validate_tree(const Nodes& tree, const FlatBvh& bvh, const Source& source, 
   std::vector<std::vector<std::uint8_t>> part_state(parts - 1, std::vector<std::uint8_t>(scene_count, 0));
   std::vector<Report> part_reports(parts);
   std::vector<std::uint8_t> node_seen;
-  const auto walk_part = [&](unsigned part) {
+  const auto walk_part = [&](std::size_t part) {
     const std::uint64_t lo = tri_count * part / parts, hi = tri_count * (part + 1) / parts;
     std::vector<std::uint8_t>& state_of = part == 0 ? prim_state : part_state[part - 1];
     Report& entries = part_reports[part];
@@ -462,7 +465,7 @@ void validate_tree(const Nodes& tree, const FlatBvh& bvh, const Source& source, 
         });
     if (part == 0) node_seen = std::move(seen);
   };
-  run_parts(parts, walk_part);
+  run_jobs(parts, parts, walk_part);
   for (const Report& r : part_reports) report.merge(r);
   for (const std::vector<std::uint8_t>& other : part_state)
     for (std::size_t p = 0; p < scene_count; ++p) {
@@ -679,27 +682,11 @@ BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>&
     return report.finish();
   }
   std::vector<Report> reports(jobs.size());
-  std::vector<std::exception_ptr> failures(jobs.size());
-  // Small trees are not worth a thread; large ones get one per job beyond the first, up to the cores.
+  // Small trees are not worth a thread; large ones get one per job beyond the first, up to the
+  // cores. There may be no job (a cached binary tree without wide nodes).
   const std::size_t cores = std::max(1u, std::thread::hardware_concurrency());
-  const bool threaded = bvh.triangles.size() >= kThreadedFrom && cores > 1 && jobs.size() > 1;
-  // Jobs 1..spawned on their own threads, the rest (job 0 first) on this one; there may be none
-  // (a cached binary tree without wide nodes).
-  const std::size_t spawned = threaded ? std::min(jobs.size(), cores) - 1 : 0;
-  const auto run = [&](std::size_t i) {
-    try {
-      jobs[i](reports[i], 1);
-    } catch (...) {
-      failures[i] = std::current_exception();  // rethrown once the threads are joined
-    }
-  };
-  std::vector<std::thread> threads;
-  for (std::size_t i = 1; i <= spawned; ++i) threads.emplace_back(run, i);
-  for (std::size_t i = 0; i < jobs.size(); ++i)
-    if (i == 0 || i > spawned) run(i);
-  for (std::thread& t : threads) t.join();
-  for (const std::exception_ptr& f : failures)
-    if (f) std::rethrow_exception(f);
+  const bool threaded = bvh.triangles.size() >= kThreadedFrom && cores > 1;
+  run_jobs(jobs.size(), threaded ? cores : 1, [&](std::size_t i) { jobs[i](reports[i], 1); });
   for (const Report& r : reports) report.merge(r);
   return report.finish();
 }
