@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -171,13 +172,20 @@ int clip_polygon(const Point3d* in, int n, int axis, double plane, bool keep_bel
 float outward_step(float f) {
   return std::max(std::abs(f) * 0x1p-23f, std::numeric_limits<float>::min());
 }
+// The step is masked by the comparison instead of chosen by it: which way rounding to nearest
+// went is a coin toss, and GCC turns a ?: here into a branch; ~10^8 mispredicted branches were a
+// quarter of a large spatial-split build. f - 0 and f + 0 are f exactly.
+float masked_step(float f, bool wrong_way) {
+  const std::uint32_t mask = 0u - static_cast<std::uint32_t>(wrong_way);
+  return std::bit_cast<float>(std::bit_cast<std::uint32_t>(outward_step(f)) & mask);
+}
 float round_down(double value) {
   const float f = static_cast<float>(value);
-  return static_cast<double>(f) > value ? f - outward_step(f) : f;
+  return f - masked_step(f, static_cast<double>(f) > value);
 }
 float round_up(double value) {
   const float f = static_cast<float>(value);
-  return static_cast<double>(f) < value ? f + outward_step(f) : f;
+  return f + masked_step(f, static_cast<double>(f) < value);
 }
 
 void set_empty(RTCBounds* bounds) {

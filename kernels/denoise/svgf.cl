@@ -647,14 +647,16 @@ inline void px_normal_weights8(float8 c, float e1, float e2, float8* w1, float8*
   }
 }
 
-/* Eight consecutive float4 texels from `first` as four float8 planes (x, y, z, w). */
+/* Eight consecutive float4 texels from `first` as four float8 planes (x, y, z, w). Loaded as
+ * float8s, not float16s: PoCL's vload16 returns a float16, which an AVX2 CPU without AVX-512
+ * passes in a way clang warns about at every build ("AVX vector return ... changes the ABI"). */
 inline void px_load8_planes(const global float4* first, float8* x, float8* y, float8* z, float8* w) {
-  const float16 a = vload16(0, (const global float*)first);
-  const float16 b = vload16(1, (const global float*)first);
-  *x = (float8)(a.s048c, b.s048c);
-  *y = (float8)(a.s159d, b.s159d);
-  *z = (float8)(a.s26ae, b.s26ae);
-  *w = (float8)(a.s37bf, b.s37bf);
+  const global float* f = (const global float*)first;
+  const float8 a = vload8(0, f), b = vload8(1, f), c = vload8(2, f), d = vload8(3, f);
+  *x = (float8)(a.s04, b.s04, c.s04, d.s04);
+  *y = (float8)(a.s15, b.s15, c.s15, d.s15);
+  *z = (float8)(a.s26, b.s26, c.s26, d.s26);
+  *w = (float8)(a.s37, b.s37, c.s37, d.s37);
 }
 
 /* The same a-trous step for eight horizontally adjacent pixels per work-item, written for CPU
@@ -708,9 +710,10 @@ kernel void svgf_atrous8(global float4* out_illum, const global float4* illum, c
       if (tx0 >= 0 && tx0 + PX_ATROUS_LANES <= (int)p.width) {
         px_load8_planes(guide + row + (uint)tx0, &tnx, &tny, &tnz, &tw);
         px_load8_planes(illum + row + (uint)tx0, &tr, &tg, &tb, &tv);
-        const float16 lv = vload16(0, (const global float*)(luma + row + (uint)tx0));
-        tl = lv.even;
-        tlv = lv.odd;
+        const float8 l0 = vload8(0, (const global float*)(luma + row + (uint)tx0));
+        const float8 l1 = vload8(1, (const global float*)(luma + row + (uint)tx0));
+        tl = (float8)(l0.even, l1.even);
+        tlv = (float8)(l0.odd, l1.odd);
       } else {
         /* At the image's left and right edges: lane by lane, clamped (outside lanes weigh 0). */
         float a[10][PX_ATROUS_LANES];
