@@ -9,28 +9,42 @@
 // took 14 s to build). The builds of one scene are interleaved, round after round, so
 // load from other processes on a shared machine hits them alike; medians are printed.
 //
+// Speed against quality: the SAH cost of each tree, and (unless --no-trace) the trace speed of
+// the split and the binned tree of every scene with a camera (not `slivers`), on the same rays
+// (its primary rays and one diffuse bounce) with the traversal kernel on one OpenCL device,
+// interleaved round after round.
+//
 //   build/bench_bvh_build --scene cornell --scene atrium --scene slivers --slivers 101000 --repeats 5
 //   [--unbounded: also time spatial splits without the split budget] [--csv F]
+//   [--no-trace] [--trace-width 320 --trace-height 180]
 #include "app/guarded_main.h"
 #include "bench_common.h"
 #include "bvh/embree_reference.h"
 #include "bvh/flat_bvh.h"
+#include "cl/device_set.h"
+#include "ray_sets.h"
+#include "render/device_scene.h"
 #include "scene/primitives.h"
 #include "scene/scene_loader.h"
+#include "trace/ray_batch_tracer.h"
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <optional>
 #include <random>
 #include <stdexcept>
 
 namespace {
 
 using clock_type = std::chrono::steady_clock;
+using px::bench::bounce_rays;
 using px::bench::median;
+using px::bench::primary_rays;
 
 // Embree's own build of the triangles: scene + geometry creation, copy, rtcCommitScene.
 double embree_build_ms(const std::vector<px::SceneTriangle>& triangles, RTCBuildQuality quality) {
@@ -118,6 +132,56 @@ Row measure(const std::string& name, const std::vector<px::SceneTriangle>& tris,
   return row;
 }
 
+// Trace speed of the split and the binned tree of one scene, Mrays/s from the kernel's device
+// time (medians), on the primary rays and one diffuse bounce; `differ`: rays whose closest hit
+// is another triangle in the two trees (ties at equal distance may go either way).
+struct TraceRow {
+  std::string scene;
+  double split_primary = 0, binned_primary = 0, split_bounce = 0, binned_bounce = 0;
+  std::size_t primary_rays = 0, bounce_rays = 0;
+  int differ = 0;
+};
+
+TraceRow trace_speed(px::DeviceSet& set, const std::string& name, const px::Scene& scene, unsigned width,
+                     unsigned height, int repeats) {
+  px::BvhBuildOptions split_options, binned_options;
+  split_options.spatial_splits = true;
+  binned_options.spatial_splits = false;
+  split_options.split_trial_triangles = binned_options.split_trial_triangles = 0;
+  px::FlatBvh split = px::build_bvh(scene.triangles, split_options);
+  px::FlatBvh binned = px::build_bvh(scene.triangles, binned_options);
+  px::ensure_layout(split, set.bvh_layout());
+  px::ensure_layout(binned, set.bvh_layout());
+  const px::DeviceScene split_scene(set, scene, std::move(split)), binned_scene(set, scene, std::move(binned));
+  px::RayBatchTracer split_tracer(set, split_scene), binned_tracer(set, binned_scene);
+  TraceRow row;
+  row.scene = name;
+  const std::vector<px::Ray> primary = primary_rays(scene, width, height);
+  const std::vector<px::Hit> hits = split_tracer.closest(primary);
+  const std::vector<px::Ray> bounce = bounce_rays(scene, primary, hits, split_tracer);
+  row.primary_rays = primary.size();
+  row.bounce_rays = bounce.size();
+  auto time = [&](const std::vector<px::Ray>& rays, double* split_mrays, double* binned_mrays) {
+    std::vector<double> split_ms, binned_ms;
+    std::vector<px::Hit> a = split_tracer.closest(rays), b = binned_tracer.closest(rays);  // warm-up
+    for (std::size_t i = 0; i < rays.size(); ++i)
+      if (a[i].prim != b[i].prim) ++row.differ;
+    for (int r = 0; r < repeats; ++r) {
+      split_tracer.closest(rays);
+      split_ms.push_back(split_tracer.last_kernel_ms());
+      binned_tracer.closest(rays);
+      binned_ms.push_back(binned_tracer.last_kernel_ms());
+    }
+    *split_mrays = static_cast<double>(rays.size()) * 1e-3 / median(split_ms);
+    *binned_mrays = static_cast<double>(rays.size()) * 1e-3 / median(binned_ms);
+  };
+  time(primary, &row.split_primary, &row.binned_primary);
+  time(bounce, &row.split_bounce, &row.binned_bounce);
+  std::fprintf(stderr, "[bench] %s traced: split %.2f / %.2f Mrays/s, binned %.2f / %.2f (primary / bounce)\n",
+               name.c_str(), row.split_primary, row.split_bounce, row.binned_primary, row.binned_bounce);
+  return row;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -136,19 +200,38 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 1000))
       ->capture_default_str();
   app.add_option("--csv", csv, "also write the table as CSV");
+  bool no_trace = false;
+  unsigned trace_width = 320, trace_height = 180;
+  app.add_flag("--no-trace", no_trace, "skip the trace speed of the split and binned trees");
+  app.add_option("--trace-width", trace_width, "primary rays per row for the trace speed")
+      ->check(CLI::Range(1u, 16384u))
+      ->capture_default_str();
+  app.add_option("--trace-height", trace_height, "rows of primary rays for the trace speed")
+      ->check(CLI::Range(1u, 16384u))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   return px::run_guarded([&]() -> int {
     std::vector<Row> rows;
+    std::vector<TraceRow> traces;
+    std::optional<px::DeviceSet> set;
+    if (!no_trace) {
+      set.emplace(px::DeviceSet::create({1, px::DeviceMode::Auto, ""}));
+      // Every tree is collapsed into the layout the device traces (the build times include it).
+      px::set_bvh_layout(set->bvh_layout());
+    }
     for (const auto& name : scenes) {
       std::vector<px::SceneTriangle> tris;
+      px::Scene scene;
       if (name == "slivers") {
         px::append_slivers(tris, sliver_count, 14);
       } else {
-        tris = px::load_scene(name).triangles;
+        scene = px::load_scene(name);
+        tris = scene.triangles;
       }
       embree_build_ms(tris, RTC_BUILD_QUALITY_HIGH);  // warm-up: TBB threads, first-touch
       rows.push_back(measure(name, tris, repeats, unbounded));
+      if (set && name != "slivers") traces.push_back(trace_speed(*set, name, scene, trace_width, trace_height, repeats));
     }
     std::printf("\n%-10s %8s | %10s %10s %10s %10s | %8s %8s | %9s %9s %9s %6s %9s %8s\n", "scene",
                 "tris", "px split", "px binned", "emb high", "emb med", "split/hi", "bin/med",
@@ -190,6 +273,22 @@ int main(int argc, char** argv) {
                     r.unbounded_ms / r.high_ms, r.split_ms / r.high_ms, r.unbounded.sah_cost,
                     double(r.unbounded.split_calls) / double(r.triangles),
                     double(r.unbounded.leaf_triangles) / double(r.triangles));
+    }
+    if (!traces.empty()) {
+      std::printf("\ntrace speed of the two trees (%s layout, one device, %ux%u primary rays and one diffuse bounce; "
+                  "Mrays/s from device time, medians of %d):\n",
+                  px::to_string(set->bvh_layout()), trace_width, trace_height, repeats);
+      std::printf("%-10s %9s %9s | %10s %10s %8s | %10s %10s %8s | %7s\n", "scene", "SAH split", "SAH bin",
+                  "split prim", "bin prim", "split/bin", "split bnc", "bin bnc", "split/bin", "differ");
+      for (const auto& t : traces) {
+        const auto it = std::find_if(rows.begin(), rows.end(), [&](const Row& r) { return r.scene == t.scene; });
+        std::printf("%-10s %9.2f %9.2f | %10.2f %10.2f %8.3f | %10.2f %10.2f %8.3f | %7d\n", t.scene.c_str(),
+                    it->split.sah_cost, it->binned.sah_cost, t.split_primary, t.binned_primary,
+                    t.split_primary / t.binned_primary, t.split_bounce, t.binned_bounce,
+                    t.split_bounce / t.binned_bounce, t.differ);
+      }
+      std::printf("differ: rays (primary and bounce) whose closest hit is another triangle in the two trees: "
+                  "ties at equal distance\n");
     }
     if (!csv.empty()) {
       std::ofstream out(csv);

@@ -1166,7 +1166,9 @@ TEST(Validator, OneLargeTreeOnSeveralThreadsFindsWhatOneThreadFinds) {
   for (bool splits : {false, true}) {
     SCOPED_TRACE(splits ? "spatial splits" : "binned");
     const FlatBvh bvh = build_bvh(tris, with_splits(splits), /*collapse=*/false);
-    if (splits) ASSERT_GT(bvh.triangles.size(), tris.size()) << "splits referenced some triangles twice";
+    if (splits) {
+      ASSERT_GT(bvh.triangles.size(), tris.size()) << "splits referenced some triangles twice";
+    }
     const BvhValidation good = validate_bvh(bvh, tris);
     EXPECT_TRUE(good.ok) << (good.errors.empty() ? "" : good.errors.front());
     FlatBvh with_wide = bvh;

@@ -91,7 +91,9 @@ TEST(ImageCodecModule, OpenImageIOLoadsOnlyWhenAnImageIsNeeded) {
   GTEST_SKIP() << "a build without OpenImageIO";
 #endif
   const bool loaded_before = library_mapped("libOpenImageIO");
-  if (!library_mapped("libparallax_image_oiio")) EXPECT_FALSE(loaded_before) << "linked into the program";
+  if (!library_mapped("libparallax_image_oiio")) {
+    EXPECT_FALSE(loaded_before) << "linked into the program";
+  }
   preload_image_codec();
   TempDir dir;
   const fs::path p = dir.path() / "a.exr";

@@ -42,9 +42,9 @@ struct LoadedScene {
   // that), and the device layout the cache held for it in bvh_layout() (null: none; `bvh` is
   // then empty). SceneOnDevices uploads the mapping, or stores the layout it makes.
   std::uint64_t content_key = 0;
-  std::shared_ptr<const MappedDeviceLayout> device_layout;
+  std::shared_ptr<const MappedDeviceLayout> device_layout{};
   bool quiet = false;
-  StartTimes times;
+  StartTimes times{};
   // The triangles' count and bounds, kept when SceneOnDevices releases the triangles.
   std::size_t triangle_count = 0;
   glm::vec3 bounds_lo{0.0f}, bounds_hi{0.0f};
