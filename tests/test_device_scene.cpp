@@ -194,7 +194,9 @@ TEST(DeviceScene, TwoStepsBeforeTheDevicesGiveTheOneStepBuffers) {
       EXPECT_EQ(read_back(set, two.on(1).*member), read_back(set, one.on(0).*member));
     EXPECT_EQ(read_back(set, two.on(0).nodes), read_back(set, kept.on(0).nodes));
     EXPECT_EQ(read_back(set, two.on(0).shading), read_back(set, kept.on(0).shading));
-    if (!two.leaf_refs()) EXPECT_EQ(read_back(set, two.on(0).triangles), read_back(set, kept.on(0).triangles));
+    if (!two.leaf_refs()) {
+      EXPECT_EQ(read_back(set, two.on(0).triangles), read_back(set, kept.on(0).triangles));
+    }
   }
   set_bvh_layout(std::nullopt);
   Scene animated = scene;

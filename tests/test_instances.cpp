@@ -326,7 +326,9 @@ void expect_traces_like_embree(const Scene& scene, const char* label) {
     // Instance hits name an instance and a mesh triangle; world hits name no instance.
     const bool on_mesh = h.prim >= scene.instancing.world_triangles;
     EXPECT_EQ(on_mesh, h.inst != PX_NO_INSTANCE) << label << " ray " << i;
-    if (on_mesh) EXPECT_LT(h.inst, scene.instancing.instances.size()) << label;
+    if (on_mesh) {
+      EXPECT_LT(h.inst, scene.instancing.instances.size()) << label;
+    }
     EXPECT_NEAR(h.t, ref.t, 1e-4 * std::max(1.0f, ref.t)) << label << " ray " << i;
   }
   EXPECT_GT(hits_both, 2000) << label << ": the rays must find the geometry";
