@@ -38,6 +38,7 @@
 #include <optional>
 #include <random>
 #include <stdexcept>
+#include <utility>
 
 namespace {
 
@@ -82,6 +83,8 @@ struct Row {
   double split_ms = 0, binned_ms = 0, high_ms = 0, medium_ms = 0, unbounded_ms = 0, trial_ms = 0;
   double collapse_ms = 0;  // the share of split_ms spent collapsing to the wide layout
   px::BvhBuildStats split, binned, unbounded, trial;
+  // The last round's split and binned trees, which the trace speed measures.
+  px::FlatBvh split_tree, binned_tree;
 };
 
 Row measure(const std::string& name, const std::vector<px::SceneTriangle>& tris, int repeats,
@@ -106,13 +109,13 @@ Row measure(const std::string& name, const std::vector<px::SceneTriangle>& tris,
       unbounded_ms.push_back(unbounded.stats.build_ms);
       row.unbounded = unbounded.stats;
     }
-    const px::FlatBvh split = px::build_bvh(tris, split_options);
-    split_ms.push_back(split.stats.build_ms);
-    collapse_ms.push_back(split.stats.collapse_ms);
-    row.split = split.stats;
-    const px::FlatBvh binned = px::build_bvh(tris, binned_options);
-    binned_ms.push_back(binned.stats.build_ms);
-    row.binned = binned.stats;
+    row.split_tree = px::build_bvh(tris, split_options);
+    split_ms.push_back(row.split_tree.stats.build_ms);
+    collapse_ms.push_back(row.split_tree.stats.collapse_ms);
+    row.split = row.split_tree.stats;
+    row.binned_tree = px::build_bvh(tris, binned_options);
+    binned_ms.push_back(row.binned_tree.stats.build_ms);
+    row.binned = row.binned_tree.stats;
     const px::FlatBvh trial = px::build_bvh(tris, trial_options);
     trial_ms.push_back(trial.stats.build_ms);
     row.trial = trial.stats;
@@ -142,14 +145,9 @@ struct TraceRow {
   int differ = 0;
 };
 
-TraceRow trace_speed(px::DeviceSet& set, const std::string& name, const px::Scene& scene, unsigned width,
-                     unsigned height, int repeats) {
-  px::BvhBuildOptions split_options, binned_options;
-  split_options.spatial_splits = true;
-  binned_options.spatial_splits = false;
-  split_options.split_trial_triangles = binned_options.split_trial_triangles = 0;
-  px::FlatBvh split = px::build_bvh(scene.triangles, split_options);
-  px::FlatBvh binned = px::build_bvh(scene.triangles, binned_options);
+// `split` and `binned`: the scene's trees (measure()'s last round), moved onto the device.
+TraceRow trace_speed(px::DeviceSet& set, const std::string& name, const px::Scene& scene, px::FlatBvh split,
+                     px::FlatBvh binned, unsigned width, unsigned height, int repeats) {
   px::ensure_layout(split, set.bvh_layout());
   px::ensure_layout(binned, set.bvh_layout());
   const px::DeviceScene split_scene(set, scene, std::move(split)), binned_scene(set, scene, std::move(binned));
@@ -231,7 +229,10 @@ int main(int argc, char** argv) {
       }
       embree_build_ms(tris, RTC_BUILD_QUALITY_HIGH);  // warm-up: TBB threads, first-touch
       rows.push_back(measure(name, tris, repeats, unbounded));
-      if (set && name != "slivers") traces.push_back(trace_speed(*set, name, scene, trace_width, trace_height, repeats));
+      Row& row = rows.back();
+      if (set && name != "slivers")
+        traces.push_back(trace_speed(*set, name, scene, std::move(row.split_tree), std::move(row.binned_tree),
+                                     trace_width, trace_height, repeats));
     }
     std::printf("\n%-10s %8s | %10s %10s %10s %10s | %8s %8s | %9s %9s %9s %6s %9s %8s\n", "scene",
                 "tris", "px split", "px binned", "emb high", "emb med", "split/hi", "bin/med",

@@ -38,22 +38,25 @@ Loaded load_module() {
 #endif
   Loaded loaded;
   std::string tried;
+  const auto note = [&tried](const std::string& path, const std::string& why) {
+    tried += (tried.empty() ? "" : ", ") + path + " (" + why + ")";
+  };
   for (const std::string& path : candidates) {
     std::error_code ec;
     if (!std::filesystem::exists(path, ec)) {
-      tried += (tried.empty() ? "" : ", ") + path + " (absent)";
+      note(path, "absent");
       continue;
     }
     void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
     if (!handle) {
       const char* why = dlerror();
-      tried += (tried.empty() ? "" : ", ") + path + " (" + (why ? why : "dlopen failed") + ")";
+      note(path, why ? why : "dlopen failed");
       continue;
     }
     using TableFn = const OiioCodec* (*)();
     const auto table = reinterpret_cast<TableFn>(dlsym(handle, "px_oiio_codec_table"));
     if (!table) {
-      tried += (tried.empty() ? "" : ", ") + path + " (no px_oiio_codec_table)";
+      note(path, "no px_oiio_codec_table");
       continue;
     }
     loaded.codec = table();  // the module stays loaded for the process's life
