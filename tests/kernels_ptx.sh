@@ -19,13 +19,16 @@ while IFS= read -r -d '' file; do
   # Every BVH layout with every feature, then the wide layout with no scene feature and with two
   # complementary halves of them (PX_FEATURES, kernels/shared/types.h): a build for a scene's
   # features must compile, and without warnings (a constant operand in a feature test warns).
-  for variant in "2 0x7ff" "4 0x7ff" "8 0x7ff" "9 0x7ff" "8 0x000" "8 0x555" "8 0x2aa"; do
-    read -r width features <<<"$variant"
+  # Last, the data layouts a static scene's start picks: leaf refs and flat shading records.
+  for variant in "2 0x7ff" "4 0x7ff" "8 0x7ff" "9 0x7ff" "8 0x000" "8 0x555" "8 0x2aa" \
+                 "8 0x7ff -DPX_LEAF_REFS=1 -DPX_FLAT_SHADING=1" "9 0x000 -DPX_FLAT_SHADING=1"; do
+    read -r width features extra <<<"$variant"
     count=$((count + 1))
+    # shellcheck disable=SC2086  # $extra: zero or more -D options
     if ! out="$("$clang_bin" -x cl -cl-std=CL1.2 -target nvptx64-nvidia-nvcl -Xclang -finclude-default-header \
-        -cl-single-precision-constant -O2 -DPX_BVH_WIDTH=$width -DPX_FEATURES=$features -I"$src/kernels" -S \
+        -cl-single-precision-constant -O2 -DPX_BVH_WIDTH=$width -DPX_FEATURES=$features $extra -I"$src/kernels" -S \
         -o /dev/null "$file" 2>&1)" || grep -q "warning:" <<<"$out"; then
-      echo "FAIL $rel (PX_BVH_WIDTH=$width PX_FEATURES=$features):"
+      echo "FAIL $rel (PX_BVH_WIDTH=$width PX_FEATURES=$features $extra):"
       echo "$out" | head -20
       fails=$((fails + 1))
     fi

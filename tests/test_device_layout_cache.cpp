@@ -8,6 +8,7 @@
 #include "app/scene_setup.h"
 #include "render/device_layout_cache.h"
 #include "render/device_scene.h"
+#include "render/path_tracer.h"
 #include "io/content_hash.h"
 #include "scene/primitives.h"
 #include "support/brute_force.h"
@@ -415,6 +416,66 @@ TEST(DeviceLayoutCache, NoFolderMeansNoCacheAndNoError) {
   why.clear();
   EXPECT_EQ(blocked.store(1, BvhBuildOptions{}, 1, parts, &why), "");
   EXPECT_FALSE(why.empty());
+}
+
+
+// A scene of flat, untextured triangles (a mesh without normals or uvs) is laid out with
+// 16-byte FlatTriangleShading records (DeviceScene::flat_shading); its cache file holds them, a
+// start maps them as such, and the mapped scene renders what the full records render.
+TEST(DeviceLayoutCache, AFlatSceneIsStoredAndMappedWithItsSixteenByteRecords) {
+  test::TempDir dir;
+  const DeviceLayoutCache cache{dir.path().string()};
+  Scene scene = test_scene();
+  for (SceneTriangle& t : scene.triangles) {
+    const glm::vec3 n = glm::normalize(glm::cross(t.p[1] - t.p[0], t.p[2] - t.p[0]));
+    for (int k = 0; k < 3; ++k) {
+      t.n[k] = n;
+      t.uv[k] = glm::vec2(0.0f);
+    }
+  }
+  ASSERT_TRUE(has_flat_shading(scene.triangles));
+  scene.sky.enabled = true;  // lit from everywhere, not only by the lamp
+  scene.sky.zenith = glm::vec3(0.5f, 0.6f, 0.9f);
+  scene.sky.horizon = glm::vec3(0.9f);
+  scene.sky.ground = glm::vec3(0.2f);
+  const std::uint64_t key = scene_content_key(scene);
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  DeviceLayoutStore store;
+  store.cache = &cache;
+  store.content_key = key;
+  Scene handed = scene;
+  const auto host = DeviceScene::prepare_host(handed, [&handed] { return std::exchange(handed.triangles, {}); });
+  const DeviceScene stored(set, host, handed, build_bvh(scene.triangles, {}, /*collapse=*/false), store);
+  ASSERT_TRUE(stored.flat_shading());
+  auto mapped = cache.open(key, set.bvh_layout(), BvhBuildOptions{}, scene.triangles.size());
+  ASSERT_NE(mapped, nullptr);
+  EXPECT_EQ(mapped->shading_size(), sizeof(FlatTriangleShading));
+  EXPECT_EQ(mapped->shading_count(), scene.triangles.size());
+  EXPECT_TRUE(mapped->verify_payload());
+  const FlatTriangleShading* records = static_cast<const FlatTriangleShading*>(mapped->shading());
+  std::size_t bad = 0;
+  for (std::size_t i = 0; i < scene.triangles.size(); ++i)
+    bad += records[i].n[0] != scene.triangles[i].n[0].x || records[i].n[2] != scene.triangles[i].n[0].z ||
+           records[i].material != scene.triangles[i].material;
+  EXPECT_EQ(bad, 0u);
+  const DeviceScene from_file(set, scene, mapped);
+  mapped.reset();
+  EXPECT_TRUE(from_file.layout_from_cache());
+  EXPECT_TRUE(from_file.flat_shading());
+  EXPECT_EQ(from_file.kernel_options(), stored.kernel_options());
+  EXPECT_EQ(from_file.bytes_in_context(), stored.bytes_in_context());
+  const DeviceScene full(set, scene, build_bvh(scene.triangles));
+  EXPECT_FALSE(full.flat_shading());
+  PathTracer::Options opt;
+  opt.spp = 2;
+  opt.bounces = 3;
+  const auto want = PathTracer(set, full, scene).render_stereo(0.0f, 1, 40, 30, opt);
+  const auto got = PathTracer(set, from_file, scene).render_stereo(0.0f, 1, 40, 30, opt);
+  for (int e = 0; e < 2; ++e)
+    EXPECT_EQ(std::memcmp(want[e].rgb.data(), got[e].rgb.data(), want[e].rgb.size() * sizeof(float)), 0) << "eye " << e;
+  double sum = 0.0;
+  for (float v : want[0].rgb) sum += v;
+  EXPECT_GT(sum, 0.0) << "a picture, not a black frame";
 }
 
 }  // namespace

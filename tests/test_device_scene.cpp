@@ -2,6 +2,8 @@
 // number of devices, and a buffer too large for one allocation refused with an error that
 // names it and both sizes (PX_MAX_ALLOC_BYTES lowers the device's limit for the test).
 #include "render/device_scene.h"
+#include "render/path_tracer.h"
+#include "scene/scene_loader.h"
 #include "scene/primitives.h"
 #include "scene/scene_rig.h"
 
@@ -204,6 +206,80 @@ TEST(DeviceScene, TwoStepsBeforeTheDevicesGiveTheOneStepBuffers) {
   EXPECT_THROW(DeviceScene::prepare_host(animated, [&animated] { return std::exchange(animated.triangles, {}); }),
                std::logic_error)
       << "an animated scene keeps its triangles";
+}
+
+
+// A scene of flat, untextured triangles (what a mesh without NORMAL and TEXCOORD_0 loads as)
+// goes to the devices with 16-byte FlatTriangleShading records where the full records take 64,
+// and renders the same image to the bit: the kernels built with PX_FLAT_SHADING compute what
+// the full records' kernels compute. The full records come from the one-step constructor (a
+// scene that keeps its triangles), the flat ones from the two steps SceneOnDevices takes.
+TEST(DeviceScene, AFlatUntexturedSceneGetsSixteenByteRecordsAndTheSameImage) {
+  // The Cornell box and a sliver field inside it (thin triangles at every orientation), every
+  // triangle's normal its geometric one as the loaders give a mesh without normals, no uvs.
+  Scene scene = make_builtin_scene("cornell");
+  std::vector<SceneTriangle> slivers;
+  append_slivers(slivers, 400, 5, 0);
+  for (SceneTriangle& t : slivers)
+    for (glm::vec3& p : t.p) p = 0.2f * p + glm::vec3(0.0f, 0.5f, 0.0f);
+  scene.triangles.insert(scene.triangles.end(), slivers.begin(), slivers.end());
+  EXPECT_FALSE(has_flat_shading(scene.triangles)) << "the box's sphere has vertex normals";
+  for (SceneTriangle& t : scene.triangles) {
+    glm::vec3 n = glm::normalize(glm::cross(t.p[1] - t.p[0], t.p[2] - t.p[0]));
+    if (glm::dot(n, t.n[0]) < 0.0f) n = -n;  // facing as the vertex normals did
+    for (int k = 0; k < 3; ++k) {
+      t.n[k] = n;
+      t.uv[k] = glm::vec2(0.0f);
+    }
+  }
+  ASSERT_TRUE(has_flat_shading(scene.triangles));
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  const DeviceScene full(set, scene, build_bvh(scene.triangles));
+  Scene handed = scene;
+  const auto host = DeviceScene::prepare_host(handed, [&handed] { return std::exchange(handed.triangles, {}); });
+  const DeviceScene flat(set, host, handed, build_bvh(scene.triangles, {}, /*collapse=*/false));
+  EXPECT_FALSE(full.flat_shading());
+  ASSERT_TRUE(flat.flat_shading());
+  EXPECT_NE(flat.kernel_options().find("-DPX_FLAT_SHADING=1"), std::string::npos);
+  EXPECT_EQ(full.kernel_options().find("PX_FLAT_SHADING"), std::string::npos);
+  // The records: each triangle's normal and material, 16 bytes.
+  const auto records = read_back(set, flat.on(0).shading);
+  ASSERT_EQ(records.size(), scene.triangles.size() * sizeof(FlatTriangleShading));
+  std::size_t bad = 0;
+  for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
+    FlatTriangleShading r;
+    std::memcpy(&r, records.data() + i * sizeof r, sizeof r);
+    const SceneTriangle& t = scene.triangles[i];
+    bad += r.n[0] != t.n[0].x || r.n[1] != t.n[0].y || r.n[2] != t.n[0].z || r.material != t.material;
+  }
+  EXPECT_EQ(bad, 0u);
+  EXPECT_EQ(size_of(full.on(0).shading) - records.size(), 48 * scene.triangles.size());
+  // The same picture: two eyes, the light, four bounces, the slivers' edges.
+  PathTracer::Options opt;
+  opt.spp = 4;
+  opt.bounces = 4;
+  PathTracer a(set, full, scene), b(set, flat, scene);
+  const auto ia = a.render_stereo(0.0f, 2, 48, 32, opt), ib = b.render_stereo(0.0f, 2, 48, 32, opt);
+  for (int e = 0; e < 2; ++e) {
+    ASSERT_EQ(ia[e].rgb.size(), ib[e].rgb.size());
+    EXPECT_EQ(std::memcmp(ia[e].rgb.data(), ib[e].rgb.data(), ia[e].rgb.size() * sizeof(float)), 0) << "eye " << e;
+  }
+  double sum = 0.0;
+  for (float v : ia[0].rgb) sum += v;
+  EXPECT_GT(sum, 0.0) << "a picture, not a black frame";
+  // What is not flat stays full: one vertex normal a bit off, or a texture coordinate of -0.
+  std::vector<SceneTriangle> tris = scene.triangles;
+  tris[7].n[2] = glm::vec3(std::nextafter(tris[7].n[2].x, 2.0f), tris[7].n[2].y, tris[7].n[2].z);
+  EXPECT_FALSE(has_flat_shading(tris));
+  tris = scene.triangles;
+  tris.back().uv[1].y = -0.0f;
+  EXPECT_FALSE(has_flat_shading(tris));
+  Scene smooth = spheres();
+  EXPECT_FALSE(has_flat_shading(smooth.triangles)) << "an icosphere's normals are per vertex";
+  const auto smooth_host = DeviceScene::prepare_host(smooth, [&smooth] { return std::exchange(smooth.triangles, {}); });
+  const Scene spheres_scene = spheres();
+  const DeviceScene smooth_ds(set, smooth_host, smooth, build_bvh(spheres_scene.triangles, {}, false));
+  EXPECT_FALSE(smooth_ds.flat_shading());
 }
 
 }  // namespace

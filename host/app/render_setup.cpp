@@ -72,6 +72,8 @@ void print_device_set(const DeviceSet& set) {
 void print_scene_upload(const DeviceScene& scene, int devices) {
   std::fprintf(stderr, "[scene] on the devices: %.1f MiB, one copy in the context of its %d device(s) (%.0f ms)\n",
                static_cast<double>(scene.bytes_in_context()) / (1024.0 * 1024.0), devices, scene.upload_ms());
+  if (scene.flat_shading())
+    std::fprintf(stderr, "[scene] flat triangles without texture coordinates: 16-byte shading records, not 64\n");
   if (scene.instance_count() > 0)
     std::fprintf(stderr, "[scene] %zu instances: their top level and records take %.1f KiB of that\n",
                  scene.instance_count(), static_cast<double>(scene.instance_bytes()) / 1024.0);

@@ -144,13 +144,14 @@ std::shared_ptr<const MappedDeviceLayout> DeviceLayoutCache::open(std::uint64_t 
       h.node_size == (layout == BvhLayout::Binary ? sizeof(BvhNode) : 4) &&
       (h.triangle_size == sizeof(BvhTriangle) ||
        (h.triangle_size == sizeof(BvhLeafRef) && (layout == BvhLayout::Wide4 || layout == BvhLayout::Wide8))) &&
-      h.shading_size == sizeof(TriangleShading) && h.leaf_block_size == sizeof(BvhLeafBlock) &&
+      (h.shading_size == sizeof(TriangleShading) || h.shading_size == sizeof(FlatTriangleShading)) &&
+      h.leaf_block_size == sizeof(BvhLeafBlock) &&
       h.scene_triangles == scene_triangles && h.shading_count == scene_triangles && h.file_bytes == length &&
       h.nodes_offset == kPage && h.node_bytes > 0 && h.triangle_count > 0 &&
       h.triangles_offset == round_up(h.nodes_offset + h.node_bytes) &&
       h.triangle_count <= (length / h.triangle_size) &&
       h.shading_offset == round_up(h.triangles_offset + h.triangle_count * h.triangle_size) &&
-      h.shading_offset + h.shading_count * sizeof(TriangleShading) == length;
+      h.shading_offset + h.shading_count * h.shading_size == length;
   if (!header_ok) {
     ::close(fd);
     return nullptr;
@@ -173,6 +174,7 @@ std::shared_ptr<const MappedDeviceLayout> DeviceLayoutCache::open(std::uint64_t 
   m->triangle_size_ = h.triangle_size;
   m->shading_offset_ = h.shading_offset;
   m->shading_count_ = h.shading_count;
+  m->shading_size_ = h.shading_size;
   m->payload_checksum_ = h.payload_checksum;
   BvhBuildStats& s = m->stats_;
   s.scene_triangles = h.scene_triangles;
@@ -197,7 +199,8 @@ std::string DeviceLayoutCache::store(std::uint64_t content_key, const BvhBuildOp
   try {
     if (!parts.nodes || parts.node_bytes == 0 || !parts.triangles || parts.triangle_count == 0 ||
         (parts.triangle_size != sizeof(BvhTriangle) && parts.triangle_size != sizeof(BvhLeafRef)) || !parts.shading ||
-        parts.shading_count != scene_triangles)
+        parts.shading_count != scene_triangles ||
+        (parts.shading_size != sizeof(TriangleShading) && parts.shading_size != sizeof(FlatTriangleShading)))
       throw std::invalid_argument("incomplete device layout");
     std::filesystem::create_directories(dir_);
     DeviceLayoutHeader h{};
@@ -207,7 +210,7 @@ std::string DeviceLayoutCache::store(std::uint64_t content_key, const BvhBuildOp
     h.layout = static_cast<std::uint64_t>(bvh_layout_width(parts.layout));
     h.node_size = parts.layout == BvhLayout::Binary ? sizeof(BvhNode) : 4;
     h.triangle_size = parts.triangle_size;
-    h.shading_size = sizeof(TriangleShading);
+    h.shading_size = parts.shading_size;
     h.leaf_block_size = sizeof(BvhLeafBlock);
     h.scene_triangles = scene_triangles;
     h.nodes_offset = kPage;
@@ -216,7 +219,7 @@ std::string DeviceLayoutCache::store(std::uint64_t content_key, const BvhBuildOp
     h.triangle_count = parts.triangle_count;
     h.shading_offset = round_up(h.triangles_offset + h.triangle_count * h.triangle_size);
     h.shading_count = parts.shading_count;
-    h.file_bytes = h.shading_offset + h.shading_count * sizeof(TriangleShading);
+    h.file_bytes = h.shading_offset + h.shading_count * h.shading_size;
     h.layout_nodes = parts.layout_nodes;
     h.stat_leaf_triangles = parts.stats.leaf_triangles;
     h.stat_nodes = parts.stats.nodes;
@@ -238,7 +241,7 @@ std::string DeviceLayoutCache::store(std::uint64_t content_key, const BvhBuildOp
         {zeros.data(), h.triangles_offset - (h.nodes_offset + h.node_bytes)},
         {parts.triangles, h.triangle_count * h.triangle_size},
         {zeros.data(), h.shading_offset - (h.triangles_offset + h.triangle_count * h.triangle_size)},
-        {parts.shading, h.shading_count * sizeof(TriangleShading)}};
+        {parts.shading, h.shading_count * h.shading_size}};
     ContentHash full(2), sample(1);
     const std::size_t stride = sample_stride(h.file_bytes - h.nodes_offset);
     std::size_t at = 0;  // payload offset

@@ -25,7 +25,8 @@
 //   nodes   the node buffer's bytes (uint words)
 //   tris    the leaf triangles, triangle_count records of triangle_size bytes: BvhTriangle, or
 //           BvhLeafRef in the Wide4 and Wide8 layouts (DeviceScene::leaf_refs)
-//   shading TriangleShading[shading_count] (scene order)
+//   shading shading_count records of shading_size bytes (scene order): TriangleShading, or
+//           FlatTriangleShading for a scene of flat, untextured triangles (DeviceScene::flat_shading)
 #pragma once
 
 #include "bvh/flat_bvh.h"
@@ -65,8 +66,10 @@ class MappedDeviceLayout {
   const void* triangles() const { return at(triangles_offset_); }
   std::size_t triangle_count() const { return triangle_count_; }
   std::size_t triangle_size() const { return triangle_size_; }
-  const TriangleShading* shading() const { return static_cast<const TriangleShading*>(at(shading_offset_)); }
+  // The shading records: shading_count of shading_size bytes (TriangleShading or FlatTriangleShading).
+  const void* shading() const { return at(shading_offset_); }
   std::size_t shading_count() const { return shading_count_; }
+  std::size_t shading_size() const { return shading_size_; }
   std::size_t file_bytes() const { return length_; }
   const std::string& path() const { return path_; }
 
@@ -86,7 +89,7 @@ class MappedDeviceLayout {
   std::size_t layout_nodes_ = 0;
   std::size_t nodes_offset_ = 0, node_bytes_ = 0;
   std::size_t triangles_offset_ = 0, triangle_count_ = 0, triangle_size_ = sizeof(BvhTriangle);
-  std::size_t shading_offset_ = 0, shading_count_ = 0;
+  std::size_t shading_offset_ = 0, shading_count_ = 0, shading_size_ = sizeof(TriangleShading);
   std::uint64_t payload_checksum_ = 0;
 };
 
@@ -100,8 +103,9 @@ struct DeviceLayoutParts {
   const void* triangles = nullptr;  // triangle_count records of triangle_size bytes
   std::size_t triangle_count = 0;
   std::size_t triangle_size = sizeof(BvhTriangle);  // or sizeof(BvhLeafRef) (Wide4, Wide8)
-  const TriangleShading* shading = nullptr;  // shading_count records (scene order)
+  const void* shading = nullptr;  // shading_count records of shading_size bytes (scene order)
   std::size_t shading_count = 0;
+  std::size_t shading_size = sizeof(TriangleShading);  // or sizeof(FlatTriangleShading)
 };
 
 class DeviceLayoutCache {

@@ -190,32 +190,60 @@ TriangleShading shading_of(const SceneTriangle& t) {
   return s;
 }
 
-// The shading records of `triangles`, written over the triangles themselves: record i (64
-// bytes at 64 i) is written after triangle i (100 bytes at 100 i) is read, and ends before
+FlatTriangleShading flat_shading_of(const SceneTriangle& t) {
+  FlatTriangleShading s;
+  copy3(s.n, t.n[0]);
+  s.material = t.material;
+  return s;
+}
+
+// The shading records of `triangles` (Record: TriangleShading, or FlatTriangleShading when
+// every triangle is flat), written over the triangles themselves: record i (64 or 16 bytes at
+// that many times i) is written after triangle i (100 bytes at 100 i) is read, and ends before
 // triangle i + 1 begins, so nothing is overwritten before it is read. The whole pages past the
 // last record are handed back to the system (MADV_DONTNEED; a block that large is a private
 // mapping of its own). The result owns the triangles' block.
-DeviceScene::HostBytes shading_in_place(std::vector<SceneTriangle>&& triangles) {
-  static_assert(sizeof(TriangleShading) <= sizeof(SceneTriangle), "records must fit where the triangles were");
-  static_assert(std::is_trivially_copyable_v<SceneTriangle> && std::is_trivially_copyable_v<TriangleShading>);
+template <typename Record, typename Make>
+DeviceScene::HostBytes records_in_place(std::vector<SceneTriangle>&& triangles, Make make) {
+  static_assert(sizeof(Record) <= sizeof(SceneTriangle), "records must fit where the triangles were");
+  static_assert(std::is_trivially_copyable_v<SceneTriangle> && std::is_trivially_copyable_v<Record>);
   auto owner = std::make_shared<std::vector<SceneTriangle>>(std::move(triangles));
   const std::size_t n = owner->size();
   auto* bytes = reinterpret_cast<unsigned char*>(owner->data());
   for (std::size_t i = 0; i < n; ++i) {
     SceneTriangle t;
     std::memcpy(&t, bytes + i * sizeof(SceneTriangle), sizeof t);
-    const TriangleShading s = shading_of(t);
-    std::memcpy(bytes + i * sizeof(TriangleShading), &s, sizeof s);
+    const Record s = make(t);
+    std::memcpy(bytes + i * sizeof(Record), &s, sizeof s);
   }
   constexpr std::size_t kReleaseFrom = std::size_t{8} << 20;
   const auto page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
-  const auto begin = (reinterpret_cast<std::uintptr_t>(bytes + n * sizeof(TriangleShading)) + page - 1) / page * page;
+  const auto begin = (reinterpret_cast<std::uintptr_t>(bytes + n * sizeof(Record)) + page - 1) / page * page;
   const auto end = reinterpret_cast<std::uintptr_t>(bytes + n * sizeof(SceneTriangle)) / page * page;
   if (end > begin && end - begin >= kReleaseFrom) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_DONTNEED);
-  return {bytes, n * sizeof(TriangleShading), sizeof(TriangleShading), owner};
+  return {bytes, n * sizeof(Record), sizeof(Record), owner};
+}
+
+DeviceScene::HostBytes shading_in_place(std::vector<SceneTriangle>&& triangles) {
+  return records_in_place<TriangleShading>(std::move(triangles), shading_of);
+}
+
+DeviceScene::HostBytes flat_shading_in_place(std::vector<SceneTriangle>&& triangles) {
+  return records_in_place<FlatTriangleShading>(std::move(triangles), flat_shading_of);
 }
 
 }  // namespace
+
+bool has_flat_shading(const std::vector<SceneTriangle>& triangles) {
+  const auto same_bits = [](const void* a, const void* b, std::size_t n) { return std::memcmp(a, b, n) == 0; };
+  const glm::vec2 zero(0.0f);
+  for (const SceneTriangle& t : triangles) {
+    if (!same_bits(&t.n[0], &t.n[1], sizeof t.n[0]) || !same_bits(&t.n[0], &t.n[2], sizeof t.n[0])) return false;
+    for (const glm::vec2& uv : t.uv)
+      if (!same_bits(&uv, &zero, sizeof uv)) return false;  // -0 too: the records would not say it
+  }
+  return true;
+}
 
 std::vector<TriangleShading> make_triangle_shading(const Scene& scene) {
   std::vector<TriangleShading> out(scene.triangles.size());
@@ -340,7 +368,7 @@ std::string DeviceScene::kernel_options() const {
   char features[16];
   std::snprintf(features, sizeof features, "0x%03x", kernel_features());
   return "-DPX_BVH_WIDTH=" + std::to_string(bvh_layout_width(layout_)) + " -DPX_FEATURES=" + features +
-         (leaf_refs_ ? " -DPX_LEAF_REFS=1" : "");
+         (leaf_refs_ ? " -DPX_LEAF_REFS=1" : "") + (flat_shading_ ? " -DPX_FLAT_SHADING=1" : "");
 }
 
 namespace {
@@ -514,7 +542,7 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
     parts.triangles = triangles.data();
     parts.triangle_count = triangles.size();
     parts.triangle_size = sizeof(BvhTriangle);
-    parts.shading = static_cast<const TriangleShading*>(shading.data);
+    parts.shading = shading.data;
     parts.shading_count = shading.bytes / sizeof(TriangleShading);
     store_layout(store, parts, scene_triangles);
   }
@@ -546,6 +574,7 @@ struct DeviceScene::HostPart {
   std::vector<std::uint32_t> tri_flags;
   SceneTables tables;
   HostBytes shading;
+  bool flat_shading = false;  // FlatTriangleShading records (has_flat_shading)
   std::size_t scene_triangles = 0;
   double ms = 0.0;  // the time it took, counted in layout_ms()
 };
@@ -563,7 +592,8 @@ std::shared_ptr<DeviceScene::HostPart> DeviceScene::prepare_host(
   if (taken.size() != host->scene_triangles)
     throw std::logic_error("DeviceScene: take_triangles handed over " + std::to_string(taken.size()) +
                            " triangles, not the scene's " + std::to_string(host->scene_triangles));
-  host->shading = shading_in_place(std::move(taken));
+  host->flat_shading = has_flat_shading(taken);
+  host->shading = host->flat_shading ? flat_shading_in_place(std::move(taken)) : shading_in_place(std::move(taken));
   host->ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return host;
 }
@@ -621,8 +651,9 @@ void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh
     parts.triangles = leaf_refs_ ? static_cast<const void*>(refs.data()) : bvh.triangles.data();
     parts.triangle_count = leaf_refs_ ? refs.count : bvh.triangles.size();
     parts.triangle_size = leaf_refs_ ? sizeof(BvhLeafRef) : sizeof(BvhTriangle);
-    parts.shading = static_cast<const TriangleShading*>(host->shading.data);
-    parts.shading_count = host->shading.bytes / sizeof(TriangleShading);
+    parts.shading = host->shading.data;
+    parts.shading_size = host->flat_shading ? sizeof(FlatTriangleShading) : sizeof(TriangleShading);
+    parts.shading_count = host->shading.bytes / parts.shading_size;
     store_layout(store, parts, scene_triangles);
   }
   if (layout == BvhLayout::Binary) node_bytes = owned_bytes(std::move(bvh.nodes));
@@ -635,6 +666,7 @@ void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh
   }
   light_count_ = host->tables.light_count;
   scene_features_ = host->tables.features;
+  flat_shading_ = host->flat_shading;
   // The host part's time (made before the devices, when it was) is part of the layout's.
   layout_start -= std::chrono::duration_cast<std::chrono::steady_clock::duration>(
       std::chrono::duration<double, std::milli>(host->ms));
@@ -661,8 +693,8 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, std::shared_ptr
   leaf_refs_ = mapped->triangle_size() == sizeof(BvhLeafRef);
   HostBytes triangles{mapped->triangles(), mapped->triangle_count() * mapped->triangle_size(), mapped->triangle_size(),
                       owner};
-  HostBytes shading{mapped->shading(), mapped->shading_count() * sizeof(TriangleShading), sizeof(TriangleShading),
-                    owner};
+  flat_shading_ = mapped->shading_size() == sizeof(FlatTriangleShading);
+  HostBytes shading{mapped->shading(), mapped->shading_count() * mapped->shading_size(), mapped->shading_size(), owner};
   SceneTables tables = make_tables(scene, tri_flags, false);
   light_count_ = tables.light_count;
   scene_features_ = tables.features;

@@ -45,6 +45,10 @@ struct DeviceSceneBuffers {
 
 // Host-side conversions to the kernel layouts (also used by tests).
 std::vector<TriangleShading> make_triangle_shading(const Scene& scene);
+// Whether every triangle's three vertex normals are the same bits and its texture coordinates
+// all +0 (a mesh loaded without NORMAL and TEXCOORD_0): its shading records can be
+// FlatTriangleShading (types.h) and say the same.
+bool has_flat_shading(const std::vector<SceneTriangle>& triangles);
 std::vector<GpuMaterial> make_gpu_materials(const Scene& scene);
 std::vector<LightTriangle> make_light_table(const Scene& scene);
 // PX_TRI_* flags of every scene triangle, from its material (alpha-tested, emissive).
@@ -76,7 +80,8 @@ class DeviceScene {
   // `take_triangles`, if given, is called once the triangles' flags, the light table and the
   // vertex colours are made, before the shading records and the device words: it hands over the
   // scene's triangles (moved out of the scene, which keeps none), and the shading records are
-  // made in their memory (64 of each triangle's 100 bytes; the rest goes back to the system).
+  // made in their memory (64 of each triangle's 100 bytes, 16 where the records are flat:
+  // flat_shading(); the rest goes back to the system).
   // A static scene without instances then takes the two steps below (prepare_host first).
   // For a caller that needs the triangles no more (SceneOnDevices, for a static scene): at 10M
   // triangles their 1 GB then holds the shading records instead of standing beside them, and is
@@ -147,6 +152,11 @@ class DeviceScene {
   // buffer holding the vertices: a static scene without instances, handed over (take_triangles)
   // or mapped, in the Wide4 or Wide8 layout. kernel_options() then says PX_LEAF_REFS.
   bool leaf_refs() const { return leaf_refs_; }
+  // Whether the shading buffer holds FlatTriangleShading records (types.h: 16 bytes, one normal
+  // and the material) instead of TriangleShading (64): a static scene without instances, handed
+  // over or mapped, whose every triangle is flat and has no texture coordinates
+  // (has_flat_shading). kernel_options() then says PX_FLAT_SHADING; the images are the same.
+  bool flat_shading() const { return flat_shading_; }
   // The build options of the scene-dependent kernels (path tracers, G-buffer, trace, preview):
   // the node layout and the PX_FEATURES the kernels carry (kernel_features.h).
   std::string kernel_options() const;
@@ -204,6 +214,7 @@ class DeviceScene {
   double layout_store_ms_ = 0.0;
   BvhLayout layout_ = BvhLayout::Binary;
   bool leaf_refs_ = false;
+  bool flat_shading_ = false;
   std::uint32_t scene_features_ = PX_FEATURES_ALL;
   KernelChoice choice_ = KernelChoice::Scene;
 };

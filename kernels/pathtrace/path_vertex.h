@@ -105,7 +105,7 @@ inline int px_path_vertex(const SceneView* scene, const FrameParams* fp, SampleK
 
   const SurfaceHit surf = px_surface_hit(scene, hit);
   const uint prim = surf.prim;
-  const global TriangleShading* sh = surf.sh;
+  const global PxTriangleShading* sh = surf.sh;
   const global GpuMaterial* mat = surf.mat;
   const float3 v0 = surf.v0, v1 = surf.v1, v2 = surf.v2;
   const float3 p = surf.p;

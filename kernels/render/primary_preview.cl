@@ -20,7 +20,7 @@ kernel void primary_preview(global float* out_rgb, uint row0, uint rows, CameraP
   if (hit.prim != PX_NO_HIT) {
     /* The shading normal in world space (an instance's mesh keeps its own). */
     const SurfaceHit surf = px_surface_hit(&scene, hit);
-    const global TriangleShading* s = surf.sh;
+    const global PxTriangleShading* s = surf.sh;
     const float3 n = surf.ns;
     const global GpuMaterial* m = surf.mat;
     float3 albedo = px_load3(m->diffuse);

@@ -8,7 +8,7 @@
 typedef struct SceneView {
   const global BvhNode* nodes;
   const global PxLeafTriangle* tris;  /* leaf order: BvhTriangle, or BvhLeafRef (PX_LEAF_REFS) */
-  const global TriangleShading* shading;
+  const global PxTriangleShading* shading; /* TriangleShading, or FlatTriangleShading (PX_FLAT_SHADING) */
   const global GpuMaterial* materials;
   const global TextureInfo* textures;
   const global float4* texels;
@@ -26,13 +26,13 @@ typedef struct SceneView {
  * binds them with DeviceSceneBuffers::bind (host/render/device_scene.h). */
 #define PX_SCENE_PARAMS                                                                       \
   const global BvhNode *scene_nodes, const global PxLeafTriangle *scene_tris,                 \
-      const global TriangleShading *scene_shading, const global GpuMaterial *scene_materials, \
+      const global PxTriangleShading *scene_shading, const global GpuMaterial *scene_materials, \
       const global TextureInfo *scene_textures, const global float4 *scene_texels,            \
       const global LightTriangle *scene_lights, const global float4 *scene_colours,             \
       const global SceneInstances *scene_instances
 
 inline SceneView px_scene_view(const global BvhNode* nodes, const global PxLeafTriangle* tris,
-                               const global TriangleShading* shading,
+                               const global PxTriangleShading* shading,
                                const global GpuMaterial* materials,
                                const global TextureInfo* textures, const global float4* texels,
                                const global LightTriangle* lights, const global float4* colours,
@@ -87,7 +87,7 @@ inline float3 px_xform_normal(const global float* m, float3 n, float3 fallback) 
  * degenerates). The path tracer's vertex and the G-buffer texel both start from it. */
 typedef struct SurfaceHit {
   uint prim;
-  const global TriangleShading* sh;
+  const global PxTriangleShading* sh;
   const global GpuMaterial* mat;
   float3 v0, v1, v2;
   float3 p, ng, ns;
@@ -111,7 +111,7 @@ inline SurfaceHit px_surface_hit(const SceneView* scene, Hit hit) {
   s.v1 = px_load3(tri->v1);
   s.v2 = px_load3(tri->v2);
 #endif
-  float3 n0 = px_load3(s.sh->n0), n1 = px_load3(s.sh->n1), n2 = px_load3(s.sh->n2);
+  float3 n0 = px_shading_normal(s.sh, 0), n1 = px_shading_normal(s.sh, 1), n2 = px_shading_normal(s.sh, 2);
   if (PX_HAS(PX_FEATURE_INSTANCES) && hit.inst != PX_NO_INSTANCE) {
     /* A mesh's vertices and normals are in its own space: placed as a flat copy of the mesh
      * would place them (instancing.cpp, place_triangle), vertex by vertex. */
@@ -151,15 +151,14 @@ inline float4 px_texture_bilinear(const SceneView* s, int index, float2 uv) {
   return mix(top, bottom, ay);
 }
 
-inline float2 px_interpolate_uv(const global TriangleShading* sh, float u, float v) {
+inline float2 px_interpolate_uv(const global PxTriangleShading* sh, float u, float v) {
   const float w = 1.0f - u - v;
-  return w * (float2)(sh->uv0[0], sh->uv0[1]) + u * (float2)(sh->uv1[0], sh->uv1[1]) +
-         v * (float2)(sh->uv2[0], sh->uv2[1]);
+  return w * px_shading_uv(sh, 0) + u * px_shading_uv(sh, 1) + v * px_shading_uv(sh, 2);
 }
 
 /* Alpha cut-outs (OBJ map_d): a hit on a texel with alpha < 0.5 does not count. */
 inline int px_alpha_visible(const SceneView* s, uint prim, float u, float v) {
-  const global TriangleShading* sh = s->shading + prim;
+  const global PxTriangleShading* sh = s->shading + prim;
   const int tex = s->materials[sh->material].alpha_texture;
   if (tex < 0) return 1;
   return px_texture_bilinear(s, tex, px_interpolate_uv(sh, u, v)).w >= 0.5f;

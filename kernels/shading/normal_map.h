@@ -19,11 +19,11 @@
  * v0..v2 are the triangle's positions; returns ns itself where the triangle's uvs give no
  * frame (all equal or collinear) or the texel decodes to no direction. */
 inline float3 px_normal_mapped(const SceneView* s, const global GpuMaterial* mat,
-                               const global TriangleShading* sh, float3 v0, float3 v1, float3 v2,
+                               const global PxTriangleShading* sh, float3 v0, float3 v1, float3 v2,
                                float2 uv, float3 ns, float3 wo) {
   const float3 e1 = v1 - v0, e2 = v2 - v0;
-  const float2 d1 = (float2)(sh->uv1[0] - sh->uv0[0], sh->uv1[1] - sh->uv0[1]);
-  const float2 d2 = (float2)(sh->uv2[0] - sh->uv0[0], sh->uv2[1] - sh->uv0[1]);
+  const float2 d1 = px_shading_uv(sh, 1) - px_shading_uv(sh, 0);
+  const float2 d2 = px_shading_uv(sh, 2) - px_shading_uv(sh, 0);
   const float det = d1.x * d2.y - d1.y * d2.x;
   if (!(fabs(det) > 1e-20f)) return ns;
   const float3 dpdu = (e1 * d2.y - e2 * d1.y) / det;
