@@ -59,6 +59,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <functional>
 #include <map>
 #include <memory>
 #include <numbers>
@@ -509,6 +510,10 @@ class Converter {
   }
 
   std::vector<std::string> failed_images_;
+  // Frees the model's buffer bytes (load_gltf owns the model); called once a static scene's
+  // meshes are decoded. A later read of an accessor would then fail as out of range, not
+  // read stale bytes.
+  std::function<void()> release_buffers_;
 
  private:
   // --- materials -----------------------------------------------------------------------------
@@ -888,6 +893,10 @@ class Converter {
           for (const RigPrimitive& prim : mesh_primitives(pl.mesh)) expected += prim.triangles.size();
       scene_.triangles.reserve(expected);
     }
+    // Every mesh a node draws is decoded now (the count above): the file's buffers are read no
+    // more, and go before the triangles are made (the 10M heightfield's 172 MiB, at the load's
+    // highest point).
+    if (release_buffers_) release_buffers_();
     for (const Placement& pl : placements_) {
       if (!flat(pl)) continue;
       for (const RigPrimitive& prim : mesh_primitives(pl.mesh))
@@ -1213,6 +1222,9 @@ Scene load_gltf(const std::string& path, bool* has_camera) {
   // tinygltf's warnings that matter (missing image files) are reported per material below.
   Converter convert(model, path, scene);
   convert.failed_images_ = images.failed;
+  convert.release_buffers_ = [&model] {
+    for (tinygltf::Buffer& b : model.buffers) std::vector<unsigned char>().swap(b.data);
+  };
   convert.materials();
   convert.geometry(has_camera);
   convert.finish();
