@@ -573,8 +573,7 @@ void DeviceScene::store_layout(const DeviceLayoutStore& store, const DeviceLayou
 struct DeviceScene::HostPart {
   std::vector<std::uint32_t> tri_flags;
   SceneTables tables;
-  HostBytes shading;
-  bool flat_shading = false;  // FlatTriangleShading records (has_flat_shading)
+  HostBytes shading;  // TriangleShading or FlatTriangleShading records (shading.element says which)
   std::size_t scene_triangles = 0;
   double ms = 0.0;  // the time it took, counted in layout_ms()
 };
@@ -592,8 +591,7 @@ std::shared_ptr<DeviceScene::HostPart> DeviceScene::prepare_host(
   if (taken.size() != host->scene_triangles)
     throw std::logic_error("DeviceScene: take_triangles handed over " + std::to_string(taken.size()) +
                            " triangles, not the scene's " + std::to_string(host->scene_triangles));
-  host->flat_shading = has_flat_shading(taken);
-  host->shading = host->flat_shading ? flat_shading_in_place(std::move(taken)) : shading_in_place(std::move(taken));
+  host->shading = has_flat_shading(taken) ? flat_shading_in_place(std::move(taken)) : shading_in_place(std::move(taken));
   host->ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return host;
 }
@@ -652,7 +650,7 @@ void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh
     parts.triangle_count = leaf_refs_ ? refs.count : bvh.triangles.size();
     parts.triangle_size = leaf_refs_ ? sizeof(BvhLeafRef) : sizeof(BvhTriangle);
     parts.shading = host->shading.data;
-    parts.shading_size = host->flat_shading ? sizeof(FlatTriangleShading) : sizeof(TriangleShading);
+    parts.shading_size = host->shading.element;
     parts.shading_count = host->shading.bytes / parts.shading_size;
     store_layout(store, parts, scene_triangles);
   }
@@ -666,7 +664,7 @@ void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh
   }
   light_count_ = host->tables.light_count;
   scene_features_ = host->tables.features;
-  flat_shading_ = host->flat_shading;
+  flat_shading_ = host->shading.element == sizeof(FlatTriangleShading);
   // The host part's time (made before the devices, when it was) is part of the layout's.
   layout_start -= std::chrono::duration_cast<std::chrono::steady_clock::duration>(
       std::chrono::duration<double, std::milli>(host->ms));

@@ -57,6 +57,21 @@ inline SceneView px_scene_view(const global BvhNode* nodes, const global PxLeafT
 inline float3 px_load3(const global float* p) { return (float3)(p[0], p[1], p[2]); }
 inline float3 px_load3_private(const float* p) { return (float3)(p[0], p[1], p[2]); }
 
+/* Vertex k's shading normal and texture coordinates in a scene triangle's shading record. A
+ * flat record (PX_FLAT_SHADING) has one normal for the three and no texture coordinates. */
+#if defined(PX_FLAT_SHADING) && PX_FLAT_SHADING
+inline float3 px_shading_normal(const global PxTriangleShading* sh, int k) { return px_load3(sh->n); }
+inline float2 px_shading_uv(const global PxTriangleShading* sh, int k) { return (float2)(0.0f, 0.0f); }
+#else
+inline float3 px_shading_normal(const global PxTriangleShading* sh, int k) {
+  return px_load3(k == 0 ? sh->n0 : k == 1 ? sh->n1 : sh->n2);
+}
+inline float2 px_shading_uv(const global PxTriangleShading* sh, int k) {
+  const global float* uv = k == 0 ? sh->uv0 : k == 1 ? sh->uv1 : sh->uv2;
+  return (float2)(uv[0], uv[1]);
+}
+#endif
+
 /* Instance `k`'s record (types.h: the instance buffer's layout). */
 inline const global SceneInstance* px_instance(const SceneView* scene, uint k) {
   const global uchar* base = (const global uchar*)scene->instances;

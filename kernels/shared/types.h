@@ -396,23 +396,12 @@ typedef struct FlatTriangleShading {
 } FlatTriangleShading;
 
 #ifdef __OPENCL_C_VERSION__
+/* The shading buffer's element type as kernels see it (read through px_shading_normal and
+ * px_shading_uv, kernels/scene/scene_view.h). */
 #if defined(PX_FLAT_SHADING) && PX_FLAT_SHADING
 typedef FlatTriangleShading PxTriangleShading;
-/* Vertex k's shading normal and texture coordinates. */
-inline float3 px_shading_normal(const global PxTriangleShading* sh, int k) {
-  return (float3)(sh->n[0], sh->n[1], sh->n[2]);
-}
-inline float2 px_shading_uv(const global PxTriangleShading* sh, int k) { return (float2)(0.0f, 0.0f); }
 #else
 typedef TriangleShading PxTriangleShading;
-inline float3 px_shading_normal(const global PxTriangleShading* sh, int k) {
-  const global float* n = k == 0 ? sh->n0 : k == 1 ? sh->n1 : sh->n2;
-  return (float3)(n[0], n[1], n[2]);
-}
-inline float2 px_shading_uv(const global PxTriangleShading* sh, int k) {
-  const global float* uv = k == 0 ? sh->uv0 : k == 1 ? sh->uv1 : sh->uv2;
-  return (float2)(uv[0], uv[1]);
-}
 #endif
 #endif
 
