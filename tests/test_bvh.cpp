@@ -393,7 +393,7 @@ TEST(Bvh, RespectsMaxLeafSize) {
 }
 
 TEST(Bvh, RejectsBadInput) {
-  EXPECT_THROW(build_bvh({}), std::runtime_error);
+  EXPECT_THROW(build_bvh(std::vector<SceneTriangle>{}), std::runtime_error);
   auto tris = random_soup(10, 3);
   tris[4].p[1].y = std::numeric_limits<float>::quiet_NaN();
   EXPECT_THROW(build_bvh(tris), std::runtime_error);
@@ -1541,7 +1541,7 @@ TEST(Validator, DepthAndLeafSizeLimits) {
   // Depth exactly PX_BVH_MAX_DEPTH passes; one more level fails.
   const FlatBvh deepest_allowed = chain(
       std::vector<SceneTriangle>(tris.begin(), tris.begin() + PX_BVH_MAX_DEPTH), PX_BVH_MAX_DEPTH - 1);
-  EXPECT_TRUE(validate_bvh(deepest_allowed, {tris.begin(), tris.begin() + PX_BVH_MAX_DEPTH}).ok);
+  EXPECT_TRUE(validate_bvh(deepest_allowed, std::vector<SceneTriangle>(tris.begin(), tris.begin() + PX_BVH_MAX_DEPTH)).ok);
   const std::vector<SceneTriangle> one_more(tris.begin(), tris.begin() + PX_BVH_MAX_DEPTH + 1);
   const BvhValidation too_deep = validate_bvh(chain(one_more, PX_BVH_MAX_DEPTH), one_more);
   EXPECT_FALSE(too_deep.ok);

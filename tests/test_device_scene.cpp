@@ -1,11 +1,15 @@
 // The scene on the devices (render/device_scene.h): one copy per OpenCL context, whatever the
 // number of devices, and a buffer too large for one allocation refused with an error that
 // names it and both sizes (PX_MAX_ALLOC_BYTES lowers the device's limit for the test).
+#include "app/scene_setup.h"
+#include "bvh/bvh_cache.h"
 #include "render/device_scene.h"
 #include "render/path_tracer.h"
 #include "scene/scene_loader.h"
 #include "scene/primitives.h"
 #include "scene/scene_rig.h"
+#include "support/gltf_builder.h"
+#include "support/test_support.h"
 
 #include <gtest/gtest.h>
 
@@ -214,9 +218,9 @@ TEST(DeviceScene, TwoStepsBeforeTheDevicesGiveTheOneStepBuffers) {
 // and renders the same image to the bit: the kernels built with PX_FLAT_SHADING compute what
 // the full records' kernels compute. The full records come from the one-step constructor (a
 // scene that keeps its triangles), the flat ones from the two steps SceneOnDevices takes.
-TEST(DeviceScene, AFlatUntexturedSceneGetsSixteenByteRecordsAndTheSameImage) {
-  // The Cornell box and a sliver field inside it (thin triangles at every orientation), every
-  // triangle's normal its geometric one as the loaders give a mesh without normals, no uvs.
+// The Cornell box and a sliver field inside it (thin triangles at every orientation), every
+// triangle's normal its geometric one as the loaders give a mesh without normals, no uvs.
+Scene flat_cornell_with_slivers() {
   Scene scene = make_builtin_scene("cornell");
   std::vector<SceneTriangle> slivers;
   append_slivers(slivers, 400, 5, 0);
@@ -232,6 +236,11 @@ TEST(DeviceScene, AFlatUntexturedSceneGetsSixteenByteRecordsAndTheSameImage) {
       t.uv[k] = glm::vec2(0.0f);
     }
   }
+  return scene;
+}
+
+TEST(DeviceScene, AFlatUntexturedSceneGetsSixteenByteRecordsAndTheSameImage) {
+  const Scene scene = flat_cornell_with_slivers();
   ASSERT_TRUE(has_flat_shading(scene.triangles));
   DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
   const DeviceScene full(set, scene, build_bvh(scene.triangles));
@@ -280,6 +289,117 @@ TEST(DeviceScene, AFlatUntexturedSceneGetsSixteenByteRecordsAndTheSameImage) {
   const Scene spheres_scene = spheres();
   const DeviceScene smooth_ds(set, smooth_host, smooth, build_bvh(spheres_scene.triangles, {}, false));
   EXPECT_FALSE(smooth_ds.flat_shading());
+}
+
+// A flat static scene that goes to the devices makes its records before its tree
+// (prepare_flat_host): the tree is then built, validated and keyed in the cache from the corners
+// packed where the triangles were, and comes out the same tree, under the same cache key, as
+// one built from the scene's triangles; the device scene renders the one-step constructor's
+// image. A scene that is not flat is left alone. And the start that does it: load_and_build
+// for the devices on a glTF mesh without normals or uvs.
+TEST(DeviceScene, AFlatSceneBuildsItsTreeFromCornersPackedWhereItsTrianglesWere) {
+  const Scene scene = flat_cornell_with_slivers();
+  Scene handed = scene;
+  DeviceScene::BuildCorners corners;
+  const auto host = DeviceScene::prepare_flat_host(
+      handed, [&handed] { return std::exchange(handed.triangles, {}); }, corners);
+  ASSERT_TRUE(host);
+  EXPECT_TRUE(handed.triangles.empty());
+  ASSERT_EQ(corners.count, scene.triangles.size());
+  std::size_t bad = 0;
+  for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
+    const SceneTriangle& t = scene.triangles[i];
+    const BuildTriangle& c = corners.data[i];
+    bad += std::memcmp(c.p, t.p, sizeof t.p) != 0 || c.material != t.material;
+  }
+  EXPECT_EQ(bad, 0u);
+  const BvhBuildOptions options;
+  EXPECT_EQ(bvh_input_hash(corners.source(), options), bvh_input_hash(scene.triangles, options));
+  FlatBvh from_corners = build_bvh(corners.source(), options, /*collapse=*/false);
+  const FlatBvh from_triangles = build_bvh(scene.triangles, options, /*collapse=*/false);
+  ASSERT_EQ(from_corners.nodes.size(), from_triangles.nodes.size());
+  ASSERT_EQ(from_corners.triangles.size(), from_triangles.triangles.size());
+  EXPECT_EQ(std::memcmp(from_corners.nodes.data(), from_triangles.nodes.data(), from_triangles.nodes.size() * sizeof(BvhNode)), 0);
+  EXPECT_EQ(std::memcmp(from_corners.triangles.data(), from_triangles.triangles.data(),
+                        from_triangles.triangles.size() * sizeof(BvhTriangle)), 0);
+  EXPECT_TRUE(validate_bvh(from_corners, corners.source()).ok);
+  // A corner moved by one ulp is caught by the validator (the corners are what it checks against).
+  {
+    std::vector<BuildTriangle> moved(corners.data, corners.data + corners.count);
+    moved[from_corners.triangles[0].prim].p[1].x = std::nextafter(moved[from_corners.triangles[0].prim].p[1].x, 1e9f);
+    EXPECT_FALSE(validate_bvh(from_corners, TriangleSource(moved)).ok);
+  }
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  const DeviceScene full(set, scene, build_bvh(scene.triangles));
+  const DeviceScene flat(set, host, handed, std::move(from_corners));
+  ASSERT_TRUE(flat.flat_shading());
+  PathTracer::Options opt;
+  opt.spp = 2;
+  opt.bounces = 3;
+  PathTracer a(set, full, scene), b(set, flat, scene);
+  const auto ia = a.render_stereo(0.0f, 1, 40, 28, opt), ib = b.render_stereo(0.0f, 1, 40, 28, opt);
+  for (int e = 0; e < 2; ++e) {
+    ASSERT_EQ(ia[e].rgb.size(), ib[e].rgb.size());
+    EXPECT_EQ(std::memcmp(ia[e].rgb.data(), ib[e].rgb.data(), ia[e].rgb.size() * sizeof(float)), 0) << "eye " << e;
+  }
+  // Not flat: nothing taken, no host part.
+  Scene smooth = spheres();
+  bool taken = false;
+  DeviceScene::BuildCorners none;
+  EXPECT_FALSE(DeviceScene::prepare_flat_host(
+      smooth, [&] { taken = true; return std::exchange(smooth.triangles, {}); }, none));
+  EXPECT_FALSE(taken);
+  EXPECT_EQ(none.data, nullptr);
+  EXPECT_FALSE(smooth.triangles.empty());
+
+  // The start: a 32 x 32 quad grid without NORMAL or TEXCOORD_0 is flat; loaded for the devices,
+  // its triangles are gone when load_and_build returns and its host part waits for the devices;
+  // loaded for anything else, it keeps them. Both give the same tree and the same image.
+  const test::TempDir dir;
+  test::GltfBuilder g;
+  const int n = 32;
+  std::vector<float> pos;
+  std::vector<std::uint16_t> idx;
+  for (int z = 0; z <= n; ++z)
+    for (int x = 0; x <= n; ++x) {
+      pos.insert(pos.end(), {x / float(n) * 2.0f - 1.0f, 0.1f * std::sin(0.7f * x) * std::cos(0.5f * z), z / float(n) * 2.0f - 1.0f});
+    }
+  for (int z = 0; z < n; ++z)
+    for (int x = 0; x < n; ++x) {
+      const auto a0 = std::uint16_t(z * (n + 1) + x), b0 = std::uint16_t(a0 + 1), c0 = std::uint16_t(a0 + n + 1),
+                 d0 = std::uint16_t(c0 + 1);
+      idx.insert(idx.end(), {a0, c0, b0, b0, c0, d0});
+    }
+  g.add("materials", {{"pbrMetallicRoughness", {{"baseColorFactor", {0.7, 0.7, 0.7, 1}}, {"metallicFactor", 0}}}});
+  const int p_acc = g.floats(pos, "VEC3", pos.size() / 3);
+  const int i_acc = g.uint16s(idx, "SCALAR", idx.size());
+  g.add("meshes", {{"primitives", nlohmann::json::array({{{"attributes", {{"POSITION", p_acc}}}, {"indices", i_acc}, {"material", 0}}})}});
+  g.add("cameras", {{"type", "perspective"}, {"perspective", {{"yfov", 0.8}, {"znear", 0.1}}}});
+  g.doc["scene"] = 0;
+  g.doc["scenes"] = nlohmann::json::array({{{"nodes", {0, 1}}}});
+  g.doc["nodes"] = nlohmann::json::array(
+      {{{"mesh", 0}}, {{"camera", 0}, {"translation", {0, 1.5, 2.5}}, {"rotation", {-0.27, 0, 0, 0.963}}}});
+  const std::string file = dir.write("grid.gltf", g.text()).string();
+  LoadedScene for_devices = load_and_build(file, /*quiet=*/true, SkyMode::kAuto, /*map_device_layout=*/true);
+  const LoadedScene kept = load_and_build(file, true);
+  ASSERT_TRUE(for_devices.host_part) << "records made before the tree";
+  EXPECT_TRUE(for_devices.scene.triangles.empty());
+  EXPECT_EQ(for_devices.triangle_count, std::size_t(2 * n * n));
+  EXPECT_FALSE(kept.host_part);
+  ASSERT_EQ(kept.scene.triangles.size(), std::size_t(2 * n * n));
+  ASSERT_EQ(for_devices.bvh.nodes.size(), kept.bvh.nodes.size());
+  EXPECT_EQ(std::memcmp(for_devices.bvh.nodes.data(), kept.bvh.nodes.data(), kept.bvh.nodes.size() * sizeof(BvhNode)), 0);
+  SceneOnDevices on(std::move(for_devices), {2, DeviceMode::Auto, ""});
+  EXPECT_TRUE(on.device_scene.flat_shading());
+  const DeviceScene kept_ds(on.devices, kept.scene, kept.bvh);
+  PathTracer c(on.devices, on.device_scene, on.loaded.scene), d(on.devices, kept_ds, kept.scene);
+  const auto ic = c.render_stereo(0.0f, 0, 40, 28, opt), id = d.render_stereo(0.0f, 0, 40, 28, opt);
+  double sum = 0.0;
+  for (int e = 0; e < 2; ++e) {
+    EXPECT_EQ(std::memcmp(ic[e].rgb.data(), id[e].rgb.data(), ic[e].rgb.size() * sizeof(float)), 0) << "eye " << e;
+    for (float v : ic[e].rgb) sum += v;
+  }
+  EXPECT_GT(sum, 0.0) << "a picture, not a black frame";
 }
 
 }  // namespace

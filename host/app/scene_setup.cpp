@@ -42,7 +42,7 @@ double resident_mib() {
 // `collapse_later`: the wide nodes are left to the device scene (a static scene without
 // instances in a wide layout), which makes them once the scene's triangles have become shading
 // records; here the binary tree alone is validated (and cached).
-void build_world_tree(LoadedScene& out, const std::vector<SceneTriangle>& tree_triangles, bool quiet,
+void build_world_tree(LoadedScene& out, const TriangleSource& tree_triangles, bool quiet,
                       bool collapse_later = false) {
   using clock = Clock;
   // Large scenes go through the disk cache (small ones build faster than a file is read).
@@ -161,6 +161,15 @@ bool collapse_later(const LoadedScene& out, bool for_devices) {
          (bvh_layout() == BvhLayout::Wide4 || bvh_layout() == BvhLayout::Wide8);
 }
 
+// What hands a static scene's triangles over to the device scene (DeviceScene's take_triangles):
+// they leave the scene, and with them the vertex colours, which the tables have taken in.
+std::function<std::vector<SceneTriangle>()> take_static_triangles(Scene& scene) {
+  return [&scene] {
+    std::vector<std::array<glm::vec3, 3>>().swap(scene.vertex_colours);
+    return std::exchange(scene.triangles, {});
+  };
+}
+
 }  // namespace
 
 LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky, bool map_device_layout) {
@@ -245,7 +254,13 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky, boo
       return out;
     }
   }
-  if (!tree_triangles.empty()) build_world_tree(out, tree_triangles, quiet, collapse_later(out, map_device_layout));
+  // A flat static scene on its way to the devices makes its shading records now, and its tree
+  // from the 40-byte corners packed where its 100-byte triangles were (prepare_flat_host).
+  DeviceScene::BuildCorners corners;
+  if (map_device_layout && !instanced && !out.scene.rig && !out.scene.triangles.empty())
+    out.host_part = DeviceScene::prepare_flat_host(out.scene, take_static_triangles(out.scene), corners);
+  const TriangleSource tree_source = out.host_part ? corners.source() : TriangleSource(tree_triangles);
+  if (!tree_source.empty()) build_world_tree(out, tree_source, quiet, collapse_later(out, map_device_layout));
   if (instanced) {
     const ProgressTicker ticker(quiet ? "" : "[bvh] still building the instanced meshes' BVHs");
     const auto t = clock::now();
@@ -271,14 +286,12 @@ namespace {
 // The device-independent part of a static scene's layout, made before the devices (null for
 // other scenes and for a layout mapped from the cache).
 std::shared_ptr<DeviceScene::HostPart> prepare_host_part(LoadedScene& loaded) {
+  if (loaded.host_part) return std::exchange(loaded.host_part, {});
   Scene& scene = loaded.scene;
   if (loaded.device_layout || scene.rig || !scene.instancing.empty() || scene.triangles.empty() ||
       loaded.bvh.nodes.empty())
     return nullptr;
-  return DeviceScene::prepare_host(scene, [&scene] {
-    std::vector<std::array<glm::vec3, 3>>().swap(scene.vertex_colours);
-    return std::exchange(scene.triangles, {});
-  });
+  return DeviceScene::prepare_host(scene, take_static_triangles(scene));
 }
 
 // The scene on `devices`: from the mapped device layout when the cache held one in the set's
@@ -311,11 +324,7 @@ DeviceScene make_device_scene(DeviceSet& devices, LoadedScene& loaded,
   // An animated scene's triangles are posed again every frame (SceneAnimator): they stay.
   Scene& scene = loaded.scene;
   std::function<std::vector<SceneTriangle>()> take_triangles;
-  if (!scene.rig)
-    take_triangles = [&scene] {
-      std::vector<std::array<glm::vec3, 3>>().swap(scene.vertex_colours);
-      return std::exchange(scene.triangles, {});
-    };
+  if (!scene.rig) take_triangles = take_static_triangles(scene);
   return DeviceScene(devices, loaded.scene, std::move(loaded.bvh), std::move(loaded.mesh_bvhs), store, take_triangles);
 }
 

@@ -56,7 +56,7 @@ std::uint64_t payload_checksum(const Header& h, const FlatBvh& bvh) {
 
 }  // namespace
 
-std::uint64_t bvh_input_hash(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options) {
+std::uint64_t bvh_input_hash(const TriangleSource& triangles, const BvhBuildOptions& options) {
   Fnv1a f;
   f.value(kFormatVersion);
   f.bytes(kBuilderSha, std::strlen(kBuilderSha));
@@ -70,9 +70,9 @@ std::uint64_t bvh_input_hash(const std::vector<SceneTriangle>& triangles, const 
   f.value(static_cast<std::uint64_t>(options.split_trial_max_sample));
   f.value(static_cast<std::uint64_t>(options.block_leaves_from));
   f.value(static_cast<std::uint64_t>(triangles.size()));
-  for (const SceneTriangle& t : triangles) {
-    f.bytes(t.p, sizeof t.p);
-    f.value(t.material);
+  for (std::size_t i = 0; i < triangles.size(); ++i) {
+    f.bytes(triangles.p(i), 3 * sizeof(glm::vec3));
+    f.value(triangles.material(i));
   }
   return f.h;
 }
@@ -93,7 +93,7 @@ std::string BvhCache::path_for(std::uint64_t key) const {
 
 std::uint32_t bvh_layout_bit(BvhLayout layout) { return 1u << static_cast<unsigned>(bvh_layout_width(layout)); }
 
-std::optional<FlatBvh> BvhCache::load(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options,
+std::optional<FlatBvh> BvhCache::load(const TriangleSource& triangles, const BvhBuildOptions& options,
                                       std::uint32_t* validated_layouts) const {
   if (validated_layouts) *validated_layouts = 0;
   if (dir_.empty()) return std::nullopt;
@@ -131,7 +131,7 @@ std::optional<FlatBvh> BvhCache::load(const std::vector<SceneTriangle>& triangle
   return bvh;
 }
 
-std::string BvhCache::store(const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles,
+std::string BvhCache::store(const FlatBvh& bvh, const TriangleSource& triangles,
                             const BvhBuildOptions& options, std::string* why) const {
   if (dir_.empty()) {
     if (why) *why = "no cache folder";

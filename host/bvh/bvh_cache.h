@@ -26,7 +26,7 @@
 
 namespace px {
 
-std::uint64_t bvh_input_hash(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options);
+std::uint64_t bvh_input_hash(const TriangleSource& triangles, const BvhBuildOptions& options);
 
 // A layout's bit in BvhCache's validated-layouts mask.
 std::uint32_t bvh_layout_bit(BvhLayout layout);
@@ -42,12 +42,12 @@ class BvhCache {
   // The cached BVH for these triangles and options, or nullopt (miss, or an unreadable file).
   // `validated_layouts` (if given): the bvh_layout_bit of each wide layout validated with the
   // tree before it was stored (0 on a miss).
-  std::optional<FlatBvh> load(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options,
+  std::optional<FlatBvh> load(const TriangleSource& triangles, const BvhBuildOptions& options,
                               std::uint32_t* validated_layouts = nullptr) const;
   // Stores `bvh` (built from these triangles and options), which must have passed validate_bvh
   // with the wide nodes it carries (recorded as validated). Returns the file written, or "" with
   // `why` set when it could not be (a cache never fails a run).
-  std::string store(const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options,
+  std::string store(const FlatBvh& bvh, const TriangleSource& triangles, const BvhBuildOptions& options,
                     std::string* why = nullptr) const;
   std::string path_for(std::uint64_t key) const;
 

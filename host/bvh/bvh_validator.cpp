@@ -64,11 +64,11 @@ Vec3d cross(const Vec3d& a, const Vec3d& b) {
 }
 double dot(const Vec3d& a, const Vec3d& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 
-Vec3d vertex(const SceneTriangle& t, int i) { return {t.p[i].x, t.p[i].y, t.p[i].z}; }
+Vec3d vertex(const BuildTriangle& t, int i) { return {t.p[i].x, t.p[i].y, t.p[i].z}; }
 
 // Float tolerance for "contains" and "overlaps": a few float ulps of the largest magnitude
 // involved, so exact builder output passes at any scale and real errors do not.
-double tolerance(const Box& box, const SceneTriangle* tri) {
+double tolerance(const Box& box, const BuildTriangle* tri) {
   double scale = 0.0;
   for (int k = 0; k < 3; ++k) scale = std::max({scale, std::abs(box.lo[k]), std::abs(box.hi[k])});
   if (tri)
@@ -89,7 +89,7 @@ bool contains_point(const Box& box, const Vec3d& p, double tol) {
   return true;
 }
 
-Box triangle_box(const SceneTriangle& t) {
+Box triangle_box(const BuildTriangle& t) {
   Box b;
   for (int k = 0; k < 3; ++k) {
     b.lo[k] = std::min({t.p[0][k], t.p[1][k], t.p[2][k]});
@@ -102,7 +102,7 @@ Box triangle_box(const SceneTriangle& t) {
 // are disjoint iff their projections are disjoint on one of 13 axes (3 box normals, the triangle
 // normal, 9 edge cross products). Deliberately a different method from the builder's polygon
 // clipping, so the two check each other. The box is grown by `tol`.
-bool triangle_overlaps_box(const SceneTriangle& tri, const Box& box, double tol) {
+bool triangle_overlaps_box(const BuildTriangle& tri, const Box& box, double tol) {
   const Vec3d center = {0.5 * (box.lo[0] + box.hi[0]), 0.5 * (box.lo[1] + box.hi[1]),
                         0.5 * (box.lo[2] + box.hi[2])};
   const double half[3] = {0.5 * (box.hi[0] - box.lo[0]) + tol, 0.5 * (box.hi[1] - box.lo[1]) + tol,
@@ -391,12 +391,12 @@ std::vector<std::uint8_t> walk_tree(const Nodes& tree, std::size_t tri_count, Re
 // are gone (DeviceScene), the leaf entries themselves, which a validation against the scene has
 // found to be such copies.
 struct SceneSource {
-  const std::vector<SceneTriangle>& triangles;
+  const TriangleSource& triangles;
   std::size_t size() const { return triangles.size(); }
-  const SceneTriangle& at(std::uint32_t prim, std::uint64_t /*entry*/) const { return triangles[prim]; }
+  BuildTriangle at(std::uint32_t prim, std::uint64_t /*entry*/) const { return triangles[prim]; }
   template <typename Name>
   void check_entry(const Name& name, std::uint64_t i, const BvhTriangle& t, Report& report) const {
-    const SceneTriangle& s = triangles[t.prim];
+    const BuildTriangle s = triangles[t.prim];
     bool same = t.material == s.material;
     for (int k = 0; k < 3; ++k)
       same = same && t.v0[k] == s.p[0][k] && t.v1[k] == s.p[1][k] && t.v2[k] == s.p[2][k];
@@ -407,9 +407,9 @@ struct LeafSource {
   const FlatBvh& bvh;
   std::size_t scene_triangles;
   std::size_t size() const { return scene_triangles; }
-  SceneTriangle at(std::uint32_t /*prim*/, std::uint64_t entry) const {
+  BuildTriangle at(std::uint32_t /*prim*/, std::uint64_t entry) const {
     const BvhTriangle& t = bvh.triangles[entry];
-    SceneTriangle s{};
+    BuildTriangle s{};
     s.p[0] = {t.v0[0], t.v0[1], t.v0[2]};
     s.p[1] = {t.v1[0], t.v1[1], t.v1[2]};
     s.p[2] = {t.v2[0], t.v2[1], t.v2[2]};
@@ -649,7 +649,7 @@ void validate_compressed(const FlatBvh& bvh, Report& report) {
 
 }  // namespace
 
-BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles, bool binary_tree) {
+BvhValidation validate_bvh(const FlatBvh& bvh, const TriangleSource& triangles, bool binary_tree) {
   Report report;
   if (bvh.nodes.empty()) {
     report.error("the BVH has no nodes");

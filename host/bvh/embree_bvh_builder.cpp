@@ -442,7 +442,7 @@ class Flattener {
  public:
   // Writes the nodes to out.nodes and the leaves' scene triangle indices, in leaf order, to
   // `leaf_prims` (leaf_triangles makes the BvhTriangles of them once Embree's tree is gone).
-  Flattener(const std::vector<SceneTriangle>& scene, FlatBvh& out, std::vector<std::uint32_t>& leaf_prims,
+  Flattener(const TriangleSource& scene, FlatBvh& out, std::vector<std::uint32_t>& leaf_prims,
             int max_depth)
       : scene_(scene), out_(out), leaf_prims_(leaf_prims), max_depth_(max_depth) {}
 
@@ -453,7 +453,7 @@ class Flattener {
       const auto* leaf = static_cast<const TempLeaf*>(root);
       RTCBounds box;
       set_empty(&box);
-      for (std::uint32_t i = 0; i < leaf->count; ++i) extend(box, scene_[leaf->prims[i]]);
+      for (std::uint32_t i = 0; i < leaf->count; ++i) extend(box, scene_.p(leaf->prims[i]));
       out_.nodes.emplace_back();
       set_child(0, 0, box, emit_leaf(leaf), leaf->count);
       constexpr float kMax = std::numeric_limits<float>::max();
@@ -475,8 +475,9 @@ class Flattener {
     float centroid[3];
   };
 
-  static void extend(RTCBounds& box, const SceneTriangle& tri) {
-    for (const auto& p : tri.p) {
+  static void extend(RTCBounds& box, const glm::vec3* corners) {
+    for (int c = 0; c < 3; ++c) {
+      const glm::vec3& p = corners[c];
       box.lower_x = std::min(box.lower_x, p.x), box.upper_x = std::max(box.upper_x, p.x);
       box.lower_y = std::min(box.lower_y, p.y), box.upper_y = std::max(box.upper_y, p.y);
       box.lower_z = std::min(box.lower_z, p.z), box.upper_z = std::max(box.upper_z, p.z);
@@ -598,7 +599,7 @@ class Flattener {
     return index;
   }
 
-  const std::vector<SceneTriangle>& scene_;
+  const TriangleSource& scene_;
   FlatBvh& out_;
   std::vector<std::uint32_t>& leaf_prims_;
   int max_depth_;
@@ -665,21 +666,21 @@ void compute_bvh_stats(FlatBvh& bvh) {
 namespace {
 
 // The BvhTriangles of the scene triangles `leaf_prims`, in that (leaf) order.
-std::vector<BvhTriangle> leaf_triangles(const std::vector<SceneTriangle>& triangles,
+std::vector<BvhTriangle> leaf_triangles(const TriangleSource& triangles,
                                         const std::vector<std::uint32_t>& leaf_prims) {
   std::vector<BvhTriangle> out;
   out.reserve(leaf_prims.size());
   for (const std::uint32_t prim : leaf_prims) {
-    const SceneTriangle& tri = triangles[prim];
+    const glm::vec3* p = triangles.p(prim);
     BvhTriangle t;
     for (int k = 0; k < 3; ++k) {
-      t.v0[k] = tri.p[0][k];
-      t.v1[k] = tri.p[1][k];
-      t.v2[k] = tri.p[2][k];
+      t.v0[k] = p[0][k];
+      t.v1[k] = p[1][k];
+      t.v2[k] = p[2][k];
     }
     t.prim = prim;
     t.flags = 0;  // filled from materials by set_triangle_flags()
-    t.material = tri.material;
+    t.material = triangles.material(prim);
     out.push_back(t);
   }
   return out;
@@ -688,7 +689,7 @@ std::vector<BvhTriangle> leaf_triangles(const std::vector<SceneTriangle>& triang
 // One rtcBuildBVH run. Returns false if Embree failed (message in `error`) or, with spatial
 // splits, if the split budget ran out (`over_budget` set); throws for failures a retry cannot
 // fix.
-bool build_once(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options, unsigned int sah_block,
+bool build_once(const TriangleSource& triangles, const BvhBuildOptions& options, unsigned int sah_block,
                 unsigned int max_depth, FlatBvh& out, std::string& error, bool& over_budget) {
   over_budget = false;
   RTCDevice device = embree_device();
@@ -702,14 +703,14 @@ bool build_once(const std::vector<SceneTriangle>& triangles, const BvhBuildOptio
   const std::size_t capacity = options.spatial_splits ? 2 * count : count;
   std::vector<RTCBuildPrimitive> primitives(capacity);
   for (std::size_t i = 0; i < count; ++i) {
-    const SceneTriangle& t = triangles[i];
+    const glm::vec3* t = triangles.p(i);
     RTCBuildPrimitive& p = primitives[i];
-    p.lower_x = std::min({t.p[0].x, t.p[1].x, t.p[2].x});
-    p.lower_y = std::min({t.p[0].y, t.p[1].y, t.p[2].y});
-    p.lower_z = std::min({t.p[0].z, t.p[1].z, t.p[2].z});
-    p.upper_x = std::max({t.p[0].x, t.p[1].x, t.p[2].x});
-    p.upper_y = std::max({t.p[0].y, t.p[1].y, t.p[2].y});
-    p.upper_z = std::max({t.p[0].z, t.p[1].z, t.p[2].z});
+    p.lower_x = std::min({t[0].x, t[1].x, t[2].x});
+    p.lower_y = std::min({t[0].y, t[1].y, t[2].y});
+    p.lower_z = std::min({t[0].z, t[1].z, t[2].z});
+    p.upper_x = std::max({t[0].x, t[1].x, t[2].x});
+    p.upper_y = std::max({t[0].y, t[1].y, t[2].y});
+    p.upper_z = std::max({t[0].z, t[1].z, t[2].z});
     p.geomID = 0;  // Embree keeps per-primitive split budgets in geomID's top bits
     p.primID = static_cast<unsigned int>(i);
   }
@@ -721,7 +722,7 @@ bool build_once(const std::vector<SceneTriangle>& triangles, const BvhBuildOptio
     context.positions.resize(count);
     for (std::size_t i = 0; i < count; ++i)
       for (int v = 0; v < 3; ++v)
-        for (int k = 0; k < 3; ++k) context.positions[i][3 * v + k] = triangles[i].p[v][k];
+        for (int k = 0; k < 3; ++k) context.positions[i][3 * v + k] = triangles.p(i)[v][k];
   }
 
   RTCBVH bvh = rtcNewBVH(device);
@@ -812,7 +813,7 @@ namespace {
 // One tree over `triangles` with `options`, whatever it takes: spatial splits past their work
 // budget are redone with binned SAH, and a build that hits Embree's depth limit is redone with a
 // relaxed one (the flattener restores the limit). Leaves the stats to the caller.
-void build_tree(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options, unsigned int sah_block,
+void build_tree(const TriangleSource& triangles, const BvhBuildOptions& options, unsigned int sah_block,
                 FlatBvh& bvh) {
   BvhBuildOptions used = options;
   std::string first_error;
@@ -848,12 +849,12 @@ void build_tree(const std::vector<SceneTriangle>& triangles, const BvhBuildOptio
 // sizes against the scene's extent. Its triangles lie further apart than the scene's, so the
 // sample over-states the gain rather than missing it. A compact sample (a subtree of the binned
 // tree) was tried first: it missed atrium's 12% gain, which lives in its top levels.
-double sampled_split_gain(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options,
+double sampled_split_gain(const TriangleSource& triangles, const BvhBuildOptions& options,
                           unsigned int sah_block, std::size_t& sampled) {
   std::size_t stride = 16;
   const std::size_t cap = options.split_trial_max_sample;
   if (cap > 0 && triangles.size() > stride * cap) stride = (triangles.size() + cap - 1) / cap;
-  std::vector<SceneTriangle> part;
+  std::vector<BuildTriangle> part;
   part.reserve(triangles.size() / stride + 1);
   for (std::size_t i = 0; i < triangles.size(); i += stride) part.push_back(triangles[i]);
   sampled = part.size();
@@ -878,7 +879,7 @@ double sampled_split_gain(const std::vector<SceneTriangle>& triangles, const Bvh
 
 }  // namespace
 
-FlatBvh build_bvh(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options, bool collapse) {
+FlatBvh build_bvh(const TriangleSource& triangles, const BvhBuildOptions& options, bool collapse) {
   const auto start = std::chrono::steady_clock::now();
   if (triangles.empty()) throw std::runtime_error("BVH: cannot build over an empty scene");
   if (triangles.size() >= PX_NO_HIT)
@@ -889,8 +890,8 @@ FlatBvh build_bvh(const std::vector<SceneTriangle>& triangles, const BvhBuildOpt
   if (!(options.split_min_gain >= 0.0 && options.split_min_gain <= 1.0))
     throw std::invalid_argument("BVH: split_min_gain must be in [0, 1]");
   for (std::size_t i = 0; i < triangles.size(); ++i)
-    for (const auto& p : triangles[i].p)
-      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+    for (int c = 0; c < 3; ++c)
+      if (const glm::vec3& p = triangles.p(i)[c]; !std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
         throw std::runtime_error("BVH: triangle " + std::to_string(i) +
                                  " has a non-finite vertex");
 

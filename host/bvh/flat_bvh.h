@@ -3,6 +3,7 @@
 // builder API, validated, then uploaded unchanged to every device.
 #pragma once
 
+#include "bvh/triangle_source.h"
 #include "scene/scene.h"
 #include "shared/types.h"
 
@@ -220,7 +221,7 @@ double ensure_layout(FlatBvh& bvh, BvhLayout layout);
 // flattens the result. Throws std::runtime_error on an empty input or an Embree error.
 // `collapse` false: the tree is returned without the process layout's wide nodes (a caller that
 // makes them later, once the scene's triangles are gone: DeviceScene).
-FlatBvh build_bvh(const std::vector<SceneTriangle>& triangles, const BvhBuildOptions& options = {},
+FlatBvh build_bvh(const TriangleSource& triangles, const BvhBuildOptions& options = {},
                   bool collapse = true);
 
 // Fills bvh.stats' node and leaf counts, depth and SAH cost from the binary nodes (the builder
@@ -259,7 +260,7 @@ struct BvhValidation {
 // `binary_tree` false leaves the binary nodes out (the wide and compressed ones, which are
 // derived from them, are still checked): for a tree read back from the BVH cache, whose binary
 // nodes were validated before they were written and are protected by the file's checksum.
-BvhValidation validate_bvh(const FlatBvh& bvh, const std::vector<SceneTriangle>& triangles, bool binary_tree = true);
+BvhValidation validate_bvh(const FlatBvh& bvh, const TriangleSource& triangles, bool binary_tree = true);
 // The wide and compressed nodes present (nodes4, nodes8, cnodes) checked as validate_bvh checks
 // them, with each leaf entry's own vertices standing for its scene triangle's (of
 // `scene_triangles`): for nodes made after the scene's triangles are gone (DeviceScene), from a

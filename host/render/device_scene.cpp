@@ -197,6 +197,16 @@ FlatTriangleShading flat_shading_of(const SceneTriangle& t) {
   return s;
 }
 
+// Hands the whole pages of block [bytes + used, bytes + size) back to the system (MADV_DONTNEED:
+// a block that large is a private mapping of its own), from 8 MiB.
+void release_tail(unsigned char* bytes, std::size_t used, std::size_t size) {
+  constexpr std::size_t kReleaseFrom = std::size_t{8} << 20;
+  const auto page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
+  const auto begin = (reinterpret_cast<std::uintptr_t>(bytes + used) + page - 1) / page * page;
+  const auto end = reinterpret_cast<std::uintptr_t>(bytes + size) / page * page;
+  if (end > begin && end - begin >= kReleaseFrom) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_DONTNEED);
+}
+
 // The shading records of `triangles` (Record: TriangleShading, or FlatTriangleShading when
 // every triangle is flat), written over the triangles themselves: record i (64 or 16 bytes at
 // that many times i) is written after triangle i (100 bytes at 100 i) is read, and ends before
@@ -216,11 +226,7 @@ DeviceScene::HostBytes records_in_place(std::vector<SceneTriangle>&& triangles, 
     const Record s = make(t);
     std::memcpy(bytes + i * sizeof(Record), &s, sizeof s);
   }
-  constexpr std::size_t kReleaseFrom = std::size_t{8} << 20;
-  const auto page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
-  const auto begin = (reinterpret_cast<std::uintptr_t>(bytes + n * sizeof(Record)) + page - 1) / page * page;
-  const auto end = reinterpret_cast<std::uintptr_t>(bytes + n * sizeof(SceneTriangle)) / page * page;
-  if (end > begin && end - begin >= kReleaseFrom) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_DONTNEED);
+  release_tail(bytes, n * sizeof(Record), n * sizeof(SceneTriangle));
   return {bytes, n * sizeof(Record), sizeof(Record), owner};
 }
 
@@ -592,6 +598,40 @@ std::shared_ptr<DeviceScene::HostPart> DeviceScene::prepare_host(
     throw std::logic_error("DeviceScene: take_triangles handed over " + std::to_string(taken.size()) +
                            " triangles, not the scene's " + std::to_string(host->scene_triangles));
   host->shading = has_flat_shading(taken) ? flat_shading_in_place(std::move(taken)) : shading_in_place(std::move(taken));
+  host->ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return host;
+}
+
+std::shared_ptr<DeviceScene::HostPart> DeviceScene::prepare_flat_host(
+    const Scene& scene, const std::function<std::vector<SceneTriangle>()>& take_triangles, BuildCorners& corners) {
+  if (!scene.instancing.empty() || scene.rig || !take_triangles)
+    throw std::logic_error("DeviceScene::prepare_flat_host: a static scene without instances, its triangles handed over");
+  if (!has_flat_shading(scene.triangles)) return nullptr;
+  const auto start = std::chrono::steady_clock::now();
+  auto host = std::make_shared<HostPart>();
+  host->scene_triangles = scene.triangles.size();
+  host->tri_flags = triangle_flags(scene);
+  host->tables = make_tables(scene, host->tri_flags, false);
+  auto owner = std::make_shared<std::vector<SceneTriangle>>(take_triangles());
+  const std::size_t n = owner->size();
+  if (n != host->scene_triangles)
+    throw std::logic_error("DeviceScene: take_triangles handed over " + std::to_string(n) + " triangles, not the scene's " +
+                           std::to_string(host->scene_triangles));
+  // Corner set i (40 bytes at 40 i) is written after triangle i (100 bytes at 100 i) is read and
+  // ends before triangle i + 1 begins, as in records_in_place.
+  static_assert(std::is_trivially_copyable_v<BuildTriangle> && sizeof(BuildTriangle) <= sizeof(SceneTriangle));
+  auto records = std::make_shared<std::vector<FlatTriangleShading>>(n);
+  auto* bytes = reinterpret_cast<unsigned char*>(owner->data());
+  for (std::size_t i = 0; i < n; ++i) {
+    SceneTriangle t;
+    std::memcpy(&t, bytes + i * sizeof(SceneTriangle), sizeof t);
+    (*records)[i] = flat_shading_of(t);
+    const BuildTriangle b{{t.p[0], t.p[1], t.p[2]}, t.material};
+    std::memcpy(bytes + i * sizeof(BuildTriangle), &b, sizeof b);
+  }
+  release_tail(bytes, n * sizeof(BuildTriangle), n * sizeof(SceneTriangle));
+  host->shading = {records->data(), n * sizeof(FlatTriangleShading), sizeof(FlatTriangleShading), records};
+  corners = {owner, reinterpret_cast<const BuildTriangle*>(bytes), n};
   host->ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return host;
 }

@@ -103,6 +103,22 @@ class DeviceScene {
                                                 const std::function<std::vector<SceneTriangle>()>& take_triangles);
   DeviceScene(DeviceSet& devices, std::shared_ptr<HostPart> host, const Scene& scene, FlatBvh bvh,
               const DeviceLayoutStore& store = {});
+  // prepare_host for a start whose tree is not built yet, when every triangle is flat
+  // (has_flat_shading; otherwise null, and nothing is taken): the 16-byte records go to a block
+  // of their own, and each triangle's corners and material (BuildTriangle, 40 bytes) are packed
+  // where the triangles were, into `corners`, which the tree is then built, validated and cached
+  // from (TriangleSource). The 100-byte triangles are gone before the build begins, so the
+  // build's arrays never stand beside them (the cold start's highest point: 48 bytes a triangle
+  // lower). The corners' memory goes with the last copy of `corners`.
+  struct BuildCorners {
+    std::shared_ptr<const void> owner;
+    const BuildTriangle* data = nullptr;
+    std::size_t count = 0;
+    TriangleSource source() const { return {data, count}; }
+  };
+  static std::shared_ptr<HostPart> prepare_flat_host(const Scene& scene,
+                                                     const std::function<std::vector<SceneTriangle>()>& take_triangles,
+                                                     BuildCorners& corners);
   // A static scene without instances whose layout a start mapped from the cache
   // (DeviceLayoutCache::open) in the set's layout: its sections are the node, triangle and
   // shading buffers (CPU devices read the mapping itself), nothing is laid out.
