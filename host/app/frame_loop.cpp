@@ -69,9 +69,6 @@ std::optional<int> RenderLoop::start() {
   const StereoPipeline::Options& opt = config_.options;
   auto setup = [&] {
     if (root_) {
-      if (!image_codec_available())
-        std::fprintf(stderr, "render: this build has no image codec (configured with -DPX_OPENIMAGEIO=OFF): no image "
-                             "files are written; --report, --timeline and --video still are\n");
       out_dir_.emplace(cmd_.out, cmd_.overwrite, is_render_frame_file);
       if (!cmd_.report.empty()) report_.emplace(cmd_, opt, cluster_.size());
       if (!cmd_.timeline.empty()) timeline_.emplace(cmd_.timeline);
@@ -210,6 +207,15 @@ void RenderLoop::step(unsigned f) {
   if (!cmd_.no_exr) {
     eyes = pipeline.radiance();
     require_finite(eyes, "frame " + std::to_string(f));
+  }
+  // Whether files can be written is asked at the first write: the codec's libraries have been
+  // loading on another core since the scene went to the devices (SceneOnDevices), beside the
+  // first frame rather than before it or beside the start's highest points.
+  if (!codec_checked_) {
+    codec_checked_ = true;
+    if (!image_codec_available())
+      std::fprintf(stderr, "render: this build has no image codec (configured with -DPX_OPENIMAGEIO=OFF): no image "
+                           "files are written; --report, --timeline and --video still are\n");
   }
   write_render_frame(cmd_, *out_dir_, f, eyes, pipeline.rgba8(), pipeline, video_ ? &*video_ : nullptr);
   done_ = f + 1;

@@ -172,12 +172,10 @@ std::function<std::vector<SceneTriangle>()> take_static_triangles(Scene& scene) 
 
 }  // namespace
 
-LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky, bool map_device_layout) {
+// load_and_build without the codec preload.
+static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, SkyMode sky, bool map_device_layout) {
   using clock = Clock;
   LoadedScene out;
-  // Textures, and the frames' files after the start, need the image codec: its libraries load
-  // on another core while the scene does.
-  preload_image_codec();
   auto t0 = clock::now();
   if (!quiet) std::fprintf(stderr, "[scene] loading %s ...\n", spec.c_str());
   {
@@ -277,6 +275,17 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky, boo
   return out;
 }
 
+LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky, bool map_device_layout) {
+  LoadedScene out = load_and_build_tree(spec, quiet, sky, map_device_layout);
+  // The frames' files need the image codec: its libraries (about 85 MiB of mapped pages with
+  // their dependencies) load on another core after the start's highest points (the end of a
+  // large scene's BVH build, the making of its device layout), not beside them: here, or for
+  // SceneOnDevices once the scene is on the devices. A scene with textures has loaded them
+  // already, at its first texture.
+  if (!map_device_layout) preload_image_codec();
+  return out;
+}
+
 SceneOnDevices::SceneOnDevices(const std::string& spec, const DeviceOptions& device_options, bool quiet, SkyMode sky,
                                KernelChoice kernels)
     : SceneOnDevices(load_and_build(spec, quiet, sky, /*map_device_layout=*/true), device_options, kernels) {}
@@ -341,6 +350,7 @@ SceneOnDevices::SceneOnDevices(LoadedScene scene, const DeviceOptions& device_op
     std::vector<std::array<glm::vec3, 3>>().swap(loaded.scene.vertex_colours);
   }
   loaded.times.host_rss_after_start_mib = resident_mib();
+  preload_image_codec();  // see load_and_build
 }
 
 }  // namespace px
