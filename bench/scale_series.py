@@ -15,6 +15,9 @@ so that no run pays for compiling them.
 
 Usage: bench/scale_series.py [--sizes 0.25,1,4,10] [--build build] [--work build/scale-series]
                              [--width 320] [--height 180] [--devices 2] [--repeat 3] [--offline]
+                             [--smooth]
+--smooth writes per-vertex normals and texture coordinates as well (as scanned and modelled
+meshes come), which parallax keeps in 64-byte shading records instead of flat ones' 16.
 Sizes are in millions of triangles. Each start runs --repeat times (cold parallax and Mitsuba
 alternating); the table gives the median time, its range and the highest peak. Writes
 <work>/results.csv and prints a Markdown table.
@@ -43,6 +46,19 @@ def grid_for(triangles):
     return max(1, int(round(math.sqrt(triangles / 2.0))))
 
 
+def heightfield_normals_uvs(n):
+    """Per-vertex unit normals (the relief's analytic gradient) and texture coordinates (x, z
+    mapped to [0, 1]) of heightfield(n)'s vertices, float32 [V,3] and [V,2]."""
+    s = np.linspace(-1.0, 1.0, n + 1, dtype=np.float64)
+    x, z = np.meshgrid(s, s)
+    dx = 0.08 * 9.0 * np.cos(9.0 * x) * np.cos(7.0 * z) + 0.05 * 23.0 * np.cos(23.0 * x + 11.0 * z)
+    dz = -0.08 * 7.0 * np.sin(9.0 * x) * np.sin(7.0 * z) + 0.05 * 11.0 * np.cos(23.0 * x + 11.0 * z)
+    nrm = np.stack([-dx, np.ones_like(dx), -dz], axis=-1)
+    nrm /= np.linalg.norm(nrm, axis=-1, keepdims=True)
+    uv = np.stack([0.5 * (x + 1.0), 0.5 * (z + 1.0)], axis=-1)
+    return nrm.reshape(-1, 3).astype(np.float32), uv.reshape(-1, 2).astype(np.float32)
+
+
 def heightfield(n):
     """(positions float32 [V,3], indices uint32 [T,3]) of an n x n quad grid over [-1, 1]^2."""
     s = np.linspace(-1.0, 1.0, n + 1, dtype=np.float64)
@@ -57,8 +73,22 @@ def heightfield(n):
     return pos, idx
 
 
-def write_glb(path, pos, idx):
+def write_glb(path, pos, idx, nrm=None, uv=None):
     bin_blob = idx.tobytes() + pos.tobytes()
+    views = [{"buffer": 0, "byteOffset": 0, "byteLength": idx.nbytes, "target": 34963},
+             {"buffer": 0, "byteOffset": idx.nbytes, "byteLength": pos.nbytes, "target": 34962}]
+    accessors = [{"bufferView": 0, "componentType": 5125, "count": int(idx.size), "type": "SCALAR"},
+                 {"bufferView": 1, "componentType": 5126, "count": int(pos.shape[0]), "type": "VEC3",
+                  "min": pos.min(axis=0).tolist(), "max": pos.max(axis=0).tolist()}]
+    attributes = {"POSITION": 1}
+    for name, data, kind in (("NORMAL", nrm, "VEC3"), ("TEXCOORD_0", uv, "VEC2")):
+        if data is None:
+            continue
+        views.append({"buffer": 0, "byteOffset": len(bin_blob), "byteLength": data.nbytes, "target": 34962})
+        accessors.append({"bufferView": len(views) - 1, "componentType": 5126, "count": int(data.shape[0]),
+                          "type": kind})
+        attributes[name] = len(accessors) - 1
+        bin_blob += data.tobytes()
     pad = (-len(bin_blob)) % 4
     bin_blob += b"\0" * pad
     gltf = {
@@ -66,19 +96,12 @@ def write_glb(path, pos, idx):
         "scene": 0,
         "scenes": [{"nodes": [0]}],
         "nodes": [{"mesh": 0}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 1}, "indices": 0, "material": 0}]}],
+        "meshes": [{"primitives": [{"attributes": attributes, "indices": 0, "material": 0}]}],
         "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [0.6, 0.55, 0.5, 1.0], "metallicFactor": 0.0,
                                                  "roughnessFactor": 1.0}}],
         "buffers": [{"byteLength": len(bin_blob)}],
-        "bufferViews": [
-            {"buffer": 0, "byteOffset": 0, "byteLength": idx.nbytes, "target": 34963},
-            {"buffer": 0, "byteOffset": idx.nbytes, "byteLength": pos.nbytes, "target": 34962},
-        ],
-        "accessors": [
-            {"bufferView": 0, "componentType": 5125, "count": int(idx.size), "type": "SCALAR"},
-            {"bufferView": 1, "componentType": 5126, "count": int(pos.shape[0]), "type": "VEC3",
-             "min": pos.min(axis=0).tolist(), "max": pos.max(axis=0).tolist()},
-        ],
+        "bufferViews": views,
+        "accessors": accessors,
     }
     js = json.dumps(gltf).encode()
     js += b" " * ((-len(js)) % 4)
@@ -91,13 +114,21 @@ def write_glb(path, pos, idx):
     os.replace(tmp, path)
 
 
-def write_ply(path, pos, idx):
+def write_ply(path, pos, idx, nrm=None, uv=None):
     tmp = path + ".tmp"
+    props = "property float x\nproperty float y\nproperty float z\n"
+    columns = [pos]
+    if nrm is not None:
+        props += "property float nx\nproperty float ny\nproperty float nz\n"
+        columns.append(nrm)
+    if uv is not None:
+        props += "property float u\nproperty float v\n"
+        columns.append(uv)
     with open(tmp, "wb") as f:
         f.write(("ply\nformat binary_little_endian 1.0\n"
-                 f"element vertex {pos.shape[0]}\nproperty float x\nproperty float y\nproperty float z\n"
+                 f"element vertex {pos.shape[0]}\n{props}"
                  f"element face {idx.shape[0]}\nproperty list uchar uint vertex_indices\nend_header\n").encode())
-        f.write(pos.astype("<f4").tobytes())
+        f.write(np.concatenate(columns, axis=1).astype("<f4").tobytes())
         faces = np.empty(idx.shape[0], dtype=[("n", "u1"), ("v", "<u4", 3)])
         faces["n"] = 3
         faces["v"] = idx
@@ -183,6 +214,9 @@ def main():
     ap.add_argument("--height", type=int, default=180)
     ap.add_argument("--devices", type=int, default=2)
     ap.add_argument("--offline", action="store_true", help="never ask PyPI (Mitsuba columns n/a unless installed)")
+    ap.add_argument("--smooth", action="store_true",
+                    help="meshes with per-vertex NORMAL and TEXCOORD_0 (PLY: nx ny nz u v), as scanned and modelled "
+                         "meshes come; without it the heightfields have positions only (flat triangles)")
     ap.add_argument("--repeat", type=int, default=3,
                     help="runs of each start (cold parallax and Mitsuba alternate); the table gives medians")
     a = ap.parse_args()
@@ -215,15 +249,16 @@ def main():
     for s in sizes:
         n = grid_for(s * 1e6)
         tris = 2 * n * n
-        tag = f"{tris}"
+        tag = f"smooth-{tris}" if a.smooth else f"{tris}"
         glb, ply, js = (os.path.join(work, f"heightfield-{tag}.{ext}") for ext in ("glb", "ply", "json"))
         if not (os.path.exists(glb) and os.path.exists(ply) and os.path.exists(js)):
             print(f"[scale_series] generating {tris} triangles", file=sys.stderr)
             pos, idx = heightfield(n)
-            write_glb(glb, pos, idx)
-            write_ply(ply, pos, idx)
+            nrm, uv = heightfield_normals_uvs(n) if a.smooth else (None, None)
+            write_glb(glb, pos, idx, nrm, uv)
+            write_ply(ply, pos, idx, nrm, uv)
             write_scene_json(js, os.path.basename(glb))
-            del pos, idx
+            del pos, idx, nrm, uv
         row = {"triangles": tris, "glb_mib": os.path.getsize(glb) / 2**20}
         common = ["render", "--scene", js, "--frames", "1", "--spp", "1", "--devices", str(a.devices), "--width",
                   str(a.width), "--height", str(a.height), "--no-denoise", "--overwrite"]

@@ -51,6 +51,32 @@ if "$src/bench/scale_series.py" --sizes 0.05 --build "$build" --work "$tmp/w2" -
     else fail "mapped layout changed the $eye image"; fi
   done
 else fail "scale_series at 0.05M: exit $?"; tail -5 "$tmp/err2"; fi
+# --smooth: the same grid with per-vertex unit normals and texture coordinates in both files; the
+# render takes the full shading records (no "flat triangles" line).
+if "$src/bench/scale_series.py" --sizes 0.002 --smooth --build "$build" --work "$tmp/w3" --width 32 --height 18 \
+  --offline --repeat 1 >"$tmp/out3" 2>"$tmp/err3"; then
+  /usr/bin/python3 - "$tmp/w3" <<'PY' && ok "smooth meshes carry normals and uvs" || fail "smooth meshes"
+import json, struct, sys, glob
+import numpy as np
+w = sys.argv[1]
+glb = open(glob.glob(f"{w}/heightfield-smooth-2048.glb")[0], "rb").read()
+n = struct.unpack("<I", glb[12:16])[0]
+doc = json.loads(glb[20:20 + n])
+attrs = doc["meshes"][0]["primitives"][0]["attributes"]
+assert set(attrs) == {"POSITION", "NORMAL", "TEXCOORD_0"}, attrs
+acc = doc["accessors"][attrs["NORMAL"]]
+view = doc["bufferViews"][acc["bufferView"]]
+assert acc["count"] == 33 * 33 and acc["type"] == "VEC3"
+start = 20 + n + 8 + view["byteOffset"]
+nrm = np.frombuffer(glb[start:start + view["byteLength"]], dtype="<f4").reshape(-1, 3)
+assert np.allclose(np.linalg.norm(nrm, axis=1), 1.0, atol=1e-5) and (nrm[:, 1] > 0).all()
+assert doc["accessors"][attrs["TEXCOORD_0"]]["type"] == "VEC2"
+ply = open(glob.glob(f"{w}/heightfield-smooth-2048.ply")[0], "rb").read(600).decode("latin-1")
+assert "property float nx" in ply and "property float u" in ply, ply[:300]
+PY
+  if ! grep -q "flat triangles" "$(ls "$tmp"/w3/logs/parallax-cold-*.txt)"; then ok "smooth mesh: full shading records"
+  else fail "a smooth mesh was taken as flat"; fi
+else fail "scale_series --smooth: exit $?"; tail -5 "$tmp/err3"; fi
 if "$src/bench/scale_series.py" --sizes abc --build "$build" --work "$tmp/x" >/dev/null 2>"$tmp/e1"; then
   fail "bad --sizes accepted"; else grep -q "needs numbers" "$tmp/e1" && ok "bad --sizes refused" || fail "message"; fi
 if "$src/bench/scale_series.py" --sizes 1 --build "$tmp/nothing" --work "$tmp/y" >/dev/null 2>"$tmp/e2"; then
