@@ -56,8 +56,9 @@ struct LoadedScene {
 
 // Throws SceneError / std::runtime_error with a user-facing message on failure.
 // `map_device_layout`: a caller that uploads through SceneOnDevices lets a large static scene
-// come as its cached device layout, without a tree (LoadedScene::device_layout); every other
-// caller gets the tree.
+// come as its cached device layout, without a tree (LoadedScene::device_layout), and a flat
+// static scene come with its shading records made and its triangles gone
+// (LoadedScene::host_part); every other caller gets the tree and the triangles.
 LoadedScene load_and_build(const std::string& spec, bool quiet = false, SkyMode sky = SkyMode::kAuto,
                            bool map_device_layout = false);
 
