@@ -207,9 +207,9 @@ void release_tail(unsigned char* bytes, std::size_t used, std::size_t size) {
   if (end > begin && end - begin >= kReleaseFrom) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_DONTNEED);
 }
 
-// The shading records of `triangles` (Record: TriangleShading, or FlatTriangleShading when
-// every triangle is flat), written over the triangles themselves: record i (64 or 16 bytes at
-// that many times i) is written after triangle i (100 bytes at 100 i) is read, and ends before
+// What `make` makes of each of `triangles` (Record: TriangleShading, FlatTriangleShading when
+// every triangle is flat, or a BuildTriangle's corners), written over the triangles
+// themselves, in order: record i (64, 16 or 40 bytes at that many times i) is written after triangle i (100 bytes at 100 i) is read, and ends before
 // triangle i + 1 begins, so nothing is overwritten before it is read. The whole pages past the
 // last record are handed back to the system (MADV_DONTNEED; a block that large is a private
 // mapping of its own). The result owns the triangles' block.
@@ -236,6 +236,11 @@ DeviceScene::HostBytes shading_in_place(std::vector<SceneTriangle>&& triangles) 
 
 DeviceScene::HostBytes flat_shading_in_place(std::vector<SceneTriangle>&& triangles) {
   return records_in_place<FlatTriangleShading>(std::move(triangles), flat_shading_of);
+}
+
+void require_static_scene(const Scene& scene, const std::function<std::vector<SceneTriangle>()>& take_triangles) {
+  if (!scene.instancing.empty() || scene.rig || !take_triangles)
+    throw std::logic_error("DeviceScene::prepare_host: a static scene without instances, its triangles handed over");
 }
 
 }  // namespace
@@ -586,52 +591,43 @@ struct DeviceScene::HostPart {
 
 std::shared_ptr<DeviceScene::HostPart> DeviceScene::prepare_host(
     const Scene& scene, const std::function<std::vector<SceneTriangle>()>& take_triangles) {
-  if (!scene.instancing.empty() || scene.rig || !take_triangles)
-    throw std::logic_error("DeviceScene::prepare_host: a static scene without instances, its triangles handed over");
+  return make_host_part(scene, take_triangles, nullptr);
+}
+
+std::shared_ptr<DeviceScene::HostPart> DeviceScene::prepare_flat_host(
+    const Scene& scene, const std::function<std::vector<SceneTriangle>()>& take_triangles, BuildCorners& corners) {
+  require_static_scene(scene, take_triangles);
+  if (!has_flat_shading(scene.triangles)) return nullptr;
+  return make_host_part(scene, take_triangles, &corners);
+}
+
+std::shared_ptr<DeviceScene::HostPart> DeviceScene::make_host_part(
+    const Scene& scene, const std::function<std::vector<SceneTriangle>()>& take_triangles, BuildCorners* corners) {
+  require_static_scene(scene, take_triangles);
   const auto start = std::chrono::steady_clock::now();
   auto host = std::make_shared<HostPart>();
   host->scene_triangles = scene.triangles.size();
   host->tri_flags = triangle_flags(scene);
   host->tables = make_tables(scene, host->tri_flags, false);
   std::vector<SceneTriangle> taken = take_triangles();  // scene.triangles are gone from here on
-  if (taken.size() != host->scene_triangles)
-    throw std::logic_error("DeviceScene: take_triangles handed over " + std::to_string(taken.size()) +
-                           " triangles, not the scene's " + std::to_string(host->scene_triangles));
-  host->shading = has_flat_shading(taken) ? flat_shading_in_place(std::move(taken)) : shading_in_place(std::move(taken));
-  host->ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  return host;
-}
-
-std::shared_ptr<DeviceScene::HostPart> DeviceScene::prepare_flat_host(
-    const Scene& scene, const std::function<std::vector<SceneTriangle>()>& take_triangles, BuildCorners& corners) {
-  if (!scene.instancing.empty() || scene.rig || !take_triangles)
-    throw std::logic_error("DeviceScene::prepare_flat_host: a static scene without instances, its triangles handed over");
-  if (!has_flat_shading(scene.triangles)) return nullptr;
-  const auto start = std::chrono::steady_clock::now();
-  auto host = std::make_shared<HostPart>();
-  host->scene_triangles = scene.triangles.size();
-  host->tri_flags = triangle_flags(scene);
-  host->tables = make_tables(scene, host->tri_flags, false);
-  auto owner = std::make_shared<std::vector<SceneTriangle>>(take_triangles());
-  const std::size_t n = owner->size();
+  const std::size_t n = taken.size();
   if (n != host->scene_triangles)
     throw std::logic_error("DeviceScene: take_triangles handed over " + std::to_string(n) + " triangles, not the scene's " +
                            std::to_string(host->scene_triangles));
-  // Corner set i (40 bytes at 40 i) is written after triangle i (100 bytes at 100 i) is read and
-  // ends before triangle i + 1 begins, as in records_in_place.
-  static_assert(std::is_trivially_copyable_v<BuildTriangle> && sizeof(BuildTriangle) <= sizeof(SceneTriangle));
-  auto records = std::make_shared<std::vector<FlatTriangleShading>>(n);
-  auto* bytes = reinterpret_cast<unsigned char*>(owner->data());
-  for (std::size_t i = 0; i < n; ++i) {
-    SceneTriangle t;
-    std::memcpy(&t, bytes + i * sizeof(SceneTriangle), sizeof t);
-    (*records)[i] = flat_shading_of(t);
-    const BuildTriangle b{{t.p[0], t.p[1], t.p[2]}, t.material};
-    std::memcpy(bytes + i * sizeof(BuildTriangle), &b, sizeof b);
+  if (corners) {
+    // The records to a block of their own, the corners over the triangles (in the order
+    // records_in_place reads them).
+    auto records = std::make_shared<std::vector<FlatTriangleShading>>();
+    records->reserve(n);
+    const HostBytes packed = records_in_place<BuildTriangle>(std::move(taken), [&records](const SceneTriangle& t) {
+      records->push_back(flat_shading_of(t));
+      return BuildTriangle{{t.p[0], t.p[1], t.p[2]}, t.material};
+    });
+    host->shading = {records->data(), n * sizeof(FlatTriangleShading), sizeof(FlatTriangleShading), records};
+    *corners = {packed.owner, static_cast<const BuildTriangle*>(packed.data), n};
+  } else {
+    host->shading = has_flat_shading(taken) ? flat_shading_in_place(std::move(taken)) : shading_in_place(std::move(taken));
   }
-  release_tail(bytes, n * sizeof(BuildTriangle), n * sizeof(SceneTriangle));
-  host->shading = {records->data(), n * sizeof(FlatTriangleShading), sizeof(FlatTriangleShading), records};
-  corners = {owner, reinterpret_cast<const BuildTriangle*>(bytes), n};
   host->ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return host;
 }

@@ -185,6 +185,11 @@ class DeviceScene {
   void set_kernel_choice(KernelChoice choice) { choice_ = choice; }
 
  private:
+  // prepare_host's and prepare_flat_host's work: with `corners`, the flat records go to a block
+  // of their own and the corners over the triangles.
+  static std::shared_ptr<HostPart> make_host_part(const Scene& scene,
+                                                  const std::function<std::vector<SceneTriangle>()>& take_triangles,
+                                                  BuildCorners* corners);
   std::vector<DeviceSceneBuffers> per_device_;
   // Allocated bytes of the buffers update_geometry rewrites.
   struct Capacity {
