@@ -676,29 +676,32 @@ TEST(MotionPass, AMovingQuadsPointsGoBackAlongItsAnalyticMotion) {
       EXPECT_EQ(got[i].s[0], gbuf[i].pos[0]);
       continue;
     }
-    EXPECT_EQ(got[i].s[3], 1.0f);
+    EXPECT_EQ(got[i].s[3], PX_MOTION_MOVED);  // the quad moved, as an instance and as triangles
     for (int c = 0; c < 3; ++c) EXPECT_NEAR(got[i].s[c], want[i][c], 2e-5) << "texel " << i << " axis " << c;
   }
 }
 
 
 // Trail: the cube slides and turns over the floor (3 units and 90 degrees a second, 30 fps),
-// denoised at 1 spp; against a 256-spp reference of the last frame's time, the error in the
-// region the cube swept over the last eight frames (its G-buffer coverage in any of them) is
-// compared with the error of the same region in a run whose cube stood still at that last pose
-// from the start. A trail (the cube's history left on the floor, a lagging edge) is error the
-// still run does not have.
+// denoised; against a 256-spp reference of the last frame's time, the error in the region the
+// cube swept over the last eight frames (its G-buffer coverage in any of them, the last one
+// included) is compared with the error of the same region in a run whose cube stood still at
+// that last pose from the start. A trail (the cube's history left on the floor, a lagging edge)
+// is error the still run does not have. At 1 spp (the case) most of either run's error
+// is noise; at 8 spp what stays is lag, which more samples do not take away.
 //
-// Measured (this test, PoCL on 2 CPU cores): the moving run's error there is 3.3x the still
-// run's with motion vectors and the anti-aliasing's silhouette rule (4.4x without that rule,
-// 8.1x without motion vectors: the history then followed the camera alone), the same whether
-// the cube is an instance or posed triangles. Split: on the cube as it stands at the end 5.7x,
-// on the floor it left 2.0x. SVGF alone (no anti-aliasing pass) is at 1.13x (cube 1.08x, floor
-// 1.51x), but with 3x the error of either run with it: the anti-aliasing's long history takes
-// the still cube's error down 8.5x and the moving cube's 3x, as a moving pixel keeps at most
-// half its history (PX_TAA_MOTION_ALPHA_MAX 0.5; at 0.2 the cube is at 5.1x, at 0.1 at 6.4x:
-// the resampled history then lags and blurs more than it averages noise away).
-// The goal is 1.5x; the bound here guards what is reached.
+// Measured (this test, PoCL on 2 CPU cores), moving run's error / still run's:
+//   1 spp: 3.3x (the cube where it ends 2.9x, the floor it left 3.5x);
+//   8 spp: 2.9x (cube 2.7x, floor 3.1x).
+// Before the anti-aliasing restarted or re-aimed a history that a moving object had just left,
+// and before SVGF shortened the history of still surfaces beside a moving object: 3.4x at
+// 1 spp but 9.6x at 8 spp (the trailing column kept the cube's colour, the floor the cube's
+// shadow). Before the anti-aliasing followed a moving silhouette's edge at all: 4.4x at 1 spp;
+// without motion vectors 8.1x.
+// What remains: a pixel the cube uncovered has only the frames since; the floor's history
+// still lags the moving contact shadow a little; on the cube, a moving pixel keeps at most half
+// of the anti-aliasing's history (PX_TAA_MOTION_ALPHA_MAX, as each bilinear read blurs it), a
+// still one nearly all. The goal is 1.5x; the bounds here guard what is reached.
 TEST(MotionTrail, AMovingObjectLeavesNoMoreErrorWhereItWentThanAStillOne) {
   const TempDir dir;
   const std::string file = cube_on_floor_file(dir);
@@ -707,13 +710,13 @@ TEST(MotionTrail, AMovingObjectLeavesNoMoreErrorWhereItWentThanAStillOne) {
   DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
   // The region: pixels whose G-buffer saw the cube: its instance (a rigid mesh on a moving
   // node), or with PX_INSTANCING=off one of its 12 posed triangles (the first mesh).
-  auto run = [&](bool moving, std::vector<char>* swept) {
+  auto run = [&](bool moving, unsigned spp, std::vector<char>* swept) {
     LoadedScene loaded = load_and_build(file, true);
     const bool instanced = !loaded.scene.instancing.empty();
     DeviceScene ds(set, loaded.scene, loaded.bvh);
     SceneAnimator animator(loaded.scene, "all");
     StereoPipeline::Options opt;
-    opt.trace.spp = 1;
+    opt.trace.spp = spp;
     opt.trace.bounces = 3;
     StereoPipeline p(set, ds, loaded.scene, w, h, opt);
     for (unsigned f = 0; f < frames; ++f) {
@@ -730,50 +733,65 @@ TEST(MotionTrail, AMovingObjectLeavesNoMoreErrorWhereItWentThanAStillOne) {
     }
     return pixels_of(p.radiance());
   };
-  std::vector<char> swept(2 * w * h, 0);
-  const std::vector<float> moving = run(true, &swept), still = run(false, nullptr);
   // The reference at the last frame's time.
-  LoadedScene loaded = load_and_build(file, true);
-  DeviceScene ds(set, loaded.scene, loaded.bvh);
-  SceneAnimator animator(loaded.scene, "all");
-  animator.update(t_end, set, ds);
-  PathTracer tracer(set, ds, loaded.scene);
-  PathTracer::Options ro;
-  ro.spp = 256;
-  ro.bounces = 3;
-  ro.first_sample_on_gbuffer_ray = false;
-  const std::vector<float> ref = pixels_of(tracer.render_stereo(static_cast<float>(t_end), 0, w, h, ro));
-  double err_moving = 0.0, err_still = 0.0, err_rest = 0.0;
-  double on_moving = 0.0, on_still = 0.0;  // the part of the region the cube covers at the end
-  std::size_t n = 0, rest = 0, on = 0;
-  for (std::size_t i = 0; i < swept.size(); ++i) {
-    double em = 0.0, es = 0.0;
-    for (int c = 0; c < 3; ++c) {
-      em += std::pow(moving[3 * i + c] - ref[3 * i + c], 2.0);
-      es += std::pow(still[3 * i + c] - ref[3 * i + c], 2.0);
-    }
-    if (swept[i]) {
-      err_moving += em;
-      err_still += es;
-      ++n;
-      if (swept[i] == 2) {
-        on_moving += em;
-        on_still += es;
-        ++on;
-      }
-    } else {
-      err_rest += em;
-      ++rest;
-    }
+  std::vector<float> ref;
+  {
+    LoadedScene loaded = load_and_build(file, true);
+    DeviceScene ds(set, loaded.scene, loaded.bvh);
+    SceneAnimator animator(loaded.scene, "all");
+    animator.update(t_end, set, ds);
+    PathTracer tracer(set, ds, loaded.scene);
+    PathTracer::Options ro;
+    ro.spp = 256;
+    ro.bounces = 3;
+    ro.first_sample_on_gbuffer_ray = false;
+    ref = pixels_of(tracer.render_stereo(static_cast<float>(t_end), 0, w, h, ro));
   }
-  ASSERT_GT(n, 200u);
-  std::printf("swept region: %zu pixels, mse moving %.4g, still %.4g (x%.2f); elsewhere (moving run) %.4g\n", n,
-              err_moving / n, err_still / n, err_moving / err_still, err_rest / rest);
-  // Where the error is: on the cube as it stands at the end, or on the floor it left.
-  std::printf("  of which the cube at the end: %zu pixels, x%.2f; the floor it left: %zu pixels, x%.2f\n", on,
-              on_still > 0.0 ? on_moving / on_still : 0.0, n - on,
-              err_still - on_still > 0.0 ? (err_moving - on_moving) / (err_still - on_still) : 0.0);
-  EXPECT_LE(err_moving / n, 4.5 * err_still / n);
+  for (const auto& [spp, bound] : {std::pair{1u, 4.0}, std::pair{8u, 3.8}}) {
+    std::vector<char> swept(2 * w * h, 0);
+    const std::vector<float> moving = run(true, spp, &swept), still = run(false, spp, nullptr);
+    // The swept region is where the cube was: its last pose in the G-buffer matches the
+    // reference's (a G-buffer a frame old would put it 1.2 pixels behind).
+    std::size_t last = 0, dark = 0;
+    for (std::size_t i = 0; i < swept.size(); ++i)
+      if (swept[i] == 2) {
+        ++last;
+        dark += ref[3 * i + 1] < 0.3f;  // the red cube reflects little green; the grey floor a lot
+      }
+    EXPECT_GT(dark, last * 9 / 10) << spp << " spp: the last frame's cube pixels are the reference's cube";
+    double err_moving = 0.0, err_still = 0.0, err_rest = 0.0;
+    double on_moving = 0.0, on_still = 0.0;  // the part of the region the cube covers at the end
+    std::size_t n = 0, rest = 0, on = 0;
+    for (std::size_t i = 0; i < swept.size(); ++i) {
+      double em = 0.0, es = 0.0;
+      for (int c = 0; c < 3; ++c) {
+        em += std::pow(moving[3 * i + c] - ref[3 * i + c], 2.0);
+        es += std::pow(still[3 * i + c] - ref[3 * i + c], 2.0);
+      }
+      if (swept[i]) {
+        err_moving += em;
+        err_still += es;
+        ++n;
+        if (swept[i] == 2) {
+          on_moving += em;
+          on_still += es;
+          ++on;
+        }
+      } else {
+        err_rest += em;
+        ++rest;
+      }
+    }
+    ASSERT_GT(n, 200u);
+    std::printf("%u spp: the last frame's cube: %zu pixels, %zu dark in the reference\n", spp, last, dark);
+    std::printf("%u spp: swept region: %zu pixels, mse moving %.4g, still %.4g (x%.2f); elsewhere (moving run) %.4g\n",
+                spp, n, err_moving / n, err_still / n, err_moving / err_still, err_rest / rest);
+    // Where the error is: on the cube as it stands at the end, or on the floor it left.
+    std::printf("  of which the cube at the end: %zu pixels, x%.2f; the floor it left: %zu pixels, x%.2f\n", on,
+                on_still > 0.0 ? on_moving / on_still : 0.0, n - on,
+                err_still - on_still > 0.0 ? (err_moving - on_moving) / (err_still - on_still) : 0.0);
+    EXPECT_LE(err_moving / n, bound * err_still / n) << spp << " spp";
+  }
 }
 
 }  // namespace

@@ -178,6 +178,7 @@ class StereoPipeline {
   // Inspection (tests, debugging; one process): gathered from whichever device owns each row.
   // Per right-eye pixel: 1 if the last frame filled it by path tracing (a hole), else 0.
   std::vector<std::uint8_t> hole_mask();
+  // The G-buffer eye `eye` of the last frame was traced into.
   std::vector<GBufferTexel> gbuffer_of(int eye);
 
  private:

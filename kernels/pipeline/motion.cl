@@ -5,8 +5,9 @@
  * `tri_motion` holds per scene triangle its three vertices now (0..2) and in the previous frame
  * (3..5) (DeviceSceneBuffers::motion). The point's barycentrics in the current triangle carry
  * it to the previous one: prev = pos + the barycentric blend of the vertices' displacements, so
- * a triangle that did not move gives pos back exactly. Output w: 1 on a surface, 0 on a miss
- * (whose pos is a direction, left as it is). An instance's mesh triangles move with their
+ * a triangle that did not move gives pos back exactly. Output w: PX_MOTION_MOVED on a surface
+ * whose triangle or instance moved, PX_MOTION_STILL on one that did not, PX_MOTION_MISS on a
+ * miss (whose pos is a direction, left as it is). An instance's mesh triangles move with their
  * instance instead (below); their entries in tri_motion are not read. */
 #include "shared/types.h"
 
@@ -27,14 +28,17 @@ kernel void gbuffer_motion(global float4* out, const global GBufferTexel* gbuf, 
   const global GBufferTexel* g = gbuf + i;
   const float3 pos = (float3)(g->pos[0], g->pos[1], g->pos[2]);
   if (g->material_class == PX_CLASS_MISS || g->prim == PX_NO_HIT) {
-    out[i] = (float4)(pos, 0.0f);
+    out[i] = (float4)(pos, PX_MOTION_MISS);
     return;
   }
   if (instances && g->inst != PX_NO_INSTANCE && g->inst < instances->count) {
     const global SceneInstance* in =
         (const global SceneInstance*)((const global uchar*)instances + 16 * (size_t)instances->records) + g->inst;
     const float3 moved = px_motion_xform(in->previous_object_to_world, px_motion_xform(in->world_to_object, pos));
-    out[i] = (float4)(isfinite(moved.x) && isfinite(moved.y) && isfinite(moved.z) ? moved : pos, 1.0f);
+    int changed = 0;
+    for (int k = 0; k < 12; ++k) changed |= in->object_to_world[k] != in->previous_object_to_world[k];
+    out[i] = (float4)(isfinite(moved.x) && isfinite(moved.y) && isfinite(moved.z) ? moved : pos,
+                      changed ? PX_MOTION_MOVED : PX_MOTION_STILL);
     return;
   }
   const global float4* v = tri_motion + 6 * (size_t)g->prim;
@@ -49,5 +53,6 @@ kernel void gbuffer_motion(global float4* out, const global GBufferTexel* gbuf, 
     const float3 moved = pos + (1.0f - u - w) * m0 + u * m1 + w * m2;
     if (isfinite(moved.x) && isfinite(moved.y) && isfinite(moved.z)) prev = moved;
   }
-  out[i] = (float4)(prev, 1.0f);
+  const int changed = any(v[0] != v[3]) || any(v[1] != v[4]) || any(v[2] != v[5]);
+  out[i] = (float4)(prev, changed ? PX_MOTION_MOVED : PX_MOTION_STILL);
 }

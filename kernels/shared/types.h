@@ -631,6 +631,18 @@ typedef struct GBufferTexel {
  * cornell's light (with any share >= 1/2: 30.61 -> 30.01 dB at 4 spp). */
 #define PX_SVGF_BORROWED 2.0f
 #define PX_SVGF_BORROW_COVERAGE 0.999f
+/* The motion pass's output w (kernels/pipeline/motion.cl): a miss, a point whose object stood
+ * still since the last frame, a point whose object moved. */
+#define PX_MOTION_MISS 0.0f
+#define PX_MOTION_STILL 1.0f
+#define PX_MOTION_MOVED 2.0f
+/* SVGF's history beside a moving object (svgf_temporal): a still surface within
+ * PX_SVGF_NEAR_MOTION_REACH pixels (rows and columns) of a point whose object moved blends its
+ * history with at least PX_SVGF_NEAR_MOTION_ALPHA, since the object's contact shadow and its
+ * light reflected onto it move with the object. The motion pass covers that many rows beyond
+ * the strip. */
+#define PX_SVGF_NEAR_MOTION_REACH 4
+#define PX_SVGF_NEAR_MOTION_ALPHA 0.5f
 /* The neighbours of a reprojected pixel (its footprint's surroundings) only need to lie on the
  * same continuous surface: a looser normal test, so that curved surfaces stay reprojectable. */
 #define PX_REPROJECT_NEIGHBOUR_MIN_COS 0.9f

@@ -47,6 +47,10 @@ class DenoiseStage : public StageUnit {
   // margins were sized for those); std::invalid_argument otherwise.
   void set_iterations(unsigned n);
   unsigned iterations() const { return options_.svgf.iterations; }
+  // The G-buffer of eye `e` the last finished frame was traced into on local device `d`: after
+  // end_frame() it is held here as the next frame's history, and the frame images' buffer is
+  // the one the next frame overwrites.
+  const cl::Buffer& last_gbuffer(int d, int e) const { return dev_[d].gbuffer_prev[e]; }
 
  private:
   void denoise_eye(int e, const std::vector<RowRange>& strip, const FrameInputs& in);

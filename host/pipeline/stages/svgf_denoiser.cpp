@@ -119,8 +119,9 @@ void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& albedo, c
     km.setArg(1, gbuf);
     km.setArg(2, *scene_motion);
     set_optional_buffer(km, 3, scene_instances);
-    // Anti-aliasing reads the motion of the rows beside its own too (moving silhouettes).
-    const RowRange wide = widen(rows, 1, height_);
+    // Anti-aliasing reads the motion of the rows beside its own too (moving silhouettes), the
+    // temporal pass that of rows up to PX_SVGF_NEAR_MOTION_REACH away (history beside motion).
+    const RowRange wide = widen(rows, std::max(1, PX_SVGF_NEAR_MOTION_REACH), height_);
     const RowRange covered{std::max(wide.begin, readable.begin), std::min(wide.end, readable.end)};
     km.setArg(4, static_cast<cl_uint>(covered.begin));
     km.setArg(5, static_cast<cl_uint>(covered.size()));
