@@ -275,8 +275,9 @@ std::vector<GBufferTexel> StereoPipeline::gbuffer_of(int eye) {
       if (!local(d)) continue;
       const std::size_t first = static_cast<std::size_t>(r.begin) * width_, count = static_cast<std::size_t>(r.size()) * width_;
       // With the denoiser, end_frame() swapped the frame's G-buffer into its history.
-      main_queue(d).enqueueReadBuffer(denoise_ ? denoise_->last_gbuffer(d, eye) : images_[d].gbuffer[eye], CL_TRUE, first * sizeof(GBufferTexel),
-                                                    count * sizeof(GBufferTexel), out.data() + first);
+      const cl::Buffer& gbuffer = denoise_ ? denoise_->last_gbuffer(d, eye) : images_[d].gbuffer[eye];
+      main_queue(d).enqueueReadBuffer(gbuffer, CL_TRUE, first * sizeof(GBufferTexel), count * sizeof(GBufferTexel),
+                                      out.data() + first);
     }
   return out;
 }

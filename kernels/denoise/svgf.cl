@@ -4,8 +4,9 @@
  *                   texel per pixel (normal, signed depth);
  *   svgf_temporal   demodulate by albedo, reproject last frame's history through the previous
  *                   camera (2x2 bilinear taps, 3x3 fallback), accumulate colour and luminance
- *                   moments with alpha = max(alpha_min, 1/h); the environment's colour is
- *                   accumulated too, its history found by direction;
+ *                   moments with alpha = max(alpha_min, 1/h) (at least
+ *                   PX_SVGF_NEAR_MOTION_ALPHA on a still surface beside a moving object); the
+ *                   environment's colour is accumulated too, its history found by direction;
  *   svgf_variance   variance from the moments, or a 7x7 bilateral spatial estimate while h < 4;
  *                   its colour is next frame's colour history (not the first a-trous step's);
  *   svgf_luma       before each a-trous step: the luminance its edge-stopping compares, each

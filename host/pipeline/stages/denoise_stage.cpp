@@ -42,7 +42,8 @@ unsigned DenoiseStage::gbuffer_rows_read(const Options& o) {
     case SeamMode::Halo: break;
   }
   const unsigned atrous = 2u << (o.svgf.iterations - 1);
-  return std::max({atrous, o.svgf.temporal_rows + 1, 3u}) + 1;
+  // 3: the variance estimate; PX_SVGF_NEAR_MOTION_REACH: the motion pass (animated scenes).
+  return std::max({atrous, o.svgf.temporal_rows + 1, 3u, static_cast<unsigned>(PX_SVGF_NEAR_MOTION_REACH)}) + 1;
 }
 
 void DenoiseStage::run(const std::vector<const Operation*>& ops, const FrameInputs& in) {
