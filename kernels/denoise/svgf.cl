@@ -869,7 +869,8 @@ inline float3 px_from_ycocg(float3 c) { return (float3)(c.x + c.y - c.z, c.x + c
 #define PX_TAA_MOTION_ALPHA 1.0f
 #define PX_TAA_MOTION_ALPHA_MAX 0.5f
 /* Did the surface of texel `g` move since the last frame? Scene triangle g->prim (tri_motion:
- * motion.cl's layout), or the instance g->inst whose mesh holds it (its matrix changed). */
+ * motion.cl's layout), or the instance g->inst whose mesh holds it (its matrix changed). For
+ * last frame's texels; this frame's carry the answer in the motion pass's w (PX_MOTION_MOVED). */
 inline int px_triangle_moved(const global float4* tri_motion, const global SceneInstances* instances,
                              const global GBufferTexel* g) {
   if (g->prim == PX_NO_HIT) return 0;
@@ -917,7 +918,7 @@ kernel void svgf_antialias(global float4* resolved, global float4* history, cons
      * region's error 3.9x the still run's, 9.6x when only the object's texels were followed,
      * the trailing column keeping the cube's colour; Khronos's BoxAnimated and RiggedSimple
      * (two frames each, both eyes, against 256-spp references): the summed error -59%. */
-    if (motion && tri_motion && found && !px_triangle_moved(tri_motion, instances, g)) {
+    if (motion && tri_motion && found && motion[i].w != PX_MOTION_MOVED) {
       int own_stale = 0;
       const int ox = (int)floor(fx + 0.5f), oy = (int)floor(fy + 0.5f);
       for (int sy = -1; sy <= 1; ++sy)
@@ -932,7 +933,8 @@ kernel void svgf_antialias(global float4* resolved, global float4* history, cons
           const int tx = x + dx, ty = y + dy;
           if ((dx == 0 && dy == 0) || !px_pixel_readable(tx, ty, &p)) continue;
           const global GBufferTexel* q = gbuf + (uint)ty * p.width + (uint)tx;
-          if (q->material_class != PX_CLASS_MISS && q->depth < nearest && px_triangle_moved(tri_motion, instances, q)) {
+          if (q->material_class != PX_CLASS_MISS && q->depth < nearest &&
+              motion[(uint)ty * p.width + (uint)tx].w == PX_MOTION_MOVED) {
             nearest = q->depth;
             bx = tx;
             by = ty;
