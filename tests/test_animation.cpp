@@ -11,6 +11,7 @@
 #include "render/device_scene.h"
 #include "render/path_tracer.h"
 #include "render/scene_animator.h"
+#include "render/stereo_camera.h"
 #include "scene/animation.h"
 #include "scene/instancing.h"
 #include "scene/primitives.h"
@@ -682,6 +683,133 @@ TEST(MotionPass, AMovingQuadsPointsGoBackAlongItsAnalyticMotion) {
 }
 
 
+// The motion edges (kernels/pipeline/motion_edges.cl) of the sliding cube mid-clip, against
+// the rule evaluated on the host from the same G-buffer: a texel on the cube (its instance is
+// the only thing that moves) with a floor texel among its 3x3 neighbours and no sky, or a floor
+// texel with the cube within its 5x5 neighbourhood. Then the extra samples
+// (path_trace_list_more): a listed pixel becomes what a render with that many more samples
+// gives it (its first sample is the frame's, the rest continue its stream), up to rounding; no
+// other pixel changes.
+TEST(MotionEdges, TheListedPixelsAreTheCubesEdgesAndTheirSamplesJoinTheirOwnStream) {
+  const TempDir dir;
+  const std::string file = cube_on_floor_file(dir);
+  const unsigned w = 96, h = 64;
+  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  LoadedScene loaded = load_and_build(file, true);
+  ASSERT_FALSE(loaded.scene.instancing.empty());
+  DeviceScene ds(set, loaded.scene, loaded.bvh);
+  SceneAnimator animator(loaded.scene, "all");
+  StereoPipeline::Options opt;
+  opt.trace.spp = 1;
+  StereoPipeline p(set, ds, loaded.scene, w, h, opt);
+  for (unsigned f = 0; f < 3; ++f) {
+    animator.update(0.3 + f / 30.0, set, ds);
+    p.render(f, static_cast<float>(0.3 + f / 30.0));
+  }
+  const std::vector<GBufferTexel> g = p.gbuffer_of(0);
+  // The host's rule.
+  auto at = [&](int x, int y) -> const GBufferTexel& { return g[static_cast<std::size_t>(y) * w + x]; };
+  auto cube = [&](const GBufferTexel& t) { return t.material_class != PX_CLASS_MISS && t.inst != PX_NO_INSTANCE; };
+  std::vector<std::uint32_t> want;
+  for (int y = 0; y < int(h); ++y)
+    for (int x = 0; x < int(w); ++x) {
+      const GBufferTexel& t = at(x, y);
+      if (t.material_class == PX_CLASS_MISS) continue;
+      const int reach = cube(t) ? 1 : 2;
+      bool other = false, sky = false;
+      for (int dy = -reach; dy <= reach; ++dy)
+        for (int dx = -reach; dx <= reach; ++dx) {
+          if ((dx == 0 && dy == 0) || x + dx < 0 || x + dx >= int(w) || y + dy < 0 || y + dy >= int(h)) continue;
+          const GBufferTexel& q = at(x + dx, y + dy);
+          sky |= q.material_class == PX_CLASS_MISS;
+          other |= cube(q) != cube(t);
+        }
+      if (other && !(cube(t) && sky)) want.push_back(static_cast<std::uint32_t>(y) * w + x);
+    }
+  ASSERT_GT(want.size(), 40u) << "the cube's outline";
+  // The kernel's list.
+  const cl::Context& ctx = set.context();
+  cl::CommandQueue& q = set.devices()[0].queue;
+  const DeviceSceneBuffers& sb = ds.on(0);
+  cl::Buffer gbuf(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, g.size() * sizeof(GBufferTexel),
+                  const_cast<GBufferTexel*>(g.data()));
+  cl::Buffer list(ctx, CL_MEM_READ_WRITE, g.size() * sizeof(cl_uint));
+  const cl_uint zero = 0;
+  cl::Buffer count(ctx, CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, sizeof zero, const_cast<cl_uint*>(&zero));
+  cl::Kernel k(set.program("pipeline/motion_edges.cl"), "motion_edge_list");
+  k.setArg(0, list);
+  k.setArg(1, count);
+  k.setArg(2, gbuf);
+  k.setArg(3, sb.motion);
+  k.setArg(4, sb.instances);
+  k.setArg(5, cl_uint(0));
+  k.setArg(6, cl_uint(h));
+  k.setArg(7, cl_uint(w));
+  k.setArg(8, cl_uint(h));
+  k.setArg(9, cl_uint(0));
+  k.setArg(10, cl_uint(h));
+  launch_1d(q, k, g.size());
+  cl_uint n = 0;
+  q.enqueueReadBuffer(count, CL_TRUE, 0, sizeof n, &n);
+  std::vector<std::uint32_t> got(n);
+  if (n) q.enqueueReadBuffer(list, CL_TRUE, 0, n * sizeof(cl_uint), got.data());
+  std::sort(got.begin(), got.end());
+  EXPECT_EQ(got, want);
+  // The pipeline listed as many in the last frame (the G-buffer is that frame's).
+  EXPECT_EQ(p.motion_edge_pixels(0), want.size());
+
+  // Extra samples: the frame's 1 spp, 8 more for the listed pixels, against 9 spp.
+  const float t = static_cast<float>(0.3 + 2 / 30.0);
+  const CameraParams cam = make_eye_camera(evaluate_camera(loaded.scene, t), Eye::Left, loaded.scene.ipd_units(), w, h);
+  const cl::Program& program = set.program("pathtrace/path_trace.cl", ds.kernel_options());
+  auto trace = [&](unsigned spp) {
+    cl::Buffer radiance(ctx, CL_MEM_READ_WRITE, g.size() * sizeof(cl_float4));
+    cl::Buffer albedo(ctx, CL_MEM_READ_WRITE, g.size() * sizeof(cl_float4));
+    cl::Buffer nonfinite(ctx, CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, sizeof zero, const_cast<cl_uint*>(&zero));
+    PathTracer::Options o;
+    o.spp = spp;
+    PathTracer::launch(q, program, sb, {radiance, albedo, nonfinite},
+                       PathTracer::frame_params(loaded.scene, ds.light_count(), o, 0, 0, h, 2), cam, w);
+    return std::array<cl::Buffer, 3>{radiance, albedo, nonfinite};
+  };
+  auto read = [&](const cl::Buffer& b) {
+    std::vector<cl_float4> v(g.size());
+    q.enqueueReadBuffer(b, CL_TRUE, 0, v.size() * sizeof(cl_float4), v.data());
+    return v;
+  };
+  const auto one = trace(1), nine = trace(9);
+  const std::vector<cl_float4> before = read(one[0]), want9 = read(nine[0]), want9_albedo = read(nine[1]);
+  PathTracer::Options o;
+  o.spp = 1;
+  FrameParams fp = PathTracer::frame_params(loaded.scene, ds.light_count(), o, 0, 0, h, 2);
+  fp.sample_offset = 1;
+  fp.spp = 8;
+  cl::Kernel more(program, "path_trace_list_more");
+  more.setArg(0, one[0]);
+  more.setArg(1, one[1]);
+  more.setArg(2, one[2]);
+  more.setArg(3, list);
+  more.setArg(4, count);
+  more.setArg(5, fp);
+  more.setArg(6, cam);
+  sb.bind(more, 7);
+  launch_1d(q, more, g.size());
+  const std::vector<cl_float4> after = read(one[0]), after_albedo = read(one[1]);
+  std::vector<char> listed(g.size(), 0);
+  for (std::uint32_t i : want) listed[i] = 1;
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    if (!listed[i]) {
+      EXPECT_EQ(std::memcmp(&after[i], &before[i], sizeof(cl_float4)), 0) << "pixel " << i << " not listed";
+      continue;
+    }
+    EXPECT_EQ(after[i].s[3], want9[i].s[3]) << "pixel " << i << ": finite samples";
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_NEAR(after[i].s[c], want9[i].s[c], 1e-5f * (1.0f + want9[i].s[c])) << "pixel " << i;
+      EXPECT_NEAR(after_albedo[i].s[c], want9_albedo[i].s[c], 1e-5f) << "pixel " << i << " albedo";
+    }
+  }
+}
+
 // Trail: the cube slides and turns over the floor (3 units and 90 degrees a second, 30 fps),
 // denoised; against a 256-spp reference of the last frame's time, the error in the region the
 // cube swept over the last eight frames (its G-buffer coverage in any of them, the last one
@@ -710,6 +838,7 @@ TEST(MotionTrail, AMovingObjectLeavesNoMoreErrorWhereItWentThanAStillOne) {
   DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
   // The region: pixels whose G-buffer saw the cube: its instance (a rigid mesh on a moving
   // node), or with PX_INSTANCING=off one of its 12 posed triangles (the first mesh).
+  std::size_t edge_pixels = 0;  // the moving run's pixels with extra samples, over its frames
   auto run = [&](bool moving, unsigned spp, std::vector<char>* swept) {
     LoadedScene loaded = load_and_build(file, true);
     const bool instanced = !loaded.scene.instancing.empty();
@@ -723,6 +852,7 @@ TEST(MotionTrail, AMovingObjectLeavesNoMoreErrorWhereItWentThanAStillOne) {
       const double t = moving ? f / fps : t_end;
       animator.update(t, set, ds);
       p.render(f, static_cast<float>(t));
+      if (swept) edge_pixels += p.motion_edge_pixels(0) + p.motion_edge_pixels(1);
       if (swept && f + 8 >= frames)
         for (int e = 0; e < 2; ++e) {
           const std::vector<GBufferTexel> g = p.gbuffer_of(e);
@@ -747,9 +877,17 @@ TEST(MotionTrail, AMovingObjectLeavesNoMoreErrorWhereItWentThanAStillOne) {
     ro.first_sample_on_gbuffer_ray = false;
     ref = pixels_of(tracer.render_stereo(static_cast<float>(t_end), 0, w, h, ro));
   }
-  for (const auto& [spp, bound] : {std::pair{1u, 4.0}, std::pair{8u, 3.8}}) {
+  for (const auto& [spp, bound] : {std::pair{1u, 1.5}, std::pair{8u, 2.8}}) {
     std::vector<char> swept(2 * w * h, 0);
+    edge_pixels = 0;
     const std::vector<float> moving = run(true, spp, &swept), still = run(false, spp, nullptr);
+    // The extra samples at the moving cube's edges (the still run has none): their share of the
+    // moving run's paths.
+    const double extra = double(edge_pixels) * StereoPipeline::Options{}.motion_edge_samples;
+    EXPECT_GT(edge_pixels, 0u);
+    std::printf("%u spp: %.1f pixels a frame and eye got %u samples more: %.1f%% more paths\n", spp,
+                double(edge_pixels) / (2.0 * frames), StereoPipeline::Options{}.motion_edge_samples,
+                100.0 * extra / (2.0 * frames * w * h * spp));
     // The swept region is where the cube was: its last pose in the G-buffer matches the
     // reference's (a G-buffer a frame old would put it 1.2 pixels behind).
     std::size_t last = 0, dark = 0;

@@ -61,6 +61,7 @@ struct RenderCommand {
   bool force_overlap = false;  // the side queue on CPU devices too
   SvgfDenoiser::Options svgf;
   SeamMode seams = SeamMode::Halo;
+  unsigned motion_edge_samples = 8;  // --motion-edge-samples (StereoPipeline::Options)
   std::string report;          // JSON report path ("" = none)
   std::string timeline;        // Chrome trace / Perfetto JSON path ("" = none)
   std::string video;           // left|right side by side through ffmpeg ("" = none)

@@ -103,6 +103,11 @@ void add_pipeline_flags(CLI::App* cmd, px::RenderCommand& r) {
                   "neighbourhood-clipped history (1: off)")
       ->check(CLI::Range(0.0f, 1.0f))
       ->capture_default_str();
+  cmd->add_option("--motion-edge-samples", r.motion_edge_samples,
+                  "animated scenes: paths added before denoising to each pixel on a moving object's edge or "
+                  "within two pixels of it, so that its anti-aliasing need not wait for many frames (0: none)")
+      ->check(CLI::Range(0u, 256u))
+      ->capture_default_str();
   add_word_option(cmd, "--seams", r.seams, px::seam_mode_words(),
                   "strip borders when denoising: halo (exchange neighbour rows; N devices = 1 device), "
                   "independent (each strip alone), bilateral (independent + seam-band filter)");

@@ -32,6 +32,7 @@ PipelineConfig make_pipeline_config(const RenderCommand& cmd) {
   if (!cmd.aov.empty()) opt.aovs = parse_aov_list(cmd.aov);
   opt.svgf = cmd.svgf;
   opt.seams = cmd.seams;
+  opt.motion_edge_samples = cmd.motion_edge_samples;
   // SVGF's temporal variance is the spread of the luminance moments accumulated over frames.
   // With --alpha-moments 1 nothing is accumulated: from the frame where a pixel's history is
   // long enough for the temporal estimate (4 frames) its variance is exactly 0, every a-trous

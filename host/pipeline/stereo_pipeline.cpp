@@ -39,14 +39,17 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
   add_unit<GBufferStage>({Stage::GBuffer});
   add_unit<ReprojectStage>({Stage::Reproject});
   add_unit<HoleFillStage>({Stage::HoleFill}, *path_trace_, options.hole_fill);
-  if (options.denoise) denoise_ = &add_unit<DenoiseStage>({Stage::Denoise}, denoise_options(options));
+  if (options.denoise)
+    denoise_ = &add_unit<DenoiseStage>({Stage::Denoise}, denoise_options(options), static_cast<const PathTraceStage*>(path_trace_));
   add_unit<TonemapStage>({Stage::Tonemap}, TonemapStage::Options{options.exposure});
   add_unit<TransferStage>({Stage::Transfer}, TransferStage::Options{options.gather_radiance, options.denoise});
   for (const StageWork& w : schedule_.stages) unit(w.stage);  // every scheduled stage has a unit
   set_quality(quality());                                     // the one check of spp and bounces
 }
 
-DenoiseStage::Options StereoPipeline::denoise_options(const Options& o) { return {o.svgf, o.seams, o.seam_band}; }
+DenoiseStage::Options StereoPipeline::denoise_options(const Options& o) {
+  return {o.svgf, o.seams, o.seam_band, o.motion_edge_samples};
+}
 
 StageUnit& StereoPipeline::unit(Stage stage) {
   const auto it = unit_of_.find(stage);

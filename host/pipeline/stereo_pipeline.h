@@ -74,6 +74,9 @@ class StereoPipeline {
     SvgfDenoiser::Options svgf;
     SeamMode seams = SeamMode::Halo;
     unsigned seam_band = 4;  // rows each side of a seam the bilateral seam filter touches
+    // Animated scenes, with denoising: extra paths for pixels at moving objects' edges
+    // (DenoiseStage::Options::motion_edge_samples).
+    unsigned motion_edge_samples = 8;
     // The MPI job this pipeline is one rank of (nullptr: this process alone). Every rank drives
     // its DeviceSet's N devices as global devices rank*N .. rank*N+N-1 and must construct the
     // pipeline with the same options; rank 0 holds the owner and the finished frame.
@@ -180,6 +183,9 @@ class StereoPipeline {
   std::vector<std::uint8_t> hole_mask();
   // The G-buffer eye `eye` of the last frame was traced into.
   std::vector<GBufferTexel> gbuffer_of(int eye);
+  // Pixels of eye `eye` that got the motion edges' extra samples in the last frame
+  // (Options::motion_edge_samples; 0 without denoising or motion).
+  std::size_t motion_edge_pixels(int eye) { return denoise_ ? denoise_->motion_edge_pixels(eye) : 0; }
 
  private:
   // The unit that runs `stage`'s operations (std::logic_error if the schedule names a stage no

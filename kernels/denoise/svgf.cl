@@ -35,6 +35,7 @@
 #include "render/camera.h"
 #include "scene/scene_view.h"
 #include "math/exp.h"
+#include "pipeline/texel_motion.h"
 
 inline float px_lum(float3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
 
@@ -868,23 +869,6 @@ inline float3 px_from_ycocg(float3 c) { return (float3)(c.x + c.y - c.z, c.x + c
 #define PX_TAA_CLIP_SIGMA 1.25f
 #define PX_TAA_MOTION_ALPHA 1.0f
 #define PX_TAA_MOTION_ALPHA_MAX 0.5f
-/* Did the surface of texel `g` move since the last frame? Scene triangle g->prim (tri_motion:
- * motion.cl's layout), or the instance g->inst whose mesh holds it (its matrix changed). For
- * last frame's texels; this frame's carry the answer in the motion pass's w (PX_MOTION_MOVED). */
-inline int px_triangle_moved(const global float4* tri_motion, const global SceneInstances* instances,
-                             const global GBufferTexel* g) {
-  if (g->prim == PX_NO_HIT) return 0;
-  if (instances && g->inst != PX_NO_INSTANCE && g->inst < instances->count) {
-    const global SceneInstance* in =
-        (const global SceneInstance*)((const global uchar*)instances + 16 * (size_t)instances->records) + g->inst;
-    for (int k = 0; k < 12; ++k)
-      if (in->object_to_world[k] != in->previous_object_to_world[k]) return 1;
-    return 0;
-  }
-  const global float4* v = tri_motion + 6 * (size_t)g->prim;
-  return any(v[0] != v[3]) || any(v[1] != v[4]) || any(v[2] != v[5]);
-}
-
 kernel void svgf_antialias(global float4* resolved, global float4* history, const global float4* color,
                            const global float4* prev, const global GBufferTexel* gbuf, SvgfParams p,
                            CameraParams prev_cam, uint have_history, float alpha, const global float4* motion,
@@ -924,7 +908,7 @@ kernel void svgf_antialias(global float4* resolved, global float4* history, cons
       for (int sy = -1; sy <= 1; ++sy)
         for (int sx = -1; sx <= 1; ++sx)
           if (px_history_tap_readable(ox + sx, oy + sy, y, &p) &&
-              px_triangle_moved(tri_motion, instances, prev_gbuf + (uint)(oy + sy) * p.width + (uint)(ox + sx)))
+              px_texel_moved(tri_motion, instances, prev_gbuf + (uint)(oy + sy) * p.width + (uint)(ox + sx)))
             own_stale = 1;
       int bx = x, by = y;
       float nearest = g->material_class == PX_CLASS_MISS ? INFINITY : g->depth;
@@ -949,7 +933,7 @@ kernel void svgf_antialias(global float4* resolved, global float4* history, cons
           gy -= (float)(by - y);
           const int cx = (int)floor(gx + 0.5f), cy = (int)floor(gy + 0.5f);
           if (px_history_tap_readable(cx, cy, y, &p) &&
-              (own_stale || px_triangle_moved(tri_motion, instances, prev_gbuf + (uint)cy * p.width + (uint)cx))) {
+              (own_stale || px_texel_moved(tri_motion, instances, prev_gbuf + (uint)cy * p.width + (uint)cx))) {
             fx = gx;
             fy = gy;
             dilated = 1;

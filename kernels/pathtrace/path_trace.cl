@@ -158,3 +158,26 @@ kernel void resolve_hole_samples(global float4* out, global float4* albedo_out, 
   out[p] = px_pixel_mean(sum, albedo_sum, good, &albedo);
   albedo_out[p] = albedo;
 }
+
+/* More samples for the pixels listed in `list` (*count of them; full-frame indices): the
+ * pixels' samples fp.sample_offset .. fp.sample_offset + fp.spp - 1, joined to the mean already
+ * in out / albedo_out, which stands for fp.sample_offset samples (the frame's spp; a pixel with
+ * w = 0 had no finite one and counts none). The pixel becomes the mean of all of them, as a
+ * render at the larger count would give it up to rounding: its first samples are the frame's,
+ * the others continue the pixel's own stream. Used at moving objects' edges (motion_edges.cl). */
+kernel void path_trace_list_more(global float4* out, global float4* albedo_out, volatile global uint* nonfinite,
+                                 const global uint* list, const global uint* count, FrameParams fp, CameraParams cam,
+                                 PX_SCENE_PARAMS) {
+  const uint i = get_global_id(0);
+  if (i >= *count) return;
+  const SceneView scene = PX_SCENE_VIEW();
+  const uint p = list[i];
+  float4 albedo;
+  const float4 more = px_render_pixel(&scene, &fp, &cam, p % cam.width, p / cam.width, nonfinite, &albedo, 0, 0);
+  if (more.w <= 0.0f) return;
+  const float4 had = out[p];
+  const float n = had.w > 0.0f ? (float)fp.sample_offset : 0.0f;
+  const float total = n + more.w;
+  out[p] = (float4)((had.xyz * n + more.xyz * more.w) / total, total);
+  albedo_out[p] = (albedo_out[p] * n + albedo * more.w) / total;
+}

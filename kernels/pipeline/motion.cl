@@ -10,6 +10,7 @@
  * miss (whose pos is a direction, left as it is). An instance's mesh triangles move with their
  * instance instead (below); their entries in tri_motion are not read. */
 #include "shared/types.h"
+#include "pipeline/texel_motion.h"
 
 /* A 3x4 row-major affine matrix applied to a point. */
 inline float3 px_motion_xform(const global float* m, float3 p) {
@@ -35,10 +36,8 @@ kernel void gbuffer_motion(global float4* out, const global GBufferTexel* gbuf, 
     const global SceneInstance* in =
         (const global SceneInstance*)((const global uchar*)instances + 16 * (size_t)instances->records) + g->inst;
     const float3 moved = px_motion_xform(in->previous_object_to_world, px_motion_xform(in->world_to_object, pos));
-    int changed = 0;
-    for (int k = 0; k < 12; ++k) changed |= in->object_to_world[k] != in->previous_object_to_world[k];
     out[i] = (float4)(isfinite(moved.x) && isfinite(moved.y) && isfinite(moved.z) ? moved : pos,
-                      changed ? PX_MOTION_MOVED : PX_MOTION_STILL);
+                      px_texel_moved(tri_motion, instances, g) ? PX_MOTION_MOVED : PX_MOTION_STILL);
     return;
   }
   const global float4* v = tri_motion + 6 * (size_t)g->prim;
@@ -53,6 +52,5 @@ kernel void gbuffer_motion(global float4* out, const global GBufferTexel* gbuf, 
     const float3 moved = pos + (1.0f - u - w) * m0 + u * m1 + w * m2;
     if (isfinite(moved.x) && isfinite(moved.y) && isfinite(moved.z)) prev = moved;
   }
-  const int changed = any(v[0] != v[3]) || any(v[1] != v[4]) || any(v[2] != v[5]);
-  out[i] = (float4)(prev, changed ? PX_MOTION_MOVED : PX_MOTION_STILL);
+  out[i] = (float4)(prev, px_texel_moved(tri_motion, instances, g) ? PX_MOTION_MOVED : PX_MOTION_STILL);
 }

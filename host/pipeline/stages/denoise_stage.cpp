@@ -1,5 +1,7 @@
 #include "pipeline/stages/denoise_stage.h"
 
+#include "cl/launch.h"
+
 #include <algorithm>
 #include <stdexcept>
 
@@ -14,8 +16,9 @@ const char* to_string(SeamMode m) {
   return "?";
 }
 
-DenoiseStage::DenoiseStage(StageEnv& env, const Options& options)
-    : StageUnit(env), options_(options), max_iterations_(options.svgf.iterations), dev_(env.layout.count()) {
+DenoiseStage::DenoiseStage(StageEnv& env, const Options& options, const PathTraceStage* tracer)
+    : StageUnit(env), options_(options), max_iterations_(options.svgf.iterations), dev_(env.layout.count()),
+      tracer_(tracer) {
   if (options.svgf.iterations < 1) throw std::invalid_argument("SVGF needs at least one a-trous iteration");
   const std::size_t pixels = static_cast<std::size_t>(env.width) * env.height;
   for (int d = 0; d < env.layout.count(); ++d) {
@@ -105,6 +108,9 @@ void DenoiseStage::denoise_eye(int e, const std::vector<RowRange>& strip, const 
   for (int d = 0; d < n; ++d)
     if (env_.local(d)) svgf(d).guide(env_.images[d].gbuffer[e], guided[d]);
   for (int d = 0; d < n; ++d)
+    if (env_.local(d) && tracer_ && options_.motion_edge_samples > 0 && env_.scene_on(d).motion())
+      sample_motion_edges(e, d, strip[d], readable(d), in);
+  for (int d = 0; d < n; ++d)
     if (env_.local(d))
       svgf(d).temporal(env_.images[d].radiance[e], env_.images[d].albedo[e], env_.images[d].gbuffer[e],
                        dev_[d].gbuffer_prev[e], in.cams[e], prev, strip[d], readable(d),
@@ -148,6 +154,65 @@ void DenoiseStage::denoise_eye(int e, const std::vector<RowRange>& strip, const 
   for (int d = 0; d < n; ++d)
     if (env_.local(d))
       for (auto& e : svgf(d).take_events()) env_.log.record(e.stage, d, e.event, e.pass);
+}
+
+void DenoiseStage::sample_motion_edges(int e, int d, RowRange rows, RowRange readable, const FrameInputs& in) {
+  if (rows.size() == 0) return;
+  PerDevice& dev = dev_[d];
+  const cl::Context& ctx = env_.devices.context();
+  if (!dev.edge_list[e]()) {
+    dev.edge_list[e] =
+        cl::Buffer(ctx, CL_MEM_READ_WRITE, static_cast<std::size_t>(env_.width) * env_.height * sizeof(cl_uint));
+    dev.edge_count[e] = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(cl_uint));
+  }
+  cl::CommandQueue& q = env_.queue(d);
+  const FrameImages& f = env_.images[d];
+  const DeviceSceneBuffers& scene = env_.scene_on(d);
+  q.enqueueFillBuffer(dev.edge_count[e], cl_uint(0), 0, sizeof(cl_uint));
+  // The list reads the G-buffer within two rows of the strip: rows the G-buffer pass traced
+  // (gbuffer_rows_read's margin) where the seams are exchanged, the strip alone otherwise.
+  const RowRange margin = widen(rows, gbuffer_rows_read(options_), env_.height);
+  const RowRange valid{std::max(margin.begin, readable.begin), std::min(margin.end, readable.end)};
+  cl::Kernel list(env_.devices.program("pipeline/motion_edges.cl"), "motion_edge_list");
+  list.setArg(0, dev.edge_list[e]);
+  list.setArg(1, dev.edge_count[e]);
+  list.setArg(2, f.gbuffer[e]);
+  list.setArg(3, scene.motion);
+  set_optional_buffer(list, 4, scene.instances() ? &scene.instances : nullptr);
+  list.setArg(5, static_cast<cl_uint>(rows.begin));
+  list.setArg(6, static_cast<cl_uint>(rows.size()));
+  list.setArg(7, static_cast<cl_uint>(env_.width));
+  list.setArg(8, static_cast<cl_uint>(env_.height));
+  list.setArg(9, static_cast<cl_uint>(valid.begin));
+  list.setArg(10, static_cast<cl_uint>(valid.end));
+  env_.log.record(Stage::Denoise, d, launch_1d(q, list, env_.pixels(rows)), "motion edges");
+  // Samples spp .. spp + motion_edge_samples - 1 of each listed pixel's stream.
+  FrameParams fp = tracer_->frame_params(e, rows, in.frame);
+  fp.sample_offset = fp.spp;
+  fp.spp = options_.motion_edge_samples;
+  cl::Kernel more(env_.devices.program("pathtrace/path_trace.cl", env_.device_scene.kernel_options()),
+                  "path_trace_list_more");
+  more.setArg(0, f.radiance[e]);
+  more.setArg(1, f.albedo[e]);
+  more.setArg(2, f.nonfinite_paths);
+  more.setArg(3, dev.edge_list[e]);
+  more.setArg(4, dev.edge_count[e]);
+  more.setArg(5, fp);
+  more.setArg(6, in.cams[e]);
+  scene.bind(more, 7);
+  // Sized for the worst case (every pixel listed): the count stays on the device.
+  env_.log.record(Stage::Denoise, d, launch_1d(q, more, env_.pixels(rows)), "motion edge samples");
+}
+
+std::size_t DenoiseStage::motion_edge_pixels(int e) {
+  std::size_t total = 0;
+  for (int d = 0; d < env_.layout.count(); ++d) {
+    if (!env_.local(d) || !dev_[d].edge_count[e]()) continue;
+    cl_uint n = 0;
+    env_.lanes.main(env_.layout.local_index(d)).enqueueReadBuffer(dev_[d].edge_count[e], CL_TRUE, 0, sizeof n, &n);
+    total += n;
+  }
+  return total;
 }
 
 void DenoiseStage::end_frame(const FrameInputs& in) {

@@ -7,6 +7,7 @@
 //     took over bring their colour and moment history and last frame's G-buffer with them.
 #pragma once
 
+#include "pipeline/stages/path_trace_stage.h"
 #include "pipeline/stages/stage_unit.h"
 #include "pipeline/stages/svgf_denoiser.h"
 
@@ -31,9 +32,15 @@ class DenoiseStage : public StageUnit {
     SvgfDenoiser::Options svgf;
     SeamMode seams = SeamMode::Halo;
     unsigned seam_band = 4;  // rows each side of a seam the bilateral seam filter touches
+    // Animated scenes: paths added before filtering to each pixel on a moving object's edge or
+    // within two pixels of it on the still background (kernels/pipeline/motion_edges.cl), so
+    // that such a pixel shows its coverage in one frame instead of over many; 0: none.
+    unsigned motion_edge_samples = 8;
   };
-  // Throws std::invalid_argument for fewer than one a-trous iteration.
-  DenoiseStage(StageEnv& env, const Options& options);
+  // Throws std::invalid_argument for fewer than one a-trous iteration. `tracer` (the pipeline's
+  // path tracing unit, for its launch constants) traces the motion edges' samples; without one
+  // there are none.
+  DenoiseStage(StageEnv& env, const Options& options, const PathTraceStage* tracer = nullptr);
 
   // The widest read of this frame's G-buffer beyond the strip. Halo seams: a-trous taps at
   // 2 * 2^(iterations-1), history taps at temporal_rows + 1, the variance estimate at 3, the
@@ -52,9 +59,14 @@ class DenoiseStage : public StageUnit {
   // end_frame() it is held here as the next frame's history, and the frame images' buffer is
   // the one the next frame overwrites.
   const cl::Buffer& last_gbuffer(int d, int e) const { return dev_[d].gbuffer_prev[e]; }
+  // How many pixels of eye `e` on this process's devices got the motion edges' samples in the
+  // last frame (a blocking read; tests and reports).
+  std::size_t motion_edge_pixels(int e);
 
  private:
   void denoise_eye(int e, const std::vector<RowRange>& strip, const FrameInputs& in);
+  // Options::motion_edge_samples more paths for the motion edges of eye e's `rows` on device d.
+  void sample_motion_edges(int e, int d, RowRange rows, RowRange readable, const FrameInputs& in);
 
   struct PerDevice {
     std::array<cl::Buffer, 2> gbuffer_prev;  // last frame's G-buffer (swapped with this frame's)
@@ -62,7 +74,10 @@ class DenoiseStage : public StageUnit {
     // Per eye (the eyes may be denoised at the same time, on different queue lanes):
     std::array<StagingBuffer, 2> halo;     // float4 rows leaving the device
     std::array<StagingBuffer, 2> gbuffer;  // GBufferTexel rows of last frame's G-buffer when strips move
+    // Per eye: the motion edges' pixels (full-frame indices) and their count.
+    std::array<cl::Buffer, 2> edge_list, edge_count;
   };
+  const PathTraceStage* tracer_;
   Options options_;
   unsigned max_iterations_;
   std::vector<PerDevice> dev_;
