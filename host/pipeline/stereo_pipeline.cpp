@@ -40,7 +40,7 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
   add_unit<ReprojectStage>({Stage::Reproject});
   add_unit<HoleFillStage>({Stage::HoleFill}, *path_trace_, options.hole_fill);
   if (options.denoise)
-    denoise_ = &add_unit<DenoiseStage>({Stage::Denoise}, denoise_options(options), static_cast<const PathTraceStage*>(path_trace_));
+    denoise_ = &add_unit<DenoiseStage>({Stage::Denoise}, denoise_options(options), path_trace_);
   add_unit<TonemapStage>({Stage::Tonemap}, TonemapStage::Options{options.exposure});
   add_unit<TransferStage>({Stage::Transfer}, TransferStage::Options{options.gather_radiance, options.denoise});
   for (const StageWork& w : schedule_.stages) unit(w.stage);  // every scheduled stage has a unit

@@ -5,6 +5,9 @@
 //     that pass's reach are copied in, so N devices give the 1-device image bit for bit;
 //   - history follows the strips: when a boundary moved since last frame, the rows a device
 //     took over bring their colour and moment history and last frame's G-buffer with them.
+// In an animated scene it first adds paths to the pixels at moving objects' edges
+// (Options::motion_edge_samples; timed under this stage as "motion edges" and "motion edge
+// samples"), which its temporal passes cannot anti-alias from history.
 #pragma once
 
 #include "pipeline/stages/path_trace_stage.h"
@@ -77,10 +80,10 @@ class DenoiseStage : public StageUnit {
     // Per eye: the motion edges' pixels (full-frame indices) and their count.
     std::array<cl::Buffer, 2> edge_list, edge_count;
   };
-  const PathTraceStage* tracer_;
   Options options_;
   unsigned max_iterations_;
   std::vector<PerDevice> dev_;
+  const PathTraceStage* tracer_;
   // Per eye, the rows whose history each device holds (the strips it denoised last frame; empty
   // before the first frame) and the strips of the frame being denoised.
   std::array<std::vector<RowRange>, 2> history_strips_, frame_strips_;
