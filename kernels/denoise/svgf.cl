@@ -248,15 +248,16 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
     float a = fmax(p.alpha, 1.0f / len);
     /* Beside a moving object a still surface's illumination changes from frame to frame: the
      * object's contact shadow and the light it reflects move with it. Its history lags there
-     * (trail test, 8 spp: the floor the cube left at 4.6x the still run's error with the usual
-     * floor of 0.2, 3.1x with this; the floor beyond the swept region -18%), so there it keeps
-     * at most half. A stand-in for a temporal gradient (A-SVGF), which would also catch a
+     * (trail test, 8 spp, when this came: the floor the cube left at 4.6x the still run's error
+     * with the usual floor of 0.2, 3.1x with this; the floor beyond the swept region -18%), so
+     * there it keeps at most half. A stand-in for a temporal gradient (A-SVGF), which would also catch a
      * shadow cast far from its object and need no reach in pixels. */
     if (motion && motion[i].w == PX_MOTION_STILL) {
       const int x0 = (int)(i % p.width);
       for (int dy = -PX_SVGF_NEAR_MOTION_REACH; dy <= PX_SVGF_NEAR_MOTION_REACH; ++dy)
         for (int dx = -PX_SVGF_NEAR_MOTION_REACH; dx <= PX_SVGF_NEAR_MOTION_REACH; ++dx)
-          if (px_pixel_readable(x0 + dx, y + dy, &p) && motion[(uint)(y + dy) * p.width + (uint)(x0 + dx)].w == PX_MOTION_MOVED)
+          if (px_pixel_readable(x0 + dx, y + dy, &p) &&
+              motion[(uint)(y + dy) * p.width + (uint)(x0 + dx)].w == PX_MOTION_MOVED)
             a = fmax(a, PX_SVGF_NEAR_MOTION_ALPHA);
     }
     const float am = fmax(p.alpha_moments, 1.0f / len);
@@ -898,8 +899,8 @@ kernel void svgf_antialias(global float4* resolved, global float4* history, cons
      * history and no moving neighbour now (the object left it altogether) starts over, as
      * SVGF's history does where the surface changed. Only those: when every background pixel
      * beside the object followed it, the image as a whole got worse.
-     * Measured (trail test, 8 spp, where the error is lag rather than noise): the swept
-     * region's error 3.9x the still run's, 9.6x when only the object's texels were followed,
+     * Measured when this came (trail test, 8 spp, where the error is lag rather than noise):
+     * the swept region's error 3.9x the still run's, 9.6x when only the object's texels were followed,
      * the trailing column keeping the cube's colour; Khronos's BoxAnimated and RiggedSimple
      * (two frames each, both eyes, against 256-spp references): the summed error -59%. */
     if (motion && tri_motion && found && motion[i].w != PX_MOTION_MOVED) {

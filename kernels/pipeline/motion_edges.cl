@@ -1,6 +1,7 @@
 /* The pixels of an animated frame that get extra samples before denoising
- * (DenoiseStage::Options::motion_edge_samples, path_trace_list_more): where a moving object's silhouette crosses the pixel, and the still
- * background within two pixels of it, which the object is uncovering or about to cover.
+ * (DenoiseStage::Options::motion_edge_samples, path_trace_list_more): where a moving object's
+ * silhouette crosses the pixel, and the still background within two pixels of it, which the
+ * object is uncovering or about to cover.
  *
  * Why: a still pixel's anti-aliasing averages many frames' jitter positions, so an edge
  * converges to its coverage; a pixel on a moving object keeps at most half of that history
