@@ -7,8 +7,8 @@
 // image_codec_module.cpp opens: at the first image call (a texture of the scene), or earlier on
 // another thread once a run's scene is loaded (preload_image_codec, image_io.h, called by
 // load_and_build or, for SceneOnDevices, once the scene is on the devices: the libraries' 86 MiB
-// of pages then stay out of the start's highest points). image_codec_oiio_front.cpp implements image_io.h on top of
-// the table; the files are written by this process (atomic_file.h), never by the module.
+// of pages then stay out of the start's highest points). image_codec_oiio_front.cpp implements
+// image_io.h on top of the table; the files are written by this process (atomic_file.h), never by the module.
 //
 // The table's functions return an empty string on success, else the reason; they never throw.
 // Both sides are built by this project with one compiler and standard library, so the table

@@ -209,8 +209,8 @@ void release_tail(unsigned char* bytes, std::size_t used, std::size_t size) {
 
 // What `make` makes of each of `triangles` (Record: TriangleShading, FlatTriangleShading when
 // every triangle is flat, or a BuildTriangle's corners), written over the triangles
-// themselves, in order: record i (64, 16 or 40 bytes at that many times i) is written after triangle i (100 bytes at 100 i) is read, and ends before
-// triangle i + 1 begins, so nothing is overwritten before it is read. The whole pages past the
+// themselves, in order: record i (64, 16 or 40 bytes at that many times i) is written after
+// triangle i (100 bytes at 100 i) is read, and ends before triangle i + 1 begins, so nothing is overwritten before it is read. The whole pages past the
 // last record are handed back to the system (MADV_DONTNEED; a block that large is a private
 // mapping of its own). The result owns the triangles' block.
 template <typename Record, typename Make>
@@ -591,6 +591,7 @@ struct DeviceScene::HostPart {
 
 std::shared_ptr<DeviceScene::HostPart> DeviceScene::prepare_host(
     const Scene& scene, const std::function<std::vector<SceneTriangle>()>& take_triangles) {
+  require_static_scene(scene, take_triangles);
   return make_host_part(scene, take_triangles, nullptr);
 }
 
@@ -603,7 +604,6 @@ std::shared_ptr<DeviceScene::HostPart> DeviceScene::prepare_flat_host(
 
 std::shared_ptr<DeviceScene::HostPart> DeviceScene::make_host_part(
     const Scene& scene, const std::function<std::vector<SceneTriangle>()>& take_triangles, BuildCorners* corners) {
-  require_static_scene(scene, take_triangles);
   const auto start = std::chrono::steady_clock::now();
   auto host = std::make_shared<HostPart>();
   host->scene_triangles = scene.triangles.size();

@@ -185,8 +185,8 @@ class DeviceScene {
   void set_kernel_choice(KernelChoice choice) { choice_ = choice; }
 
  private:
-  // prepare_host's and prepare_flat_host's work: with `corners`, the flat records go to a block
-  // of their own and the corners over the triangles.
+  // prepare_host's and prepare_flat_host's work, once they checked the scene is static: with
+  // `corners`, the flat records go to a block of their own and the corners over the triangles.
   static std::shared_ptr<HostPart> make_host_part(const Scene& scene,
                                                   const std::function<std::vector<SceneTriangle>()>& take_triangles,
                                                   BuildCorners* corners);
