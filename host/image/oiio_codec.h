@@ -1,13 +1,13 @@
 // The OpenImageIO codec as a table of four functions, loaded at run time.
 //
 // OpenImageIO's Debian build pulls in about 260 shared libraries; linked into the program, the
-// dynamic linker resolved them all before main (0.25-0.37 s for every run, `parallax --help`
-// included, a tenth of a 10M-triangle warm start). So the codec lives in a module of its own
+// dynamic linker resolved them all before main, for every run, `parallax --help` included
+// (docs/measurements.md, "Start-up and memory"). So the codec lives in a module of its own
 // (libparallax_image_oiio.so, image_codec_oiio.cpp) beside the executable, which
 // image_codec_module.cpp opens: at the first image call (a texture of the scene), or earlier on
 // another thread once a run's scene is loaded (preload_image_codec, image_io.h, called by
-// load_and_build or, for SceneOnDevices, once the scene is on the devices: the libraries' 86 MiB
-// of pages then stay out of the start's highest points). image_codec_oiio_front.cpp implements
+// load_and_build or, for SceneOnDevices, once the scene is on the devices: the libraries' mapped
+// pages then stay out of the start's highest points). image_codec_oiio_front.cpp implements
 // image_io.h on top of the table; the files are written by this process (atomic_file.h), never by the module.
 //
 // The table's functions return an empty string on success, else the reason; they never throw.
