@@ -2,7 +2,7 @@
 //
 // OpenImageIO's Debian build pulls in about 260 shared libraries; linked into the program, the
 // dynamic linker resolved them all before main, for every run, `parallax --help` included
-// (docs/measurements.md, "Start-up and memory"). So the codec lives in a module of its own
+// (docs/measurements.md, "Start at paper scale"). So the codec lives in a module of its own
 // (libparallax_image_oiio.so, image_codec_oiio.cpp) beside the executable, which
 // image_codec_module.cpp opens: at the first image call (a texture of the scene), or earlier on
 // another thread once a run's scene is loaded (preload_image_codec, image_io.h, called by

@@ -1,7 +1,7 @@
 // 8-bit sRGB encoding by comparison instead of by pow: the 255 linear values at which the encoded
 // byte steps up. The tonemap kernel finds a pixel's byte with eight comparisons against this
 // table; on PoCL's CPU devices that replaced three pow calls per pixel, which had made stage 8
-// cost as much as a G-buffer pass (docs/measurements.md, "Tonemapping on PoCL").
+// cost as much as a G-buffer pass (docs/measurements.md, "Pipeline stages on PoCL").
 #pragma once
 
 #include <array>

@@ -3,7 +3,7 @@
  * Why not the built-in exp: on PoCL's CPU devices it is a long dependent chain of scalar
  * operations with its own range handling, and the filters evaluate it for each of 25 taps per
  * pixel and pass; this version makes the a-trous pass markedly cheaper there
- * (docs/measurements.md, "Denoiser kernels on PoCL"). On GPUs both are a handful of instructions.
+ * (docs/measurements.md, "Denoiser: cost on a CPU"). On GPUs both are a handful of instructions.
  *
  * Method: e^x = 2^n e^r with n = round(x / ln 2) and r = x - n ln 2, where ln 2 is split into
  * a high part with 11 significant bits (n times it is exact in float, Cody and Waite) and a low

@@ -56,7 +56,7 @@ inline int px_sample_on_gbuffer_ray(const FrameParams* fp, uint s) {
  * That sample's first hit is the G-buffer's (gbuffer_texel.h), so the path tracer writes the
  * G-buffer of the pixels it traces instead of a second primary trace, and the radiance of that
  * sample belongs to the very surface the denoiser's G-buffer describes (lower error on every scene
- * measured: docs/measurements.md, "First sample on the G-buffer's ray"). Its position in the
+ * measured: docs/measurements.md, "Sample 0 along the G-buffer's ray"). Its position in the
  * pixel moves from frame to frame (CameraParams::jitter), so over frames it covers the pixel
  * too. The pipeline's references keep every sample jittered: a reference integrates the whole
  * pixel in one frame. */
