@@ -883,10 +883,10 @@ TEST(MotionTrail, AMovingObjectLeavesNoMoreErrorWhereItWentThanAStillOne) {
     const std::vector<float> moving = run(true, spp, &swept), still = run(false, spp, nullptr);
     // The extra samples at the moving cube's edges (the still run has none): their share of the
     // moving run's paths.
-    const double extra = double(edge_pixels) * StereoPipeline::Options{}.motion_edge_samples;
+    const double extra = double(edge_pixels) * DenoiseStage::Options{}.motion_edge_samples;
     EXPECT_GT(edge_pixels, 0u);
     std::printf("%u spp: %.1f pixels a frame and eye got %u samples more: %.1f%% more paths\n", spp,
-                double(edge_pixels) / (2.0 * frames), StereoPipeline::Options{}.motion_edge_samples,
+                double(edge_pixels) / (2.0 * frames), DenoiseStage::Options{}.motion_edge_samples,
                 100.0 * extra / (2.0 * frames * w * h * spp));
     // The swept region is where the cube was: its last pose in the G-buffer matches the
     // reference's (a G-buffer a frame old would put it 1.2 pixels behind).

@@ -87,13 +87,12 @@ constexpr FrameQuality kMax{8, 4, 3};
 
 RenderCommand control_command(const FrameQuality& start, unsigned frames, unsigned max_spp = kMax.spp) {
   RenderCommand cmd;
-  cmd.scene = "cornell";
-  cmd.width = 128;
-  cmd.height = 96;
+  cmd.scene.name = "cornell";
+  cmd.size = {128, 96};
   cmd.frames = frames;
-  cmd.trace.spp = start.spp;
-  cmd.trace.bounces = start.bounces;  // the controller's upper limits: these bounces and iterations,
-  cmd.svgf.iterations = start.svgf_iterations;
+  cmd.pipeline.trace.spp = start.spp;
+  cmd.pipeline.trace.bounces = start.bounces;  // the controller's upper limits: these bounces and iterations,
+  cmd.pipeline.denoise->svgf.iterations = start.svgf_iterations;
   cmd.max_spp = max_spp;  // and this spp
   cmd.no_exr = true;
   return cmd;
@@ -200,13 +199,12 @@ std::string half_empty_cornell(const test::TempDir& dir, bool box_below) {
 
 RenderCommand balance_command(const std::string& scene, StripBalance balance) {
   RenderCommand cmd;
-  cmd.scene = scene;
-  cmd.width = 64;
-  cmd.height = 96;
+  cmd.scene.name = scene;
+  cmd.size = {64, 96};
   cmd.frames = 14;
-  cmd.trace.spp = 2;
-  cmd.trace.bounces = 4;
-  cmd.svgf.iterations = 2;
+  cmd.pipeline.trace.spp = 2;
+  cmd.pipeline.trace.bounces = 4;
+  cmd.pipeline.denoise->svgf.iterations = 2;
   cmd.devices.count = 2;
   cmd.balance = balance;
   return cmd;

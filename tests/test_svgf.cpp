@@ -685,7 +685,7 @@ StereoPipeline::Options pipeline_options(PipelineKind kind, SeamMode seams = Sea
   opt.pipeline = kind;
   opt.trace.spp = 1;
   opt.trace.bounces = 3;
-  opt.seams = seams;
+  opt.denoise->seams = seams;
   return opt;
 }
 
@@ -694,8 +694,8 @@ DenoisedRun run_pipeline(const LoadedScene& loaded, int devices, SeamMode seams,
   DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
   DeviceScene ds(set, loaded.scene, loaded.bvh);
   StereoPipeline::Options opt = pipeline_options(PipelineKind::Proposed, seams);
-  opt.denoise = denoise;
-  opt.svgf.iterations = iterations;
+  opt.denoise->svgf.iterations = iterations;
+  if (!denoise) opt.denoise.reset();
   StereoPipeline p(set, ds, loaded.scene, w, h, opt);
   DenoisedRun r;
   for (unsigned f = 0; f < frames; ++f) {
@@ -793,7 +793,7 @@ std::vector<std::array<ImageRGB, 2>> three_denoised_frames(const LoadedScene& sc
   DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
   DeviceScene ds(set, scene.scene, scene.bvh);
   StereoPipeline::Options opt = pipeline_options(PipelineKind::Proposed);
-  svgf(opt.svgf);
+  svgf(opt.denoise->svgf);
   StereoPipeline p(set, ds, scene.scene, 41, 29, opt);
   std::vector<std::array<ImageRGB, 2>> frames;
   for (unsigned f = 0; f < 3; ++f) {
@@ -1034,7 +1034,7 @@ TEST(SvgfDistributed, QualityChangesBetweenFramesKeepHaloSeamsBitIdentical) {
     DeviceSet set = DeviceSet::create({device_counts[run], DeviceMode::Auto, ""});
     DeviceScene ds(set, scene.scene, scene.bvh);
     StereoPipeline::Options opt;
-    opt.svgf.iterations = 5;
+    opt.denoise->svgf.iterations = 5;
     StereoPipeline p(set, ds, scene.scene, 40, 31, opt);
     EXPECT_THROW(p.set_quality({1, 3, 6}), std::invalid_argument);
     EXPECT_THROW(p.set_quality({0, 3, 2}), std::invalid_argument);
@@ -1121,7 +1121,7 @@ std::vector<std::array<ImageRGB, 2>> run_with_strips(const LoadedScene& loaded, 
   DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
   DeviceScene ds(set, loaded.scene, loaded.bvh);
   StereoPipeline::Options opt = pipeline_options(kind);
-  opt.svgf.iterations = 2;  // G-buffer margin 18 rows: the moves below go past it
+  opt.denoise->svgf.iterations = 2;  // G-buffer margin 18 rows: the moves below go past it
   StereoPipeline p(set, ds, loaded.scene, w, h, opt);
   std::vector<std::array<ImageRGB, 2>> frames;
   for (unsigned f = 0; f < strips_per_frame.size(); ++f) {
