@@ -1,6 +1,7 @@
 #include "app/frame_report.h"
 
 #include "app/cli_enums.h"
+#include "util/statistics.h"
 
 #include <nlohmann/json.hpp>
 
@@ -34,11 +35,9 @@ void AnimationTotals::add(const SceneAnimator::Update& u) {
 }
 
 double AnimationTotals::median(double SceneAnimator::Update::*field) const {
-  if (updates.empty()) return 0.0;
   std::vector<double> v;
   for (const auto& u : updates) v.push_back(u.*field);
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-  return v[v.size() / 2];
+  return px::median(std::move(v));
 }
 
 void RenderReport::add_frame(unsigned frame, const FrameStats& st, const std::vector<RowRange>& strips,

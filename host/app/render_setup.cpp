@@ -1,6 +1,7 @@
 #include "app/render_setup.h"
 
 #include "app/cli_enums.h"
+#include "util/statistics.h"
 
 #include <algorithm>
 #include <cstdio>
@@ -13,15 +14,6 @@ std::string shortest(float v) {
   char text[32];
   std::snprintf(text, sizeof text, "%g", static_cast<double>(v));
   return text;
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  const std::size_t mid = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + mid, v.end());
-  if (v.size() % 2) return v[mid];
-  const double upper = v[mid];
-  return 0.5 * (upper + *std::max_element(v.begin(), v.begin() + mid));
 }
 
 }  // namespace
