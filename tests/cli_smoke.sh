@@ -194,9 +194,9 @@ else
   bad "long render did not start"; kill "$pid" 2>/dev/null; wait "$pid"
 fi
 
-# A second signal stops at once (here during a frame of about a second: 320x180 at 64 spp; at
-# 160x90 and 16 spp a frame had become 0.09 s, and the work in flight could finish before the
-# second signal came), and still leaves no partial file and no lock. The second signal is sent
+# A second signal stops at once (here during a long frame, 320x180 at 64 spp: at smaller sizes
+# the work in flight could finish before the second signal came; docs/measurements.md, signal
+# frame size), and still leaves no partial file and no lock. The second signal is sent
 # only once the first has been seen, so that the two are not merged into one pending signal.
 "$bin" render --scene cornell --width 320 --height 180 --spp 64 --frames 100000 --devices 2 --out "$tmp/sig2" \
   >/dev/null 2>"$tmp/sig2.err" &
@@ -270,8 +270,8 @@ if command -v ffmpeg >/dev/null && command -v ffprobe >/dev/null; then
   if [ "$probe" = "$want" ]; then ok "video is one 34x10 H.264 stream of 3 frames at 24 fps"
   else bad "video stream: $probe, expected $want"; fi
   # Its pictures are the frames written: each decoded frame against frame_NNNN_stereo.png
-  # (left | right, padded as the encoder pads), in luma PSNR. crf 18 gives about 37 dB here;
-  # the eyes swapped give 23 dB, the picture mirrored 26, a black one 16.
+  # (left | right, padded as the encoder pads), in luma PSNR. The 30 dB floor sits between crf
+  # 18's frames and swapped, mirrored or black ones (docs/measurements.md, video PSNR).
   psnr="$(ffmpeg -nostats -i "$tmp/v.mp4" -framerate 24 -i "$tmp/v/frame_%04d_stereo.png" \
     -lavfi "[1:v]pad=34:10,format=yuv420p[b];[0:v][b]psnr" -f null - 2>&1 | sed -n 's/.*PSNR y:\([0-9.inf]*\) .*/\1/p')"
   if awk -v p="$psnr" 'BEGIN { exit !(p == "inf" || p + 0 >= 30) }' && [ -n "$psnr" ]; then

@@ -817,19 +817,11 @@ TEST(MotionEdges, TheListedPixelsAreTheCubesEdgesAndTheirSamplesJoinTheirOwnStre
 // that last pose from the start. A trail (the cube's history left on the floor, a lagging edge)
 // is error the still run does not have. At 1 spp (the case) most of either run's error
 // is noise; at 8 spp what stays is lag, which more samples do not take away.
-//
-// Measured (this test, PoCL on 2 CPU cores), moving run's error / still run's:
-//   1 spp: 3.3x (the cube where it ends 2.9x, the floor it left 3.5x);
-//   8 spp: 2.9x (cube 2.7x, floor 3.1x).
-// Before the anti-aliasing restarted or re-aimed a history that a moving object had just left,
-// and before SVGF shortened the history of still surfaces beside a moving object: 3.4x at
-// 1 spp but 9.6x at 8 spp (the trailing column kept the cube's colour, the floor the cube's
-// shadow). Before the anti-aliasing followed a moving silhouette's edge at all: 4.4x at 1 spp;
-// without motion vectors 8.1x.
+// The ratios measured now and before each fix: docs/measurements.md, motion trail.
 // What remains: a pixel the cube uncovered has only the frames since; the floor's history
 // still lags the moving contact shadow a little; on the cube, a moving pixel keeps at most half
 // of the anti-aliasing's history (PX_TAA_MOTION_ALPHA_MAX, as each bilinear read blurs it), a
-// still one nearly all. The goal is 1.5x; the bounds here guard what is reached.
+// still one nearly all. The goal is a ratio of 1.5; the bounds here guard what is reached.
 TEST(MotionTrail, AMovingObjectLeavesNoMoreErrorWhereItWentThanAStillOne) {
   const TempDir dir;
   const std::string file = cube_on_floor_file(dir);
