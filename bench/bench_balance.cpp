@@ -87,7 +87,7 @@ int main(int argc, char** argv) {
     px::StereoPipeline::Options opt;
     opt.trace.spp = spp;
     opt.trace.bounces = bounces;
-    opt.denoise = denoise;
+    if (!denoise) opt.denoise.reset();
     px::StereoPipeline fixed(set, ds, loaded.scene, width, height, opt);
     px::StereoPipeline moving(set, ds, loaded.scene, width, height, opt);
     px::StripBalancer::Options bo;

@@ -197,7 +197,7 @@ int main(int argc, char** argv) {
         opt.overlap = run.overlap;
         opt.gbuffer_from_path_tracer = run.gbuffer_from_path_tracer;
         opt.hole_fill.spread = spread;
-        opt.svgf.atrous_tiles = atrous_tiles == "on" ? 1 : atrous_tiles == "off" ? 0 : -1;
+        opt.denoise->svgf.atrous_tiles = atrous_tiles == "on" ? 1 : atrous_tiles == "off" ? 0 : -1;
         opt.path_kernel = px::parse_path_trace_kernel(path_tracer);
         // Programs are looked up at each launch with the scene's current choice: set for this run.
         on_devices.device_scene.set_kernel_choice(run.kernels);

@@ -152,8 +152,8 @@ int main(int argc, char** argv) {
       opt.pipeline = px::PipelineKind::Proposed;
       opt.trace.spp = spp;
       opt.trace.bounces = bounces;
-      opt.seams = c.mode;
-      opt.svgf.iterations = iterations;
+      opt.denoise->seams = c.mode;
+      opt.denoise->svgf.iterations = iterations;
       px::StereoPipeline pipeline(on_devices.devices, on_devices.device_scene, on_devices.loaded.scene, width, height,
                                   opt);
       ModeResult r;

@@ -817,19 +817,11 @@ TEST(MotionEdges, TheListedPixelsAreTheCubesEdgesAndTheirSamplesJoinTheirOwnStre
 // that last pose from the start. A trail (the cube's history left on the floor, a lagging edge)
 // is error the still run does not have. At 1 spp (the case) most of either run's error
 // is noise; at 8 spp what stays is lag, which more samples do not take away.
-//
-// Measured (this test, PoCL on 2 CPU cores), moving run's error / still run's:
-//   1 spp: 3.3x (the cube where it ends 2.9x, the floor it left 3.5x);
-//   8 spp: 2.9x (cube 2.7x, floor 3.1x).
-// Before the anti-aliasing restarted or re-aimed a history that a moving object had just left,
-// and before SVGF shortened the history of still surfaces beside a moving object: 3.4x at
-// 1 spp but 9.6x at 8 spp (the trailing column kept the cube's colour, the floor the cube's
-// shadow). Before the anti-aliasing followed a moving silhouette's edge at all: 4.4x at 1 spp;
-// without motion vectors 8.1x.
+// The ratios measured now and before each fix: docs/measurements.md, motion trail.
 // What remains: a pixel the cube uncovered has only the frames since; the floor's history
 // still lags the moving contact shadow a little; on the cube, a moving pixel keeps at most half
 // of the anti-aliasing's history (PX_TAA_MOTION_ALPHA_MAX, as each bilinear read blurs it), a
-// still one nearly all. The goal is 1.5x; the bounds here guard what is reached.
+// still one nearly all. The goal is a ratio of 1.5; the bounds here guard what is reached.
 TEST(MotionTrail, AMovingObjectLeavesNoMoreErrorWhereItWentThanAStillOne) {
   const TempDir dir;
   const std::string file = cube_on_floor_file(dir);
@@ -883,10 +875,10 @@ TEST(MotionTrail, AMovingObjectLeavesNoMoreErrorWhereItWentThanAStillOne) {
     const std::vector<float> moving = run(true, spp, &swept), still = run(false, spp, nullptr);
     // The extra samples at the moving cube's edges (the still run has none): their share of the
     // moving run's paths.
-    const double extra = double(edge_pixels) * StereoPipeline::Options{}.motion_edge_samples;
+    const double extra = double(edge_pixels) * DenoiseStage::Options{}.motion_edge_samples;
     EXPECT_GT(edge_pixels, 0u);
     std::printf("%u spp: %.1f pixels a frame and eye got %u samples more: %.1f%% more paths\n", spp,
-                double(edge_pixels) / (2.0 * frames), StereoPipeline::Options{}.motion_edge_samples,
+                double(edge_pixels) / (2.0 * frames), DenoiseStage::Options{}.motion_edge_samples,
                 100.0 * extra / (2.0 * frames * w * h * spp));
     // The swept region is where the cube was: its last pose in the G-buffer matches the
     // reference's (a G-buffer a frame old would put it 1.2 pixels behind).

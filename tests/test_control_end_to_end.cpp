@@ -81,19 +81,18 @@ std::string describe(const std::vector<FrameRecord>& frames) {
 // ---- the control loop ----
 
 // Cornell at 128x96 on one device: at 8 spp, 4 bounces and 3 iterations path tracing is most of
-// the frame (measured on a shared 2-core machine: 1/1/1 ~13 ms, 1/4/3 ~20 ms, 8/4/3 ~63 ms,
-// 16/4/3 ~120 ms), so the quality settings span a wide range of frame times.
+// the frame, so the quality settings span a wide range of frame times (docs/measurements.md,
+// control loop end to end).
 constexpr FrameQuality kMax{8, 4, 3};
 
 RenderCommand control_command(const FrameQuality& start, unsigned frames, unsigned max_spp = kMax.spp) {
   RenderCommand cmd;
-  cmd.scene = "cornell";
-  cmd.width = 128;
-  cmd.height = 96;
+  cmd.scene.name = "cornell";
+  cmd.size = {128, 96};
   cmd.frames = frames;
-  cmd.trace.spp = start.spp;
-  cmd.trace.bounces = start.bounces;  // the controller's upper limits: these bounces and iterations,
-  cmd.svgf.iterations = start.svgf_iterations;
+  cmd.pipeline.trace.spp = start.spp;
+  cmd.pipeline.trace.bounces = start.bounces;  // the controller's upper limits: these bounces and iterations,
+  cmd.pipeline.denoise->svgf.iterations = start.svgf_iterations;
   cmd.max_spp = max_spp;  // and this spp
   cmd.no_exr = true;
   return cmd;
@@ -146,10 +145,9 @@ TEST(ControlLoopEndToEnd, WindowAboveEveryFrameTimeDrivesQualityToItsMaximumAndH
 
 TEST(ControlLoopEndToEnd, ReachableWindowIsHeldFromAboveAndFromBelow) {
   test::TempDir dir;
-  // The window lies between the frame times of 1 and 16 spp (4 bounces, 3 iterations: measured
-  // ~20 and ~115 ms), a factor 1.4 either side of their geometric mean (~34:67 ms here): its
-  // width (hi / lo ~2) is the paper's (11:20 ms), and 3 to 8 spp at 4 bounces, or 11 to 16 at
-  // 1 bounce, fall inside it.
+  // The window lies between the frame times of 1 and 16 spp (4 bounces, 3 iterations), a factor
+  // 1.4 either side of their geometric mean: its width (hi / lo ~2) is the paper's (11:20 ms),
+  // and several spp settings fall inside it (docs/measurements.md, control loop end to end).
   const FrameQuality least{1, kMax.bounces, kMax.svgf_iterations}, most{16, kMax.bounces, kMax.svgf_iterations};
   const double t_lo = measured_ms(least, dir, "calibrate_least");
   const double t_hi = measured_ms(most, dir, "calibrate_most");
@@ -159,7 +157,7 @@ TEST(ControlLoopEndToEnd, ReachableWindowIsHeldFromAboveAndFromBelow) {
   // take 10%. The median (not every frame, nor the mean) ignores the minority of frames that
   // other processes on a shared 2-core machine slow down; the 10% allows for the controller
   // holding a setting whose smoothed time sits just inside an edge (it acts only once its
-  // 3-frame median leaves the window; measured: settled medians 0.60-0.95 x hi).
+  // 3-frame median leaves the window; docs/measurements.md, control loop end to end).
   // A controller that ignores the window keeps its starting quality, whose frames lie outside
   // the window by at least the factor checked here, well beyond the 10%.
   const double apart = 1.35;
@@ -200,13 +198,12 @@ std::string half_empty_cornell(const test::TempDir& dir, bool box_below) {
 
 RenderCommand balance_command(const std::string& scene, StripBalance balance) {
   RenderCommand cmd;
-  cmd.scene = scene;
-  cmd.width = 64;
-  cmd.height = 96;
+  cmd.scene.name = scene;
+  cmd.size = {64, 96};
   cmd.frames = 14;
-  cmd.trace.spp = 2;
-  cmd.trace.bounces = 4;
-  cmd.svgf.iterations = 2;
+  cmd.pipeline.trace.spp = 2;
+  cmd.pipeline.trace.bounces = 4;
+  cmd.pipeline.denoise->svgf.iterations = 2;
   cmd.devices.count = 2;
   cmd.balance = balance;
   return cmd;
@@ -234,10 +231,10 @@ TEST(DynamicStripsEndToEnd, TheBoundaryMovesTowardTheCheapHalfAndImagesStayBitId
                std::to_string(r.device_ms[0]) + " / " + std::to_string(r.device_ms[1]);
       if (f >= frames.size() - 4) late.push_back(r.strips[1].begin);
     }
-    // Measured: the box's half costs the device 4-8x the other's at the even split; the
-    // boundary moves 8 rows a frame (--balance-step) toward the cheap half and settles 20-26
-    // rows from the middle, where the devices' times agree within noise. Asserted: over the
-    // last four frames it sits at least 10 rows from the middle, on the cheap side.
+    // The box's half costs its device several times the other's at the even split; the boundary
+    // moves 8 rows a frame (--balance-step) toward the cheap half and settles where the devices'
+    // times agree within noise (docs/measurements.md, dynamic strips end to end). Asserted: over
+    // the last four frames it sits at least 10 rows from the middle, on the cheap side.
     const double boundary = median(late);
     std::printf("[ measure  ] %s: boundary %u -> %.1f (median of the last 4 frames)\n", name.c_str(), even, boundary);
     if (box_below)

@@ -247,7 +247,7 @@ PipelineRun run(const LoadedScene& loaded, PipelineKind kind, int devices, unsig
   opt.trace.spp = spp;
   opt.trace.bounces = 4;
   opt.trace.seed = seed;
-  opt.denoise = false;  // these tests are about stages 2-5; SVGF has its own suite
+  opt.denoise.reset();  // these tests are about stages 2-5; SVGF has its own suite
   opt.hole_fill.spread = spread;
   StereoPipeline p(set, ds, loaded.scene, w, h, opt);
   PipelineRun r;
@@ -539,7 +539,7 @@ TEST(StereoPipeline, WavefrontPathTracerGivesTheMegakernelsImages) {
       opt.pipeline = c.kind;
       opt.trace.spp = 3;
       opt.trace.bounces = c.bounces;
-      opt.denoise = false;
+      opt.denoise.reset();
       opt.path_kernel = k == 0 ? PathTraceKernel::Megakernel : PathTraceKernel::Wavefront;
       StereoPipeline p(set, ds, c.scene->scene, 56, 40, opt);
       for (unsigned f = 0; f < 2; ++f) reprojected[k] += p.render(f, 0.1f * f).reprojected;

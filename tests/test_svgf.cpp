@@ -634,9 +634,8 @@ TEST(Svgf, RareBrightSamplesKeepTheirEnergy) {
 // exactly known mean to keep: whatever it loses is bias, not noise. Two distributions of the
 // sample: exponential (a diffusely lit surface's one-bounce estimate) and the harder 10% of
 // pixels at 10x the mean, 90% at 0 (a light, or the sun, found by one sample in ten).
-// Measured: exponential -0.04%, rare bright -0.6%. With the SVGF paper's luminance test (each
-// pixel's own noisy luminance, scaled by the centre's variance alone; svgf_luma and
-// PX_ATROUS_TAP_SUM say why not): -1.8% and -9.0%.
+// The bias measured, and with the SVGF paper's luminance test (svgf_luma and PX_ATROUS_TAP_SUM
+// say why not): docs/measurements.md, SVGF exact-mean bias.
 double filtered_mean_of_exact_mean_noise(bool rare_bright) {
   FilterRun run;
   const auto g = run.view.gbuffer(flat);
@@ -685,7 +684,7 @@ StereoPipeline::Options pipeline_options(PipelineKind kind, SeamMode seams = Sea
   opt.pipeline = kind;
   opt.trace.spp = 1;
   opt.trace.bounces = 3;
-  opt.seams = seams;
+  opt.denoise->seams = seams;
   return opt;
 }
 
@@ -694,8 +693,8 @@ DenoisedRun run_pipeline(const LoadedScene& loaded, int devices, SeamMode seams,
   DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
   DeviceScene ds(set, loaded.scene, loaded.bvh);
   StereoPipeline::Options opt = pipeline_options(PipelineKind::Proposed, seams);
-  opt.denoise = denoise;
-  opt.svgf.iterations = iterations;
+  opt.denoise->svgf.iterations = iterations;
+  if (!denoise) opt.denoise.reset();
   StereoPipeline p(set, ds, loaded.scene, w, h, opt);
   DenoisedRun r;
   for (unsigned f = 0; f < frames; ++f) {
@@ -793,7 +792,7 @@ std::vector<std::array<ImageRGB, 2>> three_denoised_frames(const LoadedScene& sc
   DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
   DeviceScene ds(set, scene.scene, scene.bvh);
   StereoPipeline::Options opt = pipeline_options(PipelineKind::Proposed);
-  svgf(opt.svgf);
+  svgf(opt.denoise->svgf);
   StereoPipeline p(set, ds, scene.scene, 41, 29, opt);
   std::vector<std::array<ImageRGB, 2>> frames;
   for (unsigned f = 0; f < 3; ++f) {
@@ -808,7 +807,7 @@ TEST(SvgfDistributed, EightPixelAtrousKernelGivesTheSameImagesToRounding) {
   // frames with history: the same filter, so pixels differ by float rounding only (the two
   // kernels contract multiply-adds differently, and the luminance test's square root per tap
   // may round differently in its float8 form; history carries the differences into later
-  // frames: worst measured 1.0e-4 on the sphere, 1.8e-5 on cornell).
+  // frames; docs/measurements.md, a-trous lanes).
   for (const LoadedScene* scene : {&cornell(), &sphere_under_sky()}) {
     std::array<std::vector<std::array<ImageRGB, 2>>, 2> frames;
     for (int k = 0; k < 2; ++k)
@@ -883,9 +882,8 @@ TEST(SvgfDistributed, DenoisingBringsCornellCloserToTheReference) {
   // The diffuse Cornell box, 96x72, 1 spp, 3 bounces, the camera moving; frame 3 (history
   // from frames 0-2) of the proposed pipeline on 2 devices with halo seams, noisy and denoised,
   // against a reference independent of the pipeline: render_reference (what `parallax
-  // reference` runs: every sample jittered, its own seed), 1024 spp at the same 3 bounces. Its
-  // own noise: against a 2048-spp reference with another seed every figure below moves by at
-  // most 0.04 dB (the two references agree to 49-51 dB PSNR).
+  // reference` runs: every sample jittered, its own seed), 1024 spp at the same 3 bounces, whose
+  // own noise is far below the margins (docs/measurements.md, SVGF against a reference).
   //
   // Two regions: the whole image, and the rows below the emitter, where the error is the
   // denoiser's. At 1 spp each pixel's one sample goes through the frame's jitter position, the
@@ -893,22 +891,9 @@ TEST(SvgfDistributed, DenoisingBringsCornellCloserToTheReference) {
   // all emitter or none; over frames the anti-aliasing pass averages the positions.
   //
   // The images are deterministic (seeded; 1 and 2 devices give the same bits), so the floors
-  // sit close to the values measured now, with a margin for another CPU's float rounding.
-  // Measured (left / right eye):
-  //   whole image:       noisy 24.29 / 25.52 dB, denoised 29.66 / 30.20 dB (+5.37 / +4.68)
-  //   below the emitter: noisy 27.82 / 29.27 dB, denoised 38.58 / 38.87 dB (+10.76 / +9.60)
-  //   mean luminance from 2 rows below the emitter, denoised / reference: 1.033 / 1.033
-  //   (noisy 1.017 / 1.016: this frame's own noise), denoised / noisy 1.015 / 1.017 (the
-  //   anti-aliasing's history holds frames 0-2, whose short SVGF histories left them brighter
-  //   there; without anti-aliasing 1.004 / 1.006)
-  //   mean luminance, denoised / noisy: whole image 1.001 / 1.000
-  // Before the frame's sample moved with the jitter (every frame through the pixel centre),
-  // the whole image was 23.37 / 24.19 dB noisy and 25.91 / 25.70 dB denoised, and ~9-10%
-  // darker than the reference.
-  // What the floors catch, measured with broken weights (SvgfDenoiser::Options, before the
-  // jitter): normals ignored (sigma_n 0) 35.7 / 36.0 dB below the emitter and -3% energy; no
-  // luminance edge stopping (sigma_l 1e6) 32.7 dB and +7-8% energy; no colour history (alpha 1)
-  // -4% energy; history capped at 1 frame 36.2 / 36.6 dB and +2-3% energy.
+  // sit close to the values measured now, with a margin for another CPU's float rounding. The
+  // values measured, before the jitter, and with broken weights (what the floors catch):
+  // docs/measurements.md, SVGF against a reference.
   const unsigned w = 96, h = 72, frames = 4;
   static LoadedScene loaded = load_and_build("cornell", true);
   DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
@@ -966,12 +951,11 @@ TEST(SvgfDistributed, BilateralSeamsSoftenTheSeamWithinTheBandAndChangeNothingEl
   // with independent seams, then the rows within seam_band (4) of each seam pass through a 5x5
   // cross-bilateral filter reading the neighbour's rows across the seam. 2 devices, 64x48 (the
   // seam at row 24), 3 frames, 2 a-trous iterations; the 1-device image (= halo seams) is the
-  // seamless one. Measured, summed over frames and eyes:
-  //   - independent seams leave a step: the mean |row 24 - row 23| is 7.3x the 1-device
-  //     image's (6.3-8.7x per frame and eye);
-  //   - bilateral brings the band's rows closer to the 1-device image (its mean difference
-  //     from it x0.83 of independent's) and lowers the step (x0.68), without removing it (still
-  //     5x the 1-device image's): it softens the seam, it does not make it seamless;
+  // seamless one. Summed over frames and eyes (figures: docs/measurements.md, bilateral seams):
+  //   - independent seams leave a step: the mean |row 24 - row 23| is several times the
+  //     1-device image's;
+  //   - bilateral brings the band's rows closer to the 1-device image and lowers the step,
+  //     without removing it: it softens the seam, it does not make it seamless;
   //   - every row outside the band is bit-identical to independent's in every frame (the
   //     filter works on the finished radiance; the history comes from the first a-trous
   //     iterate, which it never touches). Inside the band the kernel's test |y - seam| < band,
@@ -1034,7 +1018,7 @@ TEST(SvgfDistributed, QualityChangesBetweenFramesKeepHaloSeamsBitIdentical) {
     DeviceSet set = DeviceSet::create({device_counts[run], DeviceMode::Auto, ""});
     DeviceScene ds(set, scene.scene, scene.bvh);
     StereoPipeline::Options opt;
-    opt.svgf.iterations = 5;
+    opt.denoise->svgf.iterations = 5;
     StereoPipeline p(set, ds, scene.scene, 40, 31, opt);
     EXPECT_THROW(p.set_quality({1, 3, 6}), std::invalid_argument);
     EXPECT_THROW(p.set_quality({0, 3, 2}), std::invalid_argument);
@@ -1121,7 +1105,7 @@ std::vector<std::array<ImageRGB, 2>> run_with_strips(const LoadedScene& loaded, 
   DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
   DeviceScene ds(set, loaded.scene, loaded.bvh);
   StereoPipeline::Options opt = pipeline_options(kind);
-  opt.svgf.iterations = 2;  // G-buffer margin 18 rows: the moves below go past it
+  opt.denoise->svgf.iterations = 2;  // G-buffer margin 18 rows: the moves below go past it
   StereoPipeline p(set, ds, loaded.scene, w, h, opt);
   std::vector<std::array<ImageRGB, 2>> frames;
   for (unsigned f = 0; f < strips_per_frame.size(); ++f) {

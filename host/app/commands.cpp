@@ -58,20 +58,20 @@ int run_devices(const DeviceChoice& choice) {
 int run_preview(const PreviewCommand& cmd) {
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite);
-  SceneOnDevices on_devices(cmd.scene, cmd.devices.options(), false, cmd.sky, cmd.kernels);
+  SceneOnDevices on_devices(cmd.scene.name, cmd.devices.options(), false, cmd.scene.sky, cmd.scene.kernels);
   print_device_set(on_devices.devices);
   print_scene_upload(on_devices.device_scene, on_devices.devices.size());
   print_kernel_features(on_devices.device_scene);
-  SceneAnimator animator(on_devices.loaded.scene, cmd.animation);
+  SceneAnimator animator(on_devices.loaded.scene, cmd.scene.animation);
   if (animator.moves()) {
     std::fprintf(stderr, "[preview] animation: %s\n", animator.describe().c_str());
     animator.update(cmd.time_s, on_devices.devices, on_devices.device_scene);
   }
   PreviewRenderer renderer(on_devices.devices, on_devices.device_scene);
-  std::fprintf(stderr, "[preview] %ux%u per eye, t = %.2f s ...\n", cmd.width, cmd.height, cmd.time_s);
+  std::fprintf(stderr, "[preview] %ux%u per eye, t = %.2f s ...\n", cmd.size.width, cmd.size.height, cmd.time_s);
   check_camera(on_devices.loaded.scene, cmd.time_s, "preview");
   auto t0 = clock_type::now();
-  auto eyes = renderer.render(on_devices.loaded.scene, cmd.time_s, cmd.width, cmd.height);
+  auto eyes = renderer.render(on_devices.loaded.scene, cmd.time_s, cmd.size.width, cmd.size.height);
   std::fprintf(stderr, "[preview] done in %.0f ms (first run includes kernel compilation)\n", ms_since(t0));
   require_finite(eyes, "preview");
   write_stereo(out_dir, "", eyes, 1.0f);
@@ -106,7 +106,7 @@ int run_render(const RenderCommand& cmd) {
     if (!root) return 0;
     // The schedule depends only on pipeline, device count, height and denoising: no scene needed.
     const FrameSchedule schedule =
-        make_schedule(opt.pipeline, cmd.devices.count * cluster.size(), cmd.height, opt.denoise, {},
+        make_schedule(opt.pipeline, cmd.devices.count * cluster.size(), cmd.size.height, opt.denoise.has_value(), {},
                       StereoPipeline::wants_gbuffer(opt));
     std::printf("%s\n%s", schedule.explain().c_str(),
                 explain_operations(make_operations(schedule, StereoPipeline::gbuffer_margin(schedule, opt),
@@ -138,15 +138,15 @@ int run_render(const RenderCommand& cmd) {
 int run_reference(const ReferenceCommand& cmd) {
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite);
-  SceneOnDevices on_devices(cmd.scene, cmd.devices.options(), false, cmd.sky, cmd.kernels);
+  SceneOnDevices on_devices(cmd.scene.name, cmd.devices.options(), false, cmd.scene.sky, cmd.scene.kernels);
   print_device_set(on_devices.devices);
   print_scene_upload(on_devices.device_scene, on_devices.devices.size());
   print_kernel_features(on_devices.device_scene);
   const Scene& scene = on_devices.loaded.scene;
   // The scene and camera at the frame's time, on `render`'s clock: the reference of frame f is
   // the image `render` converges to at frame f.
-  const FrameClock clock{cmd.fps};
-  SceneAnimator animator(on_devices.loaded.scene, cmd.animation);
+  const FrameClock& clock = cmd.clock;
+  SceneAnimator animator(on_devices.loaded.scene, cmd.scene.animation);
   if (animator.moves()) {
     std::fprintf(stderr, "[reference] animation: %s, at t = %.4g s\n", animator.describe().c_str(),
                  clock.time_s(cmd.frame));
@@ -161,7 +161,7 @@ int run_reference(const ReferenceCommand& cmd) {
   // Ctrl-C stops after the pass in flight and writes the average of the passes done.
   opt.stop = [] { return interrupted(); };
   unsigned spp_done = 0;
-  auto eyes = render_reference(tracer, clock.camera_time_s(cmd.frame), cmd.frame, cmd.width, cmd.height, opt,
+  auto eyes = render_reference(tracer, clock.camera_time_s(cmd.frame), cmd.frame, cmd.size.width, cmd.size.height, opt,
                                eta_printer("reference"), &spp_done);
   require_finite(eyes, "reference");
   write_stereo(out_dir, "reference_", eyes, cmd.exposure);

@@ -21,13 +21,45 @@ struct DeviceChoice {
   DeviceOptions options() const;
 };
 
-struct PreviewCommand {
-  std::string scene = "cornell";
+// What every command that renders a scene reads it with: --scene, --sky, --instancing,
+// --kernels and --animation (main.cpp binds them with one helper).
+struct SceneChoice {
+  // A JSON scene file (scenes/*.json), an OBJ, glTF or binary glTF file, or a built-in name.
+  std::string name = "cornell";
   SkyMode sky = SkyMode::kAuto;  // light for scenes without any (see load_scene)
-  KernelChoice kernels = KernelChoice::Scene;  // --kernels: the scene's features or all
+  // glTF scenes: a mesh that several nodes draw becomes instances of one copy (off: flat copies).
+  bool instancing = true;  // wired to SceneLoadOptions::instancing
+  KernelChoice kernels = KernelChoice::Scene;  // the scene's features or all
+  std::string animation = "all";  // which glTF clips play (all, none, a name or index)
+};
+
+// Pixels of each eye (--width, --height).
+struct ImageSize {
   unsigned width = 640, height = 360;
+};
+
+// The one clock of `render`, `reference`, `view --frames` and every MPI rank: frame f is at
+// f / fps seconds, for the camera path and the animation alike. Every place that turns a frame
+// number into a time goes through here, so that a reference of frame f shows the scene
+// `render` showed at frame f, and every rank poses the same triangles bit for bit.
+//
+// The two times are one instant in the types their consumers take: evaluate_camera a float,
+// SceneAnimator a double. Each quotient is formed in its own type, not one rounded from the
+// other: the double rounded to float can differ from the float quotient by an ulp, which would
+// move the camera and every image with it.
+struct FrameClock {
+  float fps = 30.0f;  // --fps
+
+  // Frame `frame`'s time for the animation (SceneAnimator::update).
+  double time_s(unsigned frame) const { return static_cast<double>(frame) / fps; }
+  // Frame `frame`'s time on the camera path (evaluate_camera, StereoPipeline::render).
+  float camera_time_s(unsigned frame) const { return static_cast<float>(frame) / fps; }
+};
+
+struct PreviewCommand {
+  SceneChoice scene;
+  ImageSize size;
   float time_s = 0.0f;
-  std::string animation = "all";  // --animation: which glTF clips play (all, none, a name or index)
   std::string out = "out/preview";
   bool overwrite = false;
   DeviceChoice devices;
@@ -40,28 +72,20 @@ enum class StripBalance {
 };
 
 struct RenderCommand {
-  std::string scene = "cornell";
-  SkyMode sky = SkyMode::kAuto;  // light for scenes without any (see load_scene)
-  PipelineKind pipeline = PipelineKind::Proposed;
-  unsigned width = 640, height = 360;
+  SceneChoice scene;
+  ImageSize size;
   unsigned frames = 1;
-  float fps = 30.0f;           // camera-path and animation time of frame f is f / fps
-  std::string animation = "all";  // --animation: which glTF clips play (all, none, a name or index)
-  float exposure = 1.0f;       // PNG preview scale
-  PathTracer::Options trace;   // --spp, --bounces, --light-sampling, ...
-  PathTraceKernel path_kernel = PathTraceKernel::Megakernel;  // --path-tracer
-  KernelChoice kernels = KernelChoice::Scene;                 // --kernels
-  PixelJitter jitter = PixelJitter::Halton;                   // --jitter
+  FrameClock clock;  // camera-path and animation time of frame f is f / fps
+  // The pipeline as the flags ask for it: --pipeline, --spp, --bounces, ... (trace),
+  // --path-tracer, --jitter, --exposure (tonemap), the denoiser's flags (denoise; --no-denoise
+  // leaves it empty). make_pipeline_config completes it (--aov, the control loop's checks).
+  StereoPipeline::Options pipeline;
   std::string out = "out/render";
   bool overwrite = false;
   bool explain = false;        // print the schedule (stage x device workload pairs, tree)
-  bool no_denoise = false;
   bool no_exr = false;         // PNGs only: finished strips travel as RGBA8 alone
   bool no_overlap = false;     // one queue per device (no side queue for the left eye)
   bool force_overlap = false;  // the side queue on CPU devices too
-  SvgfDenoiser::Options svgf;
-  SeamMode seams = SeamMode::Halo;
-  unsigned motion_edge_samples = 8;  // --motion-edge-samples (StereoPipeline::Options)
   std::string report;          // JSON report path ("" = none)
   std::string timeline;        // Chrome trace / Perfetto JSON path ("" = none)
   std::string video;           // left|right side by side through ffmpeg ("" = none)
@@ -83,17 +107,14 @@ struct ViewCommand {
 };
 
 struct ReferenceCommand {
-  std::string scene = "cornell";
-  SkyMode sky = SkyMode::kAuto;  // light for scenes without any (see load_scene)
-  KernelChoice kernels = KernelChoice::Scene;  // --kernels
-  unsigned width = 640, height = 360;
+  SceneChoice scene;
+  ImageSize size;
   unsigned spp = 4096;
   unsigned pass_spp = 16;      // samples per progressive pass
   unsigned frame = 0;
-  float fps = 30.0f;
-  std::string animation = "all";  // --animation, as render's
-  unsigned bounces = 6;
-  float exposure = 1.0f;
+  FrameClock clock;            // the animation the reference belongs to
+  unsigned bounces = PathTracer::Options{}.bounces;
+  float exposure = TonemapStage::Options{}.exposure;  // PNG preview scale, as render's
   std::string out = "out/reference";
   bool overwrite = false;
   DeviceChoice devices;

@@ -31,7 +31,7 @@ void write_render_frame(const RenderCommand& cmd, const OutputDir& dir, unsigned
                         const std::array<ImageRGB, 2>& eyes, const std::array<std::vector<std::uint8_t>, 2>& png,
                         const StereoPipeline& pipeline, VideoWriter* video) {
   const std::string prefix = frame_name(f, "");
-  const int w = static_cast<int>(cmd.width), h = static_cast<int>(cmd.height);
+  const int w = static_cast<int>(cmd.size.width), h = static_cast<int>(cmd.size.height);
   // A build without an image codec renders for its report, timeline and video only (said once
   // at the start).
   const bool files = image_codec_available();
@@ -60,7 +60,7 @@ RenderLoop::RenderLoop(const RenderCommand& cmd, PipelineConfig config, Cluster&
     : cmd_(cmd),
       config_(std::move(config)),
       cluster_(cluster),
-      clock_{cmd.fps},
+      clock_(cmd.clock),
       distributed_(cluster.distributed()),
       root_(cluster.rank() == 0),
       dynamic_strips_(cmd.balance == StripBalance::Dynamic) {}
@@ -72,10 +72,10 @@ std::optional<int> RenderLoop::start() {
       out_dir_.emplace(cmd_.out, cmd_.overwrite, is_render_frame_file);
       if (!cmd_.report.empty()) report_.emplace(cmd_, opt, cluster_.size());
       if (!cmd_.timeline.empty()) timeline_.emplace(cmd_.timeline);
-      if (!cmd_.video.empty()) video_.emplace(cmd_.video, 2 * cmd_.width, cmd_.height, cmd_.fps);
+      if (!cmd_.video.empty()) video_.emplace(cmd_.video, 2 * cmd_.size.width, cmd_.size.height, cmd_.clock.fps);
     }
     // Every rank loads the scene itself (the scene is replicated, not sent).
-    on_devices_.emplace(cmd_.scene, cmd_.devices.options(), !root_, cmd_.sky, cmd_.kernels);
+    on_devices_.emplace(cmd_.scene.name, cmd_.devices.options(), !root_, cmd_.scene.sky, cmd_.scene.kernels);
     const DeviceSet& set = on_devices_->devices;
     if (root_) print_device_set(set);
     if (root_) print_scene_upload(on_devices_->device_scene, set.size());
@@ -86,10 +86,10 @@ std::optional<int> RenderLoop::start() {
       std::printf("balance: dynamic over %d queues on one OpenCL device: they share its compute units, so the "
                   "strips follow the queues' measured times but the frame gets no faster\n",
                   set.size());
-    animator_.emplace(on_devices_->loaded.scene, cmd_.animation);
+    animator_.emplace(on_devices_->loaded.scene, cmd_.scene.animation);
     if (root_ && animator_->moves()) std::fprintf(stderr, "[scene] animation: %s\n", animator_->describe().c_str());
-    pipeline_.emplace(on_devices_->devices, on_devices_->device_scene, on_devices_->loaded.scene, cmd_.width,
-                      cmd_.height, opt);
+    pipeline_.emplace(on_devices_->devices, on_devices_->device_scene, on_devices_->loaded.scene,
+                      cmd_.size.width, cmd_.size.height, opt);
   };
   if (!distributed_) {
     setup();
@@ -120,16 +120,17 @@ std::optional<int> RenderLoop::start() {
   last_quality_ = pipeline_->quality();
   all_devices_ = pipeline_->layout().count();
   if (dynamic_strips_ && all_devices_ > 1) {
-    if (cmd_.height < static_cast<unsigned>(all_devices_))
+    if (cmd_.size.height < static_cast<unsigned>(all_devices_))
       throw std::invalid_argument("--balance dynamic needs at least one row per device");
     StripBalancer::Options b;
     b.max_step_rows = cmd_.balance_step;
-    balancer_.emplace(cmd_.height, all_devices_, b);
+    balancer_.emplace(cmd_.size.height, all_devices_, b);
   }
   if (root_)
     std::fprintf(stderr, "[render] %u frame(s), %ux%u per eye, %u spp, %u bounces, pipeline %s, denoise %s\n",
-                 cmd_.frames, cmd_.width, cmd_.height, opt.trace.spp, opt.trace.bounces,
-                 cli_word(cmd_.pipeline).c_str(), opt.denoise ? ("SVGF, seams " + cli_word(cmd_.seams)).c_str() : "off");
+                 cmd_.frames, cmd_.size.width, cmd_.size.height, opt.trace.spp, opt.trace.bounces,
+                 cli_word(opt.pipeline).c_str(),
+                 opt.denoise ? ("SVGF, seams " + cli_word(opt.denoise->seams)).c_str() : "off");
   if (timeline_) timeline_->name_devices(on_devices_->devices);
   // Every frame's camera is checked before the first is rendered: a bad one fails the run now.
   for (unsigned f = 0; f < cmd_.frames; ++f)
@@ -295,10 +296,11 @@ void RenderLoop::print_summary() const {
   const char* eye_files = cmd_.no_exr ? "png" : "{exr,png}";
   std::printf("\n== render summary ==\n");
   std::printf("%s: pipeline %s, %d device(s) (%s%s), %ux%u per eye, %u spp, %u bounces, denoise %s%s\n",
-              on_devices_->loaded.scene.name.c_str(), cli_word(cmd_.pipeline).c_str(), all_devices_,
+              on_devices_->loaded.scene.name.c_str(), cli_word(opt.pipeline).c_str(), all_devices_,
               to_string(devices.mode()), distributed_ ? (", " + std::to_string(cluster_.size()) + " MPI ranks").c_str() : "",
-              cmd_.width, cmd_.height, q.spp, q.bounces,
-              opt.denoise ? ("SVGF " + std::to_string(q.svgf_iterations) + " iterations, seams " + cli_word(cmd_.seams)).c_str()
+              cmd_.size.width, cmd_.size.height, q.spp, q.bounces,
+              opt.denoise ? ("SVGF " + std::to_string(q.svgf_iterations) + " iterations, seams " +
+                             cli_word(opt.denoise->seams)).c_str()
                           : "off",
               config_.controller ? (" (last frame's; control loop " + cmd_.target_ms + " ms)").c_str() : "");
   if (done_ > 1)
@@ -349,7 +351,7 @@ void RenderLoop::print_summary() const {
   }
   if (report_) std::printf("  report:   %s\n", cmd_.report.c_str());
   if (timeline_) std::printf("  timeline: %s\n", cmd_.timeline.c_str());
-  if (video_) std::printf("  video:    %s (left | right, %g fps)\n", cmd_.video.c_str(), double(cmd_.fps));
+  if (video_) std::printf("  video:    %s (left | right, %g fps)\n", cmd_.video.c_str(), double(cmd_.clock.fps));
   std::printf("\n");
 }
 

@@ -25,24 +25,6 @@ namespace px {
 
 class Cluster;
 
-// The one clock of `render`, `reference`, `view --frames` and every MPI rank: frame f is at
-// f / fps seconds, for the camera path and the animation alike. Every place that turns a frame
-// number into a time goes through here, so that a reference of frame f shows the scene
-// `render` showed at frame f, and every rank poses the same triangles bit for bit.
-//
-// The two times are one instant in the types their consumers take: evaluate_camera a float,
-// SceneAnimator a double. Each quotient is formed in its own type, not one rounded from the
-// other: the double rounded to float can differ from the float quotient by an ulp, which would
-// move the camera and every image with it.
-struct FrameClock {
-  float fps = 30.0f;
-
-  // Frame `frame`'s time for the animation (SceneAnimator::update).
-  double time_s(unsigned frame) const { return static_cast<double>(frame) / fps; }
-  // Frame `frame`'s time on the camera path (evaluate_camera, StereoPipeline::render).
-  float camera_time_s(unsigned frame) const { return static_cast<float>(frame) / fps; }
-};
-
 // `render`'s frames, start to summary. Every rank of an MPI run builds one with the same
 // command and steps it in lockstep; rank 0 owns the frame: it decides whether there is a next
 // one and with what quality and strips, and it alone writes files and prints.

@@ -1,6 +1,7 @@
 #include "app/frame_report.h"
 
 #include "app/cli_enums.h"
+#include "util/statistics.h"
 
 #include <nlohmann/json.hpp>
 
@@ -34,11 +35,9 @@ void AnimationTotals::add(const SceneAnimator::Update& u) {
 }
 
 double AnimationTotals::median(double SceneAnimator::Update::*field) const {
-  if (updates.empty()) return 0.0;
   std::vector<double> v;
   for (const auto& u : updates) v.push_back(u.*field);
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-  return v[v.size() / 2];
+  return px::median(std::move(v));
 }
 
 void RenderReport::add_frame(unsigned frame, const FrameStats& st, const std::vector<RowRange>& strips,
@@ -81,23 +80,25 @@ void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode de
                        : bvh.split_budget_exceeded ? "over budget: binned"
                        : bvh.leaf_triangles > bvh.scene_triangles ? "yes"
                                                                   : "none taken or off";
+  // Without denoising: the denoiser's defaults (the keys stay).
+  const DenoiseStage::Options denoise = options_.denoise.value_or(DenoiseStage::Options{});
   const nlohmann::json r = {
       {"schema", "parallax-render-report/1"},
-      {"scene", cmd_.scene},
-      {"pipeline", cli_word(cmd_.pipeline)},
+      {"scene", cmd_.scene.name},
+      {"pipeline", cli_word(options_.pipeline)},
       {"devices", devices},
       {"ranks", ranks_},
       {"device_mode", to_string(device_mode)},
-      {"width", cmd_.width},
-      {"height", cmd_.height},
+      {"width", cmd_.size.width},
+      {"height", cmd_.size.height},
       {"spp", options_.trace.spp},
       {"bounces", options_.trace.bounces},
-      {"denoise", options_.denoise},
+      {"denoise", options_.denoise.has_value()},
       {"jitter", cli_word(options_.jitter)},
-      {"taa_alpha", options_.svgf.taa_alpha},
+      {"taa_alpha", denoise.svgf.taa_alpha},
       {"path_tracer", cli_word(options_.path_kernel)},
       {"bvh_layout", to_string(bvh_layout)},
-      {"kernels", cli_word(cmd_.kernels)},
+      {"kernels", cli_word(cmd_.scene.kernels)},
       {"kernel_features", kernel_feature_list(scene.kernel_features())},
       {"bvh", {{"nodes", bvh.nodes},
                {"leaf_triangles", bvh.leaf_triangles},
@@ -126,7 +127,7 @@ void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode de
                  {"upload_ms", scene.upload_ms()},
                  {"scene_host_backed", scene.host_backed()},
                  {"host_rss_after_start_mib", start.host_rss_after_start_mib}}},
-      {"seams", cli_word(cmd_.seams)},
+      {"seams", cli_word(denoise.seams)},
       {"balance", cli_word(cmd_.balance)},
       {"target_ms", cmd_.target_ms.empty() ? nlohmann::json(nullptr) : nlohmann::json(cmd_.target_ms)},
       {"frames_requested", cmd_.frames},

@@ -42,7 +42,8 @@ struct AnimationTotals {
   std::vector<SceneAnimator::Update> updates;
 
   void add(const SceneAnimator::Update& u);
-  // The median over frames of one of Update's times (ms).
+  // The median over frames of one of Update's times (ms; util/statistics.h: an even count gives
+  // the mean of the two middle frames).
   double median(double SceneAnimator::Update::*field) const;
 };
 

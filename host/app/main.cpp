@@ -40,9 +40,9 @@ void add_device_flags(CLI::App* cmd, px::DeviceChoice& d) {
                   "with a GPU, else the first)");
 }
 
-void add_size_flags(CLI::App* cmd, unsigned& width, unsigned& height) {
-  cmd->add_option("--width", width, "width of each eye in pixels")->check(CLI::Range(1u, 16384u))->capture_default_str();
-  cmd->add_option("--height", height, "height of each eye in pixels")->check(CLI::Range(1u, 16384u))->capture_default_str();
+void add_size_flags(CLI::App* cmd, px::ImageSize& size) {
+  cmd->add_option("--width", size.width, "width of each eye in pixels")->check(CLI::Range(1u, 16384u))->capture_default_str();
+  cmd->add_option("--height", size.height, "height of each eye in pixels")->check(CLI::Range(1u, 16384u))->capture_default_str();
 }
 
 const char* kSceneHelp = "scene: a JSON scene file (scenes/*.json), an OBJ, glTF 2.0 (.gltf) or binary glTF (.glb) "
@@ -51,64 +51,72 @@ const char* kSceneHelp = "scene: a JSON scene file (scenes/*.json), an OBJ, glTF
 const char* kAnimationHelp = "which of a glTF scene's animation clips play: all, none (the rest pose), a clip's name "
                              "or its index; frame f is at time f / fps, and each clip loops over its own length";
 
-void add_kernels_flag(CLI::App* cmd, px::KernelChoice& kernels) {
-  add_word_option(cmd, "--kernels", kernels, px::kernel_words(),
-                  "which features the scene-dependent kernels (path tracers, G-buffer, trace, preview) are compiled with: scene (only those the loaded scene uses: no texture, cut-out, glass, normal-map, sun or sky code where it has none; images are identical) or general (every feature)");
-}
-
-void add_sky_flag(CLI::App* cmd, px::SkyMode& sky) {
-  add_word_option(cmd, "--sky", sky, px::sky_words(),
+// --scene, --sky, --instancing, --kernels and --animation: what every rendering command reads
+// its scene with.
+void add_scene_flags(CLI::App* cmd, px::SceneChoice& s) {
+  cmd->add_option("--scene", s.name, kSceneHelp)->capture_default_str();
+  add_word_option(cmd, "--sky", s.sky, px::sky_words(),
                   "default sky environment: auto (only for a scene without any light: no emitter, sun or sky), "
                   "on (also beside the scene's own lights, unless it has a sky), off (never; an unlit scene "
                   "renders black)");
+  // CLI11 reads on/off as a bool; the check keeps the flag to those two words.
+  cmd->add_option("--instancing", s.instancing,
+                  "glTF scenes: on (a mesh that several nodes draw becomes instances of one copy) or off (flat "
+                  "copies, one per node)")
+      ->type_name("TEXT")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->default_str(s.instancing ? "on" : "off");
+  add_word_option(cmd, "--kernels", s.kernels, px::kernel_words(),
+                  "which features the scene-dependent kernels (path tracers, G-buffer, trace, preview) are compiled with: scene (only those the loaded scene uses: no texture, cut-out, glass, normal-map, sun or sky code where it has none; images are identical) or general (every feature)");
+  cmd->add_option("--animation", s.animation, kAnimationHelp)->capture_default_str();
 }
 
 // What `render` and `view` share: scene, size, pipeline, quality, denoising, the control loop
-// and the devices.
-void add_pipeline_flags(CLI::App* cmd, px::RenderCommand& r) {
-  cmd->add_option("--scene", r.scene, kSceneHelp)->capture_default_str();
-  add_sky_flag(cmd, r.sky);
-  add_word_option(cmd, "--pipeline", r.pipeline, px::pipeline_words(),
+// and the devices. The flags fill r.pipeline's stage options in place; --no-denoise, whose
+// option this returns, empties r.pipeline.denoise once the flags are parsed (drop_denoiser).
+CLI::Option* add_pipeline_flags(CLI::App* cmd, px::RenderCommand& r) {
+  px::StereoPipeline::Options& p = r.pipeline;
+  px::DenoiseStage::Options& dn = *p.denoise;  // engaged by default: the flags below fill it
+  add_scene_flags(cmd, r.scene);
+  add_word_option(cmd, "--pipeline", p.pipeline, px::pipeline_words(),
                   "proposed: every stage on every device for its strip; baseline: Tauray-style, path "
                   "tracing distributed, the rest on the owner; mono: both eyes fully path traced");
-  add_size_flags(cmd, r.width, r.height);
-  cmd->add_option("--fps", r.fps, "frame rate: frame f is at time f / fps on the camera path and in the animation")
+  add_size_flags(cmd, r.size);
+  cmd->add_option("--fps", r.clock.fps, "frame rate: frame f is at time f / fps on the camera path and in the animation")
       ->check(CLI::Range(0.001f, 1e9f))
       ->capture_default_str();
-  cmd->add_option("--animation", r.animation, kAnimationHelp)->capture_default_str();
-  cmd->add_option("--spp", r.trace.spp, "samples per pixel")->check(CLI::Range(1u, 1u << 20))->capture_default_str();
-  cmd->add_option("--bounces", r.trace.bounces, "maximum path length in bounces")->check(CLI::Range(0u, px::PathTracer::kMaxBounces))->capture_default_str();
-  cmd->add_option("--rr-start", r.trace.rr_start_bounce, "Russian roulette from this bounce on")->capture_default_str();
-  add_kernels_flag(cmd, r.kernels);
-  add_word_option(cmd, "--path-tracer", r.path_kernel, px::path_tracer_words(),
+  cmd->add_option("--spp", p.trace.spp, "samples per pixel")->check(CLI::Range(1u, 1u << 20))->capture_default_str();
+  cmd->add_option("--bounces", p.trace.bounces, "maximum path length in bounces")->check(CLI::Range(0u, px::PathTracer::kMaxBounces))->capture_default_str();
+  cmd->add_option("--rr-start", p.trace.rr_start_bounce, "Russian roulette from this bounce on")->capture_default_str();
+  add_word_option(cmd, "--path-tracer", p.path_kernel, px::path_tracer_words(),
                   "megakernel: a work-item traces a pixel's whole paths; wavefront: a kernel per path step over "
                   "all paths, their state in memory between steps (images are identical)");
-  add_word_option(cmd, "--light-sampling", r.trace.light_sampling, px::light_sampling_words(),
+  add_word_option(cmd, "--light-sampling", p.trace.light_sampling, px::light_sampling_words(),
                   "mis (NEE + BSDF sampling, power heuristic), nee (next-event only), bsdf (BSDF sampling only)");
-  cmd->add_option("--seed", r.trace.seed, "seed of the sample streams")->capture_default_str();
-  add_word_option(cmd, "--jitter", r.jitter, px::jitter_words(),
+  cmd->add_option("--seed", p.trace.seed, "seed of the sample streams")->capture_default_str();
+  add_word_option(cmd, "--jitter", p.jitter, px::jitter_words(),
                   "where in each pixel a frame's G-buffer ray and first sample go: halton (a Halton (2,3) point "
                   "that moves every frame, so that the denoiser's accumulation covers the pixel: edges "
                   "anti-alias) or centre (the pixel centre every frame)");
-  cmd->add_option("--exposure", r.exposure, "scale applied before the sRGB PNG encoding")->capture_default_str();
-  cmd->add_flag("--no-denoise", r.no_denoise, "skip SVGF (stages 6-7): write the noisy images");
-  cmd->add_option("--svgf-iterations", r.svgf.iterations, "a-trous iterations")->check(CLI::Range(1u, 8u))->capture_default_str();
-  cmd->add_option("--sigma-l", r.svgf.sigma_l, "SVGF luminance edge-stopping (paper 4, Tauray 10, stereo paper 32)")->capture_default_str();
-  cmd->add_option("--sigma-z", r.svgf.sigma_z, "SVGF depth edge-stopping (paper 1, stereo paper 128)")->capture_default_str();
-  cmd->add_option("--sigma-n", r.svgf.sigma_n, "SVGF normal edge-stopping exponent (paper 128, stereo paper 4)")->capture_default_str();
-  cmd->add_option("--alpha", r.svgf.alpha, "temporal blend floor for colour")->check(CLI::Range(0.0f, 1.0f))->capture_default_str();
-  cmd->add_option("--alpha-moments", r.svgf.alpha_moments, "temporal blend floor for moments")->check(CLI::Range(0.0f, 1.0f))->capture_default_str();
-  cmd->add_option("--taa-alpha", r.svgf.taa_alpha,
+  cmd->add_option("--exposure", p.tonemap.exposure, "scale applied before the sRGB PNG encoding")->capture_default_str();
+  CLI::Option* no_denoise = cmd->add_flag("--no-denoise")->description("skip SVGF (stages 6-7): write the noisy images");
+  cmd->add_option("--svgf-iterations", dn.svgf.iterations, "a-trous iterations")->check(CLI::Range(1u, 8u))->capture_default_str();
+  cmd->add_option("--sigma-l", dn.svgf.sigma_l, "SVGF luminance edge-stopping (paper 4, Tauray 10, stereo paper 32)")->capture_default_str();
+  cmd->add_option("--sigma-z", dn.svgf.sigma_z, "SVGF depth edge-stopping (paper 1, stereo paper 128)")->capture_default_str();
+  cmd->add_option("--sigma-n", dn.svgf.sigma_n, "SVGF normal edge-stopping exponent (paper 128, stereo paper 4)")->capture_default_str();
+  cmd->add_option("--alpha", dn.svgf.alpha, "temporal blend floor for colour")->check(CLI::Range(0.0f, 1.0f))->capture_default_str();
+  cmd->add_option("--alpha-moments", dn.svgf.alpha_moments, "temporal blend floor for moments")->check(CLI::Range(0.0f, 1.0f))->capture_default_str();
+  cmd->add_option("--taa-alpha", dn.svgf.taa_alpha,
                   "temporal anti-aliasing after SVGF: blend floor of the current frame against the reprojected, "
                   "neighbourhood-clipped history (1: off)")
       ->check(CLI::Range(0.0f, 1.0f))
       ->capture_default_str();
-  cmd->add_option("--motion-edge-samples", r.motion_edge_samples,
+  cmd->add_option("--motion-edge-samples", dn.motion_edge_samples,
                   "animated scenes: paths added before denoising to each pixel on a moving object's edge or "
                   "within two pixels of it, so that its anti-aliasing need not wait for many frames (0: none)")
       ->check(CLI::Range(0u, 256u))
       ->capture_default_str();
-  add_word_option(cmd, "--seams", r.seams, px::seam_mode_words(),
+  add_word_option(cmd, "--seams", dn.seams, px::seam_mode_words(),
                   "strip borders when denoising: halo (exchange neighbour rows; N devices = 1 device), "
                   "independent (each strip alone), bilateral (independent + seam-band filter)");
   cmd->add_option("--target-ms", r.target_ms,
@@ -119,6 +127,12 @@ void add_pipeline_flags(CLI::App* cmd, px::RenderCommand& r) {
       ->check(CLI::Range(1u, 1048576u))
       ->capture_default_str();
   add_device_flags(cmd, r.devices);
+  return no_denoise;
+}
+
+// After parsing: --no-denoise leaves the pipeline without denoiser options.
+void drop_denoiser(const CLI::Option* no_denoise, px::RenderCommand& r) {
+  if (no_denoise->count() > 0) r.pipeline.denoise.reset();
 }
 
 }  // namespace
@@ -134,12 +148,9 @@ int main(int argc, char** argv) {
 
   px::PreviewCommand preview;
   auto* preview_cmd = app.add_subcommand("preview", "shaded primary hits of both eyes (a quick geometry/framing check)");
-  preview_cmd->add_option("--scene", preview.scene, kSceneHelp)->capture_default_str();
-  add_sky_flag(preview_cmd, preview.sky);
-  add_kernels_flag(preview_cmd, preview.kernels);
-  add_size_flags(preview_cmd, preview.width, preview.height);
+  add_scene_flags(preview_cmd, preview.scene);
+  add_size_flags(preview_cmd, preview.size);
   preview_cmd->add_option("--time", preview.time_s, "time on the camera path and in the animation, seconds")->capture_default_str();
-  preview_cmd->add_option("--animation", preview.animation, kAnimationHelp)->capture_default_str();
   preview_cmd->add_option("--out", preview.out, "output directory")->capture_default_str();
   preview_cmd->add_flag("--overwrite", preview.overwrite, "allow writing into a non-empty output directory");
   add_device_flags(preview_cmd, preview.devices);
@@ -148,7 +159,7 @@ int main(int argc, char** argv) {
   auto* render_cmd = app.add_subcommand(
       "render", "path trace a stereo animation; writes per frame and eye a linear EXR and an sRGB PNG, plus a "
                 "side-by-side stereo PNG (frame_NNNN_{left,right}.{exr,png}, frame_NNNN_stereo.png)");
-  add_pipeline_flags(render_cmd, render);
+  const CLI::Option* render_no_denoise = add_pipeline_flags(render_cmd, render);
   render_cmd->add_option("--frames", render.frames, "frames to render along the camera path")->check(CLI::Range(1u, 100000u))->capture_default_str();
   render_cmd->add_option("--timeline", render.timeline,
                          "write a Chrome trace / Perfetto JSON: one track per device, one slice per OpenCL command "
@@ -209,7 +220,7 @@ int main(int argc, char** argv) {
               "(same pipelines, devices, quality and control-loop flags). Keys: W/A/S/D move, Q/E down/up, "
               "drag with the left mouse button to look around, Space returns to the scene's camera path, "
               "Esc quits");
-  add_pipeline_flags(view_cmd, view.render);
+  const CLI::Option* view_no_denoise = add_pipeline_flags(view_cmd, view.render);
   view_cmd->add_option("--frames", view.frames, "stop after N frames (0: run until the window is closed or Esc)")
       ->capture_default_str();
   view_cmd->add_option("--screenshot", view.screenshot,
@@ -223,17 +234,14 @@ int main(int argc, char** argv) {
   auto* reference_cmd = app.add_subcommand(
       "reference", "progressive converged render of both eyes (ground truth for error figures): "
                    "reference_{left,right}.exr");
-  reference_cmd->add_option("--scene", reference.scene, kSceneHelp)->capture_default_str();
-  add_sky_flag(reference_cmd, reference.sky);
-  add_kernels_flag(reference_cmd, reference.kernels);
-  add_size_flags(reference_cmd, reference.width, reference.height);
+  add_scene_flags(reference_cmd, reference.scene);
+  add_size_flags(reference_cmd, reference.size);
   reference_cmd->add_option("--spp", reference.spp, "total samples per pixel")->check(CLI::Range(1u, 1u << 24))->capture_default_str();
   reference_cmd->add_option("--pass-spp", reference.pass_spp, "samples per progressive pass")->check(CLI::Range(1u, 4096u))->capture_default_str();
   reference_cmd->add_option("--frame", reference.frame, "frame number on the camera path (time = frame / fps)")->capture_default_str();
-  reference_cmd->add_option("--fps", reference.fps, "frame rate of the animation the reference belongs to")
+  reference_cmd->add_option("--fps", reference.clock.fps, "frame rate of the animation the reference belongs to")
       ->check(CLI::Range(0.001f, 1e9f))
       ->capture_default_str();
-  reference_cmd->add_option("--animation", reference.animation, kAnimationHelp)->capture_default_str();
   reference_cmd->add_option("--bounces", reference.bounces, "maximum path length")->check(CLI::Range(0u, px::PathTracer::kMaxBounces))->capture_default_str();
   reference_cmd->add_option("--exposure", reference.exposure, "PNG preview scale")->capture_default_str();
   reference_cmd->add_option("--out", reference.out, "output directory")->capture_default_str();
@@ -260,6 +268,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
 
   CLI11_PARSE(app, argc, argv);
+  drop_denoiser(render_no_denoise, render);
+  drop_denoiser(view_no_denoise, view.render);
   // Joins the MPI job when started by mpirun (a no-op otherwise).
   px::Cluster& cluster = px::Cluster::world();
   const int rc = px::run_guarded([&]() -> int {
@@ -279,11 +289,10 @@ int main(int argc, char** argv) {
       px::RenderCommand demo;
       // A short denoised stereo animation along the Cornell box's camera path: 4 spp per frame,
       // SVGF with seam-free halo exchange, two devices.
-      demo.scene = "cornell";
-      demo.width = 480;
-      demo.height = 270;
+      demo.scene.name = "cornell";
+      demo.size = {480, 270};
       demo.frames = 12;
-      demo.trace.spp = 4;
+      demo.pipeline.trace.spp = 4;
       demo.out = demo_out;
       demo.overwrite = true;
       demo.devices.count = 2;

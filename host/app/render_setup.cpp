@@ -1,6 +1,7 @@
 #include "app/render_setup.h"
 
 #include "app/cli_enums.h"
+#include "util/statistics.h"
 
 #include <algorithm>
 #include <cstdio>
@@ -8,46 +9,37 @@
 namespace px {
 namespace {
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  const std::size_t mid = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + mid, v.end());
-  if (v.size() % 2) return v[mid];
-  const double upper = v[mid];
-  return 0.5 * (upper + *std::max_element(v.begin(), v.begin() + mid));
+// A float as the help shows a default ("0.2").
+std::string shortest(float v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", static_cast<double>(v));
+  return text;
 }
 
 }  // namespace
 
 PipelineConfig make_pipeline_config(const RenderCommand& cmd) {
-  if (!(cmd.fps > 0.0f)) throw std::invalid_argument("--fps must be positive");
+  if (!(cmd.clock.fps > 0.0f)) throw std::invalid_argument("--fps must be positive");
   PipelineConfig cfg;
   auto& opt = cfg.options;
-  opt.pipeline = cmd.pipeline;
-  opt.trace = cmd.trace;
-  opt.path_kernel = cmd.path_kernel;
-  opt.jitter = cmd.jitter;
-  opt.exposure = cmd.exposure;
-  opt.denoise = !cmd.no_denoise;
+  opt = cmd.pipeline;
   if (!cmd.aov.empty()) opt.aovs = parse_aov_list(cmd.aov);
-  opt.svgf = cmd.svgf;
-  opt.seams = cmd.seams;
-  opt.motion_edge_samples = cmd.motion_edge_samples;
   // SVGF's temporal variance is the spread of the luminance moments accumulated over frames.
   // With --alpha-moments 1 nothing is accumulated: from the frame where a pixel's history is
   // long enough for the temporal estimate (4 frames) its variance is exactly 0, every a-trous
   // tap's luminance weight is 0, and the "denoised" image is the noisy one. Never what is meant.
-  if (opt.denoise && opt.svgf.alpha_moments >= 1.0f)
+  if (opt.denoise && opt.denoise->svgf.alpha_moments >= 1.0f)
     throw std::invalid_argument(
         "--alpha-moments 1 keeps no moment history: from the 4th frame on SVGF's variance estimate is 0 and "
-        "its filter returns the noisy image unchanged; use a value below 1 (default 0.2), or --no-denoise for "
-        "the noisy image");
+        "its filter returns the noisy image unchanged; use a value below 1 (default " +
+        shortest(SvgfDenoiser::Options{}.alpha_moments) + "), or --no-denoise for the noisy image");
   // --alpha 1 is a real choice (SVGF on each frame alone, e.g. to see the spatial filter), but it
   // switches the colour history off: say so.
-  if (opt.denoise && opt.svgf.alpha >= 1.0f)
+  if (opt.denoise && opt.denoise->svgf.alpha >= 1.0f)
     cfg.warnings.push_back(
         "warning: --alpha 1 switches SVGF's colour history off: every frame is filtered from its own samples "
-        "alone (no temporal accumulation: noisier, and the image flickers); the default is 0.2");
+        "alone (no temporal accumulation: noisier, and the image flickers); the default is " +
+        shortest(SvgfDenoiser::Options{}.alpha));
   // The control loop, when asked for: limits from the command line (the starting bounces and
   // iterations are the most it may use; spp may rise to --max-spp).
   if (!cmd.target_ms.empty()) {
@@ -56,8 +48,10 @@ PipelineConfig make_pipeline_config(const RenderCommand& cmd) {
     if (opt.trace.bounces == 0) throw std::invalid_argument("--target-ms needs --bounces of at least 1");
     c.spp = {1, std::max(cmd.max_spp, opt.trace.spp)};
     c.bounces = {1, opt.trace.bounces};
-    // Without denoising the iterations cost nothing and stay where they are.
-    c.svgf_iterations = {opt.denoise ? 1u : opt.svgf.iterations, opt.svgf.iterations};
+    // Without denoising the iterations cost nothing and stay where they are (the pipeline's
+    // quality() reports the denoiser's default).
+    const unsigned iterations = opt.denoise.value_or(DenoiseStage::Options{}).svgf.iterations;
+    c.svgf_iterations = {opt.denoise ? 1u : iterations, iterations};
     cfg.controller.emplace(c);
   }
   return cfg;
@@ -90,8 +84,8 @@ void print_kernel_features(const DeviceScene& scene) {
 }
 
 RenderSession::RenderSession(const RenderCommand& cmd, const StereoPipeline::Options& options)
-    : SceneOnDevices(cmd.scene, cmd.devices.options(), false, cmd.sky, cmd.kernels),
-      pipeline(devices, device_scene, loaded.scene, cmd.width, cmd.height, options) {
+    : SceneOnDevices(cmd.scene.name, cmd.devices.options(), false, cmd.scene.sky, cmd.scene.kernels),
+      pipeline(devices, device_scene, loaded.scene, cmd.size.width, cmd.size.height, options) {
   print_device_set(devices);
   print_scene_upload(device_scene, devices.size());
   print_kernel_features(device_scene);

@@ -22,7 +22,8 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
       width_(width),
       height_(height),
       options_(options),
-      schedule_(make_schedule(options.pipeline, layout_.count(), height, options.denoise, {}, wants_gbuffer(options))),
+      schedule_(make_schedule(options.pipeline, layout_.count(), height, options.denoise.has_value(), {},
+                              wants_gbuffer(options))),
       images_(layout_.count()),
       lanes_(devices, !cluster_ && wants_side_queue(options.overlap, devices)),
       transfer_(devices, layout_, cluster_, width, height, log_, lanes_),
@@ -39,16 +40,12 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
   add_unit<GBufferStage>({Stage::GBuffer});
   add_unit<ReprojectStage>({Stage::Reproject});
   add_unit<HoleFillStage>({Stage::HoleFill}, *path_trace_, options.hole_fill);
-  if (options.denoise)
-    denoise_ = &add_unit<DenoiseStage>({Stage::Denoise}, denoise_options(options), path_trace_);
-  add_unit<TonemapStage>({Stage::Tonemap}, TonemapStage::Options{options.exposure});
-  add_unit<TransferStage>({Stage::Transfer}, TransferStage::Options{options.gather_radiance, options.denoise});
+  if (options.denoise) denoise_ = &add_unit<DenoiseStage>({Stage::Denoise}, *options.denoise, path_trace_);
+  add_unit<TonemapStage>({Stage::Tonemap}, options.tonemap);
+  add_unit<TransferStage>({Stage::Transfer},
+                          TransferStage::Options{options.gather_radiance, options.denoise.has_value()});
   for (const StageWork& w : schedule_.stages) unit(w.stage);  // every scheduled stage has a unit
   set_quality(quality());                                     // the one check of spp and bounces
-}
-
-DenoiseStage::Options StereoPipeline::denoise_options(const Options& o) {
-  return {o.svgf, o.seams, o.seam_band, o.motion_edge_samples};
 }
 
 StageUnit& StereoPipeline::unit(Stage stage) {
@@ -61,7 +58,8 @@ unsigned StereoPipeline::gbuffer_margin(const FrameSchedule& schedule, const Opt
   unsigned margin = 0;
   for (const StageWork& w : schedule.stages) {
     if (w.stage == Stage::Reproject) margin = std::max(margin, ReprojectStage::gbuffer_rows_read());
-    if (w.stage == Stage::Denoise) margin = std::max(margin, DenoiseStage::gbuffer_rows_read(denoise_options(options)));
+    if (w.stage == Stage::Denoise && options.denoise)
+      margin = std::max(margin, DenoiseStage::gbuffer_rows_read(*options.denoise));
   }
   return margin;
 }
@@ -73,11 +71,13 @@ void StereoPipeline::set_quality(const FrameQuality& q) {
   if (denoise_) denoise_->set_iterations(q.svgf_iterations);  // checks the range
   path_trace_->options().spp = options_.trace.spp = q.spp;
   path_trace_->options().bounces = options_.trace.bounces = q.bounces;
-  if (denoise_) options_.svgf.iterations = q.svgf_iterations;
+  if (denoise_) options_.denoise->svgf.iterations = q.svgf_iterations;
 }
 
 FrameQuality StereoPipeline::quality() const {
-  return {options_.trace.spp, options_.trace.bounces, options_.svgf.iterations};
+  // Without denoising: the iterations a denoiser would start with (what the control loop keeps).
+  return {options_.trace.spp, options_.trace.bounces,
+          options_.denoise.value_or(DenoiseStage::Options{}).svgf.iterations};
 }
 
 FrameCost StereoPipeline::frame_cost(const FrameStats& stats) {
@@ -250,7 +250,8 @@ void StereoPipeline::set_strips(const std::vector<RowRange>& strips) {
   if (strips == schedule_.strips) return;
   // make_schedule checks the strips and refuses the baseline pipeline; the history moves to the
   // new strips in the next frame's denoising (DenoiseStage).
-  schedule_ = make_schedule(options_.pipeline, layout_.count(), height_, options_.denoise, strips, wants_gbuffer(options_));
+  schedule_ = make_schedule(options_.pipeline, layout_.count(), height_, options_.denoise.has_value(), strips,
+                            wants_gbuffer(options_));
 }
 
 std::vector<std::uint8_t> StereoPipeline::hole_mask() {

@@ -18,6 +18,7 @@
 #include "pipeline/stages/hole_fill_stage.h"
 #include "pipeline/stages/path_trace_stage.h"
 #include "pipeline/stages/stage_unit.h"
+#include "pipeline/stages/tonemap_stage.h"
 #include "pipeline/strip_schedule.h"
 #include "render/device_scene.h"
 #include "render/pixel_jitter.h"
@@ -69,14 +70,10 @@ class StereoPipeline {
     PathTracer::Options trace;
     // Stages 2, 5 and 12: the megakernel or the wavefront tracer (same images).
     PathTraceKernel path_kernel = PathTraceKernel::Megakernel;
-    float exposure = 1.0f;
-    bool denoise = true;
-    SvgfDenoiser::Options svgf;
-    SeamMode seams = SeamMode::Halo;
-    unsigned seam_band = 4;  // rows each side of a seam the bilateral seam filter touches
-    // Animated scenes, with denoising: extra paths for pixels at moving objects' edges
-    // (DenoiseStage::Options::motion_edge_samples).
-    unsigned motion_edge_samples = 8;
+    TonemapStage::Options tonemap;
+    // Stages 6-7 (SVGF, seams, the motion edges' extra paths): present = denoising, empty = the
+    // noisy images.
+    std::optional<DenoiseStage::Options> denoise = DenoiseStage::Options{};
     // The MPI job this pipeline is one rank of (nullptr: this process alone). Every rank drives
     // its DeviceSet's N devices as global devices rank*N .. rank*N+N-1 and must construct the
     // pipeline with the same options; rank 0 holds the owner and the finished frame.
@@ -184,7 +181,7 @@ class StereoPipeline {
   // The G-buffer eye `eye` of the last frame was traced into.
   std::vector<GBufferTexel> gbuffer_of(int eye);
   // Pixels of eye `eye` that got the motion edges' extra samples in the last frame
-  // (Options::motion_edge_samples; 0 without denoising or motion).
+  // (DenoiseStage::Options::motion_edge_samples; 0 without denoising or motion).
   std::size_t motion_edge_pixels(int eye) { return denoise_ ? denoise_->motion_edge_pixels(eye) : 0; }
 
  private:
@@ -201,7 +198,6 @@ class StereoPipeline {
     return ref;
   }
 
-  static DenoiseStage::Options denoise_options(const Options& options);
   // Reads Options::aovs of this frame into albedo_aov_ / normal_aov_ (after its queues
   // finished, before the units' end_frame swaps this frame's G-buffer away).
   void capture_aovs();

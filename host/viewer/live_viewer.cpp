@@ -74,7 +74,7 @@ void render_loop(const ViewCommand& cmd, RenderSession& session, SceneAnimator& 
   const Scene& scene = session.loaded.scene;
   const float duration = camera_path_duration(scene);
   const bool scripted = cmd.frames > 0;  // --frames: frame f on `render`'s clock (f / fps)
-  const FrameClock frame_clock{cmd.render.fps};
+  const FrameClock& frame_clock = cmd.render.clock;
   double path_time = 0.0;                // interactive: seconds of camera path played so far
   double hz = 0.0;
   auto last_done = clock_type::now();
@@ -282,12 +282,12 @@ int run_view(const ViewCommand& cmd) {
   GlfwSession glfw;
   install_interrupt_handlers();
   RenderSession session(cmd.render, config.options);
-  SceneAnimator animator(session.loaded.scene, cmd.render.animation);
+  SceneAnimator animator(session.loaded.scene, cmd.render.scene.animation);
   if (animator.moves()) std::fprintf(stderr, "[view] animation: %s\n", animator.describe().c_str());
-  const unsigned w = cmd.render.width, h = cmd.render.height;
+  const unsigned w = cmd.render.size.width, h = cmd.render.size.height;
   std::fprintf(stderr, "[view] %ux%u per eye, %u spp, %u bounces, pipeline %s, denoise %s%s\n", w, h,
-               config.options.trace.spp, config.options.trace.bounces, cli_word(cmd.render.pipeline).c_str(),
-               config.options.denoise ? ("SVGF, seams " + cli_word(cmd.render.seams)).c_str() : "off",
+               config.options.trace.spp, config.options.trace.bounces, cli_word(config.options.pipeline).c_str(),
+               config.options.denoise ? ("SVGF, seams " + cli_word(config.options.denoise->seams)).c_str() : "off",
                cmd.frames ? (", " + std::to_string(cmd.frames) + " frame(s)").c_str() : "");
 
   // A plain OpenGL context (compatibility profile): buffer objects and framebuffer blits are GL 3.0.
