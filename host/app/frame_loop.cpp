@@ -75,7 +75,7 @@ std::optional<int> RenderLoop::start() {
       if (!cmd_.video.empty()) video_.emplace(cmd_.video, 2 * cmd_.width, cmd_.height, cmd_.fps);
     }
     // Every rank loads the scene itself (the scene is replicated, not sent).
-    on_devices_.emplace(cmd_.scene, cmd_.devices.options(), !root_, cmd_.sky, cmd_.kernels);
+    on_devices_.emplace(cmd_.scene, cmd_.devices.options(), !root_, SceneLoadOptions{cmd_.sky}, cmd_.kernels);
     const DeviceSet& set = on_devices_->devices;
     if (root_) print_device_set(set);
     if (root_) print_scene_upload(on_devices_->device_scene, set.size());

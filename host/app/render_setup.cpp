@@ -90,7 +90,7 @@ void print_kernel_features(const DeviceScene& scene) {
 }
 
 RenderSession::RenderSession(const RenderCommand& cmd, const StereoPipeline::Options& options)
-    : SceneOnDevices(cmd.scene, cmd.devices.options(), false, cmd.sky, cmd.kernels),
+    : SceneOnDevices(cmd.scene, cmd.devices.options(), false, SceneLoadOptions{cmd.sky}, cmd.kernels),
       pipeline(devices, device_scene, loaded.scene, cmd.width, cmd.height, options) {
   print_device_set(devices);
   print_scene_upload(device_scene, devices.size());

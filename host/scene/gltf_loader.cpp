@@ -38,7 +38,7 @@
 // Instances: in a static file, a mesh that several nodes draw is stored once in its own space,
 // with one matrix per node (Scene::instancing), and traversed through a two-level BVH; in a file
 // that moves, so is each rigid mesh on a node that a clip moves (its matrix changes, its
-// triangles do not). PX_INSTANCING=off in the environment draws copies instead.
+// triangles do not). SceneLoadOptions::instancing = false draws copies instead.
 #include "image/image_io.h"
 #include "scene/primitives.h"
 #include "scene/scene_rig.h"
@@ -449,8 +449,8 @@ class Unsupported {
 
 class Converter {
  public:
-  Converter(const tinygltf::Model& model, std::string path, Scene& scene)
-      : model_(model), path_(std::move(path)), scene_(scene), read_(model_, path_) {}
+  Converter(const tinygltf::Model& model, std::string path, const SceneLoadOptions& options, Scene& scene)
+      : model_(model), path_(std::move(path)), options_(options), scene_(scene), read_(model_, path_) {}
 
   void materials() {
     for (std::size_t i = 0; i < model_.materials.size(); ++i) scene_.materials.push_back(material(i));
@@ -858,11 +858,10 @@ class Converter {
   // Emits every mesh a node draws, in the order the nodes were visited. A mesh that two or more
   // nodes draw becomes instances (Scene::instancing: one copy in its own space, a matrix per
   // node), unless it emits light (the light table samples emitters by their world triangles)
-  // or PX_INSTANCING=off asks for flat copies. A node whose transform mirrors draws its own flat
+  // or the options ask for flat copies. A node whose transform mirrors draws its own flat
   // copy (turning the winding round is done per triangle, as emit_primitive does).
   void place_meshes() {
-    const char* env = std::getenv("PX_INSTANCING");
-    const bool instancing = !(env && std::string(env) == "off");
+    const bool instancing = options_.instancing;
     std::map<int, int> uses;
     for (const Placement& pl : placements_)
       if (glm::determinant(glm::dmat3(pl.world)) > 0.0) ++uses[pl.mesh];
@@ -1121,9 +1120,8 @@ class Converter {
     // A rigid mesh on a node that a clip moves is drawn as an instance: its node's matrix places
     // it every frame, and its triangles are neither posed nor refitted; so is a still mesh that
     // several nodes draw. Not for skins, emitters (the light table samples world triangles), a
-    // node that mirrors at rest, or with PX_INSTANCING=off.
-    const char* env = std::getenv("PX_INSTANCING");
-    const bool instancing = !(env && std::string(env) == "off") && !rig_->clips.empty();
+    // node that mirrors at rest, or when the options ask for flat copies.
+    const bool instancing = options_.instancing && !rig_->clips.empty();
     if (instancing) {
       std::vector<int> all(rig_->clips.size());
       for (std::size_t c = 0; c < all.size(); ++c) all[c] = int(c);
@@ -1148,6 +1146,7 @@ class Converter {
 
   const tinygltf::Model& model_;
   std::string path_;
+  SceneLoadOptions options_;
   Scene& scene_;
   Reader read_;
   Unsupported unsupported_;
@@ -1179,7 +1178,7 @@ class Converter {
 
 }  // namespace
 
-Scene load_gltf(const std::string& path, bool* has_camera) {
+Scene load_gltf(const std::string& path, const SceneLoadOptions& options, bool* has_camera) {
   if (has_camera) *has_camera = false;
   std::string bytes = read_binary_file(path);
   const bool binary = bytes.size() >= 4 && read_u32(bytes, 0) == kGlbMagic;
@@ -1220,7 +1219,7 @@ Scene load_gltf(const std::string& path, bool* has_camera) {
     if (!Converter::handled_extension(e))
       throw SceneError(path + ": requires glTF extension " + e + ", which parallax does not support");
   // tinygltf's warnings that matter (missing image files) are reported per material below.
-  Converter convert(model, path, scene);
+  Converter convert(model, path, options, scene);
   convert.failed_images_ = images.failed;
   convert.release_buffers_ = [&model] {
     for (tinygltf::Buffer& b : model.buffers) std::vector<unsigned char>().swap(b.data);
