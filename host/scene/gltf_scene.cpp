@@ -263,8 +263,8 @@ void Converter::place_meshes() {
     scene_.triangles.reserve(expected);
   }
   // Every mesh a node draws is decoded now (the count above): the file's buffers are read no
-  // more, and go before the triangles are made (the 10M heightfield's 172 MiB, at the load's
-  // highest point).
+  // more, and go before the triangles are made, at the load's highest point (docs/measurements.md,
+  // glTF load memory).
   if (release_buffers_) release_buffers_();
   for (const Placement& pl : placements_) {
     if (!flat(pl)) continue;

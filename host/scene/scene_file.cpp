@@ -482,8 +482,8 @@ void check_coordinate_range(Scene& scene, const std::string& source, bool warn) 
     check(scene.camera_path[i].target, "camera_path[" + std::to_string(i) + "].target");
   }
   // A float near `far` is resolved to about far * 2^-23, and ray origins are pushed off surfaces
-  // by 256 such steps. Measured on a 2.8-unit model: 1e4 units from the origin renders like at
-  // the origin, 1e6 visibly noisy; warn from a distance of 1e5 extents on.
+  // by 256 such steps. Far enough out the image turns visibly noisy (docs/measurements.md,
+  // coordinate range); warn from a distance of 1e5 extents on.
   const float extent = scene.triangles.empty() ? 0.0f : glm::length(hi - lo);
   if (warn && extent > 0.0f && far > 1e5f * extent) {
     char buf[256];

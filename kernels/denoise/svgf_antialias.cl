@@ -8,16 +8,14 @@
  * per surface, so a pixel on an edge (an emitter's rim, a silhouette) restarts it whenever its
  * sample lands on the other side, and shows one side or the other: jagged edges and, at 1 spp,
  * a light whose visible area changes by whole rows and columns with the jitter (cornell's
- * mean came out 6% too bright in one frame). Here the final radiance itself is averaged over
+ * mean came out too bright in one frame; docs/measurements.md, temporal anti-aliasing). Here the final radiance itself is averaged over
  * frames, whatever surface each sample saw: last frame's result, reprojected through the
  * G-buffer point (or the direction of a miss) into the previous camera with the jitter taken
  * out (px_previous_pixel) and read with 2x2 bilinear taps, is blended as
  * mix(history, color, max(alpha, 1 / history length, PX_TAA_MOTION_ALPHA x the pixels moved
  * (at most PX_TAA_MOTION_ALPHA_MAX))): a still pixel averages its jitter positions over many
- * frames (cornell's light: +0.6% at alpha 0.1, +1.6% at 0.3), a moving one keeps less of a
- * history that each bilinear read blurs and that lags behind the view (atrium, camera moving
- * about half a pixel a frame: -1.2% and 26.1 dB without the motion term, -0.8% and 27.2 dB
- * with it). The history is first clipped to
+ * frames, a moving one keeps less of a history that each bilinear read blurs and that lags
+ * behind the view (docs/measurements.md, temporal anti-aliasing). The history is first clipped to
  * mean +- PX_TAA_CLIP_SIGMA standard deviations of the current 3x3 neighbourhood per YCoCg axis,
  * so that what moved or was disoccluded cannot leave a trail: on an edge the neighbourhood
  * holds both sides and the average passes. Reads `color` in rows y - 1 .. y + 1 (readable
@@ -60,11 +58,9 @@ kernel void svgf_antialias(global float4* resolved, global float4* history, cons
      * a moving edge anti-aliases and no object colour stays behind. A pixel with a stale
      * history and no moving neighbour now (the object left it altogether) starts over, as
      * SVGF's history does where the surface changed. Only those: when every background pixel
-     * beside the object followed it, the image as a whole got worse.
-     * Measured when this came (trail test, 8 spp, where the error is lag rather than noise):
-     * the swept region's error 3.9x the still run's, 9.6x when only the object's texels were followed,
-     * the trailing column keeping the cube's colour; Khronos's BoxAnimated and RiggedSimple
-     * (two frames each, both eyes, against 256-spp references): the summed error -59%. */
+     * beside the object followed it, the image as a whole got worse. Following only the object's
+     * texels left the trailing column with the cube's colour (docs/measurements.md, velocity
+     * dilation). */
     if (motion && tri_motion && found && motion[i].w != PX_MOTION_MOVED) {
       int own_stale = 0;
       const int ox = (int)floor(fx + 0.5f), oy = (int)floor(fy + 0.5f);

@@ -15,9 +15,9 @@
  * energy. At 1 spp most samples are dark and a few bright; a tap's weight falls with its
  * luminance's distance from the centre's, so every dark centre turns the rare bright taps away,
  * while a bright centre, unlike any neighbour, keeps mostly itself. A weighted mean normalised
- * per centre then spreads less of each bright sample than it removes from it: measured on
- * flat noise with rare bright samples (10% at 10x the mean), the five steps and their colour
- * history lost 8%, and atrium's denoised frame came out 3.5% darker than its own noisy input.
+ * per centre then spreads less of each bright sample than it removes from it: on flat noise
+ * with rare bright samples the filter lost energy, and atrium's denoised frame came out darker
+ * than its own noisy input (docs/measurements.md, SVGF luminance guide).
  * Compared through a prefilter, a tap's weight hardly depends on its own sample (a ninth of
  * the average at most), so the weights stop sorting samples by brightness. Edges of light and
  * shadow still stop the filter, one pixel softer. The variance travels with it because the
@@ -95,7 +95,7 @@ __constant float px_atrous_h[5] = {1.0f / 16.0f, 1.0f / 4.0f, 3.0f / 8.0f, 1.0f 
  * centre weighs on it. Scaled by the centre's variance alone, as in the SVGF paper, a bright
  * and noisy centre beside a dark and quiet one took in the dark tap more readily than the dark
  * one took in the bright: at every boundary of sunlight and shade, light flowed out and not
- * back in (atrium, still camera: 1% of the frame's energy).
+ * back in (docs/measurements.md, SVGF luminance guide).
  *
  * Every tap's weight twice: .x with the normal exponent sigma_n, .y with a loose one. A pixel
  * whose normal no neighbour shares closely — alpha-cut foliage cards, curved surfaces seen at

@@ -180,7 +180,7 @@ inline float px_geometry_weight_x(float4 t, float3 n, float z, float2 grad, floa
 /* The same weight twice: (strict, loose) = with the normal exponent sigma_n and with the loose
  * one used for isolated pixels (see svgf_atrous), sharing the depth and luminance terms.
  * Always inlined: PoCL's inliner otherwise leaves it a call per tap, with its arguments passed
- * through the stack (27% of the a-trous pass's CPU time on cornell). */
+ * through the stack (docs/measurements.md, SVGF a-trous on PoCL). */
 __attribute__((always_inline)) inline float2 px_geometry_weights(float4 t, float3 n, float z, float2 grad, float dx,
                                                                   float dy, const SvgfParams* p, float extra) {
   if (!px_guide_filtered(t)) return (float2)(0.0f, 0.0f);

@@ -139,9 +139,7 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
     float a = fmax(p.alpha, 1.0f / len);
     /* Beside a moving object a still surface's illumination changes from frame to frame: the
      * object's contact shadow and the light it reflects move with it. Its history lags there
-     * (trail test, 8 spp, when this came: the floor the cube left at 4.6x the still run's error
-     * with the usual floor of 0.2, 3.1x with this; the floor beyond the swept region -18%), so
-     * there it keeps at most half. A stand-in for a temporal gradient (A-SVGF), which would also catch a
+     * (docs/measurements.md, SVGF history beside motion), so there it keeps at most half. A stand-in for a temporal gradient (A-SVGF), which would also catch a
      * shadow cast far from its object and need no reach in pixels. */
     if (motion && motion[i].w == PX_MOTION_STILL) {
       const int x0 = (int)(i % p.width);
