@@ -7,7 +7,7 @@
 //
 // Two ways, side by side per N: `posed` (every cube's triangles posed into the world's, one
 // tree refitted over them: what an animated file's skins get, and everything with
-// PX_INSTANCING=off) and `instances` (one cube mesh stored once, each node an instance: only
+// --instancing off) and `instances` (one cube mesh stored once, each node an instance: only
 // the matrices change, the top level over them is rebuilt and the instance buffer rewritten;
 // what the loader makes of rigid meshes on moving nodes).
 //

@@ -3,7 +3,7 @@
 # whose one mesh (a UV sphere, ~4k triangles, indexed, with normals) is drawn by N nodes on a
 # grid, beside a ground quad drawn once, a perspective camera and a directional light (the
 # sun). Each N is rendered as loaded (a mesh drawn by >= 2 nodes becomes instances: stored
-# once, a matrix per node) and with PX_INSTANCING=off (flat world-space copies). With N = 1 the
+# once, a matrix per node) and with --instancing off (flat world-space copies). With N = 1 the
 # two modes load the same scene (one node: nothing to instance).
 # Goal: instanced at N = 1024 takes at most 1.5x the memory of N = 1 and at most 3x its
 # start time + 2 s. Exit status 1 when the goal is missed.
@@ -169,10 +169,10 @@ PY
 # render_once N MODE TAG: one render; sets wall (s) and rss (KiB).
 render_once() {
   local n="$1" mode="$2" tag="$3"
-  local env_off=()
-  [ "$mode" = flat ] && env_off=(env PX_INSTANCING=off)
+  local flat=()
+  [ "$mode" = flat ] && flat=(--instancing off)
   rm -rf "$out/img_$tag"
-  if ! "${env_off[@]}" /usr/bin/time -v -o "$out/time_$tag.txt" "$bin" render --scene "$out/instances_$n.gltf" \
+  if ! /usr/bin/time -v -o "$out/time_$tag.txt" "$bin" render --scene "$out/instances_$n.gltf" "${flat[@]}" \
       --frames 1 --width 160 --height 90 --out "$out/img_$tag" --overwrite >"$out/log_$tag.txt" 2>&1; then
     echo "render of N=$n ($mode) failed:" >&2
     tail -5 "$out/log_$tag.txt" >&2

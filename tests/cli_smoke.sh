@@ -434,7 +434,7 @@ else bad "could not write the animated glTF"; fi
 
 # Instances: in a static file, the cube mesh that 13 nodes draw is stored once and traversed
 # through a top level. Two devices give one device's pixels, the scene's kernels the general
-# kernels' pixels, and the image is the one of a copy per node (PX_INSTANCING=off) but for
+# kernels' pixels, and the image is the one of a copy per node (--instancing off) but for
 # rounding (the vertices are placed on the device instead of the host).
 if python3 "$src/tests/support/write_animated_gltf.py" "$tmp/ring.gltf" --still --copies 12; then
   inst=(render --scene "$tmp/ring.gltf" --width 48 --height 27 --frames 2 --spp 2 --svgf-iterations 2)
@@ -449,7 +449,7 @@ if python3 "$src/tests/support/write_animated_gltf.py" "$tmp/ring.gltf" --still 
     --kernels general --out "$tmp/inst_general"
   check "instances: --kernels scene and general give identical pixels" 0 "^identical$" -- "$bin" compare --exact \
     "$tmp/inst1/frame_0001_right.exr" "$tmp/inst_general/frame_0001_right.exr"
-  check "PX_INSTANCING=off stores a copy per node" 0 "158 triangles" -- env PX_INSTANCING=off "$bin" "${inst[@]}" \
+  check "--instancing off stores a copy per node" 0 "158 triangles" -- "$bin" "${inst[@]}" --instancing off \
     --devices 1 --out "$tmp/inst_flat"
   psnr=$("$bin" compare "$tmp/inst1/frame_0001_left.exr" "$tmp/inst_flat/frame_0001_left.exr" 2>/dev/null |
     awk '/^psnr_db/ {print $2}')

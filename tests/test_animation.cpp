@@ -532,8 +532,9 @@ TEST(SceneOnDevices, AStaticScenesHostTrianglesAreReleasedAnAnimatedOnesKept) {
 }
 
 // Every frame of an animation, denoised, with 1 and 3 devices.
-std::vector<std::vector<float>> animated_frames(const std::string& file, int devices, unsigned frames) {
-  LoadedScene loaded = load_and_build(file, true);
+std::vector<std::vector<float>> animated_frames(const std::string& file, int devices, unsigned frames,
+                                                const SceneLoadOptions& options = {}) {
+  LoadedScene loaded = load_and_build(file, true, options);
   DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
   DeviceScene ds(set, loaded.scene, loaded.bvh);
   SceneAnimator animator(loaded.scene, "all");
@@ -560,7 +561,7 @@ TEST(SceneAnimator, NDevicesAreBitIdenticalWithAnimationPlaying) {
 }
 
 // The sliding cube is a rigid mesh on a moving node: drawn as an instance, its matrix moves it
-// and its triangles are neither posed nor refitted; with PX_INSTANCING=off it is posed into
+// and its triangles are neither posed nor refitted; loaded without instancing it is posed into
 // the world's triangles as before. Both render the same denoised frames (SVGF's history and the
 // anti-aliasing follow the cube through the instance's matrices or through its vertices) but
 // for rounding (the cube's vertices placed on the device or on the host).
@@ -573,19 +574,10 @@ TEST(SceneAnimator, AMovingInstanceRendersTheFramesOfItsPosedCopy) {
     EXPECT_EQ(s.instancing.world_triangles, 2u) << "the floor is the world's";
   }
   const auto instanced = animated_frames(file, 2, 4);
-  std::vector<std::vector<float>> posed;
-  {
-    const char* old = std::getenv("PX_INSTANCING");
-    const std::string saved = old ? old : "";
-    setenv("PX_INSTANCING", "off", 1);
-    {
-      const Scene s = load_gltf(file);
-      EXPECT_TRUE(s.instancing.empty());
-    }
-    posed = animated_frames(file, 2, 4);
-    if (old) setenv("PX_INSTANCING", saved.c_str(), 1);
-    else unsetenv("PX_INSTANCING");
-  }
+  SceneLoadOptions flat;
+  flat.instancing = false;
+  EXPECT_TRUE(load_gltf(file, flat).instancing.empty());
+  const auto posed = animated_frames(file, 2, 4, flat);
   ASSERT_EQ(instanced.size(), posed.size());
   for (std::size_t f = 0; f < posed.size(); ++f) {
     double se = 0.0, peak = 0.0;
@@ -829,7 +821,7 @@ TEST(MotionTrail, AMovingObjectLeavesNoMoreErrorWhereItWentThanAStillOne) {
   const double fps = 30.0, t_end = (frames - 1) / fps;
   DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
   // The region: pixels whose G-buffer saw the cube: its instance (a rigid mesh on a moving
-  // node), or with PX_INSTANCING=off one of its 12 posed triangles (the first mesh).
+  // node), or loaded without instancing one of its 12 posed triangles (the first mesh).
   std::size_t edge_pixels = 0;  // the moving run's pixels with extra samples, over its frames
   auto run = [&](bool moving, unsigned spp, std::vector<char>* swept) {
     LoadedScene loaded = load_and_build(file, true);

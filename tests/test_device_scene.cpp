@@ -382,7 +382,7 @@ TEST(DeviceScene, AFlatSceneBuildsItsTreeFromCornersPackedWhereItsTrianglesWere)
   g.doc["nodes"] = nlohmann::json::array(
       {{{"mesh", 0}}, {{"camera", 0}, {"translation", {0, 1.5, 2.5}}, {"rotation", {-0.27, 0, 0, 0.963}}}});
   const std::string file = dir.write("grid.gltf", g.text()).string();
-  LoadedScene for_devices = load_and_build(file, /*quiet=*/true, SkyMode::kAuto, /*map_device_layout=*/true);
+  LoadedScene for_devices = load_and_build(file, /*quiet=*/true, {}, /*map_device_layout=*/true);
   const LoadedScene kept = load_and_build(file, true);
   ASSERT_TRUE(for_devices.host_part) << "records made before the tree";
   EXPECT_TRUE(for_devices.scene.triangles.empty());

@@ -201,7 +201,7 @@ TEST(GltfLoader, SceneFileAndLoadSceneAcceptGltfAndGlb) {
     const Scene direct = load_scene((dir.path() / mesh).string());
     EXPECT_TRUE(direct.sky.enabled) << mesh;
     EXPECT_EQ(count_warnings_containing(direct, "default sky"), 1) << mesh;
-    EXPECT_FALSE(load_scene((dir.path() / mesh).string(), SkyMode::kOff).sky.enabled) << mesh;
+    EXPECT_FALSE(load_scene((dir.path() / mesh).string(), {SkyMode::kOff}).sky.enabled) << mesh;
   }
   EXPECT_NE(error_of([&] { load_scene(dir.write("bad.json", R"({"mesh": "m.txt"})").string()); }).find("m.txt"),
             std::string::npos);
@@ -338,12 +338,12 @@ TEST(GltfLoader, EmissiveMeshLightsTheImageAndWithoutItTheImageIsBlack) {
   g.doc["materials"] = json::array({{{"emissiveFactor", {0.5, 0.5, 0.5}},
                                      {"pbrMetallicRoughness", {{"baseColorFactor", {0, 0, 0, 1}}, {"metallicFactor", 0.0}}},
                                      {"extensions", {{"KHR_materials_emissive_strength", {{"emissiveStrength", 4.0}}}}}}});
-  const Scene lit = load_scene(write_glb(dir, "lamp.glb", g).string(), SkyMode::kOff);
+  const Scene lit = load_scene(write_glb(dir, "lamp.glb", g).string(), {SkyMode::kOff});
   EXPECT_FALSE(lit.sky.enabled);
   EXPECT_NEAR(mean_of_render(lit), 2.0, 1e-3);
 
   g.doc["materials"][0].erase("emissiveFactor");
-  const Scene dark = load_scene(write_glb(dir, "dark.glb", g).string(), SkyMode::kOff);
+  const Scene dark = load_scene(write_glb(dir, "dark.glb", g).string(), {SkyMode::kOff});
   EXPECT_EQ(count_warnings_containing(dark, "will be black"), 1);
   EXPECT_EQ(mean_of_render(dark), 0.0);
   // By default a lightless file is lit by the sky instead (a black base colour still

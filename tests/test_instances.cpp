@@ -1,6 +1,6 @@
 // Instances and the two-level BVH: a mesh drawn by several nodes is stored once and traversed
 // through a top level. Every check compares with a second code path: the same scene flattened
-// into world-space copies (flatten_instances, or the loader with PX_INSTANCING=off), traced by
+// into world-space copies (flatten_instances, or the loader without instancing), traced by
 // Embree or by the one-level kernels, rendered by the same path tracer.
 #include "bvh/embree_reference.h"
 #include "bvh/flat_bvh.h"
@@ -24,7 +24,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
-#include <optional>
 #include <random>
 
 namespace px {
@@ -254,21 +253,6 @@ std::vector<std::array<float, 9>> sorted_corners(const Scene& s) {
   return out;
 }
 
-struct ScopedEnv {
-  std::string name;
-  std::optional<std::string> old;
-  ScopedEnv(const char* n, const char* value) : name(n) {
-    if (const char* v = std::getenv(n)) old = v;
-    setenv(n, value, 1);
-  }
-  ~ScopedEnv() {
-    if (old)
-      setenv(name.c_str(), old->c_str(), 1);
-    else
-      unsetenv(name.c_str());
-  }
-};
-
 TEST(Instancing, TheLoaderStoresASharedMeshOnceAndDrawsWhatAFlatLoadDraws) {
   test::TempDir dir;
   const auto path = write_shared_meshes(dir);
@@ -281,11 +265,9 @@ TEST(Instancing, TheLoaderStoresASharedMeshOnceAndDrawsWhatAFlatLoadDraws) {
   EXPECT_EQ(s.instancing.world_triangles, 12u);
   EXPECT_EQ(s.triangles.size(), 15u);
   EXPECT_EQ(drawn_triangle_count(s), 18u);
-  Scene flat_load;
-  {
-    const ScopedEnv off("PX_INSTANCING", "off");
-    flat_load = load_gltf(path.string());
-  }
+  SceneLoadOptions flat;
+  flat.instancing = false;
+  const Scene flat_load = load_gltf(path.string(), flat);
   EXPECT_TRUE(flat_load.instancing.empty());
   EXPECT_EQ(flat_load.triangles.size(), 18u);
   const auto a = sorted_corners(s), b = sorted_corners(flat_load), c = sorted_corners(flattened(s));

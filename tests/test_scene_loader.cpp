@@ -611,15 +611,15 @@ TEST(SceneFile, SpecResolution) {
   EXPECT_GT(s.camera.position.z, 0.0f);
   EXPECT_TRUE(any_warning_contains(s, "no light"));
   EXPECT_TRUE(any_warning_contains(s, "default sky"));
-  const Scene unlit = load_scene(obj.string(), SkyMode::kOff);
+  const Scene unlit = load_scene(obj.string(), {SkyMode::kOff});
   EXPECT_FALSE(unlit.sky.enabled);
   EXPECT_TRUE(any_warning_contains(unlit, "will be black"));
   // The same mesh with a sky from a scene file is lit: no warning, and its own sky is kept.
   const fs::path json = dir.write("lit.json", R"({"mesh": "tri.obj", "sky": {"zenith": [1, 1, 1]}})");
   EXPECT_FALSE(any_warning_contains(load_scene(json.string()), "no light"));
-  EXPECT_EQ(load_scene(json.string(), SkyMode::kOn).sky.zenith, glm::vec3(1.0f));
+  EXPECT_EQ(load_scene(json.string(), {SkyMode::kOn}).sky.zenith, glm::vec3(1.0f));
   // --sky on adds the default sky beside a scene's emitters.
-  const Scene cornell = load_scene("cornell", SkyMode::kOn);
+  const Scene cornell = load_scene("cornell", {SkyMode::kOn});
   EXPECT_TRUE(cornell.sky.enabled);
   EXPECT_FALSE(load_scene("cornell").sky.enabled);
 }

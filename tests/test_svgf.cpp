@@ -5,6 +5,7 @@
 // denoising brings Cornell closer to an independent reference).
 #include "app/scene_setup.h"
 #include "cl/launch.h"
+#include "denoise/svgf_constants.h"
 #include "pipeline/stages/svgf_denoiser.h"
 #include "image/image_metrics.h"
 #include "pipeline/stereo_pipeline.h"
@@ -97,18 +98,18 @@ TEST_P(AtrousKernel, MatchesHostImplementation) {
     cl::Buffer guide(one_device().context(), CL_MEM_READ_WRITE, n * sizeof(cl_float4));
     SvgfParams all = p;
     all.row0 = 0; all.rows = h; all.lo_row = 0; all.hi_row = h;
-    cl::Kernel kg(one_device().program("denoise/svgf.cl"), "svgf_guide");
+    cl::Kernel kg(one_device().program("denoise/svgf_temporal.cl"), "svgf_guide");
     kg.setArg(0, guide); kg.setArg(1, bg); kg.setArg(2, all);
     launch_1d(one_device().devices()[0].queue, kg, all.rows * w);
     // The luminance guide of every readable row (svgf_luma), checked against a host version.
     cl::Buffer luma(one_device().context(), CL_MEM_READ_WRITE, n * sizeof(cl_float2));
     SvgfParams readable_rows = p;
     readable_rows.row0 = p.lo_row; readable_rows.rows = p.hi_row - p.lo_row;
-    cl::Kernel kl(one_device().program("denoise/svgf.cl"), "svgf_luma");
+    cl::Kernel kl(one_device().program("denoise/svgf_atrous.cl"), "svgf_luma");
     kl.setArg(0, luma); kl.setArg(1, bi); kl.setArg(2, guide); kl.setArg(3, readable_rows);
     launch_1d(one_device().devices()[0].queue, kl, readable_rows.rows * w);
     const std::vector<cl_float2> got_luma = download<cl_float2>(luma, n);
-    cl::Kernel k(one_device().program("denoise/svgf.cl"),
+    cl::Kernel k(one_device().program("denoise/svgf_atrous.cl"),
                  tiled ? "svgf_atrous_tiled" : lanes == 8 ? "svgf_atrous8" : "svgf_atrous");
     k.setArg(0, out); k.setArg(1, bi); k.setArg(2, guide); k.setArg(3, bm); k.setArg(4, luma); k.setArg(5, p);
     launch_1d(one_device().devices()[0].queue, k,
@@ -947,7 +948,7 @@ TEST(SvgfDistributed, DenoisingBringsCornellCloserToTheReference) {
 }
 
 TEST(SvgfDistributed, BilateralSeamsSoftenTheSeamWithinTheBandAndChangeNothingElse) {
-  // --seams bilateral (DenoiseStage; seam_bilateral in svgf.cl): the strips are denoised as
+  // --seams bilateral (DenoiseStage; seam_bilateral.cl): the strips are denoised as
   // with independent seams, then the rows within seam_band (4) of each seam pass through a 5x5
   // cross-bilateral filter reading the neighbour's rows across the seam. 2 devices, 64x48 (the
   // seam at row 24), 3 frames, 2 a-trous iterations; the 1-device image (= halo seams) is the

@@ -58,7 +58,7 @@ int run_devices(const DeviceChoice& choice) {
 int run_preview(const PreviewCommand& cmd) {
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite);
-  SceneOnDevices on_devices(cmd.scene.name, cmd.devices.options(), false, cmd.scene.sky, cmd.scene.kernels);
+  SceneOnDevices on_devices(cmd.scene.name, cmd.devices.options(), false, cmd.scene.load_options(), cmd.scene.kernels);
   print_device_set(on_devices.devices);
   print_scene_upload(on_devices.device_scene, on_devices.devices.size());
   print_kernel_features(on_devices.device_scene);
@@ -138,7 +138,7 @@ int run_render(const RenderCommand& cmd) {
 int run_reference(const ReferenceCommand& cmd) {
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite);
-  SceneOnDevices on_devices(cmd.scene.name, cmd.devices.options(), false, cmd.scene.sky, cmd.scene.kernels);
+  SceneOnDevices on_devices(cmd.scene.name, cmd.devices.options(), false, cmd.scene.load_options(), cmd.scene.kernels);
   print_device_set(on_devices.devices);
   print_scene_upload(on_devices.device_scene, on_devices.devices.size());
   print_kernel_features(on_devices.device_scene);

@@ -28,9 +28,11 @@ struct SceneChoice {
   std::string name = "cornell";
   SkyMode sky = SkyMode::kAuto;  // light for scenes without any (see load_scene)
   // glTF scenes: a mesh that several nodes draw becomes instances of one copy (off: flat copies).
-  bool instancing = true;  // wired to SceneLoadOptions::instancing
+  bool instancing = true;
   KernelChoice kernels = KernelChoice::Scene;  // the scene's features or all
   std::string animation = "all";  // which glTF clips play (all, none, a name or index)
+
+  SceneLoadOptions load_options() const { return {sky, instancing}; }
 };
 
 // Pixels of each eye (--width, --height).

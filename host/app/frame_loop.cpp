@@ -75,7 +75,7 @@ std::optional<int> RenderLoop::start() {
       if (!cmd_.video.empty()) video_.emplace(cmd_.video, 2 * cmd_.size.width, cmd_.size.height, cmd_.clock.fps);
     }
     // Every rank loads the scene itself (the scene is replicated, not sent).
-    on_devices_.emplace(cmd_.scene.name, cmd_.devices.options(), !root_, cmd_.scene.sky, cmd_.scene.kernels);
+    on_devices_.emplace(cmd_.scene.name, cmd_.devices.options(), !root_, cmd_.scene.load_options(), cmd_.scene.kernels);
     const DeviceSet& set = on_devices_->devices;
     if (root_) print_device_set(set);
     if (root_) print_scene_upload(on_devices_->device_scene, set.size());

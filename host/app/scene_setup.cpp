@@ -173,7 +173,8 @@ std::function<std::vector<SceneTriangle>()> take_static_triangles(Scene& scene) 
 }  // namespace
 
 // load_and_build without the codec preload.
-static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, SkyMode sky, bool map_device_layout) {
+static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, const SceneLoadOptions& options,
+                                       bool map_device_layout) {
   using clock = Clock;
   LoadedScene out;
   auto t0 = clock::now();
@@ -181,7 +182,7 @@ static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, SkyM
   {
     // Every long step of the start says it is still running (progress_ticker.h); quiet: none.
     const ProgressTicker ticker(quiet ? "" : "[scene] still loading " + spec);
-    out.scene = load_scene(spec, sky);
+    out.scene = load_scene(spec, options);
   }
   const auto& st = out.scene.stats;
   out.triangle_count = drawn_triangle_count(out.scene);
@@ -208,7 +209,7 @@ static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, SkyM
     if (!in.empty())
       std::fprintf(stderr,
                    "[scene] instances: %zu instances of %zu mesh(es) draw %zu of the %zu triangles; %zu triangles "
-                   "stored (PX_INSTANCING=off stores a copy per instance)\n",
+                   "stored (--instancing off stores a copy per instance)\n",
                    in.instances.size(), in.meshes.size(), out.triangle_count - in.world_triangles, out.triangle_count,
                    out.scene.triangles.size());
   }
@@ -275,8 +276,9 @@ static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, SkyM
   return out;
 }
 
-LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky, bool map_device_layout) {
-  LoadedScene out = load_and_build_tree(spec, quiet, sky, map_device_layout);
+LoadedScene load_and_build(const std::string& spec, bool quiet, const SceneLoadOptions& options,
+                           bool map_device_layout) {
+  LoadedScene out = load_and_build_tree(spec, quiet, options, map_device_layout);
   // The frames' files need the image codec: its libraries (about 85 MiB of mapped pages with
   // their dependencies) load on another core after the start's highest points (the end of a
   // large scene's BVH build, the making of its device layout), not beside them: here, or for
@@ -286,9 +288,9 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, SkyMode sky, boo
   return out;
 }
 
-SceneOnDevices::SceneOnDevices(const std::string& spec, const DeviceOptions& device_options, bool quiet, SkyMode sky,
-                               KernelChoice kernels)
-    : SceneOnDevices(load_and_build(spec, quiet, sky, /*map_device_layout=*/true), device_options, kernels) {}
+SceneOnDevices::SceneOnDevices(const std::string& spec, const DeviceOptions& device_options, bool quiet,
+                               const SceneLoadOptions& options, KernelChoice kernels)
+    : SceneOnDevices(load_and_build(spec, quiet, options, /*map_device_layout=*/true), device_options, kernels) {}
 
 namespace {
 

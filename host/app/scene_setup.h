@@ -59,7 +59,7 @@ struct LoadedScene {
 // come as its cached device layout, without a tree (LoadedScene::device_layout), and a flat
 // static scene come with its shading records made and its triangles gone
 // (LoadedScene::host_part); every other caller gets the tree and the triangles.
-LoadedScene load_and_build(const std::string& spec, bool quiet = false, SkyMode sky = SkyMode::kAuto,
+LoadedScene load_and_build(const std::string& spec, bool quiet = false, const SceneLoadOptions& options = {},
                            bool map_device_layout = false);
 
 // A scene on a set of devices: loaded and its BVH built (load_and_build), the devices made
@@ -72,7 +72,7 @@ LoadedScene load_and_build(const std::string& spec, bool quiet = false, SkyMode 
 // animated scene (Scene::rig) keeps them: they are posed anew every frame.
 struct SceneOnDevices {
   SceneOnDevices(const std::string& spec, const DeviceOptions& device_options, bool quiet = false,
-                 SkyMode sky = SkyMode::kAuto, KernelChoice kernels = KernelChoice::Scene);
+                 const SceneLoadOptions& options = {}, KernelChoice kernels = KernelChoice::Scene);
   // A scene loaded before: a bench that runs one scene on several device sets loads it once.
   SceneOnDevices(LoadedScene scene, const DeviceOptions& device_options, KernelChoice kernels = KernelChoice::Scene);
   SceneOnDevices(const SceneOnDevices&) = delete;

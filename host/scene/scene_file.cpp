@@ -101,10 +101,10 @@ bool has_light(const Scene& scene) {
 bool is_mesh_extension(const std::string& ext) { return ext == ".obj" || ext == ".gltf" || ext == ".glb"; }
 
 // An OBJ or glTF (by extension), with a camera: a glTF's own, else framed on the geometry.
-Scene load_mesh_framed(const std::string& path) {
+Scene load_mesh_framed(const std::string& path, const SceneLoadOptions& options) {
   const std::string ext = lower(fs::path(path).extension().string());
   bool has_camera = false;
-  Scene scene = ext == ".obj" ? load_obj(path) : load_gltf(path, &has_camera);
+  Scene scene = ext == ".obj" ? load_obj(path) : load_gltf(path, options, &has_camera);
   // Before framing: a camera framed on out-of-range geometry overflows, and the error would
   // then be about the camera, not the vertices.
   check_coordinate_range(scene, path, /*warn=*/false);  // load_scene warns, once
@@ -279,7 +279,7 @@ json parse_json_file(const std::string& path) {
   return doc;
 }
 
-Scene load_scene_file(const std::string& path) {
+Scene load_scene_file(const std::string& path, const SceneLoadOptions& options) {
   const json doc = parse_json_file(path);
   const SceneFileReader r(path);
   if (!doc.is_object()) throw SceneError(path + ": the scene file must hold a JSON object");
@@ -301,7 +301,7 @@ Scene load_scene_file(const std::string& path) {
     if (!is_mesh_extension(lower(mesh_path.extension().string())))
       r.fail("mesh", "'" + mesh + "' is not an .obj, .gltf or .glb file");
     try {
-      scene = load_mesh_framed(mesh_path.string());
+      scene = load_mesh_framed(mesh_path.string(), options);
     } catch (const SceneError& e) {
       r.fail("mesh", e.what());
     }
@@ -418,7 +418,7 @@ bool is_plain_file(const fs::path& p) {
   return fs::is_regular_file(p, ec);
 }
 
-Scene load_scene_unchecked(const std::string& spec);
+Scene load_scene_unchecked(const std::string& spec, const SceneLoadOptions& options);
 
 }  // namespace
 
@@ -482,8 +482,8 @@ void check_coordinate_range(Scene& scene, const std::string& source, bool warn) 
     check(scene.camera_path[i].target, "camera_path[" + std::to_string(i) + "].target");
   }
   // A float near `far` is resolved to about far * 2^-23, and ray origins are pushed off surfaces
-  // by 256 such steps. Measured on a 2.8-unit model: 1e4 units from the origin renders like at
-  // the origin, 1e6 visibly noisy; warn from a distance of 1e5 extents on.
+  // by 256 such steps. Far enough out the image turns visibly noisy (docs/measurements.md,
+  // coordinate range); warn from a distance of 1e5 extents on.
   const float extent = scene.triangles.empty() ? 0.0f : glm::length(hi - lo);
   if (warn && extent > 0.0f && far > 1e5f * extent) {
     char buf[256];
@@ -495,21 +495,21 @@ void check_coordinate_range(Scene& scene, const std::string& source, bool warn) 
   }
 }
 
-Scene load_scene(const std::string& spec, SkyMode sky) {
-  Scene scene = load_scene_unchecked(spec);
+Scene load_scene(const std::string& spec, const SceneLoadOptions& options) {
+  Scene scene = load_scene_unchecked(spec, options);
   check_coordinate_range(scene, spec);
-  apply_sky_mode(scene, spec, sky);
+  apply_sky_mode(scene, spec, options.sky);
   return scene;
 }
 
 namespace {
 
-Scene load_scene_unchecked(const std::string& spec) {
+Scene load_scene_unchecked(const std::string& spec, const SceneLoadOptions& options) {
   const fs::path p(spec);
   const std::string ext = lower(p.extension().string());
   if (is_plain_file(p)) {
-    if (ext == ".json") return load_scene_file(spec);
-    if (is_mesh_extension(ext)) return load_mesh_framed(spec);
+    if (ext == ".json") return load_scene_file(spec, options);
+    if (is_mesh_extension(ext)) return load_mesh_framed(spec, options);
     throw SceneError("scene '" + spec + "': unsupported file type (expected a .json scene file, an .obj, .gltf or .glb)");
   }
   const auto& names = builtin_scene_names();

@@ -15,12 +15,22 @@ namespace px {
 //     framed on the bounding box),
 //   - the name of a built-in generator: "cornell", "cornell-glossy", "atrium".
 // Whatever the source, the scene's coordinates are then checked (check_coordinate_range), and
-// light is seen to by `sky` (one warning line says what was done):
+// light is seen to by `options.sky` (one warning line says what was done):
 //   kAuto: a scene without any light (no emitter, sun or sky) gets default_sky();
 //   kOn:   a scene without a sky of its own gets default_sky(), whatever else lights it;
 //   kOff:  nothing is added (an unlit scene renders black, and the warning says so).
 enum class SkyMode { kAuto, kOn, kOff };
-Scene load_scene(const std::string& spec, SkyMode sky = SkyMode::kAuto);
+
+// How a scene is loaded, whatever its source (the command line's --sky and --instancing).
+struct SceneLoadOptions {
+  SkyMode sky = SkyMode::kAuto;
+  // A glTF mesh that several nodes draw (or, in a file that moves, a rigid mesh a clip moves)
+  // is stored once with a matrix per node (Scene::instancing); false stores a world-space copy
+  // per node instead (see load_gltf).
+  bool instancing = true;
+};
+
+Scene load_scene(const std::string& spec, const SceneLoadOptions& options = {});
 
 // Largest coordinate magnitude (vertices, camera, camera path) parallax traces. Rays are traced
 // in 32-bit floats: intersection tests multiply up to three coordinates, so beyond ~1e12 they
@@ -46,7 +56,8 @@ Scene load_obj(const std::string& path);
 // Features it does not render are named in one warning line. Refuses (SceneError naming the
 // file): unreadable or malformed files, missing buffers, accessors or buffer views out of
 // bounds, indices out of range, unsupported required extensions, no triangles left.
-Scene load_gltf(const std::string& path, bool* has_camera = nullptr);
+// Of `options`, it reads `instancing` (the sky is load_scene's).
+Scene load_gltf(const std::string& path, const SceneLoadOptions& options = {}, bool* has_camera = nullptr);
 
 // The environment load_scene gives a scene without any light (no emitter, sun or sky): a
 // soft grey-blue sky, bright enough to show the geometry at the default exposure.

@@ -8,9 +8,8 @@
  * (svgf_antialias), and its one sample per frame, on one side of the edge or the other, shows.
  * Every pixel of the frame shares one jitter position, so all of an edge's pixels err the
  * same way at once. A pixel the object uncovered has no history at all. More samples there give
- * each frame's pixel its coverage and a less noisy restart. Measured (MotionTrail test, 1 spp):
- * the error where a sliding cube went 3.3x that of a still cube without them, 2.0x with 2
- * samples more, 1.57x with 4, 1.44x with 8, 1.20x with 16; at 8 spp 2.9x -> 2.4x with 8.
+ * each frame's pixel its coverage and a less noisy restart: the MotionTrail test's error where a
+ * sliding cube went falls with their count (docs/measurements.md, motion-edge samples).
  *
  * A pixel qualifies if its G-buffer texel lies on a still surface and one within its 5x5
  * neighbourhood lies on a moving object (px_texel_moved), or if its texel lies on a moving object,
@@ -19,7 +18,7 @@
  * behind as the object moves on), nor an object's edge against it: there the escaping samples
  * count as albedo 1 in the mean the filter demodulates by, and the sky's light entered the
  * object's own history along its silhouette (Khronos's RiggedSimple, whose arm moves against
- * the sky: +7% error with them, none without).
+ * the sky; docs/measurements.md, motion-edge samples).
  * Neighbours are read only in rows [lo_row, hi_row) (the G-buffer rows valid on this device),
  * so the list does not depend on how the image is split where those rows cover the reach. The
  * list's order depends on the device's scheduling, its contents do not; each listed pixel's

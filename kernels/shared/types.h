@@ -23,12 +23,6 @@ typedef std::uint8_t uchar; /* only in byte arrays of 4-byte-multiple length (Co
  * local memory, e.g. reprojection's hole compaction, must agree). */
 #define PX_LOCAL_SIZE 64
 
-/* svgf_atrous_tiled (kernels/denoise/svgf.cl): a work-group filters a PX_ATROUS_TILE-square
- * tile of pixels, for a-trous steps up to PX_ATROUS_TILE_MAX_STEP (the host launches it only
- * for those, PX_LOCAL_SIZE items per tile). */
-#define PX_ATROUS_TILE 8
-#define PX_ATROUS_TILE_MAX_STEP 4
-
 /* Deepest BVH the kernels can traverse. The host asks Embree for at most this depth
  * (RTCBuildArguments::maxDepth) and the validator re-checks it; the traversal stack holds
  * PX_BVH_STACK_SIZE entries, which covers a depth-first walk of such a tree. */
@@ -610,39 +604,11 @@ typedef struct GBufferTexel {
 #define PX_REPROJECT_REL_DIST 0.01f
 #define PX_REPROJECT_FOOTPRINTS 3.0f
 
-/* SVGF: a pixel is isolated when its neighbours' total weight under the normal exponent
- * sigma_n is below PX_SVGF_ISOLATED x its own; it is then filtered with the normal exponent
- * PX_SVGF_LOOSE_SIGMA_N instead (the stereo paper's sigma_n). */
-#define PX_SVGF_ISOLATED 0.25f
-#define PX_SVGF_LOOSE_SIGMA_N 4.0f
-/* SVGF's luminance guide (svgf_luma): a pixel's luminance is averaged with those of its 3x3
- * neighbours on the same surface, told by normals within PX_SVGF_LUMA_MIN_COS and depths within
- * PX_SVGF_LUMA_REL_DEPTH x the pixel's. */
-#define PX_SVGF_LUMA_MIN_COS 0.9f
-#define PX_SVGF_LUMA_REL_DEPTH 0.1f
-/* SVGF moments.w: how the filter treats a pixel. 0: not filtered (environment, emitters),
- * 1: filtered, PX_SVGF_BORROWED: a silhouette pixel whose centre ray misses every filtered
- * surface while all its own samples hit one (albedo.w, the share of such samples, at least
- * PX_SVGF_BORROW_COVERAGE: n * (1 / n) may round just below 1). It is filtered as a receiver
- * only, with the normal and depth of its nearest filtered 8-neighbour, and never serves as a
- * tap or as history: passed through, its lone surface sample (at 1 spp often black) stood out
- * along every silhouette against the sky. A pixel with samples on both sides keeps passing
- * through: its mean already mixes them, and filtering it as surface dimmed the edges of
- * cornell's light (with any share >= 1/2: 30.61 -> 30.01 dB at 4 spp). */
-#define PX_SVGF_BORROWED 2.0f
-#define PX_SVGF_BORROW_COVERAGE 0.999f
 /* The motion pass's output w (kernels/pipeline/motion.cl): a miss, a point whose object stood
  * still since the last frame, a point whose object moved. */
 #define PX_MOTION_MISS 0.0f
 #define PX_MOTION_STILL 1.0f
 #define PX_MOTION_MOVED 2.0f
-/* SVGF's history beside a moving object (svgf_temporal): a still surface within
- * PX_SVGF_NEAR_MOTION_REACH pixels (rows and columns) of a point whose object moved blends its
- * history with at least PX_SVGF_NEAR_MOTION_ALPHA, since the object's contact shadow and its
- * light reflected onto it move with the object. The motion pass covers that many rows beyond
- * the strip. */
-#define PX_SVGF_NEAR_MOTION_REACH 4
-#define PX_SVGF_NEAR_MOTION_ALPHA 0.5f
 /* The neighbours of a reprojected pixel (its footprint's surroundings) only need to lie on the
  * same continuous surface: a looser normal test, so that curved surfaces stay reprojectable. */
 #define PX_REPROJECT_NEIGHBOUR_MIN_COS 0.9f

@@ -1,6 +1,7 @@
 #include "pipeline/stages/denoise_stage.h"
 
 #include "cl/launch.h"
+#include "denoise/svgf_constants.h"
 
 #include <algorithm>
 #include <stdexcept>

@@ -37,7 +37,7 @@ SvgfDenoiser::SvgfDenoiser(DeviceSet& devices, int device, unsigned width, unsig
 
 void SvgfDenoiser::guide(const cl::Buffer& gbuf, RowRange rows) {
   if (rows.size() == 0) return;
-  cl::Kernel k(devices_.program("denoise/svgf.cl"), "svgf_guide");
+  cl::Kernel k(devices_.program("denoise/svgf_temporal.cl"), "svgf_guide");
   k.setArg(0, guide_);
   k.setArg(1, gbuf);
   k.setArg(2, params(rows, rows, 1));
@@ -82,7 +82,7 @@ unsigned SvgfDenoiser::resolve_atrous_lanes(const Options& options, const Comput
   if (options.atrous_lanes != 0)
     throw std::invalid_argument("SvgfDenoiser: atrous_lanes must be 0, 1 or 8, not " +
                                 std::to_string(options.atrous_lanes));
-  // Measured on PoCL: see svgf_atrous8 in kernels/denoise/svgf.cl. A GPU work-item is already a
+  // Measured on PoCL: see svgf_atrous8 in kernels/denoise/svgf_atrous.cl. A GPU work-item is already a
   // SIMD lane, and eight pixels per item would leave the GPU an eighth of the items.
   return device.is_cpu() ? 8u : 1u;
 }
@@ -128,7 +128,7 @@ void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& albedo, c
     km.setArg(6, static_cast<cl_uint>(width_));
     launch(km, covered, "motion");
   }
-  cl::Kernel k(devices_.program("denoise/svgf.cl"), "svgf_temporal");
+  cl::Kernel k(devices_.program("denoise/svgf_temporal.cl"), "svgf_temporal");
   current_ = 0;
   k.setArg(0, illum_[0]);
   k.setArg(1, moments_);
@@ -151,7 +151,7 @@ void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& albedo, c
 
 void SvgfDenoiser::variance(RowRange rows, RowRange readable) {
   if (rows.size() == 0) return;
-  cl::Kernel k(devices_.program("denoise/svgf.cl"), "svgf_variance");
+  cl::Kernel k(devices_.program("denoise/svgf_temporal.cl"), "svgf_variance");
   k.setArg(0, illum_[1 - current_]);
   k.setArg(1, illum_[current_]);
   k.setArg(2, moments_);
@@ -173,13 +173,13 @@ void SvgfDenoiser::atrous(unsigned iteration, RowRange rows, RowRange readable) 
   // The luminance guide of every row the taps reach (those of the readable rows).
   const RowRange reach = widen(rows, 2 * step, height_);
   const RowRange guided{std::max(reach.begin, readable.begin), std::min(reach.end, readable.end)};
-  cl::Kernel kl(devices_.program("denoise/svgf.cl"), "svgf_luma");
+  cl::Kernel kl(devices_.program("denoise/svgf_atrous.cl"), "svgf_luma");
   kl.setArg(0, luma_);
   kl.setArg(1, illum_[current_]);
   kl.setArg(2, guide_);
   kl.setArg(3, params(guided, readable, step));
   launch(kl, guided, "luminance guide");
-  cl::Kernel k(devices_.program("denoise/svgf.cl"),
+  cl::Kernel k(devices_.program("denoise/svgf_atrous.cl"),
                atrous_lanes_ == 8 ? "svgf_atrous8" : tiled ? "svgf_atrous_tiled" : "svgf_atrous");
   k.setArg(0, illum_[1 - current_]);
   k.setArg(1, illum_[current_]);
@@ -200,7 +200,7 @@ void SvgfDenoiser::atrous(unsigned iteration, RowRange rows, RowRange readable) 
 void SvgfDenoiser::remodulate(const cl::Buffer& out_color, const cl::Buffer& albedo, RowRange rows,
                               RowRange readable) {
   if (rows.size() == 0) return;
-  cl::Kernel k(devices_.program("denoise/svgf.cl"), "svgf_remodulate");
+  cl::Kernel k(devices_.program("denoise/svgf_atrous.cl"), "svgf_remodulate");
   k.setArg(0, out_color);
   k.setArg(1, illum_[current_]);
   k.setArg(2, moments_);
@@ -216,7 +216,7 @@ void SvgfDenoiser::antialias(const cl::Buffer& out_color, const cl::Buffer& gbuf
   // The filter buffer remodulate() did not read is free: the result goes there first, since
   // the pass reads its input's neighbours.
   const cl::Buffer& resolved = illum_[1 - current_];
-  cl::Kernel k(devices_.program("denoise/svgf.cl"), "svgf_antialias");
+  cl::Kernel k(devices_.program("denoise/svgf_antialias.cl"), "svgf_antialias");
   const SvgfParams p = params(rows, readable, 1, &cam);
   k.setArg(0, resolved);
   k.setArg(1, hist_resolved_[frame_parity_]);
@@ -240,7 +240,7 @@ void SvgfDenoiser::antialias(const cl::Buffer& out_color, const cl::Buffer& gbuf
 void SvgfDenoiser::seam_filter(const cl::Buffer& color, RowRange rows, RowRange readable, int seam_above,
                                int seam_below, int band) {
   if (rows.size() == 0) return;
-  cl::Kernel k(devices_.program("denoise/svgf.cl"), "seam_bilateral");
+  cl::Kernel k(devices_.program("denoise/seam_bilateral.cl"), "seam_bilateral");
   const cl::Buffer& scratch = illum_[1 - current_];
   k.setArg(0, scratch);
   k.setArg(1, color);

@@ -1,10 +1,11 @@
-// SVGF (stage 6) for one eye on one device (kernels/denoise/svgf.cl). It owns the filter's
+// SVGF (stage 6) for one eye on one device (kernels/denoise/svgf_*.cl). It owns the filter's
 // working buffers and the temporal history, and exposes each pass separately so the pipeline
 // can exchange halo rows with neighbouring devices between passes (seam-free mode). All
 // buffers are full-frame; each pass writes `rows` and reads only `readable` rows.
 #pragma once
 
 #include "cl/device_set.h"
+#include "denoise/svgf_constants.h"
 #include "image/row_range.h"
 #include "pipeline/queue_lanes.h"
 #include "pipeline/stage.h"
