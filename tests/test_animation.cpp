@@ -18,6 +18,7 @@
 #include "scene/scene_loader.h"
 #include "scene/scene_rig.h"
 #include "support/gltf_builder.h"
+#include "support/scoped_env.h"
 #include "support/test_support.h"
 
 #include <gtest/gtest.h>
@@ -575,16 +576,12 @@ TEST(SceneAnimator, AMovingInstanceRendersTheFramesOfItsPosedCopy) {
   const auto instanced = animated_frames(file, 2, 4);
   std::vector<std::vector<float>> posed;
   {
-    const char* old = std::getenv("PX_INSTANCING");
-    const std::string saved = old ? old : "";
-    setenv("PX_INSTANCING", "off", 1);
+    const test::ScopedEnv flat("PX_INSTANCING", "off");
     {
       const Scene s = load_gltf(file);
       EXPECT_TRUE(s.instancing.empty());
     }
     posed = animated_frames(file, 2, 4);
-    if (old) setenv("PX_INSTANCING", saved.c_str(), 1);
-    else unsetenv("PX_INSTANCING");
   }
   ASSERT_EQ(instanced.size(), posed.size());
   for (std::size_t f = 0; f < posed.size(); ++f) {

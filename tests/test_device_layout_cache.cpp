@@ -12,6 +12,7 @@
 #include "io/content_hash.h"
 #include "scene/primitives.h"
 #include "support/brute_force.h"
+#include "support/scoped_env.h"
 #include "support/test_support.h"
 #include "trace/ray_batch_tracer.h"
 
@@ -304,8 +305,8 @@ TEST(DeviceLayoutCache, DamagedFilesAreMissesAndVerifyPayloadFindsAnyChangedByte
 // the scene's triangles, and stores its own layout for the next one.
 TEST(DeviceLayoutCache, StartsMapTheSetsLayoutAndSetAnotherLayoutAside) {
   test::TempDir dir;
-  setenv("PARALLAX_CACHE_DIR", (dir.path() / "cache").string().c_str(), 1);
-  unsetenv("PARALLAX_BVH_CACHE");
+  const test::ScopedEnv cache_dir("PARALLAX_CACHE_DIR", (dir.path() / "cache").string());
+  const test::ScopedEnv cache_on("PARALLAX_BVH_CACHE", std::nullopt);
   // A 120 x 100 grid of quads, 24,000 triangles: past the cache's threshold of 20,000.
   std::string obj;
   const int nx = 120, ny = 100;
@@ -334,9 +335,12 @@ TEST(DeviceLayoutCache, StartsMapTheSetsLayoutAndSetAnotherLayoutAside) {
   };
   std::vector<Hit> expected;
   {
-    setenv("PARALLAX_BVH_CACHE", "off", 1);
-    SceneOnDevices none(spec, one, /*quiet=*/true);
-    unsetenv("PARALLAX_BVH_CACHE");
+    std::optional<SceneOnDevices> none_start;
+    {
+      const test::ScopedEnv cache_off("PARALLAX_BVH_CACHE", "off");
+      none_start.emplace(spec, one, /*quiet=*/true);
+    }
+    SceneOnDevices& none = *none_start;
     EXPECT_FALSE(none.device_scene.layout_from_cache());
     expected = hits_of(none);
   }
@@ -387,7 +391,6 @@ TEST(DeviceLayoutCache, StartsMapTheSetsLayoutAndSetAnotherLayoutAside) {
     EXPECT_TRUE(again.device_scene.layout_from_cache()) << "the last start stored its own layout";
     EXPECT_TRUE(same_hits(hits_of(again)));
   }
-  unsetenv("PARALLAX_CACHE_DIR");
 }
 
 TEST(DeviceLayoutCache, NoFolderMeansNoCacheAndNoError) {

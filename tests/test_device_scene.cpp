@@ -1,6 +1,6 @@
 // The scene on the devices (render/device_scene.h): one copy per OpenCL context, whatever the
 // number of devices, and a buffer too large for one allocation refused with an error that
-// names it and both sizes (PX_MAX_ALLOC_BYTES lowers the device's limit for the test).
+// names it and both sizes (PARALLAX_MAX_ALLOC_BYTES lowers the device's limit for the test).
 #include "app/scene_setup.h"
 #include "bvh/bvh_cache.h"
 #include "render/device_scene.h"
@@ -9,6 +9,7 @@
 #include "scene/primitives.h"
 #include "scene/scene_rig.h"
 #include "support/gltf_builder.h"
+#include "support/scoped_env.h"
 #include "support/test_support.h"
 
 #include <gtest/gtest.h>
@@ -62,13 +63,6 @@ TEST(DeviceScene, OneCopyPerContextServesEveryDevice) {
   EXPECT_GE(size_of(ds.on(0).triangles), scene.triangles.size() * sizeof(BvhTriangle));
 }
 
-// Sets an environment variable for one scope.
-struct ScopedEnv {
-  ScopedEnv(const char* name, const std::string& value) : name_(name) { setenv(name, value.c_str(), 1); }
-  ~ScopedEnv() { unsetenv(name_); }
-  const char* name_;
-};
-
 TEST(DeviceScene, ABufferOverTheAllocationLimitIsRefusedNamingItAndTheSizes) {
   const Scene scene = spheres();
   const FlatBvh bvh = build_bvh(scene.triangles);
@@ -81,7 +75,7 @@ TEST(DeviceScene, ABufferOverTheAllocationLimitIsRefusedNamingItAndTheSizes) {
     nodes = size_of(ds.on(0).nodes);
   }
   {
-    const ScopedEnv limit("PX_MAX_ALLOC_BYTES", std::to_string(nodes - 1));
+    const test::ScopedEnv limit("PARALLAX_MAX_ALLOC_BYTES", std::to_string(nodes - 1));
     try {
       DeviceScene ds(set, scene, bvh);
       ADD_FAILURE() << "a " << nodes << "-byte node buffer was accepted under a " << nodes - 1 << "-byte limit";
@@ -94,7 +88,7 @@ TEST(DeviceScene, ABufferOverTheAllocationLimitIsRefusedNamingItAndTheSizes) {
     }
   }
   // At exactly its size it fits (every other buffer of this scene is smaller).
-  const ScopedEnv exact("PX_MAX_ALLOC_BYTES", std::to_string(nodes));
+  const test::ScopedEnv exact("PARALLAX_MAX_ALLOC_BYTES", std::to_string(nodes));
   EXPECT_NO_THROW(DeviceScene(set, scene, bvh));
 }
 

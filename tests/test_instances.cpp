@@ -15,6 +15,7 @@
 #include "support/brute_force.h"
 #include "support/bvh_layout_test.h"
 #include "support/gltf_builder.h"
+#include "support/scoped_env.h"
 #include "support/test_support.h"
 #include "trace/ray_batch_tracer.h"
 
@@ -254,21 +255,6 @@ std::vector<std::array<float, 9>> sorted_corners(const Scene& s) {
   return out;
 }
 
-struct ScopedEnv {
-  std::string name;
-  std::optional<std::string> old;
-  ScopedEnv(const char* n, const char* value) : name(n) {
-    if (const char* v = std::getenv(n)) old = v;
-    setenv(n, value, 1);
-  }
-  ~ScopedEnv() {
-    if (old)
-      setenv(name.c_str(), old->c_str(), 1);
-    else
-      unsetenv(name.c_str());
-  }
-};
-
 TEST(Instancing, TheLoaderStoresASharedMeshOnceAndDrawsWhatAFlatLoadDraws) {
   test::TempDir dir;
   const auto path = write_shared_meshes(dir);
@@ -283,7 +269,7 @@ TEST(Instancing, TheLoaderStoresASharedMeshOnceAndDrawsWhatAFlatLoadDraws) {
   EXPECT_EQ(drawn_triangle_count(s), 18u);
   Scene flat_load;
   {
-    const ScopedEnv off("PX_INSTANCING", "off");
+    const test::ScopedEnv off("PX_INSTANCING", "off");
     flat_load = load_gltf(path.string());
   }
   EXPECT_TRUE(flat_load.instancing.empty());

@@ -3,6 +3,7 @@
 #include "bvh/flat_bvh.h"
 #include "cl/kernel_sources.h"
 #include "cl/pocl_launch_guard.h"
+#include "io/environment.h"
 
 #include <algorithm>
 #include <cstdlib>
@@ -102,8 +103,7 @@ std::vector<cl::Device> sub_devices(cl::Device root, const std::vector<cl_device
 DeviceSet DeviceSet::create(const DeviceOptions& options) {
   if (options.count < 1) throw std::invalid_argument("device count must be at least 1");
   std::string wanted = options.platform;
-  if (wanted.empty())
-    if (const char* env = std::getenv("PARALLAX_PLATFORM")) wanted = env;
+  if (wanted.empty()) wanted = environment().platform;
 
   DeviceSet set;
   set.platform_ = choose_platform(wanted);

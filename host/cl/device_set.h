@@ -26,7 +26,8 @@ struct DeviceOptions {
   int count = 1;
   DeviceMode mode = DeviceMode::Auto;
   // Substring of the platform name to use ("" = first platform that has a GPU, else the first
-  // with any device). Also read from $PARALLAX_PLATFORM when empty.
+  // with any device). When empty, PARALLAX_PLATFORM
+  // (io/environment.h).
   std::string platform;
 };
 

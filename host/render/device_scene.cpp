@@ -2,6 +2,7 @@
 
 #include "bvh/scene_bvhs.h"
 #include "bvh/top_level_bvh.h"
+#include "io/environment.h"
 #include "io/progress_ticker.h"
 #include "scene/instancing.h"
 
@@ -24,7 +25,7 @@ namespace px {
 namespace {
 
 // What one OpenCL context can hold: the largest single allocation and the global memory of
-// its smallest device. PX_MAX_ALLOC_BYTES lowers the first (to test the refusal below without a
+// its smallest device. PARALLAX_MAX_ALLOC_BYTES lowers the first (to test the refusal below without a
 // 4 GiB scene).
 struct AllocationLimits {
   std::size_t max_alloc = 0, global_mem = 0;
@@ -42,12 +43,9 @@ AllocationLimits allocation_limits(const DeviceSet& devices) {
     }
     l.global_mem = std::min(l.global_mem, static_cast<std::size_t>(d.device.getInfo<CL_DEVICE_GLOBAL_MEM_SIZE>()));
   }
-  if (const char* env = std::getenv("PX_MAX_ALLOC_BYTES")) {
-    const unsigned long long v = std::strtoull(env, nullptr, 10);
-    if (v > 0 && v < l.max_alloc) {
-      l.max_alloc = static_cast<std::size_t>(v);
-      l.device += " (lowered by PX_MAX_ALLOC_BYTES)";
-    }
+  if (const std::size_t v = environment().max_alloc_bytes; v > 0 && v < l.max_alloc) {
+    l.max_alloc = v;
+    l.device += " (lowered by PARALLAX_MAX_ALLOC_BYTES)";
   }
   return l;
 }
