@@ -106,6 +106,7 @@ DeviceSet DeviceSet::create(const DeviceOptions& options) {
   if (wanted.empty()) wanted = environment().platform;
 
   DeviceSet set;
+  set.requested_layout_ = options.bvh_layout;
   set.platform_ = choose_platform(wanted);
   set.platform_name_ = set.platform_.getInfo<CL_PLATFORM_NAME>();
   auto devices = platform_devices(set.platform_);
@@ -196,7 +197,7 @@ DeviceSet DeviceSet::create(const DeviceOptions& options) {
   return set;
 }
 
-BvhLayout DeviceSet::bvh_layout() const { return bvh_layout_for(all_gpus_); }
+BvhLayout DeviceSet::bvh_layout() const { return requested_layout_.value_or(bvh_layout_for(all_gpus_)); }
 
 const cl::Program& DeviceSet::program(const std::string& path, const std::string& extra_options) {
   // Every kernel is built for the BVH layout DeviceScene uploads (bvh_layout()), unless the
