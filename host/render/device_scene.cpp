@@ -13,6 +13,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <memory>
+#include <numbers>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -165,6 +166,8 @@ void copy3(float* dst, const glm::vec3& v) {
 }
 
 float luminance(const glm::vec3& c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+
+constexpr float kPi = std::numbers::pi_v<float>;
 
 }  // namespace
 
@@ -357,13 +360,12 @@ void fill_light_params(const Scene& scene, std::size_t light_count, FrameParams&
   // partly took for edges (the sunlit floor came out darker, its shadows smeared). The sky
   // loses next-event samples in the shade, where BSDF sampling finds it well (MIS).
   if (scene.sun.enabled && scene.sky.enabled) {
-    auto luminance = [](glm::vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; };
-    const float sun_solid_angle = 2.0f * 3.14159265f * (1.0f - p.sun_cos_max);
+    const float sun_solid_angle = 2.0f * kPi * (1.0f - p.sun_cos_max);
     const float e_sun = std::max(0.0f, luminance(scene.sun.radiance)) * sun_solid_angle;
     // A surface facing the zenith: 2 pi integral over mu = cos(theta) of
     // mix(horizon, zenith, sqrt(mu)) mu dmu = pi horizon + 4 pi (zenith - horizon) / 5.
-    const float e_sky = std::max(0.0f, 3.14159265f * luminance(scene.sky.horizon) +
-                                           0.8f * 3.14159265f * luminance(scene.sky.zenith - scene.sky.horizon));
+    const float e_sky = std::max(0.0f, kPi * luminance(scene.sky.horizon) +
+                                           0.8f * kPi * luminance(scene.sky.zenith - scene.sky.horizon));
     if (e_sun + e_sky > 0.0f && std::isfinite(e_sun + e_sky)) {
       // Neither below a tenth of the pair's share: a dim sky still gets its next-event samples.
       const float sun_fraction = std::clamp(e_sun / (e_sun + e_sky), 0.1f, 0.9f);
