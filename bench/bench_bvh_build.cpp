@@ -18,6 +18,7 @@
 //   [--unbounded: also time spatial splits without the split budget] [--csv F]
 //   [--no-trace] [--trace-width 320 --trace-height 180]
 #include "app/guarded_main.h"
+#include "bench_bvh_layout.h"
 #include "bench_common.h"
 #include "bvh/embree_reference.h"
 #include "bvh/flat_bvh.h"
@@ -88,7 +89,7 @@ struct Row {
 };
 
 Row measure(const std::string& name, const std::vector<px::SceneTriangle>& tris, int repeats,
-            bool with_unbounded) {
+            bool with_unbounded, px::BvhLayout layout) {
   Row row;
   row.scene = name;
   row.triangles = tris.size();
@@ -105,18 +106,18 @@ Row measure(const std::string& name, const std::vector<px::SceneTriangle>& tris,
   std::vector<double> split_ms, binned_ms, high_ms, medium_ms, unbounded_ms, collapse_ms, trial_ms;
   for (int r = 0; r < repeats; ++r) {
     if (with_unbounded) {
-      const px::FlatBvh unbounded = px::build_bvh(tris, unbounded_options);
+      const px::FlatBvh unbounded = px::build_bvh(tris, unbounded_options, layout);
       unbounded_ms.push_back(unbounded.stats.build_ms);
       row.unbounded = unbounded.stats;
     }
-    row.split_tree = px::build_bvh(tris, split_options);
+    row.split_tree = px::build_bvh(tris, split_options, layout);
     split_ms.push_back(row.split_tree.stats.build_ms);
     collapse_ms.push_back(row.split_tree.stats.collapse_ms);
     row.split = row.split_tree.stats;
-    row.binned_tree = px::build_bvh(tris, binned_options);
+    row.binned_tree = px::build_bvh(tris, binned_options, layout);
     binned_ms.push_back(row.binned_tree.stats.build_ms);
     row.binned = row.binned_tree.stats;
-    const px::FlatBvh trial = px::build_bvh(tris, trial_options);
+    const px::FlatBvh trial = px::build_bvh(tris, trial_options, layout);
     trial_ms.push_back(trial.stats.build_ms);
     row.trial = trial.stats;
     high_ms.push_back(embree_build_ms(tris, RTC_BUILD_QUALITY_HIGH));
@@ -198,6 +199,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 1000))
       ->capture_default_str();
   app.add_option("--csv", csv, "also write the table as CSV");
+  std::optional<px::BvhLayout> requested;  // --bvh-layout: the trees are collapsed into it and traced in it
+  px::bench::add_bvh_layout_flag(app, requested);
   bool no_trace = false;
   unsigned trace_width = 320, trace_height = 180;
   app.add_flag("--no-trace", no_trace, "skip the trace speed of the split and binned trees");
@@ -213,10 +216,11 @@ int main(int argc, char** argv) {
     std::vector<Row> rows;
     std::vector<TraceRow> traces;
     std::optional<px::DeviceSet> set;
+    // Every tree is collapsed into the layout the device traces (the build times include it).
+    px::BvhLayout layout = requested.value_or(px::bvh_layout_for(/*all_gpus=*/false));
     if (!no_trace) {
-      set.emplace(px::DeviceSet::create({1, px::DeviceMode::Auto, ""}));
-      // Every tree is collapsed into the layout the device traces (the build times include it).
-      px::set_bvh_layout(set->bvh_layout());
+      set.emplace(px::DeviceSet::create({1, px::DeviceMode::Auto, "", requested}));
+      layout = set->bvh_layout();
     }
     for (const auto& name : scenes) {
       std::vector<px::SceneTriangle> tris;
@@ -228,7 +232,7 @@ int main(int argc, char** argv) {
         tris = scene.triangles;
       }
       embree_build_ms(tris, RTC_BUILD_QUALITY_HIGH);  // warm-up: TBB threads, first-touch
-      rows.push_back(measure(name, tris, repeats, unbounded));
+      rows.push_back(measure(name, tris, repeats, unbounded, layout));
       Row& row = rows.back();
       if (set && name != "slivers")
         traces.push_back(trace_speed(*set, name, scene, std::move(row.split_tree), std::move(row.binned_tree),
@@ -250,7 +254,7 @@ int main(int argc, char** argv) {
                 "triangle with spatial splits; calls/tri = split-callback calls per triangle of the (last) spatial-split attempt; fallback = binned: the split budget ran out and build_bvh rebuilt with binned SAH (so px split includes the cancelled attempt)\n",
                 repeats);
     std::printf("\nBVH layout %s: px split/binned include collapsing the binary tree into it:\n",
-                px::to_string(px::bvh_layout()));
+                px::to_string(layout));
     for (const auto& r : rows)
       std::printf("%-10s collapse %.2f ms of px split %.1f ms (%.1f%%)\n", r.scene.c_str(), r.collapse_ms,
                   r.split_ms, r.split_ms > 0 ? 100.0 * r.collapse_ms / r.split_ms : 0.0);

@@ -15,6 +15,7 @@
 //   build/bench_instances
 //   build/bench_instances --counts 1,1000,100000 --repeats 9 --rays 400000 --trace-repeats 7
 #include "app/guarded_main.h"
+#include "bench_bvh_layout.h"
 #include "bench_common.h"
 #include "bvh/flat_bvh.h"
 #include "bvh/scene_bvhs.h"
@@ -250,6 +251,8 @@ int main(int argc, char** argv) {
   app.add_option("--byte-counts", byte_counts, "(c) comma list of instance counts; ratios are to the first")
       ->capture_default_str();
   app.add_option("--devices", devices, "(b, c) OpenCL devices")->check(CLI::Range(1, 64))->capture_default_str();
+  std::optional<BvhLayout> bvh_layout;
+  bench::add_bvh_layout_flag(app, bvh_layout);
   app.add_flag("--skip-a", skip_a, "skip the top-level cost");
   app.add_flag("--skip-b", skip_b, "skip the trace comparison");
   app.add_flag("--skip-c", skip_c, "skip the device bytes");
@@ -257,7 +260,7 @@ int main(int argc, char** argv) {
   return run_guarded([&] {
     if (!skip_a) top_level_cost(parse_counts(counts), top_subdiv, repeats);
     if (skip_b && skip_c) return 0;
-    DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
+    DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, "", bvh_layout});
     if (!skip_b) trace_speed(set, trace_instances, trace_subdiv, rays, trace_repeats);
     if (!skip_c) device_bytes(set, parse_counts(byte_counts), trace_subdiv);
     return 0;

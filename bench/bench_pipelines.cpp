@@ -11,6 +11,7 @@
 // The CSVs feed scripts/evaluate (Tables 1 and 2 of the paper, and the frame-time plot).
 #include "app/guarded_main.h"
 #include "app/scene_setup.h"
+#include "bench_bvh_layout.h"
 #include "bench_common.h"
 #include "cl/device_set.h"
 #include "image/image_metrics.h"
@@ -89,6 +90,8 @@ int main(int argc, char** argv) {
   app.add_option("--spp", spp)->capture_default_str();
   app.add_option("--bounces", bounces)->capture_default_str();
   app.add_option("--devices", devices)->capture_default_str();
+  std::optional<px::BvhLayout> bvh_layout;
+  px::bench::add_bvh_layout_flag(app, bvh_layout);
   app.add_option("--fps", fps, "camera-path time step")->capture_default_str();
   app.add_option("--ref-spp", ref_spp, "samples of the frame-0 reference (0 = skip the error figures)")->capture_default_str();
   app.add_option("--csv", csv, "per stage and device medians as CSV (owner = 1 on the owner device)");
@@ -146,7 +149,7 @@ int main(int argc, char** argv) {
   }
   return px::run_guarded([&]() -> int {
     for (const auto& name : scenes) {
-      px::SceneOnDevices on_devices(name, {devices, px::DeviceMode::Auto, ""});
+      px::SceneOnDevices on_devices(name, {devices, px::DeviceMode::Auto, "", bvh_layout});
       const px::Scene& scene = on_devices.loaded.scene;
       px::DeviceSet& set = on_devices.devices;
       const px::DeviceScene& ds = on_devices.device_scene;

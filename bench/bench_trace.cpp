@@ -122,32 +122,40 @@ int main(int argc, char** argv) {
   app.add_option("--csv", csv, "also write the table as CSV");
   app.add_option("--layout", layout_names,
                  "BVH node layouts to trace, side by side (binary, wide4, wide8, cwbvh; repeatable; default: the "
-                 "device set's own, PX_BVH_LAYOUT or by device type)");
+                 "device type's)");
   CLI11_PARSE(app, argc, argv);
 
   return px::run_guarded([&]() -> int {
     std::vector<Row> rows;
     std::vector<px::BvhLayout> layouts;
     for (const auto& l : layout_names) layouts.push_back(px::parse_bvh_layout(l));
-    // One device set for every scene; without --layout, its own layout (by device type).
-    auto set = px::DeviceSet::create({devices, px::DeviceMode::Auto, ""});
-    std::fprintf(stderr, "[bench] %d device(s), %s mode: %s\n", set.size(), px::to_string(set.mode()),
-                 set.devices()[0].description.c_str());
-    if (layouts.empty()) layouts.push_back(set.bvh_layout());
+    // One device set per layout (the layout is the set's), used for every scene; without
+    // --layout, one set in its own layout (by device type).
+    std::vector<std::unique_ptr<px::DeviceSet>> sets;
+    if (layouts.empty()) {
+      sets.push_back(std::make_unique<px::DeviceSet>(px::DeviceSet::create({devices, px::DeviceMode::Auto, ""})));
+      layouts.push_back(sets.back()->bvh_layout());
+    } else {
+      for (px::BvhLayout layout : layouts)
+        sets.push_back(std::make_unique<px::DeviceSet>(
+            px::DeviceSet::create({devices, px::DeviceMode::Auto, "", layout})));
+    }
+    const px::DeviceSet& first = *sets.front();
+    std::fprintf(stderr, "[bench] %d device(s), %s mode: %s\n", first.size(), px::to_string(first.mode()),
+                 first.devices()[0].description.c_str());
     for (const auto& name : scenes) {
-      px::set_bvh_layout(layouts[0]);
-      auto loaded = px::load_and_build(name);
+      auto loaded = px::load_and_build(name, false, {}, false, layouts[0]);
       // Pure geometry on both sides: Embree's reference has no alpha-test filter, so the kernel's
       // cut-outs are switched off too (they are tested in test_trace_kernels).
       for (auto& m : loaded.scene.materials) m.alpha_texture = -1;
       px::EmbreeReference embree(loaded.scene.triangles);
-      // The layout is process-wide: each DeviceScene uploads, and each tracer builds its
-      // kernels for, the layout current at its construction.
+      // Each layout's DeviceScene and tracer on that layout's set.
       std::vector<std::unique_ptr<px::DeviceScene>> scenes_per_layout;
       std::vector<std::unique_ptr<px::RayBatchTracer>> tracer_storage;
       std::vector<px::RayBatchTracer*> tracers;
-      for (px::BvhLayout layout : layouts) {
-        px::set_bvh_layout(layout);
+      for (std::size_t l = 0; l < layouts.size(); ++l) {
+        const px::BvhLayout layout = layouts[l];
+        px::DeviceSet& set = *sets[l];
         px::ensure_layout(loaded.bvh, layout);
         auto [node_bytes, block_bytes] = node_memory(loaded.bvh, layout);
         if (layout != px::BvhLayout::Binary)
@@ -159,7 +167,6 @@ int main(int argc, char** argv) {
         tracers.push_back(tracer_storage.back().get());
         tracers.back()->closest(primary_rays(loaded.scene, 8, 8));  // builds this layout's kernels now
       }
-      px::set_bvh_layout(layouts[0]);
       auto primary = primary_rays(loaded.scene, width, height);
       auto phits = tracers[0]->closest(primary);
       auto bounce = bounce_rays(loaded.scene, primary, phits, *tracers[0]);

@@ -8,7 +8,7 @@
 #                        not only the scene's; its log also lists each kernel's private memory
 #                        per work-item for both builds), baseline and mono, with PSNR / relMSE
 #                        against a reference at frame 0 and at the last frame
-#   3. frame_wide8*.csv  the same with the 8-wide BVH (PX_BVH_LAYOUT=wide8; a GPU's default is
+#   3. frame_wide8*.csv  the same with the 8-wide BVH (--bvh-layout wide8; a GPU's default is
 #                        binary, so 2 and 3 compare the layouts on whole frames)
 #   4. frame_wavefront*.csv  the same with the wavefront path tracer (--path-tracer wavefront),
 #                        no reference: its images are the megakernel's to the bit
@@ -93,7 +93,7 @@ common=(--scene "$scene" --width $w --height $h --spp 1 --frames $frames --warmu
 step frame bench_pipelines "${common[@]}" --ref-spp $ref --compare-overlap --compare-gbuffer --compare-kernels \
   --csv "$out/frame.csv" \
   --summary-csv "$out/frame_summary.csv" --frames-csv "$out/frame_frames.csv"
-PX_BVH_LAYOUT=wide8 step frame_wide8 bench_pipelines "${common[@]}" --ref-spp $ref \
+step frame_wide8 bench_pipelines --bvh-layout wide8 "${common[@]}" --ref-spp $ref \
   --csv "$out/frame_wide8.csv" --summary-csv "$out/frame_wide8_summary.csv"
 step frame_wavefront bench_pipelines "${common[@]}" --ref-spp 0 --path-tracer wavefront \
   --csv "$out/frame_wavefront.csv" --summary-csv "$out/frame_wavefront_summary.csv"

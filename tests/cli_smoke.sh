@@ -315,9 +315,9 @@ done
 check "an unknown --kernels value is refused" 1 "kernels" -- "$bin" render --kernels fastest --out "$tmp/k_bad"
 
 # A scene buffer larger than one allocation may hold is refused naming it (the device's limit
-# lowered with PX_MAX_ALLOC_BYTES), and leaves no --out folder behind.
+# lowered with PARALLAX_MAX_ALLOC_BYTES), and leaves no --out folder behind.
 check "a scene over the allocation limit is refused, naming the buffer" 1 "BVH node buffer needs .* bytes.*CL_DEVICE_MAX_MEM_ALLOC_SIZE" -- \
-  env PX_MAX_ALLOC_BYTES=1000 "$bin" render --scene cornell --width 16 --height 8 --out "$tmp/too_big"
+  env PARALLAX_MAX_ALLOC_BYTES=1000 "$bin" render --scene cornell --width 16 --height 8 --out "$tmp/too_big"
 if [ ! -e "$tmp/too_big" ]; then passes=$((passes + 1)); echo "ok   the refused render left no --out folder"
 else fails=$((fails + 1)); echo "FAIL the refused render left $tmp/too_big"; fi
 

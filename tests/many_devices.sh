@@ -3,14 +3,14 @@
 # pixel equal to one device. On a 2-core machine N >= 3 are queues on one PoCL device; that is
 # where PoCL 3.1's work-group-function cache aborted (pocl_release_dlhandle_cache, exit 134) in
 # 32 of 40 such runs before host/cl/pocl_launch_guard.h. Each N in {3, 4, 6, 8} runs RUNS times
-# (default 3; PX_STRESS_RUNS) with static and with dynamic strips, denoised, 3 frames; plus
+# (default 3; PARALLAX_STRESS_RUNS) with static and with dynamic strips, denoised, 3 frames; plus
 # N = 2, 5, 7, 12, 16 once, and PoCL's POCL_DEVICES list (3 platform devices), once per balance.
 # The first run of a case compares every frame, later runs the last frame (it carries the
 # earlier frames' history).
 # Usage: many_devices.sh PATH/TO/parallax
 set -u
 bin="$(cd "$(dirname "$1")" && pwd)/$(basename "$1")"
-runs="${PX_STRESS_RUNS:-3}"
+runs="${PARALLAX_STRESS_RUNS:-3}"
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
 fails=0

@@ -426,7 +426,7 @@ TEST(BvhRefit, ARefittedTreeIsValidAndItsCostShowsItsDecay) {
   BvhBuildOptions binned;
   binned.spatial_splits = false;
   FlatBvh bvh = build_bvh(tris, binned);
-  ensure_layout(bvh, bvh_layout());
+  ensure_layout(bvh, bvh_layout_for(/*all_gpus=*/false));
   const double built = bvh.stats.sah_cost;
   // A small rigid motion: still a good tree.
   std::vector<SceneTriangle> moved = tris;
@@ -434,7 +434,7 @@ TEST(BvhRefit, ARefittedTreeIsValidAndItsCostShowsItsDecay) {
     for (auto& p : t.p) p += glm::vec3(0.3f, -0.2f, 0.1f);
   refit_bvh(bvh, moved);
   EXPECT_TRUE(bvh.nodes8.empty());  // dropped, to be collapsed anew
-  ensure_layout(bvh, bvh_layout());
+  ensure_layout(bvh, bvh_layout_for(/*all_gpus=*/false));
   BvhValidation check = validate_bvh(bvh, moved);
   EXPECT_TRUE(check.ok) << (check.errors.empty() ? "" : check.errors.front());
   EXPECT_NEAR(bvh.stats.sah_cost, built, 1e-3 * built);  // a translation keeps every ratio of areas
@@ -442,7 +442,7 @@ TEST(BvhRefit, ARefittedTreeIsValidAndItsCostShowsItsDecay) {
   for (std::size_t i = 0; i < moved.size(); i += 2)
     for (auto& p : moved[i].p) p.x += 50.0f;
   refit_bvh(bvh, moved);
-  ensure_layout(bvh, bvh_layout());
+  ensure_layout(bvh, bvh_layout_for(/*all_gpus=*/false));
   check = validate_bvh(bvh, moved);
   EXPECT_TRUE(check.ok) << (check.errors.empty() ? "" : check.errors.front());
   EXPECT_GT(bvh.stats.sah_cost, SceneAnimator::kRebuildGrowth * built);

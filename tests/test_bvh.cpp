@@ -1046,7 +1046,7 @@ TEST(WideBvh, LeafRefsPointAtTheBlocksHoldingTheirVertices) {
 TEST(Validator, WideNodesCheckedAgainstTheLeafTriangles) {
   const auto tris = diagonal_strips(400);
   for (bool splits : {false, true}) {
-    FlatBvh bvh = build_bvh(tris, with_splits(splits), /*collapse=*/false);
+    FlatBvh bvh = build_bvh(tris, with_splits(splits), /*layout=*/std::nullopt);
     EXPECT_TRUE(bvh.nodes8.empty() && bvh.nodes4.empty()) << "collapse false: no wide nodes";
     ASSERT_TRUE(validate_bvh(bvh, tris).ok);
     collapse_bvh(bvh, 8);
@@ -1079,7 +1079,7 @@ TEST(Validator, WideNodesCheckedAgainstTheLeafTriangles) {
     ASSERT_TRUE(done);
     EXPECT_FALSE(validate_layout_from_leaves(dropped, tris.size()).ok) << "splits " << splits;
   }
-  FlatBvh none = build_bvh(tris, with_splits(false), false);
+  FlatBvh none = build_bvh(tris, with_splits(false), std::nullopt);
   EXPECT_FALSE(validate_layout_from_leaves(none, tris.size()).ok) << "no wide nodes to check";
 }
 
@@ -1165,7 +1165,7 @@ TEST(Validator, OneLargeTreeOnSeveralThreadsFindsWhatOneThreadFinds) {
   const auto tris = random_soup(120000, 65);  // past the validator's threading threshold
   for (bool splits : {false, true}) {
     SCOPED_TRACE(splits ? "spatial splits" : "binned");
-    const FlatBvh bvh = build_bvh(tris, with_splits(splits), /*collapse=*/false);
+    const FlatBvh bvh = build_bvh(tris, with_splits(splits), /*layout=*/std::nullopt);
     if (splits) {
       ASSERT_GT(bvh.triangles.size(), tris.size()) << "splits referenced some triangles twice";
     }

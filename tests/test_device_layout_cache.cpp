@@ -12,6 +12,8 @@
 #include "io/content_hash.h"
 #include "scene/primitives.h"
 #include "support/brute_force.h"
+#include "support/bvh_layout_test.h"
+#include "support/scoped_env.h"
 #include "support/test_support.h"
 #include "trace/ray_batch_tracer.h"
 
@@ -123,8 +125,7 @@ TEST(DeviceLayoutCache, MapsBackExactlyTheLayoutOfEachNodeLayout) {
   const std::uint64_t key = f.key;
   for (const BvhLayout layout : {BvhLayout::Binary, BvhLayout::Wide4, BvhLayout::Wide8, BvhLayout::Compressed8}) {
     SCOPED_TRACE(to_string(layout));
-    set_bvh_layout(layout);
-    DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+    DeviceSet set = DeviceSet::create(test::options_in_layout(layout));
     ASSERT_EQ(set.bvh_layout(), layout);
     EXPECT_EQ(cache.open(key, layout, BvhBuildOptions{}, scene.triangles.size()), nullptr) << "nothing stored yet";
     const auto mapped = store_and_open(set, scene, built, cache, key);
@@ -146,7 +147,6 @@ TEST(DeviceLayoutCache, MapsBackExactlyTheLayoutOfEachNodeLayout) {
     EXPECT_EQ(reinterpret_cast<std::uintptr_t>(mapped->triangles()) % 4096, 0u);
     EXPECT_EQ(reinterpret_cast<std::uintptr_t>(mapped->shading()) % 4096, 0u);
   }
-  set_bvh_layout(std::nullopt);
 }
 
 // A DeviceScene made from the mapping traces as the scene's triangles say: closest hits of rays
@@ -212,8 +212,7 @@ TEST(DeviceLayoutCache, AnotherSceneFlagOrLayoutIsAMiss) {
   const Scene& scene = f.scene;
   const FlatBvh& built = f.built;
   const std::uint64_t key = f.key;
-  set_bvh_layout(BvhLayout::Wide8);
-  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create(test::options_in_layout(BvhLayout::Wide8));
   ASSERT_NE(store_and_open(set, scene, built, cache, key), nullptr);
   const std::size_t n = scene.triangles.size();
   EXPECT_EQ(cache.open(key, BvhLayout::Wide4, BvhBuildOptions{}, n), nullptr) << "another layout";
@@ -238,7 +237,6 @@ TEST(DeviceLayoutCache, AnotherSceneFlagOrLayoutIsAMiss) {
   Scene red = scene;
   red.materials[0].diffuse = glm::vec3(0.9f, 0.1f, 0.1f);
   EXPECT_EQ(scene_content_key(red), key);
-  set_bvh_layout(std::nullopt);
 }
 
 TEST(DeviceLayoutCache, DamagedFilesAreMissesAndVerifyPayloadFindsAnyChangedByte) {
@@ -247,8 +245,7 @@ TEST(DeviceLayoutCache, DamagedFilesAreMissesAndVerifyPayloadFindsAnyChangedByte
   const Scene& scene = f.scene;
   const FlatBvh& built = f.built;
   const std::uint64_t key = f.key;
-  set_bvh_layout(BvhLayout::Wide8);
-  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create(test::options_in_layout(BvhLayout::Wide8));
   const auto mapped = store_and_open(set, scene, built, cache, key);
   ASSERT_NE(mapped, nullptr);
   const std::string path = mapped->path();
@@ -295,7 +292,6 @@ TEST(DeviceLayoutCache, DamagedFilesAreMissesAndVerifyPayloadFindsAnyChangedByte
   const auto intact = open();
   ASSERT_NE(intact, nullptr);
   EXPECT_TRUE(intact->verify_payload());
-  set_bvh_layout(std::nullopt);
 }
 
 // A start through SceneOnDevices, as `render` makes it: the first fills the cache, the second
@@ -304,8 +300,8 @@ TEST(DeviceLayoutCache, DamagedFilesAreMissesAndVerifyPayloadFindsAnyChangedByte
 // the scene's triangles, and stores its own layout for the next one.
 TEST(DeviceLayoutCache, StartsMapTheSetsLayoutAndSetAnotherLayoutAside) {
   test::TempDir dir;
-  setenv("PARALLAX_CACHE_DIR", (dir.path() / "cache").string().c_str(), 1);
-  unsetenv("PARALLAX_BVH_CACHE");
+  const test::ScopedEnv cache_dir("PARALLAX_CACHE_DIR", (dir.path() / "cache").string());
+  const test::ScopedEnv cache_on("PARALLAX_BVH_CACHE", std::nullopt);
   // A 120 x 100 grid of quads, 24,000 triangles: past the cache's threshold of 20,000.
   std::string obj;
   const int nx = 120, ny = 100;
@@ -334,9 +330,12 @@ TEST(DeviceLayoutCache, StartsMapTheSetsLayoutAndSetAnotherLayoutAside) {
   };
   std::vector<Hit> expected;
   {
-    setenv("PARALLAX_BVH_CACHE", "off", 1);
-    SceneOnDevices none(spec, one, /*quiet=*/true);
-    unsetenv("PARALLAX_BVH_CACHE");
+    std::optional<SceneOnDevices> none_start;
+    {
+      const test::ScopedEnv cache_off("PARALLAX_BVH_CACHE", "off");
+      none_start.emplace(spec, one, /*quiet=*/true);
+    }
+    SceneOnDevices& none = *none_start;
     EXPECT_FALSE(none.device_scene.layout_from_cache());
     expected = hits_of(none);
   }
@@ -365,12 +364,9 @@ TEST(DeviceLayoutCache, StartsMapTheSetsLayoutAndSetAnotherLayoutAside) {
   // it aside.
   for (const auto& e : std::filesystem::directory_iterator(dir.path() / "cache"))
     if (e.path().filename().string().rfind("device-layout-", 0) == 0) std::filesystem::remove(e.path());
-  set_bvh_layout(std::nullopt);
   const BvhLayout gpu_layout = bvh_layout_for(/*all_gpus=*/true);
-  ASSERT_NE(gpu_layout, bvh_layout()) << "the test needs the two device types' layouts to differ";
-  set_bvh_layout(gpu_layout);
-  { SceneOnDevices gpu_like(spec, one, true); }
-  set_bvh_layout(std::nullopt);
+  ASSERT_NE(gpu_layout, bvh_layout_for(/*all_gpus=*/false)) << "the test needs the two device types' layouts to differ";
+  { SceneOnDevices gpu_like(spec, test::options_in_layout(gpu_layout), true); }
   EXPECT_EQ(device_layout_files(), 1) << "the GPU-layout start stored its layout";
   {
     testing::internal::CaptureStderr();
@@ -387,7 +383,6 @@ TEST(DeviceLayoutCache, StartsMapTheSetsLayoutAndSetAnotherLayoutAside) {
     EXPECT_TRUE(again.device_scene.layout_from_cache()) << "the last start stored its own layout";
     EXPECT_TRUE(same_hits(hits_of(again)));
   }
-  unsetenv("PARALLAX_CACHE_DIR");
 }
 
 TEST(DeviceLayoutCache, NoFolderMeansNoCacheAndNoError) {
@@ -445,7 +440,7 @@ TEST(DeviceLayoutCache, AFlatSceneIsStoredAndMappedWithItsSixteenByteRecords) {
   store.content_key = key;
   Scene handed = scene;
   const auto host = DeviceScene::prepare_host(handed, [&handed] { return std::exchange(handed.triangles, {}); });
-  const DeviceScene stored(set, host, handed, build_bvh(scene.triangles, {}, /*collapse=*/false), store);
+  const DeviceScene stored(set, host, handed, build_bvh(scene.triangles, {}, /*layout=*/std::nullopt), store);
   ASSERT_TRUE(stored.flat_shading());
   auto mapped = cache.open(key, set.bvh_layout(), BvhBuildOptions{}, scene.triangles.size());
   ASSERT_NE(mapped, nullptr);

@@ -1,6 +1,6 @@
 // The scene on the devices (render/device_scene.h): one copy per OpenCL context, whatever the
 // number of devices, and a buffer too large for one allocation refused with an error that
-// names it and both sizes (PX_MAX_ALLOC_BYTES lowers the device's limit for the test).
+// names it and both sizes (PARALLAX_MAX_ALLOC_BYTES lowers the device's limit for the test).
 #include "app/scene_setup.h"
 #include "bvh/bvh_cache.h"
 #include "render/device_scene.h"
@@ -8,7 +8,9 @@
 #include "scene/scene_loader.h"
 #include "scene/primitives.h"
 #include "scene/scene_rig.h"
+#include "support/bvh_layout_test.h"
 #include "support/gltf_builder.h"
+#include "support/scoped_env.h"
 #include "support/test_support.h"
 
 #include <gtest/gtest.h>
@@ -62,13 +64,6 @@ TEST(DeviceScene, OneCopyPerContextServesEveryDevice) {
   EXPECT_GE(size_of(ds.on(0).triangles), scene.triangles.size() * sizeof(BvhTriangle));
 }
 
-// Sets an environment variable for one scope.
-struct ScopedEnv {
-  ScopedEnv(const char* name, const std::string& value) : name_(name) { setenv(name, value.c_str(), 1); }
-  ~ScopedEnv() { unsetenv(name_); }
-  const char* name_;
-};
-
 TEST(DeviceScene, ABufferOverTheAllocationLimitIsRefusedNamingItAndTheSizes) {
   const Scene scene = spheres();
   const FlatBvh bvh = build_bvh(scene.triangles);
@@ -81,7 +76,7 @@ TEST(DeviceScene, ABufferOverTheAllocationLimitIsRefusedNamingItAndTheSizes) {
     nodes = size_of(ds.on(0).nodes);
   }
   {
-    const ScopedEnv limit("PX_MAX_ALLOC_BYTES", std::to_string(nodes - 1));
+    const test::ScopedEnv limit("PARALLAX_MAX_ALLOC_BYTES", std::to_string(nodes - 1));
     try {
       DeviceScene ds(set, scene, bvh);
       ADD_FAILURE() << "a " << nodes << "-byte node buffer was accepted under a " << nodes - 1 << "-byte limit";
@@ -94,7 +89,7 @@ TEST(DeviceScene, ABufferOverTheAllocationLimitIsRefusedNamingItAndTheSizes) {
     }
   }
   // At exactly its size it fits (every other buffer of this scene is smaller).
-  const ScopedEnv exact("PX_MAX_ALLOC_BYTES", std::to_string(nodes));
+  const test::ScopedEnv exact("PARALLAX_MAX_ALLOC_BYTES", std::to_string(nodes));
   EXPECT_NO_THROW(DeviceScene(set, scene, bvh));
 }
 
@@ -165,7 +160,7 @@ TEST(DeviceScene, ShadingMadeInTheHandedOverTrianglesIsTheSameBuffer) {
   // A tree handed over without its wide nodes (load_and_build's for SceneOnDevices): they are
   // made after the shading records, validated against the leaf triangles, and the same words.
   Scene late = scene;
-  const DeviceScene collapsed_late(set, late, build_bvh(scene.triangles, {}, /*collapse=*/false), {}, {},
+  const DeviceScene collapsed_late(set, late, build_bvh(scene.triangles, {}, /*layout=*/std::nullopt), {}, {},
                                    [&late] { return std::exchange(late.triangles, {}); });
   EXPECT_EQ(read_back(set, collapsed_late.on(0).nodes), nodes);
   EXPECT_EQ(read_back(set, collapsed_late.on(0).triangles), refs);
@@ -188,17 +183,16 @@ TEST(DeviceScene, TwoStepsBeforeTheDevicesGiveTheOneStepBuffers) {
   const Scene scene = spheres();
   for (const BvhLayout layout : {BvhLayout::Binary, BvhLayout::Wide4, BvhLayout::Wide8, BvhLayout::Compressed8}) {
     SCOPED_TRACE(to_string(layout));
-    set_bvh_layout(layout);
     Scene first = scene;
     const auto host = DeviceScene::prepare_host(first, [&first] { return std::exchange(first.triangles, {}); });
     EXPECT_TRUE(first.triangles.empty()) << "handed over before any device exists";
-    DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+    DeviceSet set = DeviceSet::create(test::options_in_layout(layout, 2));
     ASSERT_EQ(set.bvh_layout(), layout);
-    const DeviceScene two(set, host, first, build_bvh(scene.triangles, {}, /*collapse=*/false));
+    const DeviceScene two(set, host, first, build_bvh(scene.triangles, {}, /*layout=*/std::nullopt));
     Scene second = scene;
-    const DeviceScene one(set, second, build_bvh(scene.triangles), {}, {},
+    const DeviceScene one(set, second, build_bvh(scene.triangles, {}, layout), {}, {},
                           [&second] { return std::exchange(second.triangles, {}); });
-    const DeviceScene kept(set, scene, build_bvh(scene.triangles));
+    const DeviceScene kept(set, scene, build_bvh(scene.triangles, {}, layout));
     EXPECT_EQ(two.leaf_refs(), layout == BvhLayout::Wide4 || layout == BvhLayout::Wide8);
     EXPECT_EQ(one.leaf_refs(), two.leaf_refs());
     EXPECT_EQ(two.kernel_options(), one.kernel_options());
@@ -213,7 +207,6 @@ TEST(DeviceScene, TwoStepsBeforeTheDevicesGiveTheOneStepBuffers) {
       EXPECT_EQ(read_back(set, two.on(0).triangles), read_back(set, kept.on(0).triangles));
     }
   }
-  set_bvh_layout(std::nullopt);
   Scene animated = scene;
   animated.rig = std::make_shared<SceneRig>();
   EXPECT_THROW(DeviceScene::prepare_host(animated, [&animated] { return std::exchange(animated.triangles, {}); }),
@@ -255,7 +248,7 @@ TEST(DeviceScene, AFlatUntexturedSceneGetsSixteenByteRecordsAndTheSameImage) {
   const DeviceScene full(set, scene, build_bvh(scene.triangles));
   Scene handed = scene;
   const auto host = DeviceScene::prepare_host(handed, [&handed] { return std::exchange(handed.triangles, {}); });
-  const DeviceScene flat(set, host, handed, build_bvh(scene.triangles, {}, /*collapse=*/false));
+  const DeviceScene flat(set, host, handed, build_bvh(scene.triangles, {}, /*layout=*/std::nullopt));
   EXPECT_FALSE(full.flat_shading());
   ASSERT_TRUE(flat.flat_shading());
   EXPECT_NE(flat.kernel_options().find("-DPX_FLAT_SHADING=1"), std::string::npos);
@@ -293,7 +286,7 @@ TEST(DeviceScene, AFlatUntexturedSceneGetsSixteenByteRecordsAndTheSameImage) {
   EXPECT_FALSE(has_flat_shading(smooth.triangles)) << "an icosphere's normals are per vertex";
   const auto smooth_host = DeviceScene::prepare_host(smooth, [&smooth] { return std::exchange(smooth.triangles, {}); });
   const Scene spheres_scene = spheres();
-  const DeviceScene smooth_ds(set, smooth_host, smooth, build_bvh(spheres_scene.triangles, {}, false));
+  const DeviceScene smooth_ds(set, smooth_host, smooth, build_bvh(spheres_scene.triangles, {}, std::nullopt));
   EXPECT_FALSE(smooth_ds.flat_shading());
 }
 
@@ -321,8 +314,8 @@ TEST(DeviceScene, AFlatSceneBuildsItsTreeFromCornersPackedWhereItsTrianglesWere)
   EXPECT_EQ(bad, 0u);
   const BvhBuildOptions options;
   EXPECT_EQ(bvh_input_hash(corners.source(), options), bvh_input_hash(scene.triangles, options));
-  FlatBvh from_corners = build_bvh(corners.source(), options, /*collapse=*/false);
-  const FlatBvh from_triangles = build_bvh(scene.triangles, options, /*collapse=*/false);
+  FlatBvh from_corners = build_bvh(corners.source(), options, /*layout=*/std::nullopt);
+  const FlatBvh from_triangles = build_bvh(scene.triangles, options, /*layout=*/std::nullopt);
   ASSERT_EQ(from_corners.nodes.size(), from_triangles.nodes.size());
   ASSERT_EQ(from_corners.triangles.size(), from_triangles.triangles.size());
   EXPECT_EQ(std::memcmp(from_corners.nodes.data(), from_triangles.nodes.data(), from_triangles.nodes.size() * sizeof(BvhNode)), 0);

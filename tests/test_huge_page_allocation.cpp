@@ -1,6 +1,8 @@
 // host/io/huge_page_allocation.cpp: a large allocation lands on transparent huge pages once
 // written, which 4 KiB pages would not (where the system's setting is "madvise", the advice is
 // the only way there).
+#include "io/environment.h"
+
 #include <gtest/gtest.h>
 
 #include <cstdint>
@@ -47,7 +49,7 @@ TEST(HugePageAllocation, ALargeBlockIsBackedByHugePagesOnceWritten) {
   const std::string setting = thp_setting();
   if (setting.empty() || setting.find("[never]") != std::string::npos)
     GTEST_SKIP() << "transparent huge pages are off here ('" << setting << "')";
-  if (const char* v = std::getenv("PARALLAX_HUGE_PAGES"); v && std::strcmp(v, "off") == 0)
+  if (!px::environment().huge_pages)
     GTEST_SKIP() << "PARALLAX_HUGE_PAGES=off";
   constexpr std::size_t kBytes = std::size_t{64} << 20;
   const std::unique_ptr<char[]> block(new char[kBytes]);

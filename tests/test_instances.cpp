@@ -283,11 +283,11 @@ class InstancedTrace : public test::BvhLayoutTest {};
 // Closest hits and occlusion of the instanced scene on the device against Embree on its flat
 // copy: the same distance where both hit, the same answer nearly everywhere (a ray that grazes
 // an edge may see it on one side and not the other, as transformed vertices round differently).
-void expect_traces_like_embree(const Scene& scene, const char* label) {
+void expect_traces_like_embree(DeviceSet& devices, const Scene& scene, const char* label) {
   const Scene flat = flattened(scene);
-  DeviceScene device_scene(one_device(), scene, build_world_bvh(scene));
+  DeviceScene device_scene(devices, scene, build_world_bvh(scene));
   EXPECT_NE(device_scene.kernel_features() & PX_FEATURE_INSTANCES, 0u);
-  RayBatchTracer tracer(one_device(), device_scene);
+  RayBatchTracer tracer(devices, device_scene);
   const std::vector<Ray> rays = rays_through(flat, 20000, 11);
   const std::vector<Hit> hits = tracer.closest(rays);
   const std::vector<std::uint32_t> occluded = tracer.occluded(rays);
@@ -319,9 +319,9 @@ void expect_traces_like_embree(const Scene& scene, const char* label) {
 }
 
 TEST_P(InstancedTrace, HitsWhatEmbreeHitsInTheSceneFlattened) {
-  expect_traces_like_embree(instanced_scene(60, true, 5), "instances over a ground quad");
-  expect_traces_like_embree(instanced_scene(60, false, 6), "instances only (no world triangles)");
-  expect_traces_like_embree(instanced_scene(1, true, 7), "one instance");
+  expect_traces_like_embree(layout_device(), instanced_scene(60, true, 5), "instances over a ground quad");
+  expect_traces_like_embree(layout_device(), instanced_scene(60, false, 6), "instances only (no world triangles)");
+  expect_traces_like_embree(layout_device(), instanced_scene(1, true, 7), "one instance");
 }
 
 INSTANTIATE_TEST_SUITE_P(Layouts, InstancedTrace, test::all_bvh_layouts(), test::bvh_layout_name);

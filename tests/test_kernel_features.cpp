@@ -169,9 +169,12 @@ struct Images {
 // the preview, with the given kernels.
 // `hand_over`: the device scene takes the triangles of a copy of the scene (SceneOnDevices' way:
 // leaf triangles as BvhLeafRef records in the wide layouts), which the renderers then get.
+// `layout`: the set's BVH node layout (nullopt: its device type's default).
 Images render_with(const LoadedScene& loaded, KernelChoice kernels, PathTraceKernel path_kernel, unsigned w, unsigned h,
-                   bool hand_over = false) {
-  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+                   bool hand_over = false, std::optional<BvhLayout> layout = std::nullopt) {
+  DeviceOptions options{2, DeviceMode::Auto, ""};
+  options.bvh_layout = layout;
+  DeviceSet set = DeviceSet::create(options);
   Scene copy = loaded.scene;
   DeviceScene ds = hand_over ? DeviceScene(set, copy, loaded.bvh, {}, {}, [&copy] { return std::exchange(copy.triangles, {}); })
                              : DeviceScene(set, loaded.scene, loaded.bvh);
@@ -267,14 +270,13 @@ TEST(KernelFeatures, LeafRefsRenderTheImagesOfFullLeafTriangles) {
   scenes.push_back(std::move(every));
   for (const char* name : {"cornell", "atrium"}) scenes.push_back(load_and_build(name, true));
   for (const BvhLayout layout : {BvhLayout::Wide8, BvhLayout::Wide4}) {
-    set_bvh_layout(layout);
     for (const LoadedScene& loaded : scenes) {
       SCOPED_TRACE(loaded.scene.name + std::string(", ") + to_string(layout));
       FlatBvh tree = loaded.bvh;
       ensure_layout(tree, layout);
       LoadedScene in_layout{loaded.scene, tree, {}};
-      const auto full = render_with(in_layout, KernelChoice::Scene, PathTraceKernel::Megakernel, 40, 28);
-      const auto refs = render_with(in_layout, KernelChoice::Scene, PathTraceKernel::Megakernel, 40, 28, true);
+      const auto full = render_with(in_layout, KernelChoice::Scene, PathTraceKernel::Megakernel, 40, 28, false, layout);
+      const auto refs = render_with(in_layout, KernelChoice::Scene, PathTraceKernel::Megakernel, 40, 28, true, layout);
       for (std::size_t f = 0; f < full.frames.size(); ++f)
         for (int e = 0; e < 2; ++e) EXPECT_TRUE(same_bits(full.frames[f][e], refs.frames[f][e])) << "frame " << f << ", eye " << e;
       for (int e = 0; e < 2; ++e) {
@@ -283,7 +285,6 @@ TEST(KernelFeatures, LeafRefsRenderTheImagesOfFullLeafTriangles) {
       }
     }
   }
-  set_bvh_layout(std::nullopt);
 }
 
 }  // namespace

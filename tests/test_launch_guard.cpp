@@ -1,7 +1,7 @@
 // Launches of one kernel on several queues of one device at different global sizes: PoCL's
 // work-group-function cache miscounted them and aborted (host/cl/pocl_launch_guard.h). These
 // tests run that pattern through launch_1d (8 queues, every launch wider than the last, which
-// aborts PoCL 3.1 without the guard: PX_POCL_LAUNCH_GUARD=0 shows it), check every value against
+// aborts PoCL 3.1 without the guard: PARALLAX_POCL_LAUNCH_GUARD=off shows it), check every value against
 // the host, and check the order the guard promises from the launches' own profiling times.
 #include "cl/device_set.h"
 #include "cl/launch.h"
@@ -102,9 +102,9 @@ TEST(PoclLaunchGuard, EightQueuesLaunchingOneKernelAtGrowingSizesRunToTheEnd) {
   const long before = PoclLaunchGuard::widening_launches();
   std::vector<std::size_t> sizes;
   for (std::size_t k = 0; k < 16 * 8; ++k) sizes.push_back(kLocalSize * (1 + k));  // each launch wider
-  // Without the guard (PX_POCL_LAUNCH_GUARD=0) PoCL 3.1 aborts in here.
+  // Without the guard (PARALLAX_POCL_LAUNCH_GUARD=off) PoCL 3.1 aborts in here.
   auto launches = launch_round_robin(set, "probe_busy", sizes);
-  if (!set.guards_launches()) GTEST_SKIP() << "PX_POCL_LAUNCH_GUARD=0: ran unguarded (and survived)";
+  if (!set.guards_launches()) GTEST_SKIP() << "PARALLAX_POCL_LAUNCH_GUARD=off: ran unguarded (and survived)";
   // Every launch is wider than the last, and the kernel is new to this process: the guard must
   // count each as widening.
   EXPECT_EQ(PoclLaunchGuard::widening_launches() - before, static_cast<long>(sizes.size()));
@@ -114,7 +114,7 @@ TEST(PoclLaunchGuard, EightQueuesLaunchingOneKernelAtGrowingSizesRunToTheEnd) {
 TEST(PoclLaunchGuard, LaunchesNoWiderThanBeforeOnlyWaitForTheWideningOne) {
   // Strips of different heights: three queues, sizes that differ between queues and repeat.
   DeviceSet set = DeviceSet::create({3, DeviceMode::SharedQueues, ""});
-  if (!set.guards_launches()) GTEST_SKIP() << "no guard on these devices (not PoCL CPU, or PX_POCL_LAUNCH_GUARD=0)";
+  if (!set.guards_launches()) GTEST_SKIP() << "no guard on these devices (not PoCL CPU, or PARALLAX_POCL_LAUNCH_GUARD=off)";
   std::vector<std::size_t> sizes;
   for (int frame = 0; frame < 12; ++frame)
     for (std::size_t rows : {21, 21, 22}) sizes.push_back(rows * 96 + (frame == 5 ? 64u : 0u));  // frame 5 grows

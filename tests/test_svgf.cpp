@@ -1134,12 +1134,12 @@ TEST(SvgfDistributed, StripsMovingEveryFrameKeepImagesBitIdentical) {
   // queues on one OpenCL device, and PoCL 3.1 aborts (pocl_release_dlhandle_cache) when such
   // queues launch one kernel at growing sizes, as growing strips do, unless PoclLaunchGuard
   // orders those launches (pocl_launch_guard.h). With the guard switched off
-  // (PX_POCL_LAUNCH_GUARD=0) this test cannot run there.
+  // (PARALLAX_POCL_LAUNCH_GUARD=off) this test cannot run there.
   {
     const DeviceSet three = DeviceSet::create({3, DeviceMode::Auto, ""});
     if (three.mode() == DeviceMode::SharedQueues && !three.guards_launches() &&
         three.platform_name().find("Portable Computing Language") != std::string::npos)
-      GTEST_SKIP() << "3 devices are PoCL queues on one device here and PX_POCL_LAUNCH_GUARD=0: PoCL 3.1 would abort";
+      GTEST_SKIP() << "3 devices are PoCL queues on one device here and PARALLAX_POCL_LAUNCH_GUARD=off: PoCL 3.1 would abort";
   }
   for (PipelineKind kind : {PipelineKind::Proposed, PipelineKind::Mono}) {
     const auto reference = run_with_strips(cornell(), kind, 1, one_device, w, h);

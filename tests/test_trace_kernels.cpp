@@ -39,7 +39,7 @@ struct TraceFixture {
       for (auto& m : scene.materials) m.alpha_texture = -1;
     BvhBuildOptions opt;
     opt.spatial_splits = spatial_splits;
-    bvh = build_bvh(scene.triangles, opt);
+    bvh = build_bvh(scene.triangles, opt, devices.bvh_layout());
     auto check = validate_bvh(bvh, scene.triangles);
     EXPECT_TRUE(check.ok) << (check.errors.empty() ? "" : check.errors.front());
     device_scene = std::make_unique<DeviceScene>(devices, scene, bvh);
@@ -47,8 +47,8 @@ struct TraceFixture {
   }
 };
 
-// Every trace test runs once per BVH node layout (binary, 4-wide, 8-wide, compressed 8-wide): the layout is
-// process-wide, so the fixture sets it before the test builds its tree and device scene.
+// Every trace test runs once per BVH node layout (binary, 4-wide, 8-wide, compressed 8-wide), on a
+// device set asked for it (layout_device(), layout_options()).
 class TraceKernels : public test::BvhLayoutTest {};
 
 DeviceSet& one_device() {
@@ -152,14 +152,14 @@ void expect_matches_brute_force(const std::vector<SceneTriangle>& tris, const st
 
 TEST_P(TraceKernels, ClosestHitMatchesBruteForceOnRandomSoup) {
   for (bool splits : {false, true}) {
-    TraceFixture f(one_device(), scene_from(random_soup(3000, 7)), splits);
+    TraceFixture f(layout_device(), scene_from(random_soup(3000, 7)), splits);
     auto rays = random_rays(f.scene.triangles, 3000, 11);
     expect_matches_brute_force(f.scene.triangles, rays, f.tracer->closest(rays));
   }
 }
 
 TEST_P(TraceKernels, ClosestHitMatchesBruteForceOnCornell) {
-  TraceFixture f(one_device(), make_builtin_scene("cornell"));
+  TraceFixture f(layout_device(), make_builtin_scene("cornell"));
   auto rays = random_rays(f.scene.triangles, 4000, 3);
   expect_matches_brute_force(f.scene.triangles, rays, f.tracer->closest(rays));
 }
@@ -167,14 +167,14 @@ TEST_P(TraceKernels, ClosestHitMatchesBruteForceOnCornell) {
 TEST_P(TraceKernels, ClosestHitMatchesBruteForceOnAtrium) {
   // Reduced detail keeps the O(rays x triangles) reference affordable; the full-size atrium is
   // checked against Embree below.
-  TraceFixture f(one_device(), make_builtin_scene("atrium", {{"detail", 0.05}}));
+  TraceFixture f(layout_device(), make_builtin_scene("atrium", {{"detail", 0.05}}));
   ASSERT_GT(f.scene.triangles.size(), 1000u);
   auto rays = random_rays(f.scene.triangles, 1500, 5);
   expect_matches_brute_force(f.scene.triangles, rays, f.tracer->closest(rays));
 }
 
 TEST_P(TraceKernels, ClosestHitMatchesEmbreeOnFullAtrium) {
-  TraceFixture f(one_device(), make_builtin_scene("atrium"));
+  TraceFixture f(layout_device(), make_builtin_scene("atrium"));
   EmbreeReference embree(f.scene.triangles);
   auto rays = random_rays(f.scene.triangles, 20000, 9);
   auto hits = f.tracer->closest(rays);
@@ -198,7 +198,7 @@ TEST_P(TraceKernels, TinyScenesWithAOneLeafTree) {
     std::vector<SceneTriangle> tris;
     for (int i = 0; i < count; ++i)
       append_triangle(tris, {-1.0f, -1.0f, float(i)}, {1.0f, -1.0f, float(i)}, {0.0f, 1.0f, float(i)}, 0);
-    TraceFixture f(one_device(), scene_from(tris));
+    TraceFixture f(layout_device(), scene_from(tris));
     std::vector<Ray> rays{make_ray({0.0f, 0.0f, -5.0f}, {0.0f, 0.0f, 1.0f}), make_ray({5.0f, 5.0f, -5.0f}, {0.0f, 0.0f, 1.0f})};
     auto hits = f.tracer->closest(rays);
     ASSERT_EQ(hits[0].prim, 0u) << count << " triangles";
@@ -211,7 +211,7 @@ TEST_P(TraceKernels, TinyScenesWithAOneLeafTree) {
 }
 
 TEST_P(TraceKernels, AnyHitAgreesWithClosestHit) {
-  TraceFixture f(one_device(), scene_from(random_soup(2000, 21)));
+  TraceFixture f(layout_device(), scene_from(random_soup(2000, 21)));
   auto rays = random_rays(f.scene.triangles, 3000, 22);
   // Half the rays get a finite tmax so occlusion is decided by the interval, not just hit/miss.
   for (std::size_t i = 0; i < rays.size(); i += 2) rays[i].tmax = 3.0f;
@@ -223,8 +223,8 @@ TEST_P(TraceKernels, AnyHitAgreesWithClosestHit) {
 
 // Rays aimed exactly at every vertex and edge midpoint of a closed mesh, from outside and from
 // inside, never miss: the watertight test leaves no crack between neighbours.
-void expect_watertight(const std::vector<SceneTriangle>& mesh, glm::vec3 inside) {
-  TraceFixture f(one_device(), scene_from(mesh));
+void expect_watertight(DeviceSet& devices, const std::vector<SceneTriangle>& mesh, glm::vec3 inside) {
+  TraceFixture f(devices, scene_from(mesh));
   auto b = bounds_of(mesh);
   const float radius = 2.0f * glm::length(b.hi - b.lo);
   std::vector<Ray> rays;
@@ -265,13 +265,13 @@ void expect_watertight(const std::vector<SceneTriangle>& mesh, glm::vec3 inside)
 TEST_P(TraceKernels, WatertightIcosphere) {
   std::vector<SceneTriangle> m;
   append_icosphere(m, glm::vec3(0.3f, -0.2f, 0.1f), 1.7f, 3, 0);
-  expect_watertight(m, glm::vec3(0.3f, -0.2f, 0.1f));
+  expect_watertight(layout_device(), m, glm::vec3(0.3f, -0.2f, 0.1f));
 }
 
 TEST_P(TraceKernels, WatertightCube) {
   std::vector<SceneTriangle> m;
   append_box(m, glm::vec3(-1.0f), glm::vec3(1.0f, 2.0f, 0.5f), 0);
-  expect_watertight(m, glm::vec3(0.1f, 0.2f, -0.1f));
+  expect_watertight(layout_device(), m, glm::vec3(0.1f, 0.2f, -0.1f));
 }
 
 TEST_P(TraceKernels, WatertightCornellRoom) {
@@ -288,7 +288,7 @@ TEST_P(TraceKernels, WatertightCornellRoom) {
            all([&](glm::vec3 p) { return p.z == b.hi.z; }) || all([&](glm::vec3 p) { return p.x >= 549.0f; }) ||
            (all([&](glm::vec3 p) { return p.y == b.lo.y; }) && triangle_area(t) > 1e4);
   };
-  TraceFixture f(one_device(), s);
+  TraceFixture f(layout_device(), s);
   std::vector<Ray> rays;
   for (const auto& t : s.triangles) {
     if (!on_wall(t)) continue;
@@ -306,7 +306,7 @@ TEST_P(TraceKernels, WatertightCornellRoom) {
 TEST_P(TraceKernels, AxisAlignedAndGrazingRays) {
   std::vector<SceneTriangle> m;
   append_box(m, glm::vec3(-1.0f), glm::vec3(1.0f), 0);
-  TraceFixture f(one_device(), scene_from(m));
+  TraceFixture f(layout_device(), scene_from(m));
   std::vector<Ray> rays;
   std::vector<float> expect_t;
   // Zero direction components: axis-parallel rays at face interiors have exact answers.
@@ -370,7 +370,7 @@ TEST_P(TraceKernels, DegenerateTrianglesAreNeverHit) {
   append_triangle(m, {-2, 0, 0}, {2, 0, 0}, {0, 0, 0}, 0);
   append_triangle(m, {0, 0, -1.5f}, {0, 0, -1.5f}, {0, 0, -1.5f}, 0);
   append_triangle(m, {-0.5f, -0.5f, -1.2f}, {0.5f, 0.5f, -1.2f}, {0.0f, 0.0f, -1.2f}, 0);
-  TraceFixture f(one_device(), scene_from(m));
+  TraceFixture f(layout_device(), scene_from(m));
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> u(-0.6f, 0.6f);
   std::vector<Ray> rays;
@@ -397,7 +397,7 @@ TEST_P(TraceKernels, NoSelfIntersectionFarFromOrigin) {
     std::vector<SceneTriangle> m;
     append_icosphere(m, shift, 1.0f * scale, 3, 0);
     append_box(m, shift + glm::vec3(2.0f, -1.0f, -1.0f) * scale, shift + glm::vec3(3.0f, 1.0f, 1.0f) * scale, 0);
-    TraceFixture f(one_device(), scene_from(m));
+    TraceFixture f(layout_device(), scene_from(m));
     std::mt19937 rng(static_cast<std::uint32_t>(offset) + 1);
     std::vector<Ray> primary;
     for (int i = 0; i < 2000; ++i) {
@@ -449,7 +449,7 @@ TEST_P(TraceKernels, RaysStartingOnATriangleDoNotHitItAtZeroDistance) {
   append_triangle(planes, {-1.0f, -1.0f, 0.0f}, {3.0f, -1.0f, 0.0f}, {-1.0f, 3.0f, 0.0f}, 0);
   append_triangle(planes, {-9.0f, -9.0f, 1.0f}, {27.0f, -9.0f, 1.0f}, {-9.0f, 27.0f, 1.0f}, 0);
   {
-    TraceFixture f(one_device(), scene_from(planes));
+    TraceFixture f(layout_device(), scene_from(planes));
     std::mt19937 rng(5);
     std::uniform_real_distribution<float> in(-0.5f, 0.5f);
     std::vector<Ray> rays;
@@ -476,7 +476,7 @@ TEST_P(TraceKernels, RaysStartingOnATriangleDoNotHitItAtZeroDistance) {
   std::vector<SceneTriangle> sphere;
   const glm::vec3 centre(0.3f, -0.2f, 0.1f);
   append_icosphere(sphere, centre, 1.5f, 2, 0);
-  TraceFixture f(one_device(), scene_from(sphere));
+  TraceFixture f(layout_device(), scene_from(sphere));
   std::vector<Ray> rays;
   for (const auto& t : sphere)
     for (const auto& p : t.p) rays.push_back(make_ray(p, glm::normalize(p - centre)));
@@ -504,7 +504,7 @@ TEST_P(TraceKernels, AlphaCutoutsPassThroughTransparentTexels) {
   // A card in the z = 0 plane, u along x, and a wall behind it at z = 5.
   append_quad(s.triangles, {-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}, 1);
   append_quad(s.triangles, {-3, -3, 5}, {3, -3, 5}, {3, 3, 5}, {-3, 3, 5}, 0);
-  TraceFixture f(one_device(), s, true, /*keep_alpha=*/true);
+  TraceFixture f(layout_device(), s, true, /*keep_alpha=*/true);
   std::vector<Ray> rays;
   for (float y : {-0.7f, 0.0f, 0.6f})
     for (float u : {0.05f, 0.15f, 0.3f, 0.7f, 0.85f, 0.95f}) rays.push_back(make_ray({2.0f * u - 1.0f, y, -2.0f}, {0, 0, 1}));
@@ -537,7 +537,7 @@ TEST_P(TraceKernels, SameHitsWithOneTwoAndFourDevices) {
   std::vector<Hit> reference;
   for (auto [count, mode] : {std::pair{1, DeviceMode::Auto}, {2, DeviceMode::Auto}, {4, DeviceMode::Auto},
                              {2, DeviceMode::SharedQueues}, {3, DeviceMode::SharedQueues}}) {
-    DeviceSet set = DeviceSet::create({count, mode, ""});
+    DeviceSet set = DeviceSet::create(layout_options(count, mode));
     ASSERT_EQ(set.size(), count);
     TraceFixture f(set, s);
     auto hits = f.tracer->closest(rays);
@@ -551,45 +551,29 @@ TEST_P(TraceKernels, SameHitsWithOneTwoAndFourDevices) {
   }
 }
 
-// Restores the process's layout request when a test ends.
-class LayoutRequestGuard {
- public:
-  LayoutRequestGuard() : saved_(requested_bvh_layout()) {}
-  ~LayoutRequestGuard() { set_bvh_layout(saved_); }
-
- private:
-  std::optional<BvhLayout> saved_;
-};
-
 TEST(BvhLayoutChoice, EachDeviceTypeHasItsDefaultUnlessALayoutIsRequested) {
-  LayoutRequestGuard guard;
-  set_bvh_layout(std::nullopt);
-  EXPECT_FALSE(requested_bvh_layout().has_value());
   EXPECT_EQ(bvh_layout_for(false), BvhLayout::Wide8);
   EXPECT_EQ(bvh_layout_for(true), BvhLayout::Binary);
-  EXPECT_EQ(bvh_layout(), BvhLayout::Wide8);
   DeviceSet& set = one_device();
   const bool gpus = std::all_of(set.devices().begin(), set.devices().end(),
                                 [](const ComputeDevice& d) { return d.is_gpu(); });
+  EXPECT_FALSE(set.bvh_layout_requested());
   EXPECT_EQ(set.bvh_layout(), gpus ? BvhLayout::Binary : BvhLayout::Wide8);
-  set_bvh_layout(BvhLayout::Binary);
-  EXPECT_EQ(bvh_layout_for(false), BvhLayout::Binary);
-  EXPECT_EQ(bvh_layout_for(true), BvhLayout::Binary);
-  EXPECT_EQ(set.bvh_layout(), BvhLayout::Binary);
+  const DeviceSet binary = DeviceSet::create(test::options_in_layout(BvhLayout::Binary));
+  EXPECT_TRUE(binary.bvh_layout_requested());
+  EXPECT_EQ(binary.bvh_layout(), BvhLayout::Binary);
 }
 
 // A DeviceScene may get a tree made for another layout (load_and_build collapses for CPUs) and
 // makes the nodes its set traverses: here a binary-only tree uploaded to a set asked for cwbvh.
 TEST(BvhLayoutChoice, DeviceSceneMakesTheNodesItsSetTraverses) {
-  LayoutRequestGuard guard;
-  set_bvh_layout(BvhLayout::Binary);
   Scene scene = scene_from(random_soup(2000, 5));
-  const FlatBvh bvh = build_bvh(scene.triangles);
+  const FlatBvh bvh = build_bvh(scene.triangles, {}, BvhLayout::Binary);
   ASSERT_TRUE(bvh.nodes8.empty() && bvh.cnodes.empty());
-  set_bvh_layout(BvhLayout::Compressed8);
-  DeviceScene device_scene(one_device(), scene, bvh);
+  DeviceSet& cwbvh = test::device_in_layout(BvhLayout::Compressed8);
+  DeviceScene device_scene(cwbvh, scene, bvh);
   EXPECT_EQ(device_scene.layout(), BvhLayout::Compressed8);
-  RayBatchTracer tracer(one_device(), device_scene);
+  RayBatchTracer tracer(cwbvh, device_scene);
   const auto rays = random_rays(scene.triangles, 2000, 9);
   expect_matches_brute_force(scene.triangles, rays, tracer.closest(rays));
 }

@@ -41,6 +41,15 @@ const WordTable<DeviceMode>& device_mode_words() {
   return words;
 }
 
+const WordTable<std::optional<BvhLayout>>& bvh_layout_words() {
+  static const WordTable<std::optional<BvhLayout>> words{{"auto", std::nullopt},
+                                                         {"binary", BvhLayout::Binary},
+                                                         {"wide4", BvhLayout::Wide4},
+                                                         {"wide8", BvhLayout::Wide8},
+                                                         {"cwbvh", BvhLayout::Compressed8}};
+  return words;
+}
+
 const WordTable<PathTraceKernel>& path_tracer_words() {
   static const WordTable<PathTraceKernel> words{{"megakernel", PathTraceKernel::Megakernel},
                                                 {"wavefront", PathTraceKernel::Wavefront}};
@@ -95,5 +104,6 @@ const std::string& cli_word(PathTraceKernel value) { return word_of(path_tracer_
 const std::string& cli_word(SkyMode value) { return word_of(sky_words(), value); }
 const std::string& cli_word(KernelChoice value) { return word_of(kernel_words(), value); }
 const std::string& cli_word(PixelJitter value) { return word_of(jitter_words(), value); }
+const std::string& cli_word(std::optional<BvhLayout> value) { return word_of(bvh_layout_words(), value); }
 
 }  // namespace px

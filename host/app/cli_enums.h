@@ -5,6 +5,7 @@
 #pragma once
 
 #include "app/commands.h"
+#include "bvh/flat_bvh.h"
 #include "cl/device_set.h"
 #include "pipeline/stereo_pipeline.h"
 #include "pipeline/strip_schedule.h"
@@ -12,6 +13,7 @@
 #include "render/wavefront_path_tracer.h"
 #include "scene/scene_loader.h"
 
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -31,6 +33,7 @@ const WordTable<SkyMode>& sky_words();                // auto, on, off
 const WordTable<PathTraceKernel>& path_tracer_words();  // megakernel, wavefront
 const WordTable<KernelChoice>& kernel_words();         // scene, general
 const WordTable<PixelJitter>& jitter_words();          // halton, centre
+const WordTable<std::optional<BvhLayout>>& bvh_layout_words();  // auto (nullopt), binary, wide4, wide8, cwbvh
 
 // The word of a value, as the flag takes it (named apart from the libraries' to_string so that
 // a call is never ambiguous).
@@ -43,6 +46,7 @@ const std::string& cli_word(SkyMode value);
 const std::string& cli_word(PathTraceKernel value);
 const std::string& cli_word(KernelChoice value);
 const std::string& cli_word(PixelJitter value);
+const std::string& cli_word(std::optional<BvhLayout> value);
 
 // render --aov: a comma-separated list of auxiliary image names (albedo, normal; each at most
 // once). Throws std::invalid_argument naming an unknown or repeated name, or an empty entry.

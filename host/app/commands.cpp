@@ -45,7 +45,7 @@ void write_stereo(const OutputDir& dir, const std::string& prefix, const std::ar
 
 }  // namespace
 
-DeviceOptions DeviceChoice::options() const { return {count, mode, platform}; }
+DeviceOptions DeviceChoice::options() const { return {count, mode, platform, bvh_layout}; }
 
 int run_devices(const DeviceChoice& choice) {
   std::printf("%s", describe_platforms().c_str());

@@ -18,6 +18,7 @@ struct DeviceChoice {
   int count = 1;
   DeviceMode mode = DeviceMode::Auto;
   std::string platform;
+  std::optional<BvhLayout> bvh_layout;  // --bvh-layout (auto: nullopt, the device type's default)
   DeviceOptions options() const;
 };
 

@@ -38,6 +38,17 @@ void add_device_flags(CLI::App* cmd, px::DeviceChoice& d) {
   cmd->add_option("--platform", d.platform,
                   "substring of the OpenCL platform name (default: $PARALLAX_PLATFORM, else the first platform "
                   "with a GPU, else the first)");
+  // Not add_word_option: CLI11 cannot store a word's value into a std::optional through its transformer.
+  cmd->add_option_function<std::string>(
+         "--bvh-layout",
+         [&d](const std::string& word) {
+           for (const auto& [w, layout] : px::bvh_layout_words())
+             if (w == word) d.bvh_layout = layout;
+         },
+         "BVH node layout the devices traverse: auto (binary on GPUs, wide8 on CPUs), binary, wide4, wide8, cwbvh "
+         "(every one renders the same image)")
+      ->check(CLI::IsMember(px::bvh_layout_words()))
+      ->default_str(px::cli_word(d.bvh_layout));
 }
 
 void add_size_flags(CLI::App* cmd, px::ImageSize& size) {

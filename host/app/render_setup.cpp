@@ -61,7 +61,7 @@ void print_device_set(const DeviceSet& set) {
   std::fprintf(stderr, "[devices] %d on '%s' (%s):\n", set.size(), set.platform_name().c_str(), to_string(set.mode()));
   for (const auto& d : set.devices()) std::fprintf(stderr, "  %d: %s\n", d.index, d.description.c_str());
   std::fprintf(stderr, "  BVH nodes: %s (%s)\n", to_string(set.bvh_layout()),
-               requested_bvh_layout() ? "requested" : "the default for these devices");
+               set.bvh_layout_requested() ? "requested" : "the default for these devices");
 }
 
 void print_scene_upload(const DeviceScene& scene, int devices) {

@@ -45,6 +45,8 @@ double resident_mib() {
 void build_world_tree(LoadedScene& out, const TriangleSource& tree_triangles, bool quiet,
                       bool collapse_later = false) {
   using clock = Clock;
+  const BvhLayout layout = out.bvh_layout;
+  const std::optional<BvhLayout> made_here = collapse_later ? std::nullopt : std::optional<BvhLayout>(layout);
   // Large scenes go through the disk cache (small ones build faster than a file is read).
   const BvhBuildOptions build_options;
   const bool cacheable = tree_triangles.size() >= kBvhCacheMinTriangles;
@@ -62,11 +64,11 @@ void build_world_tree(LoadedScene& out, const TriangleSource& tree_triangles, bo
   } else {
     const ProgressTicker ticker(quiet ? "" : "[bvh] still building the BVH of " +
                                                  std::to_string(tree_triangles.size()) + " triangles");
-    out.bvh = build_bvh(tree_triangles, build_options, !collapse_later);
+    out.bvh = build_bvh(tree_triangles, build_options, made_here);
   }
   // The cache holds the binary tree; the wide nodes the kernels traverse are collapsed from it
   // (a few percent of a build), so that the validator below checks them too.
-  if (from_cache && !collapse_later) ensure_layout(out.bvh, bvh_layout());
+  if (from_cache && !collapse_later) ensure_layout(out.bvh, layout);
   // A cached tree was built with the options of its key: the leaves' sizing follows from them.
   if (from_cache)
     out.bvh.stats.block_leaves = build_options.block_leaves(tree_triangles.size());
@@ -82,12 +84,12 @@ void build_world_tree(LoadedScene& out, const TriangleSource& tree_triangles, bo
                                " ms; built in " + std::to_string(static_cast<long>(bs.build_ms)) + " ms")
                                   .c_str()
                             : (std::to_string(static_cast<long>(bs.build_ms)) + " ms").c_str(),
-                 bvh_layout() == BvhLayout::Binary ? ""
-                 : collapse_later ? (std::string("; ") + to_string(bvh_layout()) + " nodes made with the device layout").c_str()
-                 : (std::string("; ") + to_string(bvh_layout()) + ", " +
-                    std::to_string(bvh_layout() == BvhLayout::Wide4   ? out.bvh.nodes4.size()
-                                   : bvh_layout() == BvhLayout::Wide8 ? out.bvh.nodes8.size()
-                                                                      : out.bvh.cnodes.size()) +
+                 layout == BvhLayout::Binary ? ""
+                 : collapse_later ? (std::string("; ") + to_string(layout) + " nodes made with the device layout").c_str()
+                 : (std::string("; ") + to_string(layout) + ", " +
+                    std::to_string(layout == BvhLayout::Wide4   ? out.bvh.nodes4.size()
+                                   : layout == BvhLayout::Wide8 ? out.bvh.nodes8.size()
+                                                                : out.bvh.cnodes.size()) +
                     " nodes").c_str(),
                  bs.split_budget_exceeded ? "; spatial splits stopped at their budget (heavily overlapping "
                                             "triangles): binned SAH instead"
@@ -113,7 +115,7 @@ void build_world_tree(LoadedScene& out, const TriangleSource& tree_triangles, bo
   // it for the first time, are.
   const auto t3 = clock::now();
   BvhValidation check;
-  const bool validated_when_cached = from_cache && (validated_layouts & bvh_layout_bit(bvh_layout())) != 0;
+  const bool validated_when_cached = from_cache && (validated_layouts & bvh_layout_bit(layout)) != 0;
   if (!validated_when_cached) {
     const ProgressTicker ticker(quiet ? "" : "[bvh] still validating the BVH");
     check = validate_bvh(out.bvh, tree_triangles, /*binary_tree=*/!from_cache);
@@ -125,7 +127,7 @@ void build_world_tree(LoadedScene& out, const TriangleSource& tree_triangles, bo
     // with the same sources hash?): rebuild rather than fail.
     if (!quiet) std::fprintf(stderr, "[bvh] the cached BVH failed validation: rebuilding\n");
     const auto t5 = clock::now();
-    out.bvh = build_bvh(tree_triangles, build_options, !collapse_later);
+    out.bvh = build_bvh(tree_triangles, build_options, made_here);
     out.times.bvh_ms += ms(t5, clock::now());
     out.times.bvh_from_cache = false;
     const auto t6 = clock::now();
@@ -158,7 +160,7 @@ void build_world_tree(LoadedScene& out, const TriangleSource& tree_triangles, bo
 // holds them beside the scene's triangles (at 10M triangles, 205 MiB of wide8 nodes beside 954).
 bool collapse_later(const LoadedScene& out, bool for_devices) {
   return for_devices && out.scene.instancing.empty() && !out.scene.rig &&
-         (bvh_layout() == BvhLayout::Wide4 || bvh_layout() == BvhLayout::Wide8);
+         (out.bvh_layout == BvhLayout::Wide4 || out.bvh_layout == BvhLayout::Wide8);
 }
 
 // What hands a static scene's triangles over to the device scene (DeviceScene's take_triangles):
@@ -174,9 +176,10 @@ std::function<std::vector<SceneTriangle>()> take_static_triangles(Scene& scene) 
 
 // load_and_build without the codec preload.
 static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, const SceneLoadOptions& options,
-                                       bool map_device_layout) {
+                                       bool map_device_layout, std::optional<BvhLayout> requested_layout) {
   using clock = Clock;
   LoadedScene out;
+  out.bvh_layout = requested_layout.value_or(bvh_layout_for(/*all_gpus=*/false));
   auto t0 = clock::now();
   if (!quiet) std::fprintf(stderr, "[scene] loading %s ...\n", spec.c_str());
   {
@@ -233,7 +236,7 @@ static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, cons
     // GPU sets' (a GPU machine's cache holds that one only). make_device_scene sorts out a
     // mapping in another layout than the set's.
     const DeviceLayoutCache cache(DeviceLayoutCache::default_dir());
-    for (const BvhLayout layout : {bvh_layout(), bvh_layout_for(/*all_gpus=*/true)})
+    for (const BvhLayout layout : {out.bvh_layout, requested_layout.value_or(bvh_layout_for(/*all_gpus=*/true))})
       if (!out.device_layout)
         out.device_layout = cache.open(out.content_key, layout, BvhBuildOptions{}, out.scene.triangles.size());
     if (out.device_layout) {
@@ -263,7 +266,7 @@ static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, cons
   if (instanced) {
     const ProgressTicker ticker(quiet ? "" : "[bvh] still building the instanced meshes' BVHs");
     const auto t = clock::now();
-    out.mesh_bvhs = build_mesh_bvhs(out.scene, bvh_layout());
+    out.mesh_bvhs = build_mesh_bvhs(out.scene, out.bvh_layout);
     const double mesh_ms = ms(t, clock::now());
     out.times.bvh_ms += mesh_ms;
     if (!quiet) {
@@ -277,8 +280,8 @@ static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, cons
 }
 
 LoadedScene load_and_build(const std::string& spec, bool quiet, const SceneLoadOptions& options,
-                           bool map_device_layout) {
-  LoadedScene out = load_and_build_tree(spec, quiet, options, map_device_layout);
+                           bool map_device_layout, std::optional<BvhLayout> bvh_layout) {
+  LoadedScene out = load_and_build_tree(spec, quiet, options, map_device_layout, bvh_layout);
   // The frames' files need the image codec: its libraries (about 85 MiB of mapped pages with
   // their dependencies) load on another core after the start's highest points (the end of a
   // large scene's BVH build, the making of its device layout), not beside them: here, or for
@@ -290,7 +293,8 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, const SceneLoadO
 
 SceneOnDevices::SceneOnDevices(const std::string& spec, const DeviceOptions& device_options, bool quiet,
                                const SceneLoadOptions& options, KernelChoice kernels)
-    : SceneOnDevices(load_and_build(spec, quiet, options, /*map_device_layout=*/true), device_options, kernels) {}
+    : SceneOnDevices(load_and_build(spec, quiet, options, /*map_device_layout=*/true, device_options.bvh_layout),
+                     device_options, kernels) {}
 
 namespace {
 

@@ -10,6 +10,7 @@
 #include "scene/scene_loader.h"
 
 #include <memory>
+#include <optional>
 #include <string>
 
 namespace px {
@@ -38,9 +39,13 @@ struct LoadedScene {
   Scene scene;
   FlatBvh bvh;  // the world tree (scene_bvhs.h): every triangle's in a scene without instances
   std::vector<FlatBvh> mesh_bvhs;  // one per instanced mesh (Scene::instancing), else none
+  // The node layout the start made the trees' nodes in: the one requested (load_and_build's
+  // bvh_layout), else a CPU set's default (bvh_layout_for(false)). A set in another layout has
+  // its device scene make its own.
+  BvhLayout bvh_layout = bvh_layout_for(/*all_gpus=*/false);
   // A large static scene without instances, with a cache folder: scene_content_key (0: none of
-  // that), and the device layout the cache held for it in bvh_layout() (null: none; `bvh` is
-  // then empty). SceneOnDevices uploads the mapping, or stores the layout it makes.
+  // that), and the device layout the cache held for it in `bvh_layout` (or a GPU set's; null:
+  // none; `bvh` is then empty). SceneOnDevices uploads the mapping, or stores the layout it makes.
   std::uint64_t content_key = 0;
   std::shared_ptr<const MappedDeviceLayout> device_layout{};
   bool quiet = false;
@@ -59,8 +64,10 @@ struct LoadedScene {
 // come as its cached device layout, without a tree (LoadedScene::device_layout), and a flat
 // static scene come with its shading records made and its triangles gone
 // (LoadedScene::host_part); every other caller gets the tree and the triangles.
+// `bvh_layout`: the layout the devices were asked for (DeviceOptions::bvh_layout); nullopt: each
+// device type's default.
 LoadedScene load_and_build(const std::string& spec, bool quiet = false, const SceneLoadOptions& options = {},
-                           bool map_device_layout = false);
+                           bool map_device_layout = false, std::optional<BvhLayout> bvh_layout = std::nullopt);
 
 // A scene on a set of devices: loaded and its BVH built (load_and_build), the devices made
 // (DeviceSet::create), the scene uploaded to every one of them. Members in dependency order;

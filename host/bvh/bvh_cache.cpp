@@ -1,6 +1,7 @@
 #include "bvh/bvh_cache.h"
 
 #include "io/atomic_file.h"
+#include "io/environment.h"
 
 #include <cstdio>
 #include <cstdlib>
@@ -78,8 +79,8 @@ std::uint64_t bvh_input_hash(const TriangleSource& triangles, const BvhBuildOpti
 }
 
 std::string BvhCache::default_dir() {
-  if (const char* off = std::getenv("PARALLAX_BVH_CACHE"); off && std::string(off) == "off") return "";
-  if (const char* d = std::getenv("PARALLAX_CACHE_DIR"); d && *d) return d;
+  if (!environment().bvh_cache) return "";
+  if (const std::string& d = environment().cache_dir; !d.empty()) return d;
   if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) return std::string(x) + "/parallax";
   if (const char* home = std::getenv("HOME"); home && *home) return std::string(home) + "/.cache/parallax";
   return "";

@@ -879,7 +879,7 @@ double sampled_split_gain(const TriangleSource& triangles, const BvhBuildOptions
 
 }  // namespace
 
-FlatBvh build_bvh(const TriangleSource& triangles, const BvhBuildOptions& options, bool collapse) {
+FlatBvh build_bvh(const TriangleSource& triangles, const BvhBuildOptions& options, std::optional<BvhLayout> layout) {
   const auto start = std::chrono::steady_clock::now();
   if (triangles.empty()) throw std::runtime_error("BVH: cannot build over an empty scene");
   if (triangles.size() >= PX_NO_HIT)
@@ -927,9 +927,8 @@ FlatBvh build_bvh(const TriangleSource& triangles, const BvhBuildOptions& option
   compute_bvh_stats(bvh);
   bvh.stats.scene_triangles = triangles.size();
   bvh.stats.block_leaves = block_leaves;
-  // The wide nodes the kernels traverse (when the process uses a wide layout).
-  const BvhLayout layout = bvh_layout();
-  if (collapse && layout != BvhLayout::Binary) bvh.stats.collapse_ms = ensure_layout(bvh, layout);
+  // The wide nodes the kernels traverse (when the caller's layout is a wide one).
+  if (layout && *layout != BvhLayout::Binary) bvh.stats.collapse_ms = ensure_layout(bvh, *layout);
   bvh.stats.build_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return bvh;

@@ -24,29 +24,28 @@ struct BvhBuildOptions {
   int max_leaf_size = PX_BVH_MAX_LEAF_SIZE;  // <= PX_BVH_MAX_LEAF_SIZE
   // Work bound for spatial splits, in split-callback calls per triangle (see
   // split_call_budget); past it the build is redone with binned SAH. 0: unbounded (only for
-  // measuring what the bound saves: overlapping slivers then take ~5-8x Embree's own build).
+  // measuring what the bound saves on overlapping slivers: docs/measurements.md, split budget).
   std::uint32_t split_calls_per_triangle = 96;
   // Spatial splits on trial for large scenes. For a scene of at least split_trial_triangles
   // triangles, every 16th triangle (or sparser: split_trial_max_sample) is first built both ways,
   // and the scene is built with splits only if they lowered that sample's SAH cost by at least
-  // split_min_gain (and kept within their work rate), else with binned SAH. On a 1M-triangle
-  // heightfield the splits cost 5x the binned build and gain nothing (the sample: 0.1%); on
-  // atrium they gain 12% (the sample: 18%, so the trial takes them and builds the very tree a
-  // plain split build makes, at 1.1x its time). From 200k triangles (it was 500k, under which
-  // a 0.25M heightfield's start, 2.0 s, took longer than a 1M one's, 1.6 s: its BVH 1.36 s with
-  // splits that gained 0.1%). 0: no trial, spatial_splits as asked.
+  // split_min_gain (and kept within their work rate), else with binned SAH: on a heightfield the
+  // splits cost several binned builds and gain nothing, on atrium they gain, and the sample
+  // predicts both (docs/measurements.md, spatial-split trial). From 200k triangles: with a
+  // higher threshold, smaller heightfields started slower than larger ones (same topic).
+  // 0: no trial, spatial_splits as asked.
   std::size_t split_trial_triangles = 200000;
   double split_min_gain = 0.02;
   // At most this many triangles in the trial's sample: past 16 x this (4.2M triangles) the
-  // stride grows beyond 16. The sample's two builds cost about 1 us per sampled triangle on a
-  // 2-core VM, and a sample of this size already decides as every-16th did (the 10M heightfield:
-  // 0.0% either way; the trial 630 -> 250 ms). 0: no cap.
+  // stride grows beyond 16. The sample's two builds cost in proportion to its size, and a sample
+  // of this size already decides as every-16th did (docs/measurements.md, spatial-split trial).
+  // 0: no cap.
   std::size_t split_trial_max_sample = 262144;
   // Scenes of at least this many triangles get leaves sized for the wide layouts' leaf blocks
   // (BvhLeafBlock: 4 triangles tested at once): the SAH counts a leaf's intersection cost per
   // started block of 4 triangles, not per triangle (Embree's sahBlockSize), so leaves fill up to
-  // 4. A 4M-triangle heightfield then has half the nodes and leaf blocks (device layout 236 -> 173
-  // bytes per triangle on CPUs; 1.9 -> 3.8 triangles per leaf; SAH counted per triangle +5%).
+  // 4: a large scene then has about half the nodes and leaf blocks, and a smaller device layout
+  // (docs/measurements.md, block leaves).
   // Smaller scenes keep per-triangle leaves: their trees, and so their images, stay as they
   // were (a tree changes which of two hits at exactly the same distance a ray takes, e.g. on
   // coplanar faces). 0: never.
@@ -93,27 +92,21 @@ std::uint64_t split_call_budget(std::size_t triangles,
 // boxes (types.h: CompressedBvh8Node, "cwbvh"). Every kernel build of a device set must agree
 // with the nodes uploaded to it: DeviceSet::bvh_layout() names the set's layout, its programs
 // are built with the matching -DPX_BVH_WIDTH, and DeviceScene uploads the matching array.
+// A layout may be asked for with the set (DeviceOptions::bvh_layout, `--bvh-layout`); else the
+// set takes its device type's default (bvh_layout_for).
 // The values are the kernels' PX_BVH_WIDTH (9 = PX_BVH_COMPRESSED8, 8 children per node).
 enum class BvhLayout { Binary = 2, Wide4 = 4, Wide8 = 8, Compressed8 = PX_BVH_COMPRESSED8 };
-// The layout asked for, process-wide: set_bvh_layout(), else the environment variable
-// PX_BVH_LAYOUT (binary | wide4 | wide8 | cwbvh, read at the first call); none = each device set
-// takes its device type's default (bvh_layout_for).
-std::optional<BvhLayout> requested_bvh_layout();
-// For benches and tests, before kernels are built; nullopt: none requested (PX_BVH_LAYOUT is
-// then ignored too).
-void set_bvh_layout(std::optional<BvhLayout> layout);
-// The layout a device set traverses: the requested one, else by device type.
-//  - CPUs (and sets that mix device kinds): Wide8. Measured on PoCL: 8 boxes per float8 test
-//    in one work-item, 0.77-1.00 of Embree's single-ray speed; cwbvh's decode costs 5-17% there.
-//  - Sets of GPUs only: Binary. Measured on an NVIDIA H200 (bench/realtime_suite.sh, atrium,
-//    1280x720): the binary kernel traces 2178 Mrays/s primary and 1010 diffuse, against 1502 / 626
-//    for wide8 and 1292 / 513 for cwbvh, and the stereo frame takes 14.1 ms against 19.3 (wide8)
-//    and 25.8 (cwbvh). A GPU work-item walks one node of two boxes at a time; the wide layouts'
-//    loops over 8 children and their private stacks (2.3 KB a work-item) cost it occupancy.
+// The default layout of a device set, by device type (a set asked for a layout takes that one).
+//  - CPUs (and sets that mix device kinds): Wide8: 8 boxes per float8 test in one work-item, close
+//    to Embree's single-ray speed on PoCL; cwbvh's decode costs time there (docs/measurements.md,
+//    BVH layouts).
+//  - Sets of GPUs only: Binary, the fastest layout on an NVIDIA H200 for primary and diffuse rays
+//    and the whole stereo frame (same topic). A GPU work-item walks one node of two boxes at a
+//    time; the wide layouts' loops over 8 children and their private stacks cost it occupancy.
+// A CPU set's default, bvh_layout_for(false), is what the host collapses a freshly built tree
+// into ahead of time unless told otherwise (build_bvh, load_and_build); a set in another layout
+// has its DeviceScene make its own nodes.
 BvhLayout bvh_layout_for(bool all_gpus);
-// The layout of a CPU set (bvh_layout_for(false)): what the host collapses a freshly built tree
-// into ahead of time (build_bvh); a GPU set's DeviceScene compresses its own copy.
-BvhLayout bvh_layout();
 // The value of PX_BVH_WIDTH the kernels are built with for `layout` (not always the number of
 // children: Compressed8 is 9, PX_BVH_COMPRESSED8).
 inline int bvh_layout_width(BvhLayout layout) { return static_cast<int>(layout); }
@@ -219,10 +212,11 @@ double ensure_layout(FlatBvh& bvh, BvhLayout layout);
 
 // Builds with Embree's rtcBuildBVH (SAH, maxBranchingFactor 2, maxDepth PX_BVH_MAX_DEPTH) and
 // flattens the result. Throws std::runtime_error on an empty input or an Embree error.
-// `collapse` false: the tree is returned without the process layout's wide nodes (a caller that
-// makes them later, once the scene's triangles are gone: DeviceScene).
+// The tree carries the nodes of `layout` as well (collapsed: wide, compressed); nullopt: the
+// binary nodes alone (a caller that makes the others later, once the scene's triangles are
+// gone: DeviceScene).
 FlatBvh build_bvh(const TriangleSource& triangles, const BvhBuildOptions& options = {},
-                  bool collapse = true);
+                  std::optional<BvhLayout> layout = bvh_layout_for(/*all_gpus=*/false));
 
 // Fills bvh.stats' node and leaf counts, depth and SAH cost from the binary nodes (the builder
 // calls it; so does refit_bvh).

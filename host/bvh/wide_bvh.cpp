@@ -24,9 +24,6 @@ namespace {
 constexpr BvhLayout kCpuBvhLayout = BvhLayout::Wide8;
 constexpr BvhLayout kGpuBvhLayout = BvhLayout::Binary;
 
-// The requested layout: 0 = PX_BVH_LAYOUT not read yet, -1 = read, and nothing requested.
-std::atomic<int> g_layout{0};
-
 struct ChildRef {
   float lo[3], hi[3];
   std::uint32_t index;  // binary node, or first triangle of a leaf
@@ -105,32 +102,9 @@ class Collapser {
   std::vector<Node>& out_;
 };
 
-int layout_from_environment() {
-  const char* env = std::getenv("PX_BVH_LAYOUT");
-  if (!env || !*env) return -1;
-  return static_cast<int>(parse_bvh_layout(env));
-}
-
 }  // namespace
 
-std::optional<BvhLayout> requested_bvh_layout() {
-  int v = g_layout.load();
-  if (v == 0) {
-    v = layout_from_environment();
-    int expected = 0;
-    if (!g_layout.compare_exchange_strong(expected, v)) v = expected;
-  }
-  if (v < 0) return std::nullopt;
-  return static_cast<BvhLayout>(v);
-}
-
-BvhLayout bvh_layout_for(bool all_gpus) {
-  return requested_bvh_layout().value_or(all_gpus ? kGpuBvhLayout : kCpuBvhLayout);
-}
-
-BvhLayout bvh_layout() { return bvh_layout_for(false); }
-
-void set_bvh_layout(std::optional<BvhLayout> layout) { g_layout.store(layout ? static_cast<int>(*layout) : -1); }
+BvhLayout bvh_layout_for(bool all_gpus) { return all_gpus ? kGpuBvhLayout : kCpuBvhLayout; }
 
 const char* to_string(BvhLayout layout) {
   switch (layout) {

@@ -3,6 +3,7 @@
 #include "bvh/flat_bvh.h"
 #include "cl/kernel_sources.h"
 #include "cl/pocl_launch_guard.h"
+#include "io/environment.h"
 
 #include <algorithm>
 #include <cstdlib>
@@ -102,10 +103,10 @@ std::vector<cl::Device> sub_devices(cl::Device root, const std::vector<cl_device
 DeviceSet DeviceSet::create(const DeviceOptions& options) {
   if (options.count < 1) throw std::invalid_argument("device count must be at least 1");
   std::string wanted = options.platform;
-  if (wanted.empty())
-    if (const char* env = std::getenv("PARALLAX_PLATFORM")) wanted = env;
+  if (wanted.empty()) wanted = environment().platform;
 
   DeviceSet set;
+  set.requested_layout_ = options.bvh_layout;
   set.platform_ = choose_platform(wanted);
   set.platform_name_ = set.platform_.getInfo<CL_PLATFORM_NAME>();
   auto devices = platform_devices(set.platform_);
@@ -196,7 +197,7 @@ DeviceSet DeviceSet::create(const DeviceOptions& options) {
   return set;
 }
 
-BvhLayout DeviceSet::bvh_layout() const { return bvh_layout_for(all_gpus_); }
+BvhLayout DeviceSet::bvh_layout() const { return requested_layout_.value_or(bvh_layout_for(all_gpus_)); }
 
 const cl::Program& DeviceSet::program(const std::string& path, const std::string& extra_options) {
   // Every kernel is built for the BVH layout DeviceScene uploads (bvh_layout()), unless the

@@ -11,6 +11,7 @@
 
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -26,8 +27,12 @@ struct DeviceOptions {
   int count = 1;
   DeviceMode mode = DeviceMode::Auto;
   // Substring of the platform name to use ("" = first platform that has a GPU, else the first
-  // with any device). Also read from $PARALLAX_PLATFORM when empty.
+  // with any device). When empty, PARALLAX_PLATFORM
+  // (io/environment.h).
   std::string platform;
+  // The BVH node layout the set's kernels traverse; nullopt: the default for its device type
+  // (flat_bvh.h: bvh_layout_for).
+  std::optional<BvhLayout> bvh_layout;
 };
 
 struct ComputeDevice {
@@ -54,9 +59,11 @@ class DeviceSet {
   DeviceMode mode() const { return mode_; }  // the mode actually used (never Auto)
   const std::string& platform_name() const { return platform_name_; }
   // The BVH node layout this set's kernels are built for and DeviceScene uploads to it: the one
-  // requested (PX_BVH_LAYOUT, set_bvh_layout), else the default for its device type
-  // (flat_bvh.h: bvh_layout_for). Read at each call, so a test may switch it between scenes.
+  // requested (DeviceOptions::bvh_layout), else the default for its device type
+  // (flat_bvh.h: bvh_layout_for).
   BvhLayout bvh_layout() const;
+  // Whether that layout was requested rather than the device type's default.
+  bool bvh_layout_requested() const { return requested_layout_.has_value(); }
 
   // Builds kernels/<path> (with its includes) for every device in the set; cached per
   // (path, options). A failed build throws ClFailure carrying each device's build log.
@@ -76,6 +83,7 @@ class DeviceSet {
   DeviceMode mode_ = DeviceMode::Auto;
   std::string platform_name_;
   bool all_gpus_ = false;  // every device a GPU
+  std::optional<BvhLayout> requested_layout_;
   std::map<std::string, cl::Program> programs_;
   // Registers the set's programs with PoclLaunchGuard and forgets them (and the events it
   // keeps of the set's queues) when the set goes. Declared last: destroyed first, while the

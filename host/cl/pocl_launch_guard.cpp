@@ -1,6 +1,7 @@
 #include "cl/pocl_launch_guard.h"
 
 #include "cl/cl_error.h"
+#include "io/environment.h"
 
 #include <algorithm>
 #include <cstdlib>
@@ -57,11 +58,7 @@ bool finished(const cl::Event& e) {
 }  // namespace
 
 bool PoclLaunchGuard::enabled() {
-  static const bool on = [] {
-    const char* v = std::getenv("PX_POCL_LAUNCH_GUARD");
-    return !(v && std::strcmp(v, "0") == 0);
-  }();
-  return on;
+  return environment().pocl_launch_guard;
 }
 
 void PoclLaunchGuard::register_program(cl_context context, cl_program program, const std::string& identity) {

@@ -33,7 +33,7 @@
 // loaded (it is at the front and wide enough), so every release finds the entry its launch took.
 // Widening happens a few times per kernel in a run (the first frames, a strip that grows), so
 // the extra waits are rare; the guard is active only on PoCL CPU devices (DeviceSet decides),
-// and PX_POCL_LAUNCH_GUARD=0 turns it off (to reproduce the abort).
+// and PARALLAX_POCL_LAUNCH_GUARD=off turns it off (to reproduce the abort).
 #pragma once
 
 #include <CL/opencl.hpp>
@@ -55,7 +55,7 @@ class PoclLaunchGuard {
   static void register_program(cl_context context, cl_program program, const std::string& identity);
   // Drops a context's programs and the events of its queues (DeviceSet's destructor).
   static void forget_context(cl_context context);
-  // Whether the guard is on for this process (PX_POCL_LAUNCH_GUARD, default on).
+  // Whether the guard is on for this process (PARALLAX_POCL_LAUNCH_GUARD, io/environment.h; default on).
   static bool enabled();
 
   // One launch: construct before the enqueue (adds to `waits` what the launch must wait for

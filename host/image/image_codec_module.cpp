@@ -2,6 +2,7 @@
 // the build folder it was built in (PX_IMAGE_CODEC_MODULE), else PARALLAX_IMAGE_CODEC names it.
 #include "image/image_io.h"
 #include "image/oiio_codec.h"
+#include "io/environment.h"
 
 #include <dlfcn.h>
 #include <cstdlib>
@@ -31,7 +32,7 @@ std::string executable_folder() {
 
 Loaded load_module() {
   std::vector<std::string> candidates;
-  if (const char* env = std::getenv("PARALLAX_IMAGE_CODEC"); env && *env) candidates.push_back(env);
+  if (const std::string& path = environment().image_codec; !path.empty()) candidates.push_back(path);
   if (const std::string dir = executable_folder(); !dir.empty()) candidates.push_back(dir + "/" + kModuleName);
 #ifdef PX_IMAGE_CODEC_MODULE
   candidates.push_back(PX_IMAGE_CODEC_MODULE);

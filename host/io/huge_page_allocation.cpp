@@ -14,6 +14,8 @@
 // from malloc and goes back through free, so nothing else changes (glibc serves blocks this
 // large with mmap, which is what can then be backed by huge pages). PARALLAX_HUGE_PAGES=off
 // turns the advice off. Under AddressSanitizer the sanitizer's own operator new stays.
+#include "io/environment.h"
+
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -51,13 +53,7 @@ namespace {
 constexpr std::size_t kHugePage = std::size_t{2} << 20;
 constexpr std::size_t kHugeFrom = std::size_t{8} << 20;  // 4 huge pages at least
 
-bool huge_pages_wanted() {
-  static const bool wanted = [] {
-    const char* v = std::getenv("PARALLAX_HUGE_PAGES");
-    return !(v && (std::strcmp(v, "off") == 0 || std::strcmp(v, "0") == 0));
-  }();
-  return wanted;
-}
+bool huge_pages_wanted() { return px::environment().huge_pages; }
 
 // The whole 2 MiB pages inside [p, p + n). A failure (a kernel without THP) only loses speed.
 void advise_huge_pages(void* p, std::size_t n) {

@@ -2,6 +2,7 @@
 
 #include "bvh/scene_bvhs.h"
 #include "bvh/top_level_bvh.h"
+#include "io/environment.h"
 #include "io/progress_ticker.h"
 #include "scene/instancing.h"
 
@@ -12,6 +13,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <memory>
+#include <numbers>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -24,7 +26,7 @@ namespace px {
 namespace {
 
 // What one OpenCL context can hold: the largest single allocation and the global memory of
-// its smallest device. PX_MAX_ALLOC_BYTES lowers the first (to test the refusal below without a
+// its smallest device. PARALLAX_MAX_ALLOC_BYTES lowers the first (to test the refusal below without a
 // 4 GiB scene).
 struct AllocationLimits {
   std::size_t max_alloc = 0, global_mem = 0;
@@ -42,12 +44,9 @@ AllocationLimits allocation_limits(const DeviceSet& devices) {
     }
     l.global_mem = std::min(l.global_mem, static_cast<std::size_t>(d.device.getInfo<CL_DEVICE_GLOBAL_MEM_SIZE>()));
   }
-  if (const char* env = std::getenv("PX_MAX_ALLOC_BYTES")) {
-    const unsigned long long v = std::strtoull(env, nullptr, 10);
-    if (v > 0 && v < l.max_alloc) {
-      l.max_alloc = static_cast<std::size_t>(v);
-      l.device += " (lowered by PX_MAX_ALLOC_BYTES)";
-    }
+  if (const std::size_t v = environment().max_alloc_bytes; v > 0 && v < l.max_alloc) {
+    l.max_alloc = v;
+    l.device += " (lowered by PARALLAX_MAX_ALLOC_BYTES)";
   }
   return l;
 }
@@ -167,6 +166,8 @@ void copy3(float* dst, const glm::vec3& v) {
 }
 
 float luminance(const glm::vec3& c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+
+constexpr float kPi = std::numbers::pi_v<float>;
 
 }  // namespace
 
@@ -359,13 +360,12 @@ void fill_light_params(const Scene& scene, std::size_t light_count, FrameParams&
   // partly took for edges (the sunlit floor came out darker, its shadows smeared). The sky
   // loses next-event samples in the shade, where BSDF sampling finds it well (MIS).
   if (scene.sun.enabled && scene.sky.enabled) {
-    auto luminance = [](glm::vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; };
-    const float sun_solid_angle = 2.0f * 3.14159265f * (1.0f - p.sun_cos_max);
+    const float sun_solid_angle = 2.0f * kPi * (1.0f - p.sun_cos_max);
     const float e_sun = std::max(0.0f, luminance(scene.sun.radiance)) * sun_solid_angle;
     // A surface facing the zenith: 2 pi integral over mu = cos(theta) of
     // mix(horizon, zenith, sqrt(mu)) mu dmu = pi horizon + 4 pi (zenith - horizon) / 5.
-    const float e_sky = std::max(0.0f, 3.14159265f * luminance(scene.sky.horizon) +
-                                           0.8f * 3.14159265f * luminance(scene.sky.zenith - scene.sky.horizon));
+    const float e_sky = std::max(0.0f, kPi * luminance(scene.sky.horizon) +
+                                           0.8f * kPi * luminance(scene.sky.zenith - scene.sky.horizon));
     if (e_sun + e_sky > 0.0f && std::isfinite(e_sun + e_sky)) {
       // Neither below a tenth of the pair's share: a dim sky still gets its next-event samples.
       const float sun_fraction = std::clamp(e_sun / (e_sun + e_sky), 0.1f, 0.9f);

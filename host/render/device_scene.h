@@ -4,7 +4,7 @@
 // scene with instances keeps each instanced mesh's tree and leaf triangles after the world's in
 // the same node and triangle buffers (types.h: the instance buffer). One set of read-only buffers in the set's OpenCL context, shared by
 // all its devices (on(d) gives every device the same buffers); a buffer larger than a device's
-// CL_DEVICE_MAX_MEM_ALLOC_SIZE (or PX_MAX_ALLOC_BYTES) is refused with an error naming it.
+// CL_DEVICE_MAX_MEM_ALLOC_SIZE (or PARALLAX_MAX_ALLOC_BYTES) is refused with an error naming it.
 // Kernels take these as their last parameters (PX_SCENE_PARAMS in kernels/scene/scene_view.h);
 // bind() sets them in that order.
 #pragma once

@@ -58,7 +58,8 @@ typedef struct BvhNode {
   uint right_count;
 } BvhNode;
 
-/* Wide BVH nodes (Bvh8Node is the default traversal layout; PX_BVH_WIDTH selects, see below; the
+/* Wide BVH nodes (PX_BVH_WIDTH selects the layout, see below: by default Bvh8Node on CPU device
+ * sets, the binary BvhNode above on sets of GPUs, host/bvh/flat_bvh.h bvh_layout_for; the
  * compressed form of the 8-wide tree, CompressedBvh8Node, follows BvhLeafBlock). The same
  * tree as the binary one, collapsed: each wide node stands for a binary node and takes as
  * children up to W of its binary descendants (leaves are the binary leaves, so the triangle
