@@ -251,6 +251,41 @@ TEST(GltfAnimation, AFileWithoutACameraIsFramedOnEverywhereItsClipsGo) {
   EXPECT_GT(widest, 0.5 * half_angle);
 }
 
+// The glTF specification requires non-negative key times: a file with one is refused, with the
+// channel named; the same file with its keys shifted to start at 0 loads and plays.
+TEST(GltfAnimation, ANegativeKeyTimeIsRefusedNamingTheChannel) {
+  const TempDir dir;
+  const auto file_with_keys = [&](const std::string& name, float first, float last) {
+    GltfBuilder g;
+    add_cube_mesh(g);
+    const int times = g.floats({first, last}, "SCALAR", 2);
+    const int still = g.floats({0, 0, 0, 0, 0, 0}, "VEC3", 2);
+    const int moves = g.floats({0, 0, 0, 2, 0, 0}, "VEC3", 2);
+    g.doc["scene"] = 0;
+    g.doc["scenes"] = json::array({{{"nodes", {0}}}});
+    g.doc["nodes"] = json::array({{{"mesh", 0}}});
+    g.doc["animations"] = json::array(
+        {{{"samplers", json::array({{{"input", g.floats({0.0f, 1.0f}, "SCALAR", 2)}, {"output", still}},
+                                    {{"input", times}, {"output", moves}}})},
+          {"channels", json::array({{{"sampler", 0}, {"target", {{"node", 0}, {"path", "scale"}}}},
+                                    {{"sampler", 1}, {"target", {{"node", 0}, {"path", "translation"}}}}})}}});
+    return dir.write(name, g.text()).string();
+  };
+  std::string message;
+  try {
+    load_gltf(file_with_keys("early.gltf", -0.5f, 1.0f));
+  } catch (const std::exception& e) {
+    message = e.what();
+  }
+  EXPECT_NE(message.find("early.gltf"), std::string::npos) << message;
+  EXPECT_NE(message.find("animation 0 channel 1"), std::string::npos) << message;
+  EXPECT_NE(message.find("negative"), std::string::npos) << message;
+  Scene ok = load_gltf(file_with_keys("from_zero.gltf", 0.0f, 1.5f));
+  ASSERT_TRUE(ok.rig);
+  SceneAnimator animator(ok, "all");
+  EXPECT_TRUE(animator.moves());
+}
+
 // A glTF camera on an animated node follows it; one a scene file placed does not.
 TEST(GltfAnimation, ACameraOnAnAnimatedNodeFollowsIt) {
   GltfBuilder g;

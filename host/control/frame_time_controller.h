@@ -22,11 +22,12 @@
 
 namespace px {
 
-// What the controller tunes.
+// What the controller tunes. No defaults of its own: a quality is always read from the pipeline
+// (StereoPipeline::quality, whose options hold the one default of each) or written out in full.
 struct FrameQuality {
-  unsigned spp = 1;
-  unsigned bounces = 6;
-  unsigned svgf_iterations = 5;
+  unsigned spp = 0;
+  unsigned bounces = 0;
+  unsigned svgf_iterations = 0;
   bool operator==(const FrameQuality&) const = default;
 };
 

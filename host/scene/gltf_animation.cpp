@@ -76,6 +76,9 @@ void Converter::animations() {
       for (const glm::vec4& t : read_.floats(s.input, {TINYGLTF_TYPE_SCALAR}, where + " input", false)) {
         if (!std::isfinite(t.x) || (!track.times.empty() && !(t.x > track.times.back())))
           read_.fail(where + ": key times must be finite and strictly increasing");
+        // The glTF specification requires key times >= 0: a clip starts at time 0 and loops
+        // over [0, its last key], so an earlier key could never be reached as the file meant it.
+        if (t.x < 0.0f) read_.fail(where + ": key time " + std::to_string(t.x) + " is negative (glTF needs >= 0)");
         track.times.push_back(t.x);
       }
       const bool rotation = ch.path == TrsPath::Rotation;
