@@ -51,7 +51,8 @@ KeyframeTrack track(std::vector<double> times, std::vector<glm::dvec4> values, I
 }
 
 TEST(KeyframeTrack, StepAndLinearMatchHandValues) {
-  const KeyframeTrack step = track({1.0, 2.0, 4.0}, {{0, 0, 0, 0}, {10, 20, 30, 0}, {-4, 0, 4, 0}}, Interpolation::Step);
+  const KeyframeTrack step =
+      track({1.0, 2.0, 4.0}, {{0, 0, 0, 0}, {10, 20, 30, 0}, {-4, 0, 4, 0}}, Interpolation::Step);
   EXPECT_EQ(sample_track(step, 0.0, false), glm::dvec4(0, 0, 0, 0));  // before the first key: hold it
   EXPECT_EQ(sample_track(step, 1.999, false), glm::dvec4(0, 0, 0, 0));
   EXPECT_EQ(sample_track(step, 2.0, false), glm::dvec4(10, 20, 30, 0));
@@ -76,8 +77,12 @@ TEST(KeyframeTrack, CubicSplineMatchesTheHermiteFormWorkedByHand) {
   //   p = h00(s) 0 + h10(s) 2 x 1 + h01(s) 1 + h11(s) 2 x 0
   //     = 0 + (0.125 - 0.5 + 0.5) x 2 + (-0.25 + 0.75) = 0.25 + 0.5 = 0.75.
   const KeyframeTrack t = track({0.0, 2.0},
-                                {{99, 0, 0, 0}, {0, 0, 0, 0}, {1, 0, 0, 0},     // key 0: in, value, out
-                                 {0, 0, 0, 0}, {1, 0, 0, 0}, {99, 0, 0, 0}},  // key 1
+                                {{99, 0, 0, 0},
+                                 {0, 0, 0, 0},
+                                 {1, 0, 0, 0},  // key 0: in, value, out
+                                 {0, 0, 0, 0},
+                                 {1, 0, 0, 0},
+                                 {99, 0, 0, 0}},  // key 1
                                 Interpolation::CubicSpline);
   EXPECT_NEAR(sample_track(t, 1.0, false).x, 0.75, 1e-12);
   // s = 0.25: h00 = 0.84375, h10 = 0.140625, h01 = 0.15625, h11 = -0.046875:
@@ -105,10 +110,10 @@ TEST(KeyframeTrack, RotationsSlerpAlongTheShorterArc) {
   for (int c = 0; c < 4; ++c) EXPECT_NEAR(std::abs(r[c]), std::abs(want[c]), 1e-12) << c;
   EXPECT_NEAR(std::abs(r.w), std::cos(kPi / 12), 1e-12);
   // A cubic rotation comes back normalised.
-  const KeyframeTrack cubic = track({0.0, 1.0},
-                                    {glm::dvec4(0), axis_angle(y, 0.0), glm::dvec4(0), glm::dvec4(0),
-                                     axis_angle(y, kPi / 2), glm::dvec4(0)},
-                                    Interpolation::CubicSpline);
+  const KeyframeTrack cubic =
+      track({0.0, 1.0},
+            {glm::dvec4(0), axis_angle(y, 0.0), glm::dvec4(0), glm::dvec4(0), axis_angle(y, kPi / 2), glm::dvec4(0)},
+            Interpolation::CubicSpline);
   EXPECT_NEAR(glm::length(sample_track(cubic, 0.4, true)), 1.0, 1e-12);
 }
 
@@ -310,7 +315,8 @@ TEST(GltfAnimation, ACameraOnAnAnimatedNodeFollowsIt) {
   EXPECT_NEAR(scene.camera.target.z, 4.0f, 1e-6);
   // A scene file's camera stays where the file put it.
   const std::string json_file =
-      dir.write("placed.json", R"({"mesh": "dolly.gltf", "camera": {"position": [9, 1, 9], "target": [0, 0, 0]}})").string();
+      dir.write("placed.json", R"({"mesh": "dolly.gltf", "camera": {"position": [9, 1, 9], "target": [0, 0, 0]}})")
+          .string();
   Scene placed = load_scene(json_file);
   SceneAnimator(placed, "all").pose(0.25);
   EXPECT_EQ(placed.camera.position, glm::vec3(9, 1, 9));
@@ -325,11 +331,13 @@ TEST(GltfAnimation, SkinnedVerticesMatchABruteForceEvaluation) {
   const std::vector<float> pos = {-0.5f, 0, 0, 0.5f, 0, 0, -0.5f, 1, 0, 0.5f, 1, 0, -0.5f, 2, 0, 0.5f, 2, 0};
   const std::vector<std::uint16_t> idx = {0, 1, 3, 0, 3, 2, 2, 3, 5, 2, 5, 4};
   const std::vector<std::uint16_t> joints = {0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0};
-  const std::vector<float> weights = {1, 0, 0, 0, 1, 0, 0, 0, 0.5f, 0.5f, 0, 0, 0.5f, 0.5f, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0};
+  const std::vector<float> weights = {1,    0,    0, 0, 1, 0, 0, 0, 0.5f, 0.5f, 0, 0,
+                                      0.5f, 0.5f, 0, 0, 0, 1, 0, 0, 0,    1,    0, 0};
   // Inverse bind matrices (column-major): identity, and a translation by (0, -1, 0).
-  const std::vector<float> ibm = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1,
+  const std::vector<float> ibm = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0,  0, 1,
                                   1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, -1, 0, 1};
-  json attrs = {{"POSITION", g.floats(pos, "VEC3", 6)}, {"JOINTS_0", g.uint16s(joints, "VEC4", 6)},
+  json attrs = {{"POSITION", g.floats(pos, "VEC3", 6)},
+                {"JOINTS_0", g.uint16s(joints, "VEC4", 6)},
                 {"WEIGHTS_0", g.floats(weights, "VEC4", 6)}};
   g.add("meshes", {{"primitives", json::array({{{"attributes", attrs}, {"indices", g.uint16s(idx, "SCALAR", 12)}}})}});
   const int times = g.floats({0.0f, 1.0f}, "SCALAR", 2);
@@ -337,11 +345,12 @@ TEST(GltfAnimation, SkinnedVerticesMatchABruteForceEvaluation) {
   const int turns = g.floats({0, 0, 0, 1, 0, 0, h, h}, "VEC4", 2);
   g.doc["scene"] = 0;
   g.doc["scenes"] = json::array({{{"nodes", {0, 2}}}});
-  g.doc["nodes"] = json::array({{{"children", {1}}}, {{"translation", {0, 1, 0}}}, {{"mesh", 0}, {"skin", 0}, {"translation", {5, 0, 0}}}});
+  g.doc["nodes"] = json::array(
+      {{{"children", {1}}}, {{"translation", {0, 1, 0}}}, {{"mesh", 0}, {"skin", 0}, {"translation", {5, 0, 0}}}});
   g.doc["skins"] = json::array({{{"joints", {0, 1}}, {"inverseBindMatrices", g.floats(ibm, "MAT4", 2)}}});
-  g.doc["animations"] = json::array(
-      {{{"samplers", json::array({{{"input", times}, {"output", turns}}})},
-        {"channels", json::array({{{"sampler", 0}, {"target", {{"node", 1}, {"path", "rotation"}}}}})}}});
+  g.doc["animations"] =
+      json::array({{{"samplers", json::array({{{"input", times}, {"output", turns}}})},
+                    {"channels", json::array({{{"sampler", 0}, {"target", {{"node", 1}, {"path", "rotation"}}}}})}}});
   const TempDir dir;
   Scene scene = load_gltf(dir.write("skin.gltf", g.text()).string());
   ASSERT_TRUE(scene.rig);
@@ -387,8 +396,8 @@ std::string cube_on_floor_file(const TempDir& dir) {
   add_cube_mesh(g, 0);
   const int floor_pos = g.floats({-12, 0, -12, 12, 0, -12, 12, 0, 12, -12, 0, 12}, "VEC3", 4);
   g.add("meshes", {{"primitives", json::array({{{"attributes", {{"POSITION", floor_pos}}},
-                                                 {"indices", g.uint16s({0, 2, 1, 0, 3, 2}, "SCALAR", 6)},
-                                                 {"material", 1}}})}});
+                                                {"indices", g.uint16s({0, 2, 1, 0, 3, 2}, "SCALAR", 6)},
+                                                {"material", 1}}})}});
   const int times = g.floats({0.0f, 1.0f}, "SCALAR", 2);
   const int moves = g.floats({-1.5f, 0.5f, 0, 1.5f, 0.5f, 0}, "VEC3", 2);
   const float h = float(std::sqrt(0.5));
@@ -494,8 +503,8 @@ Scene still_room_with_one_mover(std::size_t still) {
   const std::size_t side = 50;
   for (std::size_t i = 0; i <= still; ++i) {
     RigNode node;
-    node.translation = i < still ? glm::dvec3(double(i % side) - 25.0, -2.0, -double(i / side) - 3.0)
-                                 : glm::dvec3(0.0, 0.0, -4.0);
+    node.translation =
+        i < still ? glm::dvec3(double(i % side) - 25.0, -2.0, -double(i / side) - 3.0) : glm::dvec3(0.0, 0.0, -4.0);
     add_rig_node(*rig, node, 0);
   }
   AnimationClip clip;
@@ -528,7 +537,7 @@ TEST(SceneAnimator, AFrameSendsOnlyThePiecesThatChanged) {
               moved.bytes);
   EXPECT_LT(moved.bytes, first.bytes / 4);
   const SceneAnimator::Update held = animator.update(0.25, set, ds);  // the same instant again
-  EXPECT_LT(held.bytes, moved.bytes);  // only the motion buffer: no motion now
+  EXPECT_LT(held.bytes, moved.bytes);                                 // only the motion buffer: no motion now
   const SceneAnimator::Update again = animator.update(0.25, set, ds);
   EXPECT_EQ(again.bytes, 0u);
   PathTracer::Options opt;
@@ -557,11 +566,12 @@ TEST(SceneOnDevices, AStaticScenesHostTrianglesAreReleasedAnAnimatedOnesKept) {
   EXPECT_GT(still.loaded.times.host_rss_after_start_mib, 0.0);
   PathTracer::Options opt;
   opt.spp = 1;
-  const auto released = pixels_of(PathTracer(still.devices, still.device_scene, still.loaded.scene)
-                                      .render_stereo(0.0f, 0, 16, 12, opt));
+  const auto released =
+      pixels_of(PathTracer(still.devices, still.device_scene, still.loaded.scene).render_stereo(0.0f, 0, 16, 12, opt));
   const LoadedScene kept = load_and_build("cornell", true);
   DeviceScene ds(still.devices, kept.scene, kept.bvh);
-  EXPECT_TRUE(bit_identical(released, pixels_of(PathTracer(still.devices, ds, kept.scene).render_stereo(0.0f, 0, 16, 12, opt))));
+  EXPECT_TRUE(bit_identical(released,
+                            pixels_of(PathTracer(still.devices, ds, kept.scene).render_stereo(0.0f, 0, 16, 12, opt))));
   SceneOnDevices moving(cube_on_floor_file(dir), {1, DeviceMode::Auto, ""}, true);
   EXPECT_EQ(moving.loaded.scene.triangles.size(), moving.loaded.triangle_count);
 }
@@ -658,7 +668,8 @@ TEST(MotionPass, AMovingQuadsPointsGoBackAlongItsAnalyticMotion) {
     const int t = static_cast<int>(i % 2);
     double b1 = u01(rng), b2 = u01(rng);
     if (b1 + b2 > 1.0) b1 = 1.0 - b1, b2 = 1.0 - b2;
-    const glm::dvec3 p = now[tris[t][0]] + b1 * (now[tris[t][1]] - now[tris[t][0]]) + b2 * (now[tris[t][2]] - now[tris[t][0]]);
+    const glm::dvec3 p =
+        now[tris[t][0]] + b1 * (now[tris[t][1]] - now[tris[t][0]]) + b2 * (now[tris[t][2]] - now[tris[t][0]]);
     g.pos[0] = float(p.x), g.pos[1] = float(p.y), g.pos[2] = float(p.z);
     g.material_class = PX_CLASS_DIFFUSE;
     g.prim = static_cast<std::uint32_t>(t);
@@ -673,8 +684,8 @@ TEST(MotionPass, AMovingQuadsPointsGoBackAlongItsAnalyticMotion) {
   gbuf[5].inst = PX_NO_INSTANCE;
   Scene inst_scene;
   inst_scene.materials.resize(1);
-  for (const auto& t : tris) append_triangle(inst_scene.triangles, glm::vec3(before[t[0]]), glm::vec3(before[t[1]]),
-                                             glm::vec3(before[t[2]]), 0);
+  for (const auto& t : tris)
+    append_triangle(inst_scene.triangles, glm::vec3(before[t[0]]), glm::vec3(before[t[1]]), glm::vec3(before[t[2]]), 0);
   inst_scene.instancing.meshes.push_back({0, inst_scene.triangles.size()});
   inst_scene.instancing.instances.push_back({0, glm::mat4(motion)});
   const std::vector<glm::mat4> previous{glm::mat4(1.0f)};
@@ -683,7 +694,8 @@ TEST(MotionPass, AMovingQuadsPointsGoBackAlongItsAnalyticMotion) {
   const cl::Context& ctx = set.context();
   cl::CommandQueue& q = set.devices()[0].queue;
   cl::Buffer g_buf(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, gbuf.size() * sizeof(GBufferTexel), gbuf.data());
-  cl::Buffer m_buf(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, tri_motion.size() * sizeof(cl_float4), tri_motion.data());
+  cl::Buffer m_buf(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, tri_motion.size() * sizeof(cl_float4),
+                   tri_motion.data());
   cl::Buffer i_buf(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, inst_words.size() * 4,
                    const_cast<std::uint32_t*>(inst_words.data()));
   cl::Buffer out(ctx, CL_MEM_WRITE_ONLY, gbuf.size() * sizeof(cl_float4));
@@ -708,7 +720,6 @@ TEST(MotionPass, AMovingQuadsPointsGoBackAlongItsAnalyticMotion) {
     for (int c = 0; c < 3; ++c) EXPECT_NEAR(got[i].s[c], want[i][c], 2e-5) << "texel " << i << " axis " << c;
   }
 }
-
 
 // The motion edges (kernels/pipeline/motion_edges.cl) of the sliding cube mid-clip, against
 // the rule evaluated on the host from the same G-buffer: a texel on the cube (its instance is

@@ -63,8 +63,7 @@ void expect_all_valid(const Scene& s, const std::string& label) {
     EXPECT_LT(m.diffuse_texture, int(s.textures.size())) << label;
     EXPECT_LT(m.alpha_texture, int(s.textures.size())) << label;
   }
-  for (const Texture& t : s.textures)
-    EXPECT_EQ(t.rgba.size(), std::size_t(t.width) * t.height * 4) << label;
+  for (const Texture& t : s.textures) EXPECT_EQ(t.rgba.size(), std::size_t(t.width) * t.height * 4) << label;
   for (std::size_t i = 1; i < s.camera_path.size(); ++i)
     EXPECT_GT(s.camera_path[i].time, s.camera_path[i - 1].time) << label;
   EXPECT_GT(s.meters_per_unit, 0.0f);
@@ -222,8 +221,8 @@ TEST(BuiltinScenes, EveryBuiltinIsValid) {
     const Scene s = name == "atrium" ? make_builtin_scene(name, {{"detail", 0.05}}) : make_builtin_scene(name);
     expect_all_valid(s, name);
     EXPECT_EQ(s.name, name);
-    const bool emissive = std::any_of(s.materials.begin(), s.materials.end(),
-                                      [](const Material& m) { return m.is_emissive(); });
+    const bool emissive =
+        std::any_of(s.materials.begin(), s.materials.end(), [](const Material& m) { return m.is_emissive(); });
     EXPECT_TRUE(emissive || s.sun.enabled || s.sky.enabled) << name << " has no light";
     EXPECT_FALSE(s.camera_path.empty()) << name;
   }

@@ -43,8 +43,8 @@ SceneTriangle make_triangle(glm::vec3 a, glm::vec3 b, glm::vec3 c, std::uint32_t
 }
 
 // n triangles with random vertices around random centres in [offset, offset + extent]^3.
-std::vector<SceneTriangle> random_soup(std::size_t n, unsigned seed, float extent = 100.0f,
-                                       float size = 2.0f, float offset = 0.0f) {
+std::vector<SceneTriangle> random_soup(std::size_t n, unsigned seed, float extent = 100.0f, float size = 2.0f,
+                                       float offset = 0.0f) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
   std::vector<SceneTriangle> tris;
@@ -52,8 +52,7 @@ std::vector<SceneTriangle> random_soup(std::size_t n, unsigned seed, float exten
   for (std::size_t i = 0; i < n; ++i) {
     const glm::vec3 c = glm::vec3(offset) + extent * glm::vec3(u(rng), u(rng), u(rng));
     auto jitter = [&] { return size * (glm::vec3(u(rng), u(rng), u(rng)) - 0.5f); };
-    tris.push_back(make_triangle(c + jitter(), c + jitter(), c + jitter(),
-                                 static_cast<std::uint32_t>(i % 7)));
+    tris.push_back(make_triangle(c + jitter(), c + jitter(), c + jitter(), static_cast<std::uint32_t>(i % 7)));
   }
   return tris;
 }
@@ -65,10 +64,9 @@ std::vector<SceneTriangle> long_thin_soup(std::size_t n, unsigned seed, float le
   std::vector<SceneTriangle> tris;
   for (std::size_t i = 0; i < n; ++i) {
     const glm::vec3 c = 100.0f * glm::vec3(u(rng), u(rng), u(rng));
-    const glm::vec3 d = glm::normalize(glm::vec3(u(rng) < 0.5f ? -1 : 1, u(rng) < 0.5f ? -1 : 1,
-                                                 u(rng) < 0.5f ? -1 : 1));
-    const glm::vec3 side =
-        glm::normalize(glm::cross(d, glm::vec3(u(rng), u(rng), u(rng)) - 0.5f));
+    const glm::vec3 d =
+        glm::normalize(glm::vec3(u(rng) < 0.5f ? -1 : 1, u(rng) < 0.5f ? -1 : 1, u(rng) < 0.5f ? -1 : 1));
+    const glm::vec3 side = glm::normalize(glm::cross(d, glm::vec3(u(rng), u(rng), u(rng)) - 0.5f));
     const glm::vec3 a = c - 0.5f * length * d;
     tris.push_back(make_triangle(a, c + 0.5f * length * d, a + 0.5f * side));
   }
@@ -113,8 +111,8 @@ struct RefHit {
 };
 
 // Möller–Trumbore in double: returns true and t for a hit with tmin <= t <= tmax.
-bool intersect_triangle(const Ray& ray, const float* p0, const float* p1, const float* p2,
-                        double tmin, double tmax, double& t_out) {
+bool intersect_triangle(const Ray& ray, const float* p0, const float* p1, const float* p2, double tmin, double tmax,
+                        double& t_out) {
   double o[3], d[3], e1[3], e2[3], tv[3];
   for (int k = 0; k < 3; ++k) {
     o[k] = ray.org[k], d[k] = ray.dir[k];
@@ -149,8 +147,7 @@ RefHit brute_force(const std::vector<SceneTriangle>& tris, const Ray& ray) {
   double tmax = ray.tmax;
   for (std::size_t i = 0; i < tris.size(); ++i) {
     double t;
-    if (intersect_triangle(ray, &tris[i].p[0].x, &tris[i].p[1].x, &tris[i].p[2].x, ray.tmin,
-                           tmax, t)) {
+    if (intersect_triangle(ray, &tris[i].p[0].x, &tris[i].p[1].x, &tris[i].p[2].x, ray.tmin, tmax, t)) {
       tmax = t;
       best = {t, static_cast<std::uint32_t>(i)};
     }
@@ -198,8 +195,7 @@ RefHit traverse(const FlatBvh& bvh, const Ray& ray, TraversalStats* stats = null
     const std::uint32_t index[2] = {node.left, node.right};
     const std::uint32_t count[2] = {node.left_count, node.right_count};
     for (int side = 0; side < 2; ++side) {
-      if (is_absent(lo[side], hi[side]) || !hit_box(ray, lo[side], hi[side], ray.tmin, tmax))
-        continue;
+      if (is_absent(lo[side], hi[side]) || !hit_box(ray, lo[side], hi[side], ray.tmin, tmax)) continue;
       if (count[side] == 0) {
         stack.push_back(index[side]);
         continue;
@@ -249,8 +245,7 @@ std::vector<Ray> random_rays(const std::vector<SceneTriangle>& tris, std::size_t
 
 // Same closest surface: the same triangle, or (coplanar duplicates, a shared edge) the same
 // distance.
-bool same_hit(double t_a, std::uint32_t prim_a, double t_b, std::uint32_t prim_b,
-              double rel = 1e-4) {
+bool same_hit(double t_a, std::uint32_t prim_a, double t_b, std::uint32_t prim_b, double rel = 1e-4) {
   if (prim_a == PX_NO_HIT || prim_b == PX_NO_HIT) return prim_a == prim_b;
   if (prim_a == prim_b) return true;
   return std::abs(t_a - t_b) <= rel * std::max({std::abs(t_a), std::abs(t_b), 1e-30});
@@ -258,8 +253,7 @@ bool same_hit(double t_a, std::uint32_t prim_a, double t_b, std::uint32_t prim_b
 
 // Checks the flat tree against brute force on `rays` rays; returns the average number of
 // triangle tests per ray (how much the tree prunes).
-double expect_traversal_matches_brute_force(const FlatBvh& bvh,
-                                            const std::vector<SceneTriangle>& tris,
+double expect_traversal_matches_brute_force(const FlatBvh& bvh, const std::vector<SceneTriangle>& tris,
                                             std::size_t rays, unsigned seed) {
   TraversalStats stats;
   std::size_t mismatches = 0, hits = 0;
@@ -269,8 +263,8 @@ double expect_traversal_matches_brute_force(const FlatBvh& bvh,
     hits += b.prim != PX_NO_HIT;
     if (!same_hit(a.t, a.prim, b.t, b.prim)) {
       if (++mismatches <= 5)
-        ADD_FAILURE() << "BVH traversal: prim " << a.prim << " t " << a.t << ", brute force: prim "
-                      << b.prim << " t " << b.t;
+        ADD_FAILURE() << "BVH traversal: prim " << a.prim << " t " << a.t << ", brute force: prim " << b.prim << " t "
+                      << b.t;
     }
   }
   EXPECT_EQ(mismatches, 0u);
@@ -310,14 +304,12 @@ TEST_P(BuildSoup, ProducesAValidTree) {
   const FlatBvh bvh = build_bvh(tris, with_splits(splits));
   expect_valid(bvh, tris);
   // A binary tree with L leaves has L - 1 inner nodes (plus the root of a one-leaf scene).
-  EXPECT_GE(bvh.nodes.size(), (bvh.triangles.size() + PX_BVH_MAX_LEAF_SIZE - 1) /
-                                  PX_BVH_MAX_LEAF_SIZE - 1);
+  EXPECT_GE(bvh.nodes.size(), (bvh.triangles.size() + PX_BVH_MAX_LEAF_SIZE - 1) / PX_BVH_MAX_LEAF_SIZE - 1);
   EXPECT_LE(bvh.nodes.size(), std::max<std::size_t>(bvh.triangles.size(), 2) - 1);
 }
 
 INSTANTIATE_TEST_SUITE_P(Sizes, BuildSoup,
-                         ::testing::Combine(::testing::Values(1, 2, 3, 4, 5, 17, 1000, 100000),
-                                            ::testing::Bool()),
+                         ::testing::Combine(::testing::Values(1, 2, 3, 4, 5, 17, 1000, 100000), ::testing::Bool()),
                          [](const auto& info) {
                            return std::to_string(std::get<0>(info.param)) +
                                   (std::get<1>(info.param) ? "_splits" : "_binned");
@@ -413,8 +405,7 @@ TEST(Bvh, BinnedBuildIsDeterministic) {
   ASSERT_EQ(a.nodes.size(), b.nodes.size());
   ASSERT_EQ(a.triangles.size(), b.triangles.size());
   EXPECT_EQ(0, std::memcmp(a.nodes.data(), b.nodes.data(), a.nodes.size() * sizeof(BvhNode)));
-  EXPECT_EQ(0, std::memcmp(a.triangles.data(), b.triangles.data(),
-                           a.triangles.size() * sizeof(BvhTriangle)));
+  EXPECT_EQ(0, std::memcmp(a.triangles.data(), b.triangles.data(), a.triangles.size() * sizeof(BvhTriangle)));
 }
 
 // Inputs that break naive builders: degenerate centroid distributions, zero-area and zero-
@@ -499,8 +490,7 @@ TEST(Bvh, TraversalMatchesEmbree) {
       if (!same_hit(a.t, a.prim, b.t, b.prim)) {
         // Float (Embree) and double (here) may disagree on a ray through an edge; count them.
         if (++mismatches <= 3)
-          ADD_FAILURE() << "flat BVH: prim " << a.prim << " t " << a.t << ", Embree: prim "
-                        << b.prim << " t " << b.t;
+          ADD_FAILURE() << "flat BVH: prim " << a.prim << " t " << a.t << ", Embree: prim " << b.prim << " t " << b.t;
       }
     }
     EXPECT_EQ(mismatches, 0u);
@@ -656,16 +646,16 @@ TEST(Bvh, SplitTrialTakesSplitsWhereTheyPay) {
 // a small cap. It holds exactly ceil(n / stride) triangles and decides as every 16th did, both
 // where splits gain nothing and where they pay.
 TEST(Bvh, SplitTrialSampleCappedDecidesAsTheFullSample) {
-  const auto flat = heightfield(150);          // 45,000 triangles
-  const auto strips = diagonal_strips(400);    // splits pay
+  const auto flat = heightfield(150);        // 45,000 triangles
+  const auto strips = diagonal_strips(400);  // splits pay
   for (const auto* tris : {&flat, &strips}) {
     SCOPED_TRACE(tris == &flat ? "heightfield" : "diagonal strips");
     const FlatBvh every16 = build_bvh(*tris, forced_trial());
     BvhBuildOptions capped_options = forced_trial();
     capped_options.split_trial_max_sample = tris->size() / 40;
     const FlatBvh capped = build_bvh(*tris, capped_options);
-    const std::size_t stride = (tris->size() + capped_options.split_trial_max_sample - 1) /
-                               capped_options.split_trial_max_sample;
+    const std::size_t stride =
+        (tris->size() + capped_options.split_trial_max_sample - 1) / capped_options.split_trial_max_sample;
     ASSERT_GT(stride, 16u);
     EXPECT_EQ(capped.stats.split_trial_sampled, (tris->size() + stride - 1) / stride);
     EXPECT_LE(capped.stats.split_trial_sampled, capped_options.split_trial_max_sample);
@@ -754,8 +744,7 @@ class ValidatorDetects : public ::testing::Test {
     for (std::uint32_t i = 0; i < bvh_.nodes.size(); ++i) {
       const BvhNode& n = bvh_.nodes[i];
       if (big_leaf_node_ == kNone && n.left_count >= 2) big_leaf_node_ = i;
-      if (inner_child_node_ == kNone && i > 0 && n.left_count == 0 && n.right_count == 0)
-        inner_child_node_ = i;
+      if (inner_child_node_ == kNone && i > 0 && n.left_count == 0 && n.right_count == 0) inner_child_node_ = i;
     }
     ASSERT_NE(big_leaf_node_, kNone);
     ASSERT_NE(inner_child_node_, kNone);
@@ -769,7 +758,7 @@ class ValidatorDetects : public ::testing::Test {
   static constexpr std::uint32_t kNone = ~0u;
   std::vector<SceneTriangle> tris_;
   FlatBvh bvh_;
-  std::uint32_t big_leaf_node_ = kNone;    // its left child is a leaf of >= 2 triangles
+  std::uint32_t big_leaf_node_ = kNone;     // its left child is a leaf of >= 2 triangles
   std::uint32_t inner_child_node_ = kNone;  // not the root; both its children are inner nodes
 };
 
@@ -784,18 +773,20 @@ TEST_F(ValidatorDetects, ShrunkInnerBox) {
   FlatBvh bad = bvh_;
   BvhNode& n = bad.nodes[inner_child_node_];
   n.lmin[1] = 0.5f * (n.lmin[1] + n.lmax[1]);
-  expect_invalid(bad, "box is not inside the box its parent stores for it", "inner box no longer contains its children");
+  expect_invalid(bad, "box is not inside the box its parent stores for it",
+                 "inner box no longer contains its children");
 }
 
 TEST_F(ValidatorDetects, DroppedLeafTriangle) {
   FlatBvh bad = bvh_;
   bad.nodes[big_leaf_node_].left_count -= 1;
   // The entry left out of its leaf, and (no spatial splits: one entry per triangle) its triangle.
-  const std::string entry = "triangle entry " + std::to_string(bad.nodes[big_leaf_node_].left +
-                                                                bad.nodes[big_leaf_node_].left_count);
+  const std::string entry =
+      "triangle entry " + std::to_string(bad.nodes[big_leaf_node_].left + bad.nodes[big_leaf_node_].left_count);
   expect_invalid(bad, entry + " is in 0 leaves (expected 1)", "an entry no longer referenced");
-  const std::string prim = "scene triangle " + std::to_string(bad.triangles[bad.nodes[big_leaf_node_].left +
-                                                                             bad.nodes[big_leaf_node_].left_count].prim);
+  const std::string prim =
+      "scene triangle " +
+      std::to_string(bad.triangles[bad.nodes[big_leaf_node_].left + bad.nodes[big_leaf_node_].left_count].prim);
   expect_invalid(bad, prim + " is not referenced by any leaf", "a triangle no longer referenced");
 }
 
@@ -810,7 +801,8 @@ TEST_F(ValidatorDetects, Cycle) {
   expect_invalid(to_self, again, "child points at its own node");
   FlatBvh shared = bvh_;
   shared.nodes[inner_child_node_].right = shared.nodes[inner_child_node_].left;
-  const std::string twice = "node " + std::to_string(shared.nodes[inner_child_node_].left) + " is reached more than once";
+  const std::string twice =
+      "node " + std::to_string(shared.nodes[inner_child_node_].left) + " is reached more than once";
   expect_invalid(shared, twice, "two parents share a subtree");
   expect_invalid(shared, "nodes are not reachable from the root", "the subtree it no longer points to");
 }
@@ -1021,8 +1013,8 @@ TEST(WideBvh, LeafRefsPointAtTheBlocksHoldingTheirVertices) {
       BvhLeafBlock b;
       ASSERT_LE((std::size_t{r.block} * 16 + sizeof b) / 4, got.size());
       std::memcpy(&b, got.data() + std::size_t{r.block} * 4, sizeof b);
-      bool ok = r.prim == t.prim && r.flags == t.flags && r.material == t.material && b.first <= i &&
-                i < b.first + b.count;
+      bool ok =
+          r.prim == t.prim && r.flags == t.flags && r.material == t.material && b.first <= i && i < b.first + b.count;
       const std::size_t lane = i - b.first;
       for (int k = 0; k < 3 && ok; ++k)
         ok = b.v[k][lane] == t.v0[k] && b.v[3 + k][lane] == t.v1[k] && b.v[6 + k][lane] == t.v2[k];
@@ -1147,8 +1139,10 @@ TEST(WideBvh, ValidatorOnThreadsReportsEveryLayoutInOrder) {
     std::size_t binary_at = check.errors.size(), wide_at = check.errors.size();
     for (std::size_t i = 0; i < check.errors.size(); ++i) {
       if (check.errors[i].find("is not inside the box of its leaf") == std::string::npos) continue;
-      if (check.errors[i].rfind("wide8 ", 0) == 0) wide_at = std::min(wide_at, i);
-      else binary_at = std::min(binary_at, i);
+      if (check.errors[i].rfind("wide8 ", 0) == 0)
+        wide_at = std::min(wide_at, i);
+      else
+        binary_at = std::min(binary_at, i);
     }
     ASSERT_LT(binary_at, check.errors.size()) << "the binary tree's halved leaf box";
     ASSERT_LT(wide_at, check.errors.size()) << "the wide8 tree's halved leaf box";
@@ -1233,17 +1227,20 @@ TEST(WideBvh, ValidatorDetectsCorruptWideNodes) {
   FlatBvh inner = bvh;
   Bvh8Node& in = inner.nodes8[inner_node];
   in.lo_z[inner_slot] = 0.5f * (in.lo_z[inner_slot] + in.hi_z[inner_slot]);
-  expect_invalid(inner, " box is not inside the box its parent stores for it", "inner box no longer contains its children");
+  expect_invalid(inner, " box is not inside the box its parent stores for it",
+                 "inner box no longer contains its children");
   FlatBvh dropped = bvh;
   dropped.nodes8[leaf_node].count[leaf_slot] -= 1;
-  expect_invalid(dropped,
-                 "triangle entry " + std::to_string(bvh.nodes8[leaf_node].child[leaf_slot] +
-                                                    bvh.nodes8[leaf_node].count[leaf_slot] - 1) +
-                     " is in 0 leaves (expected 1)",
-                 "a triangle entry is no longer referenced");
+  expect_invalid(
+      dropped,
+      "triangle entry " +
+          std::to_string(bvh.nodes8[leaf_node].child[leaf_slot] + bvh.nodes8[leaf_node].count[leaf_slot] - 1) +
+          " is in 0 leaves (expected 1)",
+      "a triangle entry is no longer referenced");
   FlatBvh cycle = bvh;
   cycle.nodes8[inner_node].child[inner_slot] = inner_node;
-  expect_invalid(cycle, "node " + std::to_string(inner_node) + " is reached more than once", "child points at its own node");
+  expect_invalid(cycle, "node " + std::to_string(inner_node) + " is reached more than once",
+                 "child points at its own node");
   FlatBvh absent = bvh;
   Bvh8Node& a = absent.nodes8[leaf_node];
   a.lo_x[leaf_slot] = a.lo_y[leaf_slot] = a.lo_z[leaf_slot] = std::numeric_limits<float>::max();
@@ -1455,16 +1452,16 @@ TEST(CompressedBvh, ValidatorDetectsCorruptCompressedNodes) {
   bad_child.cnodes[inner_node].child_base = static_cast<std::uint32_t>(bvh.cnodes.size());
   // The walk meets the first of them (child_base + the slot's rank) before the encoding check
   // would name the whole range, and its errors fill the ten reported.
-  expect_invalid(bad_child,
-                 inner_at + " child index " +
-                     std::to_string(bvh.cnodes.size() + (bvh.cnodes[inner_node].meta[inner_slot] & PX_CWBVH_RANK_MASK)) +
-                     " is out of range",
-                 "interior children past the node array");
+  expect_invalid(
+      bad_child,
+      inner_at + " child index " +
+          std::to_string(bvh.cnodes.size() + (bvh.cnodes[inner_node].meta[inner_slot] & PX_CWBVH_RANK_MASK)) +
+          " is out of range",
+      "interior children past the node array");
   FlatBvh bad_leaf = bvh;
   bad_leaf.cnodes[leaf_node].leaf_base = static_cast<std::uint32_t>(bvh.cleaf_first.size());
   // The walk decodes a leaf past the table as a start past every triangle (CompressedNodes::slot).
-  expect_invalid(bad_leaf,
-                 "leaf under node " + std::to_string(leaf_node) + " references triangles 4294967295..",
+  expect_invalid(bad_leaf, "leaf under node " + std::to_string(leaf_node) + " references triangles 4294967295..",
                  "leaves past the leaf table");
   FlatBvh moved_leaf = bvh;
   moved_leaf.cleaf_first[0] += 1;
@@ -1539,21 +1536,23 @@ FlatBvh chain(const std::vector<SceneTriangle>& tris, std::uint32_t inner) {
 TEST(Validator, DepthAndLeafSizeLimits) {
   const auto tris = random_soup(PX_BVH_MAX_DEPTH + 2, 71);
   // Depth exactly PX_BVH_MAX_DEPTH passes; one more level fails.
-  const FlatBvh deepest_allowed = chain(
-      std::vector<SceneTriangle>(tris.begin(), tris.begin() + PX_BVH_MAX_DEPTH), PX_BVH_MAX_DEPTH - 1);
-  EXPECT_TRUE(validate_bvh(deepest_allowed, std::vector<SceneTriangle>(tris.begin(), tris.begin() + PX_BVH_MAX_DEPTH)).ok);
+  const FlatBvh deepest_allowed =
+      chain(std::vector<SceneTriangle>(tris.begin(), tris.begin() + PX_BVH_MAX_DEPTH), PX_BVH_MAX_DEPTH - 1);
+  EXPECT_TRUE(
+      validate_bvh(deepest_allowed, std::vector<SceneTriangle>(tris.begin(), tris.begin() + PX_BVH_MAX_DEPTH)).ok);
   const std::vector<SceneTriangle> one_more(tris.begin(), tris.begin() + PX_BVH_MAX_DEPTH + 1);
   const BvhValidation too_deep = validate_bvh(chain(one_more, PX_BVH_MAX_DEPTH), one_more);
   EXPECT_FALSE(too_deep.ok);
   ASSERT_FALSE(too_deep.errors.empty());
   EXPECT_NE(too_deep.errors[0].find("depth"), std::string::npos) << too_deep.errors[0];
-  EXPECT_TRUE(has_error(too_deep, "",
-                        "at depth " + std::to_string(PX_BVH_MAX_DEPTH + 1) + " exceeds PX_BVH_MAX_DEPTH"));
+  EXPECT_TRUE(
+      has_error(too_deep, "", "at depth " + std::to_string(PX_BVH_MAX_DEPTH + 1) + " exceeds PX_BVH_MAX_DEPTH"));
 
   // One inner node whose right leaf holds PX_BVH_MAX_LEAF_SIZE + 1 triangles.
   const std::vector<SceneTriangle> few(tris.begin(), tris.begin() + PX_BVH_MAX_LEAF_SIZE + 2);
-  EXPECT_TRUE(has_error(validate_bvh(chain(few, 1), few), "",
-                        "holds " + std::to_string(PX_BVH_MAX_LEAF_SIZE + 1) + " triangles, more than PX_BVH_MAX_LEAF_SIZE"));
+  EXPECT_TRUE(
+      has_error(validate_bvh(chain(few, 1), few), "",
+                "holds " + std::to_string(PX_BVH_MAX_LEAF_SIZE + 1) + " triangles, more than PX_BVH_MAX_LEAF_SIZE"));
   const std::vector<SceneTriangle> fits(tris.begin(), tris.begin() + PX_BVH_MAX_LEAF_SIZE + 1);
   EXPECT_TRUE(validate_bvh(chain(fits, 1), fits).ok);
 }
@@ -1588,8 +1587,8 @@ TEST(EmbreeReference, MatchesBruteForce) {
       // (u, v) are the barycentrics of v1 and v2: they rebuild the hit point.
       const SceneTriangle& t = tris[a.prim];
       const glm::vec3 p = (1.0f - a.u - a.v) * t.p[0] + a.u * t.p[1] + a.v * t.p[2];
-      const glm::vec3 q = glm::vec3(ray.org[0], ray.org[1], ray.org[2]) +
-                          a.t * glm::vec3(ray.dir[0], ray.dir[1], ray.dir[2]);
+      const glm::vec3 q =
+          glm::vec3(ray.org[0], ray.org[1], ray.org[2]) + a.t * glm::vec3(ray.dir[0], ray.dir[1], ray.dir[2]);
       EXPECT_LT(glm::length(p - q), 1e-5f * std::max(1.0f, glm::length(q)) + 1e-4f * a.t);
     }
   }
@@ -1634,8 +1633,7 @@ TEST(EmbreeReference, IntersectAllMatchesSingleRaysOnAnyThreadCount) {
     }
   }
   // Occlusion agrees with closest hit.
-  for (std::size_t i = 0; i < rays.size(); ++i)
-    EXPECT_EQ(embree.occluded(rays[i]), expected[i].prim != PX_NO_HIT);
+  for (std::size_t i = 0; i < rays.size(); ++i) EXPECT_EQ(embree.occluded(rays[i]), expected[i].prim != PX_NO_HIT);
 }
 
 TEST(EmbreeReference, EmptySceneMissesEverything) {

@@ -70,7 +70,8 @@ TEST(BvhCache, RecordsTheValidatedLayoutsWhoseNodesCollapseAgainToTheSameBytes) 
   ASSERT_EQ(loaded->cnodes.size(), built.cnodes.size());
   EXPECT_EQ(std::memcmp(loaded->nodes4.data(), built.nodes4.data(), built.nodes4.size() * sizeof(Bvh4Node)), 0);
   EXPECT_EQ(std::memcmp(loaded->nodes8.data(), built.nodes8.data(), built.nodes8.size() * sizeof(Bvh8Node)), 0);
-  EXPECT_EQ(std::memcmp(loaded->cnodes.data(), built.cnodes.data(), built.cnodes.size() * sizeof(CompressedBvh8Node)), 0);
+  EXPECT_EQ(std::memcmp(loaded->cnodes.data(), built.cnodes.data(), built.cnodes.size() * sizeof(CompressedBvh8Node)),
+            0);
   EXPECT_EQ(loaded->cleaf_first, built.cleaf_first);
   // A tree stored with its binary nodes alone records no layout: the next start validates.
   const auto other = slivers(2000, 5);

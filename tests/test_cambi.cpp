@@ -40,9 +40,7 @@ double score(const std::vector<float>& l, int bits = 8) {
   return cambi_luma(l, kW, kH, o).score;
 }
 
-TEST(Cambi, FlatImageScoresZero) {
-  EXPECT_EQ(score(std::vector<float>(kW * kH, 0.3f)), 0.0);
-}
+TEST(Cambi, FlatImageScoresZero) { EXPECT_EQ(score(std::vector<float>(kW * kH, 0.3f)), 0.0); }
 
 TEST(Cambi, SmoothGradientScoresAboutZero) {
   // Shown at 10 bits, a gradient rising one 8-bit level per 4 pixels steps one 10-bit code per
@@ -153,7 +151,7 @@ CambiResult exact(const std::vector<float>& l, int scales = 1, double topk = 1.0
 }
 
 TEST(CambiReference, OneCodeStepMatchesTheDerivedMean) {
-  EXPECT_NEAR(exact(step(60, 61)).score, kStepMean, 1e-12);   // 0.0231481...
+  EXPECT_NEAR(exact(step(60, 61)).score, kStepMean, 1e-12);  // 0.0231481...
   EXPECT_NEAR(exact(step(61, 60)).score, kStepMean, 1e-12) << "a step down counts as a step up";
 }
 

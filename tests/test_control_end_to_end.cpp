@@ -42,8 +42,7 @@ std::vector<FrameRecord> render_with_report(RenderCommand cmd, const test::TempD
   for (const auto& f : report.at("frames")) {
     FrameRecord r;
     r.wall_ms = f.at("wall_ms").get<double>();
-    r.quality = {f.at("spp").get<unsigned>(), f.at("bounces").get<unsigned>(),
-                 f.at("svgf_iterations").get<unsigned>()};
+    r.quality = {f.at("spp").get<unsigned>(), f.at("bounces").get<unsigned>(), f.at("svgf_iterations").get<unsigned>()};
     for (const auto& s : f.at("strips")) {
       const unsigned row0 = s.at(0).get<unsigned>(), rows = s.at(1).get<unsigned>();
       r.strips.push_back({row0, row0 + rows});

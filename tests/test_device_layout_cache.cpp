@@ -413,7 +413,6 @@ TEST(DeviceLayoutCache, NoFolderMeansNoCacheAndNoError) {
   EXPECT_FALSE(why.empty());
 }
 
-
 // A scene of flat, untextured triangles (a mesh without normals or uvs) is laid out with
 // 16-byte FlatTriangleShading records (DeviceScene::flat_shading); its cache file holds them, a
 // start maps them as such, and the mapped scene renders what the full records render.

@@ -152,7 +152,8 @@ TEST(DeviceScene, ShadingMadeInTheHandedOverTrianglesIsTheSameBuffer) {
     std::memcpy(&r, refs.data() + i * sizeof r, sizeof r);
     ASSERT_LE(std::size_t{r.block} * 16 + sizeof b, nodes.size());
     std::memcpy(&b, nodes.data() + std::size_t{r.block} * 16, sizeof b);
-    bool ok = r.prim == t.prim && r.flags == t.flags && r.material == t.material && b.first <= i && i < b.first + b.count;
+    bool ok =
+        r.prim == t.prim && r.flags == t.flags && r.material == t.material && b.first <= i && i < b.first + b.count;
     for (int k = 0; k < 3 && ok; ++k)
       ok = b.v[k][i - b.first] == t.v0[k] && b.v[3 + k][i - b.first] == t.v1[k] && b.v[6 + k][i - b.first] == t.v2[k];
     if (!ok) ++bad, ADD_FAILURE() << "leaf triangle " << i;
@@ -213,7 +214,6 @@ TEST(DeviceScene, TwoStepsBeforeTheDevicesGiveTheOneStepBuffers) {
                std::logic_error)
       << "an animated scene keeps its triangles";
 }
-
 
 // A scene of flat, untextured triangles (what a mesh without NORMAL and TEXCOORD_0 loads as)
 // goes to the devices with 16-byte FlatTriangleShading records where the full records take 64,
@@ -318,9 +318,12 @@ TEST(DeviceScene, AFlatSceneBuildsItsTreeFromCornersPackedWhereItsTrianglesWere)
   const FlatBvh from_triangles = build_bvh(scene.triangles, options, /*layout=*/std::nullopt);
   ASSERT_EQ(from_corners.nodes.size(), from_triangles.nodes.size());
   ASSERT_EQ(from_corners.triangles.size(), from_triangles.triangles.size());
-  EXPECT_EQ(std::memcmp(from_corners.nodes.data(), from_triangles.nodes.data(), from_triangles.nodes.size() * sizeof(BvhNode)), 0);
+  EXPECT_EQ(std::memcmp(from_corners.nodes.data(), from_triangles.nodes.data(),
+                        from_triangles.nodes.size() * sizeof(BvhNode)),
+            0);
   EXPECT_EQ(std::memcmp(from_corners.triangles.data(), from_triangles.triangles.data(),
-                        from_triangles.triangles.size() * sizeof(BvhTriangle)), 0);
+                        from_triangles.triangles.size() * sizeof(BvhTriangle)),
+            0);
   EXPECT_TRUE(validate_bvh(from_corners, corners.source()).ok);
   // A corner moved by one ulp is caught by the validator (the corners are what it checks against).
   {
@@ -342,7 +345,12 @@ TEST(DeviceScene, AFlatSceneBuildsItsTreeFromCornersPackedWhereItsTrianglesWere)
   bool taken = false;
   DeviceScene::BuildCorners none;
   EXPECT_FALSE(DeviceScene::prepare_flat_host(
-      smooth, [&] { taken = true; return std::exchange(smooth.triangles, {}); }, none));
+      smooth,
+      [&] {
+        taken = true;
+        return std::exchange(smooth.triangles, {});
+      },
+      none));
   EXPECT_FALSE(taken);
   EXPECT_EQ(none.data, nullptr);
   EXPECT_FALSE(smooth.triangles.empty());
@@ -357,7 +365,8 @@ TEST(DeviceScene, AFlatSceneBuildsItsTreeFromCornersPackedWhereItsTrianglesWere)
   std::vector<std::uint16_t> idx;
   for (int z = 0; z <= n; ++z)
     for (int x = 0; x <= n; ++x) {
-      pos.insert(pos.end(), {x / float(n) * 2.0f - 1.0f, 0.1f * std::sin(0.7f * x) * std::cos(0.5f * z), z / float(n) * 2.0f - 1.0f});
+      pos.insert(pos.end(), {x / float(n) * 2.0f - 1.0f, 0.1f * std::sin(0.7f * x) * std::cos(0.5f * z),
+                             z / float(n) * 2.0f - 1.0f});
     }
   for (int z = 0; z < n; ++z)
     for (int x = 0; x < n; ++x) {
@@ -368,7 +377,9 @@ TEST(DeviceScene, AFlatSceneBuildsItsTreeFromCornersPackedWhereItsTrianglesWere)
   g.add("materials", {{"pbrMetallicRoughness", {{"baseColorFactor", {0.7, 0.7, 0.7, 1}}, {"metallicFactor", 0}}}});
   const int p_acc = g.floats(pos, "VEC3", pos.size() / 3);
   const int i_acc = g.uint16s(idx, "SCALAR", idx.size());
-  g.add("meshes", {{"primitives", nlohmann::json::array({{{"attributes", {{"POSITION", p_acc}}}, {"indices", i_acc}, {"material", 0}}})}});
+  g.add("meshes",
+        {{"primitives",
+          nlohmann::json::array({{{"attributes", {{"POSITION", p_acc}}}, {"indices", i_acc}, {"material", 0}}})}});
   g.add("cameras", {{"type", "perspective"}, {"perspective", {{"yfov", 0.8}, {"znear", 0.1}}}});
   g.doc["scene"] = 0;
   g.doc["scenes"] = nlohmann::json::array({{{"nodes", {0, 1}}}});
@@ -383,7 +394,8 @@ TEST(DeviceScene, AFlatSceneBuildsItsTreeFromCornersPackedWhereItsTrianglesWere)
   EXPECT_FALSE(kept.host_part);
   ASSERT_EQ(kept.scene.triangles.size(), std::size_t(2 * n * n));
   ASSERT_EQ(for_devices.bvh.nodes.size(), kept.bvh.nodes.size());
-  EXPECT_EQ(std::memcmp(for_devices.bvh.nodes.data(), kept.bvh.nodes.data(), kept.bvh.nodes.size() * sizeof(BvhNode)), 0);
+  EXPECT_EQ(std::memcmp(for_devices.bvh.nodes.data(), kept.bvh.nodes.data(), kept.bvh.nodes.size() * sizeof(BvhNode)),
+            0);
   SceneOnDevices on(std::move(for_devices), {2, DeviceMode::Auto, ""});
   EXPECT_TRUE(on.device_scene.flat_shading());
   const DeviceScene kept_ds(on.devices, kept.scene, kept.bvh);

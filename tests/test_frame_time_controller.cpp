@@ -21,7 +21,9 @@ struct SyntheticRenderer {
     std::uniform_real_distribution<double> jitter(1.0 - noise, 1.0 + noise);
     return {trace * q.spp * q.bounces * jitter(rng), denoise * q.svgf_iterations * jitter(rng), other * jitter(rng)};
   }
-  double true_ms(const FrameQuality& q) const { return trace * q.spp * q.bounces + denoise * q.svgf_iterations + other; }
+  double true_ms(const FrameQuality& q) const {
+    return trace * q.spp * q.bounces + denoise * q.svgf_iterations + other;
+  }
 };
 
 struct Trace {

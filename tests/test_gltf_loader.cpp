@@ -25,8 +25,8 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-using test::TempDir;
 using test::base64;
+using test::TempDir;
 
 template <typename F>
 std::string error_of(F&& f) {
@@ -68,7 +68,8 @@ Gltf make_mesh(const std::vector<float>& pos, const std::vector<std::uint16_t>& 
 }
 
 fs::path write_embedded(const TempDir& dir, const std::string& name, Gltf g) {
-  g.doc["buffers"][0] = {{"byteLength", g.bin.size()}, {"uri", "data:application/octet-stream;base64," + base64(g.bin)}};
+  g.doc["buffers"][0] = {{"byteLength", g.bin.size()},
+                         {"uri", "data:application/octet-stream;base64," + base64(g.bin)}};
   return dir.write(name, g.doc.dump());
 }
 
@@ -193,7 +194,8 @@ TEST(GltfLoader, SceneFileAndLoadSceneAcceptGltfAndGlb) {
   write_with_bin(dir, "m.gltf", transformed_mesh());
   write_glb(dir, "m.glb", transformed_mesh());
   for (const char* mesh : {"m.gltf", "m.glb"}) {
-    const fs::path json_path = dir.write("s.json", std::string(R"({"mesh": ")") + mesh + R"(", "sky": {"zenith": [1, 1, 1]}})");
+    const fs::path json_path =
+        dir.write("s.json", std::string(R"({"mesh": ")") + mesh + R"(", "sky": {"zenith": [1, 1, 1]}})");
     const Scene s = load_scene(json_path.string());
     EXPECT_EQ(s.triangles.size(), 3u) << mesh;
     EXPECT_EQ(count_warnings_containing(s, "no light"), 0) << mesh;
@@ -221,7 +223,8 @@ TEST(GltfLoader, PerspectiveCameraBecomesTheView) {
   EXPECT_NEAR(dir_view.z, -1.0f, 1e-5f);
   // A scene file's camera still wins over the glTF's.
   const Scene over = load_scene(
-      dir.write("over.json", R"({"mesh": "cam.gltf", "camera": {"position": [9, 9, 9], "target": [0, 0, 0]}})").string());
+      dir.write("over.json", R"({"mesh": "cam.gltf", "camera": {"position": [9, 9, 9], "target": [0, 0, 0]}})")
+          .string());
   EXPECT_EQ(over.camera.position, glm::vec3(9.0f));
 }
 
@@ -254,7 +257,8 @@ TEST(GltfLoader, TexturedQuadShowsTheTextureColourWhereItsUvsPoint) {
   Gltf g = make_mesh(kPos, kIdx, kNormals, kUv);
   g.doc["images"] = json::array({{{"uri", "tex.png"}}});
   g.doc["textures"] = json::array({{{"source", 0}}});
-  g.doc["materials"] = json::array({{{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}, {"metallicFactor", 0.0}}}}});
+  g.doc["materials"] =
+      json::array({{{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}, {"metallicFactor", 0.0}}}}});
   g.doc["meshes"][0]["primitives"][0]["material"] = 0;
   const Scene s = load_gltf(write_embedded(dir, "tex.gltf", g).string());
   ASSERT_EQ(s.triangles.size(), 3u);
@@ -285,9 +289,16 @@ TEST(GltfLoader, MetallicRoughnessEmissionAndAlphaMaskMapOntoTheMaterialModel) {
   g.doc["textures"] = json::array({{{"source", 0}}});
   g.doc["extensionsUsed"] = {"KHR_materials_emissive_strength"};
   g.doc["materials"] = json::array({
-      {{"name", "gold"}, {"pbrMetallicRoughness", {{"baseColorFactor", {1.0, 0.8, 0.3, 1.0}}, {"metallicFactor", 1.0}, {"roughnessFactor", 0.5}}}},
-      {{"name", "lamp"}, {"emissiveFactor", {1.0, 0.5, 0.25}}, {"extensions", {{"KHR_materials_emissive_strength", {{"emissiveStrength", 8.0}}}}}},
-      {{"name", "leaf"}, {"alphaMode", "MASK"}, {"alphaCutoff", 0.3}, {"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}},
+      {{"name", "gold"},
+       {"pbrMetallicRoughness",
+        {{"baseColorFactor", {1.0, 0.8, 0.3, 1.0}}, {"metallicFactor", 1.0}, {"roughnessFactor", 0.5}}}},
+      {{"name", "lamp"},
+       {"emissiveFactor", {1.0, 0.5, 0.25}},
+       {"extensions", {{"KHR_materials_emissive_strength", {{"emissiveStrength", 8.0}}}}}},
+      {{"name", "leaf"},
+       {"alphaMode", "MASK"},
+       {"alphaCutoff", 0.3},
+       {"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}},
       {{"name", "faded"}, {"alphaMode", "MASK"}, {"pbrMetallicRoughness", {{"baseColorFactor", {1, 1, 1, 0.2}}}}},
   });
   g.doc["meshes"][0]["primitives"][0]["material"] = 0;
@@ -302,11 +313,11 @@ TEST(GltfLoader, MetallicRoughnessEmissionAndAlphaMaskMapOntoTheMaterialModel) {
   EXPECT_TRUE(lamp.is_emissive());
   ASSERT_GE(leaf.alpha_texture, 0);
   const Texture& mask = s.textures[std::size_t(leaf.alpha_texture)];
-  EXPECT_LT(texel_at(mask, {0.25f, 0.5f}).w, 0.5f);   // alpha 0: cut out
-  EXPECT_GE(texel_at(mask, {0.75f, 0.5f}).w, 0.5f);   // alpha 1: kept
-  ASSERT_GE(faded.alpha_texture, 0);                  // 0.2 below the default cutoff 0.5
+  EXPECT_LT(texel_at(mask, {0.25f, 0.5f}).w, 0.5f);  // alpha 0: cut out
+  EXPECT_GE(texel_at(mask, {0.75f, 0.5f}).w, 0.5f);  // alpha 1: kept
+  ASSERT_GE(faded.alpha_texture, 0);                 // 0.2 below the default cutoff 0.5
   EXPECT_LT(s.textures[std::size_t(faded.alpha_texture)].rgba[3], 0.5f);
-  EXPECT_EQ(s.materials[0].alpha_texture, -1);        // OPAQUE
+  EXPECT_EQ(s.materials[0].alpha_texture, -1);  // OPAQUE
 }
 
 DeviceSet& one_device() {
@@ -335,9 +346,10 @@ TEST(GltfLoader, EmissiveMeshLightsTheImageAndWithoutItTheImageIsBlack) {
   g.doc["scenes"][0]["nodes"] = {0, 1};
   g.doc["meshes"][0]["primitives"][0]["material"] = 0;
   // Black base colour: what the camera sees is the emission alone, 0.5 x strength 4 = 2.
-  g.doc["materials"] = json::array({{{"emissiveFactor", {0.5, 0.5, 0.5}},
-                                     {"pbrMetallicRoughness", {{"baseColorFactor", {0, 0, 0, 1}}, {"metallicFactor", 0.0}}},
-                                     {"extensions", {{"KHR_materials_emissive_strength", {{"emissiveStrength", 4.0}}}}}}});
+  g.doc["materials"] =
+      json::array({{{"emissiveFactor", {0.5, 0.5, 0.5}},
+                    {"pbrMetallicRoughness", {{"baseColorFactor", {0, 0, 0, 1}}, {"metallicFactor", 0.0}}},
+                    {"extensions", {{"KHR_materials_emissive_strength", {{"emissiveStrength", 4.0}}}}}}});
   const Scene lit = load_scene(write_glb(dir, "lamp.glb", g).string(), {SkyMode::kOff});
   EXPECT_FALSE(lit.sky.enabled);
   EXPECT_NEAR(mean_of_render(lit), 2.0, 1e-3);
@@ -361,11 +373,13 @@ TEST(GltfLoader, ADirectionalLightBecomesTheSunWithItsIlluminance) {
   TempDir dir;
   Gltf g = make_mesh({-10, -10, 0, 10, -10, 0, 10, 10, 0, -10, 10, 0}, {0, 1, 2, 0, 2, 3});
   g.doc["cameras"] = json::array({{{"type", "perspective"}, {"perspective", {{"yfov", 0.2}, {"znear", 0.1}}}}});
-  g.doc["materials"] = json::array({{{"pbrMetallicRoughness", {{"baseColorFactor", {0.5, 0.5, 0.5, 1}}, {"metallicFactor", 0.0}}}}});
+  g.doc["materials"] =
+      json::array({{{"pbrMetallicRoughness", {{"baseColorFactor", {0.5, 0.5, 0.5, 1}}, {"metallicFactor", 0.0}}}}});
   g.doc["meshes"][0]["primitives"][0]["material"] = 0;
   g.doc["extensionsUsed"] = {"KHR_lights_punctual"};
-  g.doc["extensions"] = {{"KHR_lights_punctual",
-                          {{"lights", json::array({{{"type", "directional"}, {"color", {1.0, 0.5, 0.25}}, {"intensity", 3.0}}})}}}};
+  g.doc["extensions"] = {
+      {"KHR_lights_punctual",
+       {{"lights", json::array({{{"type", "directional"}, {"color", {1.0, 0.5, 0.25}}, {"intensity", 3.0}}})}}}};
   g.doc["nodes"].push_back({{"camera", 0}, {"translation", {0, 0, 5}}});
   // The light shines along its node's -z: here straight onto the quad (which faces +z).
   g.doc["nodes"].push_back({{"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}}});
@@ -404,7 +418,8 @@ TEST(GltfLoader, VertexColoursMultiplyTheDiffuseColour) {
     g.doc["cameras"] = json::array({{{"type", "perspective"}, {"perspective", {{"yfov", 0.2}, {"znear", 0.1}}}}});
     g.doc["nodes"].push_back({{"camera", 0}, {"translation", {0, 0, 5}}});
     g.doc["scenes"][0]["nodes"] = {0, 1};
-    g.doc["materials"] = json::array({{{"pbrMetallicRoughness", {{"baseColorFactor", base}, {"metallicFactor", 0.0}}}}});
+    g.doc["materials"] =
+        json::array({{{"pbrMetallicRoughness", {{"baseColorFactor", base}, {"metallicFactor", 0.0}}}}});
     g.doc["meshes"][0]["primitives"][0]["material"] = 0;
     if (coloured) {
       const std::vector<float> rgb = {1, 0.5f, 0.25f, 1, 0.5f, 0.25f, 1, 0.5f, 0.25f, 1, 0.5f, 0.25f};
@@ -449,7 +464,8 @@ TEST(GltfLoader, UnsupportedFeaturesAreNamedInOneWarningLine) {
   g.doc["extensions"] = {{"KHR_lights_punctual", {{"lights", json::array({{{"type", "point"}, {"intensity", 5.0}}})}}}};
   g.doc["nodes"].push_back({{"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}}});
   g.doc["scenes"][0]["nodes"] = {0, 1};
-  g.doc["materials"] = json::array({{{"alphaMode", "BLEND"}, {"occlusionTexture", {{"index", 0}}},
+  g.doc["materials"] = json::array({{{"alphaMode", "BLEND"},
+                                     {"occlusionTexture", {{"index", 0}}},
                                      {"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}}});
   g.doc["meshes"][0]["primitives"][0]["material"] = 0;
   const Scene s = load_gltf(write_embedded(dir, "odd.gltf", g).string());
@@ -503,7 +519,8 @@ TEST(GltfLoader, BadInputsAreRefusedWithAMessageNamingTheFile) {
     // A chain of 1000 nodes: refused before it could exhaust the stack.
     Gltf g = make_mesh(kPos, kIdx);
     g.doc["nodes"] = json::array();
-    for (int i = 0; i < 1000; ++i) g.doc["nodes"].push_back(i + 1 < 1000 ? json{{"children", {i + 1}}} : json{{"mesh", 0}});
+    for (int i = 0; i < 1000; ++i)
+      g.doc["nodes"].push_back(i + 1 < 1000 ? json{{"children", {i + 1}}} : json{{"mesh", 0}});
     expect_refused("chain.gltf", g, "deeper than");
   }
   {
@@ -548,8 +565,8 @@ TEST(GltfLoader, BadInputsAreRefusedWithAMessageNamingTheFile) {
   }
   EXPECT_NE(error_of([&] { load_scene((dir.path() / "none.glb").string()); }).find("none.glb"), std::string::npos);
   // Nesting deep enough to overflow a recursive parser is refused before parsing.
-  const std::string deep = "{\"asset\": {\"version\": \"2.0\"}, \"extras\": " + std::string(100000, '[') +
-                           std::string(100000, ']') + "}";
+  const std::string deep =
+      "{\"asset\": {\"version\": \"2.0\"}, \"extras\": " + std::string(100000, '[') + std::string(100000, ']') + "}";
   EXPECT_NE(error_of([&] { load_scene(dir.write("deep.gltf", deep).string()); }).find("nested deeper"),
             std::string::npos);
 }

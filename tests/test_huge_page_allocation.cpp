@@ -49,8 +49,7 @@ TEST(HugePageAllocation, ALargeBlockIsBackedByHugePagesOnceWritten) {
   const std::string setting = thp_setting();
   if (setting.empty() || setting.find("[never]") != std::string::npos)
     GTEST_SKIP() << "transparent huge pages are off here ('" << setting << "')";
-  if (!px::environment().huge_pages)
-    GTEST_SKIP() << "PARALLAX_HUGE_PAGES=off";
+  if (!px::environment().huge_pages) GTEST_SKIP() << "PARALLAX_HUGE_PAGES=off";
   constexpr std::size_t kBytes = std::size_t{64} << 20;
   const std::unique_ptr<char[]> block(new char[kBytes]);
   std::memset(block.get(), 1, kBytes);

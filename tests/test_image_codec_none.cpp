@@ -32,10 +32,9 @@ TEST(ImageCodecNone, EveryCallFailsAndSaysWhy) {
   EXPECT_TRUE(decoded.pixels.empty());
 
   const ImageRGB image{1, 1, {0.5f, 0.5f, 0.5f}};
-  for (const std::string& m :
-       {thrown_message([&] { write_exr("/tmp/x.exr", image); }),
-        thrown_message([&] { write_png("/tmp/x.png", 1, 1, to_srgb8(image)); }),
-        thrown_message([&] { (void)read_image_rgb("/tmp/x.exr"); })}) {
+  for (const std::string& m : {thrown_message([&] { write_exr("/tmp/x.exr", image); }),
+                               thrown_message([&] { write_png("/tmp/x.png", 1, 1, to_srgb8(image)); }),
+                               thrown_message([&] { (void)read_image_rgb("/tmp/x.exr"); })}) {
     EXPECT_TRUE(says_why(m)) << m;
     EXPECT_NE(m.find("/tmp/x."), std::string::npos) << m;
   }

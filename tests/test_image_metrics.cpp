@@ -29,14 +29,16 @@ float from_bits(std::uint32_t b) {
 
 // 2x2, rows top to bottom, pixels (r, g, b). The reference's pixel (1, 0) is a light at 2.
 ImageRGB reference_2x2() {
-  return image(2, 2, {0.5f, 0.5f, 0.5f, /**/ 2.0f, 1.0f, 0.0f,  //
-                      0.25f, 0.25f, 0.25f, /**/ 0.0f, 0.0f, 0.0f});
+  return image(2, 2,
+               {0.5f, 0.5f, 0.5f, /**/ 2.0f, 1.0f, 0.0f,  //
+                0.25f, 0.25f, 0.25f, /**/ 0.0f, 0.0f, 0.0f});
 }
 // Differs in four values: (0,0).r by +0.25, (1,0).r by +1 (3 vs 2: both above 1, so the clamped
 // values agree), (0,1).b by -0.25, (1,1).b by +0.5. Every value is exact in binary.
 ImageRGB image_2x2() {
-  return image(2, 2, {0.75f, 0.5f, 0.5f, /**/ 3.0f, 1.0f, 0.0f,  //
-                      0.25f, 0.25f, 0.0f, /**/ 0.0f, 0.0f, 0.5f});
+  return image(2, 2,
+               {0.75f, 0.5f, 0.5f, /**/ 3.0f, 1.0f, 0.0f,  //
+                0.25f, 0.25f, 0.0f, /**/ 0.0f, 0.0f, 0.5f});
 }
 
 TEST(ImageMetrics, FiguresOfA2x2ImageWithALightAboveOne) {
@@ -153,7 +155,7 @@ TEST(CompareExact, SignedZerosDiffer) {
   EXPECT_EQ(d.channel, 2);
   EXPECT_EQ(d.image_bits, 0x80000000u);
   EXPECT_EQ(d.reference_bits, 0u);
-  EXPECT_EQ(d.max_abs_difference, 0.0);  // numerically equal
+  EXPECT_EQ(d.max_abs_difference, 0.0);                    // numerically equal
   EXPECT_EQ(compare_images(a, reference_2x2()).mse, 0.0);  // which is why mse 0 is not the check
 }
 

@@ -92,7 +92,8 @@ std::vector<Ray> rays_through(const Scene& flat, int count, std::uint32_t seed) 
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
   std::vector<Ray> rays;
-  for (int i = 0; i < count; ++i) rays.push_back(test::make_ray(c + h * glm::vec3(u(rng), u(rng), u(rng)), test::random_unit(rng)));
+  for (int i = 0; i < count; ++i)
+    rays.push_back(test::make_ray(c + h * glm::vec3(u(rng), u(rng), u(rng)), test::random_unit(rng)));
   return rays;
 }
 
@@ -234,8 +235,8 @@ std::filesystem::path write_shared_meshes(const test::TempDir& dir) {
   g.add("nodes", {{"mesh", 2}, {"translation", {0, -9, 0}}});
   g.doc["scene"] = 0;
   g.doc["scenes"] = json::array({{{"nodes", json::array({0, 1, 2, 3, 4, 5})}}});
-  g.doc["buffers"] = json::array({{{"byteLength", g.bin.size()},
-                                   {"uri", "data:application/octet-stream;base64," + test::base64(g.bin)}}});
+  g.doc["buffers"] = json::array(
+      {{{"byteLength", g.bin.size()}, {"uri", "data:application/octet-stream;base64," + test::base64(g.bin)}}});
   return dir.write("shared.gltf", g.doc.dump());
 }
 

@@ -96,11 +96,13 @@ LoadedScene every_feature_scene() {
   for (int y = 0; y < 8; ++y)
     for (int x = 0; x < 8; ++x) {
       const bool dark = ((x / 2) + (y / 2)) % 2 == 0;
-      checker.rgba.insert(checker.rgba.end(), {dark ? 0.2f : 0.9f, 0.6f, dark ? 0.8f : 0.3f, (x + y) % 4 == 0 ? 0.0f : 1.0f});
+      checker.rgba.insert(checker.rgba.end(),
+                          {dark ? 0.2f : 0.9f, 0.6f, dark ? 0.8f : 0.3f, (x + y) % 4 == 0 ? 0.0f : 1.0f});
     }
   Texture normals;  // tilted tangent-space normals
   normals.width = normals.height = 4;
-  for (int i = 0; i < 16; ++i) normals.rgba.insert(normals.rgba.end(), {0.5f + 0.1f * (i % 4), 0.5f - 0.05f * (i / 4), 0.9f, 1.0f});
+  for (int i = 0; i < 16; ++i)
+    normals.rgba.insert(normals.rgba.end(), {0.5f + 0.1f * (i % 4), 0.5f - 0.05f * (i / 4), 0.9f, 1.0f});
   s.textures = {checker, normals};
   Material floor;
   floor.diffuse = {0.8f, 0.8f, 0.8f};
@@ -123,7 +125,8 @@ LoadedScene every_feature_scene() {
   lamp.emission = {4.0f, 3.5f, 3.0f};
   lamp.two_sided = true;
   s.materials = {floor, glass, mirror, glossy, lamp};
-  append_quad(s.triangles, {-3, -1, -3}, {-3, -1, 3}, {3, -1, 3}, {3, -1, -3}, 0, {glm::vec2(0, 0), glm::vec2(0, 3), glm::vec2(3, 3), glm::vec2(3, 0)});
+  append_quad(s.triangles, {-3, -1, -3}, {-3, -1, 3}, {3, -1, 3}, {3, -1, -3}, 0,
+              {glm::vec2(0, 0), glm::vec2(0, 3), glm::vec2(3, 3), glm::vec2(3, 0)});
   append_icosphere(s.triangles, {-0.9f, -0.2f, 0.0f}, 0.7f, 2, 1);
   append_box(s.triangles, {0.3f, -1.0f, -1.2f}, {1.2f, 0.2f, -0.4f}, 2);
   append_quad(s.triangles, {-1.0f, 1.6f, -1.0f}, {1.0f, 1.6f, -1.0f}, {1.0f, 1.6f, 1.0f}, {-1.0f, 1.6f, 1.0f}, 4);
@@ -176,10 +179,11 @@ Images render_with(const LoadedScene& loaded, KernelChoice kernels, PathTraceKer
   options.bvh_layout = layout;
   DeviceSet set = DeviceSet::create(options);
   Scene copy = loaded.scene;
-  DeviceScene ds = hand_over ? DeviceScene(set, copy, loaded.bvh, {}, {}, [&copy] { return std::exchange(copy.triangles, {}); })
-                             : DeviceScene(set, loaded.scene, loaded.bvh);
-  EXPECT_EQ(ds.leaf_refs(), hand_over && set.bvh_layout() != BvhLayout::Binary &&
-                                set.bvh_layout() != BvhLayout::Compressed8);
+  DeviceScene ds =
+      hand_over ? DeviceScene(set, copy, loaded.bvh, {}, {}, [&copy] { return std::exchange(copy.triangles, {}); })
+                : DeviceScene(set, loaded.scene, loaded.bvh);
+  EXPECT_EQ(ds.leaf_refs(),
+            hand_over && set.bvh_layout() != BvhLayout::Binary && set.bvh_layout() != BvhLayout::Compressed8);
   const Scene& scene = hand_over ? copy : loaded.scene;
   ds.set_kernel_choice(kernels);
   StereoPipeline::Options opt;
@@ -246,8 +250,8 @@ TEST(KernelFeatures, SceneKernelsGiveTheGeneralKernelsImagesOnTheSharedScenes) {
   const auto shared = test::shared_dir();
   if (shared.empty()) GTEST_SKIP() << "../shared is absent on this machine";
   const auto real = shared / "scenes" / "real";
-  for (const auto& file : {real / "bunny" / "bunny.json", real / "spot" / "spot-front.json",
-                           real / "cornell-mapping" / "scene.json"}) {
+  for (const auto& file :
+       {real / "bunny" / "bunny.json", real / "spot" / "spot-front.json", real / "cornell-mapping" / "scene.json"}) {
     if (!std::filesystem::exists(file)) {
       ADD_FAILURE() << file << " is missing from ../shared";
       continue;
@@ -278,7 +282,8 @@ TEST(KernelFeatures, LeafRefsRenderTheImagesOfFullLeafTriangles) {
       const auto full = render_with(in_layout, KernelChoice::Scene, PathTraceKernel::Megakernel, 40, 28, false, layout);
       const auto refs = render_with(in_layout, KernelChoice::Scene, PathTraceKernel::Megakernel, 40, 28, true, layout);
       for (std::size_t f = 0; f < full.frames.size(); ++f)
-        for (int e = 0; e < 2; ++e) EXPECT_TRUE(same_bits(full.frames[f][e], refs.frames[f][e])) << "frame " << f << ", eye " << e;
+        for (int e = 0; e < 2; ++e)
+          EXPECT_TRUE(same_bits(full.frames[f][e], refs.frames[f][e])) << "frame " << f << ", eye " << e;
       for (int e = 0; e < 2; ++e) {
         EXPECT_TRUE(same_bits(full.reference[e], refs.reference[e])) << "reference, eye " << e;
         EXPECT_TRUE(same_bits(full.preview[e], refs.preview[e])) << "preview, eye " << e;

@@ -100,7 +100,8 @@ TEST(ImageCodecModule, OpenImageIOLoadsOnlyWhenAnImageIsNeeded) {
   ImageRGB image;
   image.width = 3;
   image.height = 2;
-  image.rgb = {0.f, 0.25f, 0.5f, 1.f, 2.f, 4.f, 8.f, 16.f, 32.f, 0.125f, 0.375f, 0.625f, 1.5f, 2.5f, 3.5f, 7.f, 9.f, 11.f};
+  image.rgb = {0.f,    0.25f,  0.5f,   1.f,  2.f,  4.f,  8.f, 16.f, 32.f,
+               0.125f, 0.375f, 0.625f, 1.5f, 2.5f, 3.5f, 7.f, 9.f,  11.f};
   write_exr(p.string(), image);
   EXPECT_TRUE(library_mapped("libOpenImageIO"));
   EXPECT_TRUE(library_mapped("libparallax_image_oiio"));

@@ -135,8 +135,8 @@ struct BsdfCase {
   float alpha;
   bool mirror;
   glm::vec3 wo;
-  float ior = 0.0f;             // > 0: a smooth dielectric of this index
-  bool outside = true;          // dielectric: wo lies outside the glass
+  float ior = 0.0f;     // > 0: a smooth dielectric of this index
+  bool outside = true;  // dielectric: wo lies outside the glass
 };
 
 struct ProbeResult {
@@ -204,7 +204,7 @@ std::vector<cl_float4> uniform_directions(std::size_t n, std::uint32_t seed) {
 }
 
 const BsdfCase kCases[] = {
-    {{0.8f, 0.6f, 0.4f}, {0, 0, 0}, 1.0f, false, {0.3f, 0.1f, 0.9f}},          // Lambertian
+    {{0.8f, 0.6f, 0.4f}, {0, 0, 0}, 1.0f, false, {0.3f, 0.1f, 0.9f}},           // Lambertian
     {{0.5f, 0.5f, 0.5f}, {0.3f, 0.3f, 0.3f}, 0.3f, false, {0.5f, 0.0f, 0.6f}},  // diffuse + GGX
     {{0, 0, 0}, {0.9f, 0.9f, 0.9f}, 0.1f, false, {0.2f, 0.3f, 0.8f}},           // sharp GGX
     {{0, 0, 0}, {0.9f, 0.9f, 0.9f}, 0.6f, false, {0.9f, 0.0f, 0.15f}},          // rough GGX, grazing
@@ -239,8 +239,7 @@ TEST(Bsdf, SampleAndPdfAgree) {
       EXPECT_NEAR(s.s[3], s2.s[3], 1e-3f * s.s[3]) << "pdf from sample vs pdf(): case alpha " << c.alpha;
       // The weight is f cos / pdf: recompute it from eval.
       auto ev = probe_eval(c, {cl_float4{{s.s[0], s.s[1], s.s[2], 0}}});
-      for (int k = 0; k < 3; ++k)
-        EXPECT_NEAR(s2.s[k], ev[0].s[k] * s.s[2] / s.s[3], 1e-3f * (1.0f + s2.s[k]));
+      for (int k = 0; k < 3; ++k) EXPECT_NEAR(s2.s[k], ev[0].s[k] * s.s[2] / s.s[3], 1e-3f * (1.0f + s2.s[k]));
       if (checked > 50) break;  // the eval round trip is slow; 50 per case is plenty
     }
     EXPECT_GT(checked, 10);
@@ -295,7 +294,8 @@ TEST(Bsdf, SampledDistributionMatchesPdfAndAlbedo) {
     for (int b = 0; b < 64; ++b) {
       const double expected = mass[b] * n;
       if (expected < 2000) continue;  // sparse bins are too noisy in either estimate
-      EXPECT_NEAR(hist[b], expected, 0.06 * expected + 4.0 * std::sqrt(expected)) << "bin " << b << " alpha " << c.alpha;
+      EXPECT_NEAR(hist[b], expected, 0.06 * expected + 4.0 * std::sqrt(expected))
+          << "bin " << b << " alpha " << c.alpha;
     }
   }
 }
@@ -460,8 +460,9 @@ TEST(Ggx, HostReferenceSatisfiesTheMaskingIdentityAndAgreesWithAPlainQuadrature)
       EXPECT_LE(e, 1.0) << "alpha " << a << " cos_o " << c;
       EXPECT_LE(e, e_corr + 1e-9);
       EXPECT_LE(e_corr, 1.0);
-      std::printf("[ measure  ] GGX ks 1, alpha %.2f, cos_o %.1f: albedo %.5f (separable G), %.5f (height-correlated)\n",
-                  a, c, e, e_corr);
+      std::printf(
+          "[ measure  ] GGX ks 1, alpha %.2f, cos_o %.1f: albedo %.5f (separable G), %.5f (height-correlated)\n", a, c,
+          e, e_corr);
       // Converged: half the nodes each way change nothing that matters (measured: 2e-5 at most;
       // twice the nodes, 5e-6).
       EXPECT_NEAR(ggx::albedo(wo, a, false, 512, 256), e, 1e-4) << "alpha " << a << " cos_o " << c;
@@ -473,7 +474,8 @@ TEST(Ggx, HostReferenceSatisfiesTheMaskingIdentityAndAgreesWithAPlainQuadrature)
         for (int i = 0; i < nm; ++i)
           for (int j = 0; j < np; ++j) {
             const double mu = (i + 0.5) / nm, phi = (j + 0.5) * M_PI / np, r = std::sqrt(1.0 - mu * mu);
-            plain += 2.0 * (1.0 / nm) * (M_PI / np) * ggx::specular(wo, {r * std::cos(phi), r * std::sin(phi), mu}, a) * mu;
+            plain +=
+                2.0 * (1.0 / nm) * (M_PI / np) * ggx::specular(wo, {r * std::cos(phi), r * std::sin(phi), mu}, a) * mu;
           }
         EXPECT_NEAR(plain, e, 1e-3) << "alpha " << a << " cos_o " << c;
       }
@@ -569,9 +571,10 @@ TEST(Ggx, DirectionalAlbedoFromEvalAndFromSamplingMatchesTheQuadrature) {
         sum2 += double(s.s[0]) * s.s[0];
       }
       const double sampled = sum / count, se = std::sqrt(std::max(0.0, sum2 / count - sampled * sampled) / count);
-      std::printf("[ measure  ] alpha %.2f cos_o %.1f: albedo quadrature %.5f, kernel eval %.5f, kernel sampling "
-                  "%.5f +- %.5f\n",
-                  a, c, expected, from_eval, sampled, se);
+      std::printf(
+          "[ measure  ] alpha %.2f cos_o %.1f: albedo quadrature %.5f, kernel eval %.5f, kernel sampling "
+          "%.5f +- %.5f\n",
+          a, c, expected, from_eval, sampled, se);
       EXPECT_NEAR(from_eval, expected, 1e-3) << "alpha " << a << " cos_o " << c;
       EXPECT_NEAR(sampled, expected, 5.0 * se + 1e-3) << "alpha " << a << " cos_o " << c;
       EXPECT_LE(from_eval, 1.0 + 1e-3);
@@ -669,7 +672,8 @@ TEST(PathTracer, NeeBsdfAndMisConvergeToTheSameCornellImage) {
     noise[mode] = 0.5 * block_mse(first[mode][0], second[mode][0]);
   }
   EXPECT_LT(noise[LightSampling::Mis], noise[LightSampling::Bsdf]) << "MIS should beat BSDF sampling on a small light";
-  for (auto [a, b] : {std::pair{LightSampling::Mis, LightSampling::Nee}, {LightSampling::Mis, LightSampling::Bsdf},
+  for (auto [a, b] : {std::pair{LightSampling::Mis, LightSampling::Nee},
+                      {LightSampling::Mis, LightSampling::Bsdf},
                       {LightSampling::Nee, LightSampling::Bsdf}}) {
     const double diff = block_mse(first[a][0], first[b][0]);
     // Unbiased estimators differ by their summed variance only; allow 2x for chance.
@@ -776,7 +780,7 @@ TEST(PathTracer, SymmetricSceneGivesMirrorImageEyes) {
   light.diffuse = glm::vec3(0.0f);
   light.emission = glm::vec3(8.0f);
   s.materials = {white, red, light};
-  append_box(s.triangles, {-1.0f, -1.0f, -1.0f}, {1.0f, 1.0f, 1.0f}, 0);  // the room (seen from inside)
+  append_box(s.triangles, {-1.0f, -1.0f, -1.0f}, {1.0f, 1.0f, 1.0f}, 0);   // the room (seen from inside)
   append_box(s.triangles, {-0.9f, -1.0f, -0.2f}, {-0.5f, 0.0f, 0.2f}, 1);  // symmetric pair of red blocks
   append_box(s.triangles, {0.5f, -1.0f, -0.2f}, {0.9f, 0.0f, 0.2f}, 1);
   append_icosphere(s.triangles, {0.0f, -0.7f, 0.3f}, 0.3f, 2, 0);
@@ -794,7 +798,8 @@ TEST(PathTracer, SymmetricSceneGivesMirrorImageEyes) {
   for (int y = 0; y < mirrored.height; ++y)
     for (int x = 0; x < mirrored.width; ++x)
       for (int c = 0; c < 3; ++c)
-        mirrored.rgb[(y * mirrored.width + x) * 3 + c] = eyes[0].rgb[(y * mirrored.width + (mirrored.width - 1 - x)) * 3 + c];
+        mirrored.rgb[(y * mirrored.width + x) * 3 + c] =
+            eyes[0].rgb[(y * mirrored.width + (mirrored.width - 1 - x)) * 3 + c];
   opt.seed = 99;
   auto again = f.render(48, 36, opt);
   const double noise = 0.5 * block_mse(eyes[1], again[1]);
@@ -1004,11 +1009,11 @@ GlassSplit sample_glass(const BsdfCase& c, std::uint32_t n) {
     const glm::dvec3 wi(s.s[0], s.s[1], s.s[2]);
     if (wi.z > 0.0) {
       split.reflected += 1.0;
-      const bool ok = glm::length(wi - glm::dvec3(-wo.x, -wo.y, wo.z)) < 1e-5 &&
-                      std::abs(w.s[0] - 1.0f) < 1e-6f && std::abs(w.s[1] - 1.0f) < 1e-6f;
+      const bool ok = glm::length(wi - glm::dvec3(-wo.x, -wo.y, wo.z)) < 1e-5 && std::abs(w.s[0] - 1.0f) < 1e-6f &&
+                      std::abs(w.s[1] - 1.0f) < 1e-6f;
       if (!ok) {
-        ADD_FAILURE() << "reflection " << i << ": wi (" << wi.x << ", " << wi.y << ", " << wi.z
-                      << ") weight " << w.s[0];
+        ADD_FAILURE() << "reflection " << i << ": wi (" << wi.x << ", " << wi.y << ", " << wi.z << ") weight "
+                      << w.s[0];
         ++bad;
       }
     } else {
@@ -1018,8 +1023,8 @@ GlassSplit sample_glass(const BsdfCase& c, std::uint32_t n) {
                       std::abs(wi.z + std::sqrt(std::max(0.0, 1.0 - sin_t * sin_t))) < 1e-5 &&
                       std::abs(w.s[0] - expect_weight) < 1e-5 * expect_weight;
       if (!ok) {
-        ADD_FAILURE() << "refraction " << i << ": wi (" << wi.x << ", " << wi.y << ", " << wi.z
-                      << "), expected sin_t " << sin_t << "; weight " << w.s[0] << " expected " << expect_weight;
+        ADD_FAILURE() << "refraction " << i << ": wi (" << wi.x << ", " << wi.y << ", " << wi.z << "), expected sin_t "
+                      << sin_t << "; weight " << w.s[0] << " expected " << expect_weight;
         ++bad;
       }
     }
@@ -1048,10 +1053,13 @@ TEST(Glass, FresnelAtNormalIncidenceIsTheSquaredIndexRatio) {
 TEST(Glass, FresnelAtObliqueIncidenceMatchesTheAngleForm) {
   const std::uint32_t n = 1u << 17;
   const double deg = M_PI / 180.0;
-  struct Case { double theta; bool outside; };
+  struct Case {
+    double theta;
+    bool outside;
+  };
   // From inside, the critical angle of 1.5 is 41.81 degrees: 40 degrees is just below it.
-  for (const Case c : {Case{30 * deg, true}, Case{60 * deg, true}, Case{80 * deg, true},
-                       Case{20 * deg, false}, Case{35 * deg, false}, Case{40 * deg, false}}) {
+  for (const Case c : {Case{30 * deg, true}, Case{60 * deg, true}, Case{80 * deg, true}, Case{20 * deg, false},
+                       Case{35 * deg, false}, Case{40 * deg, false}}) {
     const double expected = c.outside ? fresnel_angle_form(c.theta, 1.0, 1.5) : fresnel_angle_form(c.theta, 1.5, 1.0);
     const GlassSplit split = sample_glass(glass_case(1.5f, c.outside, c.theta, glm::vec3(0.8f)), n);
     EXPECT_NEAR(split.reflected, expected, fraction_tolerance(expected, n))
@@ -1117,8 +1125,8 @@ Scene sunlit_plane(const float* normal_texel) {
   }
   s.materials.push_back(m);
   // u grows along +x, v along +y: the tangent frame is (x, y, z).
-  append_quad(s.triangles, glm::vec3(-10, -10, 0), glm::vec3(10, -10, 0), glm::vec3(10, 10, 0),
-              glm::vec3(-10, 10, 0), 0);
+  append_quad(s.triangles, glm::vec3(-10, -10, 0), glm::vec3(10, -10, 0), glm::vec3(10, 10, 0), glm::vec3(-10, 10, 0),
+              0);
   s.sun.enabled = true;
   const double alpha = 40.0 * M_PI / 180.0;
   s.sun.direction = glm::vec3(float(std::sin(alpha)), 0.0f, float(std::cos(alpha)));
@@ -1149,7 +1157,8 @@ TEST(NormalMap, FlatMapChangesNothingAndTiltedMapFollowsTheCosine) {
   const auto same = flat_map.render(32, 24, opt);
   for (int e = 0; e < 2; ++e)
     for (std::size_t i = 0; i < same[e].rgb.size(); ++i)
-      ASSERT_NEAR(same[e].rgb[i], reference[e].rgb[i], 1e-4f * (1.0f + reference[e].rgb[i])) << "eye " << e << " value " << i;
+      ASSERT_NEAR(same[e].rgb[i], reference[e].rgb[i], 1e-4f * (1.0f + reference[e].rgb[i]))
+          << "eye " << e << " value " << i;
 
   // A constant normal tilted by 20 degrees towards the sun (+x, the map's +u), then away.
   const double tilt = 20.0 * M_PI / 180.0;

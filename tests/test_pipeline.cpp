@@ -50,7 +50,8 @@ TEST(StripSchedule, StripsCoverEveryRowOnceForAnyHeightAndCount) {
         for (int d = 0; d < n; ++d)
           for (auto r : pt->left_rows[d])
             for (unsigned y = r.begin; y < r.end; ++y) seen[y]++;
-        for (unsigned y = 0; y < h; ++y) ASSERT_EQ(seen[y], 1) << to_string(kind) << " n=" << n << " h=" << h << " row " << y;
+        for (unsigned y = 0; y < h; ++y)
+          ASSERT_EQ(seen[y], 1) << to_string(kind) << " n=" << n << " h=" << h << " row " << y;
       }
   auto rows = split_rows(10, 4);
   EXPECT_EQ(rows[0].size(), 3u);
@@ -94,136 +95,145 @@ TEST(Operations, CoverEveryScheduledRowOnceAndWaitOnlyOnEarlierOperations) {
         const unsigned h = 37, margin = 5;
         const FrameSchedule fs = make_schedule(kind, n, h, denoise);
         for (int variant = 0; variant < 4; ++variant) {
-        const bool side = variant & 1, fuse = variant & 2;
-        const std::vector<Operation> ops = make_operations(fs, margin, side, fuse);
-        const std::string what = std::string(to_string(kind)) + (denoise ? " denoised" : "") + " n=" + std::to_string(n) +
-                                 (side ? " side lane" : "") + (fuse ? " G-buffer from path tracing" : "");
-        // Per device and eye, the G-buffer rows written there: by the G-buffer passes, and by the
-        // path traces that write theirs. With and without fusion the same rows, each once.
-        const std::vector<Operation> plain = make_operations(fs, margin, side, false);
-        int fused_ops = 0;
-        for (int d = 0; d < n; ++d)
-          for (int eye = 0; eye < 2; ++eye) {
-            std::vector<int> got(h, 0), want(h, 0);
-            for (const Operation& op : ops) {
-              if (op.device != d || op.eye != eye) continue;
-              const bool writes = op.stage == Stage::GBuffer || op.writes_gbuffer;
-              if (op.writes_gbuffer) {
-                ASSERT_TRUE(fuse) << what;
-                ASSERT_TRUE(op.stage == Stage::PathTraceLeft || op.stage == Stage::PathTraceRight) << what;
-                ++fused_ops;
+          const bool side = variant & 1, fuse = variant & 2;
+          const std::vector<Operation> ops = make_operations(fs, margin, side, fuse);
+          const std::string what = std::string(to_string(kind)) + (denoise ? " denoised" : "") +
+                                   " n=" + std::to_string(n) + (side ? " side lane" : "") +
+                                   (fuse ? " G-buffer from path tracing" : "");
+          // Per device and eye, the G-buffer rows written there: by the G-buffer passes, and by the
+          // path traces that write theirs. With and without fusion the same rows, each once.
+          const std::vector<Operation> plain = make_operations(fs, margin, side, false);
+          int fused_ops = 0;
+          for (int d = 0; d < n; ++d)
+            for (int eye = 0; eye < 2; ++eye) {
+              std::vector<int> got(h, 0), want(h, 0);
+              for (const Operation& op : ops) {
+                if (op.device != d || op.eye != eye) continue;
+                const bool writes = op.stage == Stage::GBuffer || op.writes_gbuffer;
+                if (op.writes_gbuffer) {
+                  ASSERT_TRUE(fuse) << what;
+                  ASSERT_TRUE(op.stage == Stage::PathTraceLeft || op.stage == Stage::PathTraceRight) << what;
+                  ++fused_ops;
+                }
+                if (writes)
+                  for (unsigned y = op.rows.begin; y < op.rows.end; ++y) got[y]++;
               }
-              if (writes)
-                for (unsigned y = op.rows.begin; y < op.rows.end; ++y) got[y]++;
+              for (const Operation& op : plain)
+                if (op.device == d && op.eye == eye && op.stage == Stage::GBuffer)
+                  for (unsigned y = op.rows.begin; y < op.rows.end; ++y) want[y]++;
+              for (unsigned y = 0; y < h; ++y)
+                ASSERT_EQ(got[y], want[y]) << what << " device " << d << " eye " << eye << " G-buffer row " << y;
             }
-            for (const Operation& op : plain)
-              if (op.device == d && op.eye == eye && op.stage == Stage::GBuffer)
-                for (unsigned y = op.rows.begin; y < op.rows.end; ++y) want[y]++;
-            for (unsigned y = 0; y < h; ++y)
-              ASSERT_EQ(got[y], want[y]) << what << " device " << d << " eye " << eye << " G-buffer row " << y;
+          // Proposed and mono path trace each device's strip of the left eye where its G-buffer is
+          // (mono has a G-buffer only for the denoiser).
+          if (fuse && (kind == PipelineKind::Proposed || (kind == PipelineKind::Mono && denoise))) {
+            EXPECT_GE(fused_ops, n) << what;
           }
-        // Proposed and mono path trace each device's strip of the left eye where its G-buffer is
-        // (mono has a G-buffer only for the denoiser).
-        if (fuse && (kind == PipelineKind::Proposed || (kind == PipelineKind::Mono && denoise))) {
-          EXPECT_GE(fused_ops, n) << what;
-        }
-        // Hole filling starts from the right-eye G-buffer pass's hits (proposed: on every device).
-        for (const Operation& op : ops) {
-          if (!op.shares_hits) continue;
-          ASSERT_TRUE(fuse) << what;
-          ASSERT_TRUE((op.stage == Stage::GBuffer && op.eye == 1) || op.stage == Stage::HoleFill) << what;
-          if (op.stage != Stage::HoleFill) continue;
-          std::vector<int> hit_rows(h, 0);
-          for (const Operation& g : ops)
-            if (g.stage == Stage::GBuffer && g.shares_hits && g.device == op.device)
-              for (unsigned y = g.rows.begin; y < g.rows.end; ++y) hit_rows[y] = 1;
-          for (unsigned y = op.rows.begin; y < op.rows.end; ++y)
-            ASSERT_EQ(hit_rows[y], 1) << what << ": hole filling row " << y << " has no G-buffer hit";
-        }
-        if (fuse && kind == PipelineKind::Proposed) {
-          EXPECT_EQ(std::count_if(ops.begin(), ops.end(),
-                                  [](const Operation& op) { return op.stage == Stage::HoleFill && op.shares_hits; }),
-                    n) << what;
-        }
-        for (const StageWork& w : fs.stages)
-          for (int eye = 0; eye < 2; ++eye) {
-            // Independently of make_operations: the rows the schedule gives this stage and eye.
-            std::vector<int> want(h, 0), want_device(h, -1);
-            for (int d = 0; d < n; ++d)
-              for (const RowRange& r : eye == 0 ? w.left_rows[d] : w.right_rows[d])
-                for (unsigned y = r.begin; y < r.end; ++y) want[y]++, want_device[y] = d;
-            const std::vector<int> got = coverage(ops, w.stage, eye, h);
-            for (unsigned y = 0; y < h; ++y) {
-              if (w.stage == Stage::Transfer) {
-                // The owner's rows stay where they are; every other scheduled row travels once.
-                ASSERT_EQ(got[y], want[y] && want_device[y] != fs.tree.root ? 1 : 0) << what << " row " << y;
-              } else if (w.stage == Stage::GBuffer) {
-                // Each device's G-buffer also covers `margin` rows beyond its strip (fused: the
-                // pass's rows and the path traced rows that write theirs, checked above).
-                if (fuse) continue;
-                bool near = false;
-                for (unsigned z = y > margin ? y - margin : 0; z <= std::min(h - 1, y + margin); ++z) near |= want[z] > 0;
-                ASSERT_EQ(got[y] > 0, near) << what << " g-buffer row " << y;
-              } else {
-                ASSERT_EQ(got[y], want[y]) << what << " " << stage_name(w.stage) << " eye " << eye << " row " << y;
+          // Hole filling starts from the right-eye G-buffer pass's hits (proposed: on every device).
+          for (const Operation& op : ops) {
+            if (!op.shares_hits) continue;
+            ASSERT_TRUE(fuse) << what;
+            ASSERT_TRUE((op.stage == Stage::GBuffer && op.eye == 1) || op.stage == Stage::HoleFill) << what;
+            if (op.stage != Stage::HoleFill) continue;
+            std::vector<int> hit_rows(h, 0);
+            for (const Operation& g : ops)
+              if (g.stage == Stage::GBuffer && g.shares_hits && g.device == op.device)
+                for (unsigned y = g.rows.begin; y < g.rows.end; ++y) hit_rows[y] = 1;
+            for (unsigned y = op.rows.begin; y < op.rows.end; ++y)
+              ASSERT_EQ(hit_rows[y], 1) << what << ": hole filling row " << y << " has no G-buffer hit";
+          }
+          if (fuse && kind == PipelineKind::Proposed) {
+            EXPECT_EQ(std::count_if(ops.begin(), ops.end(),
+                                    [](const Operation& op) { return op.stage == Stage::HoleFill && op.shares_hits; }),
+                      n)
+                << what;
+          }
+          for (const StageWork& w : fs.stages)
+            for (int eye = 0; eye < 2; ++eye) {
+              // Independently of make_operations: the rows the schedule gives this stage and eye.
+              std::vector<int> want(h, 0), want_device(h, -1);
+              for (int d = 0; d < n; ++d)
+                for (const RowRange& r : eye == 0 ? w.left_rows[d] : w.right_rows[d])
+                  for (unsigned y = r.begin; y < r.end; ++y) want[y]++, want_device[y] = d;
+              const std::vector<int> got = coverage(ops, w.stage, eye, h);
+              for (unsigned y = 0; y < h; ++y) {
+                if (w.stage == Stage::Transfer) {
+                  // The owner's rows stay where they are; every other scheduled row travels once.
+                  ASSERT_EQ(got[y], want[y] && want_device[y] != fs.tree.root ? 1 : 0) << what << " row " << y;
+                } else if (w.stage == Stage::GBuffer) {
+                  // Each device's G-buffer also covers `margin` rows beyond its strip (fused: the
+                  // pass's rows and the path traced rows that write theirs, checked above).
+                  if (fuse) continue;
+                  bool near = false;
+                  for (unsigned z = y > margin ? y - margin : 0; z <= std::min(h - 1, y + margin); ++z)
+                    near |= want[z] > 0;
+                  ASSERT_EQ(got[y] > 0, near) << what << " g-buffer row " << y;
+                } else {
+                  ASSERT_EQ(got[y], want[y]) << what << " " << stage_name(w.stage) << " eye " << eye << " row " << y;
+                }
               }
             }
-          }
-        std::vector<long> last(2 * n, -1);  // per (device, lane)
-        std::vector<std::set<std::size_t>> before(ops.size());  // everything an operation waits for, transitively
-        for (std::size_t i = 0; i < ops.size(); ++i) {
-          const Operation& op = ops[i];
-          ASSERT_EQ(op.lane, side && op.eye == 0 &&
-                                     (op.stage == Stage::Denoise || op.stage == Stage::Tonemap || op.stage == Stage::Transfer)
-                                 ? 1 : 0) << what << " op " << i;
-          for (std::size_t a : op.after) {
-            ASSERT_LT(a, i) << what;
-            before[i].insert(a);
-            before[i].insert(before[a].begin(), before[a].end());
-          }
-          // Queue order: the previous operation on the device's lane is always among the waits.
-          const long prev = last[2 * op.device + op.lane];
-          if (prev >= 0) {
-            ASSERT_NE(std::find(op.after.begin(), op.after.end(), static_cast<std::size_t>(prev)), op.after.end())
+          std::vector<long> last(2 * n, -1);                      // per (device, lane)
+          std::vector<std::set<std::size_t>> before(ops.size());  // everything an operation waits for, transitively
+          for (std::size_t i = 0; i < ops.size(); ++i) {
+            const Operation& op = ops[i];
+            ASSERT_EQ(op.lane,
+                      side && op.eye == 0 &&
+                              (op.stage == Stage::Denoise || op.stage == Stage::Tonemap || op.stage == Stage::Transfer)
+                          ? 1
+                          : 0)
                 << what << " op " << i;
+            for (std::size_t a : op.after) {
+              ASSERT_LT(a, i) << what;
+              before[i].insert(a);
+              before[i].insert(before[a].begin(), before[a].end());
+            }
+            // Queue order: the previous operation on the device's lane is always among the waits.
+            const long prev = last[2 * op.device + op.lane];
+            if (prev >= 0) {
+              ASSERT_NE(std::find(op.after.begin(), op.after.end(), static_cast<std::size_t>(prev)), op.after.end())
+                  << what << " op " << i;
+            }
+            last[2 * op.device + op.lane] = static_cast<long>(i);
+            if (op.stage == Stage::Transfer) {
+              EXPECT_EQ(op.to, fs.tree.root) << what;
+              EXPECT_NE(op.device, fs.tree.root) << what;
+              EXPECT_NE(op.payload, TransferPayload::None) << what;
+            }
           }
-          last[2 * op.device + op.lane] = static_cast<long>(i);
-          if (op.stage == Stage::Transfer) {
-            EXPECT_EQ(op.to, fs.tree.root) << what;
-            EXPECT_NE(op.device, fs.tree.root) << what;
-            EXPECT_NE(op.payload, TransferPayload::None) << what;
-          }
-        }
-        // The hazards the side lane creates, checked on the stages themselves: the left eye's
-        // denoising rewrites left radiance in place, so it must come after every reprojection
-        // (which reads it) and every path tracing of the left eye on its device; tonemapping
-        // after denoising; a transfer after the tonemap of its rows.
-        for (std::size_t i = 0; i < ops.size(); ++i)
-          for (std::size_t j = 0; j < i; ++j) {
-            const Operation &a = ops[j], &b = ops[i];
-            const bool same_device = a.device == b.device;
-            auto must = [&](bool cond, const char* why) {
-              if (cond) {
-                ASSERT_TRUE(before[i].count(j)) << what << ": op " << i << " must wait for op " << j << " (" << why << ")";
-              }
-            };
-            must(same_device && b.stage == Stage::Denoise && b.eye == 0 &&
-                     (a.stage == Stage::Reproject || a.stage == Stage::PathTraceLeft),
-                 "denoising rewrites the radiance they read or write");
-            must(same_device && a.writes_gbuffer && (b.stage == Stage::Reproject || (b.stage == Stage::Denoise && a.eye == b.eye)),
-                 "they read the G-buffer the path trace wrote");
-            must(same_device && a.stage == Stage::GBuffer && a.shares_hits && b.stage == Stage::HoleFill && b.shares_hits,
-                 "hole filling starts from the hits the G-buffer pass wrote");
-            must(same_device && b.stage == Stage::Tonemap && a.stage == Stage::Denoise && a.eye == b.eye,
-                 "tonemap reads denoised radiance");
-            must(same_device && b.stage == Stage::Tonemap && a.stage == Stage::HoleFill && b.eye == 1,
-                 "tonemap reads the filled right eye");
-            must(same_device && b.stage == Stage::Transfer && a.stage == Stage::Tonemap && a.eye == b.eye,
-                 "a finished strip travels after its tonemap");
-            must(b.stage != Stage::Transfer && a.stage == Stage::Transfer && a.to == b.device && a.eye == b.eye &&
-                     b.stage != Stage::GBuffer,
-                 "what arrives is read after it arrived");
-          }
+          // The hazards the side lane creates, checked on the stages themselves: the left eye's
+          // denoising rewrites left radiance in place, so it must come after every reprojection
+          // (which reads it) and every path tracing of the left eye on its device; tonemapping
+          // after denoising; a transfer after the tonemap of its rows.
+          for (std::size_t i = 0; i < ops.size(); ++i)
+            for (std::size_t j = 0; j < i; ++j) {
+              const Operation &a = ops[j], &b = ops[i];
+              const bool same_device = a.device == b.device;
+              auto must = [&](bool cond, const char* why) {
+                if (cond) {
+                  ASSERT_TRUE(before[i].count(j))
+                      << what << ": op " << i << " must wait for op " << j << " (" << why << ")";
+                }
+              };
+              must(same_device && b.stage == Stage::Denoise && b.eye == 0 &&
+                       (a.stage == Stage::Reproject || a.stage == Stage::PathTraceLeft),
+                   "denoising rewrites the radiance they read or write");
+              must(same_device && a.writes_gbuffer &&
+                       (b.stage == Stage::Reproject || (b.stage == Stage::Denoise && a.eye == b.eye)),
+                   "they read the G-buffer the path trace wrote");
+              must(same_device && a.stage == Stage::GBuffer && a.shares_hits && b.stage == Stage::HoleFill &&
+                       b.shares_hits,
+                   "hole filling starts from the hits the G-buffer pass wrote");
+              must(same_device && b.stage == Stage::Tonemap && a.stage == Stage::Denoise && a.eye == b.eye,
+                   "tonemap reads denoised radiance");
+              must(same_device && b.stage == Stage::Tonemap && a.stage == Stage::HoleFill && b.eye == 1,
+                   "tonemap reads the filled right eye");
+              must(same_device && b.stage == Stage::Transfer && a.stage == Stage::Tonemap && a.eye == b.eye,
+                   "a finished strip travels after its tonemap");
+              must(b.stage != Stage::Transfer && a.stage == Stage::Transfer && a.to == b.device && a.eye == b.eye &&
+                       b.stage != Stage::GBuffer,
+                   "what arrives is read after it arrived");
+            }
         }
       }
 }
@@ -384,7 +394,7 @@ TEST(StereoPipeline, GlassIsNeverReprojected) {
   glass.dielectric = true;
   glass.ior = 1.5f;
   s.materials = {white, light, glass};
-  append_quad(s.triangles, {-3, -2, 4}, {3, -2, 4}, {3, 2, 4}, {-3, 2, 4}, 0);           // back wall
+  append_quad(s.triangles, {-3, -2, 4}, {3, -2, 4}, {3, 2, 4}, {-3, 2, 4}, 0);            // back wall
   append_quad(s.triangles, {-1, 1.9f, 2}, {1, 1.9f, 2}, {1, 1.9f, 3}, {-1, 1.9f, 3}, 1);  // light
   append_icosphere(s.triangles, {0.0f, 0.0f, 2.0f}, 0.8f, 3, 2);
   s.camera.position = {0.0f, 0.0f, -1.0f};
@@ -418,7 +428,7 @@ TEST(StereoPipeline, ReprojectedSurfacesAreVisibleFromTheLeftEye) {
   s.materials = {white, light};
   append_quad(s.triangles, {-3, -2, 4}, {3, -2, 4}, {3, 2, 4}, {-3, 2, 4}, 0);            // back wall
   append_box(s.triangles, {-0.3f, -0.6f, 0.8f}, {0.3f, 0.6f, 1.2f}, 0);                   // near occluder
-  append_quad(s.triangles, {-1, 1.9f, 2}, {1, 1.9f, 2}, {1, 1.9f, 3}, {-1, 1.9f, 3}, 1);   // light
+  append_quad(s.triangles, {-1, 1.9f, 2}, {1, 1.9f, 2}, {1, 1.9f, 3}, {-1, 1.9f, 3}, 1);  // light
   s.camera.position = {0.0f, 0.0f, -1.0f};
   s.camera.target = {0.0f, 0.0f, 4.0f};
   s.camera.vfov_deg = 60.0f;
@@ -454,7 +464,8 @@ TEST(StereoPipeline, ReprojectedSurfacesAreVisibleFromTheLeftEye) {
 }
 
 // 4x4 block means over blocks whose pixels were all reprojected.
-double reprojected_block_mse(const ImageRGB& a, const ImageRGB& b, const std::vector<std::uint8_t>& holes, int* blocks) {
+double reprojected_block_mse(const ImageRGB& a, const ImageRGB& b, const std::vector<std::uint8_t>& holes,
+                             int* blocks) {
   double s = 0;
   int n = 0;
   for (int by = 0; by + 4 <= a.height; by += 4)
@@ -522,12 +533,10 @@ TEST(StereoPipeline, WavefrontPathTracerGivesTheMegakernelsImages) {
     int devices;
     unsigned bounces;
   };
-  const std::vector<Case> cases{{&glossy_cornell(), PipelineKind::Proposed, 1, 5},
-                                {&glossy_cornell(), PipelineKind::Proposed, 2, 5},
-                                {&glossy_cornell(), PipelineKind::Baseline, 2, 5},
-                                {&glossy_cornell(), PipelineKind::Mono, 2, 0},
-                                {&sky_built, PipelineKind::Proposed, 2, 5},
-                                {&sky_built, PipelineKind::Mono, 1, 5}};
+  const std::vector<Case> cases{
+      {&glossy_cornell(), PipelineKind::Proposed, 1, 5}, {&glossy_cornell(), PipelineKind::Proposed, 2, 5},
+      {&glossy_cornell(), PipelineKind::Baseline, 2, 5}, {&glossy_cornell(), PipelineKind::Mono, 2, 0},
+      {&sky_built, PipelineKind::Proposed, 2, 5},        {&sky_built, PipelineKind::Mono, 1, 5}};
   for (const Case& c : cases) {
     std::array<std::array<ImageRGB, 2>, 2> images;
     std::array<std::uint64_t, 2> nonfinite{};
@@ -661,8 +670,8 @@ TEST(StereoPipeline, RightEyeMatchesMonoPerPixelOnBackgroundAndWithinNoiseElsewh
       noise += b_off;
     }
   }
-  std::printf("[ measure  ] background %d px (+%d partly covered): %d off by >10%%; surfaces: %d vs mono-vs-mono %d\n", background,
-              background_noise, background_off, off, noise);
+  std::printf("[ measure  ] background %d px (+%d partly covered): %d off by >10%%; surfaces: %d vs mono-vs-mono %d\n",
+              background, background_noise, background_off, off, noise);
   EXPECT_GT(background, 1000);
   EXPECT_EQ(background_off, 0) << "background pixels differ from the path-traced right eye";
   // Surfaces: reprojected pixels carry the left eye's noise instead of the right's, no more.
@@ -719,7 +728,8 @@ TEST(Tonemap, BytesAreTheCorrectlyRoundedSrgbEncodingAndNonFinitePixelsAreCounte
   const std::size_t finite = values.size();
   const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
   std::vector<cl_float4> pixels;
-  for (std::size_t i = 0; i < finite; ++i) pixels.push_back({{values[i], values[(i + 7) % finite], values[(i * 13) % finite], 1.0f}});
+  for (std::size_t i = 0; i < finite; ++i)
+    pixels.push_back({{values[i], values[(i + 7) % finite], values[(i * 13) % finite], 1.0f}});
   pixels.push_back({{inf, 0.5f, 0.5f, 1.0f}});
   pixels.push_back({{0.5f, nan, 0.5f, 1.0f}});
   pixels.push_back({{0.5f, 0.5f, -inf, 1.0f}});
@@ -736,15 +746,21 @@ TEST(Tonemap, BytesAreTheCorrectlyRoundedSrgbEncodingAndNonFinitePixelsAreCounte
   cl::Buffer bad(set.context(), CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, sizeof(cl_uint), &zero);
   for (float exposure : {1.0f, 0.37f}) {
     cl::Kernel k(set.program("pipeline/tonemap.cl"), "tonemap");
-    k.setArg(0, rgba); k.setArg(1, radiance); k.setArg(2, cl_uint(0)); k.setArg(3, n);
-    k.setArg(4, exposure); k.setArg(5, bad); k.setArg(6, thresholds);
+    k.setArg(0, rgba);
+    k.setArg(1, radiance);
+    k.setArg(2, cl_uint(0));
+    k.setArg(3, n);
+    k.setArg(4, exposure);
+    k.setArg(5, bad);
+    k.setArg(6, thresholds);
     launch_1d(queue, k, n);
     std::vector<cl_uchar4> out(n);
     queue.enqueueReadBuffer(rgba, CL_TRUE, 0, n * sizeof(cl_uchar4), out.data());
     for (std::size_t i = 0; i < finite; ++i)
       for (int c = 0; c < 3; ++c) {
         const double v = static_cast<double>(exposure * pixels[i].s[c]);  // the kernel's float product
-        ASSERT_EQ(int(out[i].s[c]), int(std::lround(255.0 * srgb(v)))) << "value " << pixels[i].s[c] << " x " << exposure;
+        ASSERT_EQ(int(out[i].s[c]), int(std::lround(255.0 * srgb(v))))
+            << "value " << pixels[i].s[c] << " x " << exposure;
       }
     for (std::size_t i = finite; i < n; ++i)
       for (int c = 0; c < 3; ++c) EXPECT_EQ(int(out[i].s[c]), 0) << "non-finite pixel " << i << " is written black";

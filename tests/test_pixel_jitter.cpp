@@ -45,8 +45,10 @@ TEST(PixelJitter, ConsecutiveFramesCoverThePixelEvenly) {
     double mx = 0, my = 0;
     for (unsigned f = first; f < first + 72; ++f) {
       const auto j = pixel_jitter(PixelJitter::Halton, f);
-      ASSERT_GE(j[0], 0.0f); ASSERT_LT(j[0], 1.0f);
-      ASSERT_GE(j[1], 0.0f); ASSERT_LT(j[1], 1.0f);
+      ASSERT_GE(j[0], 0.0f);
+      ASSERT_LT(j[0], 1.0f);
+      ASSERT_GE(j[1], 0.0f);
+      ASSERT_LT(j[1], 1.0f);
       ++hits[static_cast<int>(j[1] * 9) * 8 + static_cast<int>(j[0] * 8)];
       mx += j[0];
       my += j[1];

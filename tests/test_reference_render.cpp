@@ -128,7 +128,8 @@ TEST(ReferenceRender, PassesAddUpToOneLaunchOfAllTheSamples) {
   const unsigned w = 16, h = 12;
   std::vector<std::pair<unsigned, unsigned>> calls;
   unsigned done = 0;
-  const auto passes = f.reference(w, h, 10, 4, 77, [&](unsigned d, unsigned t) { calls.emplace_back(d, t); }, &done);
+  const auto passes = f.reference(
+      w, h, 10, 4, 77, [&](unsigned d, unsigned t) { calls.emplace_back(d, t); }, &done);
   const auto whole = f.one_launch(w, h, 10, 77);
   EXPECT_EQ(done, 10u);
   EXPECT_EQ(calls, (std::vector<std::pair<unsigned, unsigned>>{{4, 10}, {8, 10}, {10, 10}}));
@@ -157,7 +158,8 @@ TEST(ReferenceRender, StoppedEarlyItAveragesThePassesDone) {
   const auto first = f.one_launch(8, 8, 4, 5);
   for (int e = 0; e < 2; ++e)
     for (std::size_t i = 0; i < first[e].rgb.size(); ++i)
-      ASSERT_NEAR(stopped[e].rgb[i], first[e].rgb[i], 1e-5f * (1.0f + first[e].rgb[i])) << "eye " << e << " value " << i;
+      ASSERT_NEAR(stopped[e].rgb[i], first[e].rgb[i], 1e-5f * (1.0f + first[e].rgb[i]))
+          << "eye " << e << " value " << i;
   EXPECT_THROW(f.reference(8, 8, 0, 4, 5), std::invalid_argument);
   EXPECT_THROW(f.reference(8, 8, 4, 0, 5), std::invalid_argument);
 }

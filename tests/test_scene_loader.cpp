@@ -26,8 +26,8 @@ fs::path corpus_dir() {
   return shared.empty() ? fs::path() : shared / "corpus" / "obj-edge-cases";
 }
 
-#define REQUIRE_CORPUS()                                                   \
-  const fs::path corpus = corpus_dir();                                    \
+#define REQUIRE_CORPUS()                \
+  const fs::path corpus = corpus_dir(); \
   if (corpus.empty()) GTEST_SKIP() << "../shared is absent on this machine"
 
 // What every loaded scene must satisfy, whatever the input was.
@@ -127,8 +127,7 @@ TEST(ObjCorpus, FilesWithoutTrianglesAreRefused) {
     EXPECT_NE(msg.find("no triangles"), std::string::npos) << file << ": " << msg;
     EXPECT_NE(msg.find(file), std::string::npos) << msg;
   }
-  EXPECT_NE(error_of([&] { load_obj((corpus / "points-prim.obj").string()); }).find("lines/points"),
-            std::string::npos);
+  EXPECT_NE(error_of([&] { load_obj((corpus / "points-prim.obj").string()); }).find("lines/points"), std::string::npos);
 }
 
 TEST(ObjCorpus, MissingMaterialLibraryGivesDefaultMaterial) {
@@ -209,11 +208,11 @@ TEST(ObjLoader, DropsNonFiniteAndDegenerateTriangles) {
                                  "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
                                  "v nan 0 0\nv 1e999 0 0\n"
                                  "v 2 0 0\nv 3 0 0\n"
-                                 "f 1 2 3\n"      // fine
-                                 "f 1 2 4\n"      // NaN
-                                 "f 5 2 3\n"      // overflow -> Inf
-                                 "f 1 6 7\n"      // collinear
-                                 "f 1 1 2\n");    // repeated vertex
+                                 "f 1 2 3\n"    // fine
+                                 "f 1 2 4\n"    // NaN
+                                 "f 5 2 3\n"    // overflow -> Inf
+                                 "f 1 6 7\n"    // collinear
+                                 "f 1 1 2\n");  // repeated vertex
   const Scene s = load_obj(obj.string());
   EXPECT_EQ(s.triangles.size(), 1u);
   EXPECT_EQ(s.stats.dropped_nonfinite, 2u);
@@ -321,8 +320,9 @@ TEST(ObjLoader, LoadsTexturesLinearised) {
   // 2x1 RGBA: an opaque sRGB mid-grey and a transparent white; a 1-channel alpha mask.
   write_png(dir.path() / "tex" / "albedo.png", 2, 1, 4, {128, 128, 128, 255, 255, 255, 255, 0});
   write_png(dir.path() / "tex" / "mask.png", 2, 1, 1, {255, 64});
-  dir.write("m.mtl", "newmtl leaf\nKd 1 1 1\nmap_Kd tex/albedo.png\nmap_d tex/mask.png\n"
-                     "newmtl broken\nmap_Kd tex/missing.png\n");
+  dir.write("m.mtl",
+            "newmtl leaf\nKd 1 1 1\nmap_Kd tex/albedo.png\nmap_d tex/mask.png\n"
+            "newmtl broken\nmap_Kd tex/missing.png\n");
   const fs::path obj = dir.write("m.obj",
                                  "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
                                  "usemtl leaf\nf 1/1 2/2 3/3\nusemtl broken\nf 1/1 2/2 3/3\n");
@@ -355,12 +355,13 @@ TEST(ObjLoader, MapKdWithoutKdIsTheTexturesOwnColour) {
   // as 0: a black wall). Same rule for map_Ks and Ks.
   TempDir dir;
   write_png(dir.path() / "wall.png", 1, 1, 3, {255, 128, 0});
-  dir.write("m.mtl", "newmtl bare\nmap_Kd wall.png\n"
-                     "newmtl scaled\nKd 0.5 0.25 1\nmap_Kd wall.png\n"
-                     "newmtl plain\nKd 0.3 0.3 0.3\n"
-                     "newmtl spec_bare\nKd 0.5 0.5 0.5\nmap_Ks wall.png\nNs 20\n"
-                     "newmtl spec_scaled\nKs 0.2 0.2 0.2\nmap_Ks wall.png\n"
-                     "newmtl missing\nmap_Kd nowhere.png\n");
+  dir.write("m.mtl",
+            "newmtl bare\nmap_Kd wall.png\n"
+            "newmtl scaled\nKd 0.5 0.25 1\nmap_Kd wall.png\n"
+            "newmtl plain\nKd 0.3 0.3 0.3\n"
+            "newmtl spec_bare\nKd 0.5 0.5 0.5\nmap_Ks wall.png\nNs 20\n"
+            "newmtl spec_scaled\nKs 0.2 0.2 0.2\nmap_Ks wall.png\n"
+            "newmtl missing\nmap_Kd nowhere.png\n");
   const fs::path obj = dir.write("m.obj",
                                  "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
                                  "usemtl bare\nf 1/1 2/2 3/3\nusemtl scaled\nf 1/1 2/2 3/3\n"
@@ -574,7 +575,8 @@ TEST(SceneFile, ErrorsNameTheFileAndKey) {
       {"params without generator", R"({"mesh": "a.obj", "generator_params": {}})", "generator_params"},
       {"path time", R"({"generator": "cornell", "camera_path": [
           {"time": 1, "position": [0, 0, 0], "target": [0, 0, 1]},
-          {"time": 1, "position": [0, 0, 0], "target": [0, 0, 1]}]})", "camera_path[1].time"},
+          {"time": 1, "position": [0, 0, 0], "target": [0, 0, 1]}]})",
+       "camera_path[1].time"},
       {"path key missing", R"({"generator": "cornell", "camera_path": [{"time": 0, "position": [0, 0, 0]}]})",
        "camera_path[0].target"},
       {"sun zero", R"({"generator": "cornell", "sun": {"direction": [0, 0, 0]}})", "sun.direction"},
@@ -595,8 +597,7 @@ TEST(SceneFile, ErrorsNameTheFileAndKey) {
 TEST(SceneFile, SpecResolution) {
   EXPECT_EQ(load_scene("cornell").triangles.size(), make_builtin_scene("cornell").triangles.size());
   const std::string unknown = error_of([] { load_scene("no-such-scene"); });
-  for (const std::string& name : builtin_scene_names())
-    EXPECT_NE(unknown.find(name), std::string::npos) << unknown;
+  for (const std::string& name : builtin_scene_names()) EXPECT_NE(unknown.find(name), std::string::npos) << unknown;
   EXPECT_NE(error_of([] { load_scene("/nowhere/x.json"); }).find("/nowhere/x.json"), std::string::npos);
   TempDir dir;
   const fs::path txt = dir.write("mesh.txt", "v 0 0 0\n");
@@ -639,11 +640,12 @@ TEST(SceneFile, DeepNestingIsAClearError) {
   EXPECT_NE(msg.find("deep.json"), std::string::npos) << msg;
   EXPECT_NE(msg.find("nested deeper"), std::string::npos) << msg;
   // Arrays count as well.
-  const fs::path arrays = dir.write("arrays.json", R"({"generator": "cornell", "name": )" + std::string(depth, '[') +
-                                                       std::string(depth, ']') + "}");
+  const fs::path arrays = dir.write(
+      "arrays.json", R"({"generator": "cornell", "name": )" + std::string(depth, '[') + std::string(depth, ']') + "}");
   EXPECT_NE(error_of([&] { load_scene(arrays.string()); }).find("nested deeper"), std::string::npos);
   // Ordinary nesting still loads.
-  EXPECT_NO_THROW(load_scene(dir.write("ok.json", R"({"generator": "atrium", "generator_params": {"detail": 0.2}})").string()));
+  EXPECT_NO_THROW(
+      load_scene(dir.write("ok.json", R"({"generator": "atrium", "generator_params": {"detail": 0.2}})").string()));
 }
 
 // Duplicate keys are found in every object (not only the first level) and in long camera paths;
@@ -660,13 +662,15 @@ TEST(SceneFile, DuplicateKeysAnywhereAndLongCameraPaths) {
   }
   const fs::path ok = dir.write("long.json", path + "]}");
   EXPECT_EQ(load_scene(ok.string()).camera_path.size(), std::size_t(keys));
-  const fs::path dup = dir.write("dup.json", path + R"(, {"time": 1e6, "position": [0, 0, 5], "target": [0, 0, 0], "time": 2e6}]})");
+  const fs::path dup =
+      dir.write("dup.json", path + R"(, {"time": 1e6, "position": [0, 0, 5], "target": [0, 0, 0], "time": 2e6}]})");
   const std::string msg = error_of([&] { load_scene(dup.string()); });
   EXPECT_NE(msg.find("dup.json"), std::string::npos) << msg;
   EXPECT_NE(msg.find("'time': duplicate key"), std::string::npos) << msg;
   // The same key in sibling objects is not a duplicate.
   EXPECT_NO_THROW(load_scene(dir.write("siblings.json", R"({"generator": "cornell", "camera": {"up": [0, 1, 0]},
-      "sky": {"zenith": [0, 1, 0]}})").string()));
+      "sky": {"zenith": [0, 1, 0]}})")
+                                 .string()));
 }
 
 // Coordinates beyond what float ray tracing resolves are refused on load (they gave an all-NaN
@@ -677,17 +681,21 @@ TEST(SceneFile, OutOfRangeCoordinatesAreRefused) {
   std::string msg = error_of([&] { load_scene(huge.string()); });
   EXPECT_NE(msg.find("huge.obj"), std::string::npos) << msg;
   EXPECT_NE(msg.find("1e+19"), std::string::npos) << msg;
-  msg = error_of([&] { load_scene(dir.write("cam.json", R"({"generator": "cornell", "camera": {"position": [1e20, 0, 0]}})").string()); });
+  msg = error_of([&] {
+    load_scene(dir.write("cam.json", R"({"generator": "cornell", "camera": {"position": [1e20, 0, 0]}})").string());
+  });
   EXPECT_NE(msg.find("camera position"), std::string::npos) << msg;
   msg = error_of([&] {
     load_scene(dir.write("path.json", R"({"generator": "cornell", "camera_path": [
         {"time": 0, "position": [0, 0, 5], "target": [0, 0, 0]},
-        {"time": 1, "position": [0, 0, 5], "target": [0, 3e11, 0]}]})").string());
+        {"time": 1, "position": [0, 0, 5], "target": [0, 3e11, 0]}]})")
+                   .string());
   });
   EXPECT_NE(msg.find("camera_path[1].target"), std::string::npos) << msg;
   // Large but in range: loads; a small model far out: loads with a warning.
   EXPECT_NO_THROW(load_scene(dir.write("big.obj", "v -1e9 0 0\nv 1e9 0 0\nv 0 1e9 0\nf 1 2 3\n").string()));
-  const Scene far = load_scene(dir.write("far.obj", "v 1e6 1e6 1e6\nv 1000001 1e6 1e6\nv 1e6 1000001 1e6\nf 1 2 3\n").string());
+  const Scene far =
+      load_scene(dir.write("far.obj", "v 1e6 1e6 1e6\nv 1000001 1e6 1e6\nv 1e6 1000001 1e6\nf 1 2 3\n").string());
   EXPECT_TRUE(any_warning_contains(far, "recentre")) << "far from the origin";
   EXPECT_FALSE(any_warning_contains(load_scene("cornell"), "recentre"));
 }

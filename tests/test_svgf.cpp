@@ -74,161 +74,190 @@ TEST_P(AtrousKernel, MatchesHostImplementation) {
     if (x > 25) nn = glm::normalize(glm::vec3(1.0f, 0.0f, 0.3f));  // a crease
     // Scattered pixels whose normal no neighbour shares (like foliage cards): isolated.
     if ((x * 7 + y * 3) % 23 == 0) nn = glm::normalize(glm::vec3(u(rng) - 0.5f, u(rng) - 0.5f, 1.0f));
-    t.normal[0] = nn.x; t.normal[1] = nn.y; t.normal[2] = nn.z;
-    t.depth = 2.0f + 0.01f * x + (y > 20 ? 1.0f : 0.0f);           // a depth step
+    t.normal[0] = nn.x;
+    t.normal[1] = nn.y;
+    t.normal[2] = nn.z;
+    t.depth = 2.0f + 0.01f * x + (y > 20 ? 1.0f : 0.0f);  // a depth step
     t.material_class = moments[i].s[3] == 1.0f ? PX_CLASS_DIFFUSE : PX_CLASS_MISS;
     g[i] = t;
   }
-  int isolated = 0;  // pixels that took the loose normal weights (the fallback must be exercised)
+  int isolated = 0;   // pixels that took the loose normal weights (the fallback must be exercised)
   int borrowing = 0;  // silhouette pixels filtered with a neighbour's geometry
   // The usual integer normal exponent (squarings) and a fractional one (the pow path).
   for (float sigma_n : {128.0f, 2.5f}) {
-  SCOPED_TRACE("sigma_n " + std::to_string(sigma_n));
-  SvgfParams p{};
-  p.sigma_l = 4.0f; p.sigma_z = 1.0f; p.sigma_n = sigma_n;
-  p.width = w; p.height = h;
-  p.row0 = 3; p.rows = 20;   // a strip in the middle
-  p.lo_row = 0; p.hi_row = 26;  // readable rows: reads beyond must be skipped
-  for (unsigned step : {1u, 2u, 4u}) {
-    p.step = step;
-    auto bi = upload(illum), bg = upload(g), bm = upload(moments);
-    // A sentinel outside the strip: the pass writes its rows and no other.
-    auto out = upload(std::vector<cl_float4>(n, cl_float4{{-7.0f, -7.0f, -7.0f, -7.0f}}));
-    // The guide texels of every row, then the a-trous step reading them.
-    cl::Buffer guide(one_device().context(), CL_MEM_READ_WRITE, n * sizeof(cl_float4));
-    SvgfParams all = p;
-    all.row0 = 0; all.rows = h; all.lo_row = 0; all.hi_row = h;
-    cl::Kernel kg(one_device().program("denoise/svgf_temporal.cl"), "svgf_guide");
-    kg.setArg(0, guide); kg.setArg(1, bg); kg.setArg(2, all);
-    launch_1d(one_device().devices()[0].queue, kg, all.rows * w);
-    // The luminance guide of every readable row (svgf_luma), checked against a host version.
-    cl::Buffer luma(one_device().context(), CL_MEM_READ_WRITE, n * sizeof(cl_float2));
-    SvgfParams readable_rows = p;
-    readable_rows.row0 = p.lo_row; readable_rows.rows = p.hi_row - p.lo_row;
-    cl::Kernel kl(one_device().program("denoise/svgf_atrous.cl"), "svgf_luma");
-    kl.setArg(0, luma); kl.setArg(1, bi); kl.setArg(2, guide); kl.setArg(3, readable_rows);
-    launch_1d(one_device().devices()[0].queue, kl, readable_rows.rows * w);
-    const std::vector<cl_float2> got_luma = download<cl_float2>(luma, n);
-    cl::Kernel k(one_device().program("denoise/svgf_atrous.cl"),
-                 tiled ? "svgf_atrous_tiled" : lanes == 8 ? "svgf_atrous8" : "svgf_atrous");
-    k.setArg(0, out); k.setArg(1, bi); k.setArg(2, guide); k.setArg(3, bm); k.setArg(4, luma); k.setArg(5, p);
-    launch_1d(one_device().devices()[0].queue, k,
-              tiled ? ((w + PX_ATROUS_TILE - 1) / PX_ATROUS_TILE) * ((p.rows + PX_ATROUS_TILE - 1) / PX_ATROUS_TILE) *
-                          PX_LOCAL_SIZE
-                    : p.rows * ((w + lanes - 1) / lanes));
-    auto got = download<cl_float4>(out, n);
-    for (std::size_t i = 0; i < n; ++i) {
-      if (i / w >= p.row0 && i / w < p.row0 + p.rows) continue;
-      ASSERT_EQ(got[i].s[0], -7.0f) << "pixel " << i << " outside the strip";
-    }
-    // Host version of the same filter, written from the SVGF paper's formulas.
-    auto readable = [&](int y) { return y >= static_cast<int>(p.lo_row) && y < static_cast<int>(p.hi_row) && y < static_cast<int>(h) && y >= 0; };
-    auto at = [&](int x, int y) { return static_cast<std::size_t>(y) * w + x; };
-    auto filtered = [&](std::size_t j) { return moments[j].s[3] == 1.0f; };
-    // The lender of a borrowing pixel: its filtered 8-neighbour of least depth in readable
-    // rows, the first in scan order on ties.
-    auto lender = [&](int x, int y) {
-      long best = -1;
-      float best_depth = std::numeric_limits<float>::infinity();
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
-          const int tx = x + dx, ty = y + dy;
-          if ((dx == 0 && dy == 0) || !readable(ty) || tx < 0 || tx >= static_cast<int>(w)) continue;
-          if (filtered(at(tx, ty)) && g[at(tx, ty)].depth < best_depth) {
-            best = static_cast<long>(at(tx, ty));
-            best_depth = g[at(tx, ty)].depth;
-          }
-        }
-      return best;
-    };
-    // What an a-trous tap's luminance test compares, per pixel: the luminance of a filtered
-    // pixel averaged over its 3x3 neighbours on the same surface (filtered, normal cosine >= 0.9,
-    // depth within 10%) with the weights (1/2 centre, 1/4 beside) per axis, any other pixel's
-    // own; and the variance averaged with the same weights over the filtered neighbours.
-    std::vector<double> luma_host(n, 0.0), var_host(n, 0.0);
-    for (int y = static_cast<int>(p.lo_row); y < static_cast<int>(p.hi_row); ++y)
-      for (int x = 0; x < static_cast<int>(w); ++x) {
-        const std::size_t i = at(x, y);
-        const glm::dvec3 n0(g[i].normal[0], g[i].normal[1], g[i].normal[2]);
-        double sum = 0, wsum = 0, var = 0, vw = 0;
+    SCOPED_TRACE("sigma_n " + std::to_string(sigma_n));
+    SvgfParams p{};
+    p.sigma_l = 4.0f;
+    p.sigma_z = 1.0f;
+    p.sigma_n = sigma_n;
+    p.width = w;
+    p.height = h;
+    p.row0 = 3;
+    p.rows = 20;  // a strip in the middle
+    p.lo_row = 0;
+    p.hi_row = 26;  // readable rows: reads beyond must be skipped
+    for (unsigned step : {1u, 2u, 4u}) {
+      p.step = step;
+      auto bi = upload(illum), bg = upload(g), bm = upload(moments);
+      // A sentinel outside the strip: the pass writes its rows and no other.
+      auto out = upload(std::vector<cl_float4>(n, cl_float4{{-7.0f, -7.0f, -7.0f, -7.0f}}));
+      // The guide texels of every row, then the a-trous step reading them.
+      cl::Buffer guide(one_device().context(), CL_MEM_READ_WRITE, n * sizeof(cl_float4));
+      SvgfParams all = p;
+      all.row0 = 0;
+      all.rows = h;
+      all.lo_row = 0;
+      all.hi_row = h;
+      cl::Kernel kg(one_device().program("denoise/svgf_temporal.cl"), "svgf_guide");
+      kg.setArg(0, guide);
+      kg.setArg(1, bg);
+      kg.setArg(2, all);
+      launch_1d(one_device().devices()[0].queue, kg, all.rows * w);
+      // The luminance guide of every readable row (svgf_luma), checked against a host version.
+      cl::Buffer luma(one_device().context(), CL_MEM_READ_WRITE, n * sizeof(cl_float2));
+      SvgfParams readable_rows = p;
+      readable_rows.row0 = p.lo_row;
+      readable_rows.rows = p.hi_row - p.lo_row;
+      cl::Kernel kl(one_device().program("denoise/svgf_atrous.cl"), "svgf_luma");
+      kl.setArg(0, luma);
+      kl.setArg(1, bi);
+      kl.setArg(2, guide);
+      kl.setArg(3, readable_rows);
+      launch_1d(one_device().devices()[0].queue, kl, readable_rows.rows * w);
+      const std::vector<cl_float2> got_luma = download<cl_float2>(luma, n);
+      cl::Kernel k(one_device().program("denoise/svgf_atrous.cl"), tiled        ? "svgf_atrous_tiled"
+                                                                   : lanes == 8 ? "svgf_atrous8"
+                                                                                : "svgf_atrous");
+      k.setArg(0, out);
+      k.setArg(1, bi);
+      k.setArg(2, guide);
+      k.setArg(3, bm);
+      k.setArg(4, luma);
+      k.setArg(5, p);
+      launch_1d(one_device().devices()[0].queue, k,
+                tiled ? ((w + PX_ATROUS_TILE - 1) / PX_ATROUS_TILE) * ((p.rows + PX_ATROUS_TILE - 1) / PX_ATROUS_TILE) *
+                            PX_LOCAL_SIZE
+                      : p.rows * ((w + lanes - 1) / lanes));
+      auto got = download<cl_float4>(out, n);
+      for (std::size_t i = 0; i < n; ++i) {
+        if (i / w >= p.row0 && i / w < p.row0 + p.rows) continue;
+        ASSERT_EQ(got[i].s[0], -7.0f) << "pixel " << i << " outside the strip";
+      }
+      // Host version of the same filter, written from the SVGF paper's formulas.
+      auto readable = [&](int y) {
+        return y >= static_cast<int>(p.lo_row) && y < static_cast<int>(p.hi_row) && y < static_cast<int>(h) && y >= 0;
+      };
+      auto at = [&](int x, int y) { return static_cast<std::size_t>(y) * w + x; };
+      auto filtered = [&](std::size_t j) { return moments[j].s[3] == 1.0f; };
+      // The lender of a borrowing pixel: its filtered 8-neighbour of least depth in readable
+      // rows, the first in scan order on ties.
+      auto lender = [&](int x, int y) {
+        long best = -1;
+        float best_depth = std::numeric_limits<float>::infinity();
         for (int dy = -1; dy <= 1; ++dy)
           for (int dx = -1; dx <= 1; ++dx) {
             const int tx = x + dx, ty = y + dy;
-            if (!readable(ty) || tx < 0 || tx >= static_cast<int>(w) || !filtered(at(tx, ty))) continue;
-            const std::size_t j = at(tx, ty);
-            const double kk = (dx == 0 ? 0.5 : 0.25) * (dy == 0 ? 0.5 : 0.25);
-            var += kk * illum[j].s[3];
-            vw += kk;
-            const glm::dvec3 n1(g[j].normal[0], g[j].normal[1], g[j].normal[2]);
-            if (glm::dot(n0, n1) < 0.9 || std::abs(g[j].depth - g[i].depth) > 0.1 * g[i].depth) continue;
-            sum += kk * lum(illum[j]);
-            wsum += kk;
-          }
-        luma_host[i] = filtered(i) ? sum / wsum : lum(illum[i]);
-        var_host[i] = vw > 0 ? var / vw : illum[i].s[3];
-        ASSERT_NEAR(got_luma[i].s[0], luma_host[i], 1e-5 * (1.0 + luma_host[i])) << "luminance guide at " << x << "," << y;
-        ASSERT_NEAR(got_luma[i].s[1], var_host[i], 1e-5 * (1.0 + var_host[i])) << "variance guide at " << x << "," << y;
-      }
-    for (unsigned y = p.row0; y < p.row0 + p.rows; ++y)
-      for (unsigned x = 0; x < w; ++x) {
-        const std::size_t i = at(x, y);
-        // The edge-stopping centre: the pixel itself, or a borrowing pixel's lender.
-        std::size_t ci = i;
-        if (!filtered(i)) {
-          const long lent = moments[i].s[3] == PX_SVGF_BORROWED ? lender(x, y) : -1;
-          if (lent < 0) {
-            for (int c = 0; c < 4; ++c) ASSERT_EQ(got[i].s[c], illum[i].s[c]);
-            continue;
-          }
-          ci = static_cast<std::size_t>(lent);
-          if (sigma_n == 128.0f) ++borrowing;
-        }
-        const int cx = static_cast<int>(ci % w), cy = static_cast<int>(ci / w);
-        // depth gradient at the centre: central differences, one-sided at the image/readable edge
-        const int xl = std::max<int>(cx - 1, 0), xr = std::min<int>(cx + 1, w - 1);
-        const int yu = readable(cy - 1) ? cy - 1 : cy, yd = readable(cy + 1) ? cy + 1 : cy;
-        const double gx = xr > xl ? (g[at(xr, cy)].depth - g[at(xl, cy)].depth) / double(xr - xl) : 0.0;
-        const double gy = yd > yu ? (g[at(cx, yd)].depth - g[at(cx, yu)].depth) / double(yd - yu) : 0.0;
-        const double var = var_host[i];  // the pixel's own, a borrowing one's too
-        const double hk[5] = {1 / 16.0, 1 / 4.0, 3 / 8.0, 1 / 4.0, 1 / 16.0};
-        const glm::dvec3 n0(g[ci].normal[0], g[ci].normal[1], g[ci].normal[2]);
-        // Twice: with the normal exponent 128, and with the loose exponent that an isolated
-        // pixel (others' total weight < PX_SVGF_ISOLATED x its own) falls back to.
-        double ws = 0, vs = 0, cs[3] = {0, 0, 0};
-        for (double exponent : {double(sigma_n), std::min(double(sigma_n), double(PX_SVGF_LOOSE_SIGMA_N))}) {
-          ws = vs = cs[0] = cs[1] = cs[2] = 0;
-          for (int ky = -2; ky <= 2; ++ky)
-            for (int kx = -2; kx <= 2; ++kx) {
-              const int tx = x + kx * step, ty = y + ky * step;
-              if (!readable(ty) || tx < 0 || tx >= static_cast<int>(w)) continue;
-              const std::size_t j = at(tx, ty);
-              if (!filtered(j) && (kx || ky)) continue;  // the centre is always a tap
-              double wt = hk[kx + 2] * hk[ky + 2];
-              if (kx || ky) {
-                const glm::dvec3 n1(g[j].normal[0], g[j].normal[1], g[j].normal[2]);
-                const double wn = std::pow(std::max(0.0, glm::dot(n0, n1)), exponent);
-                const double wz = std::exp(-std::abs(g[ci].depth - g[j].depth) /
-                                           (1.0 * std::abs(gx * kx * step + gy * ky * step) + 1e-3 * g[ci].depth + 1e-6));
-                // the scale is the pair's: the mean of both prefiltered variances
-                const double wl = std::exp(-std::abs(luma_host[i] - luma_host[j]) /
-                                           (4.0 * std::sqrt(0.5 * (std::max(0.0, var) + std::max(0.0, var_host[j]))) + 1e-6));
-                wt *= wn * wz * wl;
-              }
-              ws += wt;
-              vs += wt * wt * illum[j].s[3];
-              for (int c = 0; c < 3; ++c) cs[c] += wt * illum[j].s[c];
+            if ((dx == 0 && dy == 0) || !readable(ty) || tx < 0 || tx >= static_cast<int>(w)) continue;
+            if (filtered(at(tx, ty)) && g[at(tx, ty)].depth < best_depth) {
+              best = static_cast<long>(at(tx, ty));
+              best_depth = g[at(tx, ty)].depth;
             }
-          const double centre = hk[2] * hk[2];
-          if (exponent == double(sigma_n)) {
-            if (ws - centre >= PX_SVGF_ISOLATED * centre) break;  // not isolated: the strict result stands
-            if (sigma_n == 128.0f) ++isolated;
           }
+        return best;
+      };
+      // What an a-trous tap's luminance test compares, per pixel: the luminance of a filtered
+      // pixel averaged over its 3x3 neighbours on the same surface (filtered, normal cosine >= 0.9,
+      // depth within 10%) with the weights (1/2 centre, 1/4 beside) per axis, any other pixel's
+      // own; and the variance averaged with the same weights over the filtered neighbours.
+      std::vector<double> luma_host(n, 0.0), var_host(n, 0.0);
+      for (int y = static_cast<int>(p.lo_row); y < static_cast<int>(p.hi_row); ++y)
+        for (int x = 0; x < static_cast<int>(w); ++x) {
+          const std::size_t i = at(x, y);
+          const glm::dvec3 n0(g[i].normal[0], g[i].normal[1], g[i].normal[2]);
+          double sum = 0, wsum = 0, var = 0, vw = 0;
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+              const int tx = x + dx, ty = y + dy;
+              if (!readable(ty) || tx < 0 || tx >= static_cast<int>(w) || !filtered(at(tx, ty))) continue;
+              const std::size_t j = at(tx, ty);
+              const double kk = (dx == 0 ? 0.5 : 0.25) * (dy == 0 ? 0.5 : 0.25);
+              var += kk * illum[j].s[3];
+              vw += kk;
+              const glm::dvec3 n1(g[j].normal[0], g[j].normal[1], g[j].normal[2]);
+              if (glm::dot(n0, n1) < 0.9 || std::abs(g[j].depth - g[i].depth) > 0.1 * g[i].depth) continue;
+              sum += kk * lum(illum[j]);
+              wsum += kk;
+            }
+          luma_host[i] = filtered(i) ? sum / wsum : lum(illum[i]);
+          var_host[i] = vw > 0 ? var / vw : illum[i].s[3];
+          ASSERT_NEAR(got_luma[i].s[0], luma_host[i], 1e-5 * (1.0 + luma_host[i]))
+              << "luminance guide at " << x << "," << y;
+          ASSERT_NEAR(got_luma[i].s[1], var_host[i], 1e-5 * (1.0 + var_host[i]))
+              << "variance guide at " << x << "," << y;
         }
-        for (int c = 0; c < 3; ++c)
-          ASSERT_NEAR(got[i].s[c], cs[c] / ws, 2e-4 * (1.0 + std::abs(cs[c] / ws))) << "pixel " << x << "," << y << " step " << step;
-        ASSERT_NEAR(got[i].s[3], vs / (ws * ws), 2e-4 * (1e-3 + vs / (ws * ws))) << "variance at " << x << "," << y;
-      }
-  }
+      for (unsigned y = p.row0; y < p.row0 + p.rows; ++y)
+        for (unsigned x = 0; x < w; ++x) {
+          const std::size_t i = at(x, y);
+          // The edge-stopping centre: the pixel itself, or a borrowing pixel's lender.
+          std::size_t ci = i;
+          if (!filtered(i)) {
+            const long lent = moments[i].s[3] == PX_SVGF_BORROWED ? lender(x, y) : -1;
+            if (lent < 0) {
+              for (int c = 0; c < 4; ++c) ASSERT_EQ(got[i].s[c], illum[i].s[c]);
+              continue;
+            }
+            ci = static_cast<std::size_t>(lent);
+            if (sigma_n == 128.0f) ++borrowing;
+          }
+          const int cx = static_cast<int>(ci % w), cy = static_cast<int>(ci / w);
+          // depth gradient at the centre: central differences, one-sided at the image/readable edge
+          const int xl = std::max<int>(cx - 1, 0), xr = std::min<int>(cx + 1, w - 1);
+          const int yu = readable(cy - 1) ? cy - 1 : cy, yd = readable(cy + 1) ? cy + 1 : cy;
+          const double gx = xr > xl ? (g[at(xr, cy)].depth - g[at(xl, cy)].depth) / double(xr - xl) : 0.0;
+          const double gy = yd > yu ? (g[at(cx, yd)].depth - g[at(cx, yu)].depth) / double(yd - yu) : 0.0;
+          const double var = var_host[i];  // the pixel's own, a borrowing one's too
+          const double hk[5] = {1 / 16.0, 1 / 4.0, 3 / 8.0, 1 / 4.0, 1 / 16.0};
+          const glm::dvec3 n0(g[ci].normal[0], g[ci].normal[1], g[ci].normal[2]);
+          // Twice: with the normal exponent 128, and with the loose exponent that an isolated
+          // pixel (others' total weight < PX_SVGF_ISOLATED x its own) falls back to.
+          double ws = 0, vs = 0, cs[3] = {0, 0, 0};
+          for (double exponent : {double(sigma_n), std::min(double(sigma_n), double(PX_SVGF_LOOSE_SIGMA_N))}) {
+            ws = vs = cs[0] = cs[1] = cs[2] = 0;
+            for (int ky = -2; ky <= 2; ++ky)
+              for (int kx = -2; kx <= 2; ++kx) {
+                const int tx = x + kx * step, ty = y + ky * step;
+                if (!readable(ty) || tx < 0 || tx >= static_cast<int>(w)) continue;
+                const std::size_t j = at(tx, ty);
+                if (!filtered(j) && (kx || ky)) continue;  // the centre is always a tap
+                double wt = hk[kx + 2] * hk[ky + 2];
+                if (kx || ky) {
+                  const glm::dvec3 n1(g[j].normal[0], g[j].normal[1], g[j].normal[2]);
+                  const double wn = std::pow(std::max(0.0, glm::dot(n0, n1)), exponent);
+                  const double wz =
+                      std::exp(-std::abs(g[ci].depth - g[j].depth) /
+                               (1.0 * std::abs(gx * kx * step + gy * ky * step) + 1e-3 * g[ci].depth + 1e-6));
+                  // the scale is the pair's: the mean of both prefiltered variances
+                  const double wl =
+                      std::exp(-std::abs(luma_host[i] - luma_host[j]) /
+                               (4.0 * std::sqrt(0.5 * (std::max(0.0, var) + std::max(0.0, var_host[j]))) + 1e-6));
+                  wt *= wn * wz * wl;
+                }
+                ws += wt;
+                vs += wt * wt * illum[j].s[3];
+                for (int c = 0; c < 3; ++c) cs[c] += wt * illum[j].s[c];
+              }
+            const double centre = hk[2] * hk[2];
+            if (exponent == double(sigma_n)) {
+              if (ws - centre >= PX_SVGF_ISOLATED * centre) break;  // not isolated: the strict result stands
+              if (sigma_n == 128.0f) ++isolated;
+            }
+          }
+          for (int c = 0; c < 3; ++c)
+            ASSERT_NEAR(got[i].s[c], cs[c] / ws, 2e-4 * (1.0 + std::abs(cs[c] / ws)))
+                << "pixel " << x << "," << y << " step " << step;
+          ASSERT_NEAR(got[i].s[3], vs / (ws * ws), 2e-4 * (1e-3 + vs / (ws * ws))) << "variance at " << x << "," << y;
+        }
+    }
   }
   EXPECT_GT(isolated, 10);
   EXPECT_GT(borrowing, 10);
@@ -246,8 +275,7 @@ TEST(Svgf, FilterExpMatchesDoublePrecisionExp) {
   // values around its edges.
   std::vector<float> x;
   for (int i = 0; i <= 200000; ++i) x.push_back(-87.0f + 175.0f * static_cast<float>(i) / 200000.0f);
-  for (float v : {0.0f, -0.0f, 1e-30f, -1e-30f, 0.3465736f, -0.3465736f, 1.0f, -1.0f, -86.99f, 87.99f})
-    x.push_back(v);
+  for (float v : {0.0f, -0.0f, 1e-30f, -1e-30f, 0.3465736f, -0.3465736f, 1.0f, -1.0f, -86.99f, 87.99f}) x.push_back(v);
   const std::size_t n_ranged = x.size();
   const float inf = std::numeric_limits<float>::infinity();
   for (float v : {-87.5f, -100.0f, -1e30f, -inf, 88.5f, 1e30f, inf, std::numeric_limits<float>::quiet_NaN()})
@@ -256,7 +284,9 @@ TEST(Svgf, FilterExpMatchesDoublePrecisionExp) {
   auto in = upload(x);
   cl::Buffer out(one_device().context(), CL_MEM_READ_WRITE, n * sizeof(float));
   cl::Kernel k(one_device().program("testing/math_probe.cl"), "probe_exp");
-  k.setArg(0, out); k.setArg(1, in); k.setArg(2, n);
+  k.setArg(0, out);
+  k.setArg(1, in);
+  k.setArg(2, n);
   launch_1d(one_device().devices()[0].queue, k, n);
   const auto got = download<float>(out, n);
   double worst = 0.0;
@@ -268,15 +298,20 @@ TEST(Svgf, FilterExpMatchesDoublePrecisionExp) {
   }
   std::printf("[ measure  ] px_exp: worst relative error %.3g over [-87, 88]\n", worst);
   for (std::size_t i = n_ranged; i < n; ++i) {
-    if (std::isnan(x[i])) EXPECT_TRUE(std::isnan(got[i]));
-    else if (x[i] < 0.0f) EXPECT_EQ(got[i], 0.0f) << "exp(" << x[i] << ")";
-    else EXPECT_EQ(got[i], inf) << "exp(" << x[i] << ")";
+    if (std::isnan(x[i]))
+      EXPECT_TRUE(std::isnan(got[i]));
+    else if (x[i] < 0.0f)
+      EXPECT_EQ(got[i], 0.0f) << "exp(" << x[i] << ")";
+    else
+      EXPECT_EQ(got[i], inf) << "exp(" << x[i] << ")";
   }
   // px_exp8 (eight taps at once, svgf_atrous8) is the same operations lane by lane: same bits.
   const cl_uint n8 = n / 8 * 8;
   cl::Buffer out8(one_device().context(), CL_MEM_READ_WRITE, n8 * sizeof(float));
   cl::Kernel k8(one_device().program("testing/math_probe.cl"), "probe_exp8");
-  k8.setArg(0, out8); k8.setArg(1, in); k8.setArg(2, n8);
+  k8.setArg(0, out8);
+  k8.setArg(1, in);
+  k8.setArg(2, n8);
   launch_1d(one_device().devices()[0].queue, k8, n8 / 8);
   const auto got8 = download<float>(out8, n8);
   for (std::size_t i = 0; i < n8; ++i) {
@@ -284,7 +319,8 @@ TEST(Svgf, FilterExpMatchesDoublePrecisionExp) {
       EXPECT_TRUE(std::isnan(got8[i])) << "exp8(" << x[i] << ")";
       continue;
     }
-    ASSERT_EQ(std::memcmp(&got8[i], &got[i], sizeof(float)), 0) << "exp8(" << x[i] << ") = " << got8[i] << ", exp " << got[i];
+    ASSERT_EQ(std::memcmp(&got8[i], &got[i], sizeof(float)), 0)
+        << "exp8(" << x[i] << ") = " << got8[i] << ", exp " << got[i];
   }
 }
 
@@ -334,8 +370,7 @@ struct FilterRun {
   SyntheticView view;
   SvgfDenoiser den;
   cl::Buffer gbuf, prev_gbuf, color, albedo;
-  explicit FilterRun(SvgfDenoiser::Options o = {})
-      : den(one_device(), 0, view.w, view.h, o) {}
+  explicit FilterRun(SvgfDenoiser::Options o = {}) : den(one_device(), 0, view.w, view.h, o) {}
   // One frame: returns the denoised radiance. The demodulation albedo is `a`, or 0.5
   // everywhere when `a` is empty.
   std::vector<cl_float4> frame(const std::vector<GBufferTexel>& g, const std::vector<cl_float4>& c,
@@ -343,8 +378,7 @@ struct FilterRun {
     prev_gbuf = gbuf.get() ? gbuf : upload(g);
     gbuf = upload(g);
     color = upload(c);
-    if (a.empty())
-      a.assign(g.size(), cl_float4{{0.5f, 0.5f, 0.5f, 1.0f}});
+    if (a.empty()) a.assign(g.size(), cl_float4{{0.5f, 0.5f, 0.5f, 1.0f}});
     albedo = upload(a);
     const RowRange all{0, view.h};
     den.guide(gbuf, all);
@@ -360,7 +394,8 @@ struct FilterRun {
   std::vector<cl_float4> moments() { return download<cl_float4>(den.moments(), view.w * view.h); }
 };
 
-std::vector<cl_float4> noisy(const SyntheticView& v, std::mt19937& rng, float (*truth)(unsigned, unsigned), float sigma) {
+std::vector<cl_float4> noisy(const SyntheticView& v, std::mt19937& rng, float (*truth)(unsigned, unsigned),
+                             float sigma) {
   std::normal_distribution<float> noise(0.0f, sigma);
   std::vector<cl_float4> c(v.w * v.h);
   for (unsigned y = 0; y < v.h; ++y)
@@ -451,7 +486,8 @@ TEST(Svgf, DisocclusionResetsHistory) {
   // Frames 0-2: an object covers the left half (at depth 2); frame 3: it is gone, the wall
   // behind (depth 5) shows.
   auto with_object = [](unsigned x, unsigned) {
-    return x < 32 ? std::pair<float, glm::vec3>{2.0f, glm::vec3(0, 0, -1)} : std::pair<float, glm::vec3>{5.0f, glm::vec3(0, 0, -1)};
+    return x < 32 ? std::pair<float, glm::vec3>{2.0f, glm::vec3(0, 0, -1)}
+                  : std::pair<float, glm::vec3>{5.0f, glm::vec3(0, 0, -1)};
   };
   for (int f = 0; f < 3; ++f) run.frame(run.view.gbuffer(with_object), noisy(run.view, rng, truth, 0.1f));
   run.frame(run.view.gbuffer(flat), noisy(run.view, rng, truth, 0.1f));
@@ -597,8 +633,10 @@ TEST(Svgf, EnvironmentPixelsAccumulateOverFramesByDirection) {
       const std::size_t i = y * v.w + x;
       const bool same = out2[i].s[0] == c2[i].s[0];
       // rows v.h/2 - 1 and v.h/2 straddle the change: bilinear taps may reach either side
-      if (y + 1 < v.h / 2) fresh_equal += same;
-      else if (y > v.h / 2) kept_differ += !same;
+      if (y + 1 < v.h / 2)
+        fresh_equal += same;
+      else if (y > v.h / 2)
+        kept_differ += !same;
     }
   EXPECT_EQ(fresh_equal, static_cast<int>((v.h / 2 - 1) * v.w));
   EXPECT_GT(kept_differ, static_cast<int>((v.h / 2 - 1) * v.w * 9 / 10));
@@ -689,8 +727,8 @@ StereoPipeline::Options pipeline_options(PipelineKind kind, SeamMode seams = Sea
   return opt;
 }
 
-DenoisedRun run_pipeline(const LoadedScene& loaded, int devices, SeamMode seams, unsigned frames, unsigned w, unsigned h,
-                         unsigned iterations = 5, bool denoise = true) {
+DenoisedRun run_pipeline(const LoadedScene& loaded, int devices, SeamMode seams, unsigned frames, unsigned w,
+                         unsigned h, unsigned iterations = 5, bool denoise = true) {
   DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
   DeviceScene ds(set, loaded.scene, loaded.bvh);
   StereoPipeline::Options opt = pipeline_options(PipelineKind::Proposed, seams);
@@ -778,7 +816,8 @@ TEST(SvgfDistributed, SideQueueGivesTheSameImages) {
             pngs[overlap].push_back(p.rgba8());
           }
         }
-        const std::string what = std::string(to_string(kind)) + " " + to_string(seams) + " " + std::to_string(devices) + " devices";
+        const std::string what =
+            std::string(to_string(kind)) + " " + to_string(seams) + " " + std::to_string(devices) + " devices";
         for (unsigned f = 0; f < 3; ++f)
           for (int e = 0; e < 2; ++e)
             EXPECT_TRUE(same_bits(frames[0][f][e], frames[1][f][e])) << what << ", frame " << f << ", eye " << e;
@@ -823,7 +862,8 @@ TEST(SvgfDistributed, EightPixelAtrousKernelGivesTheSameImagesToRounding) {
           identical += a == b;
           worst = std::max(worst, std::abs(double(a) - b) / (std::abs(double(a)) + 1e-3));
         }
-    std::printf("[ measure  ] %zu of %zu values bit-identical, worst relative difference %.3g\n", identical, values, worst);
+    std::printf("[ measure  ] %zu of %zu values bit-identical, worst relative difference %.3g\n", identical, values,
+                worst);
     EXPECT_LT(worst, 3e-4);
     EXPECT_GT(identical, values / 4) << "rounding differences should leave most values exact";
   }
@@ -844,7 +884,8 @@ TEST(SvgfDistributed, TiledAtrousKernelGivesTheSameImages) {
       });
     for (unsigned f = 0; f < 3; ++f)
       for (int e = 0; e < 2; ++e)
-        EXPECT_TRUE(same_bits(frames[0][f][e], frames[1][f][e])) << scene->scene.name << ", frame " << f << ", eye " << e;
+        EXPECT_TRUE(same_bits(frames[0][f][e], frames[1][f][e]))
+            << scene->scene.name << ", frame " << f << ", eye " << e;
   }
 }
 
@@ -864,7 +905,8 @@ TEST(SvgfDistributed, IndependentSeamsDifferOnlyNearSeams) {
           const std::size_t i = (y * w + x) * 3 + c;
           if (one.frames[0][e].rgb[i] != two.frames[0][e].rgb[i]) {
             ++differing;
-            EXPECT_LT(std::abs(static_cast<int>(y) - static_cast<int>(seam)), 13) << "row " << y << " differs, far from the seam";
+            EXPECT_LT(std::abs(static_cast<int>(y) - static_cast<int>(seam)), 13)
+                << "row " << y << " differs, far from the seam";
           }
         }
   EXPECT_GT(differing, 0) << "filtering strips alone should change something at the seam";
@@ -932,11 +974,11 @@ TEST(SvgfDistributed, DenoisingBringsCornellCloserToTheReference) {
     const double energy_ref_whole = mean_luminance(d) / mean_luminance(ref);
     const double energy_noisy = mean_luminance(d) / mean_luminance(n);
     const double energy_noisy_s = mean_luminance(d, guard) / mean_luminance(n, guard);
-    std::printf("[ measure  ] eye %d: whole image 1 spp %.2f dB -> SVGF %.2f dB; rows %d+ %.2f -> %.2f dB; "
-                "mean luminance rows %d+ denoised / reference %.4f, denoised / noisy %.4f; whole image denoised / "
-                "reference %.4f, denoised / noisy %.4f\n",
-                e, before, after, below, before_s, after_s, guard, energy_ref, energy_noisy_s, energy_ref_whole,
-                energy_noisy);
+    std::printf(
+        "[ measure  ] eye %d: whole image 1 spp %.2f dB -> SVGF %.2f dB; rows %d+ %.2f -> %.2f dB; "
+        "mean luminance rows %d+ denoised / reference %.4f, denoised / noisy %.4f; whole image denoised / "
+        "reference %.4f, denoised / noisy %.4f\n",
+        e, before, after, below, before_s, after_s, guard, energy_ref, energy_noisy_s, energy_ref_whole, energy_noisy);
     EXPECT_GT(after, floor_whole[e]);
     EXPECT_GT(after - before, gain_whole[e]) << "noisy " << before << " dB, denoised " << after << " dB";
     EXPECT_GT(after_s, floor_surfaces[e]) << "rows " << below << "+";
@@ -998,9 +1040,10 @@ TEST(SvgfDistributed, BilateralSeamsSoftenTheSeamWithinTheBandAndChangeNothingEl
       EXPECT_GT(row_difference(b, i, seam - 1), 0.0) << "frame " << f << ", eye " << e << ": the row above the seam";
       EXPECT_GT(row_difference(b, i, seam), 0.0) << "frame " << f << ", eye " << e << ": the row below the seam";
     }
-  std::printf("[ measure  ] step across the seam: 1 device %.4f, independent %.4f, bilateral %.4f; band's difference "
-              "from 1 device: independent %.4f, bilateral %.4f\n",
-              step_one, step_independent, step_bilateral, band_independent, band_bilateral);
+  std::printf(
+      "[ measure  ] step across the seam: 1 device %.4f, independent %.4f, bilateral %.4f; band's difference "
+      "from 1 device: independent %.4f, bilateral %.4f\n",
+      step_one, step_independent, step_bilateral, band_independent, band_bilateral);
   EXPECT_GT(step_independent, 4.0 * step_one) << "independent seams should leave a visible step";
   EXPECT_LT(step_bilateral, 0.8 * step_independent) << "the bilateral filter should lower the step";
   EXPECT_LT(band_bilateral, 0.92 * band_independent) << "the band should come closer to the seamless image";
@@ -1139,7 +1182,8 @@ TEST(SvgfDistributed, StripsMovingEveryFrameKeepImagesBitIdentical) {
     const DeviceSet three = DeviceSet::create({3, DeviceMode::Auto, ""});
     if (three.mode() == DeviceMode::SharedQueues && !three.guards_launches() &&
         three.platform_name().find("Portable Computing Language") != std::string::npos)
-      GTEST_SKIP() << "3 devices are PoCL queues on one device here and PARALLAX_POCL_LAUNCH_GUARD=off: PoCL 3.1 would abort";
+      GTEST_SKIP()
+          << "3 devices are PoCL queues on one device here and PARALLAX_POCL_LAUNCH_GUARD=off: PoCL 3.1 would abort";
   }
   for (PipelineKind kind : {PipelineKind::Proposed, PipelineKind::Mono}) {
     const auto reference = run_with_strips(cornell(), kind, 1, one_device, w, h);
@@ -1160,11 +1204,11 @@ TEST(SvgfDistributed, StripsThatCannotMoveAreRefused) {
   DeviceScene ds(set, scene.scene, scene.bvh);
   StereoPipeline::Options opt;
   StereoPipeline p(set, ds, scene.scene, 16, 20, opt);
-  EXPECT_THROW(p.set_strips({{0, 10}}), std::invalid_argument);              // one strip for two devices
-  EXPECT_THROW(p.set_strips({{0, 10}, {11, 20}}), std::invalid_argument);    // a gap
-  EXPECT_THROW(p.set_strips({{0, 0}, {0, 20}}), std::invalid_argument);      // an empty strip
-  EXPECT_THROW(p.set_strips({{0, 12}, {12, 21}}), std::invalid_argument);    // past the image
-  EXPECT_EQ(p.strips(), (std::vector<RowRange>{{0, 10}, {10, 20}}));        // unchanged
+  EXPECT_THROW(p.set_strips({{0, 10}}), std::invalid_argument);            // one strip for two devices
+  EXPECT_THROW(p.set_strips({{0, 10}, {11, 20}}), std::invalid_argument);  // a gap
+  EXPECT_THROW(p.set_strips({{0, 0}, {0, 20}}), std::invalid_argument);    // an empty strip
+  EXPECT_THROW(p.set_strips({{0, 12}, {12, 21}}), std::invalid_argument);  // past the image
+  EXPECT_EQ(p.strips(), (std::vector<RowRange>{{0, 10}, {10, 20}}));       // unchanged
   opt.pipeline = PipelineKind::Baseline;
   StereoPipeline baseline(set, ds, scene.scene, 16, 20, opt);
   EXPECT_THROW(baseline.set_strips({{0, 8}, {8, 20}}), std::invalid_argument);

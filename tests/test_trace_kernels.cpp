@@ -33,8 +33,7 @@ struct TraceFixture {
   std::unique_ptr<RayBatchTracer> tracer;
   // The geometric comparisons strip alpha textures: the brute-force reference knows no
   // textures, and cut-outs have their own test (AlphaCutoutsPassThroughTransparentTexels).
-  TraceFixture(DeviceSet& devices, Scene s, bool spatial_splits = true, bool keep_alpha = false)
-      : scene(std::move(s)) {
+  TraceFixture(DeviceSet& devices, Scene s, bool spatial_splits = true, bool keep_alpha = false) : scene(std::move(s)) {
     if (!keep_alpha)
       for (auto& m : scene.materials) m.alpha_texture = -1;
     BvhBuildOptions opt;
@@ -70,8 +69,7 @@ std::vector<SceneTriangle> random_soup(int count, std::uint32_t seed, float exte
   std::vector<SceneTriangle> tris;
   while (static_cast<int>(tris.size()) < count) {
     glm::vec3 c(pos(rng), pos(rng), pos(rng));
-    append_triangle(tris, c + glm::vec3(off(rng), off(rng), off(rng)),
-                    c + glm::vec3(off(rng), off(rng), off(rng)),
+    append_triangle(tris, c + glm::vec3(off(rng), off(rng), off(rng)), c + glm::vec3(off(rng), off(rng), off(rng)),
                     c + glm::vec3(off(rng), off(rng), off(rng)), 0);
   }
   return tris;
@@ -127,7 +125,10 @@ void expect_matches_brute_force(const std::vector<SceneTriangle>& tris, const st
     }
     ++hit_count;
     if (h.prim == PX_NO_HIT) {
-      if (near_edge) { ++ambiguous; continue; }
+      if (near_edge) {
+        ++ambiguous;
+        continue;
+      }
       ++mismatches;
       ADD_FAILURE() << "ray " << i << ": kernel missed, reference hit prim " << ref.prim << " t=" << ref.t;
       continue;
@@ -135,10 +136,13 @@ void expect_matches_brute_force(const std::vector<SceneTriangle>& tris, const st
     ASSERT_TRUE(std::isfinite(h.t));
     const double tol = 1e-5 * std::max(1.0, ref.t) + 4e-7 * extent;
     if (h.prim != ref.prim) {
-      if (near_edge || std::abs(h.t - ref.t) <= tol) { ++ambiguous; continue; }
+      if (near_edge || std::abs(h.t - ref.t) <= tol) {
+        ++ambiguous;
+        continue;
+      }
       ++mismatches;
-      ADD_FAILURE() << "ray " << i << ": kernel prim " << h.prim << " t=" << h.t << ", reference prim "
-                    << ref.prim << " t=" << ref.t;
+      ADD_FAILURE() << "ray " << i << ": kernel prim " << h.prim << " t=" << h.t << ", reference prim " << ref.prim
+                    << " t=" << ref.t;
       continue;
     }
     EXPECT_NEAR(h.t, ref.t, tol) << "ray " << i;
@@ -181,7 +185,10 @@ TEST_P(TraceKernels, ClosestHitMatchesEmbreeOnFullAtrium) {
   int disagree = 0, hits_seen = 0;
   for (std::size_t i = 0; i < rays.size(); ++i) {
     Hit e = embree.intersect(rays[i]);
-    if ((e.prim == PX_NO_HIT) != (hits[i].prim == PX_NO_HIT)) { ++disagree; continue; }
+    if ((e.prim == PX_NO_HIT) != (hits[i].prim == PX_NO_HIT)) {
+      ++disagree;
+      continue;
+    }
     if (e.prim == PX_NO_HIT) continue;
     ++hits_seen;
     if (e.prim != hits[i].prim && std::abs(e.t - hits[i].t) > 1e-4f * std::max(1.0f, e.t)) ++disagree;
@@ -199,7 +206,8 @@ TEST_P(TraceKernels, TinyScenesWithAOneLeafTree) {
     for (int i = 0; i < count; ++i)
       append_triangle(tris, {-1.0f, -1.0f, float(i)}, {1.0f, -1.0f, float(i)}, {0.0f, 1.0f, float(i)}, 0);
     TraceFixture f(layout_device(), scene_from(tris));
-    std::vector<Ray> rays{make_ray({0.0f, 0.0f, -5.0f}, {0.0f, 0.0f, 1.0f}), make_ray({5.0f, 5.0f, -5.0f}, {0.0f, 0.0f, 1.0f})};
+    std::vector<Ray> rays{make_ray({0.0f, 0.0f, -5.0f}, {0.0f, 0.0f, 1.0f}),
+                          make_ray({5.0f, 5.0f, -5.0f}, {0.0f, 0.0f, 1.0f})};
     auto hits = f.tracer->closest(rays);
     ASSERT_EQ(hits[0].prim, 0u) << count << " triangles";
     EXPECT_FLOAT_EQ(hits[0].t, 5.0f);
@@ -217,8 +225,7 @@ TEST_P(TraceKernels, AnyHitAgreesWithClosestHit) {
   for (std::size_t i = 0; i < rays.size(); i += 2) rays[i].tmax = 3.0f;
   auto hits = f.tracer->closest(rays);
   auto occ = f.tracer->occluded(rays);
-  for (std::size_t i = 0; i < rays.size(); ++i)
-    EXPECT_EQ(occ[i] != 0, hits[i].prim != PX_NO_HIT) << "ray " << i;
+  for (std::size_t i = 0; i < rays.size(); ++i) EXPECT_EQ(occ[i] != 0, hits[i].prim != PX_NO_HIT) << "ray " << i;
 }
 
 // Rays aimed exactly at every vertex and edge midpoint of a closed mesh, from outside and from
@@ -230,8 +237,8 @@ void expect_watertight(DeviceSet& devices, const std::vector<SceneTriangle>& mes
   std::vector<Ray> rays;
   std::vector<float> target_dist;
   for (const auto& t : mesh) {
-    const glm::vec3 targets[6] = {t.p[0], t.p[1], t.p[2], 0.5f * (t.p[0] + t.p[1]),
-                                  0.5f * (t.p[1] + t.p[2]), 0.5f * (t.p[2] + t.p[0])};
+    const glm::vec3 targets[6] = {
+        t.p[0], t.p[1], t.p[2], 0.5f * (t.p[0] + t.p[1]), 0.5f * (t.p[1] + t.p[2]), 0.5f * (t.p[2] + t.p[0])};
     for (const auto& target : targets) {
       // From inside: the ray must leave through the closed surface. From outside: on the line
       // from the inside point through the target, so the ray enters the mesh exactly there (a
@@ -250,9 +257,9 @@ void expect_watertight(DeviceSet& devices, const std::vector<SceneTriangle>& mes
       ++misses;
       if (misses < 4) {
         auto ref = brute_force_closest(mesh, rays[i]);
-        ADD_FAILURE() << "miss: ray " << i << " org " << rays[i].org[0] << "," << rays[i].org[1] << "," << rays[i].org[2]
-                      << " dir " << rays[i].dir[0] << "," << rays[i].dir[1] << "," << rays[i].dir[2] << " ref prim " << ref.prim
-                      << " t " << ref.t << " edge " << ref.edge_distance;
+        ADD_FAILURE() << "miss: ray " << i << " org " << rays[i].org[0] << "," << rays[i].org[1] << ","
+                      << rays[i].org[2] << " dir " << rays[i].dir[0] << "," << rays[i].dir[1] << "," << rays[i].dir[2]
+                      << " ref prim " << ref.prim << " t " << ref.t << " edge " << ref.edge_distance;
       }
       continue;
     }
@@ -507,7 +514,8 @@ TEST_P(TraceKernels, AlphaCutoutsPassThroughTransparentTexels) {
   TraceFixture f(layout_device(), s, true, /*keep_alpha=*/true);
   std::vector<Ray> rays;
   for (float y : {-0.7f, 0.0f, 0.6f})
-    for (float u : {0.05f, 0.15f, 0.3f, 0.7f, 0.85f, 0.95f}) rays.push_back(make_ray({2.0f * u - 1.0f, y, -2.0f}, {0, 0, 1}));
+    for (float u : {0.05f, 0.15f, 0.3f, 0.7f, 0.85f, 0.95f})
+      rays.push_back(make_ray({2.0f * u - 1.0f, y, -2.0f}, {0, 0, 1}));
   auto hits = f.tracer->closest(rays);
   auto occ = f.tracer->occluded(rays);
   for (std::size_t i = 0; i < rays.size(); ++i) {
@@ -535,8 +543,11 @@ TEST_P(TraceKernels, SameHitsWithOneTwoAndFourDevices) {
   Scene s = make_builtin_scene("cornell-glossy");
   auto rays = random_rays(s.triangles, 5000, 77);
   std::vector<Hit> reference;
-  for (auto [count, mode] : {std::pair{1, DeviceMode::Auto}, {2, DeviceMode::Auto}, {4, DeviceMode::Auto},
-                             {2, DeviceMode::SharedQueues}, {3, DeviceMode::SharedQueues}}) {
+  for (auto [count, mode] : {std::pair{1, DeviceMode::Auto},
+                             {2, DeviceMode::Auto},
+                             {4, DeviceMode::Auto},
+                             {2, DeviceMode::SharedQueues},
+                             {3, DeviceMode::SharedQueues}}) {
     DeviceSet set = DeviceSet::create(layout_options(count, mode));
     ASSERT_EQ(set.size(), count);
     TraceFixture f(set, s);
@@ -555,8 +566,8 @@ TEST(BvhLayoutChoice, EachDeviceTypeHasItsDefaultUnlessALayoutIsRequested) {
   EXPECT_EQ(bvh_layout_for(false), BvhLayout::Wide8);
   EXPECT_EQ(bvh_layout_for(true), BvhLayout::Binary);
   DeviceSet& set = one_device();
-  const bool gpus = std::all_of(set.devices().begin(), set.devices().end(),
-                                [](const ComputeDevice& d) { return d.is_gpu(); });
+  const bool gpus =
+      std::all_of(set.devices().begin(), set.devices().end(), [](const ComputeDevice& d) { return d.is_gpu(); });
   EXPECT_FALSE(set.bvh_layout_requested());
   EXPECT_EQ(set.bvh_layout(), gpus ? BvhLayout::Binary : BvhLayout::Wide8);
   const DeviceSet binary = DeviceSet::create(test::options_in_layout(BvhLayout::Binary));

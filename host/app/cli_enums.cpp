@@ -84,9 +84,9 @@ StereoPipeline::Options::Aovs parse_aov_list(const std::string& list) {
     const std::string name = list.substr(at, comma == std::string::npos ? std::string::npos : comma - at);
     bool* flag = name == "albedo" ? &aovs.albedo : name == "normal" ? &aovs.normal : nullptr;
     if (!flag)
-      throw std::invalid_argument(name.empty() ? "empty name in the auxiliary image list '" + list +
-                                                     "' (known: albedo, normal)"
-                                               : "unknown auxiliary image '" + name + "' (known: albedo, normal)");
+      throw std::invalid_argument(name.empty()
+                                      ? "empty name in the auxiliary image list '" + list + "' (known: albedo, normal)"
+                                      : "unknown auxiliary image '" + name + "' (known: albedo, normal)");
     if (*flag) throw std::invalid_argument("auxiliary image '" + name + "' named twice in '" + list + "'");
     *flag = true;
     if (comma == std::string::npos) break;

@@ -24,15 +24,15 @@ namespace px {
 template <typename Enum>
 using WordTable = std::vector<std::pair<std::string, Enum>>;
 
-const WordTable<PipelineKind>& pipeline_words();      // mono, proposed, baseline
-const WordTable<SeamMode>& seam_mode_words();         // halo, independent, bilateral
-const WordTable<LightSampling>& light_sampling_words();  // mis, nee, bsdf
-const WordTable<DeviceMode>& device_mode_words();     // auto, subdevices, platform, queues
-const WordTable<StripBalance>& balance_words();       // static, dynamic
-const WordTable<SkyMode>& sky_words();                // auto, on, off
-const WordTable<PathTraceKernel>& path_tracer_words();  // megakernel, wavefront
-const WordTable<KernelChoice>& kernel_words();         // scene, general
-const WordTable<PixelJitter>& jitter_words();          // halton, centre
+const WordTable<PipelineKind>& pipeline_words();                // mono, proposed, baseline
+const WordTable<SeamMode>& seam_mode_words();                   // halo, independent, bilateral
+const WordTable<LightSampling>& light_sampling_words();         // mis, nee, bsdf
+const WordTable<DeviceMode>& device_mode_words();               // auto, subdevices, platform, queues
+const WordTable<StripBalance>& balance_words();                 // static, dynamic
+const WordTable<SkyMode>& sky_words();                          // auto, on, off
+const WordTable<PathTraceKernel>& path_tracer_words();          // megakernel, wavefront
+const WordTable<KernelChoice>& kernel_words();                  // scene, general
+const WordTable<PixelJitter>& jitter_words();                   // halton, centre
 const WordTable<std::optional<BvhLayout>>& bvh_layout_words();  // auto (nullopt), binary, wide4, wide8, cwbvh
 
 // The word of a value, as the flag takes it (named apart from the libraries' to_string so that

@@ -86,8 +86,9 @@ int run_render(const RenderCommand& cmd) {
   StereoPipeline::Options& opt = config.options;
   const bool dynamic_strips = cmd.balance == StripBalance::Dynamic;
   if (dynamic_strips && !has_movable_strips(opt.pipeline))
-    throw std::invalid_argument("--balance dynamic needs the proposed or mono pipeline (baseline already spreads path "
-                                "tracing over many shuffled strips and runs the rest on one device)");
+    throw std::invalid_argument(
+        "--balance dynamic needs the proposed or mono pipeline (baseline already spreads path "
+        "tracing over many shuffled strips and runs the rest on one device)");
   // Under mpirun every rank runs this with the same flags: each drives its own --devices N, the
   // frame is split over all ranks' devices, and rank 0 owns the frame and writes every file.
   Cluster& cluster = Cluster::world();
@@ -105,13 +106,12 @@ int run_render(const RenderCommand& cmd) {
   if (cmd.explain) {
     if (!root) return 0;
     // The schedule depends only on pipeline, device count, height and denoising: no scene needed.
-    const FrameSchedule schedule =
-        make_schedule(opt.pipeline, cmd.devices.count * cluster.size(), cmd.size.height, opt.denoise.has_value(), {},
-                      StereoPipeline::wants_gbuffer(opt));
+    const FrameSchedule schedule = make_schedule(opt.pipeline, cmd.devices.count * cluster.size(), cmd.size.height,
+                                                 opt.denoise.has_value(), {}, StereoPipeline::wants_gbuffer(opt));
     std::printf("%s\n%s", schedule.explain().c_str(),
                 explain_operations(make_operations(schedule, StereoPipeline::gbuffer_margin(schedule, opt),
-                                                  opt.overlap != Overlap::Off && !distributed,
-                                                  StereoPipeline::fuses_gbuffer(opt)))
+                                                   opt.overlap != Overlap::Off && !distributed,
+                                                   StereoPipeline::fuses_gbuffer(opt)))
                     .c_str());
     if (opt.overlap != Overlap::Off && !distributed)
       std::printf(cmd.force_overlap ? "lanes: 'side' operations run on a second queue per device (--overlap)\n"
@@ -122,9 +122,10 @@ int run_render(const RenderCommand& cmd) {
       std::printf("MPI: %d ranks x %d device(s); rank r drives devices %d*r .. %d*r+%d\n", cluster.size(),
                   cmd.devices.count, cmd.devices.count, cmd.devices.count, cmd.devices.count - 1);
     if (dynamic_strips)
-      std::printf("balance: dynamic — the strips above are the starting split; between frames each boundary moves "
-                  "up to %u rows toward equal measured device time\n",
-                  cmd.balance_step);
+      std::printf(
+          "balance: dynamic — the strips above are the starting split; between frames each boundary moves "
+          "up to %u rows toward equal measured device time\n",
+          cmd.balance_step);
     return 0;
   }
   install_interrupt_handlers();
@@ -170,9 +171,10 @@ int run_reference(const ReferenceCommand& cmd) {
                  static_cast<unsigned long long>(tracer.nonfinite_paths()));
   if (spp_done < cmd.spp) {
     std::fprintf(stderr, "\n");
-    std::printf("interrupted by %s after %u of %u spp: wrote %s/reference_{left,right}.exr with the %u spp done, "
-                "and PNG previews\n",
-                interrupt_signal_name(), spp_done, cmd.spp, cmd.out.c_str(), spp_done);
+    std::printf(
+        "interrupted by %s after %u of %u spp: wrote %s/reference_{left,right}.exr with the %u spp done, "
+        "and PNG previews\n",
+        interrupt_signal_name(), spp_done, cmd.spp, cmd.out.c_str(), spp_done);
     return interrupt_exit_code();
   }
   std::printf("wrote %s/reference_{left,right}.exr (%u spp) and PNG previews\n", cmd.out.c_str(), cmd.spp);

@@ -31,7 +31,7 @@ struct SceneChoice {
   // glTF scenes: a mesh that several nodes draw becomes instances of one copy (off: flat copies).
   bool instancing = true;
   KernelChoice kernels = KernelChoice::Scene;  // the scene's features or all
-  std::string animation = "all";  // which glTF clips play (all, none, a name or index)
+  std::string animation = "all";               // which glTF clips play (all, none, a name or index)
 
   SceneLoadOptions load_options() const { return {sky, instancing}; }
 };
@@ -96,7 +96,7 @@ struct RenderCommand {
   std::string target_ms;       // control-loop window "LO:HI" ("" = off: fixed quality)
   unsigned max_spp = 64;       // control loop: the most spp it may raise to
   StripBalance balance = StripBalance::Static;
-  unsigned balance_step = 8;   // dynamic balance: most rows a boundary moves per frame
+  unsigned balance_step = 8;  // dynamic balance: most rows a boundary moves per frame
   DeviceChoice devices;
 };
 
@@ -104,18 +104,18 @@ struct RenderCommand {
 // frames / out / report / timeline are unused), shown in a window as frames finish.
 struct ViewCommand {
   RenderCommand render;
-  unsigned frames = 0;       // stop after this many frames (0: run until the window closes)
-  std::string screenshot;    // PNG of the window content when the viewer stops ("" = none)
-  float move_speed = 0.0f;   // fly-through speed, scene units per second (0: from the scene size)
+  unsigned frames = 0;      // stop after this many frames (0: run until the window closes)
+  std::string screenshot;   // PNG of the window content when the viewer stops ("" = none)
+  float move_speed = 0.0f;  // fly-through speed, scene units per second (0: from the scene size)
 };
 
 struct ReferenceCommand {
   SceneChoice scene;
   ImageSize size;
   unsigned spp = 4096;
-  unsigned pass_spp = 16;      // samples per progressive pass
+  unsigned pass_spp = 16;  // samples per progressive pass
   unsigned frame = 0;
-  FrameClock clock;            // the animation the reference belongs to
+  FrameClock clock;  // the animation the reference belongs to
   unsigned bounces = PathTracer::Options{}.bounces;
   float exposure = TonemapStage::Options{}.exposure;  // PNG preview scale, as render's
   std::string out = "out/reference";

@@ -38,8 +38,9 @@ void check_camera(const Scene& scene, float time_s, const std::string& what) {
   if (std::isfinite(f2) && f2 > 0.0f && std::isfinite(s2) && s2 > 0.0f) return;
   char when[64];
   std::snprintf(when, sizeof when, " (t = %.4g s)", double(time_s));
-  throw std::runtime_error(what + when + ": the camera path gives no view direction there (position meets target, "
-                                         "or the view is parallel to up); adjust the camera_path keys");
+  throw std::runtime_error(what + when +
+                           ": the camera path gives no view direction there (position meets target, "
+                           "or the view is parallel to up); adjust the camera_path keys");
 }
 
 }  // namespace px

@@ -27,9 +27,9 @@ std::string frame_name(unsigned frame, const char* what) {
 
 // Frame `f` of `render`: per eye an EXR (unless --no-exr: `eyes` is then unused) and a PNG,
 // the auxiliary EXRs --aov asks for, the side-by-side stereo PNG, and the video's next frame.
-void write_render_frame(const RenderCommand& cmd, const OutputDir& dir, unsigned f,
-                        const std::array<ImageRGB, 2>& eyes, const std::array<std::vector<std::uint8_t>, 2>& png,
-                        const StereoPipeline& pipeline, VideoWriter* video) {
+void write_render_frame(const RenderCommand& cmd, const OutputDir& dir, unsigned f, const std::array<ImageRGB, 2>& eyes,
+                        const std::array<std::vector<std::uint8_t>, 2>& png, const StereoPipeline& pipeline,
+                        VideoWriter* video) {
   const std::string prefix = frame_name(f, "");
   const int w = static_cast<int>(cmd.size.width), h = static_cast<int>(cmd.size.height);
   // A build without an image codec renders for its report, timeline and video only (said once
@@ -50,7 +50,8 @@ void write_render_frame(const RenderCommand& cmd, const OutputDir& dir, unsigned
     // Say what is usable: the frames before this one are complete.
     throw std::runtime_error(std::string(e.what()) + " (frame " + std::to_string(f) + "; " +
                              (f ? "frames 0-" + std::to_string(f - 1) + " in " + cmd.out + " are complete"
-                                : std::string("no frame was completed")) + ")");
+                                : std::string("no frame was completed")) +
+                             ")");
   }
 }
 
@@ -83,13 +84,14 @@ std::optional<int> RenderLoop::start() {
     // Queues sharing one device run on the same compute units: dynamic strips still move, but
     // by times that say more about the order the queues run in than about speed.
     if (root_ && dynamic_strips_ && set.mode() == DeviceMode::SharedQueues && set.size() > 1)
-      std::printf("balance: dynamic over %d queues on one OpenCL device: they share its compute units, so the "
-                  "strips follow the queues' measured times but the frame gets no faster\n",
-                  set.size());
+      std::printf(
+          "balance: dynamic over %d queues on one OpenCL device: they share its compute units, so the "
+          "strips follow the queues' measured times but the frame gets no faster\n",
+          set.size());
     animator_.emplace(on_devices_->loaded.scene, cmd_.scene.animation);
     if (root_ && animator_->moves()) std::fprintf(stderr, "[scene] animation: %s\n", animator_->describe().c_str());
-    pipeline_.emplace(on_devices_->devices, on_devices_->device_scene, on_devices_->loaded.scene,
-                      cmd_.size.width, cmd_.size.height, opt);
+    pipeline_.emplace(on_devices_->devices, on_devices_->device_scene, on_devices_->loaded.scene, cmd_.size.width,
+                      cmd_.size.height, opt);
   };
   if (!distributed_) {
     setup();
@@ -197,8 +199,8 @@ void RenderLoop::step(unsigned f) {
   }
   // Frame 0's times include kernel compilation: the balancer starts from frame 1's.
   if (balancer_ && f > 0) {
-    pipeline.set_strips(strips_from_sizes(
-        balancer_->update(strip_sizes(strips), StereoPipeline::device_busy_ms(st, all_devices_))));
+    pipeline.set_strips(
+        strips_from_sizes(balancer_->update(strip_sizes(strips), StereoPipeline::device_busy_ms(st, all_devices_))));
   }
   if (st.nonfinite_pixels > 0)
     throw std::runtime_error("frame " + std::to_string(f) + ": " + std::to_string(st.nonfinite_pixels) +
@@ -215,8 +217,9 @@ void RenderLoop::step(unsigned f) {
   if (!codec_checked_) {
     codec_checked_ = true;
     if (!image_codec_available())
-      std::fprintf(stderr, "render: this build has no image codec (configured with -DPX_OPENIMAGEIO=OFF): no image "
-                           "files are written; --report, --timeline and --video still are\n");
+      std::fprintf(stderr,
+                   "render: this build has no image codec (configured with -DPX_OPENIMAGEIO=OFF): no image "
+                   "files are written; --report, --timeline and --video still are\n");
   }
   write_render_frame(cmd_, *out_dir_, f, eyes, pipeline.rgba8(), pipeline, video_ ? &*video_ : nullptr);
   done_ = f + 1;
@@ -226,10 +229,10 @@ void RenderLoop::step(unsigned f) {
                st.wall_ms, f == 0 ? " (includes kernel compilation)" : "",
                st.right_pixels ? 100.0 * st.reprojected / st.right_pixels : 0.0);
   if (controller)
-    std::fprintf(stderr, "; %u spp, %u bounces, %u iterations%s", quality.spp, quality.bounces,
-                 quality.svgf_iterations,
-                 predicted_this_frame ? (" (predicted " + std::to_string(int(*predicted_this_frame + 0.5)) + " ms)").c_str()
-                                      : "");
+    std::fprintf(stderr, "; %u spp, %u bounces, %u iterations%s", quality.spp, quality.bounces, quality.svgf_iterations,
+                 predicted_this_frame
+                     ? (" (predicted " + std::to_string(int(*predicted_this_frame + 0.5)) + " ms)").c_str()
+                     : "");
   if (balancer_) {
     std::fprintf(stderr, "; strips");
     for (std::size_t d = 0; d < strips.size(); ++d) std::fprintf(stderr, "%s%u", d ? "/" : " ", strips[d].size());
@@ -237,8 +240,7 @@ void RenderLoop::step(unsigned f) {
   }
   std::fputc('\n', stderr);
   if (timeline_) timeline_->add_frame(f, st);
-  if (report_)
-    report_->add_frame(f, st, strips, quality, predicted_this_frame, animator_->moves() ? &update : nullptr);
+  if (report_) report_->add_frame(f, st, strips, quality, predicted_this_frame, animator_->moves() ? &update : nullptr);
 }
 
 int RenderLoop::finish() {
@@ -267,10 +269,11 @@ int RenderLoop::finish() {
   const char* eye_files = cmd_.no_exr ? "png" : "{exr,png}";
   if (done_ > 0) print_summary();
   if (stopped) {
-    std::printf("interrupted by %s after %u of %u frame(s): wrote frames 0-%u to %s "
-                "(frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png), every file complete%s\n",
-                interrupt_signal_name(), done_, cmd_.frames, done_ - 1, cmd_.out.c_str(), eye_files,
-                report_ ? "; the report covers those frames" : "");
+    std::printf(
+        "interrupted by %s after %u of %u frame(s): wrote frames 0-%u to %s "
+        "(frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png), every file complete%s\n",
+        interrupt_signal_name(), done_, cmd_.frames, done_ - 1, cmd_.out.c_str(), eye_files,
+        report_ ? "; the report covers those frames" : "");
     return interrupt_exit_code();
   }
   if (image_codec_available())
@@ -295,14 +298,15 @@ void RenderLoop::print_summary() const {
   const double hz = totals_.hz();
   const char* eye_files = cmd_.no_exr ? "png" : "{exr,png}";
   std::printf("\n== render summary ==\n");
-  std::printf("%s: pipeline %s, %d device(s) (%s%s), %ux%u per eye, %u spp, %u bounces, denoise %s%s\n",
-              on_devices_->loaded.scene.name.c_str(), cli_word(opt.pipeline).c_str(), all_devices_,
-              to_string(devices.mode()), distributed_ ? (", " + std::to_string(cluster_.size()) + " MPI ranks").c_str() : "",
-              cmd_.size.width, cmd_.size.height, q.spp, q.bounces,
-              opt.denoise ? ("SVGF " + std::to_string(q.svgf_iterations) + " iterations, seams " +
-                             cli_word(opt.denoise->seams)).c_str()
-                          : "off",
-              config_.controller ? (" (last frame's; control loop " + cmd_.target_ms + " ms)").c_str() : "");
+  std::printf(
+      "%s: pipeline %s, %d device(s) (%s%s), %ux%u per eye, %u spp, %u bounces, denoise %s%s\n",
+      on_devices_->loaded.scene.name.c_str(), cli_word(opt.pipeline).c_str(), all_devices_, to_string(devices.mode()),
+      distributed_ ? (", " + std::to_string(cluster_.size()) + " MPI ranks").c_str() : "", cmd_.size.width,
+      cmd_.size.height, q.spp, q.bounces,
+      opt.denoise
+          ? ("SVGF " + std::to_string(q.svgf_iterations) + " iterations, seams " + cli_word(opt.denoise->seams)).c_str()
+          : "off",
+      config_.controller ? (" (last frame's; control loop " + cmd_.target_ms + " ms)").c_str() : "");
   if (done_ > 1)
     std::printf("%.1f Hz over frames 1-%u (frame 0 took %.0f ms: it includes kernel compilation)\n", hz, done_ - 1,
                 totals_.first_frame_ms);
@@ -313,39 +317,41 @@ void RenderLoop::print_summary() const {
   {
     const StartTimes& t = on_devices_->loaded.times;
     const DeviceScene& ds = on_devices_->device_scene;
-    std::printf("start: scene %.0f ms, BVH %.0f ms (%s), validation %.0f ms%s%s, device layout %.0f ms, upload %.0f ms "
-                "(%.1f MiB, one copy for the %d device(s) of the context%s); host memory after the start %.0f MiB\n",
-                t.load_ms, t.bvh_ms,
-                t.device_layout_from_cache ? "its device layout mapped from the cache"
-                : t.bvh_from_cache         ? "read from the cache"
-                                           : "built",
-                t.validate_ms,
-                t.bvh_validated_when_cached ? " (validated when cached)" : "",
-                t.cache_store_ms + ds.layout_store_ms() > 0.0
-                    ? (", cache write " + std::to_string(static_cast<long>(t.cache_store_ms + ds.layout_store_ms())) +
-                       " ms")
-                          .c_str()
-                    : "",
-                ds.layout_ms(), ds.upload_ms(), static_cast<double>(ds.bytes_in_context()) / (1024.0 * 1024.0),
-                devices.size(), ds.host_backed() ? ", the host's own arrays" : "", t.host_rss_after_start_mib);
+    std::printf(
+        "start: scene %.0f ms, BVH %.0f ms (%s), validation %.0f ms%s%s, device layout %.0f ms, upload %.0f ms "
+        "(%.1f MiB, one copy for the %d device(s) of the context%s); host memory after the start %.0f MiB\n",
+        t.load_ms, t.bvh_ms,
+        t.device_layout_from_cache ? "its device layout mapped from the cache"
+        : t.bvh_from_cache         ? "read from the cache"
+                                   : "built",
+        t.validate_ms, t.bvh_validated_when_cached ? " (validated when cached)" : "",
+        t.cache_store_ms + ds.layout_store_ms() > 0.0
+            ? (", cache write " + std::to_string(static_cast<long>(t.cache_store_ms + ds.layout_store_ms())) + " ms")
+                  .c_str()
+            : "",
+        ds.layout_ms(), ds.upload_ms(), static_cast<double>(ds.bytes_in_context()) / (1024.0 * 1024.0), devices.size(),
+        ds.host_backed() ? ", the host's own arrays" : "", t.host_rss_after_start_mib);
   }
   if (animation_totals_.frames > 0)
-    std::printf("animation: %s; per frame (median) pose %.1f ms, BVH refit or rebuild %.1f ms, upload %.1f ms of %.2f MiB\n",
-                animator_->describe().c_str(), animation_totals_.median(&SceneAnimator::Update::pose_ms),
-                animation_totals_.median(&SceneAnimator::Update::bvh_ms),
-                animation_totals_.median(&SceneAnimator::Update::upload_ms),
-                static_cast<double>(animation_totals_.bytes_last) / (1024.0 * 1024.0));
+    std::printf(
+        "animation: %s; per frame (median) pose %.1f ms, BVH refit or rebuild %.1f ms, upload %.1f ms of %.2f MiB\n",
+        animator_->describe().c_str(), animation_totals_.median(&SceneAnimator::Update::pose_ms),
+        animation_totals_.median(&SceneAnimator::Update::bvh_ms),
+        animation_totals_.median(&SceneAnimator::Update::upload_ms),
+        static_cast<double>(animation_totals_.bytes_last) / (1024.0 * 1024.0));
   if (balancer_) {
     std::printf("strips at the end (rows per device):");
     for (const RowRange& r : pipeline.strips()) std::printf(" %u", r.size());
     std::printf("\n");
   }
   if (image_codec_available()) {
-    std::printf("files:\n  %s/frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png (NNNN = 0000-%04u)\n",
-                cmd_.out.c_str(), eye_files, done_ - 1);
+    std::printf("files:\n  %s/frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png (NNNN = 0000-%04u)\n", cmd_.out.c_str(),
+                eye_files, done_ - 1);
     if (opt.aovs.any())
       std::printf("  %s/frame_NNNN_{left,right}_%s.exr (auxiliary images)\n", cmd_.out.c_str(),
-                  opt.aovs.albedo && opt.aovs.normal ? "{albedo,normal}" : opt.aovs.albedo ? "albedo" : "normal");
+                  opt.aovs.albedo && opt.aovs.normal ? "{albedo,normal}"
+                  : opt.aovs.albedo                  ? "albedo"
+                                                     : "normal");
   } else {
     std::printf("files:\n  no images (this build has no image codec)\n");
   }

@@ -85,9 +85,9 @@ class RenderLoop {
   StageSummary stages_;
   RenderTotals totals_;
   AnimationTotals animation_totals_;
-  FrameQuality last_quality_;             // the quality of the last frame rendered
-  std::optional<double> predicted_ms_;    // the control loop's prediction for the coming frame
-  unsigned done_ = 0;                     // frames finished
+  FrameQuality last_quality_;           // the quality of the last frame rendered
+  std::optional<double> predicted_ms_;  // the control loop's prediction for the coming frame
+  unsigned done_ = 0;                   // frames finished
 };
 
 }  // namespace px

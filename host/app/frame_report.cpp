@@ -47,13 +47,19 @@ void RenderReport::add_frame(unsigned frame, const FrameStats& st, const std::ve
   for (const RowRange& r : strips) strip_rows.push_back({r.begin, r.size()});
   nlohmann::json stages = nlohmann::json::array();
   for (const auto& s : st.stages)
-    stages.push_back({{"stage", static_cast<int>(s.stage)}, {"name", stage_name(s.stage)}, {"device", s.device},
+    stages.push_back({{"stage", static_cast<int>(s.stage)},
+                      {"name", stage_name(s.stage)},
+                      {"device", s.device},
                       {"device_ms", s.ms}});
   // One line per frame.
   file_.write((first_frame_ ? "\n    " : ",\n    ") +
-              nlohmann::json{{"frame", frame}, {"wall_ms", st.wall_ms}, {"stages", stages},
-                             {"right_pixels", st.right_pixels}, {"reprojected", st.reprojected},
-                             {"bytes_transferred", st.bytes_transferred}, {"strips", strip_rows},
+              nlohmann::json{{"frame", frame},
+                             {"wall_ms", st.wall_ms},
+                             {"stages", stages},
+                             {"right_pixels", st.right_pixels},
+                             {"reprojected", st.reprojected},
+                             {"bytes_transferred", st.bytes_transferred},
+                             {"strips", strip_rows},
                              {"mpi", ranks_ > 1 ? nlohmann::json{{"bytes_sent", st.mpi_bytes}, {"ms", st.mpi_ms}}
                                                 : nlohmann::json(nullptr)},
                              {"spp", quality.spp},
@@ -76,7 +82,7 @@ void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode de
   // How the tree was built: spatial splits as asked, stopped at their budget, or put on trial
   // (large scenes: BvhBuildOptions::split_trial_triangles) and taken or not. A tree from a cache
   // keeps its stats but not its trial.
-  const char* splits = bvh.split_trial ? (bvh.split_trial_taken ? "trial: taken" : "trial: binned kept")
+  const char* splits = bvh.split_trial             ? (bvh.split_trial_taken ? "trial: taken" : "trial: binned kept")
                        : bvh.split_budget_exceeded ? "over budget: binned"
                        : bvh.leaf_triangles > bvh.scene_triangles ? "yes"
                                                                   : "none taken or off";
@@ -100,33 +106,35 @@ void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode de
       {"bvh_layout", to_string(bvh_layout)},
       {"kernels", cli_word(cmd_.scene.kernels)},
       {"kernel_features", kernel_feature_list(scene.kernel_features())},
-      {"bvh", {{"nodes", bvh.nodes},
-               {"leaf_triangles", bvh.leaf_triangles},
-               {"depth", bvh.depth},
-               {"sah_cost", bvh.sah_cost},
-               {"block_leaves", bvh.block_leaves},
-               {"build_ms", bvh.build_ms},
-               {"spatial_splits", splits},
-               {"split_trial_gain", bvh.split_trial ? nlohmann::json(bvh.split_trial_gain) : nlohmann::json(nullptr)},
-               {"split_trial_sampled", bvh.split_trial_sampled},
-               {"split_trial_ms", bvh.split_trial_ms}}},
+      {"bvh",
+       {{"nodes", bvh.nodes},
+        {"leaf_triangles", bvh.leaf_triangles},
+        {"depth", bvh.depth},
+        {"sah_cost", bvh.sah_cost},
+        {"block_leaves", bvh.block_leaves},
+        {"build_ms", bvh.build_ms},
+        {"spatial_splits", splits},
+        {"split_trial_gain", bvh.split_trial ? nlohmann::json(bvh.split_trial_gain) : nlohmann::json(nullptr)},
+        {"split_trial_sampled", bvh.split_trial_sampled},
+        {"split_trial_ms", bvh.split_trial_ms}}},
       {"scene_device_bytes", scene.bytes_in_context()},
       {"shading_records", scene.flat_shading() ? "flat" : "full"},
       {"instances", scene.instance_count()},
       {"instance_bytes", scene.instance_bytes()},
-      {"start", {{"scene_load_ms", start.load_ms},
-                 {"bvh_ms", start.bvh_ms},
-                 {"bvh_from_cache", start.bvh_from_cache},
-                 {"bvh_validate_ms", start.validate_ms},
-                 {"bvh_validated_when_cached", start.bvh_validated_when_cached},
-                 {"bvh_cache_store_ms", start.cache_store_ms},
-                 {"device_layout_ms", scene.layout_ms()},
-                 {"device_layout_from_cache", scene.layout_from_cache()},
-                 {"device_layout_cache_store_ms", scene.layout_store_ms()},
-                 {"scene_hash_ms", start.scene_hash_ms},
-                 {"upload_ms", scene.upload_ms()},
-                 {"scene_host_backed", scene.host_backed()},
-                 {"host_rss_after_start_mib", start.host_rss_after_start_mib}}},
+      {"start",
+       {{"scene_load_ms", start.load_ms},
+        {"bvh_ms", start.bvh_ms},
+        {"bvh_from_cache", start.bvh_from_cache},
+        {"bvh_validate_ms", start.validate_ms},
+        {"bvh_validated_when_cached", start.bvh_validated_when_cached},
+        {"bvh_cache_store_ms", start.cache_store_ms},
+        {"device_layout_ms", scene.layout_ms()},
+        {"device_layout_from_cache", scene.layout_from_cache()},
+        {"device_layout_cache_store_ms", scene.layout_store_ms()},
+        {"scene_hash_ms", start.scene_hash_ms},
+        {"upload_ms", scene.upload_ms()},
+        {"scene_host_backed", scene.host_backed()},
+        {"host_rss_after_start_mib", start.host_rss_after_start_mib}}},
       {"seams", cli_word(denoise.seams)},
       {"balance", cli_word(cmd_.balance)},
       {"target_ms", cmd_.target_ms.empty() ? nlohmann::json(nullptr) : nlohmann::json(cmd_.target_ms)},
@@ -162,9 +170,15 @@ void RenderTimeline::name_devices(const DeviceSet& devices) {
   file_.write("{\"displayTimeUnit\": \"ms\", \"traceEvents\": [");
   // Two tracks per device: its main queue (tid 2d) and its side queue (2d + 1, queue_lanes.h).
   for (int d = 0; d < devices.size(); ++d) {
-    event({{"name", "thread_name"}, {"ph", "M"}, {"pid", 0}, {"tid", 2 * d},
+    event({{"name", "thread_name"},
+           {"ph", "M"},
+           {"pid", 0},
+           {"tid", 2 * d},
            {"args", {{"name", "device " + std::to_string(d) + ": " + devices.devices()[d].description}}}});
-    event({{"name", "thread_name"}, {"ph", "M"}, {"pid", 0}, {"tid", 2 * d + 1},
+    event({{"name", "thread_name"},
+           {"ph", "M"},
+           {"pid", 0},
+           {"tid", 2 * d + 1},
            {"args", {{"name", "device " + std::to_string(d) + ": side queue"}}}});
   }
   flush();
@@ -178,8 +192,13 @@ void RenderTimeline::add_frame(unsigned frame, const FrameStats& st) {
   for (const auto& sp : st.spans) {
     const double ts = (static_cast<double>(sp.start_ns) - static_cast<double>(origin_ns_)) * 1e-3;
     const std::string name = sp.pass ? std::string(stage_name(sp.stage)) + ": " + sp.pass : stage_name(sp.stage);
-    event({{"name", name}, {"cat", "frame " + std::to_string(frame)}, {"ph", "X"}, {"pid", 0},
-           {"tid", 2 * sp.device + sp.lane}, {"ts", ts}, {"dur", static_cast<double>(sp.end_ns - sp.start_ns) * 1e-3}});
+    event({{"name", name},
+           {"cat", "frame " + std::to_string(frame)},
+           {"ph", "X"},
+           {"pid", 0},
+           {"tid", 2 * sp.device + sp.lane},
+           {"ts", ts},
+           {"dur", static_cast<double>(sp.end_ns - sp.start_ns) * 1e-3}});
   }
   flush();
 }

@@ -94,9 +94,9 @@ class RenderTimeline {
   void flush();
 
   AtomicFileWriter file_;
-  std::string chunk_;              // events not yet written
+  std::string chunk_;  // events not yet written
   bool first_event_ = true;
-  std::uint64_t origin_ns_ = 0;    // the earliest command of the first frame: time 0 of the trace
+  std::uint64_t origin_ns_ = 0;  // the earliest command of the first frame: time 0 of the trace
 };
 
 }  // namespace px

@@ -52,15 +52,21 @@ void add_device_flags(CLI::App* cmd, px::DeviceChoice& d) {
 }
 
 void add_size_flags(CLI::App* cmd, px::ImageSize& size) {
-  cmd->add_option("--width", size.width, "width of each eye in pixels")->check(CLI::Range(1u, 16384u))->capture_default_str();
-  cmd->add_option("--height", size.height, "height of each eye in pixels")->check(CLI::Range(1u, 16384u))->capture_default_str();
+  cmd->add_option("--width", size.width, "width of each eye in pixels")
+      ->check(CLI::Range(1u, 16384u))
+      ->capture_default_str();
+  cmd->add_option("--height", size.height, "height of each eye in pixels")
+      ->check(CLI::Range(1u, 16384u))
+      ->capture_default_str();
 }
 
-const char* kSceneHelp = "scene: a JSON scene file (scenes/*.json), an OBJ, glTF 2.0 (.gltf) or binary glTF (.glb) "
-                         "file, or a built-in name (cornell, cornell-glossy, atrium)";
+const char* kSceneHelp =
+    "scene: a JSON scene file (scenes/*.json), an OBJ, glTF 2.0 (.gltf) or binary glTF (.glb) "
+    "file, or a built-in name (cornell, cornell-glossy, atrium)";
 
-const char* kAnimationHelp = "which of a glTF scene's animation clips play: all, none (the rest pose), a clip's name "
-                             "or its index; frame f is at time f / fps, and each clip loops over its own length";
+const char* kAnimationHelp =
+    "which of a glTF scene's animation clips play: all, none (the rest pose), a clip's name "
+    "or its index; frame f is at time f / fps, and each clip loops over its own length";
 
 // --scene, --sky, --instancing, --kernels and --animation: what every rendering command reads
 // its scene with.
@@ -78,7 +84,9 @@ void add_scene_flags(CLI::App* cmd, px::SceneChoice& s) {
       ->check(CLI::IsMember({"on", "off"}))
       ->default_str(s.instancing ? "on" : "off");
   add_word_option(cmd, "--kernels", s.kernels, px::kernel_words(),
-                  "which features the scene-dependent kernels (path tracers, G-buffer, trace, preview) are compiled with: scene (only those the loaded scene uses: no texture, cut-out, glass, normal-map, sun or sky code where it has none; images are identical) or general (every feature)");
+                  "which features the scene-dependent kernels (path tracers, G-buffer, trace, preview) are compiled "
+                  "with: scene (only those the loaded scene uses: no texture, cut-out, glass, normal-map, sun or sky "
+                  "code where it has none; images are identical) or general (every feature)");
   cmd->add_option("--animation", s.animation, kAnimationHelp)->capture_default_str();
 }
 
@@ -93,11 +101,14 @@ CLI::Option* add_pipeline_flags(CLI::App* cmd, px::RenderCommand& r) {
                   "proposed: every stage on every device for its strip; baseline: Tauray-style, path "
                   "tracing distributed, the rest on the owner; mono: both eyes fully path traced");
   add_size_flags(cmd, r.size);
-  cmd->add_option("--fps", r.clock.fps, "frame rate: frame f is at time f / fps on the camera path and in the animation")
+  cmd->add_option("--fps", r.clock.fps,
+                  "frame rate: frame f is at time f / fps on the camera path and in the animation")
       ->check(CLI::Range(0.001f, 1e9f))
       ->capture_default_str();
   cmd->add_option("--spp", p.trace.spp, "samples per pixel")->check(CLI::Range(1u, 1u << 20))->capture_default_str();
-  cmd->add_option("--bounces", p.trace.bounces, "maximum path length in bounces")->check(CLI::Range(0u, px::PathTracer::kMaxBounces))->capture_default_str();
+  cmd->add_option("--bounces", p.trace.bounces, "maximum path length in bounces")
+      ->check(CLI::Range(0u, px::PathTracer::kMaxBounces))
+      ->capture_default_str();
   cmd->add_option("--rr-start", p.trace.rr_start_bounce, "Russian roulette from this bounce on")->capture_default_str();
   add_word_option(cmd, "--path-tracer", p.path_kernel, px::path_tracer_words(),
                   "megakernel: a work-item traces a pixel's whole paths; wavefront: a kernel per path step over "
@@ -109,14 +120,25 @@ CLI::Option* add_pipeline_flags(CLI::App* cmd, px::RenderCommand& r) {
                   "where in each pixel a frame's G-buffer ray and first sample go: halton (a Halton (2,3) point "
                   "that moves every frame, so that the denoiser's accumulation covers the pixel: edges "
                   "anti-alias) or centre (the pixel centre every frame)");
-  cmd->add_option("--exposure", p.tonemap.exposure, "scale applied before the sRGB PNG encoding")->capture_default_str();
-  CLI::Option* no_denoise = cmd->add_flag("--no-denoise")->description("skip SVGF (stages 6-7): write the noisy images");
-  cmd->add_option("--svgf-iterations", dn.svgf.iterations, "a-trous iterations")->check(CLI::Range(1u, 8u))->capture_default_str();
-  cmd->add_option("--sigma-l", dn.svgf.sigma_l, "SVGF luminance edge-stopping (paper 4, Tauray 10, stereo paper 32)")->capture_default_str();
-  cmd->add_option("--sigma-z", dn.svgf.sigma_z, "SVGF depth edge-stopping (paper 1, stereo paper 128)")->capture_default_str();
-  cmd->add_option("--sigma-n", dn.svgf.sigma_n, "SVGF normal edge-stopping exponent (paper 128, stereo paper 4)")->capture_default_str();
-  cmd->add_option("--alpha", dn.svgf.alpha, "temporal blend floor for colour")->check(CLI::Range(0.0f, 1.0f))->capture_default_str();
-  cmd->add_option("--alpha-moments", dn.svgf.alpha_moments, "temporal blend floor for moments")->check(CLI::Range(0.0f, 1.0f))->capture_default_str();
+  cmd->add_option("--exposure", p.tonemap.exposure, "scale applied before the sRGB PNG encoding")
+      ->capture_default_str();
+  CLI::Option* no_denoise =
+      cmd->add_flag("--no-denoise")->description("skip SVGF (stages 6-7): write the noisy images");
+  cmd->add_option("--svgf-iterations", dn.svgf.iterations, "a-trous iterations")
+      ->check(CLI::Range(1u, 8u))
+      ->capture_default_str();
+  cmd->add_option("--sigma-l", dn.svgf.sigma_l, "SVGF luminance edge-stopping (paper 4, Tauray 10, stereo paper 32)")
+      ->capture_default_str();
+  cmd->add_option("--sigma-z", dn.svgf.sigma_z, "SVGF depth edge-stopping (paper 1, stereo paper 128)")
+      ->capture_default_str();
+  cmd->add_option("--sigma-n", dn.svgf.sigma_n, "SVGF normal edge-stopping exponent (paper 128, stereo paper 4)")
+      ->capture_default_str();
+  cmd->add_option("--alpha", dn.svgf.alpha, "temporal blend floor for colour")
+      ->check(CLI::Range(0.0f, 1.0f))
+      ->capture_default_str();
+  cmd->add_option("--alpha-moments", dn.svgf.alpha_moments, "temporal blend floor for moments")
+      ->check(CLI::Range(0.0f, 1.0f))
+      ->capture_default_str();
   cmd->add_option("--taa-alpha", dn.svgf.taa_alpha,
                   "temporal anti-aliasing after SVGF: blend floor of the current frame against the reprojected, "
                   "neighbourhood-clipped history (1: off)")
@@ -149,8 +171,9 @@ void drop_denoiser(const CLI::Option* no_denoise, px::RenderCommand& r) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"parallax: stereo path tracing split across OpenCL devices.\n"
-               "Output files are never silently mixed: a non-empty --out directory needs --overwrite."};
+  CLI::App app{
+      "parallax: stereo path tracing split across OpenCL devices.\n"
+      "Output files are never silently mixed: a non-empty --out directory needs --overwrite."};
   app.require_subcommand(1);
 
   px::DeviceChoice devices_choice;
@@ -158,26 +181,32 @@ int main(int argc, char** argv) {
   add_device_flags(devices_cmd, devices_choice);
 
   px::PreviewCommand preview;
-  auto* preview_cmd = app.add_subcommand("preview", "shaded primary hits of both eyes (a quick geometry/framing check)");
+  auto* preview_cmd =
+      app.add_subcommand("preview", "shaded primary hits of both eyes (a quick geometry/framing check)");
   add_scene_flags(preview_cmd, preview.scene);
   add_size_flags(preview_cmd, preview.size);
-  preview_cmd->add_option("--time", preview.time_s, "time on the camera path and in the animation, seconds")->capture_default_str();
+  preview_cmd->add_option("--time", preview.time_s, "time on the camera path and in the animation, seconds")
+      ->capture_default_str();
   preview_cmd->add_option("--out", preview.out, "output directory")->capture_default_str();
   preview_cmd->add_flag("--overwrite", preview.overwrite, "allow writing into a non-empty output directory");
   add_device_flags(preview_cmd, preview.devices);
 
   px::RenderCommand render;
-  auto* render_cmd = app.add_subcommand(
-      "render", "path trace a stereo animation; writes per frame and eye a linear EXR and an sRGB PNG, plus a "
-                "side-by-side stereo PNG (frame_NNNN_{left,right}.{exr,png}, frame_NNNN_stereo.png)");
+  auto* render_cmd =
+      app.add_subcommand("render",
+                         "path trace a stereo animation; writes per frame and eye a linear EXR and an sRGB PNG, plus a "
+                         "side-by-side stereo PNG (frame_NNNN_{left,right}.{exr,png}, frame_NNNN_stereo.png)");
   const CLI::Option* render_no_denoise = add_pipeline_flags(render_cmd, render);
-  render_cmd->add_option("--frames", render.frames, "frames to render along the camera path")->check(CLI::Range(1u, 100000u))->capture_default_str();
+  render_cmd->add_option("--frames", render.frames, "frames to render along the camera path")
+      ->check(CLI::Range(1u, 100000u))
+      ->capture_default_str();
   render_cmd->add_option("--timeline", render.timeline,
                          "write a Chrome trace / Perfetto JSON: one track per device, one slice per OpenCL command "
                          "(from profiling events)");
   render_cmd->add_option("--out", render.out, "output directory")->capture_default_str();
-  render_cmd->add_flag("--explain", render.explain,
-                       "print the schedule (stage x device workload pairs, dependency tree) and the operations a frame runs, and exit");
+  render_cmd->add_flag(
+      "--explain", render.explain,
+      "print the schedule (stage x device workload pairs, dependency tree) and the operations a frame runs, and exit");
   render_cmd->add_option("--report", render.report,
                          "write a JSON report: per frame, stage and device the device time (OpenCL profiling), "
                          "wall time, reprojected share, bytes transferred; makespan and Hz");
@@ -200,8 +229,9 @@ int main(int argc, char** argv) {
                   "on one device (--device-mode queues, or more --devices than compute units) the queues share the "
                   "same compute units: the strips still move, by times that mostly reflect the order the queues "
                   "run in, and the frame gets no faster");
-  render_cmd->add_option("--balance-step", render.balance_step,
-                         "with --balance dynamic: the most rows a strip boundary moves per frame")
+  render_cmd
+      ->add_option("--balance-step", render.balance_step,
+                   "with --balance dynamic: the most rows a strip boundary moves per frame")
       ->check(CLI::Range(1u, 65535u))
       ->capture_default_str();
   render_cmd->add_option("--video", render.video,
@@ -227,33 +257,43 @@ int main(int argc, char** argv) {
 
   px::ViewCommand view;
   auto* view_cmd = app.add_subcommand(
-      "view", "live viewer: a window showing both eyes side by side as frames finish, rendered like `render` "
-              "(same pipelines, devices, quality and control-loop flags). Keys: W/A/S/D move, Q/E down/up, "
-              "drag with the left mouse button to look around, Space returns to the scene's camera path, "
-              "Esc quits");
+      "view",
+      "live viewer: a window showing both eyes side by side as frames finish, rendered like `render` "
+      "(same pipelines, devices, quality and control-loop flags). Keys: W/A/S/D move, Q/E down/up, "
+      "drag with the left mouse button to look around, Space returns to the scene's camera path, "
+      "Esc quits");
   const CLI::Option* view_no_denoise = add_pipeline_flags(view_cmd, view.render);
   view_cmd->add_option("--frames", view.frames, "stop after N frames (0: run until the window is closed or Esc)")
       ->capture_default_str();
   view_cmd->add_option("--screenshot", view.screenshot,
                        "when the viewer stops, save the window content (both eyes side by side) as this PNG");
-  view_cmd->add_option("--move-speed", view.move_speed,
-                       "fly-through speed in scene units per second (0: a quarter of the scene's size)")
+  view_cmd
+      ->add_option("--move-speed", view.move_speed,
+                   "fly-through speed in scene units per second (0: a quarter of the scene's size)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
 
   px::ReferenceCommand reference;
-  auto* reference_cmd = app.add_subcommand(
-      "reference", "progressive converged render of both eyes (ground truth for error figures): "
-                   "reference_{left,right}.exr");
+  auto* reference_cmd =
+      app.add_subcommand("reference",
+                         "progressive converged render of both eyes (ground truth for error figures): "
+                         "reference_{left,right}.exr");
   add_scene_flags(reference_cmd, reference.scene);
   add_size_flags(reference_cmd, reference.size);
-  reference_cmd->add_option("--spp", reference.spp, "total samples per pixel")->check(CLI::Range(1u, 1u << 24))->capture_default_str();
-  reference_cmd->add_option("--pass-spp", reference.pass_spp, "samples per progressive pass")->check(CLI::Range(1u, 4096u))->capture_default_str();
-  reference_cmd->add_option("--frame", reference.frame, "frame number on the camera path (time = frame / fps)")->capture_default_str();
+  reference_cmd->add_option("--spp", reference.spp, "total samples per pixel")
+      ->check(CLI::Range(1u, 1u << 24))
+      ->capture_default_str();
+  reference_cmd->add_option("--pass-spp", reference.pass_spp, "samples per progressive pass")
+      ->check(CLI::Range(1u, 4096u))
+      ->capture_default_str();
+  reference_cmd->add_option("--frame", reference.frame, "frame number on the camera path (time = frame / fps)")
+      ->capture_default_str();
   reference_cmd->add_option("--fps", reference.clock.fps, "frame rate of the animation the reference belongs to")
       ->check(CLI::Range(0.001f, 1e9f))
       ->capture_default_str();
-  reference_cmd->add_option("--bounces", reference.bounces, "maximum path length")->check(CLI::Range(0u, px::PathTracer::kMaxBounces))->capture_default_str();
+  reference_cmd->add_option("--bounces", reference.bounces, "maximum path length")
+      ->check(CLI::Range(0u, px::PathTracer::kMaxBounces))
+      ->capture_default_str();
   reference_cmd->add_option("--exposure", reference.exposure, "PNG preview scale")->capture_default_str();
   reference_cmd->add_option("--out", reference.out, "output directory")->capture_default_str();
   reference_cmd->add_flag("--overwrite", reference.overwrite, "allow writing into a non-empty output directory");
@@ -261,11 +301,13 @@ int main(int argc, char** argv) {
 
   px::CompareCommand compare;
   auto* compare_cmd = app.add_subcommand(
-      "compare", "PSNR, relative MSE and MSE of an image against a reference, or (--exact) whether the pixels are identical");
-  compare_cmd->footer("Both images must have the same size. psnr_db = 10 log10(1 / mean squared error of the values "
-                      "clamped to [0, 1]), as a display shows them (peak 1); rel_mse = mean of (a - r)^2 / (r^2 + 0.01) "
-                      "and mse = mean of (a - r)^2 on the unclamped radiance. psnr_db inf does not mean equal pixels "
-                      "(values above 1 are clamped): --exact compares the bit patterns.\n");
+      "compare",
+      "PSNR, relative MSE and MSE of an image against a reference, or (--exact) whether the pixels are identical");
+  compare_cmd->footer(
+      "Both images must have the same size. psnr_db = 10 log10(1 / mean squared error of the values "
+      "clamped to [0, 1]), as a display shows them (peak 1); rel_mse = mean of (a - r)^2 / (r^2 + 0.01) "
+      "and mse = mean of (a - r)^2 on the unclamped radiance. psnr_db inf does not mean equal pixels "
+      "(values above 1 are clamped): --exact compares the bit patterns.\n");
   compare_cmd->add_option("image", compare.image, "image (EXR)")->required()->check(CLI::ExistingFile);
   compare_cmd->add_option("reference", compare.reference, "reference (EXR)")->required()->check(CLI::ExistingFile);
   compare_cmd->add_flag("--exact", compare.exact,

@@ -42,8 +42,7 @@ double resident_mib() {
 // `collapse_later`: the wide nodes are left to the device scene (a static scene without
 // instances in a wide layout), which makes them once the scene's triangles have become shading
 // records; here the binary tree alone is validated (and cached).
-void build_world_tree(LoadedScene& out, const TriangleSource& tree_triangles, bool quiet,
-                      bool collapse_later = false) {
+void build_world_tree(LoadedScene& out, const TriangleSource& tree_triangles, bool quiet, bool collapse_later = false) {
   using clock = Clock;
   const BvhLayout layout = out.bvh_layout;
   const std::optional<BvhLayout> made_here = collapse_later ? std::nullopt : std::optional<BvhLayout>(layout);
@@ -62,42 +61,43 @@ void build_world_tree(LoadedScene& out, const TriangleSource& tree_triangles, bo
   if (from_cache) {
     out.bvh = std::move(*cached);
   } else {
-    const ProgressTicker ticker(quiet ? "" : "[bvh] still building the BVH of " +
-                                                 std::to_string(tree_triangles.size()) + " triangles");
+    const ProgressTicker ticker(
+        quiet ? "" : "[bvh] still building the BVH of " + std::to_string(tree_triangles.size()) + " triangles");
     out.bvh = build_bvh(tree_triangles, build_options, made_here);
   }
   // The cache holds the binary tree; the wide nodes the kernels traverse are collapsed from it
   // (a few percent of a build), so that the validator below checks them too.
   if (from_cache && !collapse_later) ensure_layout(out.bvh, layout);
   // A cached tree was built with the options of its key: the leaves' sizing follows from them.
-  if (from_cache)
-    out.bvh.stats.block_leaves = build_options.block_leaves(tree_triangles.size());
+  if (from_cache) out.bvh.stats.block_leaves = build_options.block_leaves(tree_triangles.size());
   out.times.bvh_ms = ms(t2, clock::now());
   out.times.bvh_from_cache = from_cache;
   const auto& bs = out.bvh.stats;
   if (!quiet)
-    std::fprintf(stderr, "[bvh] %zu nodes, %zu leaf triangles, depth %d, SAH %.1f (%s)%s%s%s\n", bs.nodes,
-                 bs.leaf_triangles, bs.depth, bs.sah_cost,
-                 from_cache ? ("read from the cache in " +
-                               std::to_string(static_cast<long>(
-                                   std::chrono::duration<double, std::milli>(clock::now() - t2).count())) +
-                               " ms; built in " + std::to_string(static_cast<long>(bs.build_ms)) + " ms")
-                                  .c_str()
-                            : (std::to_string(static_cast<long>(bs.build_ms)) + " ms").c_str(),
-                 layout == BvhLayout::Binary ? ""
-                 : collapse_later ? (std::string("; ") + to_string(layout) + " nodes made with the device layout").c_str()
-                 : (std::string("; ") + to_string(layout) + ", " +
-                    std::to_string(layout == BvhLayout::Wide4   ? out.bvh.nodes4.size()
-                                   : layout == BvhLayout::Wide8 ? out.bvh.nodes8.size()
-                                                                : out.bvh.cnodes.size()) +
-                    " nodes").c_str(),
-                 bs.split_budget_exceeded ? "; spatial splits stopped at their budget (heavily overlapping "
-                                            "triangles): binned SAH instead"
-                                          : "",
-                 bs.block_leaves ? ("; leaves sized for 4-triangle blocks (" +
-                                    std::to_string(build_options.block_leaves_from) + " triangles or more)")
-                                       .c_str()
-                                 : "");
+    std::fprintf(
+        stderr, "[bvh] %zu nodes, %zu leaf triangles, depth %d, SAH %.1f (%s)%s%s%s\n", bs.nodes, bs.leaf_triangles,
+        bs.depth, bs.sah_cost,
+        from_cache
+            ? ("read from the cache in " +
+               std::to_string(static_cast<long>(std::chrono::duration<double, std::milli>(clock::now() - t2).count())) +
+               " ms; built in " + std::to_string(static_cast<long>(bs.build_ms)) + " ms")
+                  .c_str()
+            : (std::to_string(static_cast<long>(bs.build_ms)) + " ms").c_str(),
+        layout == BvhLayout::Binary ? ""
+        : collapse_later ? (std::string("; ") + to_string(layout) + " nodes made with the device layout").c_str()
+                         : (std::string("; ") + to_string(layout) + ", " +
+                            std::to_string(layout == BvhLayout::Wide4   ? out.bvh.nodes4.size()
+                                           : layout == BvhLayout::Wide8 ? out.bvh.nodes8.size()
+                                                                        : out.bvh.cnodes.size()) +
+                            " nodes")
+                               .c_str(),
+        bs.split_budget_exceeded ? "; spatial splits stopped at their budget (heavily overlapping "
+                                   "triangles): binned SAH instead"
+                                 : "",
+        bs.block_leaves ? ("; leaves sized for 4-triangle blocks (" + std::to_string(build_options.block_leaves_from) +
+                           " triangles or more)")
+                              .c_str()
+                        : "");
   if (!quiet && bs.split_trial && !from_cache)
     std::fprintf(stderr,
                  "[bvh] spatial splits on trial (%zu triangles or more): on %zu sampled triangles they lower the SAH "
@@ -203,9 +203,9 @@ static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, cons
   auto t1 = clock::now();
   out.times.load_ms = ms(t0, t1);
   if (!quiet) {
-    std::fprintf(stderr, "[scene] %s: %zu triangles, %zu materials, %zu textures (%.0f ms)\n",
-                 out.scene.name.c_str(), out.scene.triangles.size(), out.scene.materials.size(),
-                 out.scene.textures.size(), std::chrono::duration<double, std::milli>(t1 - t0).count());
+    std::fprintf(stderr, "[scene] %s: %zu triangles, %zu materials, %zu textures (%.0f ms)\n", out.scene.name.c_str(),
+                 out.scene.triangles.size(), out.scene.materials.size(), out.scene.textures.size(),
+                 std::chrono::duration<double, std::milli>(t1 - t0).count());
     // Dropped triangles are reported once, by the loader's warnings (which name the file).
     for (const auto& w : st.warnings) std::fprintf(stderr, "[scene] warning: %s\n", w.c_str());
     const SceneInstancing& in = out.scene.instancing;
@@ -249,8 +249,7 @@ static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, cons
                      "[bvh] %zu nodes, %zu leaf triangles, depth %d, SAH %.1f (built in %.0f ms); %s, %zu nodes: the "
                      "device layout mapped from the cache in %.0f ms (%.0f MiB, %s)\n",
                      bs.nodes, bs.leaf_triangles, bs.depth, bs.sah_cost, bs.build_ms,
-                     to_string(out.device_layout->layout()),
-                     out.device_layout->layout_nodes(), out.times.bvh_ms,
+                     to_string(out.device_layout->layout()), out.device_layout->layout_nodes(), out.times.bvh_ms,
                      static_cast<double>(out.device_layout->file_bytes()) / (1024.0 * 1024.0),
                      out.device_layout->path().c_str());
       return out;
@@ -279,8 +278,8 @@ static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, cons
   return out;
 }
 
-LoadedScene load_and_build(const std::string& spec, bool quiet, const SceneLoadOptions& options,
-                           bool map_device_layout, std::optional<BvhLayout> bvh_layout) {
+LoadedScene load_and_build(const std::string& spec, bool quiet, const SceneLoadOptions& options, bool map_device_layout,
+                           std::optional<BvhLayout> bvh_layout) {
   LoadedScene out = load_and_build_tree(spec, quiet, options, map_device_layout, bvh_layout);
   // The frames' files need the image codec: its libraries (about 85 MiB of mapped pages with
   // their dependencies) load on another core after the start's highest points (the end of a

@@ -17,8 +17,8 @@ namespace px {
 
 // Where a start's time went, ms (render's summary and report).
 struct StartTimes {
-  double load_ms = 0.0;      // reading and converting the scene file(s)
-  double bvh_ms = 0.0;       // building the BVH, or reading it from the cache
+  double load_ms = 0.0;  // reading and converting the scene file(s)
+  double bvh_ms = 0.0;   // building the BVH, or reading it from the cache
   bool bvh_from_cache = false;
   double validate_ms = 0.0;  // the BVH validator
   // The tree came from the cache with its wide nodes validated when it was stored (bvh_cache.h):
@@ -37,7 +37,7 @@ struct StartTimes {
 
 struct LoadedScene {
   Scene scene;
-  FlatBvh bvh;  // the world tree (scene_bvhs.h): every triangle's in a scene without instances
+  FlatBvh bvh;                     // the world tree (scene_bvhs.h): every triangle's in a scene without instances
   std::vector<FlatBvh> mesh_bvhs;  // one per instanced mesh (Scene::instancing), else none
   // The node layout the start made the trees' nodes in: the one requested (load_and_build's
   // bvh_layout), else a CPU set's default (bvh_layout_for(false)). A set in another layout has

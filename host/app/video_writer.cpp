@@ -52,25 +52,49 @@ std::string VideoWriter::find_ffmpeg() {
 VideoWriter::VideoWriter(std::string path, unsigned width, unsigned height, float fps)
     : path_(std::move(path)), tmp_(partial_path_for(path_)), width_(width), height_(height) {
   const std::string container = container_for(path_);
-  if (container.empty())
-    throw std::invalid_argument("--video " + path_ + ": the file must end in .mp4, .mkv or .mov");
+  if (container.empty()) throw std::invalid_argument("--video " + path_ + ": the file must end in .mp4, .mkv or .mov");
   const fs::path parent = fs::path(path_).parent_path();
   if (!parent.empty() && !fs::is_directory(parent))
     throw std::invalid_argument("--video " + path_ + ": folder " + parent.string() + " does not exist");
   if (!(fps > 0.0f)) throw std::invalid_argument("--fps must be positive");
   const std::string ffmpeg = find_ffmpeg();
   if (ffmpeg.empty())
-    throw std::runtime_error("--video needs the ffmpeg program, which is not on PATH: install the Debian package "
-                             "ffmpeg (apt-get install ffmpeg)");
+    throw std::runtime_error(
+        "--video needs the ffmpeg program, which is not on PATH: install the Debian package "
+        "ffmpeg (apt-get install ffmpeg)");
 
   // H.264 in yuv420p wants even sizes: pad by a pixel where needed.
   char size[32], rate[32];
   std::snprintf(size, sizeof size, "%ux%u", width, height);
   std::snprintf(rate, sizeof rate, "%g", double(fps));
-  std::vector<std::string> args = {ffmpeg, "-hide_banner", "-loglevel", "error", "-y",
-                                   "-f", "rawvideo", "-pix_fmt", "rgba", "-s", size, "-r", rate, "-i", "pipe:0",
-                                   "-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2", "-c:v", "libx264", "-preset", "veryfast",
-                                   "-crf", "18", "-pix_fmt", "yuv420p", "-f", container, tmp_};
+  std::vector<std::string> args = {ffmpeg,
+                                   "-hide_banner",
+                                   "-loglevel",
+                                   "error",
+                                   "-y",
+                                   "-f",
+                                   "rawvideo",
+                                   "-pix_fmt",
+                                   "rgba",
+                                   "-s",
+                                   size,
+                                   "-r",
+                                   rate,
+                                   "-i",
+                                   "pipe:0",
+                                   "-vf",
+                                   "pad=ceil(iw/2)*2:ceil(ih/2)*2",
+                                   "-c:v",
+                                   "libx264",
+                                   "-preset",
+                                   "veryfast",
+                                   "-crf",
+                                   "18",
+                                   "-pix_fmt",
+                                   "yuv420p",
+                                   "-f",
+                                   container,
+                                   tmp_};
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
@@ -117,8 +141,7 @@ void VideoWriter::stop_encoder(bool kill_it) {
   if (pid_ <= 0) return;
   if (kill_it) ::kill(pid_, SIGKILL);
   int status = 0;
-  while (::waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
-  }
+  while (::waitpid(pid_, &status, 0) < 0 && errno == EINTR) {}
   pid_ = -1;
   if (!kill_it && !(WIFEXITED(status) && WEXITSTATUS(status) == 0)) {
     ::unlink(tmp_.c_str());
@@ -130,8 +153,7 @@ void VideoWriter::stop_encoder(bool kill_it) {
 }
 
 void VideoWriter::write_frame(const std::vector<std::uint8_t>& rgba) {
-  if (rgba.size() != std::size_t(width_) * height_ * 4)
-    throw std::invalid_argument("--video: frame of the wrong size");
+  if (rgba.size() != std::size_t(width_) * height_ * 4) throw std::invalid_argument("--video: frame of the wrong size");
   if (pipe_fd_ < 0) throw std::runtime_error("--video " + path_ + ": the stream is closed");
   const std::uint8_t* p = rgba.data();
   std::size_t left = rgba.size();

@@ -5,8 +5,7 @@ namespace px {
 std::string cl_status_name(cl_int status) {
   switch (status) {
 #define PX_CASE(x) \
-  case x:          \
-    return #x;
+  case x: return #x;
     PX_CASE(CL_SUCCESS)
     PX_CASE(CL_DEVICE_NOT_FOUND)
     PX_CASE(CL_DEVICE_NOT_AVAILABLE)
@@ -51,14 +50,12 @@ std::string cl_status_name(cl_int status) {
     PX_CASE(CL_INVALID_PROPERTY)
     PX_CASE(CL_INVALID_DEVICE_PARTITION_COUNT)
 #undef PX_CASE
-    default:
-      return "OpenCL status " + std::to_string(status);
+    default: return "OpenCL status " + std::to_string(status);
   }
 }
 
 std::string describe(const cl::Error& e) {
-  return std::string(e.what()) + " failed: " + cl_status_name(e.err()) + " (" +
-         std::to_string(e.err()) + ")";
+  return std::string(e.what()) + " failed: " + cl_status_name(e.err()) + " (" + std::to_string(e.err()) + ")";
 }
 
 }  // namespace px

@@ -24,9 +24,9 @@ struct ClFailure : std::runtime_error {
 
 }  // namespace px
 
-#define PX_CL_CHECK(call)                                                              \
-  do {                                                                                 \
-    cl_int px_status_ = (call);                                                        \
-    if (px_status_ != CL_SUCCESS)                                                      \
+#define PX_CL_CHECK(call)                                                                         \
+  do {                                                                                            \
+    cl_int px_status_ = (call);                                                                   \
+    if (px_status_ != CL_SUCCESS)                                                                 \
       throw ::px::ClFailure(std::string(#call) + " failed: " + ::px::cl_status_name(px_status_)); \
   } while (0)

@@ -90,8 +90,8 @@ cl::Platform choose_platform(const std::string& wanted) {
 std::vector<cl::Device> sub_devices(cl::Device root, const std::vector<cl_device_partition_property>& props) {
   static std::mutex mutex;
   // Never destroyed: at exit the OpenCL runtime may be gone before static destructors run.
-  static auto* kept = new std::map<std::pair<cl_device_id, std::vector<cl_device_partition_property>>,
-                                   std::vector<cl::Device>>;
+  static auto* kept =
+      new std::map<std::pair<cl_device_id, std::vector<cl_device_partition_property>>, std::vector<cl::Device>>;
   std::lock_guard<std::mutex> lock(mutex);
   auto& subs = (*kept)[{root(), props}];
   if (subs.empty()) root.createSubDevices(props.data(), &subs);
@@ -112,8 +112,7 @@ DeviceSet DeviceSet::create(const DeviceOptions& options) {
   auto devices = platform_devices(set.platform_);
   // GPUs first: a platform that mixes types should put the work where it is fastest.
   std::stable_sort(devices.begin(), devices.end(), [](const cl::Device& a, const cl::Device& b) {
-    return (a.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) >
-           (b.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU);
+    return (a.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) > (b.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU);
   });
   const int n = options.count;
   cl::Device first = devices.front();
@@ -138,8 +137,8 @@ DeviceSet DeviceSet::create(const DeviceOptions& options) {
       if (!supports_equal_partition(first))
         throw ClFailure(first.getInfo<CL_DEVICE_NAME>() + " cannot be partitioned into sub-devices");
       if (first_cus < n)
-        throw ClFailure("cannot make " + std::to_string(n) + " sub-devices from " +
-                        std::to_string(first_cus) + " compute units");
+        throw ClFailure("cannot make " + std::to_string(n) + " sub-devices from " + std::to_string(first_cus) +
+                        " compute units");
       // BY_COUNTS so that any n works: the first (cus % n) sub-devices get one extra unit.
       std::vector<cl_device_partition_property> props{CL_DEVICE_PARTITION_BY_COUNTS};
       for (int i = 0; i < n; ++i) props.push_back(first_cus / n + (i < first_cus % n ? 1 : 0));
@@ -147,8 +146,8 @@ DeviceSet DeviceSet::create(const DeviceOptions& options) {
       props.push_back(0);
       std::vector<cl::Device> subs = sub_devices(first, props);
       if (static_cast<int>(subs.size()) != n)
-        throw ClFailure("clCreateSubDevices returned " + std::to_string(subs.size()) +
-                        " sub-devices, asked for " + std::to_string(n));
+        throw ClFailure("clCreateSubDevices returned " + std::to_string(subs.size()) + " sub-devices, asked for " +
+                        std::to_string(n));
       chosen = subs;
       for (int i = 0; i < n; ++i) notes.push_back("sub-device " + std::to_string(i + 1) + " of " + std::to_string(n));
       set.unique_devices_ = subs;
@@ -166,7 +165,8 @@ DeviceSet DeviceSet::create(const DeviceOptions& options) {
     }
     case DeviceMode::SharedQueues: {
       chosen.assign(n, first);
-      for (int i = 0; i < n; ++i) notes.push_back("queue " + std::to_string(i + 1) + " of " + std::to_string(n) + " on one device");
+      for (int i = 0; i < n; ++i)
+        notes.push_back("queue " + std::to_string(i + 1) + " of " + std::to_string(n) + " on one device");
       set.unique_devices_ = {first};
       break;
     }
@@ -180,16 +180,18 @@ DeviceSet DeviceSet::create(const DeviceOptions& options) {
     cd.device = chosen[i];
     cd.queue = cl::CommandQueue(set.context_, chosen[i], CL_QUEUE_PROFILING_ENABLE);
     cd.compute_units = static_cast<int>(chosen[i].getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>());
-    cd.description = chosen[i].getInfo<CL_DEVICE_NAME>() + " (" + notes[i] + ", " +
-                     std::to_string(cd.compute_units) + " CU)";
+    cd.description =
+        chosen[i].getInfo<CL_DEVICE_NAME>() + " (" + notes[i] + ", " + std::to_string(cd.compute_units) + " CU)";
     set.devices_.push_back(std::move(cd));
   }
-  set.all_gpus_ = std::all_of(set.devices_.begin(), set.devices_.end(), [](const ComputeDevice& d) { return d.is_gpu(); });
+  set.all_gpus_ =
+      std::all_of(set.devices_.begin(), set.devices_.end(), [](const ComputeDevice& d) { return d.is_gpu(); });
   // PoCL's CPU drivers share one work-group-function cache per process, which miscounts when
   // launches of one kernel at different global sizes overlap on several queues (any mode:
   // queues, sub-devices, POCL_DEVICES entries); the guard orders such launches.
-  const bool pocl_cpu = set.platform_name_.find("Portable Computing Language") != std::string::npos &&
-                        std::any_of(set.devices_.begin(), set.devices_.end(), [](const ComputeDevice& d) { return d.is_cpu(); });
+  const bool pocl_cpu =
+      set.platform_name_.find("Portable Computing Language") != std::string::npos &&
+      std::any_of(set.devices_.begin(), set.devices_.end(), [](const ComputeDevice& d) { return d.is_cpu(); });
   if (pocl_cpu && PoclLaunchGuard::enabled()) {
     set.launch_guard_ = std::make_unique<LaunchGuardRegistration>();
     set.launch_guard_->context = set.context_();
@@ -246,19 +248,21 @@ std::string describe_platforms() {
   }
   for (std::size_t pi = 0; pi < platforms.size(); ++pi) {
     auto& p = platforms[pi];
-    out << "platform " << pi << ": " << p.getInfo<CL_PLATFORM_NAME>() << " ("
-        << p.getInfo<CL_PLATFORM_VERSION>() << ")\n";
+    out << "platform " << pi << ": " << p.getInfo<CL_PLATFORM_NAME>() << " (" << p.getInfo<CL_PLATFORM_VERSION>()
+        << ")\n";
     auto devices = platform_devices(p);
     for (std::size_t di = 0; di < devices.size(); ++di) {
       auto& d = devices[di];
       auto type = d.getInfo<CL_DEVICE_TYPE>();
       out << "  device " << di << ": " << d.getInfo<CL_DEVICE_NAME>() << "\n"
-          << "    type " << ((type & CL_DEVICE_TYPE_GPU) ? "GPU" : (type & CL_DEVICE_TYPE_CPU) ? "CPU" : "other")
+          << "    type "
+          << ((type & CL_DEVICE_TYPE_GPU)   ? "GPU"
+              : (type & CL_DEVICE_TYPE_CPU) ? "CPU"
+                                            : "other")
           << ", " << d.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>() << " compute units, "
-          << (d.getInfo<CL_DEVICE_GLOBAL_MEM_SIZE>() >> 20) << " MiB global memory, "
-          << d.getInfo<CL_DEVICE_VERSION>() << "\n"
-          << "    sub-devices: " << (supports_equal_partition(d) ? "yes (one per compute unit at most)" : "no")
-          << "\n";
+          << (d.getInfo<CL_DEVICE_GLOBAL_MEM_SIZE>() >> 20) << " MiB global memory, " << d.getInfo<CL_DEVICE_VERSION>()
+          << "\n"
+          << "    sub-devices: " << (supports_equal_partition(d) ? "yes (one per compute unit at most)" : "no") << "\n";
     }
   }
   return out.str();

@@ -36,10 +36,10 @@ struct DeviceOptions {
 };
 
 struct ComputeDevice {
-  int index = 0;               // 0 = the owner (root of the dependency tree)
-  cl::Device device;           // a sub-device, a platform device, or a shared device
-  cl::CommandQueue queue;      // in-order, CL_QUEUE_PROFILING_ENABLE
-  std::string description;     // for logs: "pthread-haswell (sub-device 1 of 2, 1 CU)"
+  int index = 0;            // 0 = the owner (root of the dependency tree)
+  cl::Device device;        // a sub-device, a platform device, or a shared device
+  cl::CommandQueue queue;   // in-order, CL_QUEUE_PROFILING_ENABLE
+  std::string description;  // for logs: "pthread-haswell (sub-device 1 of 2, 1 CU)"
   int compute_units = 0;
 
   // What kind of device it is: stages pick their kernel variant by it (e.g. SVGF's a-trous pass,

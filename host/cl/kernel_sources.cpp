@@ -28,8 +28,7 @@ void append_resolved(const std::string& path, std::set<std::string>& seen, std::
       auto open = line.find('"', first);
       auto close = open == std::string::npos ? open : line.find('"', open + 1);
       if (close == std::string::npos)
-        throw ClFailure("kernels/" + path + ":" + std::to_string(number) +
-                        ": malformed #include");
+        throw ClFailure("kernels/" + path + ":" + std::to_string(number) + ": malformed #include");
       append_resolved(line.substr(open + 1, close - open - 1), seen, out);
       out += "#line " + std::to_string(number + 1) + " \"" + path + "\"\n";
       continue;

@@ -54,12 +54,9 @@ bool finished(const cl::Event& e) {
   return status <= CL_COMPLETE;  // complete, or failed (a negative status)
 }
 
-
 }  // namespace
 
-bool PoclLaunchGuard::enabled() {
-  return environment().pocl_launch_guard;
-}
+bool PoclLaunchGuard::enabled() { return environment().pocl_launch_guard; }
 
 void PoclLaunchGuard::register_program(cl_context context, cl_program program, const std::string& identity) {
   auto& r = registry();
@@ -77,9 +74,9 @@ void PoclLaunchGuard::forget_context(cl_context context) {
     // of the kernel overlaps with one the guard no longer knows.
     for (const auto& l : k.last)
       if (l.context == context && l.event() && !finished(l.event)) l.event.wait();
-    k.last.erase(std::remove_if(k.last.begin(), k.last.end(),
-                                [&](const RecordedLaunch& l) { return l.context == context; }),
-                 k.last.end());
+    k.last.erase(
+        std::remove_if(k.last.begin(), k.last.end(), [&](const RecordedLaunch& l) { return l.context == context; }),
+        k.last.end());
     if (k.widening.context == context) k.widening = RecordedLaunch{};
     // PoCL evicts unused entries once it holds 128: the widest one may be gone by the next set.
     // Starting over costs that set one ordered launch per kernel and never under-counts.
@@ -104,7 +101,8 @@ PoclLaunchGuard::PoclLaunchGuard(const cl::CommandQueue& queue, const cl::Kernel
   auto p = r.programs.find(program);
   if (p == r.programs.end()) return;  // not built by a guarded device set
 
-  kernel_ = &r.kernels[p->second.second + "|" + kernel.getInfo<CL_KERNEL_FUNCTION_NAME>() + "|" + std::to_string(local)];
+  kernel_ =
+      &r.kernels[p->second.second + "|" + kernel.getInfo<CL_KERNEL_FUNCTION_NAME>() + "|" + std::to_string(local)];
   queue_ = queue();
   context_ = p->second.first;
   global_ = global;
@@ -136,7 +134,8 @@ void PoclLaunchGuard::done(const cl::Event& launched) {
   if (!kernel_) return;
   auto slot = std::find_if(kernel_->last.begin(), kernel_->last.end(),
                            [&](const RecordedLaunch& l) { return l.queue == queue_; });
-  if (slot == kernel_->last.end()) slot = kernel_->last.insert(kernel_->last.end(), RecordedLaunch{context_, queue_, {}});
+  if (slot == kernel_->last.end())
+    slot = kernel_->last.insert(kernel_->last.end(), RecordedLaunch{context_, queue_, {}});
   slot->event = launched;
   if (widens_) {
     kernel_->widest = global_;

@@ -73,8 +73,9 @@ Cluster::Cluster() {
   }
 #else
   if (launched_by_mpi() && std::getenv("OMPI_COMM_WORLD_SIZE") && std::atoi(std::getenv("OMPI_COMM_WORLD_SIZE")) > 1)
-    std::fprintf(stderr, "warning: started by mpirun, but this parallax was built without MPI: every rank renders "
-                         "the whole frame alone (install libopenmpi-dev and rebuild)\n");
+    std::fprintf(stderr,
+                 "warning: started by mpirun, but this parallax was built without MPI: every rank renders "
+                 "the whole frame alone (install libopenmpi-dev and rebuild)\n");
 #endif
   bytes_sent_.assign(size_, 0);
 }
@@ -84,8 +85,7 @@ Cluster::~Cluster() {
   if (mpi_) {
     try {
       wait_sends();
-    } catch (...) {
-    }
+    } catch (...) {}
     MPI_Finalize();
   }
 #endif
@@ -189,9 +189,9 @@ std::vector<double> Cluster::gather(const std::vector<double>& mine) {
     }
     all.resize(total);
   }
-  check(MPI_Gatherv(mine.data(), n, MPI_DOUBLE, all.data(), counts.data(), offsets.data(), MPI_DOUBLE, 0,
-                    MPI_COMM_WORLD),
-        "gather");
+  check(
+      MPI_Gatherv(mine.data(), n, MPI_DOUBLE, all.data(), counts.data(), offsets.data(), MPI_DOUBLE, 0, MPI_COMM_WORLD),
+      "gather");
   return all;
 #else
   return mine;

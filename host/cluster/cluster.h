@@ -38,8 +38,8 @@ class Cluster {
   void wait_sends();
 
   // Collective: every rank must call them in the same order.
-  void broadcast(void* data, std::size_t bytes);              // from rank 0
-  std::uint64_t sum(std::uint64_t value);                     // over all ranks
+  void broadcast(void* data, std::size_t bytes);  // from rank 0
+  std::uint64_t sum(std::uint64_t value);         // over all ranks
   // Rank 0 gets every rank's values concatenated in rank order; the others get an empty vector.
   std::vector<double> gather(const std::vector<double>& mine);
   // Every rank says whether its step worked (and why not); returns each failing rank's message

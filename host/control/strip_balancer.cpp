@@ -11,7 +11,8 @@ StripBalancer::StripBalancer(unsigned height, int devices, Options options)
     : height_(height), devices_(devices), options_(options) {
   if (devices < 1) throw std::invalid_argument("StripBalancer: at least one device");
   if (height < static_cast<unsigned>(devices)) throw std::invalid_argument("StripBalancer: fewer rows than devices");
-  if (!(options.gain > 0.0 && options.gain <= 1.0)) throw std::invalid_argument("StripBalancer: gain must be in (0, 1]");
+  if (!(options.gain > 0.0 && options.gain <= 1.0))
+    throw std::invalid_argument("StripBalancer: gain must be in (0, 1]");
   if (!(options.smoothing > 0.0 && options.smoothing <= 1.0))
     throw std::invalid_argument("StripBalancer: smoothing must be in (0, 1]");
 }
@@ -68,7 +69,8 @@ std::vector<unsigned> StripBalancer::update(const std::vector<unsigned>& rows, c
     boundary[i] = current + move;
   }
   // Keep every strip at least min_rows, boundaries in order (top to bottom, then bottom up).
-  for (std::size_t i = 1; i < n; ++i) boundary[i] = std::max(boundary[i], boundary[i - 1] + static_cast<long>(min_rows));
+  for (std::size_t i = 1; i < n; ++i)
+    boundary[i] = std::max(boundary[i], boundary[i - 1] + static_cast<long>(min_rows));
   for (std::size_t i = n - 1; i >= 1; --i)
     boundary[i] = std::min(boundary[i], boundary[i + 1] - static_cast<long>(min_rows));
   std::vector<unsigned> next(n);

@@ -57,7 +57,8 @@ std::vector<std::uint8_t> flat_mask(const Plane& p, int window) {
   std::vector<std::uint8_t> mask(static_cast<std::size_t>(w) * h);
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
-      const int x0 = std::max(0, x - r), x1 = std::min(w, x + r + 1), y0 = std::max(0, y - r), y1 = std::min(h, y + r + 1);
+      const int x0 = std::max(0, x - r), x1 = std::min(w, x + r + 1), y0 = std::max(0, y - r),
+                y1 = std::min(h, y + r + 1);
       const int flat = integral[y1 * (w + 1) + x1] - integral[y0 * (w + 1) + x1] - integral[y1 * (w + 1) + x0] +
                        integral[y0 * (w + 1) + x0];
       mask[y * w + x] = 2 * flat > (x1 - x0) * (y1 - y0);

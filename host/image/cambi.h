@@ -29,11 +29,11 @@
 namespace px {
 
 struct CambiOptions {
-  int source_bits = 8;      // bit depth the image is shown at (8: our PNGs; 10: finer)
-  int scales = 5;           // 1 = full resolution only
-  int window = 0;           // odd side of the contrast window at full scale; 0 = from the size
-  int mask_window = 0;      // odd side of the flatness window; 0 = from the size
-  double topk = 0.2;        // fraction of the largest per-pixel values pooled per scale
+  int source_bits = 8;           // bit depth the image is shown at (8: our PNGs; 10: finer)
+  int scales = 5;                // 1 = full resolution only
+  int window = 0;                // odd side of the contrast window at full scale; 0 = from the size
+  int mask_window = 0;           // odd side of the flatness window; 0 = from the size
+  double topk = 0.2;             // fraction of the largest per-pixel values pooled per scale
   double tvi_threshold = 0.019;  // Weber contrast a step needs to be visible
 };
 

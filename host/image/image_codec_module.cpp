@@ -63,8 +63,8 @@ Loaded load_module() {
     loaded.codec = table();  // the module stays loaded for the process's life
     return loaded;
   }
-  loaded.error = std::string("the image codec module ") + kModuleName + " could not be loaded: " +
-                 (tried.empty() ? "no place to look for it" : tried) +
+  loaded.error = std::string("the image codec module ") + kModuleName +
+                 " could not be loaded: " + (tried.empty() ? "no place to look for it" : tried) +
                  " (set PARALLAX_IMAGE_CODEC to its path)";
   return loaded;
 }

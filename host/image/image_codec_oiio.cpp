@@ -69,8 +69,7 @@ std::string read_rgb(const std::string& path, ImageRGB& img) {
   img.height = spec.height;
   img.rgb.resize(static_cast<std::size_t>(img.width) * img.height * 3);
   for (std::size_t i = 0; i < static_cast<std::size_t>(img.width) * img.height; ++i)
-    for (int c = 0; c < 3; ++c)
-      img.rgb[i * 3 + c] = all[i * spec.nchannels + std::min(c, spec.nchannels - 1)];
+    for (int c = 0; c < 3; ++c) img.rgb[i * 3 + c] = all[i * spec.nchannels + std::min(c, spec.nchannels - 1)];
   return {};
 }
 
@@ -81,8 +80,7 @@ std::string decode_file(const std::string& path, DecodedImage& out) {
   return read_decoded(*in, out);
 }
 
-std::string decode_memory(const unsigned char* bytes, std::size_t size, const std::string& name,
-                          DecodedImage& out) {
+std::string decode_memory(const unsigned char* bytes, std::size_t size, const std::string& name, DecodedImage& out) {
   if (size == 0) return "empty image";
   OIIO::Filesystem::IOMemReader memory(bytes, size);
   OIIO::ImageSpec config = straight_alpha_config();

@@ -20,7 +20,8 @@ const OiioCodec& codec_for(const std::string& what) {
 
 void write_encoded(const std::string& path, int width, int height, int channels, bool floats, const void* pixels) {
   std::vector<unsigned char> bytes;
-  const std::string error = codec_for("cannot write " + path).encode(path, width, height, channels, floats, pixels, bytes);
+  const std::string error =
+      codec_for("cannot write " + path).encode(path, width, height, channels, floats, pixels, bytes);
   if (!error.empty()) throw ImageError(error);
   try {
     write_file_atomic(path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));

@@ -25,8 +25,8 @@ std::vector<std::uint8_t> to_srgb8(const ImageRGB& image, float exposure) {
   return out;
 }
 
-std::vector<std::uint8_t> side_by_side(const std::vector<std::uint8_t>& left,
-                                       const std::vector<std::uint8_t>& right, int width, int height) {
+std::vector<std::uint8_t> side_by_side(const std::vector<std::uint8_t>& left, const std::vector<std::uint8_t>& right,
+                                       int width, int height) {
   std::vector<std::uint8_t> out(static_cast<std::size_t>(width) * 2 * height * 4);
   const std::size_t row = static_cast<std::size_t>(width) * 4;
   for (int y = 0; y < height; ++y) {

@@ -68,7 +68,7 @@ std::string decode_image_memory(const unsigned char* bytes, std::size_t size, co
 std::vector<std::uint8_t> to_srgb8(const ImageRGB& image, float exposure = 1.0f);
 
 // Places `left` and `right` side by side (same size) — the stereo PNG layout.
-std::vector<std::uint8_t> side_by_side(const std::vector<std::uint8_t>& left,
-                                       const std::vector<std::uint8_t>& right, int width, int height);
+std::vector<std::uint8_t> side_by_side(const std::vector<std::uint8_t>& left, const std::vector<std::uint8_t>& right,
+                                       int width, int height);
 
 }  // namespace px

@@ -72,8 +72,10 @@ ExactDifference compare_exact(const ImageRGB& a, const ImageRGB& r) {
         d.reference_bits = br;
       }
       const double diff = std::fabs(static_cast<double>(va) - static_cast<double>(vr));
-      if (std::isnan(diff)) ++d.nan_values;
-      else d.max_abs_difference = std::max(d.max_abs_difference, diff);
+      if (std::isnan(diff))
+        ++d.nan_values;
+      else
+        d.max_abs_difference = std::max(d.max_abs_difference, diff);
     }
     if (pixel_differs) ++d.differing_pixels;
   }

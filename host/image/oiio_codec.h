@@ -26,8 +26,8 @@ namespace px {
 struct OiioCodec {
   // Encodes pixels (float or 8-bit, `channels` interleaved, rows top to bottom) into the bytes
   // of the file format `path`'s extension names.
-  std::string (*encode)(const std::string& path, int width, int height, int channels, bool floats,
-                        const void* pixels, std::vector<unsigned char>& bytes);
+  std::string (*encode)(const std::string& path, int width, int height, int channels, bool floats, const void* pixels,
+                        std::vector<unsigned char>& bytes);
   std::string (*read_rgb)(const std::string& path, ImageRGB& out);
   std::string (*decode_file)(const std::string& path, DecodedImage& out);
   std::string (*decode_memory)(const unsigned char* bytes, std::size_t size, const std::string& name,

@@ -66,7 +66,7 @@ const Environment& environment() {
 }
 
 void reload_environment_for_tests() {
-  environment();  // the first read, if it has not happened
+  environment();                  // the first read, if it has not happened
   current() = read_and_report();  // the previous one is leaked: a reader may still hold it
 }
 

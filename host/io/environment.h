@@ -31,13 +31,13 @@
 namespace px {
 
 struct Environment {
-  std::string platform;               // PARALLAX_PLATFORM ("" = none)
-  bool pocl_launch_guard = true;      // PARALLAX_POCL_LAUNCH_GUARD
-  std::size_t max_alloc_bytes = 0;    // PARALLAX_MAX_ALLOC_BYTES (0 = the devices' own limit)
-  std::string image_codec;            // PARALLAX_IMAGE_CODEC ("" = none)
-  bool bvh_cache = true;              // PARALLAX_BVH_CACHE
-  std::string cache_dir;              // PARALLAX_CACHE_DIR ("" = the default folder)
-  bool huge_pages = true;             // PARALLAX_HUGE_PAGES
+  std::string platform;             // PARALLAX_PLATFORM ("" = none)
+  bool pocl_launch_guard = true;    // PARALLAX_POCL_LAUNCH_GUARD
+  std::size_t max_alloc_bytes = 0;  // PARALLAX_MAX_ALLOC_BYTES (0 = the devices' own limit)
+  std::string image_codec;          // PARALLAX_IMAGE_CODEC ("" = none)
+  bool bvh_cache = true;            // PARALLAX_BVH_CACHE
+  std::string cache_dir;            // PARALLAX_CACHE_DIR ("" = the default folder)
+  bool huge_pages = true;           // PARALLAX_HUGE_PAGES
   // One line per variable whose value was not understood, naming it, the value and what was
   // kept instead.
   std::vector<std::string> problems;

@@ -29,7 +29,7 @@ int register_partial_file(const char* path);
 void unregister_partial_file(int slot);
 void register_lock_file(const char* path);
 void unregister_lock_file();
-void register_created_dir(const char* path);   // removed (rmdir: only if empty) in reverse order
+void register_created_dir(const char* path);  // removed (rmdir: only if empty) in reverse order
 void unregister_created_dirs();
 
 // Test hook: behaves as if `signal` had been received once.

@@ -28,7 +28,8 @@ std::vector<Access> accesses(const Operation& op) {
   switch (op.stage) {
     case Stage::PathTraceLeft:
     case Stage::PathTraceRight:
-      if (op.writes_gbuffer) return {{d, Image::Radiance, e, true}, {d, Image::Albedo, e, true}, {d, Image::GBuffer, e, true}};
+      if (op.writes_gbuffer)
+        return {{d, Image::Radiance, e, true}, {d, Image::Albedo, e, true}, {d, Image::GBuffer, e, true}};
       return {{d, Image::Radiance, e, true}, {d, Image::Albedo, e, true}};
     case Stage::GBuffer:
       if (op.shares_hits) return {{d, Image::GBuffer, e, true}, {d, Image::RightHits, -1, true}};
@@ -38,15 +39,16 @@ std::vector<Access> accesses(const Operation& op) {
               {d, Image::Radiance, 1, true},  {d, Image::Albedo, 1, true},   {d, Image::Holes, -1, true}};
     case Stage::HoleFill:
       if (op.shares_hits)
-        return {{d, Image::Holes, -1, false}, {d, Image::RightHits, -1, false}, {d, Image::Radiance, 1, true},
+        return {{d, Image::Holes, -1, false},
+                {d, Image::RightHits, -1, false},
+                {d, Image::Radiance, 1, true},
                 {d, Image::Albedo, 1, true}};
       return {{d, Image::Holes, -1, false}, {d, Image::Radiance, 1, true}, {d, Image::Albedo, 1, true}};
     case Stage::Denoise:
       // Its own strip. The halo rows it exchanges with its neighbours are read and written by
       // commands on the neighbours' queues, by their own denoise operations of the same batch.
       return {{d, Image::Radiance, e, true}, {d, Image::Albedo, e, false}, {d, Image::GBuffer, e, false}};
-    case Stage::Tonemap:
-      return {{d, Image::Radiance, e, false}, {d, Image::Rgba, e, true}};
+    case Stage::Tonemap: return {{d, Image::Radiance, e, false}, {d, Image::Rgba, e, true}};
     case Stage::Transfer: {
       std::vector<Access> a;
       for (Image im : {Image::Radiance, Image::Albedo, Image::Rgba}) {
@@ -55,8 +57,7 @@ std::vector<Access> accesses(const Operation& op) {
       }
       return a;
     }
-    default:
-      return {};
+    default: return {};
   }
 }
 
@@ -198,8 +199,7 @@ std::string explain_operations(const std::vector<Operation>& operations) {
     std::string where = "device " + std::to_string(op.device);
     if (op.to >= 0) where += " -> " + std::to_string(op.to);
     std::snprintf(line, sizeof line, "%4zu  %-17s %-5s %-14s %-4s rows [%u, %u)", i, stage_name(op.stage),
-                  op.eye == 0 ? "left" : "right", where.c_str(), op.lane ? "side" : "main", op.rows.begin,
-                  op.rows.end);
+                  op.eye == 0 ? "left" : "right", where.c_str(), op.lane ? "side" : "main", op.rows.begin, op.rows.end);
     out << line;
     if (op.payload == TransferPayload::FinishedImage) out << " finished image";
     if (op.payload == TransferPayload::LinearRadiance) out << " linear radiance";

@@ -26,12 +26,12 @@ namespace px {
 
 struct Operation {
   Stage stage;
-  int eye = 0;          // 0 left, 1 right
-  int device = 0;       // where it runs (a transfer: the sending device)
-  RowRange rows;        // rows it writes (a G-buffer pass: with the margin its readers need)
-  int to = -1;          // a transfer: the receiving device
+  int eye = 0;     // 0 left, 1 right
+  int device = 0;  // where it runs (a transfer: the sending device)
+  RowRange rows;   // rows it writes (a G-buffer pass: with the margin its readers need)
+  int to = -1;     // a transfer: the receiving device
   TransferPayload payload = TransferPayload::None;
-  int lane = 0;                    // QueueLanes::kMain or kSide
+  int lane = 0;  // QueueLanes::kMain or kSide
   // A path trace that also writes its rows' G-buffer texels (its first sample is the G-buffer's
   // ray, PathTracer::Options::first_sample_on_gbuffer_ray); the G-buffer pass then skips those rows.
   bool writes_gbuffer = false;

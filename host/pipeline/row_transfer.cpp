@@ -9,15 +9,15 @@ RowTransfer::RowTransfer(DeviceSet& devices, const DeviceLayout& layout, Cluster
     : devices_(devices), layout_(layout), cluster_(cluster), width_(width), height_(height), log_(log), lanes_(lanes) {}
 
 void RowTransfer::copy(int from, const cl::Buffer& src, int to, const cl::Buffer& dst, std::size_t offset,
-                       std::size_t bytes, StagingBuffer& staging, std::size_t staging_bytes,
-                       std::size_t staging_offset, bool track_readers) {
+                       std::size_t bytes, StagingBuffer& staging, std::size_t staging_bytes, std::size_t staging_offset,
+                       bool track_readers) {
   if (local(from) && local(to)) {
     if (!staging.buffer())
       staging.buffer = cl::Buffer(devices_.context(), CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR, staging_bytes);
     cl::Event out, in;
     const std::vector<cl::Event> wait = track_readers ? staging.readers : std::vector<cl::Event>{};
-    queue(from).enqueueCopyBuffer(src, staging.buffer, offset, staging_offset, bytes,
-                                  wait.empty() ? nullptr : &wait, &out);
+    queue(from).enqueueCopyBuffer(src, staging.buffer, offset, staging_offset, bytes, wait.empty() ? nullptr : &wait,
+                                  &out);
     const std::vector<cl::Event> after{out};
     queue(to).enqueueCopyBuffer(staging.buffer, dst, staging_offset, offset, bytes, &after, &in);
     if (track_readers) staging.readers = {in};
@@ -55,8 +55,8 @@ void RowTransfer::exchange(const BufferOf& buffer, const std::vector<RowRange>& 
       if (a >= b) continue;
       const std::size_t off = static_cast<std::size_t>(a) * width_ * texel;
       const std::size_t len = static_cast<std::size_t>(b - a) * width_ * texel;
-      copy(src, local(src) ? buffer(src) : absent(), d, local(d) ? buffer(d) : absent(), off, len, staging(src), frame_bytes,
-           off, true);
+      copy(src, local(src) ? buffer(src) : absent(), d, local(d) ? buffer(d) : absent(), off, len, staging(src),
+           frame_bytes, off, true);
     }
   }
 }

@@ -74,7 +74,7 @@ class RowTransfer {
   Cluster* cluster_;
   unsigned width_, height_;
   EventLog& log_;
-  QueueLanes& lanes_;  // transfers run on the lane the executor selected
+  QueueLanes& lanes_;                                    // transfers run on the lane the executor selected
   std::deque<std::vector<unsigned char>> message_rows_;  // host copies of this frame's MPI messages
   std::size_t bytes_ = 0;
 };

@@ -13,8 +13,8 @@
 
 namespace px {
 
-StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene,
-                               unsigned width, unsigned height, Options options)
+StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene, unsigned width,
+                               unsigned height, Options options)
     : devices_(devices),
       cluster_(options.cluster && options.cluster->distributed() ? options.cluster : nullptr),
       layout_{cluster_ ? cluster_->rank() : 0, cluster_ ? cluster_->size() : 1, devices.size()},
@@ -36,7 +36,8 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
     if (local(d)) images_[d] = FrameImages::allocate(devices.context(), width, height);
   // The units, each registered for the stages it runs (adding a stage: its unit here, its row
   // in the pipelines' tables).
-  path_trace_ = &add_unit<PathTraceStage>({Stage::PathTraceLeft, Stage::PathTraceRight}, options.trace, options.path_kernel);
+  path_trace_ =
+      &add_unit<PathTraceStage>({Stage::PathTraceLeft, Stage::PathTraceRight}, options.trace, options.path_kernel);
   add_unit<GBufferStage>({Stage::GBuffer});
   add_unit<ReprojectStage>({Stage::Reproject});
   add_unit<HoleFillStage>({Stage::HoleFill}, *path_trace_, options.hole_fill);
@@ -50,7 +51,8 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
 
 StageUnit& StereoPipeline::unit(Stage stage) {
   const auto it = unit_of_.find(stage);
-  if (it == unit_of_.end()) throw std::logic_error(std::string("no unit runs the scheduled stage '") + stage_name(stage) + "'");
+  if (it == unit_of_.end())
+    throw std::logic_error(std::string("no unit runs the scheduled stage '") + stage_name(stage) + "'");
   return *it->second;
 }
 
@@ -277,7 +279,8 @@ std::vector<GBufferTexel> StereoPipeline::gbuffer_of(int eye) {
   for (int d = 0; d < layout_.count(); ++d)
     for (const RowRange& r : eye == 0 ? g->left_rows[d] : g->right_rows[d]) {
       if (!local(d)) continue;
-      const std::size_t first = static_cast<std::size_t>(r.begin) * width_, count = static_cast<std::size_t>(r.size()) * width_;
+      const std::size_t first = static_cast<std::size_t>(r.begin) * width_,
+                        count = static_cast<std::size_t>(r.size()) * width_;
       // With the denoiser, end_frame() swapped the frame's G-buffer into its history.
       const cl::Buffer& gbuffer = denoise_ ? denoise_->last_gbuffer(d, eye) : images_[d].gbuffer[eye];
       main_queue(d).enqueueReadBuffer(gbuffer, CL_TRUE, first * sizeof(GBufferTexel), count * sizeof(GBufferTexel),
@@ -310,7 +313,8 @@ void StereoPipeline::capture_aovs() {
         throw std::logic_error("auxiliary images: no device of this process wrote row " + std::to_string(y));
       unsigned end = y + 1;
       while (end < height_ && owner[end] == d) ++end;
-      const std::size_t first = static_cast<std::size_t>(y) * width_, count = static_cast<std::size_t>(end - y) * width_;
+      const std::size_t first = static_cast<std::size_t>(y) * width_,
+                        count = static_cast<std::size_t>(end - y) * width_;
       main_queue(d).enqueueReadBuffer((images_[d].*image)[eye], CL_FALSE, first * texel, count * texel,
                                       static_cast<char*>(out) + first * texel);
       y = end;

@@ -50,13 +50,13 @@ struct StageSpan {
 
 struct FrameStats {
   unsigned frame = 0;
-  double wall_ms = 0.0;                 // host time from first enqueue to the owner's last command
+  double wall_ms = 0.0;  // host time from first enqueue to the owner's last command
   std::vector<StageTiming> stages;
-  std::vector<StageSpan> spans;         // every command, for timelines
-  std::size_t right_pixels = 0;         // right-eye pixels in the frame
-  std::size_t reprojected = 0;          // of those, reprojected from the left eye
-  std::size_t bytes_transferred = 0;    // child -> host -> owner, both hops counted once
-  std::size_t nonfinite_pixels = 0;     // tonemapped pixels whose radiance was NaN / infinite
+  std::vector<StageSpan> spans;       // every command, for timelines
+  std::size_t right_pixels = 0;       // right-eye pixels in the frame
+  std::size_t reprojected = 0;        // of those, reprojected from the left eye
+  std::size_t bytes_transferred = 0;  // child -> host -> owner, both hops counted once
+  std::size_t nonfinite_pixels = 0;   // tonemapped pixels whose radiance was NaN / infinite
   // Across MPI ranks (on rank 0, for every rank; empty in one process): bytes each rank sent
   // to each rank ([from][to]) and each rank's host time in MPI calls.
   std::vector<std::vector<std::uint64_t>> mpi_bytes;
@@ -116,8 +116,7 @@ class StereoPipeline {
   const FrameSchedule& schedule() const { return schedule_; }
   // The operations the next frame runs (the schedule with this frame's G-buffer margins).
   std::vector<Operation> operations() const {
-    return make_operations(schedule_, gbuffer_margin(schedule_, options_), lanes_.has_side(),
-                           fuses_gbuffer(options_));
+    return make_operations(schedule_, gbuffer_margin(schedule_, options_), lanes_.has_side(), fuses_gbuffer(options_));
   }
   // Whether path traces write the G-buffer of their rows (Options::gbuffer_from_path_tracer).
   static bool fuses_gbuffer(const Options& options) {
@@ -215,7 +214,7 @@ class StereoPipeline {
   unsigned width_, height_;
   Options options_;
   FrameSchedule schedule_;
-  std::vector<FrameImages> images_;     // per device of the frame; empty entries for other ranks
+  std::vector<FrameImages> images_;  // per device of the frame; empty entries for other ranks
   QueueLanes lanes_;
   EventLog log_;
   RowTransfer transfer_;

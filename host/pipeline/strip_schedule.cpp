@@ -127,8 +127,8 @@ bool has_movable_strips(PipelineKind pipeline) { return pipeline != PipelineKind
 
 void check_strips(const std::vector<RowRange>& strips, int devices, unsigned height) {
   if (strips.size() != static_cast<std::size_t>(devices))
-    throw std::invalid_argument("strips: " + std::to_string(strips.size()) + " strip(s) for " + std::to_string(devices) +
-                                " device(s)");
+    throw std::invalid_argument("strips: " + std::to_string(strips.size()) + " strip(s) for " +
+                                std::to_string(devices) + " device(s)");
   unsigned row = 0;
   for (std::size_t i = 0; i < strips.size(); ++i) {
     if (strips[i].begin != row || strips[i].end <= strips[i].begin || strips[i].end > height)
@@ -202,8 +202,8 @@ FrameSchedule make_schedule(PipelineKind pipeline, int devices, unsigned height,
 
 std::string FrameSchedule::explain() const {
   std::ostringstream out;
-  out << "pipeline " << to_string(pipeline) << ", " << devices << " device(s), " << height << " rows, "
-      << strips.size() << " strip(s)\n";
+  out << "pipeline " << to_string(pipeline) << ", " << devices << " device(s), " << height << " rows, " << strips.size()
+      << " strip(s)\n";
   out << "strips (rows -> device):";
   for (std::size_t i = 0; i < strips.size(); ++i)
     out << " [" << strips[i].begin << "," << strips[i].end << ")->" << strip_device[i];

@@ -29,10 +29,10 @@ enum class TransferPayload {
 
 struct StageWork {
   Stage stage;
-  std::vector<Workload> per_device;                  // indexed by device
-  std::vector<std::vector<RowRange>> left_rows;      // per device: rows of the left eye
-  std::vector<std::vector<RowRange>> right_rows;     // per device: rows of the right eye
-  TransferPayload payload = TransferPayload::None;   // Stage::Transfer only
+  std::vector<Workload> per_device;                 // indexed by device
+  std::vector<std::vector<RowRange>> left_rows;     // per device: rows of the left eye
+  std::vector<std::vector<RowRange>> right_rows;    // per device: rows of the right eye
+  TransferPayload payload = TransferPayload::None;  // Stage::Transfer only
 };
 
 // Owner at the root, every other device its child: strips travel child -> owner.
@@ -45,9 +45,9 @@ struct FrameSchedule {
   PipelineKind pipeline = PipelineKind::Proposed;
   int devices = 1;
   unsigned height = 0;
-  std::vector<RowRange> strips;       // the image-space decomposition, top to bottom
-  std::vector<int> strip_device;      // device of each strip
-  std::vector<StageWork> stages;      // in execution order
+  std::vector<RowRange> strips;   // the image-space decomposition, top to bottom
+  std::vector<int> strip_device;  // device of each strip
+  std::vector<StageWork> stages;  // in execution order
   DependencyTree tree;
 
   const StageWork* find(Stage s) const;

@@ -79,7 +79,8 @@ std::uint64_t scene_content_key(const Scene& scene) {
   static_assert(sizeof(SceneTriangle) == 100, "SceneTriangle has no padding");
   h.bytes(scene.triangles.data(), scene.triangles.size() * sizeof(SceneTriangle));
   for (const Material& m : scene.materials) {
-    const std::uint32_t flags = (m.alpha_texture >= 0 ? PX_TRI_ALPHA_TESTED : 0u) | (m.is_emissive() ? PX_TRI_EMISSIVE : 0u);
+    const std::uint32_t flags =
+        (m.alpha_texture >= 0 ? PX_TRI_ALPHA_TESTED : 0u) | (m.is_emissive() ? PX_TRI_EMISSIVE : 0u);
     h.value(flags);
   }
   return h.digest();
@@ -145,10 +146,9 @@ std::shared_ptr<const MappedDeviceLayout> DeviceLayoutCache::open(std::uint64_t 
       (h.triangle_size == sizeof(BvhTriangle) ||
        (h.triangle_size == sizeof(BvhLeafRef) && (layout == BvhLayout::Wide4 || layout == BvhLayout::Wide8))) &&
       (h.shading_size == sizeof(TriangleShading) || h.shading_size == sizeof(FlatTriangleShading)) &&
-      h.leaf_block_size == sizeof(BvhLeafBlock) &&
-      h.scene_triangles == scene_triangles && h.shading_count == scene_triangles && h.file_bytes == length &&
-      h.nodes_offset == kPage && h.node_bytes > 0 && h.triangle_count > 0 &&
-      h.triangles_offset == round_up(h.nodes_offset + h.node_bytes) &&
+      h.leaf_block_size == sizeof(BvhLeafBlock) && h.scene_triangles == scene_triangles &&
+      h.shading_count == scene_triangles && h.file_bytes == length && h.nodes_offset == kPage && h.node_bytes > 0 &&
+      h.triangle_count > 0 && h.triangles_offset == round_up(h.nodes_offset + h.node_bytes) &&
       h.triangle_count <= (length / h.triangle_size) &&
       h.shading_offset == round_up(h.triangles_offset + h.triangle_count * h.triangle_size) &&
       h.shading_offset + h.shading_count * h.shading_size == length;

@@ -103,7 +103,7 @@ struct DeviceLayoutParts {
   const void* triangles = nullptr;  // triangle_count records of triangle_size bytes
   std::size_t triangle_count = 0;
   std::size_t triangle_size = sizeof(BvhTriangle);  // or sizeof(BvhLeafRef) (Wide4, Wide8)
-  const void* shading = nullptr;  // shading_count records of shading_size bytes (scene order)
+  const void* shading = nullptr;                    // shading_count records of shading_size bytes (scene order)
   std::size_t shading_count = 0;
   std::size_t shading_size = sizeof(TriangleShading);  // or sizeof(FlatTriangleShading)
 };

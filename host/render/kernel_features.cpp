@@ -13,8 +13,9 @@ bool any_nonzero(const float (&c)[3]) { return c[0] != 0.0f || c[1] != 0.0f || c
 
 }  // namespace
 
-std::uint32_t kernel_features(const std::vector<GpuMaterial>& materials, const std::vector<std::uint32_t>& triangle_flags,
-                              const FrameParams& light_params, bool vertex_colours, bool instances) {
+std::uint32_t kernel_features(const std::vector<GpuMaterial>& materials,
+                              const std::vector<std::uint32_t>& triangle_flags, const FrameParams& light_params,
+                              bool vertex_colours, bool instances) {
   std::uint32_t f = (vertex_colours ? PX_FEATURE_VERTEX_COLOURS : 0u) | (instances ? PX_FEATURE_INSTANCES : 0u);
   for (const auto& m : materials) {
     if (m.diffuse_texture >= 0 || m.specular_texture >= 0) f |= PX_FEATURE_TEXTURES;
@@ -46,9 +47,9 @@ std::uint32_t kernel_features(const std::vector<GpuMaterial>& materials, const s
 }
 
 const std::vector<std::string>& kernel_feature_names() {
-  static const std::vector<std::string> names{"textures", "alpha-test", "dielectric", "mirror", "ggx",
-                                              "normal-map", "emissive", "two-sided", "sun", "sky", "vertex-colours",
-                                              "instances"};
+  static const std::vector<std::string> names{"textures", "alpha-test", "dielectric",     "mirror",
+                                              "ggx",      "normal-map", "emissive",       "two-sided",
+                                              "sun",      "sky",        "vertex-colours", "instances"};
   return names;
 }
 

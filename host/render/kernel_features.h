@@ -21,8 +21,9 @@ enum class KernelChoice { Scene, General };
 // The PX_FEATURE_* bits that branches in the kernels can take for this scene data
 // (`vertex_colours`: the scene has per-vertex colours, Scene::vertex_colours; `instances`: it
 // has instances, Scene::instancing).
-std::uint32_t kernel_features(const std::vector<GpuMaterial>& materials, const std::vector<std::uint32_t>& triangle_flags,
-                              const FrameParams& light_params, bool vertex_colours = false, bool instances = false);
+std::uint32_t kernel_features(const std::vector<GpuMaterial>& materials,
+                              const std::vector<std::uint32_t>& triangle_flags, const FrameParams& light_params,
+                              bool vertex_colours = false, bool instances = false);
 
 // Feature names in bit order ("textures", "alpha-test", ...), and of a mask.
 const std::vector<std::string>& kernel_feature_names();

@@ -31,9 +31,9 @@ void PathTracer::check_gbuffer_target(const Targets& out, const FrameParams& par
     throw std::logic_error("path tracer: a G-buffer target needs the frame's first sample on the G-buffer's ray");
 }
 
-cl::Event PathTracer::launch(const cl::CommandQueue& queue, const cl::Program& program,
-                             const DeviceSceneBuffers& scene, const Targets& out, const FrameParams& params,
-                             const CameraParams& camera, unsigned width) {
+cl::Event PathTracer::launch(const cl::CommandQueue& queue, const cl::Program& program, const DeviceSceneBuffers& scene,
+                             const Targets& out, const FrameParams& params, const CameraParams& camera,
+                             unsigned width) {
   cl::Kernel k(program, "path_trace");
   k.setArg(0, out.radiance);
   k.setArg(1, out.albedo);
@@ -46,9 +46,8 @@ cl::Event PathTracer::launch(const cl::CommandQueue& queue, const cl::Program& p
   return launch_1d(queue, k, static_cast<std::size_t>(params.rows) * width);
 }
 
-std::array<ImageRGB, 2> PathTracer::render_stereo(float time_s, std::uint32_t frame, unsigned width,
-                                                  unsigned height, const Options& options,
-                                                  std::uint32_t sample_offset) {
+std::array<ImageRGB, 2> PathTracer::render_stereo(float time_s, std::uint32_t frame, unsigned width, unsigned height,
+                                                  const Options& options, std::uint32_t sample_offset) {
   if (options.spp == 0) throw std::invalid_argument("spp must be at least 1");
   if (options.bounces > kMaxBounces)
     throw std::invalid_argument("bounces must be at most " + std::to_string(kMaxBounces));
@@ -115,8 +114,7 @@ std::array<ImageRGB, 2> PathTracer::render_stereo(float time_s, std::uint32_t fr
   for (auto& l : launches) {
     auto& img = images[l.eye];
     for (std::size_t i = 0; i < l.pixels.size(); ++i)
-      for (int c = 0; c < 3; ++c)
-        img.rgb[(static_cast<std::size_t>(l.row0) * width + i) * 3 + c] = l.pixels[i].s[c];
+      for (int c = 0; c < 3; ++c) img.rgb[(static_cast<std::size_t>(l.row0) * width + i) * 3 + c] = l.pixels[i].s[c];
     nonfinite_total_ += l.nonfinite;
     last_device_ms_[l.device] += event_ms(l.done);
   }

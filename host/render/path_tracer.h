@@ -27,8 +27,8 @@ class PathTracer {
     LightSampling light_sampling = LightSampling::Mis;
     std::uint32_t seed = 0;
     // A frame's sample 0 of every pixel goes through the camera's jitter point of the frame
-    // (CameraParams::jitter, px_sample_camera_dir): the G-buffer's ray, so the path tracer can write the G-buffer (Targets::gbuffer) and the
-    // denoiser's G-buffer describes the surface that sample saw. Off for references, which
+    // (CameraParams::jitter, px_sample_camera_dir): the G-buffer's ray, so the path tracer can write the G-buffer
+    // (Targets::gbuffer) and the denoiser's G-buffer describes the surface that sample saw. Off for references, which
     // integrate the whole pixel.
     bool first_sample_on_gbuffer_ray = true;
   };

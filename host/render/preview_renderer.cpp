@@ -4,8 +4,7 @@
 
 namespace px {
 
-std::array<ImageRGB, 2> PreviewRenderer::render(const Scene& scene, float time_s, unsigned width,
-                                                unsigned height) {
+std::array<ImageRGB, 2> PreviewRenderer::render(const Scene& scene, float time_s, unsigned width, unsigned height) {
   const Camera centre = evaluate_camera(scene, time_s);
   std::array<ImageRGB, 2> images;
   const int n = devices_.size();

@@ -23,8 +23,7 @@ using ReferenceProgress = std::function<void(unsigned, unsigned)>;
 
 std::array<ImageRGB, 2> render_reference(PathTracer& tracer, float time_s, std::uint32_t frame, unsigned width,
                                          unsigned height, const ReferenceOptions& options,
-                                         const ReferenceProgress& progress = {},
-                                         unsigned* spp_done = nullptr);
+                                         const ReferenceProgress& progress = {}, unsigned* spp_done = nullptr);
 
 // A progress callback printing "\r[label] done/total spp, elapsed, ~remaining" on stderr.
 ReferenceProgress eta_printer(const std::string& label);

@@ -59,8 +59,8 @@ class SceneAnimator {
   std::vector<SceneTriangle> previous_;
   std::vector<glm::mat4> previous_matrices_;  // the instances' last frame (Scene::instancing)
   std::vector<SceneTriangle> world_;          // with instances: the world's triangles posed
-  FlatBvh bvh_;              // the world tree on the devices, refitted from frame to frame
-  double built_sah_ = 0.0;   // its SAH cost when it was built
+  FlatBvh bvh_;                               // the world tree on the devices, refitted from frame to frame
+  double built_sah_ = 0.0;                    // its SAH cost when it was built
 };
 
 }  // namespace px

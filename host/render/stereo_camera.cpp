@@ -20,8 +20,8 @@ Camera evaluate_camera(const Scene& scene, float time_s) {
     cam.target = path.back().target;
     return cam;
   }
-  auto next = std::upper_bound(path.begin(), path.end(), time_s,
-                               [](float t, const CameraKey& k) { return t < k.time; });
+  auto next =
+      std::upper_bound(path.begin(), path.end(), time_s, [](float t, const CameraKey& k) { return t < k.time; });
   auto prev = next - 1;
   const float span = next->time - prev->time;
   const float a = span > 0.0f ? (time_s - prev->time) / span : 0.0f;
@@ -34,8 +34,8 @@ float camera_path_duration(const Scene& scene) {
   return scene.camera_path.empty() ? 0.0f : scene.camera_path.back().time;
 }
 
-CameraParams make_eye_camera(const Camera& centre, Eye eye, float ipd_units, unsigned width,
-                             unsigned height, std::array<float, 2> jitter) {
+CameraParams make_eye_camera(const Camera& centre, Eye eye, float ipd_units, unsigned width, unsigned height,
+                             std::array<float, 2> jitter) {
   if (!(jitter[0] >= 0.0f && jitter[0] < 1.0f && jitter[1] >= 0.0f && jitter[1] < 1.0f))
     throw std::invalid_argument("make_eye_camera: the jitter must lie in [0, 1)^2");
   const glm::vec3 forward = glm::normalize(centre.target - centre.position);

@@ -24,7 +24,7 @@ float camera_path_duration(const Scene& scene);
 // One eye's camera constants for the kernels. `ipd_units` is the eye separation in scene
 // units (Scene::ipd_units()); `jitter` the frame's position inside each pixel of the G-buffer
 // ray and the first sample (pixel_jitter.h; the centre by default).
-CameraParams make_eye_camera(const Camera& centre, Eye eye, float ipd_units, unsigned width,
-                             unsigned height, std::array<float, 2> jitter = {0.5f, 0.5f});
+CameraParams make_eye_camera(const Camera& centre, Eye eye, float ipd_units, unsigned width, unsigned height,
+                             std::array<float, 2> jitter = {0.5f, 0.5f});
 
 }  // namespace px

@@ -36,7 +36,8 @@ void WavefrontPathTracer::Scratch::reserve(const cl::Context& context, std::size
 }
 
 std::size_t WavefrontPathTracer::paths_per_launch(std::size_t slots, unsigned spp, std::size_t max_paths) {
-  const std::size_t batch = std::max<std::size_t>(1, std::min<std::size_t>(spp, max_paths / std::max<std::size_t>(slots, 1)));
+  const std::size_t batch =
+      std::max<std::size_t>(1, std::min<std::size_t>(spp, max_paths / std::max<std::size_t>(slots, 1)));
   return slots * batch;
 }
 
@@ -98,8 +99,7 @@ Commands trace_batches(const cl::Context& context, const cl::CommandQueue& queue
                        const cl::Buffer* gbuffer_hits, const FrameParams& params, const CameraParams& camera,
                        std::size_t slots, std::size_t max_paths, const Generate& generate) {
   if (params.spp == 0) throw std::invalid_argument("wavefront path tracer: spp must be at least 1");
-  if (params.max_bounces > PX_MAX_BOUNCES_LIMIT)
-    throw std::invalid_argument("wavefront path tracer: too many bounces");
+  if (params.max_bounces > PX_MAX_BOUNCES_LIMIT) throw std::invalid_argument("wavefront path tracer: too many bounces");
   const std::size_t paths = WavefrontPathTracer::paths_per_launch(slots, params.spp, max_paths);
   const unsigned batch_spp = static_cast<unsigned>(paths / std::max<std::size_t>(slots, 1));
   s.reserve(context, paths, slots);
@@ -164,8 +164,8 @@ std::vector<WavefrontPathTracer::Command> WavefrontPathTracer::trace_list(
   generate.setArg(4, holes);
   generate.setArg(5, hole_count);
   generate.setArg(7, camera);
-  return trace_batches(context, queue, program, scene, scratch, out, gbuffer_hits, params, camera, max_pixels, max_paths,
-                       [&](const FrameParams& batch, std::size_t paths) {
+  return trace_batches(context, queue, program, scene, scratch, out, gbuffer_hits, params, camera, max_pixels,
+                       max_paths, [&](const FrameParams& batch, std::size_t paths) {
                          bind_generate(generate, scratch);
                          generate.setArg(6, batch);
                          return launch_1d(queue, generate, paths);

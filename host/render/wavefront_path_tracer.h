@@ -44,16 +44,16 @@ class WavefrontPathTracer {
 
   // `params.rows` rows of `width` pixels from `params.row0`: every pixel, params.spp paths each.
   static std::vector<Command> trace_rows(const cl::Context& context, const cl::CommandQueue& queue,
-                                         const cl::Program& program, const DeviceSceneBuffers& scene,
-                                         Scratch& scratch, const PathTracer::Targets& out, const FrameParams& params,
+                                         const cl::Program& program, const DeviceSceneBuffers& scene, Scratch& scratch,
+                                         const PathTracer::Targets& out, const FrameParams& params,
                                          const CameraParams& camera, unsigned width,
                                          std::size_t max_paths = kMaxPathsPerLaunch);
   // The pixels listed in `holes` (*hole_count of them, on the device; at most `max_pixels`).
   // `gbuffer_hits`, if not null: the G-buffer pass's full-frame hits of the eye, where the
   // first samples (the G-buffer's rays) start instead of tracing their camera rays again.
   static std::vector<Command> trace_list(const cl::Context& context, const cl::CommandQueue& queue,
-                                         const cl::Program& program, const DeviceSceneBuffers& scene,
-                                         Scratch& scratch, const PathTracer::Targets& out, const cl::Buffer& holes,
+                                         const cl::Program& program, const DeviceSceneBuffers& scene, Scratch& scratch,
+                                         const PathTracer::Targets& out, const cl::Buffer& holes,
                                          const cl::Buffer& hole_count, std::size_t max_pixels,
                                          const FrameParams& params, const CameraParams& camera,
                                          const cl::Buffer* gbuffer_hits = nullptr,

@@ -6,7 +6,6 @@
 
 namespace px {
 
-
 glm::dquat slerp_shorter(const glm::dquat& a, const glm::dquat& b_in, double u) {
   glm::dquat b = b_in;
   double c = glm::dot(a, b);
@@ -16,8 +15,8 @@ glm::dquat slerp_shorter(const glm::dquat& a, const glm::dquat& b_in, double u) 
   }
   if (c > 1.0 - 1e-12) {
     // Nearly the same rotation: sin(theta) ~ 0, and the linear blend is exact to rounding.
-    return glm::normalize(glm::dquat(a.w + u * (b.w - a.w), a.x + u * (b.x - a.x), a.y + u * (b.y - a.y),
-                                     a.z + u * (b.z - a.z)));
+    return glm::normalize(
+        glm::dquat(a.w + u * (b.w - a.w), a.x + u * (b.x - a.x), a.y + u * (b.y - a.y), a.z + u * (b.z - a.z)));
   }
   const double theta = std::acos(std::min(1.0, c));
   const double s = std::sin(theta);
@@ -55,8 +54,9 @@ glm::dvec4 sample_track(const KeyframeTrack& track, double t, bool rotation) {
   switch (track.interpolation) {
     case Interpolation::Step: return finish(value(k));
     case Interpolation::Linear:
-      if (rotation) return as_vec(slerp_shorter(as_quat(normalised_rotation(value(k))),
-                                                as_quat(normalised_rotation(value(k + 1))), u));
+      if (rotation)
+        return as_vec(
+            slerp_shorter(as_quat(normalised_rotation(value(k))), as_quat(normalised_rotation(value(k + 1))), u));
       return value(k) + u * (value(k + 1) - value(k));
     case Interpolation::CubicSpline: {
       // Hermite basis (glTF 2.0, Appendix C): the out-tangent of key k and the in-tangent of
@@ -92,7 +92,8 @@ std::vector<int> select_clips(const std::vector<AnimationClip>& clips, const std
     if (i < clips.size()) return {static_cast<int>(i)};
   }
   std::string list;
-  for (std::size_t i = 0; i < clips.size(); ++i) list += (i ? ", " : "") + std::to_string(i) + " '" + clips[i].name + "'";
+  for (std::size_t i = 0; i < clips.size(); ++i)
+    list += (i ? ", " : "") + std::to_string(i) + " '" + clips[i].name + "'";
   throw std::invalid_argument("--animation " + choice + ": the scene has no such clip (" +
                               (clips.empty() ? std::string("it has no animations") : "its clips: " + list) +
                               "; or all, none)");

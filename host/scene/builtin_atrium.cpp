@@ -60,32 +60,21 @@ class Rng {
 };
 
 struct Tessellation {
-  int column_facets;     // around a column
-  int shaft_rings;       // along a column shaft
-  int moulding_steps;    // along each rounded moulding of a column
-  int arch_segments;     // along one arch
-  int soffit_strips;     // across the rounded underside of an arch
-  float foliage_scale;   // multiplies every foliage card count
+  int column_facets;    // around a column
+  int shaft_rings;      // along a column shaft
+  int moulding_steps;   // along each rounded moulding of a column
+  int arch_segments;    // along one arch
+  int soffit_strips;    // across the rounded underside of an arch
+  float foliage_scale;  // multiplies every foliage card count
 };
 
 Tessellation tessellation_for(double detail) {
   const double k = std::pow(detail, 0.75);
   auto rate = [&](double full, int min) { return std::max(min, int(std::lround(full * k))); };
-  return {rate(96, 6), rate(32, 1), rate(10, 1), rate(256, 6), rate(12, 1),
-          float(std::pow(detail, 1.5))};
+  return {rate(96, 6), rate(32, 1), rate(10, 1), rate(256, 6), rate(12, 1), float(std::pow(detail, 1.5))};
 }
 
-enum : std::uint32_t {
-  kFloor,
-  kWall,
-  kStone,
-  kPodium,
-  kTerracotta,
-  kSoil,
-  kBark,
-  kLeaves,
-  kMaterialCount
-};
+enum : std::uint32_t { kFloor, kWall, kStone, kPodium, kTerracotta, kSoil, kBark, kLeaves, kMaterialCount };
 
 std::vector<Material> atrium_materials() {
   std::vector<Material> m(kMaterialCount);
@@ -138,8 +127,8 @@ Texture make_leaf_texture(std::uint64_t seed) {
     const glm::vec2 up(0.0f, -1.0f);
     Leaf leaf;
     leaf.base = glm::mix(twig_from, twig_to, t);
-    leaf.axis = glm::vec2(up.x * std::cos(angle) - up.y * std::sin(angle),
-                          up.x * std::sin(angle) + up.y * std::cos(angle));
+    leaf.axis =
+        glm::vec2(up.x * std::cos(angle) - up.y * std::sin(angle), up.x * std::sin(angle) + up.y * std::cos(angle));
     leaf.side = glm::vec2(-leaf.axis.y, leaf.axis.x);
     leaf.length = rng.range(0.24f, 0.36f) * (1.1f - 0.4f * t);
     leaf.half_width = leaf.length * rng.range(0.16f, 0.22f);
@@ -147,8 +136,8 @@ Texture make_leaf_texture(std::uint64_t seed) {
     leaves.push_back(leaf);
   }
   // Top leaf continuing the twig.
-  leaves.push_back({twig_to + glm::vec2(0.0f, 0.02f), {0.0f, -1.0f}, {1.0f, 0.0f}, 0.2f, 0.045f,
-                    {0.07f, 0.24f, 0.04f}});
+  leaves.push_back(
+      {twig_to + glm::vec2(0.0f, 0.02f), {0.0f, -1.0f}, {1.0f, 0.0f}, 0.2f, 0.045f, {0.07f, 0.24f, 0.04f}});
 
   const glm::vec3 twig_colour(0.10f, 0.07f, 0.04f);
   for (int y = 0; y < kSize; ++y)
@@ -220,8 +209,7 @@ void append_column(std::vector<SceneTriangle>& tris, glm::vec3 foot, const Tesse
   }
   append_lathe(tris, foot + glm::vec3(0.0f, kPlinthTop, 0.0f), profile, tess.column_facets, kStone,
                LatheCaps{false, true});
-  append_box(tris, foot + glm::vec3(-kHalf, kAbacusBottom, -kHalf), foot + glm::vec3(kHalf, kAbacusTop, kHalf),
-             kStone);
+  append_box(tris, foot + glm::vec3(-kHalf, kAbacusBottom, -kHalf), foot + glm::vec3(kHalf, kAbacusTop, kHalf), kStone);
 }
 
 // One bay of the arcade between the column centres c0 and c1 (floor level): a wall of
@@ -232,8 +220,8 @@ void append_column(std::vector<SceneTriangle>& tris, glm::vec3 foot, const Tesse
 // the arch's centre; the arc is split at the rectangle's top corners so those corners are
 // vertices. Arch points are computed by one function so the faces and the soffit share them
 // exactly.
-void append_arcade_bay(std::vector<SceneTriangle>& tris, glm::vec3 c0, glm::vec3 c1, float y_spring,
-                       float y_top, float half_depth, float pier_half_width, const Tessellation& tess) {
+void append_arcade_bay(std::vector<SceneTriangle>& tris, glm::vec3 c0, glm::vec3 c1, float y_spring, float y_top,
+                       float half_depth, float pier_half_width, const Tessellation& tess) {
   const glm::vec3 along = glm::normalize(glm::vec3(c1.x - c0.x, 0.0f, c1.z - c0.z));
   const glm::vec3 across(-along.z, 0.0f, along.x);
   const float length = glm::length(glm::vec3(c1.x - c0.x, 0.0f, c1.z - c0.z));
@@ -241,7 +229,9 @@ void append_arcade_bay(std::vector<SceneTriangle>& tris, glm::vec3 c0, glm::vec3
   const float radius = half - pier_half_width;
   const float rise = y_top - y_spring;
   const float bulge = 0.05f;
-  auto at = [&](float s, float y, float depth) { return c0 + along * s + across * depth + glm::vec3(0.0f, y - c0.y, 0.0f); };
+  auto at = [&](float s, float y, float depth) {
+    return c0 + along * s + across * depth + glm::vec3(0.0f, y - c0.y, 0.0f);
+  };
 
   // Angles from the bay's c1 end (0) over the top to its c0 end (pi), with the rectangle's
   // corners at corner and pi - corner.
@@ -282,9 +272,8 @@ void append_arcade_bay(std::vector<SceneTriangle>& tris, glm::vec3 c0, glm::vec3
   const int strips = tess.soffit_strips;
   auto soffit = [&](std::size_t i, int j) {
     const float depth = -half_depth + 2.0f * half_depth * float(j) / float(strips);
-    const float r = (j == 0 || j == strips)
-                        ? radius
-                        : radius - bulge * sin_a[i] * std::sin(kPi * float(j) / float(strips));
+    const float r =
+        (j == 0 || j == strips) ? radius : radius - bulge * sin_a[i] * std::sin(kPi * float(j) / float(strips));
     return at(half + r * cos_a[i], y_spring + r * sin_a[i], depth);
   };
 
@@ -308,8 +297,8 @@ void append_arcade_bay(std::vector<SceneTriangle>& tris, glm::vec3 c0, glm::vec3
 
 // A cloud of leaf cards filling the ellipsoid (center, radii): each card a square of about
 // `card_size` with random orientation, textured with the whole leaf texture.
-void append_foliage(std::vector<SceneTriangle>& tris, Rng& rng, glm::vec3 center, glm::vec3 radii,
-                    int cards, float card_size) {
+void append_foliage(std::vector<SceneTriangle>& tris, Rng& rng, glm::vec3 center, glm::vec3 radii, int cards,
+                    float card_size) {
   for (int i = 0; i < cards; ++i) {
     const glm::vec3 p = center + radii * rng.in_unit_ball();
     const glm::vec3 normal = rng.unit_vector();
@@ -352,8 +341,7 @@ Scene make_atrium_scene(const nlohmann::json& params) {
   check_generator_params("atrium", params, {"detail", "seed"});
   const double detail = generator_number("atrium", params, "detail", 1.0, 0.01, 4.0);
   const double seed_value = generator_number("atrium", params, "seed", 1.0, 0.0, 4294967295.0);
-  if (seed_value != std::floor(seed_value))
-    throw SceneError("generator 'atrium': parameter 'seed' must be an integer");
+  if (seed_value != std::floor(seed_value)) throw SceneError("generator 'atrium': parameter 'seed' must be an integer");
   const auto seed = std::uint64_t(seed_value);
   const Tessellation tess = tessellation_for(detail);
 
@@ -366,7 +354,7 @@ Scene make_atrium_scene(const nlohmann::json& params) {
   tris.reserve(std::size_t(620000 * std::pow(detail, 1.5)) + 20000);
   Rng rng(seed);
 
-  constexpr float W = 32.0f, D = 22.0f;           // courtyard floor [0, W] x [0, D]
+  constexpr float W = 32.0f, D = 22.0f;  // courtyard floor [0, W] x [0, D]
   constexpr float kWallHeight = 9.0f, kWallThickness = 0.5f;
   constexpr float x0 = 4.0f, x1 = W - 4.0f, z0 = 4.0f, z1 = D - 4.0f;  // column rectangle
   constexpr float kSpring = 4.0f, kArcadeTop = 6.0f, kArcadeHalfDepth = 0.3f, kPierHalf = 0.4f;
@@ -408,10 +396,14 @@ Scene make_atrium_scene(const nlohmann::json& params) {
                kStone);
   // Cornice along the arcades and the portico roof out to the walls.
   constexpr float kCorniceTop = 6.4f, kCorniceHalf = 0.45f, kRoofTop = 6.25f;
-  append_box(tris, {x0 - kCorniceHalf, kArcadeTop, z0 - kCorniceHalf}, {x1 + kCorniceHalf, kCorniceTop, z0 + kCorniceHalf}, kStone);
-  append_box(tris, {x0 - kCorniceHalf, kArcadeTop, z1 - kCorniceHalf}, {x1 + kCorniceHalf, kCorniceTop, z1 + kCorniceHalf}, kStone);
-  append_box(tris, {x0 - kCorniceHalf, kArcadeTop, z0 + kCorniceHalf}, {x0 + kCorniceHalf, kCorniceTop, z1 - kCorniceHalf}, kStone);
-  append_box(tris, {x1 - kCorniceHalf, kArcadeTop, z0 + kCorniceHalf}, {x1 + kCorniceHalf, kCorniceTop, z1 - kCorniceHalf}, kStone);
+  append_box(tris, {x0 - kCorniceHalf, kArcadeTop, z0 - kCorniceHalf},
+             {x1 + kCorniceHalf, kCorniceTop, z0 + kCorniceHalf}, kStone);
+  append_box(tris, {x0 - kCorniceHalf, kArcadeTop, z1 - kCorniceHalf},
+             {x1 + kCorniceHalf, kCorniceTop, z1 + kCorniceHalf}, kStone);
+  append_box(tris, {x0 - kCorniceHalf, kArcadeTop, z0 + kCorniceHalf},
+             {x0 + kCorniceHalf, kCorniceTop, z1 - kCorniceHalf}, kStone);
+  append_box(tris, {x1 - kCorniceHalf, kArcadeTop, z0 + kCorniceHalf},
+             {x1 + kCorniceHalf, kCorniceTop, z1 - kCorniceHalf}, kStone);
   append_box(tris, {0.0f, kArcadeTop, 0.0f}, {W, kRoofTop, z0}, kWall);
   append_box(tris, {0.0f, kArcadeTop, z1}, {W, kRoofTop, D}, kWall);
   append_box(tris, {0.0f, kArcadeTop, z0}, {x0, kRoofTop, z1}, kWall);

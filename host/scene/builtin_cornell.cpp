@@ -17,16 +17,15 @@ namespace {
 
 // The quad a b c d (published vertex order) seen from the point `toward`: the room's interior
 // for walls, outside for blocks.
-void append_quad_seen_from(std::vector<SceneTriangle>& tris, glm::vec3 a, glm::vec3 b,
-                           glm::vec3 c, glm::vec3 d, glm::vec3 toward, std::uint32_t material) {
+void append_quad_seen_from(std::vector<SceneTriangle>& tris, glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 d,
+                           glm::vec3 toward, std::uint32_t material) {
   append_quad_facing(tris, a, b, c, d, toward - 0.25f * (a + b + c + d), material);
 }
 
 // A block: the published top face (four corners at height `h`) extruded down to the floor.
 // Its sides face away from the block's axis. There is no bottom: it stands on the floor, where
 // no ray can reach it.
-void append_block(std::vector<SceneTriangle>& tris, const glm::vec3 (&top)[4],
-                  std::uint32_t material) {
+void append_block(std::vector<SceneTriangle>& tris, const glm::vec3 (&top)[4], std::uint32_t material) {
   const glm::vec3 center = 0.25f * (top[0] + top[1] + top[2] + top[3]);
   const glm::vec3 above = center + glm::vec3(0.0f, 1000.0f, 0.0f);
   append_quad_seen_from(tris, top[0], top[1], top[2], top[3], above, material);
@@ -86,23 +85,22 @@ Scene make_cornell_scene(const nlohmann::json& params, bool glossy) {
   const glm::vec3 room_center(278.0f, 274.4f, 279.6f);
   // Floor, ceiling, back wall, right (green, x = 0) and left (red, x ~ 556) walls; the front
   // (z = 0) is open towards the camera.
-  append_quad_seen_from(tris, {552.8f, 0.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 559.2f},
-                     {549.6f, 0.0f, 559.2f}, room_center, kWhite);
+  append_quad_seen_from(tris, {552.8f, 0.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 559.2f}, {549.6f, 0.0f, 559.2f},
+                        room_center, kWhite);
   append_quad_seen_from(tris, {556.0f, 548.8f, 0.0f}, {556.0f, 548.8f, 559.2f}, {0.0f, 548.8f, 559.2f},
-                     {0.0f, 548.8f, 0.0f}, room_center, kWhite);
+                        {0.0f, 548.8f, 0.0f}, room_center, kWhite);
   append_quad_seen_from(tris, {549.6f, 0.0f, 559.2f}, {0.0f, 0.0f, 559.2f}, {0.0f, 548.8f, 559.2f},
-                     {556.0f, 548.8f, 559.2f}, room_center, kWhite);
-  append_quad_seen_from(tris, {0.0f, 0.0f, 559.2f}, {0.0f, 0.0f, 0.0f}, {0.0f, 548.8f, 0.0f},
-                     {0.0f, 548.8f, 559.2f}, room_center, kGreen);
+                        {556.0f, 548.8f, 559.2f}, room_center, kWhite);
+  append_quad_seen_from(tris, {0.0f, 0.0f, 559.2f}, {0.0f, 0.0f, 0.0f}, {0.0f, 548.8f, 0.0f}, {0.0f, 548.8f, 559.2f},
+                        room_center, kGreen);
   append_quad_seen_from(tris, {552.8f, 0.0f, 0.0f}, {549.6f, 0.0f, 559.2f}, {556.0f, 548.8f, 559.2f},
-                     {556.0f, 548.8f, 0.0f}, room_center, kRed);
+                        {556.0f, 548.8f, 0.0f}, room_center, kRed);
 
   // The light: published at the ceiling's height; lowered by 0.1 mm so it does not coincide
   // with the ceiling (coplanar surfaces make the nearest hit a coin toss). It emits downwards.
   const float light_y = 548.7f;
-  append_quad_seen_from(tris, {343.0f, light_y, 227.0f}, {343.0f, light_y, 332.0f},
-                     {213.0f, light_y, 332.0f}, {213.0f, light_y, 227.0f},
-                     {278.0f, 0.0f, 279.5f}, kLight);
+  append_quad_seen_from(tris, {343.0f, light_y, 227.0f}, {343.0f, light_y, 332.0f}, {213.0f, light_y, 332.0f},
+                        {213.0f, light_y, 227.0f}, {278.0f, 0.0f, 279.5f}, kLight);
 
   const glm::vec3 short_block[4] = {
       {130.0f, 165.0f, 65.0f}, {82.0f, 165.0f, 225.0f}, {240.0f, 165.0f, 272.0f}, {290.0f, 165.0f, 114.0f}};

@@ -38,8 +38,8 @@ void check_generator_params(std::string_view generator, const nlohmann::json& pa
   }
 }
 
-double generator_number(std::string_view generator, const nlohmann::json& params,
-                        std::string_view key, double fallback, double min, double max) {
+double generator_number(std::string_view generator, const nlohmann::json& params, std::string_view key, double fallback,
+                        double min, double max) {
   if (!params.is_object()) return fallback;
   const auto it = params.find(key);
   if (it == params.end()) return fallback;

@@ -25,7 +25,7 @@ void check_generator_params(std::string_view generator, const nlohmann::json& pa
 
 // Number parameter `key` (or `fallback` when absent), which must be finite and within
 // [min, max]; SceneError naming the generator and key otherwise.
-double generator_number(std::string_view generator, const nlohmann::json& params,
-                        std::string_view key, double fallback, double min, double max);
+double generator_number(std::string_view generator, const nlohmann::json& params, std::string_view key, double fallback,
+                        double min, double max);
 
 }  // namespace px

@@ -54,9 +54,12 @@ void Converter::animations() {
         read_.fail(where + " targets node " + std::to_string(c.target_node) + ", which does not exist");
       AnimationChannel ch;
       ch.node = c.target_node;
-      if (c.target_path == "translation") ch.path = TrsPath::Translation;
-      else if (c.target_path == "rotation") ch.path = TrsPath::Rotation;
-      else if (c.target_path == "scale") ch.path = TrsPath::Scale;
+      if (c.target_path == "translation")
+        ch.path = TrsPath::Translation;
+      else if (c.target_path == "rotation")
+        ch.path = TrsPath::Rotation;
+      else if (c.target_path == "scale")
+        ch.path = TrsPath::Scale;
       else {
         unsupported_.add(c.target_path == "weights" ? "morph target weights" : "animation path " + c.target_path, what);
         continue;
@@ -69,10 +72,14 @@ void Converter::animations() {
         read_.fail(where + " names sampler " + std::to_string(c.sampler) + ", which does not exist");
       const tinygltf::AnimationSampler& s = a.samplers[std::size_t(c.sampler)];
       KeyframeTrack& track = ch.track;
-      if (s.interpolation.empty() || s.interpolation == "LINEAR") track.interpolation = Interpolation::Linear;
-      else if (s.interpolation == "STEP") track.interpolation = Interpolation::Step;
-      else if (s.interpolation == "CUBICSPLINE") track.interpolation = Interpolation::CubicSpline;
-      else read_.fail(where + ": unknown interpolation '" + s.interpolation + "'");
+      if (s.interpolation.empty() || s.interpolation == "LINEAR")
+        track.interpolation = Interpolation::Linear;
+      else if (s.interpolation == "STEP")
+        track.interpolation = Interpolation::Step;
+      else if (s.interpolation == "CUBICSPLINE")
+        track.interpolation = Interpolation::CubicSpline;
+      else
+        read_.fail(where + ": unknown interpolation '" + s.interpolation + "'");
       for (const glm::vec4& t : read_.floats(s.input, {TINYGLTF_TYPE_SCALAR}, where + " input", false)) {
         if (!std::isfinite(t.x) || (!track.times.empty() && !(t.x > track.times.back())))
           read_.fail(where + ": key times must be finite and strictly increasing");
@@ -82,8 +89,8 @@ void Converter::animations() {
         track.times.push_back(t.x);
       }
       const bool rotation = ch.path == TrsPath::Rotation;
-      for (const glm::vec4& v : read_.floats(s.output, {rotation ? TINYGLTF_TYPE_VEC4 : TINYGLTF_TYPE_VEC3},
-                                             where + " output", rotation)) {
+      for (const glm::vec4& v :
+           read_.floats(s.output, {rotation ? TINYGLTF_TYPE_VEC4 : TINYGLTF_TYPE_VEC3}, where + " output", rotation)) {
         if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z) || !std::isfinite(v.w))
           read_.fail(where + ": output values must be finite");
         track.values.push_back(glm::dvec4(v));

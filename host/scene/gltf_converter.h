@@ -148,8 +148,8 @@ class Converter {
   std::vector<char> visited_;
   // Scene::vertex_colours while any primitive of the file has COLOR_0, else null.
   std::vector<std::array<glm::vec3, 3>>* colours_out();
-  int any_colours_ = 0;  // bit 0: the file has COLOR_0; bit 1: the file was looked at
-  std::shared_ptr<SceneRig> rig_;           // while loading a scene that moves or is skinned
+  int any_colours_ = 0;                         // bit 0: the file has COLOR_0; bit 1: the file was looked at
+  std::shared_ptr<SceneRig> rig_;               // while loading a scene that moves or is skinned
   std::map<int, std::vector<int>> rig_meshes_;  // glTF mesh -> its primitives in the rig
   // A static scene's meshes as the nodes place them (emitted by place_meshes), and each mesh's
   // primitives read once.

@@ -118,8 +118,9 @@ Scene load_gltf(const std::string& path, const SceneLoadOptions& options, bool* 
     scene.stats.warnings.push_back(path + ": dropped " + std::to_string(scene.stats.dropped_nonfinite) +
                                    " triangles with non-finite coordinates");
   if (scene.triangles.empty())
-    throw SceneError(path + ": no triangles (the default scene has no triangle meshes, or all were "
-                            "degenerate or non-finite)");
+    throw SceneError(path +
+                     ": no triangles (the default scene has no triangle meshes, or all were "
+                     "degenerate or non-finite)");
   if (scene.materials.empty()) {
     Material grey;
     grey.name = "default";

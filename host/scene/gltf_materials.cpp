@@ -83,8 +83,8 @@ const tinygltf::Image* Converter::texture_image(int index, int tex_coord, const 
       unsupported_.add("NEAREST magnification filter (textures are filtered bilinearly)", mat);
   }
   if (t.source < 0 || std::size_t(t.source) >= model_.images.size()) {
-    scene_.stats.warnings.push_back(path_ + ": material '" + mat + "': " + what + " texture " +
-                                    std::to_string(index) + " has no image; ignoring it");
+    scene_.stats.warnings.push_back(path_ + ": material '" + mat + "': " + what + " texture " + std::to_string(index) +
+                                    " has no image; ignoring it");
     return nullptr;
   }
   const tinygltf::Image& img = model_.images[std::size_t(t.source)];
@@ -155,7 +155,8 @@ Material Converter::material(std::size_t index) {
     Texture tex;
     if (image_pixels(*img, /*srgb=*/true, tex)) {
       glm::dvec3 sum(0.0);
-      for (std::size_t i = 0; i < tex.rgba.size(); i += 4) sum += glm::dvec3(tex.rgba[i], tex.rgba[i + 1], tex.rgba[i + 2]);
+      for (std::size_t i = 0; i < tex.rgba.size(); i += 4)
+        sum += glm::dvec3(tex.rgba[i], tex.rgba[i + 1], tex.rgba[i + 2]);
       emissive *= glm::vec3(sum / double(tex.rgba.size() / 4));
       unsupported_.add("emissiveTexture (averaged to one colour)", name);
     }

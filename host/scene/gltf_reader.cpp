@@ -108,8 +108,7 @@ std::string read_binary_file(const std::string& path) {
 void prescan_json(const std::string& text, const std::string& path) {
   DepthScan scan;
   json::sax_parse(text, &scan, json::input_format_t::json, /*strict=*/true);
-  if (scan.too_deep)
-    throw SceneError(path + ": JSON nested deeper than " + std::to_string(kMaxJsonDepth) + " levels");
+  if (scan.too_deep) throw SceneError(path + ": JSON nested deeper than " + std::to_string(kMaxJsonDepth) + " levels");
   if (!scan.error.empty()) {
     std::string what = scan.error;
     if (const std::size_t close = what.find("] "); what.rfind("[json.", 0) == 0 && close != std::string::npos)
@@ -201,10 +200,9 @@ std::vector<glm::dmat4> Reader::matrices(int index, const std::string& what) con
 
 std::vector<std::uint32_t> Reader::indices(int index, const std::string& what) const {
   const tinygltf::Accessor& a = accessor(index, what);
-  if (a.type != TINYGLTF_TYPE_SCALAR ||
-      (a.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
-       a.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
-       a.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT))
+  if (a.type != TINYGLTF_TYPE_SCALAR || (a.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
+                                         a.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+                                         a.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT))
     fail(what + " (accessor " + std::to_string(index) + ") must be unsigned integer scalars");
   std::vector<std::uint32_t> out(a.count, 0);
   for_each_element(a, index, what, [&](std::size_t i, const unsigned char* p) {
@@ -296,8 +294,7 @@ void Reader::for_each_element(const tinygltf::Accessor& a, int index, const std:
   if (view.byteOffset > data.size() || view_end > data.size())
     fail(name + ": its buffer view reaches past the end of buffer " + std::to_string(view.buffer) + " (" +
          std::to_string(data.size()) + " bytes loaded)");
-  if (a.byteOffset > view.byteLength ||
-      std::uint64_t(a.byteOffset) + (a.count - 1) * stride + elem > view.byteLength)
+  if (a.byteOffset > view.byteLength || std::uint64_t(a.byteOffset) + (a.count - 1) * stride + elem > view.byteLength)
     fail(name + ": " + std::to_string(a.count) + " elements from byte " + std::to_string(a.byteOffset) +
          " reach past the end of its buffer view (" + std::to_string(view.byteLength) + " bytes)");
   const unsigned char* base = data.data() + view.byteOffset + a.byteOffset;

@@ -75,10 +75,14 @@ RigNode Converter::node_transform(const tinygltf::Node& n, const std::string& wh
     return out;
   }
   if (!n.matrix.empty()) read_.fail(where + ": matrix must have 16 numbers");
-  if (n.translation.size() == 3) out.translation = glm::dvec3(n.translation[0], n.translation[1], n.translation[2]);
-  else if (!n.translation.empty()) read_.fail(where + ": translation must have 3 numbers");
-  if (n.scale.size() == 3) out.scale = glm::dvec3(n.scale[0], n.scale[1], n.scale[2]);
-  else if (!n.scale.empty()) read_.fail(where + ": scale must have 3 numbers");
+  if (n.translation.size() == 3)
+    out.translation = glm::dvec3(n.translation[0], n.translation[1], n.translation[2]);
+  else if (!n.translation.empty())
+    read_.fail(where + ": translation must have 3 numbers");
+  if (n.scale.size() == 3)
+    out.scale = glm::dvec3(n.scale[0], n.scale[1], n.scale[2]);
+  else if (!n.scale.empty())
+    read_.fail(where + ": scale must have 3 numbers");
   if (n.rotation.size() == 4) {
     glm::dquat r(n.rotation[3], n.rotation[0], n.rotation[1], n.rotation[2]);  // glTF stores x, y, z, w
     const double len = glm::length(r);
@@ -170,7 +174,8 @@ void Converter::light(int index, const glm::dmat4& world, const std::string& whe
     return;
   }
   glm::vec3 colour(1.0f);
-  for (std::size_t c = 0; c < 3 && c < l.color.size(); ++c) colour[int(c)] = finite_clamped(l.color[c], 0.0f, 1.0f, 1.0f);
+  for (std::size_t c = 0; c < 3 && c < l.color.size(); ++c)
+    colour[int(c)] = finite_clamped(l.color[c], 0.0f, 1.0f, 1.0f);
   const float lux = std::isfinite(l.intensity) && l.intensity > 0.0 ? float(std::min(l.intensity, 1e9)) : 0.0f;
   Sun& sun = scene_.sun;
   sun.enabled = lux > 0.0f;
@@ -238,8 +243,7 @@ void Converter::place_meshes() {
   std::map<int, bool> instanced;
   for (const auto& [mesh, n] : uses) {
     bool ok = instancing && n >= 2;
-    for (const RigPrimitive& prim : mesh_primitives(mesh))
-      ok &= !scene_.materials.at(prim.material).is_emissive();
+    for (const RigPrimitive& prim : mesh_primitives(mesh)) ok &= !scene_.materials.at(prim.material).is_emissive();
     instanced[mesh] = ok;
   }
   std::vector<std::array<glm::vec3, 3>>* colours = colours_out();
@@ -285,7 +289,7 @@ void Converter::place_meshes() {
         emit_primitive(prim, glm::dmat4(1.0), nullptr, nullptr, nullptr, scene_.triangles, scene_.stats, colours);
       m.count = scene_.triangles.size() - m.first;
       static_meshes_.erase(pl.mesh);  // stored: its primitives are no longer needed
-      if (m.count == 0) {  // nothing drawable: no instances either
+      if (m.count == 0) {             // nothing drawable: no instances either
         slot->second = std::numeric_limits<std::uint32_t>::max();
       } else {
         in.meshes.push_back(m);
@@ -314,7 +318,8 @@ std::optional<RigPrimitive> Converter::primitive(int index, std::size_t pi) {
   const auto pos_it = prim.attributes.find("POSITION");
   if (pos_it == prim.attributes.end()) read_.fail(what + " has no POSITION attribute");
   {
-    const std::vector<glm::vec4> positions = read_.floats(pos_it->second, {TINYGLTF_TYPE_VEC3}, what + " POSITION", false);
+    const std::vector<glm::vec4> positions =
+        read_.floats(pos_it->second, {TINYGLTF_TYPE_VEC3}, what + " POSITION", false);
     out.positions.resize(positions.size());
     for (std::size_t v = 0; v < positions.size(); ++v) out.positions[v] = glm::vec3(positions[v]);
   }
@@ -340,8 +345,10 @@ std::optional<RigPrimitive> Converter::primitive(int index, std::size_t pi) {
   }
   for (const auto& [attr, acc] : prim.attributes)
     if (attr.rfind("JOINTS_", 0) == 0 || attr.rfind("WEIGHTS_", 0) == 0) {
-      if (attr != "JOINTS_0" && attr != "WEIGHTS_0") unsupported_.add("more than four joints per vertex", what);
-      else if (!rig_) unsupported_.add("skins", what);
+      if (attr != "JOINTS_0" && attr != "WEIGHTS_0")
+        unsupported_.add("more than four joints per vertex", what);
+      else if (!rig_)
+        unsupported_.add("skins", what);
     } else if (attr.rfind("COLOR_", 0) == 0 && attr != "COLOR_0") {
       unsupported_.add("vertex colour sets other than COLOR_0", what);
     }
@@ -361,8 +368,8 @@ std::optional<RigPrimitive> Converter::primitive(int index, std::size_t pi) {
     idx = read_.indices(prim.indices, what + " indices");
     for (std::size_t i = 0; i < idx.size(); ++i)
       if (idx[i] >= nv)
-        read_.fail(what + ": index " + std::to_string(idx[i]) + " (at " + std::to_string(i) +
-                   ") is out of range (" + std::to_string(nv) + " vertices)");
+        read_.fail(what + ": index " + std::to_string(idx[i]) + " (at " + std::to_string(i) + ") is out of range (" +
+                   std::to_string(nv) + " vertices)");
   } else {
     idx.resize(nv);
     for (std::size_t i = 0; i < idx.size(); ++i) idx[i] = std::uint32_t(i);

@@ -36,9 +36,11 @@ void flatten_instances(Scene& scene) {
   }
   check_instancing(scene);
   const bool colours = !scene.vertex_colours.empty();
-  std::vector<SceneTriangle> tris(scene.triangles.begin(), scene.triangles.begin() + std::ptrdiff_t(in.world_triangles));
+  std::vector<SceneTriangle> tris(scene.triangles.begin(),
+                                  scene.triangles.begin() + std::ptrdiff_t(in.world_triangles));
   std::vector<std::array<glm::vec3, 3>> cols;
-  if (colours) cols.assign(scene.vertex_colours.begin(), scene.vertex_colours.begin() + std::ptrdiff_t(in.world_triangles));
+  if (colours)
+    cols.assign(scene.vertex_colours.begin(), scene.vertex_colours.begin() + std::ptrdiff_t(in.world_triangles));
   tris.reserve(drawn_triangle_count(scene));
   for (const MeshInstance& inst : in.instances) {
     const InstancedMesh& m = in.meshes[inst.mesh];

@@ -52,19 +52,16 @@ std::vector<MtlStatements> scan_mtl_statements(std::string_view text) {
   return out;
 }
 
-bool is_meaningless_in_path_tracer(const std::string& keyword) {
-  return keyword == "Ka" || keyword == "map_Ka";
-}
+bool is_meaningless_in_path_tracer(const std::string& keyword) { return keyword == "Ka" || keyword == "map_Ka"; }
 
 bool is_modelled_mtl_keyword(const std::string& keyword) {
-  static const std::set<std::string> kModelled = {
-      "newmtl", "Kd",     "Ks",   "Ke",       "Ns",       "Ni",   "d",    "Tr",  "Tf",
-      "illum",  "map_Kd", "map_Ks", "map_d",  "norm",     "bump", "map_bump", "map_Bump"};
+  static const std::set<std::string> kModelled = {"newmtl", "Kd",   "Ks",   "Ke",       "Ns",      "Ni",
+                                                  "d",      "Tr",   "Tf",   "illum",    "map_Kd",  "map_Ks",
+                                                  "map_d",  "norm", "bump", "map_bump", "map_Bump"};
   return kModelled.count(keyword) > 0;
 }
 
-void IgnoredMtlFeatures::add(const std::string& library, const std::string& feature,
-                             const std::string& material) {
+void IgnoredMtlFeatures::add(const std::string& library, const std::string& feature, const std::string& material) {
   auto [it, inserted] = features_.try_emplace(library);
   if (inserted) order_.push_back(library);
   auto& list = it->second;
@@ -73,8 +70,7 @@ void IgnoredMtlFeatures::add(const std::string& library, const std::string& feat
     list.push_back({feature, {}});
     f = list.end() - 1;
   }
-  if (std::find(f->second.begin(), f->second.end(), material) == f->second.end())
-    f->second.push_back(material);
+  if (std::find(f->second.begin(), f->second.end(), material) == f->second.end()) f->second.push_back(material);
 }
 
 std::vector<std::string> IgnoredMtlFeatures::warning_lines() const {

@@ -16,7 +16,7 @@
 namespace px {
 
 struct MtlStatements {
-  std::string material;          // name as tinyobjloader reads it (the rest of the newmtl line)
+  std::string material;            // name as tinyobjloader reads it (the rest of the newmtl line)
   std::set<std::string> keywords;  // first token of each statement line, as written
   bool has(const std::string& kw) const { return keywords.count(kw) > 0; }
 };

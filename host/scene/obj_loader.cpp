@@ -32,11 +32,11 @@
 namespace px {
 
 namespace fs = std::filesystem;
+using obj::make_material;
 using obj::MtlLibraryReader;
 using obj::ObjPrescan;
-using obj::TextureCache;
-using obj::make_material;
 using obj::prescan_obj;
+using obj::TextureCache;
 
 namespace {
 
@@ -168,9 +168,9 @@ Scene load_obj(const std::string& path) {
   std::string warn, err;
   MtlLibraryReader mtl_reader(obj_dir, path, scene.stats.warnings);
   std::istringstream stream(text);
-  const bool parsed = tinyobj::LoadObj(&attrib, &shapes, &mtl_materials, &warn, &err, &stream,
-                                       &mtl_reader, /*triangulate=*/false,
-                                       /*default_vcols_fallback=*/false);
+  const bool parsed =
+      tinyobj::LoadObj(&attrib, &shapes, &mtl_materials, &warn, &err, &stream, &mtl_reader, /*triangulate=*/false,
+                       /*default_vcols_fallback=*/false);
   if (!parsed) {
     std::string first = err.substr(0, err.find('\n'));
     throw SceneError(path + ": cannot parse OBJ: " + (first.empty() ? "unknown error" : first));
@@ -184,14 +184,12 @@ Scene load_obj(const std::string& path) {
     std::string lines;
     for (std::size_t l : scan.bad_vertex_lines) lines += (lines.empty() ? "" : ", ") + std::to_string(l);
     scene.stats.warnings.push_back(path + ": " + std::to_string(scan.bad_vertices) +
-                                   " vertices with NaN, infinite or unreadable coordinates (line " +
-                                   lines + (scan.bad_vertices > 3 ? ", ..." : "") +
-                                   "); triangles using them are dropped");
+                                   " vertices with NaN, infinite or unreadable coordinates (line " + lines +
+                                   (scan.bad_vertices > 3 ? ", ..." : "") + "); triangles using them are dropped");
   }
   if (scan.short_faces > 0) {
     scene.stats.warnings.push_back(path + ":" + std::to_string(scan.first_short_face_line) + ": " +
-                                   std::to_string(scan.short_faces) +
-                                   " faces with fewer than 3 vertices dropped");
+                                   std::to_string(scan.short_faces) + " faces with fewer than 3 vertices dropped");
     scene.stats.dropped_degenerate += scan.short_faces;
   }
 
@@ -229,8 +227,7 @@ Scene load_obj(const std::string& path) {
     std::size_t offset = 0;
     for (std::size_t f = 0; f < mesh.num_face_vertices.size(); ++f) {
       const std::size_t count = mesh.num_face_vertices[f];
-      if (offset + count > mesh.indices.size())
-        throw SceneError(path + ": internal error: face index list truncated");
+      if (offset + count > mesh.indices.size()) throw SceneError(path + ": internal error: face index list truncated");
       const tinyobj::index_t* idx = &mesh.indices[offset];
       offset += count;
       // The pre-scan guarantees valid indices; checked again so no input can read out of bounds.

@@ -122,10 +122,8 @@ Material convert_material(const tinyobj::material_t& m, const MtlStatements& st)
   // Albedo above 1 would create energy; emission is radiance and unbounded. A colour map
   // without its colour statement is the texture's own colour (what OBJ viewers show): only an
   // explicit Kd / Ks scales it.
-  out.diffuse = st.has("Kd") ? sane_colour(m.diffuse, 1.0f)
-                : st.has("map_Kd") ? glm::vec3(1.0f) : glm::vec3(0.0f);
-  out.specular = st.has("Ks") ? sane_colour(m.specular, 1.0f)
-                 : st.has("map_Ks") ? glm::vec3(1.0f) : glm::vec3(0.0f);
+  out.diffuse = st.has("Kd") ? sane_colour(m.diffuse, 1.0f) : st.has("map_Kd") ? glm::vec3(1.0f) : glm::vec3(0.0f);
+  out.specular = st.has("Ks") ? sane_colour(m.specular, 1.0f) : st.has("map_Ks") ? glm::vec3(1.0f) : glm::vec3(0.0f);
   out.emission = sane_colour(m.emission, std::numeric_limits<float>::max());
   // Phong exponent -> GGX alpha with the usual Beckmann-equivalent match (Walter et al. 2007).
   const float ns = std::isfinite(m.shininess) ? std::max(m.shininess, 0.0f) : 0.0f;
@@ -158,8 +156,7 @@ bool has_unapplied_texture_options(const tinyobj::texture_option_t& o) {
 }  // namespace
 
 bool MtlLibraryReader::operator()(const std::string& name, std::vector<tinyobj::material_t>* materials,
-                                  std::map<std::string, int>* material_map, std::string* warn,
-                                  std::string* err) {
+                                  std::map<std::string, int>* material_map, std::string* warn, std::string* err) {
   for (const fs::path& candidate : candidate_paths({obj_dir_}, name)) {
     if (!is_file(candidate)) continue;
     std::ifstream file(candidate, std::ios::binary);
@@ -192,8 +189,7 @@ bool MtlLibraryReader::operator()(const std::string& name, std::vector<tinyobj::
 }
 
 int TextureCache::get(const std::string& name, const std::vector<fs::path>& dirs, TextureUse use,
-                      const std::string& what, const std::string& material,
-                      bool (*accept)(const Texture&)) {
+                      const std::string& what, const std::string& material, bool (*accept)(const Texture&)) {
   if (name.empty()) return -1;
   fs::path found;
   for (const fs::path& c : candidate_paths(dirs, name))
@@ -202,20 +198,18 @@ int TextureCache::get(const std::string& name, const std::vector<fs::path>& dirs
       break;
     }
   if (found.empty()) {
-    scene_.stats.warnings.push_back(obj_path_ + ": material '" + material + "': " + what +
-                                    " texture '" + name + "' not found; ignoring it");
+    scene_.stats.warnings.push_back(obj_path_ + ": material '" + material + "': " + what + " texture '" + name +
+                                    "' not found; ignoring it");
     return -1;
   }
-  const std::string key = std::to_string(int(use)) + (accept ? "?" : "") + "|" +
-                          found.lexically_normal().string();
+  const std::string key = std::to_string(int(use)) + (accept ? "?" : "") + "|" + found.lexically_normal().string();
   if (auto it = index_.find(key); it != index_.end()) return it->second;
   Texture tex;
   tex.path = found.string();
   const std::string error = read_texture(found, use, tex);
   if (!error.empty()) {
-    scene_.stats.warnings.push_back(obj_path_ + ": material '" + material + "': cannot read " +
-                                    what + " texture '" + found.string() + "' (" + error +
-                                    "); ignoring it");
+    scene_.stats.warnings.push_back(obj_path_ + ": material '" + material + "': cannot read " + what + " texture '" +
+                                    found.string() + "' (" + error + "); ignoring it");
     index_[key] = -1;
     return -1;
   }
@@ -225,8 +219,8 @@ int TextureCache::get(const std::string& name, const std::vector<fs::path>& dirs
 }
 
 // One MTL material with its textures; what it asks for but is not rendered goes to `ignored`.
-Material make_material(const tinyobj::material_t& m, const MtlLibraryReader::Origin& origin,
-                       const fs::path& obj_dir, TextureCache& textures, IgnoredMtlFeatures& ignored) {
+Material make_material(const tinyobj::material_t& m, const MtlLibraryReader::Origin& origin, const fs::path& obj_dir,
+                       TextureCache& textures, IgnoredMtlFeatures& ignored) {
   const MtlStatements& st = origin.statements;
   Material mat = convert_material(m, st);
   const std::vector<fs::path> dirs = {origin.directory, obj_dir};
@@ -259,8 +253,7 @@ Material make_material(const tinyobj::material_t& m, const MtlLibraryReader::Ori
       break;
     }
   for (const std::string& kw : st.keywords)
-    if (!is_modelled_mtl_keyword(kw) && !is_meaningless_in_path_tracer(kw))
-      ignored.add(origin.library, kw, m.name);
+    if (!is_modelled_mtl_keyword(kw) && !is_meaningless_in_path_tracer(kw)) ignored.add(origin.library, kw, m.name);
   return mat;
 }
 

@@ -29,8 +29,7 @@ class MtlLibraryReader : public tinyobj::MaterialReader {
       : obj_dir_(std::move(obj_dir)), obj_path_(std::move(obj_path)), warnings_(warnings) {}
 
   bool operator()(const std::string& name, std::vector<tinyobj::material_t>* materials,
-                  std::map<std::string, int>* material_map, std::string* warn,
-                  std::string* err) override;
+                  std::map<std::string, int>* material_map, std::string* warn, std::string* err) override;
 
   // Where material `i` came from: the directory its textures are relative to, its library
   // file and the statements it wrote.
@@ -39,9 +38,7 @@ class MtlLibraryReader : public tinyobj::MaterialReader {
     std::string library;
     MtlStatements statements;
   };
-  Origin origin_of(std::size_t i) const {
-    return i < origins_.size() ? origins_[i] : Origin{obj_dir_, obj_path_, {}};
-  }
+  Origin origin_of(std::size_t i) const { return i < origins_.size() ? origins_[i] : Origin{obj_dir_, obj_path_, {}}; }
 
  private:
   fs::path obj_dir_;
@@ -67,9 +64,8 @@ class TextureCache {
   // `what` (map_Kd, norm...) names the texture in warnings. `accept`, when given, decides from
   // the pixels whether the image is what the statement needs; a rejected image is not kept (a
   // bump height map would otherwise be uploaded for nothing).
-  int get(const std::string& name, const std::vector<fs::path>& dirs, TextureUse use,
-          const std::string& what, const std::string& material,
-          bool (*accept)(const Texture&) = nullptr);
+  int get(const std::string& name, const std::vector<fs::path>& dirs, TextureUse use, const std::string& what,
+          const std::string& material, bool (*accept)(const Texture&) = nullptr);
 
  private:
   Scene& scene_;
@@ -78,7 +74,7 @@ class TextureCache {
 };
 
 // One MTL material with its textures; what it asks for but is not rendered goes to `ignored`.
-Material make_material(const tinyobj::material_t& m, const MtlLibraryReader::Origin& origin,
-                       const fs::path& obj_dir, TextureCache& textures, IgnoredMtlFeatures& ignored);
+Material make_material(const tinyobj::material_t& m, const MtlLibraryReader::Origin& origin, const fs::path& obj_dir,
+                       TextureCache& textures, IgnoredMtlFeatures& ignored);
 
 }  // namespace px::obj

@@ -20,7 +20,6 @@ namespace {
 // Line splitting with tinyobjloader's rules: "\n", "\r\n" and a lone "\r" end a
 // line; a NUL ends its content (tinyobjloader parses through c_str()).
 
-
 template <typename F>
 void for_each_line(std::string_view text, F&& visit) {
   std::size_t line_no = 0, pos = 0;
@@ -88,8 +87,8 @@ bool parse_index(std::string_view tok, long long& out) {
   if (!tok.empty() && tok.front() == '+') tok.remove_prefix(1);
   if (tok.empty()) return false;
   const auto r = std::from_chars(tok.data(), tok.data() + tok.size(), out);
-  return r.ec == std::errc() && r.ptr == tok.data() + tok.size() &&
-         out >= std::numeric_limits<int>::min() && out <= std::numeric_limits<int>::max();
+  return r.ec == std::errc() && r.ptr == tok.data() + tok.size() && out >= std::numeric_limits<int>::min() &&
+         out <= std::numeric_limits<int>::max();
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -131,9 +130,18 @@ ObjPrescan prescan_obj(std::string_view text, const std::string& path) {
       scan.positions.push_back(p);
       return;
     }
-    if (has_keyword(line, "vt")) { ++nvt; return; }
-    if (has_keyword(line, "vn")) { ++nvn; return; }
-    if (line.substr(0, 6) == "usemtl") { scan.uses_materials = true; return; }
+    if (has_keyword(line, "vt")) {
+      ++nvt;
+      return;
+    }
+    if (has_keyword(line, "vn")) {
+      ++nvn;
+      return;
+    }
+    if (line.substr(0, 6) == "usemtl") {
+      scan.uses_materials = true;
+      return;
+    }
     const bool face = has_keyword(line, "f");
     if (!face && !has_keyword(line, "l") && !has_keyword(line, "p")) return;
     (face ? scan.face_lines : line.front() == 'l' ? scan.line_lines : scan.point_lines)++;
@@ -148,7 +156,10 @@ ObjPrescan prescan_obj(std::string_view text, const std::string& path) {
       bool malformed = false;
       while (true) {
         const std::size_t slash = corner.find('/', start);
-        if (nfields == 3) { malformed = true; break; }
+        if (nfields == 3) {
+          malformed = true;
+          break;
+        }
         fields[nfields++] = corner.substr(start, slash == std::string_view::npos ? slash : slash - start);
         if (slash == std::string_view::npos) break;
         start = slash + 1;
@@ -161,15 +172,14 @@ ObjPrescan prescan_obj(std::string_view text, const std::string& path) {
         if (fields[f].empty()) continue;
         long long idx = 0;
         if (!parse_index(fields[f], idx))
-          fail_at(path, line_no, "invalid " + std::string(kind_name[f]) + " index '" +
-                                     std::string(fields[f]) + "'");
+          fail_at(path, line_no, "invalid " + std::string(kind_name[f]) + " index '" + std::string(fields[f]) + "'");
         if (idx == 0)
           fail_at(path, line_no, std::string(kind_name[f]) + " index 0 is invalid (OBJ indices start at 1)");
         if (idx < 0 && -idx > static_cast<long long>(counts[f])) {
           if (f == 0)
-            fail_at(path, line_no, "relative vertex index " + std::to_string(idx) +
-                                       " is out of range (only " + std::to_string(counts[f]) +
-                                       " defined so far)");
+            fail_at(path, line_no,
+                    "relative vertex index " + std::to_string(idx) + " is out of range (only " +
+                        std::to_string(counts[f]) + " defined so far)");
           note_missing_attribute(f, line_no);
         }
         if (idx > static_cast<long long>(counts[f])) forward[f].emplace_back(line_no, idx);
@@ -185,9 +195,9 @@ ObjPrescan prescan_obj(std::string_view text, const std::string& path) {
     for (const auto& [line_no, idx] : forward[f]) {
       if (idx <= static_cast<long long>(final_counts[f])) continue;
       if (f == 0)
-        fail_at(path, line_no, "vertex index " + std::to_string(idx) +
-                                   " is out of range (the file defines " +
-                                   std::to_string(final_counts[0]) + ")");
+        fail_at(path, line_no,
+                "vertex index " + std::to_string(idx) + " is out of range (the file defines " +
+                    std::to_string(final_counts[0]) + ")");
       note_missing_attribute(f, line_no);
       break;
     }

@@ -13,10 +13,10 @@
 namespace px::obj {
 
 struct ObjPrescan {
-  std::vector<glm::vec3> positions;     // one per "v" line, NaN where unusable
+  std::vector<glm::vec3> positions;           // one per "v" line, NaN where unusable
   std::vector<std::size_t> bad_vertex_lines;  // first few lines with unusable coordinates
   std::size_t bad_vertices = 0;
-  std::size_t short_faces = 0;          // faces with fewer than 3 corners
+  std::size_t short_faces = 0;  // faces with fewer than 3 corners
   std::size_t first_short_face_line = 0;
   std::size_t face_lines = 0, line_lines = 0, point_lines = 0;
   bool uses_materials = false;

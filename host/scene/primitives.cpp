@@ -19,9 +19,8 @@ glm::dvec3 double_cross(const SceneTriangle& tri) {
 
 // Appends a triangle with the given per-vertex normals; silently skips a zero-area one so that
 // callers with degenerate input (a quad with a repeated corner) never emit it.
-void emit(std::vector<SceneTriangle>& tris, glm::vec3 p0, glm::vec3 p1, glm::vec3 p2,
-          glm::vec3 n0, glm::vec3 n1, glm::vec3 n2, glm::vec2 t0, glm::vec2 t1, glm::vec2 t2,
-          std::uint32_t material) {
+void emit(std::vector<SceneTriangle>& tris, glm::vec3 p0, glm::vec3 p1, glm::vec3 p2, glm::vec3 n0, glm::vec3 n1,
+          glm::vec3 n2, glm::vec2 t0, glm::vec2 t1, glm::vec2 t2, std::uint32_t material) {
   SceneTriangle tri;
   tri.p[0] = p0;
   tri.p[1] = p1;
@@ -62,28 +61,24 @@ bool is_degenerate(const SceneTriangle& tri) {
   return c.x == 0.0 && c.y == 0.0 && c.z == 0.0;
 }
 
-void append_triangle(std::vector<SceneTriangle>& tris, glm::vec3 p0, glm::vec3 p1,
-                     glm::vec3 p2, std::uint32_t material) {
-  const glm::vec3 n = safe_normalize(glm::cross(to_double(p1) - to_double(p0),
-                                                to_double(p2) - to_double(p0)));
+void append_triangle(std::vector<SceneTriangle>& tris, glm::vec3 p0, glm::vec3 p1, glm::vec3 p2,
+                     std::uint32_t material) {
+  const glm::vec3 n = safe_normalize(glm::cross(to_double(p1) - to_double(p0), to_double(p2) - to_double(p0)));
   emit(tris, p0, p1, p2, n, n, n, {0, 0}, {1, 0}, {0, 1}, material);
 }
 
-void append_quad(std::vector<SceneTriangle>& tris, glm::vec3 p0, glm::vec3 p1, glm::vec3 p2,
-                 glm::vec3 p3, std::uint32_t material, const QuadUv& uv) {
+void append_quad(std::vector<SceneTriangle>& tris, glm::vec3 p0, glm::vec3 p1, glm::vec3 p2, glm::vec3 p3,
+                 std::uint32_t material, const QuadUv& uv) {
   // The cross product of the diagonals is the quad's area normal even when one of its two
   // triangles is degenerate, so both halves shade alike.
-  const glm::vec3 n = safe_normalize(
-      glm::cross(to_double(p2) - to_double(p0), to_double(p3) - to_double(p1)));
+  const glm::vec3 n = safe_normalize(glm::cross(to_double(p2) - to_double(p0), to_double(p3) - to_double(p1)));
   emit(tris, p0, p1, p2, n, n, n, uv[0], uv[1], uv[2], material);
   emit(tris, p0, p2, p3, n, n, n, uv[0], uv[2], uv[3], material);
 }
 
-void append_quad_facing(std::vector<SceneTriangle>& tris, glm::vec3 p0, glm::vec3 p1,
-                        glm::vec3 p2, glm::vec3 p3, glm::vec3 facing, std::uint32_t material,
-                        const QuadUv& uv) {
-  const glm::dvec3 area_normal =
-      glm::cross(to_double(p2) - to_double(p0), to_double(p3) - to_double(p1));
+void append_quad_facing(std::vector<SceneTriangle>& tris, glm::vec3 p0, glm::vec3 p1, glm::vec3 p2, glm::vec3 p3,
+                        glm::vec3 facing, std::uint32_t material, const QuadUv& uv) {
+  const glm::dvec3 area_normal = glm::cross(to_double(p2) - to_double(p0), to_double(p3) - to_double(p1));
   if (glm::dot(area_normal, glm::dvec3(facing)) >= 0.0)
     append_quad(tris, p0, p1, p2, p3, material, uv);
   else
@@ -103,8 +98,8 @@ constexpr int kBoxFaces[6][4] = {
     {4, 5, 7, 6},  // +z
 };
 
-void append_box_corners(std::vector<SceneTriangle>& tris, const glm::vec3 (&c)[8],
-                        bool mirrored, std::uint32_t material) {
+void append_box_corners(std::vector<SceneTriangle>& tris, const glm::vec3 (&c)[8], bool mirrored,
+                        std::uint32_t material) {
   for (const auto& f : kBoxFaces) {
     if (mirrored)
       append_quad(tris, c[f[0]], c[f[3]], c[f[2]], c[f[1]], material);
@@ -115,20 +110,18 @@ void append_box_corners(std::vector<SceneTriangle>& tris, const glm::vec3 (&c)[8
 
 }  // namespace
 
-void append_box(std::vector<SceneTriangle>& tris, glm::vec3 min, glm::vec3 max,
-                std::uint32_t material) {
+void append_box(std::vector<SceneTriangle>& tris, glm::vec3 min, glm::vec3 max, std::uint32_t material) {
   glm::vec3 c[8];
   for (int i = 0; i < 8; ++i)
     c[i] = glm::vec3((i & 1) ? max.x : min.x, (i & 2) ? max.y : min.y, (i & 4) ? max.z : min.z);
   append_box_corners(tris, c, false, material);
 }
 
-void append_oriented_box(std::vector<SceneTriangle>& tris, glm::vec3 min, glm::vec3 max,
-                         const glm::mat4& transform, std::uint32_t material) {
+void append_oriented_box(std::vector<SceneTriangle>& tris, glm::vec3 min, glm::vec3 max, const glm::mat4& transform,
+                         std::uint32_t material) {
   glm::vec3 c[8];
   for (int i = 0; i < 8; ++i) {
-    const glm::vec4 local((i & 1) ? max.x : min.x, (i & 2) ? max.y : min.y,
-                          (i & 4) ? max.z : min.z, 1.0f);
+    const glm::vec4 local((i & 1) ? max.x : min.x, (i & 2) ? max.y : min.y, (i & 4) ? max.z : min.z, 1.0f);
     c[i] = glm::vec3(transform * local);
   }
   // A mirroring transform turns counter-clockwise into clockwise; reverse to stay outward.
@@ -163,8 +156,8 @@ void append_slivers(std::vector<SceneTriangle>& tris, std::size_t n, unsigned se
   }
 }
 
-void append_icosphere(std::vector<SceneTriangle>& tris, glm::vec3 center, float radius,
-                      int subdivisions, std::uint32_t material) {
+void append_icosphere(std::vector<SceneTriangle>& tris, glm::vec3 center, float radius, int subdivisions,
+                      std::uint32_t material) {
   subdivisions = std::clamp(subdivisions, 0, 10);
   // Icosahedron: cyclic permutations of (0, +-1, +-phi). Its faces are the vertex triples that
   // are pairwise at edge length 2; finding them by distance avoids a hand-written face table.
@@ -222,13 +215,12 @@ void append_icosphere(std::vector<SceneTriangle>& tris, glm::vec3 center, float 
   }
   tris.reserve(tris.size() + faces.size());
   for (const glm::ivec3& f : faces)
-    emit(tris, positions[f.x], positions[f.y], positions[f.z], normals[f.x], normals[f.y],
-         normals[f.z], uvs[f.x], uvs[f.y], uvs[f.z], material);
+    emit(tris, positions[f.x], positions[f.y], positions[f.z], normals[f.x], normals[f.y], normals[f.z], uvs[f.x],
+         uvs[f.y], uvs[f.z], material);
 }
 
-void append_lathe(std::vector<SceneTriangle>& tris, glm::vec3 base,
-                  std::span<const glm::vec2> profile, int segments, std::uint32_t material,
-                  LatheCaps caps) {
+void append_lathe(std::vector<SceneTriangle>& tris, glm::vec3 base, std::span<const glm::vec2> profile, int segments,
+                  std::uint32_t material, LatheCaps caps) {
   if (profile.size() < 2 || segments < 3) return;
   const std::size_t rings = profile.size();
   const int n = segments;
@@ -243,8 +235,7 @@ void append_lathe(std::vector<SceneTriangle>& tris, glm::vec3 base,
   // All ring vertices computed once; the seam reuses index 0.
   std::vector<glm::vec3> ring(rings * n);
   for (std::size_t k = 0; k < rings; ++k)
-    for (int j = 0; j < n; ++j)
-      ring[k * n + j] = base + glm::vec3(0.0f, profile[k].y, 0.0f) + profile[k].x * radial[j];
+    for (int j = 0; j < n; ++j) ring[k * n + j] = base + glm::vec3(0.0f, profile[k].y, 0.0f) + profile[k].x * radial[j];
   auto at = [&](std::size_t k, int j) { return ring[k * n + (j % n)]; };
   auto u_of = [&](int j) { return float(j) / float(n); };
 
@@ -262,11 +253,8 @@ void append_lathe(std::vector<SceneTriangle>& tris, glm::vec3 base,
       const glm::vec3 p00 = at(k, j), p01 = at(k, j + 1), p10 = at(k + 1, j), p11 = at(k + 1, j + 1);
       // A ring of radius 0 is a single point on the axis: only one triangle per facet.
       if (a.x > 0.0f)
-        emit(tris, p00, p01, p11, n0, n1, n1, {u_of(j), v0}, {u_of(j + 1), v0}, {u_of(j + 1), v1},
-             material);
-      if (b.x > 0.0f)
-        emit(tris, p00, p11, p10, n0, n1, n0, {u_of(j), v0}, {u_of(j + 1), v1}, {u_of(j), v1},
-             material);
+        emit(tris, p00, p01, p11, n0, n1, n1, {u_of(j), v0}, {u_of(j + 1), v0}, {u_of(j + 1), v1}, material);
+      if (b.x > 0.0f) emit(tris, p00, p11, p10, n0, n1, n0, {u_of(j), v0}, {u_of(j + 1), v1}, {u_of(j), v1}, material);
     }
   }
   auto cap = [&](std::size_t k, bool up) {
@@ -287,8 +275,8 @@ void append_lathe(std::vector<SceneTriangle>& tris, glm::vec3 base,
   if (caps.top) cap(rings - 1, true);
 }
 
-void append_cylinder(std::vector<SceneTriangle>& tris, glm::vec3 base_center, float radius,
-                     float height, int segments, std::uint32_t material, bool caps) {
+void append_cylinder(std::vector<SceneTriangle>& tris, glm::vec3 base_center, float radius, float height, int segments,
+                     std::uint32_t material, bool caps) {
   const glm::vec2 profile[2] = {{radius, 0.0f}, {radius, height}};
   append_lathe(tris, base_center, profile, segments, material, LatheCaps{caps, caps});
 }

@@ -38,33 +38,30 @@ bool has_finite_positions(const SceneTriangle& tri);
 bool is_degenerate(const SceneTriangle& tri);
 
 // One flat triangle; uvs (0,0), (1,0), (0,1).
-void append_triangle(std::vector<SceneTriangle>& tris, glm::vec3 p0, glm::vec3 p1,
-                     glm::vec3 p2, std::uint32_t material);
+void append_triangle(std::vector<SceneTriangle>& tris, glm::vec3 p0, glm::vec3 p1, glm::vec3 p2,
+                     std::uint32_t material);
 
 // Texture coordinates of a quad's corners, in the order of its points.
 using QuadUv = std::array<glm::vec2, 4>;
-inline constexpr QuadUv kUnitQuadUv = {glm::vec2(0, 0), glm::vec2(1, 0), glm::vec2(1, 1),
-                                       glm::vec2(0, 1)};
+inline constexpr QuadUv kUnitQuadUv = {glm::vec2(0, 0), glm::vec2(1, 0), glm::vec2(1, 1), glm::vec2(0, 1)};
 
 // Planar quad p0 p1 p2 p3 (counter-clockwise seen from its front), split along p0-p2.
-void append_quad(std::vector<SceneTriangle>& tris, glm::vec3 p0, glm::vec3 p1, glm::vec3 p2,
-                 glm::vec3 p3, std::uint32_t material, const QuadUv& uv = kUnitQuadUv);
+void append_quad(std::vector<SceneTriangle>& tris, glm::vec3 p0, glm::vec3 p1, glm::vec3 p2, glm::vec3 p3,
+                 std::uint32_t material, const QuadUv& uv = kUnitQuadUv);
 
 // The same quad with its winding chosen so that its normal points along `facing` (the quad's
 // corners may be given in either order). For geometry written from published data or built
 // in a local frame where working out the winding by hand is error-prone.
-void append_quad_facing(std::vector<SceneTriangle>& tris, glm::vec3 p0, glm::vec3 p1,
-                        glm::vec3 p2, glm::vec3 p3, glm::vec3 facing, std::uint32_t material,
-                        const QuadUv& uv = kUnitQuadUv);
+void append_quad_facing(std::vector<SceneTriangle>& tris, glm::vec3 p0, glm::vec3 p1, glm::vec3 p2, glm::vec3 p3,
+                        glm::vec3 facing, std::uint32_t material, const QuadUv& uv = kUnitQuadUv);
 
 // Axis-aligned box, 12 triangles, normals outward.
-void append_box(std::vector<SceneTriangle>& tris, glm::vec3 min, glm::vec3 max,
-                std::uint32_t material);
+void append_box(std::vector<SceneTriangle>& tris, glm::vec3 min, glm::vec3 max, std::uint32_t material);
 
 // The box [min, max] of local space mapped by an affine `transform` (rotation, scale,
 // translation; a mirroring transform is handled, normals stay outward).
-void append_oriented_box(std::vector<SceneTriangle>& tris, glm::vec3 min, glm::vec3 max,
-                         const glm::mat4& transform, std::uint32_t material);
+void append_oriented_box(std::vector<SceneTriangle>& tris, glm::vec3 min, glm::vec3 max, const glm::mat4& transform,
+                         std::uint32_t material);
 
 // n overlapping slivers through the unit cube: each joins two random points on the cube's
 // surface (at least 0.25 apart) and is 1e-3 wide at one end, so every box covers a large part
@@ -74,8 +71,8 @@ void append_slivers(std::vector<SceneTriangle>& tris, std::size_t n, unsigned se
 
 // Sphere from a subdivided icosahedron: 20 * 4^subdivisions triangles, closed, vertices on
 // the sphere, smooth normals.
-void append_icosphere(std::vector<SceneTriangle>& tris, glm::vec3 center, float radius,
-                      int subdivisions, std::uint32_t material);
+void append_icosphere(std::vector<SceneTriangle>& tris, glm::vec3 center, float radius, int subdivisions,
+                      std::uint32_t material);
 
 // Which ends of a lathe are closed with a flat disc.
 struct LatheCaps {
@@ -87,12 +84,11 @@ struct LatheCaps {
 // (radius, height above base) from bottom to top; `segments` facets around. Profile points with
 // radius 0 close the surface on the axis without degenerate triangles. Normals are smooth
 // around the axis and flat along each profile segment (so a profile corner stays sharp).
-void append_lathe(std::vector<SceneTriangle>& tris, glm::vec3 base,
-                  std::span<const glm::vec2> profile, int segments, std::uint32_t material,
-                  LatheCaps caps = {});
+void append_lathe(std::vector<SceneTriangle>& tris, glm::vec3 base, std::span<const glm::vec2> profile, int segments,
+                  std::uint32_t material, LatheCaps caps = {});
 
 // Vertical faceted cylinder standing on `base_center`; with caps it is closed.
-void append_cylinder(std::vector<SceneTriangle>& tris, glm::vec3 base_center, float radius,
-                     float height, int segments, std::uint32_t material, bool caps = true);
+void append_cylinder(std::vector<SceneTriangle>& tris, glm::vec3 base_center, float radius, float height, int segments,
+                     std::uint32_t material, bool caps = true);
 
 }  // namespace px

@@ -38,21 +38,21 @@ struct Texture {
 // unless the scene file asks for two-sided emitters).
 struct Material {
   std::string name;
-  glm::vec3 diffuse{0.8f};    // Kd, linear albedo
-  glm::vec3 specular{0.0f};   // Ks
-  float roughness = 1.0f;     // GGX alpha derived from Ns; 0 = perfect mirror
-  glm::vec3 emission{0.0f};   // Ke, radiance
-  int diffuse_texture = -1;   // index into Scene::textures, -1 = none
-  int specular_texture = -1;  // map_Ks: multiplies `specular`
-  int normal_texture = -1;    // tangent-space normal map (linear RGB, (0.5, 0.5, 1) = flat)
-  float normal_scale = 1.0f;  // -bm: scales the map's tangent-plane components
-  int alpha_texture = -1;     // map_d; texels with alpha < 0.5 are cut out
-  bool mirror = false;        // perfect specular reflection
-  bool dielectric = false;    // smooth glass: Fresnel reflection + refraction
-  float ior = 1.5f;           // Ni, dielectric only: index inside relative to outside
+  glm::vec3 diffuse{0.8f};       // Kd, linear albedo
+  glm::vec3 specular{0.0f};      // Ks
+  float roughness = 1.0f;        // GGX alpha derived from Ns; 0 = perfect mirror
+  glm::vec3 emission{0.0f};      // Ke, radiance
+  int diffuse_texture = -1;      // index into Scene::textures, -1 = none
+  int specular_texture = -1;     // map_Ks: multiplies `specular`
+  int normal_texture = -1;       // tangent-space normal map (linear RGB, (0.5, 0.5, 1) = flat)
+  float normal_scale = 1.0f;     // -bm: scales the map's tangent-plane components
+  int alpha_texture = -1;        // map_d; texels with alpha < 0.5 are cut out
+  bool mirror = false;           // perfect specular reflection
+  bool dielectric = false;       // smooth glass: Fresnel reflection + refraction
+  float ior = 1.5f;              // Ni, dielectric only: index inside relative to outside
   glm::vec3 transmission{1.0f};  // Tf, dielectric only: filter on refracted light
-  bool two_sided = false;     // emits from both faces (default: only from the front face, the
-                              // side the winding order's normal points to)
+  bool two_sided = false;        // emits from both faces (default: only from the front face, the
+                                 // side the winding order's normal points to)
   bool is_emissive() const { return emission.x > 0.0f || emission.y > 0.0f || emission.z > 0.0f; }
 };
 
@@ -84,7 +84,7 @@ struct CameraKey {
 struct Sun {
   bool enabled = false;
   glm::vec3 direction{0.0f, 1.0f, 0.0f};  // unit vector pointing towards the sun
-  glm::vec3 radiance{0.0f};              // radiance of the sun disk
+  glm::vec3 radiance{0.0f};               // radiance of the sun disk
   float angular_radius_deg = 0.27f;
 };
 
@@ -113,7 +113,7 @@ struct InstancedMesh {
 };
 
 struct MeshInstance {
-  std::uint32_t mesh = 0;         // index into SceneInstancing::meshes
+  std::uint32_t mesh = 0;           // index into SceneInstancing::meshes
   glm::mat4 object_to_world{1.0f};  // affine, with a positive determinant
 };
 

@@ -94,8 +94,7 @@ Camera frame_bounds(const Scene& scene) {
 
 bool has_light(const Scene& scene) {
   if (scene.sun.enabled || scene.sky.enabled) return true;
-  return std::any_of(scene.materials.begin(), scene.materials.end(),
-                     [](const Material& m) { return m.is_emissive(); });
+  return std::any_of(scene.materials.begin(), scene.materials.end(), [](const Material& m) { return m.is_emissive(); });
 }
 
 bool is_mesh_extension(const std::string& ext) { return ext == ".obj" || ext == ".gltf" || ext == ".glb"; }
@@ -122,13 +121,15 @@ void apply_sky_mode(Scene& scene, const std::string& source, SkyMode mode) {
   }
   if (has_light(scene)) return;
   if (mode == SkyMode::kOff) {
-    scene.stats.warnings.push_back(source + ": no light source (no emissive material, sun or sky) and --sky off; "
-                                            "the image will be black");
+    scene.stats.warnings.push_back(source +
+                                   ": no light source (no emissive material, sun or sky) and --sky off; "
+                                   "the image will be black");
     return;
   }
   scene.sky = default_sky();
-  scene.stats.warnings.push_back(source + ": no light source (no emissive material, sun or sky); lit by a default "
-                                          "sky instead (--sky off keeps it unlit)");
+  scene.stats.warnings.push_back(source +
+                                 ": no light source (no emissive material, sun or sky); lit by a default "
+                                 "sky instead (--sky off keeps it unlit)");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -147,8 +148,7 @@ class SceneFileReader {
   }
 
   // Unknown keys are refused: a typo would otherwise silently fall back to a default.
-  void check_keys(const json& obj, const std::string& prefix,
-                  std::initializer_list<std::string_view> allowed) const {
+  void check_keys(const json& obj, const std::string& prefix, std::initializer_list<std::string_view> allowed) const {
     for (const auto& [key, value] : obj.items()) {
       if (std::find(allowed.begin(), allowed.end(), key) != allowed.end()) continue;
       std::string list;
@@ -283,8 +283,9 @@ Scene load_scene_file(const std::string& path, const SceneLoadOptions& options) 
   const json doc = parse_json_file(path);
   const SceneFileReader r(path);
   if (!doc.is_object()) throw SceneError(path + ": the scene file must hold a JSON object");
-  r.check_keys(doc, "", {"name", "mesh", "generator", "generator_params", "meters_per_unit",
-                         "ipd_m", "camera", "camera_path", "sun", "sky", "two_sided_emitters"});
+  r.check_keys(doc, "",
+               {"name", "mesh", "generator", "generator_params", "meters_per_unit", "ipd_m", "camera", "camera_path",
+                "sun", "sky", "two_sided_emitters"});
 
   // The base scene: a mesh or a generator, exactly one.
   const bool has_mesh = doc.contains("mesh"), has_generator = doc.contains("generator");
@@ -510,16 +511,15 @@ Scene load_scene_unchecked(const std::string& spec, const SceneLoadOptions& opti
   if (is_plain_file(p)) {
     if (ext == ".json") return load_scene_file(spec, options);
     if (is_mesh_extension(ext)) return load_mesh_framed(spec, options);
-    throw SceneError("scene '" + spec + "': unsupported file type (expected a .json scene file, an .obj, .gltf or .glb)");
+    throw SceneError("scene '" + spec +
+                     "': unsupported file type (expected a .json scene file, an .obj, .gltf or .glb)");
   }
   const auto& names = builtin_scene_names();
   if (std::find(names.begin(), names.end(), spec) != names.end()) return make_builtin_scene(spec);
   std::error_code ec;
   if (fs::exists(p, ec)) throw SceneError("scene '" + spec + "': not a regular file");
-  if (ext == ".json" || is_mesh_extension(ext))
-    throw SceneError("scene file '" + spec + "' not found");
-  throw SceneError("unknown scene '" + spec + "': no such file, and not a built-in scene (" +
-                   builtin_list() + ")");
+  if (ext == ".json" || is_mesh_extension(ext)) throw SceneError("scene file '" + spec + "' not found");
+  throw SceneError("unknown scene '" + spec + "': no such file, and not a built-in scene (" + builtin_list() + ")");
 }
 
 }  // namespace

@@ -262,7 +262,8 @@ std::vector<char> moving_nodes(const SceneRig& rig, const std::vector<int>& clip
   std::vector<char> moves(rig.nodes.size(), 0);
   for (int c : clips)
     for (const AnimationChannel& ch : rig.clips.at(static_cast<std::size_t>(c)).channels)
-      if (ch.node >= 0 && static_cast<std::size_t>(ch.node) < moves.size()) moves[static_cast<std::size_t>(ch.node)] = 1;
+      if (ch.node >= 0 && static_cast<std::size_t>(ch.node) < moves.size())
+        moves[static_cast<std::size_t>(ch.node)] = 1;
   // rig.order lists each node after its parent: one pass hands motion down the hierarchy.
   for (int n : rig.order) {
     const int parent = rig.nodes[static_cast<std::size_t>(n)].parent;

@@ -44,7 +44,7 @@ struct RigPrimitive {
   std::vector<glm::vec3> colours;  // COLOR_0, linear RGB; empty: white
   std::vector<std::array<std::uint32_t, 3>> triangles;
   std::uint32_t material = 0;
-  std::vector<glm::vec4> joints;   // empty: not skinned
+  std::vector<glm::vec4> joints;  // empty: not skinned
   std::vector<glm::vec4> weights;
 };
 
@@ -61,8 +61,8 @@ struct RigMeshInstance {
 };
 
 struct RigSkin {
-  std::vector<int> joints;                // node indices
-  std::vector<glm::dmat4> inverse_bind;   // one per joint (identity when the file gives none)
+  std::vector<int> joints;               // node indices
+  std::vector<glm::dmat4> inverse_bind;  // one per joint (identity when the file gives none)
 };
 
 struct SceneRig {

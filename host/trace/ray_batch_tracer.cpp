@@ -7,8 +7,7 @@
 
 namespace px {
 
-RayBatchTracer::RayBatchTracer(DeviceSet& devices, const DeviceScene& scene)
-    : devices_(devices), scene_(scene) {}
+RayBatchTracer::RayBatchTracer(DeviceSet& devices, const DeviceScene& scene) : devices_(devices), scene_(scene) {}
 
 template <typename Out>
 std::vector<Out> RayBatchTracer::run(const char* kernel_name, const std::vector<Ray>& rays) {
@@ -50,9 +49,7 @@ std::vector<Out> RayBatchTracer::run(const char* kernel_name, const std::vector<
   return out;
 }
 
-std::vector<Hit> RayBatchTracer::closest(const std::vector<Ray>& rays) {
-  return run<Hit>("trace_closest", rays);
-}
+std::vector<Hit> RayBatchTracer::closest(const std::vector<Ray>& rays) { return run<Hit>("trace_closest", rays); }
 
 std::vector<std::uint32_t> RayBatchTracer::occluded(const std::vector<Ray>& rays) {
   return run<std::uint32_t>("trace_any", rays);

@@ -21,8 +21,7 @@ class RayBatchTracer {
   std::vector<std::uint32_t> occluded(const std::vector<Ray>& rays);
 
   // The kernels' self-intersection-free origin offset applied to points along normals.
-  std::vector<glm::vec3> offset_origins(const std::vector<glm::vec3>& points,
-                                        const std::vector<glm::vec3>& normals);
+  std::vector<glm::vec3> offset_origins(const std::vector<glm::vec3>& points, const std::vector<glm::vec3>& normals);
 
   // Device time of the last closest()/occluded() call: the slowest device's kernel time from
   // OpenCL profiling events (the makespan of the concurrent chunks), in milliseconds.

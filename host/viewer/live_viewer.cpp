@@ -43,9 +43,9 @@ double seconds_between(clock_type::time_point a, clock_type::time_point b) {
 
 // What the render thread hands to the window after each frame.
 struct FrameInfo {
-  unsigned index = 0;   // frame number (0-based)
-  double wall_ms = 0.0; // the frame's host time, first enqueue to last command
-  double hz = 0.0;      // frames finished per second, smoothed
+  unsigned index = 0;    // frame number (0-based)
+  double wall_ms = 0.0;  // the frame's host time, first enqueue to last command
+  double hz = 0.0;       // frames finished per second, smoothed
   unsigned spp = 0, bounces = 0;
   std::string slowest;  // "path trace left 12.3 ms"
   Camera camera;        // the centre camera it was rendered with
@@ -63,7 +63,7 @@ struct Shared {
   bool fresh = false;                     // not yet uploaded
   FrameInfo info;
   bool have_info = false;
-  bool finished = false;                  // the render thread has stopped (frame limit or error)
+  bool finished = false;  // the render thread has stopped (frame limit or error)
   std::exception_ptr error;
 };
 
@@ -75,7 +75,7 @@ void render_loop(const ViewCommand& cmd, RenderSession& session, SceneAnimator& 
   const float duration = camera_path_duration(scene);
   const bool scripted = cmd.frames > 0;  // --frames: frame f on `render`'s clock (f / fps)
   const FrameClock& frame_clock = cmd.render.clock;
-  double path_time = 0.0;                // interactive: seconds of camera path played so far
+  double path_time = 0.0;  // interactive: seconds of camera path played so far
   double hz = 0.0;
   auto last_done = clock_type::now();
   try {
@@ -91,8 +91,7 @@ void render_loop(const ViewCommand& cmd, RenderSession& session, SceneAnimator& 
       const float t = scripted ? frame_clock.camera_time_s(f)
                                : (duration > 0.0f ? static_cast<float>(std::fmod(path_time, double(duration))) : 0.0f);
       // The animation plays on the same clock, unbounded (each clip loops over its own length).
-      animator.update(scripted ? frame_clock.time_s(f) : path_time, session.devices,
-                      session.device_scene);
+      animator.update(scripted ? frame_clock.time_s(f) : path_time, session.devices, session.device_scene);
       const Camera camera = flying ? fly : evaluate_camera(scene, t);
       const FrameQuality quality = pipeline.quality();
       const FrameStats st = pipeline.render(f, camera);
@@ -102,8 +101,10 @@ void render_loop(const ViewCommand& cmd, RenderSession& session, SceneAnimator& 
       const auto now = clock_type::now();
       const double interval = seconds_between(last_done, now);
       last_done = now;
-      if (f == 1) hz = 1.0 / interval;
-      else if (f > 1) hz = 0.8 * hz + 0.2 / interval;
+      if (f == 1)
+        hz = 1.0 / interval;
+      else if (f > 1)
+        hz = 0.8 * hz + 0.2 / interval;
       // The path plays in real time while not steered; the first frame's kernel compilation
       // and any long stall move it by at most a quarter second.
       if (!flying) path_time += std::min(interval, 0.25);
@@ -210,8 +211,8 @@ class StereoSurface {
       // Offsets into the bound PBO, not host pointers.
       glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, GLsizei(width_), GLsizei(height_), GL_RGBA, GL_UNSIGNED_BYTE,
                       reinterpret_cast<const void*>(std::uintptr_t{0}));
-      glTexSubImage2D(GL_TEXTURE_2D, 0, GLint(width_), 0, GLsizei(width_), GLsizei(height_), GL_RGBA,
-                      GL_UNSIGNED_BYTE, reinterpret_cast<const void*>(std::uintptr_t{eye_bytes}));
+      glTexSubImage2D(GL_TEXTURE_2D, 0, GLint(width_), 0, GLsizei(width_), GLsizei(height_), GL_RGBA, GL_UNSIGNED_BYTE,
+                      reinterpret_cast<const void*>(std::uintptr_t{eye_bytes}));
       has_image_ = true;
     }
     glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
@@ -276,8 +277,7 @@ int run_view(const ViewCommand& cmd) {
     if (ext != ".png" && ext != ".PNG") throw std::invalid_argument("--screenshot must name a .png file");
     const std::filesystem::path parent = std::filesystem::path(cmd.screenshot).parent_path();
     if (!parent.empty() && !std::filesystem::is_directory(parent))
-      throw std::invalid_argument("--screenshot " + cmd.screenshot + ": folder " + parent.string() +
-                                  " does not exist");
+      throw std::invalid_argument("--screenshot " + cmd.screenshot + ": folder " + parent.string() + " does not exist");
   }
   GlfwSession glfw;
   install_interrupt_handlers();
@@ -294,8 +294,8 @@ int run_view(const ViewCommand& cmd) {
   glfwWindowHint(GLFW_RESIZABLE, GLFW_TRUE);
   glfwWindowHint(GLFW_SCALE_TO_MONITOR, GLFW_FALSE);
   const std::string base_title = "parallax view: " + session.loaded.scene.name;
-  GLFWwindow* window = glfwCreateWindow(int(2 * w), int(h), (base_title + " (compiling kernels...)").c_str(),
-                                        nullptr, nullptr);
+  GLFWwindow* window =
+      glfwCreateWindow(int(2 * w), int(h), (base_title + " (compiling kernels...)").c_str(), nullptr, nullptr);
   if (!window) throw std::runtime_error("view: cannot create an OpenGL window (" + glfw_error_text() + ")");
   glfwMakeContextCurrent(window);
   glfwSwapInterval(1);

@@ -8,26 +8,25 @@
  * per surface, so a pixel on an edge (an emitter's rim, a silhouette) restarts it whenever its
  * sample lands on the other side, and shows one side or the other: jagged edges and, at 1 spp,
  * a light whose visible area changes by whole rows and columns with the jitter (cornell's
- * mean came out too bright in one frame; docs/measurements.md, temporal anti-aliasing). Here the final radiance itself is averaged over
- * frames, whatever surface each sample saw: last frame's result, reprojected through the
- * G-buffer point (or the direction of a miss) into the previous camera with the jitter taken
- * out (px_previous_pixel) and read with 2x2 bilinear taps, is blended as
- * mix(history, color, max(alpha, 1 / history length, PX_TAA_MOTION_ALPHA x the pixels moved
- * (at most PX_TAA_MOTION_ALPHA_MAX))): a still pixel averages its jitter positions over many
- * frames, a moving one keeps less of a history that each bilinear read blurs and that lags
- * behind the view (docs/measurements.md, temporal anti-aliasing). The history is first clipped to
- * mean +- PX_TAA_CLIP_SIGMA standard deviations of the current 3x3 neighbourhood per YCoCg axis,
- * so that what moved or was disoccluded cannot leave a trail: on an edge the neighbourhood
- * holds both sides and the average passes. Reads `color` in rows y - 1 .. y + 1 (readable
- * ones) and `prev` within temporal_rows rows. Writes the result to `resolved` (w = 1) and the
- * new history (rgb, length) to `history`. */
+ * mean came out too bright in one frame; docs/measurements.md, temporal anti-aliasing). Here the final radiance itself
+ * is averaged over frames, whatever surface each sample saw: last frame's result, reprojected through the G-buffer
+ * point (or the direction of a miss) into the previous camera with the jitter taken out (px_previous_pixel) and read
+ * with 2x2 bilinear taps, is blended as mix(history, color, max(alpha, 1 / history length, PX_TAA_MOTION_ALPHA x the
+ * pixels moved (at most PX_TAA_MOTION_ALPHA_MAX))): a still pixel averages its jitter positions over many frames, a
+ * moving one keeps less of a history that each bilinear read blurs and that lags behind the view (docs/measurements.md,
+ * temporal anti-aliasing). The history is first clipped to mean +- PX_TAA_CLIP_SIGMA standard deviations of the current
+ * 3x3 neighbourhood per YCoCg axis, so that what moved or was disoccluded cannot leave a trail: on an edge the
+ * neighbourhood holds both sides and the average passes. Reads `color` in rows y - 1 .. y + 1 (readable ones) and
+ * `prev` within temporal_rows rows. Writes the result to `resolved` (w = 1) and the new history (rgb, length) to
+ * `history`. */
 /* Luma and two chroma differences (YCoCg): the history is clipped in these axes, not in R, G
  * and B. A box per RGB channel around a grey neighbourhood still holds a saturated colour's
  * brightest and darkest channels, so a red object that moved on left a reddish trail on a grey
  * edge behind it (the range of R and that of B each pass); in YCoCg the neighbourhood's narrow
  * chroma range removes the hue. */
 inline float3 px_ycocg(float3 c) {
-  return (float3)(0.25f * c.x + 0.5f * c.y + 0.25f * c.z, 0.5f * c.x - 0.5f * c.z, -0.25f * c.x + 0.5f * c.y - 0.25f * c.z);
+  return (float3)(0.25f * c.x + 0.5f * c.y + 0.25f * c.z, 0.5f * c.x - 0.5f * c.z,
+                  -0.25f * c.x + 0.5f * c.y - 0.25f * c.z);
 }
 inline float3 px_from_ycocg(float3 c) { return (float3)(c.x + c.y - c.z, c.x + c.z, c.x - c.y - c.z); }
 kernel void svgf_antialias(global float4* resolved, global float4* history, const global float4* color,
@@ -87,7 +86,8 @@ kernel void svgf_antialias(global float4* resolved, global float4* history, cons
       if (bx != x || by != y) {
         const uint b = (uint)by * p.width + (uint)bx;
         float gx, gy;
-        if (motion[b].w > 0.0f && px_previous_pixel(motion[b].xyz - px_camera_origin(&prev_cam), &prev_cam, &p, &gx, &gy)) {
+        if (motion[b].w > 0.0f &&
+            px_previous_pixel(motion[b].xyz - px_camera_origin(&prev_cam), &prev_cam, &p, &gx, &gy)) {
           gx -= (float)(bx - x);
           gy -= (float)(by - y);
           const int cx = (int)floor(gx + 0.5f), cy = (int)floor(gy + 0.5f);

@@ -52,11 +52,11 @@ kernel void svgf_luma(global float2* luma, const global float4* illum, const glo
 }
 
 /* The centre of an a-trous tap sum at pixel i = (x, y): its edge-stopping geometry (its own, or a
- * borrowing pixel's lender's), prefiltered luminance and variance (svgf_luma). Returns 0 for a pixel the pass leaves as it
- * is (not filtered, and not borrowing), having written it to out_illum. */
+ * borrowing pixel's lender's), prefiltered luminance and variance (svgf_luma). Returns 0 for a pixel the pass leaves as
+ * it is (not filtered, and not borrowing), having written it to out_illum. */
 inline int px_atrous_centre(global float4* out_illum, const global float4* illum, const global float4* guide,
-                            const global float4* moments, const global float2* luma, int x, int y,
-                            const SvgfParams* p, FilterCentre* fc, float* var) {
+                            const global float4* moments, const global float2* luma, int x, int y, const SvgfParams* p,
+                            FilterCentre* fc, float* var) {
   const uint i = (uint)y * p->width + (uint)x;
   const float4 c = illum[i];
   int borrowed = -1;
@@ -103,41 +103,41 @@ __constant float px_atrous_h[5] = {1.0f / 16.0f, 1.0f / 4.0f, 3.0f / 8.0f, 1.0f 
  * lone sample, at 1 spp often black. Such an isolated pixel takes the loose weights, which still
  * stop at creases, depth steps and luminance edges; every other pixel is filtered exactly as
  * before. */
-#define PX_ATROUS_TAP_SUM(GUIDE_AT, ILLUM_AT, LUMA_AT)                                                 \
-  do {                                                                                               \
-    const int step_ = (int)p.step;                                                                   \
-    float2 wsum = (float2)(0.0f, 0.0f), vsum = (float2)(0.0f, 0.0f);                                 \
-    float3 csum_strict = (float3)(0.0f, 0.0f, 0.0f), csum_loose = csum_strict;                       \
-    for (int ky = -2; ky <= 2; ++ky) {                                                               \
-      const int ty = y + ky * step_;                                                                 \
-      if (ty < 0 || ty >= (int)p.height || !px_row_readable(ty, &p)) continue;                       \
-      for (int kx = -2; kx <= 2; ++kx) {                                                             \
-        const int tx = x + kx * step_;                                                               \
-        if (tx < 0 || tx >= (int)p.width) continue;                                                  \
-        const float4 g = GUIDE_AT(tx, ty);                                                           \
-        /* Unfiltered pixels are never taps; the centre always is (a borrowing one included). */     \
-        if (!px_guide_filtered(g) && (kx != 0 || ky != 0)) continue;                                 \
-        const float4 t = ILLUM_AT(tx, ty);                                                           \
-        float2 w = (float2)(px_atrous_h[kx + 2] * px_atrous_h[ky + 2]);                              \
-        if (kx != 0 || ky != 0)                                                                      \
-          w *= px_geometry_weights(g, fc.n, fc.z, fc.grad, (float)(kx * step_), (float)(ky * step_), \
-                                   &p, px_luminance_term(fc.l, centre_var, LUMA_AT(tx, ty), &p));     \
-        wsum += w;                                                                                   \
-        vsum += w * w * t.w;                                                                         \
-        csum_strict += w.x * t.xyz;                                                                  \
-        csum_loose += w.y * t.xyz;                                                                   \
-      }                                                                                              \
-    }                                                                                                \
-    const float centre = px_atrous_h[2] * px_atrous_h[2];                                            \
-    if (wsum.x - centre < PX_SVGF_ISOLATED * centre)                                                 \
-      out_illum[i] = (float4)(csum_loose / wsum.y, vsum.y / (wsum.y * wsum.y));                      \
-    else                                                                                             \
-      out_illum[i] = (float4)(csum_strict / wsum.x, vsum.x / (wsum.x * wsum.x));                     \
+#define PX_ATROUS_TAP_SUM(GUIDE_AT, ILLUM_AT, LUMA_AT)                                                   \
+  do {                                                                                                   \
+    const int step_ = (int)p.step;                                                                       \
+    float2 wsum = (float2)(0.0f, 0.0f), vsum = (float2)(0.0f, 0.0f);                                     \
+    float3 csum_strict = (float3)(0.0f, 0.0f, 0.0f), csum_loose = csum_strict;                           \
+    for (int ky = -2; ky <= 2; ++ky) {                                                                   \
+      const int ty = y + ky * step_;                                                                     \
+      if (ty < 0 || ty >= (int)p.height || !px_row_readable(ty, &p)) continue;                           \
+      for (int kx = -2; kx <= 2; ++kx) {                                                                 \
+        const int tx = x + kx * step_;                                                                   \
+        if (tx < 0 || tx >= (int)p.width) continue;                                                      \
+        const float4 g = GUIDE_AT(tx, ty);                                                               \
+        /* Unfiltered pixels are never taps; the centre always is (a borrowing one included). */         \
+        if (!px_guide_filtered(g) && (kx != 0 || ky != 0)) continue;                                     \
+        const float4 t = ILLUM_AT(tx, ty);                                                               \
+        float2 w = (float2)(px_atrous_h[kx + 2] * px_atrous_h[ky + 2]);                                  \
+        if (kx != 0 || ky != 0)                                                                          \
+          w *= px_geometry_weights(g, fc.n, fc.z, fc.grad, (float)(kx * step_), (float)(ky * step_), &p, \
+                                   px_luminance_term(fc.l, centre_var, LUMA_AT(tx, ty), &p));            \
+        wsum += w;                                                                                       \
+        vsum += w * w * t.w;                                                                             \
+        csum_strict += w.x * t.xyz;                                                                      \
+        csum_loose += w.y * t.xyz;                                                                       \
+      }                                                                                                  \
+    }                                                                                                    \
+    const float centre = px_atrous_h[2] * px_atrous_h[2];                                                \
+    if (wsum.x - centre < PX_SVGF_ISOLATED * centre)                                                     \
+      out_illum[i] = (float4)(csum_loose / wsum.y, vsum.y / (wsum.y * wsum.y));                          \
+    else                                                                                                 \
+      out_illum[i] = (float4)(csum_strict / wsum.x, vsum.x / (wsum.x * wsum.x));                         \
   } while (0)
 
-#define PX_GLOBAL_GUIDE(tx, ty) guide[(uint)(ty) * p.width + (uint)(tx)]
-#define PX_GLOBAL_ILLUM(tx, ty) illum[(uint)(ty) * p.width + (uint)(tx)]
-#define PX_GLOBAL_LUMA(tx, ty) luma[(uint)(ty) * p.width + (uint)(tx)]
+#define PX_GLOBAL_GUIDE(tx, ty) guide[(uint)(ty)*p.width + (uint)(tx)]
+#define PX_GLOBAL_ILLUM(tx, ty) illum[(uint)(ty)*p.width + (uint)(tx)]
+#define PX_GLOBAL_LUMA(tx, ty) luma[(uint)(ty)*p.width + (uint)(tx)]
 
 kernel void svgf_atrous(global float4* out_illum, const global float4* illum, const global float4* guide,
                         const global float4* moments, const global float2* luma, SvgfParams p) {
@@ -163,9 +163,9 @@ kernel void svgf_atrous(global float4* out_illum, const global float4* illum, co
 #if PX_ATROUS_TILE * PX_ATROUS_TILE != PX_LOCAL_SIZE
 #error "svgf_atrous_tiled: a work-group is one tile"
 #endif
-__attribute__((reqd_work_group_size(PX_LOCAL_SIZE, 1, 1)))
-kernel void svgf_atrous_tiled(global float4* out_illum, const global float4* illum, const global float4* guide,
-                              const global float4* moments, const global float2* luma, SvgfParams p) {
+__attribute__((reqd_work_group_size(PX_LOCAL_SIZE, 1, 1))) kernel void svgf_atrous_tiled(
+    global float4* out_illum, const global float4* illum, const global float4* guide, const global float4* moments,
+    const global float2* luma, SvgfParams p) {
   local float4 tile_guide[PX_ATROUS_TILE_SPAN * PX_ATROUS_TILE_SPAN];
   local float4 tile_illum[PX_ATROUS_TILE_SPAN * PX_ATROUS_TILE_SPAN];
   local float2 tile_luma[PX_ATROUS_TILE_SPAN * PX_ATROUS_TILE_SPAN];
@@ -190,9 +190,9 @@ kernel void svgf_atrous_tiled(global float4* out_illum, const global float4* ill
   FilterCentre fc;
   float centre_var;
   if (!px_atrous_centre(out_illum, illum, guide, moments, luma, x, y, &p, &fc, &centre_var)) return;
-#define PX_TILE_GUIDE(tx, ty) tile_guide[((ty) - oy) * span + (tx) - ox]
-#define PX_TILE_ILLUM(tx, ty) tile_illum[((ty) - oy) * span + (tx) - ox]
-#define PX_TILE_LUMA(tx, ty) tile_luma[((ty) - oy) * span + (tx) - ox]
+#define PX_TILE_GUIDE(tx, ty) tile_guide[((ty)-oy) * span + (tx)-ox]
+#define PX_TILE_ILLUM(tx, ty) tile_illum[((ty)-oy) * span + (tx)-ox]
+#define PX_TILE_LUMA(tx, ty) tile_luma[((ty)-oy) * span + (tx)-ox]
   PX_ATROUS_TAP_SUM(PX_TILE_GUIDE, PX_TILE_ILLUM, PX_TILE_LUMA);
 #undef PX_TILE_GUIDE
 #undef PX_TILE_ILLUM
@@ -258,8 +258,14 @@ kernel void svgf_atrous8(global float4* out_illum, const global float4* illum, c
     float var = 0.0f;
     on[l] = x0 + l < (int)p.width && px_atrous_centre(out_illum, illum, guide, moments, luma, x0 + l, y, &p, &fc, &var);
     if (!on[l]) fc = (FilterCentre){(float3)(0.0f, 0.0f, 1.0f), 1.0f, (float2)(0.0f, 0.0f), 0.0f};
-    cnx[l] = fc.n.x; cny[l] = fc.n.y; cnz[l] = fc.n.z; cz[l] = fc.z;
-    cgx[l] = fc.grad.x; cgy[l] = fc.grad.y; cl[l] = fc.l; cvar[l] = var;
+    cnx[l] = fc.n.x;
+    cny[l] = fc.n.y;
+    cnz[l] = fc.n.z;
+    cz[l] = fc.z;
+    cgx[l] = fc.grad.x;
+    cgy[l] = fc.grad.y;
+    cl[l] = fc.l;
+    cvar[l] = var;
     any |= on[l];
   }
   if (!any) return;
@@ -293,14 +299,28 @@ kernel void svgf_atrous8(global float4* out_illum, const global float4* illum, c
         for (int l = 0; l < PX_ATROUS_LANES; ++l) {
           const uint j = row + (uint)clamp(tx0 + l, 0, (int)p.width - 1);
           const float4 g = guide[j], t = illum[j];
-          a[0][l] = g.x; a[1][l] = g.y; a[2][l] = g.z; a[3][l] = g.w;
-          a[4][l] = t.x; a[5][l] = t.y; a[6][l] = t.z; a[7][l] = t.w;
+          a[0][l] = g.x;
+          a[1][l] = g.y;
+          a[2][l] = g.z;
+          a[3][l] = g.w;
+          a[4][l] = t.x;
+          a[5][l] = t.y;
+          a[6][l] = t.z;
+          a[7][l] = t.w;
           const float2 lv = luma[j];
-          a[8][l] = lv.x; a[9][l] = lv.y;
+          a[8][l] = lv.x;
+          a[9][l] = lv.y;
         }
-        tnx = vload8(0, a[0]); tny = vload8(0, a[1]); tnz = vload8(0, a[2]); tw = vload8(0, a[3]);
-        tr = vload8(0, a[4]); tg = vload8(0, a[5]); tb = vload8(0, a[6]); tv = vload8(0, a[7]);
-        tl = vload8(0, a[8]); tlv = vload8(0, a[9]);
+        tnx = vload8(0, a[0]);
+        tny = vload8(0, a[1]);
+        tnz = vload8(0, a[2]);
+        tw = vload8(0, a[3]);
+        tr = vload8(0, a[4]);
+        tg = vload8(0, a[5]);
+        tb = vload8(0, a[6]);
+        tv = vload8(0, a[7]);
+        tl = vload8(0, a[8]);
+        tlv = vload8(0, a[9]);
       }
       const float h = px_atrous_h[kx + 2] * px_atrous_h[ky + 2];
       float8 w_x = (float8)(h), w_y = w_x;
@@ -324,17 +344,28 @@ kernel void svgf_atrous8(global float4* out_illum, const global float4* illum, c
       wsum_y += w_y;
       vsum_x += w_x * w_x * tv;
       vsum_y += w_y * w_y * tv;
-      cs_r += w_x * tr; cs_g += w_x * tg; cs_b += w_x * tb;
-      cl_r += w_y * tr; cl_g += w_y * tg; cl_b += w_y * tb;
+      cs_r += w_x * tr;
+      cs_g += w_x * tg;
+      cs_b += w_x * tb;
+      cl_r += w_y * tr;
+      cl_g += w_y * tg;
+      cl_b += w_y * tb;
     }
   }
   const float centre = px_atrous_h[2] * px_atrous_h[2];
   float ws[PX_ATROUS_LANES], wl[PX_ATROUS_LANES], vs[PX_ATROUS_LANES], vl[PX_ATROUS_LANES];
   float sr[PX_ATROUS_LANES], sg[PX_ATROUS_LANES], sb[PX_ATROUS_LANES];
   float lr[PX_ATROUS_LANES], lg[PX_ATROUS_LANES], lb[PX_ATROUS_LANES];
-  vstore8(wsum_x, 0, ws); vstore8(wsum_y, 0, wl); vstore8(vsum_x, 0, vs); vstore8(vsum_y, 0, vl);
-  vstore8(cs_r, 0, sr); vstore8(cs_g, 0, sg); vstore8(cs_b, 0, sb);
-  vstore8(cl_r, 0, lr); vstore8(cl_g, 0, lg); vstore8(cl_b, 0, lb);
+  vstore8(wsum_x, 0, ws);
+  vstore8(wsum_y, 0, wl);
+  vstore8(vsum_x, 0, vs);
+  vstore8(vsum_y, 0, vl);
+  vstore8(cs_r, 0, sr);
+  vstore8(cs_g, 0, sg);
+  vstore8(cs_b, 0, sb);
+  vstore8(cl_r, 0, lr);
+  vstore8(cl_g, 0, lg);
+  vstore8(cl_b, 0, lb);
   for (int l = 0; l < PX_ATROUS_LANES; ++l) {
     if (!on[l]) continue;
     const uint i = (uint)y * p.width + (uint)(x0 + l);
@@ -358,9 +389,8 @@ kernel void svgf_atrous8(global float4* out_illum, const global float4* illum, c
  * grew a pixel of full surface colour wherever a sample crossed the silhouette. Reads rows
  * y - 1 .. y + 1 of illum, moments and guide, all exchanged after svgf_temporal (the
  * environment's colour does not change in the spatial passes). */
-inline float3 px_borrowed_blend(float3 surface, float samples, const global float4* illum,
-                                const global float4* moments, const global float4* guide, int x, int y,
-                                const SvgfParams* p) {
+inline float3 px_borrowed_blend(float3 surface, float samples, const global float4* illum, const global float4* moments,
+                                const global float4* guide, int x, int y, const SvgfParams* p) {
   float3 env = (float3)(0.0f, 0.0f, 0.0f);
   float count = 0.0f;
   for (int k = 0; k < 8; ++k) {
@@ -389,7 +419,7 @@ kernel void svgf_remodulate(global float4* out_color, const global float4* illum
   }
   float3 radiance = c.xyz * px_demod_albedo(albedo, i);
   if (m == PX_SVGF_BORROWED)
-    radiance = px_borrowed_blend(radiance, out_color[i].w, illum, moments, guide, (int)(i % p.width),
-                                 (int)(i / p.width), &p);
+    radiance =
+        px_borrowed_blend(radiance, out_color[i].w, illum, moments, guide, (int)(i % p.width), (int)(i / p.width), &p);
   out_color[i] = (float4)(radiance, 1.0f);
 }

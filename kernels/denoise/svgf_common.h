@@ -132,7 +132,9 @@ inline int px_pixel_readable(int tx, int ty, const SvgfParams* p) {
 /* cos^sigma_n: the exponent is almost always an integer (128, 4...): a few multiplications,
  * where pow is a log and an exp (PoCL's pown and pow are library calls costing about as much as
  * a whole a-trous tap). */
-inline int px_integer_exponent(float sigma_n) { return sigma_n >= 0.0f && sigma_n <= 1024.0f && floor(sigma_n) == sigma_n; }
+inline int px_integer_exponent(float sigma_n) {
+  return sigma_n >= 0.0f && sigma_n <= 1024.0f && floor(sigma_n) == sigma_n;
+}
 
 /* (c^k1, c^k2) for integers k1, k2 <= 1024 by repeated squaring, one chain of squares for both:
  * log2(max(k1, k2)) multiplications (7 for the usual 128 and 4). Squares below 1e-10 are
@@ -168,7 +170,6 @@ inline float px_depth_term(float tap_depth, float z, float2 grad, float dx, floa
   return fabs(z - tap_depth) / (p->sigma_z * fabs(grad.x * dx + grad.y * dy) + 1e-3f * z + 1e-6f);
 }
 
-
 /* Normal and depth edge-stopping weight of a tap with guide texel `t` (0 for unfiltered taps),
  * with an extra exponent (the luminance term) folded into the same exp. */
 inline float px_geometry_weight_x(float4 t, float3 n, float z, float2 grad, float dx, float dy, const SvgfParams* p,
@@ -182,7 +183,7 @@ inline float px_geometry_weight_x(float4 t, float3 n, float z, float2 grad, floa
  * Always inlined: PoCL's inliner otherwise leaves it a call per tap, with its arguments passed
  * through the stack (docs/measurements.md, SVGF a-trous on PoCL). */
 __attribute__((always_inline)) inline float2 px_geometry_weights(float4 t, float3 n, float z, float2 grad, float dx,
-                                                                  float dy, const SvgfParams* p, float extra) {
+                                                                 float dy, const SvgfParams* p, float extra) {
   if (!px_guide_filtered(t)) return (float2)(0.0f, 0.0f);
   const float rest = px_exp(-(px_depth_term(t.w, z, grad, dx, dy, p) + extra));
   return px_normal_weights(dot(n, t.xyz), p->sigma_n, fmin(p->sigma_n, PX_SVGF_LOOSE_SIGMA_N)) * rest;
@@ -201,18 +202,20 @@ inline float2 px_depth_gradient(const global float4* guide, int x, int y, const 
   const uint w = p->width;
   float gx = 0.0f, gy = 0.0f;
   if (xr > xl)
-    gx = (px_guide_depth(guide[(uint)y * w + (uint)xr]) - px_guide_depth(guide[(uint)y * w + (uint)xl])) / (float)(xr - xl);
+    gx = (px_guide_depth(guide[(uint)y * w + (uint)xr]) - px_guide_depth(guide[(uint)y * w + (uint)xl])) /
+         (float)(xr - xl);
   if (yd > yu)
-    gy = (px_guide_depth(guide[(uint)yd * w + (uint)x]) - px_guide_depth(guide[(uint)yu * w + (uint)x])) / (float)(yd - yu);
+    gy = (px_guide_depth(guide[(uint)yd * w + (uint)x]) - px_guide_depth(guide[(uint)yu * w + (uint)x])) /
+         (float)(yd - yu);
   return (float2)(gx, gy);
 }
 
 /* What every spatial pass needs about its centre pixel for edge-stopping. */
 typedef struct FilterCentre {
-  float3 n;     /* normal */
-  float z;      /* depth */
-  float2 grad;  /* screen-space depth gradient */
-  float l;      /* luminance of the value being filtered */
+  float3 n;    /* normal */
+  float z;     /* depth */
+  float2 grad; /* screen-space depth gradient */
+  float l;     /* luminance of the value being filtered */
 } FilterCentre;
 
 inline FilterCentre px_filter_centre(const global float4* guide, int x, int y, float3 value, const SvgfParams* p) {

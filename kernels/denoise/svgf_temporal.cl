@@ -22,9 +22,10 @@ inline int px_history_matches(const global GBufferTexel* q, float3 n, float expe
  * that were the environment too, and not a borrowing silhouette pixel (whose history is
  * illumination, not radiance). Radiance, not illumination: the colour blends like the
  * surfaces' with alpha = max(alpha, 1 / history length); the length rides in moments.z. */
-inline float4 px_environment_temporal(float3 c, const global GBufferTexel* g, int y, const global GBufferTexel* prev_gbuf,
-                                      const global float4* prev_illum, const global float4* prev_moments,
-                                      const SvgfParams* p, const CameraParams* prev_cam) {
+inline float4 px_environment_temporal(float3 c, const global GBufferTexel* g, int y,
+                                      const global GBufferTexel* prev_gbuf, const global float4* prev_illum,
+                                      const global float4* prev_moments, const SvgfParams* p,
+                                      const CameraParams* prev_cam) {
   float fx, fy;
   if (!px_previous_pixel(px_load3(g->pos), prev_cam, p, &fx, &fy)) return (float4)(c, 1.0f);
   float3 hist = (float3)(0.0f, 0.0f, 0.0f);
@@ -56,10 +57,10 @@ kernel void svgf_guide(global float4* guide, const global GBufferTexel* gbuf, Sv
 }
 
 kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, const global float4* color,
-                          const global float4* albedo, const global GBufferTexel* gbuf, const global GBufferTexel* prev_gbuf,
-                          const global float4* prev_illum, const global float4* prev_moments, SvgfParams p,
-                          CameraParams prev_cam, uint have_history, const global float4* guide,
-                          const global float4* motion) {
+                          const global float4* albedo, const global GBufferTexel* gbuf,
+                          const global GBufferTexel* prev_gbuf, const global float4* prev_illum,
+                          const global float4* prev_moments, SvgfParams p, CameraParams prev_cam, uint have_history,
+                          const global float4* guide, const global float4* motion) {
   const uint gid = get_global_id(0);
   if (gid >= p.rows * p.width) return;
   const uint i = p.row0 * p.width + gid;
@@ -139,8 +140,8 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
     float a = fmax(p.alpha, 1.0f / len);
     /* Beside a moving object a still surface's illumination changes from frame to frame: the
      * object's contact shadow and the light it reflects move with it. Its history lags there
-     * (docs/measurements.md, SVGF history beside motion), so there it keeps at most half. A stand-in for a temporal gradient (A-SVGF), which would also catch a
-     * shadow cast far from its object and need no reach in pixels. */
+     * (docs/measurements.md, SVGF history beside motion), so there it keeps at most half. A stand-in for a temporal
+     * gradient (A-SVGF), which would also catch a shadow cast far from its object and need no reach in pixels. */
     if (motion && motion[i].w == PX_MOTION_STILL) {
       const int x0 = (int)(i % p.width);
       for (int dy = -PX_SVGF_NEAR_MOTION_REACH; dy <= PX_SVGF_NEAR_MOTION_REACH; ++dy)

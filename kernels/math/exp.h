@@ -20,21 +20,21 @@
 
 /* One body for float (px_exp) and float8 (px_exp8, eight filter taps at once on CPUs): the same
  * operations lane by lane. SFX is the vector width's suffix of convert_int / as_float. */
-#define PX_DEFINE_EXP(NAME, F, I, SFX)                                                            \
-  inline F NAME(F x) {                                                                            \
-    const F xc = fmin(fmax(x, -87.0f), 88.0f);                                                    \
-    const F t = xc * 1.44269504f; /* log2(e) */                                                   \
-    /* round to nearest; in [-126, 127] */                                                        \
-    const I ni = convert_int##SFX(t + select((F)(0.5f), (F)(-0.5f), t < 0.0f));                   \
-    const F n = convert_float##SFX(ni);                                                           \
-    const F r = (xc - n * 0.693145751953125f) - n * 1.428606765330187e-6f;                        \
-    const F r2 = r * r;                                                                           \
-    const F p = ((1.0f + r) + r2 * (0.5f + r * (1.0f / 6.0f))) +                                  \
-                (r2 * r2) * ((1.0f / 24.0f + r * (1.0f / 120.0f)) + r2 * (1.0f / 720.0f));        \
-    F e = p * as_float##SFX((ni + 127) << 23);                                                    \
-    e = select(e, (F)(0.0f), x < -87.0f);                                                         \
-    e = select(e, (F)(INFINITY), x > 88.0f);                                                      \
-    return select(e, x, x != x);                                                                  \
+#define PX_DEFINE_EXP(NAME, F, I, SFX)                                                     \
+  inline F NAME(F x) {                                                                     \
+    const F xc = fmin(fmax(x, -87.0f), 88.0f);                                             \
+    const F t = xc * 1.44269504f; /* log2(e) */                                            \
+    /* round to nearest; in [-126, 127] */                                                 \
+    const I ni = convert_int##SFX(t + select((F)(0.5f), (F)(-0.5f), t < 0.0f));            \
+    const F n = convert_float##SFX(ni);                                                    \
+    const F r = (xc - n * 0.693145751953125f) - n * 1.428606765330187e-6f;                 \
+    const F r2 = r * r;                                                                    \
+    const F p = ((1.0f + r) + r2 * (0.5f + r * (1.0f / 6.0f))) +                           \
+                (r2 * r2) * ((1.0f / 24.0f + r * (1.0f / 120.0f)) + r2 * (1.0f / 720.0f)); \
+    F e = p * as_float##SFX((ni + 127) << 23);                                             \
+    e = select(e, (F)(0.0f), x < -87.0f);                                                  \
+    e = select(e, (F)(INFINITY), x > 88.0f);                                               \
+    return select(e, x, x != x);                                                           \
   }
 
 PX_DEFINE_EXP(px_exp, float, int, )

@@ -17,9 +17,8 @@
  * receives PathVertex::primary_albedo. If `gbuffer_texel` is not null, the camera ray's texel
  * (gbuffer_texel.h) goes there. If `gbuffer_hit` is not null, it is the camera ray's hit, already
  * traced (by the G-buffer pass, for the same ray). */
-inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir,
-                            SampleKey key, float4* primary_albedo, global GBufferTexel* gbuffer_texel,
-                            const global Hit* gbuffer_hit) {
+inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir, SampleKey key,
+                            float4* primary_albedo, global GBufferTexel* gbuffer_texel, const global Hit* gbuffer_hit) {
   PathVertex v = px_camera_path(org, dir);
   for (uint bounce = 0; bounce <= fp->max_bounces; ++bounce) {
     const Hit hit =
@@ -38,8 +37,8 @@ inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float
 /* Sample s of pixel (x, y): the radiance of its camera path, and in *albedo the path's primary
  * demodulation albedo (see px_trace_path). Every random number comes from the pixel's and the
  * sample's own stream, so a sample is the same whichever work-item traces it. If this sample is
- * the G-buffer's ray (through the camera's jitter position): `gbuffer_texel` (if not null) receives the pixel's G-buffer texel, and
- * `gbuffer_hit` (if not null) is that ray's hit, traced already. */
+ * the G-buffer's ray (through the camera's jitter position): `gbuffer_texel` (if not null) receives the pixel's
+ * G-buffer texel, and `gbuffer_hit` (if not null) is that ray's hit, traced already. */
 inline float3 px_render_sample(const SceneView* scene, const FrameParams* fp, const CameraParams* cam, uint x, uint y,
                                uint s, float4* albedo, global GBufferTexel* gbuffer_texel,
                                const global Hit* gbuffer_hit) {
@@ -57,9 +56,9 @@ inline float3 px_render_sample(const SceneView* scene, const FrameParams* fp, co
  * silhouettes, cut-outs); its w is the fraction of those paths whose camera ray met a surface
  * the denoiser filters (the pixel's coverage: SVGF filters a silhouette pixel whose centre
  * misses the object but whose samples hit it). No finite path: (1, 1, 1, 0). */
-inline float4 px_render_pixel(const SceneView* scene, const FrameParams* fp, const CameraParams* cam,
-                              uint x, uint y, volatile global uint* nonfinite, float4* albedo,
-                              global GBufferTexel* gbuffer_texel, const global Hit* gbuffer_hit) {
+inline float4 px_render_pixel(const SceneView* scene, const FrameParams* fp, const CameraParams* cam, uint x, uint y,
+                              volatile global uint* nonfinite, float4* albedo, global GBufferTexel* gbuffer_texel,
+                              const global Hit* gbuffer_hit) {
   float3 sum = (float3)(0.0f, 0.0f, 0.0f);
   float4 albedo_sum = (float4)(0.0f, 0.0f, 0.0f, 0.0f);
   uint good = 0;
@@ -100,8 +99,8 @@ kernel void path_trace(global float4* out, global float4* albedo_out, volatile g
  * G-buffer pass's full-frame hits of the same eye (its rays are the first samples (the G-buffer's rays)'),
  * so that a hole's first sample starts at its hit instead of tracing the ray a second time. */
 kernel void path_trace_list(global float4* out, global float4* albedo_out, volatile global uint* nonfinite,
-                            const global uint* holes, const global uint* hole_count,
-                            const global Hit* gbuffer_hits, FrameParams fp, CameraParams cam, PX_SCENE_PARAMS) {
+                            const global uint* holes, const global uint* hole_count, const global Hit* gbuffer_hits,
+                            FrameParams fp, CameraParams cam, PX_SCENE_PARAMS) {
   const uint i = get_global_id(0);
   if (i >= *hole_count) return;
   const SceneView scene = PX_SCENE_VIEW();

@@ -25,12 +25,12 @@
 
 /* The state a path carries from one vertex to the next. */
 typedef struct PathVertex {
-  float3 org, dir;    /* the next ray */
+  float3 org, dir; /* the next ray */
   float3 throughput;
-  float3 radiance;    /* gathered so far */
-  float3 prev_n;      /* shading normal of the last vertex (the environment's MIS pdf) */
-  float prev_pdf;     /* pdf of the last BSDF sample (MIS) */
-  int prev_delta;     /* the last bounce was a delta one (the camera ray counts as one) */
+  float3 radiance; /* gathered so far */
+  float3 prev_n;   /* shading normal of the last vertex (the environment's MIS pdf) */
+  float prev_pdf;  /* pdf of the last BSDF sample (MIS) */
+  int prev_delta;  /* the last bounce was a delta one (the camera ray counts as one) */
   /* The demodulation albedo of the first vertex (px_demodulation_albedo; 1 where the ray
    * escapes or meets an emitter, whose radiance is its own "illumination") and, in w, 1 where
    * that vertex is a surface the denoiser filters (not an emitter, not the environment), else 0. */
@@ -96,8 +96,10 @@ inline int px_path_vertex(const SceneView* scene, const FrameParams* fp, SampleK
     const float3 le = px_environment(fp, dir);
     float w = 1.0f;
     if (!v->prev_delta) {
-      if (!use_bsdf_light) w = 0.0f;
-      else if (use_nee) w = px_mis_power(v->prev_pdf, px_environment_pdf(fp, v->prev_n, dir));
+      if (!use_bsdf_light)
+        w = 0.0f;
+      else if (use_nee)
+        w = px_mis_power(v->prev_pdf, px_environment_pdf(fp, v->prev_n, dir));
     }
     v->radiance += v->throughput * le * w;
     return 0;
@@ -142,7 +144,8 @@ inline int px_path_vertex(const SceneView* scene, const FrameParams* fp, SampleK
     albedo *= px_texture_bilinear(scene, mat->diffuse_texture, px_interpolate_uv(sh, hit.u, hit.v)).xyz;
   if (PX_HAS(PX_FEATURE_VERTEX_COLOURS)) albedo *= px_vertex_colour(scene, prim, hit.u, hit.v);
   const float2 uv = px_interpolate_uv(sh, hit.u, hit.v);
-  if (PX_HAS(PX_FEATURE_NORMAL_MAP) && mat->normal_texture >= 0) ns = px_normal_mapped(scene, mat, sh, v0, v1, v2, uv, ns, wo);
+  if (PX_HAS(PX_FEATURE_NORMAL_MAP) && mat->normal_texture >= 0)
+    ns = px_normal_mapped(scene, mat, sh, v0, v1, v2, uv, ns, wo);
   const Bsdf bsdf = px_material_bsdf(scene, mat, albedo, uv, outside);
   if (bounce == 0u && !(mat->flags & PX_MAT_EMISSIVE))
     v->primary_albedo = (float4)(px_demodulation_albedo(&bsdf), 1.0f);

@@ -112,19 +112,17 @@ kernel void wf_extend(const global float4* states, global Hit* hits, const globa
 }
 
 /* The live paths' vertex `bounce`. At vertex 0, the first sample (the G-buffer's ray)'s path writes its
- * pixel's texel of `gbuffer` (if not null), as the megakernel does. Each work-group appends its paths that go on to the next
- * vertex's queue, and its shadow rays to the shadow queue, with one prefix sum for both (live
- * paths in the low 16 bits, shadow rays in the high: at most PX_LOCAL_SIZE each) and one
- * atomic_add per queue: a queue keeps its paths in the order of the queue before, group by
- * group, so neighbouring work-items keep tracing neighbouring pixels' paths. */
+ * pixel's texel of `gbuffer` (if not null), as the megakernel does. Each work-group appends its paths that go on to the
+ * next vertex's queue, and its shadow rays to the shadow queue, with one prefix sum for both (live paths in the low 16
+ * bits, shadow rays in the high: at most PX_LOCAL_SIZE each) and one atomic_add per queue: a queue keeps its paths in
+ * the order of the queue before, group by group, so neighbouring work-items keep tracing neighbouring pixels' paths. */
 #if PX_LOCAL_SIZE > 0xffff
 #error "wf_shade packs two per-group counts of at most PX_LOCAL_SIZE into 16 bits each"
 #endif
-__attribute__((reqd_work_group_size(PX_LOCAL_SIZE, 1, 1)))
-kernel void wf_shade(global float4* states, global float4* shadows, const global Hit* hits,
-                     const global uint* path_pixel, const global uint* queue, global uint* next_queue,
-                     global uint* shadow_queue, volatile global uint* counts, uint bounce,
-                     global GBufferTexel* gbuffer, FrameParams fp, CameraParams cam, PX_SCENE_PARAMS) {
+__attribute__((reqd_work_group_size(PX_LOCAL_SIZE, 1, 1))) kernel void wf_shade(
+    global float4* states, global float4* shadows, const global Hit* hits, const global uint* path_pixel,
+    const global uint* queue, global uint* next_queue, global uint* shadow_queue, volatile global uint* counts,
+    uint bounce, global GBufferTexel* gbuffer, FrameParams fp, CameraParams cam, PX_SCENE_PARAMS) {
   local uint scan[PX_LOCAL_SIZE];
   local uint bases[2];
   const uint j = get_global_id(0), lid = get_local_id(0);

@@ -1,6 +1,6 @@
 /* Stage 3: G-buffer of one eye's rows, from the primary ray through each pixel's point at the
- * frame's jitter position (CameraParams::jitter; gbuffer_texel.h). Where a device path traces the same eye's rows in the same frame, the path
- * tracer writes those texels itself and this pass covers only the rest (the margin rows the
+ * frame's jitter position (CameraParams::jitter; gbuffer_texel.h). Where a device path traces the same eye's rows in
+ * the same frame, the path tracer writes those texels itself and this pass covers only the rest (the margin rows the
  * denoiser and reprojection read beyond the strip, and the eyes nobody path traces in full).
  * `hits`: null, or a full-frame Hit buffer that receives each ray's hit, where hole filling
  * (stage 5) starts its pixels' first sample (the G-buffer's ray) instead of tracing the same ray again. */

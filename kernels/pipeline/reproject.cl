@@ -42,8 +42,8 @@ inline int px_same_surface(const global GBufferTexel* a, float3 p, float3 n, flo
 /* Does every texel of the 3-row window x in [x0, x1], rows y-1..y+1 (clipped to the image) see
  * the surface (p, n)? The neighbours are a pixel or two away, so the tolerances are looser than
  * for the taps: this looks for another surface, not for the exact point. */
-inline int px_window_on_surface(const global GBufferTexel* g, int x0, int x1, int y, uint width, uint height,
-                                float3 p, float3 n, float depth, float cos_view, float footprint) {
+inline int px_window_on_surface(const global GBufferTexel* g, int x0, int x1, int y, uint width, uint height, float3 p,
+                                float3 n, float depth, float cos_view, float footprint) {
   for (int ty = max(y - 1, 0); ty <= min(y + 1, (int)height - 1); ++ty)
     for (int tx = max(x0, 0); tx <= min(x1, (int)width - 1); ++tx)
       if (!px_same_surface(g + (uint)ty * width + (uint)tx, p, n, depth, cos_view, footprint,
@@ -72,11 +72,10 @@ inline int px_window_misses(const global GBufferTexel* g, int x, int y, uint wid
  * (coherent primary rays and memory) instead of the scattered order per-item atomic_inc gave.
  * Ranges of different groups still land in whatever order the groups finish. */
 #define PX_REPROJECT_GROUP PX_LOCAL_SIZE
-__attribute__((reqd_work_group_size(PX_REPROJECT_GROUP, 1, 1)))
-kernel void reproject(global float4* right_radiance, global float4* right_albedo, global uint* holes,
-                      volatile global uint* hole_count, const global float4* left_radiance,
-                      const global float4* left_albedo, const global GBufferTexel* left_g,
-                      const global GBufferTexel* right_g, uint row0, uint rows, CameraParams left_cam) {
+__attribute__((reqd_work_group_size(PX_REPROJECT_GROUP, 1, 1))) kernel void reproject(
+    global float4* right_radiance, global float4* right_albedo, global uint* holes, volatile global uint* hole_count,
+    const global float4* left_radiance, const global float4* left_albedo, const global GBufferTexel* left_g,
+    const global GBufferTexel* right_g, uint row0, uint rows, CameraParams left_cam) {
   local uint scan[PX_REPROJECT_GROUP];
   local uint group_base;
   const uint gid = get_global_id(0), lid = get_local_id(0);
@@ -110,13 +109,14 @@ kernel void reproject(global float4* right_radiance, global float4* right_albedo
     const float footprint = g->depth * 2.0f * left_cam.tan_half_fov_y / (float)height;
     const float cos_view = fabs(dot(normalize(d), n));
     const float zf = dot(d, (float3)(left_cam.forward[0], left_cam.forward[1], left_cam.forward[2]));
-    if (zf > 0.0f && px_window_on_surface(right_g, px - 1, px + 1, py, width, height, p, n, g->depth, cos_view,
-                                          footprint)) {
+    if (zf > 0.0f &&
+        px_window_on_surface(right_g, px - 1, px + 1, py, width, height, p, n, g->depth, cos_view, footprint)) {
       const float sx = dot(d, (float3)(left_cam.right[0], left_cam.right[1], left_cam.right[2])) / zf;
       /* p lies at the right pixel's jitter position, and every left texel at the same position in
        * its own pixel (both eyes share the frame's jitter): subtracting it gives the left pixel
        * grid coordinate of the right pixel, whose two nearest left pixels are the taps. */
-      const float fx = (sx / (left_cam.tan_half_fov_y * left_cam.aspect) + 1.0f) * 0.5f * (float)width - left_cam.jitter[0];
+      const float fx =
+          (sx / (left_cam.tan_half_fov_y * left_cam.aspect) + 1.0f) * 0.5f * (float)width - left_cam.jitter[0];
       const float x0f = floor(fx);
       const float a = fx - x0f;
       const int x0 = (int)x0f;

@@ -6,8 +6,7 @@
 #include "scene/scene_view.h"
 #include "trace/traverse.h"
 
-kernel void primary_preview(global float* out_rgb, uint row0, uint rows, CameraParams cam,
-                            PX_SCENE_PARAMS) {
+kernel void primary_preview(global float* out_rgb, uint row0, uint rows, CameraParams cam, PX_SCENE_PARAMS) {
   const uint i = get_global_id(0);
   if (i >= rows * cam.width) return;
   const SceneView scene = PX_SCENE_VIEW();

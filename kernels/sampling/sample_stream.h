@@ -25,7 +25,7 @@ inline uint4 px_hash4(uint4 v) {
 
 /* Everything that identifies one path's random numbers except the dimension. */
 typedef struct SampleKey {
-  uint pixel; /* x | (y << 16) */
+  uint pixel;     /* x | (y << 16) */
   uint frame_eye; /* frame * 2 + eye */
   uint sample;
   uint seed;

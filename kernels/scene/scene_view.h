@@ -7,7 +7,7 @@
 
 typedef struct SceneView {
   const global BvhNode* nodes;
-  const global PxLeafTriangle* tris;  /* leaf order: BvhTriangle, or BvhLeafRef (PX_LEAF_REFS) */
+  const global PxLeafTriangle* tris;       /* leaf order: BvhTriangle, or BvhLeafRef (PX_LEAF_REFS) */
   const global PxTriangleShading* shading; /* TriangleShading, or FlatTriangleShading (PX_FLAT_SHADING) */
   const global GpuMaterial* materials;
   const global TextureInfo* textures;
@@ -24,16 +24,15 @@ typedef struct SceneView {
 
 /* Kernel parameter list for the nine scene buffers, always in this order and always last; the host
  * binds them with DeviceSceneBuffers::bind (host/render/device_scene.h). */
-#define PX_SCENE_PARAMS                                                                       \
-  const global BvhNode *scene_nodes, const global PxLeafTriangle *scene_tris,                 \
+#define PX_SCENE_PARAMS                                                                         \
+  const global BvhNode *scene_nodes, const global PxLeafTriangle *scene_tris,                   \
       const global PxTriangleShading *scene_shading, const global GpuMaterial *scene_materials, \
-      const global TextureInfo *scene_textures, const global float4 *scene_texels,            \
+      const global TextureInfo *scene_textures, const global float4 *scene_texels,              \
       const global LightTriangle *scene_lights, const global float4 *scene_colours,             \
       const global SceneInstances *scene_instances
 
 inline SceneView px_scene_view(const global BvhNode* nodes, const global PxLeafTriangle* tris,
-                               const global PxTriangleShading* shading,
-                               const global GpuMaterial* materials,
+                               const global PxTriangleShading* shading, const global GpuMaterial* materials,
                                const global TextureInfo* textures, const global float4* texels,
                                const global LightTriangle* lights, const global float4* colours,
                                const global SceneInstances* instances) {
@@ -50,9 +49,9 @@ inline SceneView px_scene_view(const global BvhNode* nodes, const global PxLeafT
   return s;
 }
 
-#define PX_SCENE_VIEW()                                                                     \
-  px_scene_view(scene_nodes, scene_tris, scene_shading, scene_materials, scene_textures, \
-                scene_texels, scene_lights, scene_colours, scene_instances)
+#define PX_SCENE_VIEW()                                                                                              \
+  px_scene_view(scene_nodes, scene_tris, scene_shading, scene_materials, scene_textures, scene_texels, scene_lights, \
+                scene_colours, scene_instances)
 
 inline float3 px_load3(const global float* p) { return (float3)(p[0], p[1], p[2]); }
 inline float3 px_load3_private(const float* p) { return (float3)(p[0], p[1], p[2]); }

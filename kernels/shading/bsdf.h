@@ -16,13 +16,13 @@
 #include "shading/dielectric.h"
 
 typedef struct Bsdf {
-  float3 diffuse;  /* already scaled by 1 - max(ks) */
-  float3 specular; /* dielectric: tint of the reflected part */
-  float alpha;     /* GGX roughness (alpha = roughness^2 is NOT applied: the material stores alpha) */
-  int mirror;      /* specular lobe is a delta */
-  float p_specular; /* probability of sampling the specular lobe */
-  int dielectric;  /* smooth dielectric: every sample is a delta reflection or refraction */
-  float eta;       /* dielectric: eta_far / eta_near as seen from wo's side */
+  float3 diffuse;      /* already scaled by 1 - max(ks) */
+  float3 specular;     /* dielectric: tint of the reflected part */
+  float alpha;         /* GGX roughness (alpha = roughness^2 is NOT applied: the material stores alpha) */
+  int mirror;          /* specular lobe is a delta */
+  float p_specular;    /* probability of sampling the specular lobe */
+  int dielectric;      /* smooth dielectric: every sample is a delta reflection or refraction */
+  float eta;           /* dielectric: eta_far / eta_near as seen from wo's side */
   float3 transmission; /* dielectric: filter on the refracted part */
 } Bsdf;
 
@@ -67,7 +67,8 @@ inline Bsdf px_make_dielectric_bsdf(float3 reflect_tint, float3 transmission, fl
  * scales all reflected light works, as long as the same one is used both ways and it is
  * averaged over the same samples as the radiance (see px_render_pixel). */
 inline float3 px_demodulation_albedo(const Bsdf* b) {
-  if (PX_HAS(PX_FEATURE_DIELECTRIC) && b->dielectric) return (float3)(1.0f, 1.0f, 1.0f); /* glass passes (nearly) all light on */
+  if (PX_HAS(PX_FEATURE_DIELECTRIC) && b->dielectric)
+    return (float3)(1.0f, 1.0f, 1.0f); /* glass passes (nearly) all light on */
   return clamp(b->diffuse + b->specular, 0.0f, 1.0f);
 }
 

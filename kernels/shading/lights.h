@@ -1,11 +1,9 @@
-/* Lights: emissive triangles (front face only, unless their material is two-sided), and an environment made of a sun disk and an
- * analytic sky. Next-event estimation first picks a kind of light (FrameParams p_*), then:
- *   triangles - one triangle by power (binary search of the CDF), a uniform point on it;
- *   sun       - a uniform direction inside the sun's cone;
- *   sky       - a cosine-weighted direction around the shading normal.
- * The sun and sky form one environment: a direction inside the sun's cone sees the sun, any
- * other the sky. Its light pdf is the mixture p_sun pdf_sun + p_sky pdf_sky, so a direction has
- * the same density whichever strategy produced it, which is what MIS needs. */
+/* Lights: emissive triangles (front face only, unless their material is two-sided), and an environment made of a sun
+ * disk and an analytic sky. Next-event estimation first picks a kind of light (FrameParams p_*), then: triangles - one
+ * triangle by power (binary search of the CDF), a uniform point on it; sun       - a uniform direction inside the sun's
+ * cone; sky       - a cosine-weighted direction around the shading normal. The sun and sky form one environment: a
+ * direction inside the sun's cone sees the sun, any other the sky. Its light pdf is the mixture p_sun pdf_sun + p_sky
+ * pdf_sky, so a direction has the same density whichever strategy produced it, which is what MIS needs. */
 #ifndef PARALLAX_LIGHTS_H
 #define PARALLAX_LIGHTS_H
 
@@ -43,29 +41,29 @@ inline int px_find_light(const SceneView* s, uint count, uint prim) {
     const int mid = (lo + hi) / 2;
     const uint p = s->lights[mid].prim;
     if (p == prim) return mid;
-    if (p < prim) lo = mid + 1;
-    else hi = mid - 1;
+    if (p < prim)
+      lo = mid + 1;
+    else
+      hi = mid - 1;
   }
   return -1;
 }
 
 /* Density (solid angle, selection included) of NEE reaching emissive triangle `light` at
  * distance `dist`, arriving with cosine `cos_light` to its plane. */
-inline float px_triangle_light_pdf(const FrameParams* fp, const global LightTriangle* l, float dist,
-                                   float cos_light) {
+inline float px_triangle_light_pdf(const FrameParams* fp, const global LightTriangle* l, float dist, float cos_light) {
   if (cos_light <= 0.0f || l->area <= 0.0f) return 0.0f;
   return fp->p_triangles * l->pdf_select * dist * dist / (l->area * cos_light);
 }
 
 typedef struct LightSample {
   float3 wi;
-  float dist;      /* INFINITY for the environment */
+  float dist; /* INFINITY for the environment */
   float3 radiance;
-  float pdf;       /* solid angle, light-type selection included; 0 = no sample */
+  float pdf; /* solid angle, light-type selection included; 0 = no sample */
 } LightSample;
 
-inline LightSample px_sample_light(const SceneView* s, const FrameParams* fp, float3 p, float3 n,
-                                   float4 u) {
+inline LightSample px_sample_light(const SceneView* s, const FrameParams* fp, float3 p, float3 n, float4 u) {
   LightSample ls;
   ls.pdf = 0.0f;
   ls.dist = INFINITY;
@@ -78,8 +76,10 @@ inline LightSample px_sample_light(const SceneView* s, const FrameParams* fp, fl
     int lo = 0, hi = (int)fp->light_count - 1;
     while (lo < hi) {
       const int mid = (lo + hi) / 2;
-      if (s->lights[mid].cdf > u.w) hi = mid;
-      else lo = mid + 1;
+      if (s->lights[mid].cdf > u.w)
+        hi = mid;
+      else
+        lo = mid + 1;
     }
     const global LightTriangle* l = s->lights + lo;
     const float2 b = px_uniform_triangle(u.x, u.y);

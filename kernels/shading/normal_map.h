@@ -18,9 +18,8 @@
 /* The shading normal ns (unit, facing wo) perturbed by the material's normal map at uv.
  * v0..v2 are the triangle's positions; returns ns itself where the triangle's uvs give no
  * frame (all equal or collinear) or the texel decodes to no direction. */
-inline float3 px_normal_mapped(const SceneView* s, const global GpuMaterial* mat,
-                               const global PxTriangleShading* sh, float3 v0, float3 v1, float3 v2,
-                               float2 uv, float3 ns, float3 wo) {
+inline float3 px_normal_mapped(const SceneView* s, const global GpuMaterial* mat, const global PxTriangleShading* sh,
+                               float3 v0, float3 v1, float3 v2, float2 uv, float3 ns, float3 wo) {
   const float3 e1 = v1 - v0, e2 = v2 - v0;
   const float2 d1 = px_shading_uv(sh, 1) - px_shading_uv(sh, 0);
   const float2 d2 = px_shading_uv(sh, 2) - px_shading_uv(sh, 0);

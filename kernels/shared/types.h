@@ -111,7 +111,8 @@ typedef struct Bvh8Node {
  * structure-of-arrays, so the watertight test runs on all of them with float4 ops. Device form
  * only: DeviceScene appends one block per leaf after the wide nodes in the node buffer (Bvh4Node,
  * Bvh8Node: in leaf order, that of their first triangles) and points the leaf slot's `child` at
- * its block, in 16-byte units from the buffer's start (the host's Bvh4Node / Bvh8Node keep the first triangle index, as the binary nodes do).
+ * its block, in 16-byte units from the buffer's start (the host's Bvh4Node / Bvh8Node keep the first triangle index, as
+ * the binary nodes do).
  *
  *     0..143  v[9][4]  rows v0.x v0.y v0.z v1.x v1.y v1.z v2.x v2.y v2.z; lane j = triangle
  *                      first + j; lanes >= count repeat lane 0
@@ -144,7 +145,6 @@ typedef struct BvhLeafRef {
   uint material;
   uint block;
 } BvhLeafRef;
-
 
 /* Compressed 8-wide BVH node ("cwbvh"), 80 bytes, after Ylitie, Karras & Laine 2017
  * ("Efficient incoherent ray traversal on GPUs through compressed wide BVHs"): the same tree as
@@ -243,7 +243,7 @@ typedef struct CompressedBvh8Node {
 #define PX_FEATURE_SUN 0x100u
 #define PX_FEATURE_SKY 0x200u
 #define PX_FEATURE_VERTEX_COLOURS 0x400u /* glTF COLOR_0: per-vertex colours multiply the diffuse colour */
-#define PX_FEATURE_INSTANCES 0x800u /* meshes drawn by several nodes: a top level over instances */
+#define PX_FEATURE_INSTANCES 0x800u      /* meshes drawn by several nodes: a top level over instances */
 #define PX_FEATURES_ALL 0xfffu
 #if defined(__OPENCL_C_VERSION__)
 #ifndef PX_FEATURES
@@ -254,7 +254,7 @@ typedef struct CompressedBvh8Node {
 
 /* Wide traversal stack: a node pushes at most W - 1 entries net (it continues into one hit
  * child), nodes are at most PX_BVH_MAX_DEPTH - 1 deep, plus the W - 1 of the last push. */
-#define PX_WBVH_STACK_SIZE(w) (((w) - 1) * PX_BVH_MAX_DEPTH + 1)
+#define PX_WBVH_STACK_SIZE(w) (((w)-1) * PX_BVH_MAX_DEPTH + 1)
 
 /* Triangle as traversal reads it, 48 bytes, stored in leaf order (with spatial splits a
  * scene triangle may appear in several leaves, so this array can be longer than the scene).
@@ -468,7 +468,6 @@ typedef struct CameraParams {
   uint pad[2];
 } CameraParams;
 
-
 /* Where a texture's texels start in the shared texel buffer (float4 RGBA, linear, rows top to
  * bottom), 16 bytes. */
 typedef struct TextureInfo {
@@ -570,7 +569,6 @@ typedef struct FrameParams {
 #define PX_WF_SHADOWS (PX_WF_LIVE + PX_MAX_BOUNCES_LIMIT + 1u)
 #define PX_WAVEFRONT_COUNTERS (PX_WF_SHADOWS + PX_MAX_BOUNCES_LIMIT + 1u)
 
-
 /* One G-buffer texel (stage 3): what the primary ray through the pixel centre hit, 40 bytes.
  * (No albedo: the denoiser demodulates by the path tracer's per-pixel mean albedo of the
  * samples themselves, which the centre's albedo is not.)
@@ -591,7 +589,7 @@ typedef struct GBufferTexel {
 } GBufferTexel;
 
 #define PX_CLASS_MISS 0u
-#define PX_CLASS_DIFFUSE 1u  /* view-independent: may be reprojected between eyes */
+#define PX_CLASS_DIFFUSE 1u /* view-independent: may be reprojected between eyes */
 #define PX_CLASS_GLOSSY 2u
 #define PX_CLASS_MIRROR 3u
 #define PX_CLASS_EMISSIVE 4u
@@ -613,7 +611,6 @@ typedef struct GBufferTexel {
 /* The neighbours of a reprojected pixel (its footprint's surroundings) only need to lie on the
  * same continuous surface: a looser normal test, so that curved surfaces stay reprojectable. */
 #define PX_REPROJECT_NEIGHBOUR_MIN_COS 0.9f
-
 
 /* SVGF launch constants (Schied et al. 2017), 64 bytes, passed by value to every SVGF pass.
  *

@@ -11,17 +11,15 @@
 
 inline Bsdf px_probe_bsdf(float4 diffuse, float4 specular_alpha, uint mirror, float4 dielectric) {
   if (dielectric.x > 0.0f)
-    return px_make_dielectric_bsdf((float3)(1.0f, 1.0f, 1.0f), diffuse.xyz, dielectric.x,
-                                   dielectric.y > 0.5f);
+    return px_make_dielectric_bsdf((float3)(1.0f, 1.0f, 1.0f), diffuse.xyz, dielectric.x, dielectric.y > 0.5f);
   return px_make_bsdf(diffuse.xyz, specular_alpha.xyz, specular_alpha.w, (int)mirror);
 }
 
 /* One BSDF sample per work-item: out[i] = (wi.xyz, pdf from sample), out2[i] = (weight.xyz,
  * pdf recomputed by px_bsdf_pdf(wi)); weight = 0 and pdfs 0 when the sample is invalid; a
  * delta sample gets pdf -1. For a dielectric, diffuse.xyz is the transmission filter. */
-kernel void probe_sample(global float4* out, global float4* out2, uint count, float4 diffuse,
-                         float4 specular_alpha, uint mirror, float4 wo4, float4 dielectric,
-                         uint seed) {
+kernel void probe_sample(global float4* out, global float4* out2, uint count, float4 diffuse, float4 specular_alpha,
+                         uint mirror, float4 wo4, float4 dielectric, uint seed) {
   const uint i = get_global_id(0);
   if (i >= count) return;
   const Bsdf b = px_probe_bsdf(diffuse, specular_alpha, mirror, dielectric);
@@ -39,8 +37,8 @@ kernel void probe_sample(global float4* out, global float4* out2, uint count, fl
 }
 
 /* Evaluates f and pdf at given directions: out[i] = (f.xyz, pdf). */
-kernel void probe_eval(const global float4* wi, global float4* out, uint count, float4 diffuse,
-                       float4 specular_alpha, uint mirror, float4 wo4, float4 dielectric) {
+kernel void probe_eval(const global float4* wi, global float4* out, uint count, float4 diffuse, float4 specular_alpha,
+                       uint mirror, float4 wo4, float4 dielectric) {
   const uint i = get_global_id(0);
   if (i >= count) return;
   const Bsdf b = px_probe_bsdf(diffuse, specular_alpha, mirror, dielectric);

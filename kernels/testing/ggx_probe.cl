@@ -8,8 +8,8 @@
 #include "shading/bsdf.h"
 
 /* out[i] = (f(wo[i], wi[i]).xyz, pdf). */
-kernel void ggx_eval(const global float4* wo, const global float4* wi, global float4* out, uint count,
-                     float4 diffuse, float4 specular_alpha) {
+kernel void ggx_eval(const global float4* wo, const global float4* wi, global float4* out, uint count, float4 diffuse,
+                     float4 specular_alpha) {
   const uint i = get_global_id(0);
   if (i >= count) return;
   const Bsdf b = px_make_bsdf(diffuse.xyz, specular_alpha.xyz, specular_alpha.w, 0);
@@ -18,8 +18,7 @@ kernel void ggx_eval(const global float4* wo, const global float4* wi, global fl
 }
 
 /* Sample i from direction wo: out[i] = (weight.xyz, 1) for a valid sample, else 0. */
-kernel void ggx_sample(global float4* out, uint count, float4 diffuse, float4 specular_alpha, float4 wo4,
-                       uint seed) {
+kernel void ggx_sample(global float4* out, uint count, float4 diffuse, float4 specular_alpha, float4 wo4, uint seed) {
   const uint i = get_global_id(0);
   if (i >= count) return;
   const Bsdf b = px_make_bsdf(diffuse.xyz, specular_alpha.xyz, specular_alpha.w, 0);

@@ -21,8 +21,7 @@ inline float px_offset_component(float p, float n) {
 /* p: hit point; n: geometric normal on the side the new ray leaves from (flip it for
  * transmission or for rays leaving the back face). */
 inline float3 px_offset_ray_origin(float3 p, float3 n) {
-  return (float3)(px_offset_component(p.x, n.x), px_offset_component(p.y, n.y),
-                  px_offset_component(p.z, n.z));
+  return (float3)(px_offset_component(p.x, n.x), px_offset_component(p.y, n.y), px_offset_component(p.z, n.z));
 }
 
 #endif

@@ -10,8 +10,8 @@ kernel void trace_closest(const global Ray* rays, global Hit* hits, uint count, 
   if (i >= count) return;
   const SceneView scene = PX_SCENE_VIEW();
   const Ray r = rays[i];
-  hits[i] = px_trace_closest(&scene, (float3)(r.org[0], r.org[1], r.org[2]),
-                             (float3)(r.dir[0], r.dir[1], r.dir[2]), r.tmin, r.tmax);
+  hits[i] = px_trace_closest(&scene, (float3)(r.org[0], r.org[1], r.org[2]), (float3)(r.dir[0], r.dir[1], r.dir[2]),
+                             r.tmin, r.tmax);
 }
 
 kernel void trace_any(const global Ray* rays, global uint* occluded, uint count, PX_SCENE_PARAMS) {
@@ -25,8 +25,7 @@ kernel void trace_any(const global Ray* rays, global uint* occluded, uint count,
 
 /* Offsets hit points off their surfaces (Wächter & Binder) — exposed so the tests can check
  * the very function the path tracer uses. points/normals: 4 floats each (xyz, unused w). */
-kernel void offset_origins(const global float4* points, const global float4* normals,
-                           global float4* out, uint count) {
+kernel void offset_origins(const global float4* points, const global float4* normals, global float4* out, uint count) {
   const uint i = get_global_id(0);
   if (i >= count) return;
   out[i] = (float4)(px_offset_ray_origin(points[i].xyz, normals[i].xyz), 0.0f);

@@ -99,8 +99,8 @@ inline Hit px_tree_closest(const SceneView* scene, float3 org, float3 dir, float
   uint node_index = 0;
   for (;;) {
     const BvhNode n = nodes[node_index];
-    float tl = px_child_absent(n.left, n.left_count) ? INFINITY
-                                                     : px_intersect_box(org, inv_dir, n.lmin, n.lmax, tmin, best.t);
+    float tl =
+        px_child_absent(n.left, n.left_count) ? INFINITY : px_intersect_box(org, inv_dir, n.lmin, n.lmax, tmin, best.t);
     float tr = px_child_absent(n.right, n.right_count) ? INFINITY
                                                        : px_intersect_box(org, inv_dir, n.rmin, n.rmax, tmin, best.t);
     if (tl != INFINITY && n.left_count > 0) {
@@ -130,10 +130,10 @@ inline int px_tree_any(const SceneView* scene, float3 org, float3 dir, float tmi
   Hit scratch;
   for (;;) {
     const BvhNode n = nodes[node_index];
-    const float tl = px_child_absent(n.left, n.left_count) ? INFINITY
-                                                           : px_intersect_box(org, inv_dir, n.lmin, n.lmax, tmin, tmax);
-    const float tr = px_child_absent(n.right, n.right_count) ? INFINITY
-                                                             : px_intersect_box(org, inv_dir, n.rmin, n.rmax, tmin, tmax);
+    const float tl =
+        px_child_absent(n.left, n.left_count) ? INFINITY : px_intersect_box(org, inv_dir, n.lmin, n.lmax, tmin, tmax);
+    const float tr =
+        px_child_absent(n.right, n.right_count) ? INFINITY : px_intersect_box(org, inv_dir, n.rmin, n.rmax, tmin, tmax);
     int go_left = tl != INFINITY, go_right = tr != INFINITY;
     if (go_left && n.left_count > 0) {
       scratch.t = tmax;
@@ -311,10 +311,10 @@ inline uint px_wide_boxes(const global float* node, const WideRay* w, float tmin
   const global uchar* b = (const global uchar*)node;
   const float sx = px_cw_scale(b, 0), sy = px_cw_scale(b, 1), sz = px_cw_scale(b, 2);
   const float px = node[0], py = node[1], pz = node[2];
-  const uint hits = px_wide_slabs(px_cw_row(b, w->near_x, sx, px), px_cw_row(b, w->near_y, sy, py),
-                                  px_cw_row(b, w->near_z, sz, pz), px_cw_row(b, w->far_x, sx, px),
-                                  px_cw_row(b, w->far_y, sy, py), px_cw_row(b, w->far_z, sz, pz), w, tmin, tmax,
-                                  t_enter);
+  const uint hits =
+      px_wide_slabs(px_cw_row(b, w->near_x, sx, px), px_cw_row(b, w->near_y, sy, py), px_cw_row(b, w->near_z, sz, pz),
+                    px_cw_row(b, w->far_x, sx, px), px_cw_row(b, w->far_y, sy, py), px_cw_row(b, w->far_z, sz, pz), w,
+                    tmin, tmax, t_enter);
   const uchar8 meta = vload8(0, b + 24);
   return hits & pxw_mask(convert_int8(meta != (uchar8)(0)));
 }
@@ -335,11 +335,10 @@ inline void pxw_prefetch_node_rest(const global float* node) { PX_PREFETCH(node 
 #else
 
 /* Slab test of all W children of `node`: entry distances in *t_enter; returns the hit mask. */
-inline uint px_wide_boxes(const global float* node, const WideRay* w, float tmin, float tmax,
-                          pxw_float* t_enter) {
-  return px_wide_slabs(pxw_vload(0, node + w->near_x), pxw_vload(0, node + w->near_y),
-                       pxw_vload(0, node + w->near_z), pxw_vload(0, node + w->far_x),
-                       pxw_vload(0, node + w->far_y), pxw_vload(0, node + w->far_z), w, tmin, tmax, t_enter);
+inline uint px_wide_boxes(const global float* node, const WideRay* w, float tmin, float tmax, pxw_float* t_enter) {
+  return px_wide_slabs(pxw_vload(0, node + w->near_x), pxw_vload(0, node + w->near_y), pxw_vload(0, node + w->near_z),
+                       pxw_vload(0, node + w->far_x), pxw_vload(0, node + w->far_y), pxw_vload(0, node + w->far_z), w,
+                       tmin, tmax, t_enter);
 }
 
 /* Slot i's stack entry: node index, or leaf block offset in 16-byte units | count << 29. */
@@ -364,8 +363,8 @@ inline uint px_lowest_bit(uint m) { return 31u - clz(m & (0u - m)); }
  * Among hit lanes the nearest wins (the lowest lane on equal t). `count` is the leaf's triangle
  * count, which the caller has from the node (the block's own count field holds the same).
  * Returns 1 on any hit. */
-inline int px_intersect_block(const SceneView* scene, const global float* block, uint count,
-                              const RayShear* s, float tmin, Hit* best) {
+inline int px_intersect_block(const SceneView* scene, const global float* block, uint count, const RayShear* s,
+                              float tmin, Hit* best) {
   const global uint* header = (const global uint*)(block + 36);
   const uint first = header[0];
   if (PX_HAS(PX_FEATURE_ALPHA_TEST) && (header[2] & PX_TRI_ALPHA_TESTED))
@@ -533,8 +532,7 @@ inline int px_tree_any(const SceneView* scene, float3 org, float3 dir, float tmi
       const uint e = pxw_child_entry(node, i);
       if (e >> 29) {
         scratch.t = tmax;
-        if (px_intersect_block(scene, nodes + (size_t)(e & 0x1fffffffu) * 4, e >> 29, &shear, tmin, &scratch))
-          return 1;
+        if (px_intersect_block(scene, nodes + (size_t)(e & 0x1fffffffu) * 4, e >> 29, &shear, tmin, &scratch)) return 1;
       } else if (sp < PXW_STACK) {
         stack_node[sp++] = e;
       }

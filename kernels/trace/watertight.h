@@ -55,8 +55,8 @@ inline RayShear px_make_shear(float3 org, float3 dir) {
  * distance in floats between a vertex's x, y and z (1 for float[3]; 4 for a lane of a leaf
  * block's rows). */
 inline int px_intersect_triangle_strided(const RayShear* s, const global float* v0, const global float* v1,
-                                         const global float* v2, int stride, float tmin, float tmax, float* t,
-                                         float* u, float* v) {
+                                         const global float* v2, int stride, float tmin, float tmax, float* t, float* u,
+                                         float* v) {
   const float ox = px_axis(s->org, s->kx), oy = px_axis(s->org, s->ky), oz = px_axis(s->org, s->kz);
   const int kx = stride * s->kx, ky = stride * s->ky, kz = stride * s->kz;
   const float az = v0[kz] - oz, bz = v1[kz] - oz, cz = v2[kz] - oz;
@@ -114,8 +114,8 @@ inline float3 px_safe_inverse(float3 d) {
 #define PX_BOX_FAR_SCALE 1.00000036f
 
 /* Slab test. Returns the entry distance, or INFINITY when the ray misses [tmin, tmax]. */
-inline float px_intersect_box(float3 org, float3 inv_dir, const float* bmin_p, const float* bmax_p,
-                              float tmin, float tmax) {
+inline float px_intersect_box(float3 org, float3 inv_dir, const float* bmin_p, const float* bmax_p, float tmin,
+                              float tmax) {
   const float3 bmin = (float3)(bmin_p[0], bmin_p[1], bmin_p[2]);
   const float3 bmax = (float3)(bmax_p[0], bmax_p[1], bmax_p[2]);
   const float3 t0 = (bmin - org) * inv_dir;

@@ -41,7 +41,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     for (const px::Material& m : scene.materials)
       for (int tex : {m.diffuse_texture, m.specular_texture, m.normal_texture, m.alpha_texture})
         if (tex >= int(scene.textures.size())) std::abort();
-  } catch (const px::SceneError&) {
-  }
+  } catch (const px::SceneError&) {}
   return 0;
 }

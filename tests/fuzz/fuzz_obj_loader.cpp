@@ -14,7 +14,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   constexpr std::string_view marker = "\n#--mtl--\n";
   const std::size_t split = input.find(marker);
   const std::string_view obj = input.substr(0, split);
-  const std::string_view mtl = split == std::string_view::npos ? std::string_view() : input.substr(split + marker.size());
+  const std::string_view mtl =
+      split == std::string_view::npos ? std::string_view() : input.substr(split + marker.size());
   px::fuzz::write("m.mtl", mtl);
   const std::string path = px::fuzz::write("m.obj", obj);
   try {
@@ -26,7 +27,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       for (const auto& p : t.p)
         if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) std::abort();
     }
-  } catch (const px::SceneError&) {
-  }
+  } catch (const px::SceneError&) {}
   return 0;
 }

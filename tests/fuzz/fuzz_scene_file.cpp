@@ -9,8 +9,7 @@
 #include <cstdlib>
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  static const std::string mesh =
-      px::fuzz::write("m.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\n");
+  static const std::string mesh = px::fuzz::write("m.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\n");
   (void)mesh;
   const std::string_view input(reinterpret_cast<const char*>(data), size);
   // The atrium generator makes 0.5-4 million triangles by design (its "detail" range): each
@@ -21,7 +20,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const px::Scene scene = px::load_scene(path);
     if (scene.triangles.empty() || scene.materials.empty()) std::abort();
     if (!(std::abs(scene.camera.position.x) <= px::kMaxSceneCoordinate)) std::abort();
-  } catch (const px::SceneError&) {
-  }
+  } catch (const px::SceneError&) {}
   return 0;
 }

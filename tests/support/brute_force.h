@@ -62,8 +62,7 @@ inline glm::vec3 random_unit(std::mt19937& rng) {
   return glm::normalize(v);
 }
 
-inline Ray make_ray(glm::vec3 o, glm::vec3 d, float tmin = 0.0f,
-                    float tmax = std::numeric_limits<float>::infinity()) {
+inline Ray make_ray(glm::vec3 o, glm::vec3 d, float tmin = 0.0f, float tmax = std::numeric_limits<float>::infinity()) {
   Ray r{};
   for (int i = 0; i < 3; ++i) {
     r.org[i] = o[i];

@@ -42,8 +42,6 @@ class BvhLayoutTest : public ::testing::TestWithParam<BvhLayout> {
 inline auto all_bvh_layouts() {
   return ::testing::Values(BvhLayout::Binary, BvhLayout::Wide4, BvhLayout::Wide8, BvhLayout::Compressed8);
 }
-inline std::string bvh_layout_name(const ::testing::TestParamInfo<BvhLayout>& info) {
-  return to_string(info.param);
-}
+inline std::string bvh_layout_name(const ::testing::TestParamInfo<BvhLayout>& info) { return to_string(info.param); }
 
 }  // namespace px::test

@@ -18,8 +18,8 @@ std::filesystem::path source_dir() { return PX_SOURCE_DIR; }
 
 TempDir::TempDir() {
   std::random_device rd;
-  path_ = std::filesystem::temp_directory_path() /
-          ("px_test_" + std::to_string(::getpid()) + "_" + std::to_string(rd()));
+  path_ =
+      std::filesystem::temp_directory_path() / ("px_test_" + std::to_string(::getpid()) + "_" + std::to_string(rd()));
   std::filesystem::create_directories(path_);
 }
 

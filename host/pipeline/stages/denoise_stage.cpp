@@ -18,7 +18,10 @@ const char* to_string(SeamMode m) {
 }
 
 DenoiseStage::DenoiseStage(StageEnv& env, const Options& options, const PathTraceStage* tracer)
-    : StageUnit(env), options_(options), max_iterations_(options.svgf.iterations), dev_(env.layout.count()),
+    : StageUnit(env),
+      options_(options),
+      max_iterations_(options.svgf.iterations),
+      dev_(env.layout.count()),
       tracer_(tracer) {
   if (options.svgf.iterations < 1) throw std::invalid_argument("SVGF needs at least one a-trous iteration");
   const std::size_t pixels = static_cast<std::size_t>(env.width) * env.height;
@@ -26,9 +29,8 @@ DenoiseStage::DenoiseStage(StageEnv& env, const Options& options, const PathTrac
     if (!env.local(d)) continue;  // another rank's device: nothing of it lives here
     for (int e = 0; e < 2; ++e) {
       dev_[d].gbuffer_prev[e] = cl::Buffer(env.devices.context(), CL_MEM_READ_WRITE, pixels * sizeof(GBufferTexel));
-      dev_[d].svgf[e] =
-          std::make_unique<SvgfDenoiser>(env.devices, env.layout.local_index(d), env.width, env.height, options.svgf,
-                                         &env.lanes);
+      dev_[d].svgf[e] = std::make_unique<SvgfDenoiser>(env.devices, env.layout.local_index(d), env.width, env.height,
+                                                       options.svgf, &env.lanes);
     }
   }
 }
@@ -92,8 +94,8 @@ void DenoiseStage::denoise_eye(int e, const std::vector<RowRange>& strip, const 
   const bool moved = held != strip;
   const std::vector<RowRange> history_rows = widened(halo ? o.temporal_rows + 1 : 0);
   if (halo || moved) {
-    env_.transfer.exchange([&](int d) -> const cl::Buffer& { return svgf(d).history_illum_prev(); }, held,
-                           history_rows, sizeof(cl_float4), halo_staging);
+    env_.transfer.exchange([&](int d) -> const cl::Buffer& { return svgf(d).history_illum_prev(); }, held, history_rows,
+                           sizeof(cl_float4), halo_staging);
     env_.transfer.exchange([&](int d) -> const cl::Buffer& { return svgf(d).history_moments_prev(); }, held,
                            history_rows, sizeof(cl_float4), halo_staging);
     if (o.taa_alpha < 1.0f)
@@ -132,8 +134,7 @@ void DenoiseStage::denoise_eye(int e, const std::vector<RowRange>& strip, const 
       if (env_.local(d)) svgf(d).atrous(i, strip[d], readable(d));
   }
   for (int d = 0; d < n; ++d)
-    if (env_.local(d))
-      svgf(d).remodulate(env_.images[d].radiance[e], env_.images[d].albedo[e], strip[d], readable(d));
+    if (env_.local(d)) svgf(d).remodulate(env_.images[d].radiance[e], env_.images[d].albedo[e], strip[d], readable(d));
   if (o.taa_alpha < 1.0f) {
     // Anti-aliasing reads the remodulated radiance one row beyond the strip.
     if (halo) exchange_halo([&](int d) -> const cl::Buffer& { return env_.images[d].radiance[e]; }, 1);

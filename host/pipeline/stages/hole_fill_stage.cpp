@@ -28,11 +28,11 @@ void HoleFillStage::run(const std::vector<const Operation*>& ops, const FrameInp
     if (tracer_.kernel() == PathTraceKernel::Wavefront) {
       const PathTracer::Targets out{f.radiance[1], f.albedo[1], f.nonfinite_paths};
       tracer_.record(Stage::HoleFill, op->device,
-                     WavefrontPathTracer::trace_list(env_.devices.context(), env_.queue(op->device),
-                                                     env_.devices.program("pathtrace/wavefront.cl", env_.device_scene.kernel_options()),
-                                                     env_.scene_on(op->device), tracer_.wavefront_scratch(op->device),
-                                                     out, f.holes, f.hole_count, env_.pixels(op->rows), fp,
-                                                     in.cams[1], gbuffer_hits));
+                     WavefrontPathTracer::trace_list(
+                         env_.devices.context(), env_.queue(op->device),
+                         env_.devices.program("pathtrace/wavefront.cl", env_.device_scene.kernel_options()),
+                         env_.scene_on(op->device), tracer_.wavefront_scratch(op->device), out, f.holes, f.hole_count,
+                         env_.pixels(op->rows), fp, in.cams[1], gbuffer_hits));
       continue;
     }
     const cl::Program& program = env_.devices.program("pathtrace/path_trace.cl", env_.device_scene.kernel_options());

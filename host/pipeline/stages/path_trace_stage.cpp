@@ -27,16 +27,18 @@ void PathTraceStage::run(const std::vector<const Operation*>& ops, const FrameIn
       scratch_[op->device].reserve(env_.devices.context(),
                                    WavefrontPathTracer::paths_per_launch(frame_pixels, options_.spp), frame_pixels);
       record(op->stage, op->device,
-             WavefrontPathTracer::trace_rows(env_.devices.context(), env_.queue(op->device),
-                                             env_.devices.program("pathtrace/wavefront.cl", env_.device_scene.kernel_options()), env_.scene_on(op->device),
-                                             scratch_[op->device], out, frame_params(e, op->rows, in.frame),
-                                             in.cams[e], env_.width));
+             WavefrontPathTracer::trace_rows(
+                 env_.devices.context(), env_.queue(op->device),
+                 env_.devices.program("pathtrace/wavefront.cl", env_.device_scene.kernel_options()),
+                 env_.scene_on(op->device), scratch_[op->device], out, frame_params(e, op->rows, in.frame), in.cams[e],
+                 env_.width));
       continue;
     }
-    env_.log.record(op->stage, op->device,
-                    PathTracer::launch(env_.queue(op->device), env_.devices.program("pathtrace/path_trace.cl", env_.device_scene.kernel_options()),
-                                       env_.scene_on(op->device), out, frame_params(e, op->rows, in.frame), in.cams[e],
-                                       env_.width));
+    env_.log.record(
+        op->stage, op->device,
+        PathTracer::launch(
+            env_.queue(op->device), env_.devices.program("pathtrace/path_trace.cl", env_.device_scene.kernel_options()),
+            env_.scene_on(op->device), out, frame_params(e, op->rows, in.frame), in.cams[e], env_.width));
   }
 }
 

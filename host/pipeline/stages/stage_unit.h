@@ -1,8 +1,8 @@
 // A pipeline stage as a unit: it owns the buffers only it uses, keeps its options, binds its
 // kernels' arguments and records the events of its commands. A stage that reads this frame's
 // G-buffer beyond its own rows declares how far (a static `gbuffer_rows_read`): every G-buffer
-// pass covers the largest such margin, so no G-buffer row ever travels between devices. StereoPipeline builds one unit per stage and runs the schedule's operations
-// through them (pipeline/operation.h) without knowing what any stage does.
+// pass covers the largest such margin, so no G-buffer row ever travels between devices. StereoPipeline builds one unit
+// per stage and runs the schedule's operations through them (pipeline/operation.h) without knowing what any stage does.
 #pragma once
 
 #include "cl/device_set.h"

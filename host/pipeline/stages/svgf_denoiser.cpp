@@ -11,7 +11,12 @@ namespace px {
 
 SvgfDenoiser::SvgfDenoiser(DeviceSet& devices, int device, unsigned width, unsigned height, const Options& options,
                            QueueLanes* lanes)
-    : devices_(devices), device_(device), lanes_(lanes), width_(width), height_(height), options_(options),
+    : devices_(devices),
+      device_(device),
+      lanes_(lanes),
+      width_(width),
+      height_(height),
+      options_(options),
       atrous_lanes_(resolve_atrous_lanes(options, devices.devices()[device])),
       atrous_tiles_(atrous_lanes_ == 1 &&
                     (options.atrous_tiles < 0 ? devices.devices()[device].is_gpu() : options.atrous_tiles != 0)) {
@@ -179,8 +184,9 @@ void SvgfDenoiser::atrous(unsigned iteration, RowRange rows, RowRange readable) 
   kl.setArg(2, guide_);
   kl.setArg(3, params(guided, readable, step));
   launch(kl, guided, "luminance guide");
-  cl::Kernel k(devices_.program("denoise/svgf_atrous.cl"),
-               atrous_lanes_ == 8 ? "svgf_atrous8" : tiled ? "svgf_atrous_tiled" : "svgf_atrous");
+  cl::Kernel k(devices_.program("denoise/svgf_atrous.cl"), atrous_lanes_ == 8 ? "svgf_atrous8"
+                                                           : tiled            ? "svgf_atrous_tiled"
+                                                                              : "svgf_atrous");
   k.setArg(0, illum_[1 - current_]);
   k.setArg(1, illum_[current_]);
   k.setArg(2, guide_);
@@ -197,8 +203,7 @@ void SvgfDenoiser::atrous(unsigned iteration, RowRange rows, RowRange readable) 
   current_ = 1 - current_;
 }
 
-void SvgfDenoiser::remodulate(const cl::Buffer& out_color, const cl::Buffer& albedo, RowRange rows,
-                              RowRange readable) {
+void SvgfDenoiser::remodulate(const cl::Buffer& out_color, const cl::Buffer& albedo, RowRange rows, RowRange readable) {
   if (rows.size() == 0) return;
   cl::Kernel k(devices_.program("denoise/svgf_atrous.cl"), "svgf_remodulate");
   k.setArg(0, out_color);
@@ -229,8 +234,10 @@ void SvgfDenoiser::antialias(const cl::Buffer& out_color, const cl::Buffer& gbuf
   k.setArg(8, options_.taa_alpha);
   // The motion pass covered temporal()'s rows, which are these (the strip).
   set_optional_buffer(k, 9, motion_this_frame_ ? &motion_ : nullptr);
-  if (motion_this_frame_) k.setArg(10, *prev_gbuf_);
-  else set_optional_buffer(k, 10, nullptr);
+  if (motion_this_frame_)
+    k.setArg(10, *prev_gbuf_);
+  else
+    set_optional_buffer(k, 10, nullptr);
   set_optional_buffer(k, 11, motion_this_frame_ ? scene_motion_ : nullptr);
   set_optional_buffer(k, 12, motion_this_frame_ ? scene_instances_ : nullptr);
   launch(k, rows, "anti-aliasing");

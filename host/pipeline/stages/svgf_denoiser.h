@@ -16,11 +16,11 @@ namespace px {
 class SvgfDenoiser {
  public:
   struct Options {
-    unsigned iterations = 5;    // a-trous steps (spacing 1, 2, 4, ...)
-    float sigma_l = 4.0f;       // luminance edge-stopping (SVGF paper default)
-    float sigma_z = 1.0f;       // depth
-    float sigma_n = 128.0f;     // normal
-    float alpha = 0.2f;         // colour blend floor (paper 0.2)
+    unsigned iterations = 5;  // a-trous steps (spacing 1, 2, 4, ...)
+    float sigma_l = 4.0f;     // luminance edge-stopping (SVGF paper default)
+    float sigma_z = 1.0f;     // depth
+    float sigma_n = 128.0f;   // normal
+    float alpha = 0.2f;       // colour blend floor (paper 0.2)
     float alpha_moments = 0.2f;
     unsigned max_history = 32;
     // Temporal anti-aliasing after remodulation (antialias()): the blend floor of the current
@@ -59,9 +59,9 @@ class SvgfDenoiser {
   // Pass 2: variance from moments (spatial estimate for short histories). Its output, before
   // any a-trous step, is also next frame's colour history.
   void variance(RowRange rows, RowRange readable);
-  // Pass 3+i: one a-trous step. It first prefilters the luminance its edge-stopping compares (svgf_luma) over the rows its taps
-  // reach, `rows` widened by 2 x 2^i within `readable`, which reads one row farther: in halo
-  // mode the input's rows within 2^(i+1) + 1 of the strip must have been exchanged.
+  // Pass 3+i: one a-trous step. It first prefilters the luminance its edge-stopping compares (svgf_luma) over the rows
+  // its taps reach, `rows` widened by 2 x 2^i within `readable`, which reads one row farther: in halo mode the input's
+  // rows within 2^(i+1) + 1 of the strip must have been exchanged.
   void atrous(unsigned iteration, RowRange rows, RowRange readable);
   // Last pass: remodulate by the same `albedo` into `out_color` (float4 radiance, w its sample
   // count on input: the colour passed to temporal()). Silhouette pixels that borrowed a
@@ -76,8 +76,7 @@ class SvgfDenoiser {
                  const CameraParams& prev_cam, RowRange rows, RowRange readable);
   // The paper's bilateral seam filter on `color` (rows within `band` of a seam; -1 = none),
   // reading rows across the seam (exchanged beforehand).
-  void seam_filter(const cl::Buffer& color, RowRange rows, RowRange readable, int seam_above, int seam_below,
-                   int band);
+  void seam_filter(const cl::Buffer& color, RowRange rows, RowRange readable, int seam_above, int seam_below, int band);
   // Stage 7: this frame's history becomes the previous frame's (call once per frame, after all
   // devices finished reading the previous history).
   void end_frame();
@@ -114,13 +113,13 @@ class SvgfDenoiser {
   QueueLanes* lanes_;
   unsigned width_, height_;
   Options options_;
-  unsigned atrous_lanes_;  // pixels per work-item of the a-trous passes on this device (1 or 8)
-  bool atrous_tiles_;      // svgf_atrous_tiled for the small steps (atrous_lanes_ 1 only)
-  cl::Buffer illum_[2];        // ping-pong filter buffers (rgb, variance)
-  cl::Buffer moments_;         // (m1, m2, history length, filtered flag)
-  cl::Buffer guide_;           // (normal, +depth filtered / -depth not), from guide()
-  cl::Buffer luma_;            // float2 per pixel: what an a-trous step's luminance test compares (svgf_luma)
-  cl::Buffer hist_illum_[2];   // colour history: [frame_parity_] written this frame
+  unsigned atrous_lanes_;     // pixels per work-item of the a-trous passes on this device (1 or 8)
+  bool atrous_tiles_;         // svgf_atrous_tiled for the small steps (atrous_lanes_ 1 only)
+  cl::Buffer illum_[2];       // ping-pong filter buffers (rgb, variance)
+  cl::Buffer moments_;        // (m1, m2, history length, filtered flag)
+  cl::Buffer guide_;          // (normal, +depth filtered / -depth not), from guide()
+  cl::Buffer luma_;           // float2 per pixel: what an a-trous step's luminance test compares (svgf_luma)
+  cl::Buffer hist_illum_[2];  // colour history: [frame_parity_] written this frame
   cl::Buffer hist_moments_[2];
   cl::Buffer hist_resolved_[2];  // anti-aliased radiance (rgb, history length), as hist_illum_
   cl::Buffer motion_;            // float4 per pixel: the previous frame's surface point (motion.cl)

@@ -7,7 +7,8 @@ namespace px {
 
 TonemapStage::TonemapStage(StageEnv& env, const Options& options) : StageUnit(env), options_(options) {
   auto table = srgb8_thresholds();
-  thresholds_ = cl::Buffer(env_.devices.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, sizeof(table), table.data());
+  thresholds_ =
+      cl::Buffer(env_.devices.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, sizeof(table), table.data());
 }
 
 void TonemapStage::run(const std::vector<const Operation*>& ops, const FrameInputs&) {
