@@ -149,6 +149,14 @@ CLI::Option* add_pipeline_flags(CLI::App* cmd, px::RenderCommand& r) {
                   "within two pixels of it, so that its anti-aliasing need not wait for many frames (0: none)")
       ->check(CLI::Range(0u, 256u))
       ->capture_default_str();
+  // CLI11 reads on/off as a bool; the check keeps the flag to those two words.
+  cmd->add_option("--temporal-gradients", dn.temporal_gradients,
+                  "re-shade one pixel in nine each frame with last frame's random numbers and drop the denoiser's "
+                  "history where the lighting changed (a light that moves, switches or changes; A-SVGF), so the "
+                  "picture follows it within a frame or two; off: the denoiser as without them")
+      ->type_name("TEXT")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->default_str(dn.temporal_gradients ? "on" : "off");
   add_word_option(cmd, "--seams", dn.seams, px::seam_mode_words(),
                   "strip borders when denoising: halo (exchange neighbour rows; N devices = 1 device), "
                   "independent (each strip alone), bilateral (independent + seam-band filter)");

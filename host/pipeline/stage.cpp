@@ -16,6 +16,7 @@ const char* stage_name(Stage s) {
     case Stage::Stitch: return "stitch";
     case Stage::Output: return "output";
     case Stage::PathTraceRight: return "path trace right";
+    case Stage::TemporalGradient: return "temporal gradient";
   }
   return "?";
 }

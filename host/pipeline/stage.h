@@ -21,6 +21,9 @@ enum class Stage : int {
   Stitch = 10,
   Output = 11,
   PathTraceRight = 12,  // mono pipeline only: the right eye path traced in full
+  // Ours, inside the denoise unit like stage 7: the temporal gradients' shading and filtering
+  // (pipeline/stages/temporal_gradients.h), timed apart from SVGF's own passes.
+  TemporalGradient = 13,
 };
 const char* stage_name(Stage s);
 

@@ -33,7 +33,7 @@ kernel void svgf_antialias(global float4* resolved, global float4* history, cons
                            const global float4* prev, const global GBufferTexel* gbuf, SvgfParams p,
                            CameraParams prev_cam, uint have_history, float alpha, const global float4* motion,
                            const global GBufferTexel* prev_gbuf, const global float4* tri_motion,
-                           const global SceneInstances* instances) {
+                           const global SceneInstances* instances, const global float4* gradient) {
   const uint gid = get_global_id(0);
   if (gid >= p.rows * p.width) return;
   const uint i = p.row0 * p.width + gid;
@@ -134,7 +134,14 @@ kernel void svgf_antialias(global float4* resolved, global float4* history, cons
         /* Motion: resampled history blurs a little more with every bilinear read and lags behind
          * what the view now shows, so a pixel that moved trusts it less. */
         const float moved = length((float2)(fx - (float)x, fy - (float)y));
-        out = mix(hist, c, fmax(fmax(alpha, 1.0f / len), fmin(PX_TAA_MOTION_ALPHA_MAX, PX_TAA_MOTION_ALPHA * moved)));
+        float a = fmax(fmax(alpha, 1.0f / len), fmin(PX_TAA_MOTION_ALPHA_MAX, PX_TAA_MOTION_ALPHA * moved));
+        /* The lighting changed here (temporal gradients): as in svgf_temporal. */
+        const float lambda = px_gradient_lambda(gradient, (uint)x, (uint)y, p.width);
+        if (lambda > 0.0f) {
+          a = mix(a, 1.0f, lambda);
+          len = fmax(1.0f, len * (1.0f - lambda));
+        }
+        out = mix(hist, c, a);
         if (!(isfinite(out.x) && isfinite(out.y) && isfinite(out.z))) {
           out = c;
           len = 1.0f;

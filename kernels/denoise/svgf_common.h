@@ -236,4 +236,14 @@ inline FilterCentre px_filter_centre_at(const global float4* guide, int x, int y
   return px_filter_centre(guide, borrowed % (int)p->width, borrowed / (int)p->width, value, p);
 }
 
+/* The temporal gradients' lambda at pixel (x, y) (gradient_filter.cl: the stratum's filtered
+ * |difference| / larger shade): the share of the history that the lighting's change since last
+ * frame made untrue, 0 where nothing changed (or no gradients: `gradient` null), 1 at most. */
+inline float px_gradient_lambda(const global float4* gradient, uint x, uint y, uint width) {
+  if (!gradient) return 0.0f;
+  const uint strata_w = (width + PX_GRADIENT_STRATUM - 1u) / PX_GRADIENT_STRATUM;
+  const float4 g = gradient[(y / PX_GRADIENT_STRATUM) * strata_w + x / PX_GRADIENT_STRATUM];
+  return g.y > 0.0f ? fmin(1.0f, fabs(g.x) / g.y) : 0.0f;
+}
+
 #endif /* PARALLAX_SVGF_COMMON_H */

@@ -45,4 +45,22 @@
 #define PX_TAA_MOTION_ALPHA 1.0f
 #define PX_TAA_MOTION_ALPHA_MAX 0.5f
 
+/* Temporal gradients (A-SVGF; denoise/temporal_gradient.cl): the image is cut into strata of
+ * PX_GRADIENT_STRATUM x PX_GRADIENT_STRATUM pixels; each frame one pixel per stratum is shaded a
+ * second time (its surface point, this frame's scene) with the random numbers it had, and the
+ * change becomes the stratum's gradient. PX_GRADIENT_STEPS a-trous steps (spacing 1, 2, 4
+ * strata, 3x3 taps) spread it, so a stratum reads PX_GRADIENT_REACH strata each way; what is
+ * shaded reaches one stratum farther than the strip, PX_GRADIENT_ROWS rows each way in all.
+ * PX_GRADIENT_SAMPLE: the sample index of the re-shaded paths' stream, far above any sample a
+ * pixel traces for the image (spp <= 2^20, plus its motion-edge samples). */
+#define PX_GRADIENT_STRATUM 3
+#define PX_GRADIENT_STEPS 3
+#define PX_GRADIENT_REACH 7
+#define PX_GRADIENT_ROWS (PX_GRADIENT_STRATUM * (PX_GRADIENT_REACH + 1))
+#define PX_GRADIENT_SAMPLE 0xFFFFFF00u
+/* The gradient filter's edge stopping between two strata (their centre pixels' G-buffer texels):
+ * normals as cos^PX_GRADIENT_SIGMA_N, depths within PX_GRADIENT_REL_DEPTH x the nearer one. */
+#define PX_GRADIENT_SIGMA_N 32.0f
+#define PX_GRADIENT_REL_DEPTH 0.1f
+
 #endif /* PARALLAX_SVGF_CONSTANTS_H */

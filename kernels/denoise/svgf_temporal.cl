@@ -25,7 +25,7 @@ inline int px_history_matches(const global GBufferTexel* q, float3 n, float expe
 inline float4 px_environment_temporal(float3 c, const global GBufferTexel* g, int y,
                                       const global GBufferTexel* prev_gbuf, const global float4* prev_illum,
                                       const global float4* prev_moments, const SvgfParams* p,
-                                      const CameraParams* prev_cam) {
+                                      const CameraParams* prev_cam, float lambda) {
   float fx, fy;
   if (!px_previous_pixel(px_load3(g->pos), prev_cam, p, &fx, &fy)) return (float4)(c, 1.0f);
   float3 hist = (float3)(0.0f, 0.0f, 0.0f);
@@ -40,8 +40,13 @@ inline float4 px_environment_temporal(float3 c, const global GBufferTexel* g, in
     wsum += w;
   }
   if (wsum <= 0.0f) return (float4)(c, 1.0f);
-  const float len = fmin((float)p->max_history, floor(hist_len / wsum + 0.5f) + 1.0f);
-  return (float4)(mix(hist / wsum, c, fmax(p->alpha, 1.0f / len)), len);
+  float len = fmin((float)p->max_history, floor(hist_len / wsum + 0.5f) + 1.0f);
+  float a = fmax(p->alpha, 1.0f / len);
+  if (lambda > 0.0f) { /* the sky changed (a sun that turns): as svgf_temporal's surfaces */
+    a = mix(a, 1.0f, lambda);
+    len = fmax(1.0f, len * (1.0f - lambda));
+  }
+  return (float4)(mix(hist / wsum, c, a), len);
 }
 
 /* Guide texels of rows [p.row0, p.row0 + p.rows): every row the spatial passes of this frame
@@ -60,13 +65,15 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
                           const global float4* albedo, const global GBufferTexel* gbuf,
                           const global GBufferTexel* prev_gbuf, const global float4* prev_illum,
                           const global float4* prev_moments, SvgfParams p, CameraParams prev_cam, uint have_history,
-                          const global float4* guide, const global float4* motion) {
+                          const global float4* guide, const global float4* motion, const global float4* gradient) {
   const uint gid = get_global_id(0);
   if (gid >= p.rows * p.width) return;
   const uint i = p.row0 * p.width + gid;
   const int y = (int)(i / p.width);
   const global GBufferTexel* g = gbuf + i;
   const float3 c = color[i].xyz;
+  /* Temporal gradients: the share of the history the lighting's change made untrue. */
+  const float lambda = px_gradient_lambda(gradient, i % p.width, (uint)y, p.width);
   if (!px_filtered_class(g->material_class)) {
     /* A silhouette pixel whose samples all hit a filtered surface borrows a neighbour's
      * geometry (PX_SVGF_BORROWED); it has no geometry of its own to match history with, so its
@@ -80,7 +87,7 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
     }
     /* Emitters pass through; the environment is accumulated (colour, history length). */
     const float4 env = g->material_class == PX_CLASS_MISS && have_history
-                           ? px_environment_temporal(c, g, y, prev_gbuf, prev_illum, prev_moments, &p, &prev_cam)
+                           ? px_environment_temporal(c, g, y, prev_gbuf, prev_illum, prev_moments, &p, &prev_cam, lambda)
                            : (float4)(c, 1.0f);
     out_illum[i] = (float4)(env.xyz, 0.0f);
     out_moments[i] = (float4)(0.0f, 0.0f, env.w, 0.0f);
@@ -150,7 +157,14 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
               motion[(uint)(y + dy) * p.width + (uint)(x0 + dx)].w == PX_MOTION_MOVED)
             a = fmax(a, PX_SVGF_NEAR_MOTION_ALPHA);
     }
-    const float am = fmax(p.alpha_moments, 1.0f / len);
+    float am = fmax(p.alpha_moments, 1.0f / len);
+    /* The lighting changed here (temporal gradients): that share of the history goes, and the
+     * history counts as that much shorter from now on. Nothing changes where lambda is 0. */
+    if (lambda > 0.0f) {
+      a = mix(a, 1.0f, lambda);
+      am = mix(am, 1.0f, lambda);
+      len = fmax(1.0f, len * (1.0f - lambda));
+    }
     out = mix(hist, illum, a);
     m = mix(hist_m, cur_m, am);
   } else {

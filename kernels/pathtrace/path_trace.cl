@@ -9,30 +9,10 @@
 #include "shared/types.h"
 #include "pathtrace/path_vertex.h"
 #include "pathtrace/pixel_mean.h"
+#include "pathtrace/trace_path.h"
 #include "pipeline/gbuffer_texel.h"
 #include "render/camera.h"
 #include "trace/traverse.h"
-
-/* Radiance along one camera path, its vertices in a loop (path_vertex.h); *primary_albedo
- * receives PathVertex::primary_albedo. If `gbuffer_texel` is not null, the camera ray's texel
- * (gbuffer_texel.h) goes there. If `gbuffer_hit` is not null, it is the camera ray's hit, already
- * traced (by the G-buffer pass, for the same ray). */
-inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir, SampleKey key,
-                            float4* primary_albedo, global GBufferTexel* gbuffer_texel, const global Hit* gbuffer_hit) {
-  PathVertex v = px_camera_path(org, dir);
-  for (uint bounce = 0; bounce <= fp->max_bounces; ++bounce) {
-    const Hit hit =
-        bounce == 0u && gbuffer_hit ? *gbuffer_hit : px_trace_closest_leaf(scene, v.org, v.dir, 0.0f, INFINITY);
-    if (bounce == 0u && gbuffer_texel) *gbuffer_texel = px_gbuffer_texel(scene, v.dir, hit);
-    ShadowRay shadow;
-    const int goes_on = px_path_vertex(scene, fp, key, bounce, hit, &v, &shadow);
-    if (shadow.valid && !px_trace_any(scene, shadow.org, shadow.dir, 0.0f, shadow.tmax))
-      v.radiance += shadow.contribution;
-    if (!goes_on) break;
-  }
-  *primary_albedo = v.primary_albedo;
-  return v.radiance;
-}
 
 /* Sample s of pixel (x, y): the radiance of its camera path, and in *albedo the path's primary
  * demodulation albedo (see px_trace_path). Every random number comes from the pixel's and the

@@ -640,6 +640,29 @@ typedef struct SvgfParams {
   float jitter[2];
 } SvgfParams;
 
+/* Temporal gradients (denoise/temporal_gradient.cl, gradient_filter.cl) of one eye on one device.
+ * Strata rows are in units of PX_GRADIENT_STRATUM pixel rows; a launch writes strata rows
+ * [s_row0, s_row0 + s_rows) and reads strata rows [s_lo, s_hi) of its input, and pixel rows
+ * [lo_row, hi_row) of the G-buffers (the rows it may read; a pick outside is clamped in). */
+typedef struct GradientParams {
+  uint width;
+  uint height;
+  uint strata_w;
+  uint strata_h;
+  uint s_row0;
+  uint s_rows;
+  uint s_lo;
+  uint s_hi;
+  uint lo_row;
+  uint hi_row;
+  uint step;
+  uint frame;
+  uint eye;
+  uint seed;
+  uint have_history;
+  uint pad;
+} GradientParams;
+
 #ifndef __OPENCL_C_VERSION__
 } /* namespace px */
 #endif

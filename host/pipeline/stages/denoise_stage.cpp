@@ -31,6 +31,9 @@ DenoiseStage::DenoiseStage(StageEnv& env, const Options& options, const PathTrac
       dev_[d].gbuffer_prev[e] = cl::Buffer(env.devices.context(), CL_MEM_READ_WRITE, pixels * sizeof(GBufferTexel));
       dev_[d].svgf[e] = std::make_unique<SvgfDenoiser>(env.devices, env.layout.local_index(d), env.width, env.height,
                                                        options.svgf, &env.lanes);
+      if (options.temporal_gradients && tracer)
+        dev_[d].gradients[e] = std::make_unique<TemporalGradients>(env.devices, env.layout.local_index(d), env.width,
+                                                                   env.height, &env.lanes);
     }
   }
 }
@@ -48,8 +51,11 @@ unsigned DenoiseStage::gbuffer_rows_read(const Options& o) {
     case SeamMode::Halo: break;
   }
   const unsigned atrous = 2u << (o.svgf.iterations - 1);
-  // 3: the variance estimate; PX_SVGF_NEAR_MOTION_REACH: the motion pass (animated scenes).
-  return std::max({atrous, o.svgf.temporal_rows + 1, 3u, static_cast<unsigned>(PX_SVGF_NEAR_MOTION_REACH)}) + 1;
+  // 3: the variance estimate; PX_SVGF_NEAR_MOTION_REACH: the motion pass (animated scenes);
+  // PX_GRADIENT_ROWS: the temporal gradients' picks and filter taps.
+  const unsigned gradients = o.temporal_gradients ? PX_GRADIENT_ROWS : 0u;
+  return std::max({atrous, o.svgf.temporal_rows + 1, 3u, static_cast<unsigned>(PX_SVGF_NEAR_MOTION_REACH), gradients}) +
+         1;
 }
 
 void DenoiseStage::run(const std::vector<const Operation*>& ops, const FrameInputs& in) {
@@ -102,9 +108,19 @@ void DenoiseStage::denoise_eye(int e, const std::vector<RowRange>& strip, const 
       env_.transfer.exchange([&](int d) -> const cl::Buffer& { return svgf(d).history_resolved_prev(); }, held,
                              history_rows, sizeof(cl_float4), halo_staging);
   }
-  if (moved)
-    env_.transfer.exchange([&](int d) -> const cl::Buffer& { return dev_[d].gbuffer_prev[e]; }, held, history_rows,
+  const bool gradients = options_.temporal_gradients && tracer_;
+  if (moved) {
+    // The temporal gradients re-shade last frame's picks within PX_GRADIENT_ROWS of the strip:
+    // their G-buffer texels and last frame's shades come along.
+    const std::vector<RowRange> prev_rows =
+        gradients ? widened(std::max(halo ? o.temporal_rows + 1 : 0u, static_cast<unsigned>(PX_GRADIENT_ROWS)))
+                  : history_rows;
+    env_.transfer.exchange([&](int d) -> const cl::Buffer& { return dev_[d].gbuffer_prev[e]; }, held, prev_rows,
                            sizeof(GBufferTexel), [&](int d) -> StagingBuffer& { return dev_[d].gbuffer[e]; });
+    if (gradients)
+      env_.transfer.exchange([&](int d) -> const cl::Buffer& { return dev_[d].gradients[e]->previous_shades(); }, held,
+                             prev_rows, sizeof(cl_float4), halo_staging);
+  }
   // The guide covers every G-buffer row the spatial passes read: the strip and the margin that
   // gbuffer_rows_read declares (which the G-buffer stage computed).
   const std::vector<RowRange> guided = widened(gbuffer_rows_read(options_));
@@ -113,6 +129,20 @@ void DenoiseStage::denoise_eye(int e, const std::vector<RowRange>& strip, const 
   for (int d = 0; d < n; ++d)
     if (env_.local(d) && tracer_ && options_.motion_edge_samples > 0 && env_.scene_on(d).motion())
       sample_motion_edges(e, d, strip[d], readable(d), in);
+  for (int d = 0; d < n; ++d)
+    if (env_.local(d)) {
+      TemporalGradients* g = dev_[d].gradients[e].get();
+      if (g) {
+        // Within the G-buffer rows this frame traced (gbuffer_rows_read's margin), as the motion edges.
+        const RowRange margin = widen(strip[d], gbuffer_rows_read(options_), env_.height);
+        const RowRange valid{std::max(margin.begin, readable(d).begin), std::min(margin.end, readable(d).end)};
+        g->run(env_.devices.program("denoise/temporal_gradient.cl", env_.device_scene.kernel_options()),
+               env_.scene_on(d), env_.images[d].gbuffer[e], dev_[d].gbuffer_prev[e], env_.images[d].nonfinite_paths,
+               tracer_->frame_params(e, strip[d], in.frame), in.cams[e], strip[d], valid);
+        for (auto& ev : g->take_events()) env_.log.record(Stage::TemporalGradient, d, ev.event, ev.pass);
+      }
+      svgf(d).set_gradient(g ? &g->lambda() : nullptr);
+    }
   for (int d = 0; d < n; ++d)
     if (env_.local(d))
       svgf(d).temporal(env_.images[d].radiance[e], env_.images[d].albedo[e], env_.images[d].gbuffer[e],
@@ -225,6 +255,7 @@ void DenoiseStage::end_frame(const FrameInputs& in) {
     for (int e = 0; e < 2; ++e) {
       std::swap(env_.images[d].gbuffer[e], dev.gbuffer_prev[e]);
       dev.svgf[e]->end_frame();
+      if (dev.gradients[e]) dev.gradients[e]->end_frame();
     }
     for (int e = 0; e < 2; ++e) {
       dev.halo[e].readers.clear();

@@ -13,6 +13,7 @@
 #include "pipeline/stages/path_trace_stage.h"
 #include "pipeline/stages/stage_unit.h"
 #include "pipeline/stages/svgf_denoiser.h"
+#include "pipeline/stages/temporal_gradients.h"
 
 #include <memory>
 #include <optional>
@@ -39,6 +40,11 @@ class DenoiseStage : public StageUnit {
     // within two pixels of it on the still background (kernels/pipeline/motion_edges.cl), so
     // that such a pixel shows its coverage in one frame instead of over many; 0: none.
     unsigned motion_edge_samples = 8;
+    // Temporal gradients (A-SVGF, pipeline/stages/temporal_gradients.h): a pixel in nine is shaded
+    // again each frame to see whether the lighting changed, and the histories drop that share, so
+    // that a light that moves or switches is followed within a frame or two. Off: the images are
+    // those of a denoiser without them, to the bit.
+    bool temporal_gradients = true;
   };
   // Throws std::invalid_argument for fewer than one a-trous iteration. `tracer` (the pipeline's
   // path tracing unit, for its launch constants) traces the motion edges' samples; without one
@@ -47,7 +53,7 @@ class DenoiseStage : public StageUnit {
 
   // The widest read of this frame's G-buffer beyond the strip. Halo seams: a-trous taps at
   // 2 * 2^(iterations-1), history taps at temporal_rows + 1, the variance estimate at 3, the
-  // motion pass at PX_SVGF_NEAR_MOTION_REACH, plus one row for the depth gradient and the taps'
+  // motion pass at PX_SVGF_NEAR_MOTION_REACH, the temporal gradients at PX_GRADIENT_ROWS, plus one row for the depth gradient and the taps'
   // luminance guide (svgf_luma's 3x3); bilateral seams: the band plus the filter's 3 rows;
   // independent: nothing beyond the strip.
   static unsigned gbuffer_rows_read(const Options& options);
@@ -74,6 +80,7 @@ class DenoiseStage : public StageUnit {
   struct PerDevice {
     std::array<cl::Buffer, 2> gbuffer_prev;  // last frame's G-buffer (swapped with this frame's)
     std::array<std::unique_ptr<SvgfDenoiser>, 2> svgf;
+    std::array<std::unique_ptr<TemporalGradients>, 2> gradients;  // Options::temporal_gradients
     // Per eye (the eyes may be denoised at the same time, on different queue lanes):
     std::array<StagingBuffer, 2> halo;     // float4 rows leaving the device
     std::array<StagingBuffer, 2> gbuffer;  // GBufferTexel rows of last frame's G-buffer when strips move

@@ -149,6 +149,7 @@ void SvgfDenoiser::temporal(const cl::Buffer& color, const cl::Buffer& albedo, c
   k.setArg(10, static_cast<cl_uint>(have_history_));
   k.setArg(11, guide_);  // guide() has run: silhouette pixels look for a neighbour to borrow from
   set_optional_buffer(k, 12, motion_this_frame_ ? &motion_ : nullptr);
+  set_optional_buffer(k, 13, gradient_);
   launch(k, rows, "temporal");
   // The moments (with history length) are this frame's moment history as they stand.
   copy_rows(moments_, hist_moments_[frame_parity_], rows, Stage::RecordPrevious, "moment history");
@@ -240,6 +241,7 @@ void SvgfDenoiser::antialias(const cl::Buffer& out_color, const cl::Buffer& gbuf
     set_optional_buffer(k, 10, nullptr);
   set_optional_buffer(k, 11, motion_this_frame_ ? scene_motion_ : nullptr);
   set_optional_buffer(k, 12, motion_this_frame_ ? scene_instances_ : nullptr);
+  set_optional_buffer(k, 13, gradient_);
   launch(k, rows, "anti-aliasing");
   copy_rows(resolved, out_color, rows, Stage::Denoise, "anti-aliased copy");
 }

@@ -77,6 +77,9 @@ class SvgfDenoiser {
   // The paper's bilateral seam filter on `color` (rows within `band` of a seam; -1 = none),
   // reading rows across the seam (exchanged beforehand).
   void seam_filter(const cl::Buffer& color, RowRange rows, RowRange readable, int seam_above, int seam_below, int band);
+  // The temporal gradients of this frame (TemporalGradients::lambda(): a float4 per stratum) that
+  // temporal() and antialias() drop history by; null: none (histories as without gradients).
+  void set_gradient(const cl::Buffer* gradient) { gradient_ = gradient; }
   // Stage 7: this frame's history becomes the previous frame's (call once per frame, after all
   // devices finished reading the previous history).
   void end_frame();
@@ -129,6 +132,7 @@ class SvgfDenoiser {
   const cl::Buffer* prev_gbuf_ = nullptr;
   const cl::Buffer* scene_motion_ = nullptr;
   const cl::Buffer* scene_instances_ = nullptr;
+  const cl::Buffer* gradient_ = nullptr;  // set_gradient()
   int current_ = 0;
   int frame_parity_ = 0;
   bool have_history_ = false;
