@@ -14,7 +14,6 @@
 //   build/bench_animation --counts 1,1000,100000 --frames 8 --devices 2
 #include "app/guarded_main.h"
 #include "bench_common.h"
-#include "bvh/flat_bvh.h"
 #include "bvh/scene_bvhs.h"
 #include "cl/device_set.h"
 #include "render/device_scene.h"

@@ -18,6 +18,7 @@
 #include "bench_common.h"
 #include "ray_sets.h"
 #include "bvh/embree_reference.h"
+#include "bvh/wide_bvh.h"
 #include "cl/device_set.h"
 #include "render/device_scene.h"
 #include "render/stereo_camera.h"

@@ -3,9 +3,14 @@
 // device update against a fresh upload of the same pose, N devices bit-identical with
 // animation playing, and the motion pass against a quad's analytic motion.
 #include "app/scene_setup.h"
+#include "bvh/bvh_builder.h"
+#include "bvh/bvh_layout.h"
+#include "bvh/bvh_refit.h"
+#include "bvh/bvh_validator.h"
 #include "bvh/flat_bvh.h"
 #include "bvh/scene_bvhs.h"
 #include "bvh/top_level_bvh.h"
+#include "bvh/wide_bvh.h"
 #include "cl/launch.h"
 #include "pipeline/stereo_pipeline.h"
 #include "render/device_scene.h"

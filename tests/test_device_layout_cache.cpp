@@ -6,6 +6,7 @@
 // material flag, another layout, a cut or damaged file) must be a miss, never an error. Also
 // ContentHash, the key's hash: independent of how its input is split, and sensitive to a bit.
 #include "app/scene_setup.h"
+#include "bvh/wide_bvh.h"
 #include "render/device_layout_cache.h"
 #include "render/device_scene.h"
 #include "render/path_tracer.h"

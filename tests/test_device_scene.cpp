@@ -3,6 +3,7 @@
 // names it and both sizes (PARALLAX_MAX_ALLOC_BYTES lowers the device's limit for the test).
 #include "app/scene_setup.h"
 #include "bvh/bvh_cache.h"
+#include "bvh/bvh_validator.h"
 #include "render/device_scene.h"
 #include "render/path_tracer.h"
 #include "scene/scene_loader.h"

@@ -5,6 +5,7 @@
 // images differ: a build without GGX renders cornell-glossy's glossy box as diffuse.
 #include "app/scene_setup.h"
 #include "bvh/scene_bvhs.h"
+#include "bvh/wide_bvh.h"
 #include "pipeline/stereo_pipeline.h"
 #include "render/device_scene.h"
 #include "render/kernel_features.h"

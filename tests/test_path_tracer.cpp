@@ -1,5 +1,6 @@
 // The path tracer against analytic answers (furnace tests), its BSDF routines against their
 // own integrals, its three estimators against each other, and its determinism.
+#include "bvh/bvh_builder.h"
 #include "bvh/flat_bvh.h"
 #include "cl/device_set.h"
 #include "cl/launch.h"

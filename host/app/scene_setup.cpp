@@ -1,7 +1,10 @@
 #include "app/scene_setup.h"
 
+#include "bvh/bvh_builder.h"
 #include "bvh/bvh_cache.h"
+#include "bvh/bvh_validator.h"
 #include "bvh/scene_bvhs.h"
+#include "bvh/wide_bvh.h"
 #include "image/image_io.h"
 #include "render/device_layout_cache.h"
 #include "scene/instancing.h"

@@ -1,7 +1,7 @@
 // validate_bvh(): checks a flattened BVH against its scene without trusting the builder. Used by
 // tests after every build and by the CLI before uploading a tree the kernels will walk without
 // bounds checks.
-#include "bvh/flat_bvh.h"
+#include "bvh/bvh_validator.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,7 +1,9 @@
 #include "render/device_scene.h"
 
+#include "bvh/bvh_validator.h"
 #include "bvh/scene_bvhs.h"
 #include "bvh/top_level_bvh.h"
+#include "bvh/wide_bvh.h"
 #include "io/environment.h"
 #include "io/progress_ticker.h"
 #include "scene/instancing.h"

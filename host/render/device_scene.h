@@ -9,6 +9,8 @@
 // bind() sets them in that order.
 #pragma once
 
+#include "bvh/bvh_builder.h"
+#include "bvh/bvh_layout.h"
 #include "bvh/flat_bvh.h"
 #include "bvh/top_level_bvh.h"
 #include "cl/device_set.h"

@@ -3,7 +3,7 @@
 // the options and a kept one-device set in its layout.
 #pragma once
 
-#include "bvh/flat_bvh.h"
+#include "bvh/bvh_layout.h"
 #include "cl/device_set.h"
 
 #include <gtest/gtest.h>

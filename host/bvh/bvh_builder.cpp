@@ -1,8 +1,10 @@
 // build_bvh(): Embree's rtcBuildBVH (binned SAH, optionally with spatial splits) builds a
 // binary tree through our callbacks; we then flatten it into the 64-byte node layout the kernels
 // read (kernels/shared/types.h).
+#include "bvh/bvh_builder.h"
+
 #include "bvh/embree_reference.h"  // embree_device(), take_embree_error()
-#include "bvh/flat_bvh.h"
+#include "bvh/wide_bvh.h"        // ensure_layout
 
 #include <embree3/rtcore_builder.h>
 
@@ -935,8 +937,7 @@ FlatBvh build_bvh(const TriangleSource& triangles, const BvhBuildOptions& option
 }
 
 // Hook for the renderer: BvhTriangle::flags (PX_TRI_* bits) from one value per scene triangle,
-// e.g. derived from its material. build_bvh leaves flags at 0. flat_bvh.h does not declare this
-// yet (not this module's file); the declaration to add there is
+// e.g. derived from its material. build_bvh leaves flags at 0.
 void set_triangle_flags(FlatBvh& bvh, const std::vector<std::uint32_t>& flags_per_scene_triangle) {
   for (BvhTriangle& t : bvh.triangles) {
     if (t.prim >= flags_per_scene_triangle.size())
