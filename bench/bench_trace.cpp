@@ -134,7 +134,7 @@ int main(int argc, char** argv) {
     // --layout, one set in its own layout (by device type).
     std::vector<std::unique_ptr<px::DeviceSet>> sets;
     if (layouts.empty()) {
-      sets.push_back(std::make_unique<px::DeviceSet>(px::DeviceSet::create({devices, px::DeviceMode::Auto, ""})));
+      sets.push_back(std::make_unique<px::DeviceSet>(px::DeviceSet::create({devices, px::DeviceMode::Auto, "", std::nullopt})));
       layouts.push_back(sets.back()->bvh_layout());
     } else {
       for (px::BvhLayout layout : layouts)

@@ -311,7 +311,7 @@ TEST(GltfLoader, MetallicRoughnessEmissionAndAlphaMaskMapOntoTheMaterialModel) {
 }
 
 DeviceSet& one_device() {
-  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
   return set;
 }
 

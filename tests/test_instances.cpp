@@ -33,7 +33,7 @@ namespace {
 using nlohmann::json;
 
 DeviceSet& one_device() {
-  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
   return set;
 }
 

@@ -25,7 +25,7 @@ namespace px {
 namespace {
 
 DeviceSet& one_device() {
-  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
   return set;
 }
 
@@ -811,7 +811,7 @@ TEST(PathTracer, DeterministicAndDeviceCountInvariant) {
   opt.spp = 2;
   std::array<ImageRGB, 2> reference;
   for (int n : {1, 2, 4}) {
-    DeviceSet set = DeviceSet::create({n, DeviceMode::Auto, ""});
+    DeviceSet set = DeviceSet::create({n, DeviceMode::Auto, "", std::nullopt});
     RenderFixture f(set, s);
     auto eyes = f.render(40, 27, opt, 3);  // 27 rows: not divisible by 2 or 4
     if (n == 1) {

@@ -24,7 +24,7 @@ namespace px {
 namespace {
 
 DeviceSet& one_device() {
-  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
   return set;
 }
 

@@ -55,7 +55,7 @@ struct TraceFixture {
 class TraceKernels : public test::BvhLayoutTest {};
 
 DeviceSet& one_device() {
-  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
   return set;
 }
 
