@@ -14,7 +14,6 @@
 //   build/bench_animation --counts 1,1000,100000 --frames 8 --devices 2
 #include "app/guarded_main.h"
 #include "bench_common.h"
-#include "bvh/flat_bvh.h"
 #include "bvh/scene_bvhs.h"
 #include "cl/device_set.h"
 #include "render/device_scene.h"
@@ -87,7 +86,7 @@ int main(int argc, char** argv) {
   app.add_option("--devices", devices, "OpenCL devices")->check(CLI::Range(1, 64))->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   return run_guarded([&] {
-    DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
+    DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, "", std::nullopt});
     std::printf("%10s %10s %12s %10s %10s %10s %10s %9s %12s %12s %14s\n", "cubes", "as", "triangles", "pose ms",
                 "bvh ms", "upload ms", "total ms", "rebuilds", "MiB/frame", "ns/triangle", "first bvh ms");
     std::stringstream list(counts);

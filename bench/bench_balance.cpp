@@ -79,7 +79,7 @@ int main(int argc, char** argv) {
     csv << '\n';
   }
   return px::run_guarded([&]() -> int {
-    px::SceneOnDevices on_devices(scene, {devices, px::DeviceMode::Auto, ""});
+    px::SceneOnDevices on_devices(scene, {devices, px::DeviceMode::Auto, "", std::nullopt});
     const px::LoadedScene& loaded = on_devices.loaded;
     px::DeviceSet& set = on_devices.devices;
     const px::DeviceScene& ds = on_devices.device_scene;

@@ -3,7 +3,7 @@
 #pragma once
 
 #include "app/cli_enums.h"
-#include "bvh/flat_bvh.h"
+#include "bvh/bvh_layout.h"
 
 #include <CLI/CLI.hpp>
 

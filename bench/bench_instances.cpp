@@ -17,7 +17,7 @@
 #include "app/guarded_main.h"
 #include "bench_bvh_layout.h"
 #include "bench_common.h"
-#include "bvh/flat_bvh.h"
+#include "bvh/bvh_layout.h"
 #include "bvh/scene_bvhs.h"
 #include "bvh/top_level_bvh.h"
 #include "cl/device_set.h"

@@ -91,7 +91,7 @@ int main(int argc, char** argv) {
     // references[f]: converged image of frame f (only the last one without --per-frame-csv).
     std::vector<std::array<px::ImageRGB, 2>> references(frames);
     {
-      px::SceneOnDevices on_devices(loaded, {devices, px::DeviceMode::Auto, ""});
+      px::SceneOnDevices on_devices(loaded, {devices, px::DeviceMode::Auto, "", std::nullopt});
       px::PathTracer tracer(on_devices.devices, on_devices.device_scene, on_devices.loaded.scene);
       px::ReferenceOptions ro;
       ro.spp = ref_spp;
@@ -147,7 +147,7 @@ int main(int argc, char** argv) {
                               {"halo", devices, px::SeamMode::Halo}};
     for (const Config& c : configs) {
       // Fresh devices for every mode (the scene is loaded once and copied).
-      px::SceneOnDevices on_devices(loaded, {c.devices, px::DeviceMode::Auto, ""});
+      px::SceneOnDevices on_devices(loaded, {c.devices, px::DeviceMode::Auto, "", std::nullopt});
       px::StereoPipeline::Options opt;
       opt.pipeline = px::PipelineKind::Proposed;
       opt.trace.spp = spp;

@@ -49,7 +49,7 @@ int main(int argc, char** argv) {
   std::vector<Row> rows;
   const int rc = px::run_guarded([&]() -> int {
     for (const auto& name : scenes) {
-      px::SceneOnDevices on_devices(name, {devices, px::DeviceMode::Auto, ""});
+      px::SceneOnDevices on_devices(name, {devices, px::DeviceMode::Auto, "", std::nullopt});
       px::PathTracer tracer(on_devices.devices, on_devices.device_scene, on_devices.loaded.scene);
       px::PathTracer::Options opt;
       opt.bounces = bounces;

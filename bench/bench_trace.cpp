@@ -18,6 +18,7 @@
 #include "bench_common.h"
 #include "ray_sets.h"
 #include "bvh/embree_reference.h"
+#include "bvh/wide_bvh.h"
 #include "cl/device_set.h"
 #include "render/device_scene.h"
 #include "render/stereo_camera.h"
@@ -133,7 +134,7 @@ int main(int argc, char** argv) {
     // --layout, one set in its own layout (by device type).
     std::vector<std::unique_ptr<px::DeviceSet>> sets;
     if (layouts.empty()) {
-      sets.push_back(std::make_unique<px::DeviceSet>(px::DeviceSet::create({devices, px::DeviceMode::Auto, ""})));
+      sets.push_back(std::make_unique<px::DeviceSet>(px::DeviceSet::create({devices, px::DeviceMode::Auto, "", std::nullopt})));
       layouts.push_back(sets.back()->bvh_layout());
     } else {
       for (px::BvhLayout layout : layouts)

@@ -3,9 +3,14 @@
 // device update against a fresh upload of the same pose, N devices bit-identical with
 // animation playing, and the motion pass against a quad's analytic motion.
 #include "app/scene_setup.h"
+#include "bvh/bvh_builder.h"
+#include "bvh/bvh_layout.h"
+#include "bvh/bvh_refit.h"
+#include "bvh/bvh_validator.h"
 #include "bvh/flat_bvh.h"
 #include "bvh/scene_bvhs.h"
 #include "bvh/top_level_bvh.h"
+#include "bvh/wide_bvh.h"
 #include "cl/launch.h"
 #include "pipeline/stereo_pipeline.h"
 #include "render/device_scene.h"
@@ -428,7 +433,7 @@ bool bit_identical(const std::vector<float>& a, const std::vector<float>& b) {
 TEST(SceneAnimator, TheUpdatedDevicesRenderWhatAFreshUploadOfThePoseRenders) {
   const TempDir dir;
   const std::string file = cube_on_floor_file(dir);
-  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, "", std::nullopt});
   PathTracer::Options opt;
   opt.spp = 2;
   opt.bounces = 3;
@@ -526,7 +531,7 @@ Scene still_room_with_one_mover(std::size_t still) {
 // nothing, and the devices still render what a fresh upload of the pose renders.
 TEST(SceneAnimator, AFrameSendsOnlyThePiecesThatChanged) {
   Scene scene = still_room_with_one_mover(2000);
-  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, "", std::nullopt});
   DeviceScene ds(set, scene, build_bvh(scene.triangles));
   SceneAnimator animator(scene, "all");
   const SceneAnimator::Update first = animator.update(0.0, set, ds);  // writes everything
@@ -559,7 +564,7 @@ TEST(SceneAnimator, AFrameSendsOnlyThePiecesThatChanged) {
 // kept), and it still renders what it rendered; an animated scene keeps them to pose them.
 TEST(SceneOnDevices, AStaticScenesHostTrianglesAreReleasedAnAnimatedOnesKept) {
   const TempDir dir;
-  SceneOnDevices still("cornell", {1, DeviceMode::Auto, ""}, /*quiet=*/true);
+  SceneOnDevices still("cornell", {1, DeviceMode::Auto, "", std::nullopt}, /*quiet=*/true);
   EXPECT_TRUE(still.loaded.scene.triangles.empty());
   EXPECT_GT(still.loaded.triangle_count, 10u);
   EXPECT_LT(still.loaded.bounds_lo.x, still.loaded.bounds_hi.x);
@@ -570,9 +575,8 @@ TEST(SceneOnDevices, AStaticScenesHostTrianglesAreReleasedAnAnimatedOnesKept) {
       pixels_of(PathTracer(still.devices, still.device_scene, still.loaded.scene).render_stereo(0.0f, 0, 16, 12, opt));
   const LoadedScene kept = load_and_build("cornell", true);
   DeviceScene ds(still.devices, kept.scene, kept.bvh);
-  EXPECT_TRUE(bit_identical(released,
-                            pixels_of(PathTracer(still.devices, ds, kept.scene).render_stereo(0.0f, 0, 16, 12, opt))));
-  SceneOnDevices moving(cube_on_floor_file(dir), {1, DeviceMode::Auto, ""}, true);
+  EXPECT_TRUE(bit_identical(released, pixels_of(PathTracer(still.devices, ds, kept.scene).render_stereo(0.0f, 0, 16, 12, opt))));
+  SceneOnDevices moving(cube_on_floor_file(dir), {1, DeviceMode::Auto, "", std::nullopt}, true);
   EXPECT_EQ(moving.loaded.scene.triangles.size(), moving.loaded.triangle_count);
 }
 
@@ -580,7 +584,7 @@ TEST(SceneOnDevices, AStaticScenesHostTrianglesAreReleasedAnAnimatedOnesKept) {
 std::vector<std::vector<float>> animated_frames(const std::string& file, int devices, unsigned frames,
                                                 const SceneLoadOptions& options = {}) {
   LoadedScene loaded = load_and_build(file, true, options);
-  DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, "", std::nullopt});
   DeviceScene ds(set, loaded.scene, loaded.bvh);
   SceneAnimator animator(loaded.scene, "all");
   StereoPipeline::Options opt;
@@ -642,7 +646,7 @@ TEST(SceneAnimator, AMovingInstanceRendersTheFramesOfItsPosedCopy) {
 // moved by (0.3, -0.2, 0.5) since the last frame: every point's previous position is the
 // inverse motion of where it is now.
 TEST(MotionPass, AMovingQuadsPointsGoBackAlongItsAnalyticMotion) {
-  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
   const glm::dvec3 move(0.3, -0.2, 0.5);
   const glm::dmat4 motion = glm::rotate(glm::translate(glm::dmat4(1.0), move), 20.0 * kPi / 180.0, glm::dvec3(0, 1, 0));
   const glm::dmat4 back = glm::inverse(motion);
@@ -732,7 +736,7 @@ TEST(MotionEdges, TheListedPixelsAreTheCubesEdgesAndTheirSamplesJoinTheirOwnStre
   const TempDir dir;
   const std::string file = cube_on_floor_file(dir);
   const unsigned w = 96, h = 64;
-  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
   LoadedScene loaded = load_and_build(file, true);
   ASSERT_FALSE(loaded.scene.instancing.empty());
   DeviceScene ds(set, loaded.scene, loaded.bvh);
@@ -865,7 +869,7 @@ TEST(MotionTrail, AMovingObjectLeavesNoMoreErrorWhereItWentThanAStillOne) {
   const std::string file = cube_on_floor_file(dir);
   const unsigned w = 96, h = 64, frames = 24;
   const double fps = 30.0, t_end = (frames - 1) / fps;
-  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, "", std::nullopt});
   // The region: pixels whose G-buffer saw the cube: its instance (a rigid mesh on a moving
   // node), or loaded without instancing one of its 12 posed triangles (the first mesh).
   std::size_t edge_pixels = 0;  // the moving run's pixels with extra samples, over its frames

@@ -3,8 +3,13 @@
 // The trees are checked three ways: the validator (structure and boxes), a host traversal of
 // the flat arrays against a brute-force loop over all triangles (both in double precision, so
 // they must agree exactly), and Embree's own ray tracer (float, so agreement within tolerance).
+#include "bvh/bvh_builder.h"
+#include "bvh/bvh_layout.h"
+#include "bvh/bvh_validator.h"
+#include "bvh/compressed_bvh.h"
 #include "bvh/embree_reference.h"
 #include "bvh/flat_bvh.h"
+#include "bvh/wide_bvh.h"
 #include "scene/primitives.h"
 
 #include <gtest/gtest.h>
@@ -19,10 +24,6 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-namespace px {
-// Defined in embree_bvh_builder.cpp; flat_bvh.h does not declare it yet.
-}  // namespace px
 
 namespace px {
 namespace {

@@ -3,6 +3,8 @@
 // options — another scene, another option, a truncated or corrupted file — is a miss, never
 // an error or a wrong tree.
 #include "bvh/bvh_cache.h"
+#include "bvh/bvh_validator.h"
+#include "bvh/wide_bvh.h"
 #include "scene/primitives.h"
 #include "support/test_support.h"
 

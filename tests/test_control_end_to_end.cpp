@@ -209,7 +209,7 @@ RenderCommand balance_command(const std::string& scene, StripBalance balance) {
 }
 
 TEST(DynamicStripsEndToEnd, TheBoundaryMovesTowardTheCheapHalfAndImagesStayBitIdentical) {
-  if (DeviceSet::create({2, DeviceMode::Auto, ""}).mode() == DeviceMode::SharedQueues)
+  if (DeviceSet::create({2, DeviceMode::Auto, "", std::nullopt}).mode() == DeviceMode::SharedQueues)
     GTEST_SKIP() << "two devices would be queues on one OpenCL device here (one compute unit): their times say "
                     "nothing about their rows";
   if (!image_codec_available()) GTEST_SKIP() << "no image codec in this build: the frames cannot be compared";

@@ -6,6 +6,7 @@
 // material flag, another layout, a cut or damaged file) must be a miss, never an error. Also
 // ContentHash, the key's hash: independent of how its input is split, and sensitive to a bit.
 #include "app/scene_setup.h"
+#include "bvh/wide_bvh.h"
 #include "render/device_layout_cache.h"
 #include "render/device_scene.h"
 #include "render/path_tracer.h"
@@ -158,7 +159,7 @@ TEST(DeviceLayoutCache, ASceneMadeFromTheMappingTracesLikeTheBruteForceLoop) {
   const Scene& scene = f.scene;
   const FlatBvh& built = f.built;
   const std::uint64_t key = f.key;
-  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, "", std::nullopt});
   auto mapped = store_and_open(set, scene, built, cache, key);
   ASSERT_NE(mapped, nullptr);
   DeviceScene laid_out(set, scene, built);
@@ -316,7 +317,7 @@ TEST(DeviceLayoutCache, StartsMapTheSetsLayoutAndSetAnotherLayoutAside) {
       obj += "f " + std::to_string(b) + " " + std::to_string(c) + " " + std::to_string(d) + "\n";
     }
   const std::string spec = dir.write("grid.obj", obj).string();
-  const DeviceOptions one{1, DeviceMode::Auto, ""};
+  const DeviceOptions one{1, DeviceMode::Auto, "", std::nullopt};
   // Rays down onto the grid from above, and the hits of a start without any cache to match.
   std::vector<Ray> rays;
   for (int k = 0; k < 200; ++k)
@@ -433,7 +434,7 @@ TEST(DeviceLayoutCache, AFlatSceneIsStoredAndMappedWithItsSixteenByteRecords) {
   scene.sky.horizon = glm::vec3(0.9f);
   scene.sky.ground = glm::vec3(0.2f);
   const std::uint64_t key = scene_content_key(scene);
-  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, "", std::nullopt});
   DeviceLayoutStore store;
   store.cache = &cache;
   store.content_key = key;

@@ -3,6 +3,7 @@
 // names it and both sizes (PARALLAX_MAX_ALLOC_BYTES lowers the device's limit for the test).
 #include "app/scene_setup.h"
 #include "bvh/bvh_cache.h"
+#include "bvh/bvh_validator.h"
 #include "render/device_scene.h"
 #include "render/path_tracer.h"
 #include "scene/scene_loader.h"
@@ -52,7 +53,7 @@ std::size_t total_size(const DeviceSceneBuffers& b) {
 TEST(DeviceScene, OneCopyPerContextServesEveryDevice) {
   const Scene scene = spheres();
   const FlatBvh bvh = build_bvh(scene.triangles);
-  DeviceSet set = DeviceSet::create({3, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create({3, DeviceMode::Auto, "", std::nullopt});
   DeviceScene ds(set, scene, bvh);
   for (int d = 1; d < set.size(); ++d) {
     EXPECT_EQ(ds.on(d).triangles(), ds.on(0).triangles()) << "device " << d << " has its own triangle buffer";
@@ -67,7 +68,7 @@ TEST(DeviceScene, OneCopyPerContextServesEveryDevice) {
 TEST(DeviceScene, ABufferOverTheAllocationLimitIsRefusedNamingItAndTheSizes) {
   const Scene scene = spheres();
   const FlatBvh bvh = build_bvh(scene.triangles);
-  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, "", std::nullopt});
   // The first buffer written is the BVH's nodes (with the wide layouts their leaf blocks too):
   // a limit one byte below it must stop the upload there, naming it.
   std::size_t nodes = 0;
@@ -123,7 +124,7 @@ TEST(DeviceScene, ShadingMadeInTheHandedOverTrianglesIsTheSameBuffer) {
   }
   const std::vector<TriangleShading> want = make_triangle_shading(scene);
   const FlatBvh bvh = build_bvh(scene.triangles);
-  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, "", std::nullopt});
   const DeviceScene kept(set, scene, bvh);
   Scene handed = scene;
   const DeviceScene taken(set, handed, bvh, {}, {}, [&handed] { return std::exchange(handed.triangles, {}); });
@@ -244,7 +245,7 @@ Scene flat_cornell_with_slivers() {
 TEST(DeviceScene, AFlatUntexturedSceneGetsSixteenByteRecordsAndTheSameImage) {
   const Scene scene = flat_cornell_with_slivers();
   ASSERT_TRUE(has_flat_shading(scene.triangles));
-  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, "", std::nullopt});
   const DeviceScene full(set, scene, build_bvh(scene.triangles));
   Scene handed = scene;
   const auto host = DeviceScene::prepare_host(handed, [&handed] { return std::exchange(handed.triangles, {}); });
@@ -331,7 +332,7 @@ TEST(DeviceScene, AFlatSceneBuildsItsTreeFromCornersPackedWhereItsTrianglesWere)
     moved[from_corners.triangles[0].prim].p[1].x = std::nextafter(moved[from_corners.triangles[0].prim].p[1].x, 1e9f);
     EXPECT_FALSE(validate_bvh(from_corners, TriangleSource(moved)).ok);
   }
-  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, "", std::nullopt});
   const DeviceScene full(set, scene, build_bvh(scene.triangles));
   const DeviceScene flat(set, host, handed, std::move(from_corners));
   ASSERT_TRUE(flat.flat_shading());
@@ -394,9 +395,8 @@ TEST(DeviceScene, AFlatSceneBuildsItsTreeFromCornersPackedWhereItsTrianglesWere)
   EXPECT_FALSE(kept.host_part);
   ASSERT_EQ(kept.scene.triangles.size(), std::size_t(2 * n * n));
   ASSERT_EQ(for_devices.bvh.nodes.size(), kept.bvh.nodes.size());
-  EXPECT_EQ(std::memcmp(for_devices.bvh.nodes.data(), kept.bvh.nodes.data(), kept.bvh.nodes.size() * sizeof(BvhNode)),
-            0);
-  SceneOnDevices on(std::move(for_devices), {2, DeviceMode::Auto, ""});
+  EXPECT_EQ(std::memcmp(for_devices.bvh.nodes.data(), kept.bvh.nodes.data(), kept.bvh.nodes.size() * sizeof(BvhNode)), 0);
+  SceneOnDevices on(std::move(for_devices), {2, DeviceMode::Auto, "", std::nullopt});
   EXPECT_TRUE(on.device_scene.flat_shading());
   const DeviceScene kept_ds(on.devices, kept.scene, kept.bvh);
   PathTracer c(on.devices, on.device_scene, on.loaded.scene), d(on.devices, kept_ds, kept.scene);

@@ -2,6 +2,7 @@
 // buffer, and GLB), and checked against an independent expectation: the same mesh written as
 // an OBJ with the node transform applied by hand, a texture's known texel colours, an emitter's
 // radiance seen straight on, and refusals that name the file.
+#include "bvh/bvh_builder.h"
 #include "bvh/flat_bvh.h"
 #include "cl/device_set.h"
 #include "render/device_scene.h"
@@ -321,7 +322,7 @@ TEST(GltfLoader, MetallicRoughnessEmissionAndAlphaMaskMapOntoTheMaterialModel) {
 }
 
 DeviceSet& one_device() {
-  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
   return set;
 }
 

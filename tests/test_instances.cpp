@@ -2,6 +2,7 @@
 // through a top level. Every check compares with a second code path: the same scene flattened
 // into world-space copies (flatten_instances, or the loader without instancing), traced by
 // Embree or by the one-level kernels, rendered by the same path tracer.
+#include "bvh/bvh_builder.h"
 #include "bvh/embree_reference.h"
 #include "bvh/flat_bvh.h"
 #include "bvh/scene_bvhs.h"
@@ -32,7 +33,7 @@ namespace {
 using nlohmann::json;
 
 DeviceSet& one_device() {
-  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
   return set;
 }
 

@@ -5,6 +5,7 @@
 // images differ: a build without GGX renders cornell-glossy's glossy box as diffuse.
 #include "app/scene_setup.h"
 #include "bvh/scene_bvhs.h"
+#include "bvh/wide_bvh.h"
 #include "pipeline/stereo_pipeline.h"
 #include "render/device_scene.h"
 #include "render/kernel_features.h"
@@ -77,7 +78,7 @@ TEST(KernelFeatures, EachFeatureComesFromTheDataItsKernelBranchTests) {
 
 TEST(KernelFeatures, TheCornellBoxNeedsOnlyEmissiveTriangles) {
   const LoadedScene cornell = load_and_build("cornell", true);
-  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
   DeviceScene ds(set, cornell.scene, cornell.bvh);
   EXPECT_EQ(ds.scene_features(), PX_FEATURE_EMISSIVE) << describe_kernel_features(ds.scene_features());
   EXPECT_EQ(ds.kernel_features(), PX_FEATURE_EMISSIVE);
@@ -175,7 +176,7 @@ struct Images {
 // `layout`: the set's BVH node layout (nullopt: its device type's default).
 Images render_with(const LoadedScene& loaded, KernelChoice kernels, PathTraceKernel path_kernel, unsigned w, unsigned h,
                    bool hand_over = false, std::optional<BvhLayout> layout = std::nullopt) {
-  DeviceOptions options{2, DeviceMode::Auto, ""};
+  DeviceOptions options{2, DeviceMode::Auto, "", std::nullopt};
   options.bvh_layout = layout;
   DeviceSet set = DeviceSet::create(options);
   Scene copy = loaded.scene;
@@ -232,7 +233,7 @@ TEST(KernelFeatures, SceneKernelsGiveTheGeneralKernelsImagesOnTheBuiltInScenes) 
 TEST(KernelFeatures, SceneKernelsGiveTheGeneralKernelsImagesWithEveryFeature) {
   const LoadedScene loaded = every_feature_scene();
   {
-    DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+    DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
     DeviceScene ds(set, loaded.scene, loaded.bvh);
     EXPECT_EQ(ds.scene_features(), PX_FEATURES_ALL) << describe_kernel_features(ds.scene_features());
   }

@@ -97,7 +97,7 @@ bool pocl_cpu(const DeviceSet& set) {
 }
 
 TEST(PoclLaunchGuard, EightQueuesLaunchingOneKernelAtGrowingSizesRunToTheEnd) {
-  DeviceSet set = DeviceSet::create({8, DeviceMode::SharedQueues, ""});
+  DeviceSet set = DeviceSet::create({8, DeviceMode::SharedQueues, "", std::nullopt});
   if (!pocl_cpu(set)) GTEST_SKIP() << "not PoCL CPU devices: nothing to guard";
   const long before = PoclLaunchGuard::widening_launches();
   std::vector<std::size_t> sizes;
@@ -113,9 +113,8 @@ TEST(PoclLaunchGuard, EightQueuesLaunchingOneKernelAtGrowingSizesRunToTheEnd) {
 
 TEST(PoclLaunchGuard, LaunchesNoWiderThanBeforeOnlyWaitForTheWideningOne) {
   // Strips of different heights: three queues, sizes that differ between queues and repeat.
-  DeviceSet set = DeviceSet::create({3, DeviceMode::SharedQueues, ""});
-  if (!set.guards_launches())
-    GTEST_SKIP() << "no guard on these devices (not PoCL CPU, or PARALLAX_POCL_LAUNCH_GUARD=off)";
+  DeviceSet set = DeviceSet::create({3, DeviceMode::SharedQueues, "", std::nullopt});
+  if (!set.guards_launches()) GTEST_SKIP() << "no guard on these devices (not PoCL CPU, or PARALLAX_POCL_LAUNCH_GUARD=off)";
   std::vector<std::size_t> sizes;
   for (int frame = 0; frame < 12; ++frame)
     for (std::size_t rows : {21, 21, 22}) sizes.push_back(rows * 96 + (frame == 5 ? 64u : 0u));  // frame 5 grows

@@ -1,5 +1,6 @@
 // The path tracer against analytic answers (furnace tests), its BSDF routines against their
 // own integrals, its three estimators against each other, and its determinism.
+#include "bvh/bvh_builder.h"
 #include "bvh/flat_bvh.h"
 #include "cl/device_set.h"
 #include "cl/launch.h"
@@ -24,7 +25,7 @@ namespace px {
 namespace {
 
 DeviceSet& one_device() {
-  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
   return set;
 }
 
@@ -815,7 +816,7 @@ TEST(PathTracer, DeterministicAndDeviceCountInvariant) {
   opt.spp = 2;
   std::array<ImageRGB, 2> reference;
   for (int n : {1, 2, 4}) {
-    DeviceSet set = DeviceSet::create({n, DeviceMode::Auto, ""});
+    DeviceSet set = DeviceSet::create({n, DeviceMode::Auto, "", std::nullopt});
     RenderFixture f(set, s);
     auto eyes = f.render(40, 27, opt, 3);  // 27 rows: not divisible by 2 or 4
     if (n == 1) {

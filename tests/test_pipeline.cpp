@@ -250,7 +250,7 @@ struct PipelineRun {
 PipelineRun run(const LoadedScene& loaded, PipelineKind kind, int devices, unsigned w, unsigned h, unsigned spp,
                 std::uint32_t seed = 0, unsigned frame = 0,
                 HoleFillStage::SampleSpread spread = HoleFillStage::SampleSpread::Auto) {
-  DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, "", std::nullopt});
   DeviceScene ds(set, loaded.scene, loaded.bvh);
   StereoPipeline::Options opt;
   opt.pipeline = kind;
@@ -303,7 +303,7 @@ TEST(StereoPipeline, EveryOperationIsExecutedAndTimed) {
   // stage shows time that no operation accounts for.
   const auto& scene = glossy_cornell();
   for (auto kind : {PipelineKind::Proposed, PipelineKind::Baseline, PipelineKind::Mono}) {
-    DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+    DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, "", std::nullopt});
     DeviceScene ds(set, scene.scene, scene.bvh);
     StereoPipeline::Options opt;
     opt.pipeline = kind;
@@ -542,7 +542,7 @@ TEST(StereoPipeline, WavefrontPathTracerGivesTheMegakernelsImages) {
     std::array<std::uint64_t, 2> nonfinite{};
     std::array<std::size_t, 2> reprojected{};
     for (int k = 0; k < 2; ++k) {
-      DeviceSet set = DeviceSet::create({c.devices, DeviceMode::Auto, ""});
+      DeviceSet set = DeviceSet::create({c.devices, DeviceMode::Auto, "", std::nullopt});
       DeviceScene ds(set, c.scene->scene, c.scene->bvh);
       StereoPipeline::Options opt;
       opt.pipeline = c.kind;
@@ -598,7 +598,7 @@ TEST(StereoPipeline, CentreRaysTracedOnceGiveTheGBufferPassesTexelsAndTheSameIma
     std::array<std::vector<std::uint8_t>, 2> holes;
     int fused_ops = 0, hole_fills_from_hits = 0;
     for (int k = 0; k < 2; ++k) {
-      DeviceSet set = DeviceSet::create({c.devices, DeviceMode::Auto, ""});
+      DeviceSet set = DeviceSet::create({c.devices, DeviceMode::Auto, "", std::nullopt});
       DeviceScene ds(set, c.scene->scene, c.scene->bvh);
       StereoPipeline::Options opt;
       opt.pipeline = c.kind;
@@ -734,7 +734,7 @@ TEST(Tonemap, BytesAreTheCorrectlyRoundedSrgbEncodingAndNonFinitePixelsAreCounte
   pixels.push_back({{0.5f, nan, 0.5f, 1.0f}});
   pixels.push_back({{0.5f, 0.5f, -inf, 1.0f}});
 
-  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
   const auto& queue = set.devices()[0].queue;
   const auto n = static_cast<cl_uint>(pixels.size());
   const auto table = srgb8_thresholds();

@@ -1,6 +1,7 @@
 // render_reference, the ground truth behind every PSNR figure: its progressive passes must draw
 // new samples and average them as one render of all the samples would, and the result must be
 // the analytic answer of a furnace, with a variance (and an error) falling as 1 / spp.
+#include "bvh/bvh_builder.h"
 #include "bvh/flat_bvh.h"
 #include "cl/device_set.h"
 #include "render/device_scene.h"
@@ -23,7 +24,7 @@ namespace px {
 namespace {
 
 DeviceSet& one_device() {
-  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
   return set;
 }
 

@@ -26,7 +26,7 @@ namespace px {
 namespace {
 
 DeviceSet& one_device() {
-  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
   return set;
 }
 
@@ -727,9 +727,9 @@ StereoPipeline::Options pipeline_options(PipelineKind kind, SeamMode seams = Sea
   return opt;
 }
 
-DenoisedRun run_pipeline(const LoadedScene& loaded, int devices, SeamMode seams, unsigned frames, unsigned w,
-                         unsigned h, unsigned iterations = 5, bool denoise = true) {
-  DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
+DenoisedRun run_pipeline(const LoadedScene& loaded, int devices, SeamMode seams, unsigned frames, unsigned w, unsigned h,
+                         unsigned iterations = 5, bool denoise = true) {
+  DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, "", std::nullopt});
   DeviceScene ds(set, loaded.scene, loaded.bvh);
   StereoPipeline::Options opt = pipeline_options(PipelineKind::Proposed, seams);
   opt.denoise->svgf.iterations = iterations;
@@ -805,7 +805,7 @@ TEST(SvgfDistributed, SideQueueGivesTheSameImages) {
         std::array<std::vector<std::array<ImageRGB, 2>>, 2> frames;
         std::array<std::vector<std::array<std::vector<std::uint8_t>, 2>>, 2> pngs;
         for (int overlap = 0; overlap < 2; ++overlap) {
-          DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
+          DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, "", std::nullopt});
           DeviceScene ds(set, loaded.scene, loaded.bvh);
           StereoPipeline::Options opt = pipeline_options(kind, seams);
           opt.overlap = overlap == 1 ? Overlap::On : Overlap::Off;  // On: also on these CPU devices
@@ -829,7 +829,7 @@ TEST(SvgfDistributed, SideQueueGivesTheSameImages) {
 // on 2 devices, 41x29, with SVGF's options set by `svgf`.
 std::vector<std::array<ImageRGB, 2>> three_denoised_frames(const LoadedScene& scene,
                                                            const std::function<void(SvgfDenoiser::Options&)>& svgf) {
-  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, "", std::nullopt});
   DeviceScene ds(set, scene.scene, scene.bvh);
   StereoPipeline::Options opt = pipeline_options(PipelineKind::Proposed);
   svgf(opt.denoise->svgf);
@@ -939,7 +939,7 @@ TEST(SvgfDistributed, DenoisingBringsCornellCloserToTheReference) {
   // docs/measurements.md, SVGF against a reference.
   const unsigned w = 96, h = 72, frames = 4;
   static LoadedScene loaded = load_and_build("cornell", true);
-  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
   DeviceScene ds(set, loaded.scene, loaded.bvh);
   PathTracer tracer(set, ds, loaded.scene);
   ReferenceOptions ref_opt;
@@ -1059,7 +1059,7 @@ TEST(SvgfDistributed, QualityChangesBetweenFramesKeepHaloSeamsBitIdentical) {
   std::vector<std::array<ImageRGB, 2>> images[2];
   const int device_counts[2] = {1, 3};
   for (int run = 0; run < 2; ++run) {
-    DeviceSet set = DeviceSet::create({device_counts[run], DeviceMode::Auto, ""});
+    DeviceSet set = DeviceSet::create({device_counts[run], DeviceMode::Auto, "", std::nullopt});
     DeviceScene ds(set, scene.scene, scene.bvh);
     StereoPipeline::Options opt;
     opt.denoise->svgf.iterations = 5;
@@ -1146,7 +1146,7 @@ TEST(SvgfDistributed, RemodulationKeepsEveryChannelsMeanForNearZeroAndSaturatedA
 std::vector<std::array<ImageRGB, 2>> run_with_strips(const LoadedScene& loaded, PipelineKind kind, int devices,
                                                      const std::vector<std::vector<RowRange>>& strips_per_frame,
                                                      unsigned w, unsigned h) {
-  DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, "", std::nullopt});
   DeviceScene ds(set, loaded.scene, loaded.bvh);
   StereoPipeline::Options opt = pipeline_options(kind);
   opt.denoise->svgf.iterations = 2;  // G-buffer margin 18 rows: the moves below go past it
@@ -1179,7 +1179,7 @@ TEST(SvgfDistributed, StripsMovingEveryFrameKeepImagesBitIdentical) {
   // orders those launches (pocl_launch_guard.h). With the guard switched off
   // (PARALLAX_POCL_LAUNCH_GUARD=off) this test cannot run there.
   {
-    const DeviceSet three = DeviceSet::create({3, DeviceMode::Auto, ""});
+    const DeviceSet three = DeviceSet::create({3, DeviceMode::Auto, "", std::nullopt});
     if (three.mode() == DeviceMode::SharedQueues && !three.guards_launches() &&
         three.platform_name().find("Portable Computing Language") != std::string::npos)
       GTEST_SKIP()
@@ -1200,7 +1200,7 @@ TEST(SvgfDistributed, StripsMovingEveryFrameKeepImagesBitIdentical) {
 
 TEST(SvgfDistributed, StripsThatCannotMoveAreRefused) {
   const auto& scene = cornell();
-  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, ""});
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, "", std::nullopt});
   DeviceScene ds(set, scene.scene, scene.bvh);
   StereoPipeline::Options opt;
   StereoPipeline p(set, ds, scene.scene, 16, 20, opt);

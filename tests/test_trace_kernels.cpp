@@ -1,6 +1,9 @@
 // The trace kernels (watertight triangle test, conservative box test, BVH traversal, origin
 // offset) checked against independent host code: a double-precision brute-force loop over all
 // triangles, Embree, and analytic answers.
+#include "bvh/bvh_builder.h"
+#include "bvh/bvh_layout.h"
+#include "bvh/bvh_validator.h"
 #include "bvh/embree_reference.h"
 #include "bvh/flat_bvh.h"
 #include "cl/device_set.h"
@@ -51,7 +54,7 @@ struct TraceFixture {
 class TraceKernels : public test::BvhLayoutTest {};
 
 DeviceSet& one_device() {
-  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, ""});
+  static DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
   return set;
 }
 

@@ -5,7 +5,7 @@
 #pragma once
 
 #include "app/commands.h"
-#include "bvh/flat_bvh.h"
+#include "bvh/bvh_layout.h"
 #include "cl/device_set.h"
 #include "pipeline/stereo_pipeline.h"
 #include "pipeline/strip_schedule.h"

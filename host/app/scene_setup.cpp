@@ -1,7 +1,10 @@
 #include "app/scene_setup.h"
 
+#include "bvh/bvh_builder.h"
 #include "bvh/bvh_cache.h"
+#include "bvh/bvh_validator.h"
 #include "bvh/scene_bvhs.h"
+#include "bvh/wide_bvh.h"
 #include "image/image_io.h"
 #include "render/device_layout_cache.h"
 #include "scene/instancing.h"
@@ -110,9 +113,9 @@ void build_world_tree(LoadedScene& out, const TriangleSource& tree_triangles, bo
   // A tree is validated before the cache stores it, with the wide nodes it carried, and the
   // file's checksum and key (the triangles, the options, the builder's, collapser's and
   // validator's sources) guard it since (bvh_cache.h): read back, its wide nodes collapse to the
-  // very nodes validated then, so a layout recorded as validated is not checked again (the 10M
-  // heightfield's warm start: 3.1 s of validation gone); another layout's nodes, collapsed from
-  // it for the first time, are.
+  // very nodes validated then, so a layout recorded as validated is not checked again (a large
+  // scene's warm start loses its validation time: docs/measurements.md, Start at paper scale);
+  // another layout's nodes, collapsed from it for the first time, are.
   const auto t3 = clock::now();
   BvhValidation check;
   const bool validated_when_cached = from_cache && (validated_layouts & bvh_layout_bit(layout)) != 0;
@@ -157,7 +160,7 @@ void build_world_tree(LoadedScene& out, const TriangleSource& tree_triangles, bo
 
 // Whether the device scene will make the wide nodes (DeviceScene: a static scene without
 // instances whose triangles SceneOnDevices hands over, in a wide layout): then the start never
-// holds them beside the scene's triangles (at 10M triangles, 205 MiB of wide8 nodes beside 954).
+// holds them beside the scene's triangles (docs/measurements.md, Start at paper scale).
 bool collapse_later(const LoadedScene& out, bool for_devices) {
   return for_devices && out.scene.instancing.empty() && !out.scene.rig &&
          (out.bvh_layout == BvhLayout::Wide4 || out.bvh_layout == BvhLayout::Wide8);

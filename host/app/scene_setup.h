@@ -3,6 +3,7 @@
 // upload the scene to them.
 #pragma once
 
+#include "bvh/bvh_layout.h"
 #include "bvh/flat_bvh.h"
 #include "cl/device_set.h"
 #include "render/device_scene.h"

@@ -1,4 +1,5 @@
 #include "bvh/bvh_cache.h"
+#include "bvh/wide_bvh.h"
 
 #include "io/atomic_file.h"
 #include "io/environment.h"

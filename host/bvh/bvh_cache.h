@@ -17,6 +17,8 @@
 // were validated: a start that reads the tree need not validate them again.
 #pragma once
 
+#include "bvh/bvh_builder.h"
+#include "bvh/bvh_layout.h"
 #include "bvh/flat_bvh.h"
 
 #include <cstdint>

@@ -3,7 +3,9 @@
 // stale. Recomputing them bottom-up costs one pass over triangles and nodes, against a full
 // SAH build (bench/bench_animation: 1.2M triangles, about 30x less). The tree's quality decays
 // as the pose departs from the one it was built for, which the SAH cost measures.
-#include "bvh/flat_bvh.h"
+
+#include "bvh/bvh_builder.h"  // compute_bvh_stats
+#include "bvh/bvh_refit.h"
 
 #include <algorithm>
 #include <chrono>

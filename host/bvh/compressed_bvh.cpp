@@ -7,7 +7,9 @@
 // kernels' q * scale + p then rounds nowhere (fused or not), the decoded planes are exactly the
 // ones checked here, and outward rounding of q is exact arithmetic rather than a float
 // computation that could round the wrong way.
-#include "bvh/flat_bvh.h"
+#include "bvh/compressed_bvh.h"
+
+#include "bvh/wide_bvh.h"
 
 #include <chrono>
 #include <cmath>

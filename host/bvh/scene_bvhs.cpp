@@ -1,4 +1,6 @@
+#include "bvh/bvh_validator.h"
 #include "bvh/scene_bvhs.h"
+#include "bvh/wide_bvh.h"
 
 #include <stdexcept>
 #include <string>

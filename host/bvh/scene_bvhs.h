@@ -4,6 +4,8 @@
 // mesh's first triangle); DeviceScene places them in the scene's buffers.
 #pragma once
 
+#include "bvh/bvh_builder.h"
+#include "bvh/bvh_layout.h"
 #include "bvh/flat_bvh.h"
 #include "scene/scene.h"
 

@@ -1,6 +1,8 @@
 // collapse_bvh(): the binary tree of build_bvh collapsed into 4- or 8-wide nodes (layout in
-// kernels/shared/types.h), and the process-wide choice of the layout the kernels traverse.
-#include "bvh/flat_bvh.h"
+// kernels/shared/types.h), and the node buffers the kernels read for the wide layouts.
+#include "bvh/wide_bvh.h"
+
+#include "bvh/compressed_bvh.h"
 
 #include <algorithm>
 #include <atomic>
@@ -19,10 +21,6 @@
 namespace px {
 
 namespace {
-
-// The defaults per device type when no layout is requested (flat_bvh.h: bvh_layout_for says why).
-constexpr BvhLayout kCpuBvhLayout = BvhLayout::Wide8;
-constexpr BvhLayout kGpuBvhLayout = BvhLayout::Binary;
 
 struct ChildRef {
   float lo[3], hi[3];
@@ -103,26 +101,6 @@ class Collapser {
 };
 
 }  // namespace
-
-BvhLayout bvh_layout_for(bool all_gpus) { return all_gpus ? kGpuBvhLayout : kCpuBvhLayout; }
-
-const char* to_string(BvhLayout layout) {
-  switch (layout) {
-    case BvhLayout::Binary: return "binary";
-    case BvhLayout::Wide4: return "wide4";
-    case BvhLayout::Wide8: return "wide8";
-    case BvhLayout::Compressed8: return "cwbvh";
-  }
-  return "?";
-}
-
-BvhLayout parse_bvh_layout(const std::string& name) {
-  if (name == "binary" || name == "2") return BvhLayout::Binary;
-  if (name == "wide4" || name == "4") return BvhLayout::Wide4;
-  if (name == "wide8" || name == "8") return BvhLayout::Wide8;
-  if (name == "cwbvh" || name == "compressed8") return BvhLayout::Compressed8;
-  throw std::invalid_argument("unknown BVH layout '" + name + "' (binary, wide4, wide8 or cwbvh)");
-}
 
 double collapse_bvh(FlatBvh& bvh, int width) {
   const auto start = std::chrono::steady_clock::now();

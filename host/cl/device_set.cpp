@@ -1,6 +1,6 @@
 #include "cl/device_set.h"
 
-#include "bvh/flat_bvh.h"
+#include "bvh/bvh_layout.h"
 #include "cl/kernel_sources.h"
 #include "cl/pocl_launch_guard.h"
 #include "io/environment.h"

@@ -17,7 +17,7 @@
 
 namespace px {
 
-enum class BvhLayout;  // bvh/flat_bvh.h
+enum class BvhLayout;  // bvh/bvh_layout.h
 
 enum class DeviceMode { Auto, SubDevices, PlatformDevices, SharedQueues };
 
@@ -31,7 +31,7 @@ struct DeviceOptions {
   // (io/environment.h).
   std::string platform;
   // The BVH node layout the set's kernels traverse; nullopt: the default for its device type
-  // (flat_bvh.h: bvh_layout_for).
+  // (bvh_layout.h: bvh_layout_for).
   std::optional<BvhLayout> bvh_layout;
 };
 
@@ -60,7 +60,7 @@ class DeviceSet {
   const std::string& platform_name() const { return platform_name_; }
   // The BVH node layout this set's kernels are built for and DeviceScene uploads to it: the one
   // requested (DeviceOptions::bvh_layout), else the default for its device type
-  // (flat_bvh.h: bvh_layout_for).
+  // (bvh_layout.h: bvh_layout_for).
   BvhLayout bvh_layout() const;
   // Whether that layout was requested rather than the device type's default.
   bool bvh_layout_requested() const { return requested_layout_.has_value(); }

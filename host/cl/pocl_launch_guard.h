@@ -16,8 +16,8 @@
 // cl_kernel per queue, one host thread suffice. The smallest reproduction found: one device,
 // three in-order queues, a trivial kernel launched round-robin with a growing global size
 // (64, 128, 192, ... items, local size 64), each launch long enough (a few ms) that three
-// overlap; it aborted in 6 of 15 runs (9 of 15 with four queues), never with two queues, never
-// with equal global sizes. parallax hits it whenever three or more devices (queues, sub-devices
+// overlap; it aborted in a good part of the runs (more often with four queues), never with two
+// queues, never with equal global sizes (docs/measurements.md, PoCL faults). parallax hits it whenever three or more devices (queues, sub-devices
 // or POCL_DEVICES entries: the list is process-wide) run one stage over strips of different
 // heights, and whenever a strip grows (dynamic strips).
 //

@@ -2,10 +2,9 @@
 //
 // A paper-size scene fills a few GB of fresh memory at start (10M triangles: the scene's
 // triangles, Embree's build primitives, the flattened tree, the device layout). On 4 KiB pages
-// every first touch is a page fault: the 10M heightfield's start without caches took 2.0M of
-// them and spent 15 s in the kernel against 12 s in parallax (20.5 s wall on 2 cores). On
-// 2 MiB pages the same start takes 56k faults and 7.5 s in the kernel (14.5 s wall): loading the
-// scene went from 4.4 to 1.6 s and the BVH build from 8.6 to 6.0 s.
+// every first touch is a page fault, and a cold start spent more time in the kernel clearing
+// fresh pages than in parallax; on 2 MiB pages it takes a fraction of the faults, and loading
+// the scene and building the BVH both got faster (docs/measurements.md, Start at paper scale).
 //
 // Linux gives anonymous memory huge pages where the process asks (the common setting of
 // /sys/kernel/mm/transparent_hugepage/enabled is "madvise"), so every allocation of at least

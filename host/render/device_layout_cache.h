@@ -29,6 +29,8 @@
 //           FlatTriangleShading for a scene of flat, untextured triangles (DeviceScene::flat_shading)
 #pragma once
 
+#include "bvh/bvh_builder.h"
+#include "bvh/bvh_layout.h"
 #include "bvh/flat_bvh.h"
 #include "scene/scene.h"
 #include "shared/types.h"

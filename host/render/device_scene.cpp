@@ -1,7 +1,11 @@
 #include "render/device_scene.h"
 
+#include "render/device_buffers.h"
+
+#include "bvh/bvh_validator.h"
 #include "bvh/scene_bvhs.h"
 #include "bvh/top_level_bvh.h"
+#include "bvh/wide_bvh.h"
 #include "io/environment.h"
 #include "io/progress_ticker.h"
 #include "scene/instancing.h"
@@ -23,60 +27,8 @@
 #include <unistd.h>
 
 namespace px {
-namespace {
 
-// What one OpenCL context can hold: the largest single allocation and the global memory of
-// its smallest device. PARALLAX_MAX_ALLOC_BYTES lowers the first (to test the refusal below without a
-// 4 GiB scene).
-struct AllocationLimits {
-  std::size_t max_alloc = 0, global_mem = 0;
-  std::string device;  // the device that sets max_alloc
-};
-
-AllocationLimits allocation_limits(const DeviceSet& devices) {
-  AllocationLimits l;
-  l.max_alloc = l.global_mem = static_cast<std::size_t>(-1);
-  for (const auto& d : devices.devices()) {
-    const auto max_alloc = static_cast<std::size_t>(d.device.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>());
-    if (max_alloc < l.max_alloc) {
-      l.max_alloc = max_alloc;
-      l.device = d.device.getInfo<CL_DEVICE_NAME>();
-    }
-    l.global_mem = std::min(l.global_mem, static_cast<std::size_t>(d.device.getInfo<CL_DEVICE_GLOBAL_MEM_SIZE>()));
-  }
-  if (const std::size_t v = environment().max_alloc_bytes; v > 0 && v < l.max_alloc) {
-    l.max_alloc = v;
-    l.device += " (lowered by PARALLAX_MAX_ALLOC_BYTES)";
-  }
-  return l;
-}
-
-std::string mib(std::size_t bytes) {
-  char s[64];
-  std::snprintf(s, sizeof s, "%.1f MiB (%zu bytes)", static_cast<double>(bytes) / (1024.0 * 1024.0), bytes);
-  return s;
-}
-
-// Refuses (before anything is allocated on the device) a scene buffer that exceeds what one
-// allocation may hold: a clear error naming the buffer, never a failed allocation deep in the
-// driver or a wrong image.
-void require_allocation(const char* name, std::size_t bytes, const AllocationLimits& limits) {
-  if (bytes > limits.max_alloc)
-    throw std::runtime_error(std::string("the scene's ") + name + " buffer needs " + mib(bytes) +
-                             ", more than one allocation may hold on " + limits.device + ": " + mib(limits.max_alloc) +
-                             " (CL_DEVICE_MAX_MEM_ALLOC_SIZE); the scene is too large for this device");
-}
-
-}  // namespace
-
-// A scene buffer's bytes on the host: an array the constructor made, or a mapped file's section
-// (device_layout_cache.h). `owner` keeps them alive.
-struct DeviceScene::HostBytes {
-  const void* data = nullptr;
-  std::size_t bytes = 0;    // 0: none (the buffer gets one placeholder element)
-  std::size_t element = 1;  // the size of one element
-  std::shared_ptr<const void> owner;
-};
+using namespace scene_buffers;
 
 // The small tables made from the scene beside the three large buffers.
 struct DeviceScene::SceneTables {
@@ -89,88 +41,6 @@ struct DeviceScene::SceneTables {
   std::uint32_t features = PX_FEATURES_ALL;  // the kernel features the scene uses
 };
 
-namespace {
-
-template <typename T, typename A>
-DeviceScene::HostBytes owned_bytes(std::vector<T, A>&& v) {
-  auto owner = std::make_shared<const std::vector<T, A>>(std::move(v));
-  return {owner->data(), owner->size() * sizeof(T), sizeof(T), owner};
-}
-
-// One buffer of the scene (require_allocation first): written through `queue`, or, with `keep`
-// (devices that read the host's memory: CPU devices), over the host bytes themselves
-// (CL_MEM_USE_HOST_PTR), whose owner then goes into *keep to live as long as the buffer. The
-// scene is then in memory once, not twice, and nothing is copied. Read-only buffers: no kernel
-// writes them, so a read-only mapping serves as well as an array.
-cl::Buffer upload(const char* name, const cl::Context& ctx, cl::CommandQueue& queue, const DeviceScene::HostBytes& data,
-                  const AllocationLimits& limits, std::size_t& total, std::vector<std::shared_ptr<const void>>* keep) {
-  // A zero-sized buffer is invalid in OpenCL; keep one element so kernels always get a buffer.
-  const std::size_t bytes = std::max(data.element, data.bytes);
-  require_allocation(name, bytes, limits);
-  total += bytes;
-  if (keep && data.bytes > 0) {
-    cl::Buffer buffer(ctx, CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR, bytes, const_cast<void*>(data.data));
-    keep->push_back(data.owner);
-    return buffer;
-  }
-  cl::Buffer buffer(ctx, CL_MEM_READ_ONLY, bytes);
-  if (data.bytes > 0) queue.enqueueWriteBuffer(buffer, CL_TRUE, 0, data.bytes, data.data);
-  return buffer;
-}
-
-// Bytes compared as one piece when a buffer is rewritten: a piece that changed is written whole.
-constexpr std::size_t kRewritePiece = 16 * 1024;
-
-// Rewrites `buffer` with `data`, writing only the pieces that differ from `shadow` (what the
-// buffer holds, as last written; updated), or replaces it by one a quarter larger than needed
-// when the data does not fit its `capacity` (bytes; updated). An animated scene whose moving
-// part is small sends little: a static room's triangles, shading and nodes pose to the same
-// bytes every frame. Adds the bytes written to `written`.
-template <typename T>
-void rewrite(const char* name, cl::Buffer& buffer, std::size_t& capacity, std::vector<std::uint8_t>& shadow,
-             const cl::Context& ctx, cl::CommandQueue& queue, const std::vector<T>& data,
-             const AllocationLimits& limits, std::size_t& written) {
-  const std::size_t bytes = std::max<std::size_t>(1, data.size()) * sizeof(T);
-  if (bytes > capacity || !buffer()) {
-    require_allocation(name, bytes, limits);
-    capacity = std::min(limits.max_alloc, bytes + bytes / 4);
-    buffer = cl::Buffer(ctx, CL_MEM_READ_ONLY, capacity);
-    shadow.clear();  // the new buffer holds nothing yet
-  }
-  const auto* p = reinterpret_cast<const std::uint8_t*>(data.data());
-  const std::size_t n = data.size() * sizeof(T);
-  // Runs of changed pieces, each written with one call.
-  std::size_t run = n;  // start of the current run, n = none
-  for (std::size_t off = 0; off <= n; off += kRewritePiece) {
-    const std::size_t len = std::min(kRewritePiece, n - std::min(n, off));
-    const bool changed = len > 0 && (off + len > shadow.size() || std::memcmp(p + off, shadow.data() + off, len) != 0);
-    if (changed && run == n) run = off;
-    if (!changed && run != n) {
-      queue.enqueueWriteBuffer(buffer, CL_TRUE, run, off - run, p + run);
-      written += off - run;
-      run = n;
-    }
-    if (len == 0) break;
-  }
-  if (run != n) {
-    queue.enqueueWriteBuffer(buffer, CL_TRUE, run, n - run, p + run);
-    written += n - run;
-  }
-  shadow.assign(p, p + n);
-}
-
-void copy3(float* dst, const glm::vec3& v) {
-  dst[0] = v.x;
-  dst[1] = v.y;
-  dst[2] = v.z;
-}
-
-float luminance(const glm::vec3& c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
-
-constexpr float kPi = std::numbers::pi_v<float>;
-
-}  // namespace
-
 cl_uint DeviceSceneBuffers::bind(cl::Kernel& kernel, cl_uint first) const {
   for (const cl::Buffer* b : {&nodes, &triangles, &shading, &materials, &textures, &texels, &lights, &colours, &instances})
     kernel.setArg(first++, *b);
@@ -178,25 +48,6 @@ cl_uint DeviceSceneBuffers::bind(cl::Kernel& kernel, cl_uint first) const {
 }
 
 namespace {
-
-TriangleShading shading_of(const SceneTriangle& t) {
-  TriangleShading s;
-  copy3(s.n0, t.n[0]);
-  copy3(s.n1, t.n[1]);
-  copy3(s.n2, t.n[2]);
-  s.uv0[0] = t.uv[0].x; s.uv0[1] = t.uv[0].y;
-  s.uv1[0] = t.uv[1].x; s.uv1[1] = t.uv[1].y;
-  s.uv2[0] = t.uv[2].x; s.uv2[1] = t.uv[2].y;
-  s.material = t.material;
-  return s;
-}
-
-FlatTriangleShading flat_shading_of(const SceneTriangle& t) {
-  FlatTriangleShading s;
-  copy3(s.n, t.n[0]);
-  s.material = t.material;
-  return s;
-}
 
 // Hands the whole pages of block [bytes + used, bytes + size) back to the system (MADV_DONTNEED:
 // a block that large is a private mapping of its own), from 8 MiB.
@@ -215,7 +66,7 @@ void release_tail(unsigned char* bytes, std::size_t used, std::size_t size) {
 // last record are handed back to the system (MADV_DONTNEED; a block that large is a private
 // mapping of its own). The result owns the triangles' block.
 template <typename Record, typename Make>
-DeviceScene::HostBytes records_in_place(std::vector<SceneTriangle>&& triangles, Make make) {
+SceneBytes records_in_place(std::vector<SceneTriangle>&& triangles, Make make) {
   static_assert(sizeof(Record) <= sizeof(SceneTriangle), "records must fit where the triangles were");
   static_assert(std::is_trivially_copyable_v<SceneTriangle> && std::is_trivially_copyable_v<Record>);
   auto owner = std::make_shared<std::vector<SceneTriangle>>(std::move(triangles));
@@ -231,11 +82,11 @@ DeviceScene::HostBytes records_in_place(std::vector<SceneTriangle>&& triangles, 
   return {bytes, n * sizeof(Record), sizeof(Record), owner};
 }
 
-DeviceScene::HostBytes shading_in_place(std::vector<SceneTriangle>&& triangles) {
+SceneBytes shading_in_place(std::vector<SceneTriangle>&& triangles) {
   return records_in_place<TriangleShading>(std::move(triangles), shading_of);
 }
 
-DeviceScene::HostBytes flat_shading_in_place(std::vector<SceneTriangle>&& triangles) {
+SceneBytes flat_shading_in_place(std::vector<SceneTriangle>&& triangles) {
   return records_in_place<FlatTriangleShading>(std::move(triangles), flat_shading_of);
 }
 
@@ -245,135 +96,6 @@ void require_static_scene(const Scene& scene, const std::function<std::vector<Sc
 }
 
 }  // namespace
-
-bool has_flat_shading(const std::vector<SceneTriangle>& triangles) {
-  const auto same_bits = [](const void* a, const void* b, std::size_t n) { return std::memcmp(a, b, n) == 0; };
-  const glm::vec2 zero(0.0f);
-  for (const SceneTriangle& t : triangles) {
-    if (!same_bits(&t.n[0], &t.n[1], sizeof t.n[0]) || !same_bits(&t.n[0], &t.n[2], sizeof t.n[0])) return false;
-    for (const glm::vec2& uv : t.uv)
-      if (!same_bits(&uv, &zero, sizeof uv)) return false;  // -0 too: the records would not say it
-  }
-  return true;
-}
-
-std::vector<TriangleShading> make_triangle_shading(const Scene& scene) {
-  std::vector<TriangleShading> out(scene.triangles.size());
-  for (std::size_t i = 0; i < out.size(); ++i) out[i] = shading_of(scene.triangles[i]);
-  return out;
-}
-
-std::vector<GpuMaterial> make_gpu_materials(const Scene& scene) {
-  std::vector<GpuMaterial> out(scene.materials.size());
-  for (std::size_t i = 0; i < out.size(); ++i) {
-    const Material& m = scene.materials[i];
-    GpuMaterial& g = out[i];
-    g = GpuMaterial{};
-    copy3(g.diffuse, m.diffuse);
-    copy3(g.specular, m.specular);
-    copy3(g.emission, m.emission);
-    copy3(g.transmission, m.transmission);
-    g.diffuse_texture = m.diffuse_texture;
-    g.specular_texture = m.specular_texture;
-    g.normal_texture = m.normal_texture;
-    g.normal_scale = m.normal_scale;
-    g.alpha_texture = m.alpha_texture;
-    g.ior = m.ior;
-    g.roughness = m.mirror ? 0.0f : m.roughness;
-    const bool has_specular = (m.specular.x + m.specular.y + m.specular.z) > 0.0f;
-    // A dielectric is its own lobe: it is neither mirror nor glossy, whatever Ks says.
-    const bool opaque = !m.dielectric;
-    g.flags = (opaque && m.mirror ? PX_MAT_MIRROR : 0u) |
-              (opaque && !m.mirror && has_specular ? PX_MAT_GLOSSY : 0u) |
-              (m.dielectric ? PX_MAT_DIELECTRIC : 0u) | (m.is_emissive() ? PX_MAT_EMISSIVE : 0u) |
-              (m.two_sided ? PX_MAT_TWO_SIDED_EMITTER : 0u);
-  }
-  return out;
-}
-
-std::vector<LightTriangle> make_light_table(const Scene& scene) {
-  std::vector<LightTriangle> out;
-  double total = 0.0;
-  std::vector<char> emissive(scene.materials.size());
-  for (std::size_t k = 0; k < emissive.size(); ++k) emissive[k] = scene.materials[k].is_emissive();
-  if (std::find(emissive.begin(), emissive.end(), 1) == emissive.end()) return out;  // no emitter at all
-  for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
-    const SceneTriangle& t = scene.triangles[i];
-    if (!emissive.at(t.material)) continue;
-    const Material& m = scene.materials[t.material];
-    const float area = 0.5f * glm::length(glm::cross(t.p[1] - t.p[0], t.p[2] - t.p[0]));
-    // Emitted power is pi * area * radiance per emitting face.
-    const double power = static_cast<double>(area) * luminance(m.emission) * (m.two_sided ? 2.0 : 1.0);
-    if (!(power > 0.0)) continue;
-    LightTriangle l{};
-    copy3(l.v0, t.p[0]);
-    copy3(l.v1, t.p[1]);
-    copy3(l.v2, t.p[2]);
-    copy3(l.emission, m.emission);
-    l.prim = static_cast<std::uint32_t>(i);
-    l.area = area;
-    l.pdf_select = static_cast<float>(power);  // normalised below
-    total += power;
-    out.push_back(l);
-  }
-  double running = 0.0;
-  for (auto& l : out) {
-    running += l.pdf_select;
-    l.pdf_select = static_cast<float>(l.pdf_select / total);
-    l.cdf = static_cast<float>(running / total);
-  }
-  if (!out.empty()) out.back().cdf = 1.0f;  // exact end, whatever the rounding
-  return out;
-}
-
-std::vector<std::uint32_t> triangle_flags(const Scene& scene) {
-  // By material first: a scene has few materials and may have 10M triangles.
-  std::vector<std::uint32_t> by_material(scene.materials.size());
-  for (std::size_t k = 0; k < by_material.size(); ++k) {
-    const Material& m = scene.materials[k];
-    by_material[k] = (m.alpha_texture >= 0 ? PX_TRI_ALPHA_TESTED : 0u) | (m.is_emissive() ? PX_TRI_EMISSIVE : 0u);
-  }
-  std::vector<std::uint32_t> out(scene.triangles.size());
-  for (std::size_t i = 0; i < out.size(); ++i) out[i] = by_material.at(scene.triangles[i].material);
-  return out;
-}
-
-void fill_light_params(const Scene& scene, std::size_t light_count, FrameParams& p) {
-  copy3(p.sun_dir, scene.sun.enabled ? glm::normalize(scene.sun.direction) : glm::vec3(0, 1, 0));
-  p.sun_cos_max = std::cos(glm::radians(scene.sun.angular_radius_deg));
-  copy3(p.sun_radiance, scene.sun.enabled ? scene.sun.radiance : glm::vec3(0.0f));
-  copy3(p.sky_zenith, scene.sky.enabled ? scene.sky.zenith : glm::vec3(0.0f));
-  copy3(p.sky_horizon, scene.sky.enabled ? scene.sky.horizon : glm::vec3(0.0f));
-  copy3(p.sky_ground, scene.sky.enabled ? scene.sky.ground : glm::vec3(0.0f));
-  p.light_count = static_cast<std::uint32_t>(light_count);
-  // Each present kind of light gets an equal share of next-event samples: the kinds differ in
-  // units (radiance of a disk, a dome, a set of triangles), so power is no fair common measure.
-  const int kinds = (scene.sun.enabled ? 1 : 0) + (scene.sky.enabled ? 1 : 0) + (light_count > 0 ? 1 : 0);
-  const float share = kinds > 0 ? 1.0f / static_cast<float>(kinds) : 0.0f;
-  p.p_sun = scene.sun.enabled ? share : 0.0f;
-  p.p_sky = scene.sky.enabled ? share : 0.0f;
-  p.p_triangles = light_count > 0 ? share : 0.0f;
-  // The sun and the sky are both at infinity, and so share a unit: the irradiance each gives a
-  // surface facing it. Their two shares are split in that ratio, not evenly: atrium's sun gives
-  // about 4x the sky's, and with half the samples each a sunlit pixel at 1 spp saw the sun in
-  // one sample of two, at twice its weight, a binary noise that the denoiser's luminance test
-  // partly took for edges (the sunlit floor came out darker, its shadows smeared). The sky
-  // loses next-event samples in the shade, where BSDF sampling finds it well (MIS).
-  if (scene.sun.enabled && scene.sky.enabled) {
-    const float sun_solid_angle = 2.0f * kPi * (1.0f - p.sun_cos_max);
-    const float e_sun = std::max(0.0f, luminance(scene.sun.radiance)) * sun_solid_angle;
-    // A surface facing the zenith: 2 pi integral over mu = cos(theta) of
-    // mix(horizon, zenith, sqrt(mu)) mu dmu = pi horizon + 4 pi (zenith - horizon) / 5.
-    const float e_sky = std::max(0.0f, kPi * luminance(scene.sky.horizon) +
-                                           0.8f * kPi * luminance(scene.sky.zenith - scene.sky.horizon));
-    if (e_sun + e_sky > 0.0f && std::isfinite(e_sun + e_sky)) {
-      // Neither below a tenth of the pair's share: a dim sky still gets its next-event samples.
-      const float sun_fraction = std::clamp(e_sun / (e_sun + e_sky), 0.1f, 0.9f);
-      p.p_sun = 2.0f * share * sun_fraction;
-      p.p_sky = 2.0f * share - p.p_sun;
-    }
-  }
-}
 
 std::string DeviceScene::kernel_options() const {
   char features[16];

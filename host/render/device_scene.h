@@ -9,11 +9,14 @@
 // bind() sets them in that order.
 #pragma once
 
+#include "bvh/bvh_builder.h"
+#include "bvh/bvh_layout.h"
 #include "bvh/flat_bvh.h"
 #include "bvh/top_level_bvh.h"
 #include "cl/device_set.h"
 #include "render/device_layout_cache.h"
 #include "render/kernel_features.h"
+#include "render/scene_tables.h"
 #include "scene/scene.h"
 
 #include <chrono>
@@ -23,6 +26,8 @@
 #include <vector>
 
 namespace px {
+
+struct SceneBytes;  // render/device_buffers.h
 
 struct DeviceSceneBuffers {
   cl::Buffer nodes;      // BvhNode[], Bvh4Node[], Bvh8Node[] or CompressedBvh8Node[] (DeviceSet::bvh_layout())
@@ -42,21 +47,6 @@ struct DeviceSceneBuffers {
   // Sets the nine scene arguments starting at argument index `first`; returns the next index.
   cl_uint bind(cl::Kernel& kernel, cl_uint first) const;
 };
-
-// Host-side conversions to the kernel layouts (also used by tests).
-std::vector<TriangleShading> make_triangle_shading(const Scene& scene);
-// Whether every triangle's three vertex normals are the same bits and its texture coordinates
-// all +0 (a mesh loaded without NORMAL and TEXCOORD_0): its shading records can be
-// FlatTriangleShading (types.h) and say the same.
-bool has_flat_shading(const std::vector<SceneTriangle>& triangles);
-std::vector<GpuMaterial> make_gpu_materials(const Scene& scene);
-std::vector<LightTriangle> make_light_table(const Scene& scene);
-// PX_TRI_* flags of every scene triangle, from its material (alpha-tested, emissive).
-std::vector<std::uint32_t> triangle_flags(const Scene& scene);
-
-// How next-event estimation picks a light type, and the sun/sky constants, as FrameParams
-// fields (the per-launch fields are left for the caller).
-void fill_light_params(const Scene& scene, std::size_t light_count, FrameParams& params);
 
 // Where a DeviceScene that lays a static scene without instances out stores that layout for the
 // next start to map (device_layout_cache.h). No cache: nothing is stored.
@@ -156,7 +146,7 @@ class DeviceScene {
   // there (ms, 0 when it was not; not part of layout_ms).
   bool layout_from_cache() const { return layout_from_cache_; }
   double layout_store_ms() const { return layout_store_ms_; }
-  struct HostBytes;  // device_scene.cpp
+  using HostBytes = SceneBytes;
   std::size_t light_count() const { return light_count_; }
   // Instances uploaded (0 without), and the instance buffer's bytes (top level and records).
   std::size_t instance_count() const { return instance_count_; }

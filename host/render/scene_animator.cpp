@@ -1,6 +1,9 @@
 #include "render/scene_animator.h"
 
-#include "bvh/flat_bvh.h"
+#include "bvh/bvh_builder.h"
+#include "bvh/bvh_refit.h"
+#include "bvh/bvh_validator.h"
+#include "bvh/wide_bvh.h"
 #include "scene/scene_rig.h"
 
 #include <algorithm>

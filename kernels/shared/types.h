@@ -59,7 +59,7 @@ typedef struct BvhNode {
 } BvhNode;
 
 /* Wide BVH nodes (PX_BVH_WIDTH selects the layout, see below: by default Bvh8Node on CPU device
- * sets, the binary BvhNode above on sets of GPUs, host/bvh/flat_bvh.h bvh_layout_for; the
+ * sets, the binary BvhNode above on sets of GPUs, host/bvh/bvh_layout.h bvh_layout_for; the
  * compressed form of the 8-wide tree, CompressedBvh8Node, follows BvhLeafBlock). The same
  * tree as the binary one, collapsed: each wide node stands for a binary node and takes as
  * children up to W of its binary descendants (leaves are the binary leaves, so the triangle
@@ -209,7 +209,7 @@ typedef struct CompressedBvh8Node {
 /* Which node layout the scene's node buffer holds and the traversal reads: 2 (BvhNode), 4
  * (Bvh4Node), 8 (Bvh8Node) or 9 (PX_BVH_COMPRESSED8: CompressedBvh8Node, 8 children per node).
  * This is the one switch: the host passes -DPX_BVH_WIDTH=N to every kernel build and uploads the
- * matching nodes (host/bvh/flat_bvh.h: bvh_layout_width()). */
+ * matching nodes (host/bvh/bvh_layout.h: bvh_layout_width()). */
 #define PX_BVH_COMPRESSED8 9
 #if defined(__OPENCL_C_VERSION__) && !defined(PX_BVH_WIDTH)
 #define PX_BVH_WIDTH 2

@@ -3,7 +3,7 @@
 // the options and a kept one-device set in its layout.
 #pragma once
 
-#include "bvh/flat_bvh.h"
+#include "bvh/bvh_layout.h"
 #include "cl/device_set.h"
 
 #include <gtest/gtest.h>
@@ -16,7 +16,7 @@ namespace px::test {
 
 // Device options asking for `layout`.
 inline DeviceOptions options_in_layout(BvhLayout layout, int count = 1, DeviceMode mode = DeviceMode::Auto) {
-  DeviceOptions options{count, mode, ""};
+  DeviceOptions options{count, mode, "", std::nullopt};
   options.bvh_layout = layout;
   return options;
 }
