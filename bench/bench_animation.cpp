@@ -48,7 +48,8 @@ Scene cube_field(std::size_t n, bool instances) {
     slide.node = static_cast<int>(i);
     slide.path = TrsPath::Translation;
     slide.track.times = {0.0, 2.0};
-    slide.track.values = {glm::dvec4(node.translation, 0.0), glm::dvec4(node.translation + glm::dvec3(0.25, 0, 0), 0.0)};
+    slide.track.values = {glm::dvec4(node.translation, 0.0),
+                          glm::dvec4(node.translation + glm::dvec3(0.25, 0, 0), 0.0)};
     clip.channels.push_back(slide);
     AnimationChannel turn;
     turn.node = static_cast<int>(i);
@@ -82,7 +83,9 @@ int main(int argc, char** argv) {
   unsigned frames = 8;
   int devices = 2;
   app.add_option("--counts", counts, "comma list of cube counts (12 triangles each)")->capture_default_str();
-  app.add_option("--frames", frames, "updates timed per count (after one untimed)")->check(CLI::Range(1u, 1000u))->capture_default_str();
+  app.add_option("--frames", frames, "updates timed per count (after one untimed)")
+      ->check(CLI::Range(1u, 1000u))
+      ->capture_default_str();
   app.add_option("--devices", devices, "OpenCL devices")->check(CLI::Range(1, 64))->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   return run_guarded([&] {
@@ -92,31 +95,31 @@ int main(int argc, char** argv) {
     std::stringstream list(counts);
     for (std::string item; std::getline(list, item, ',');)
       for (const bool instances : {false, true}) {
-      const std::size_t n = std::stoul(item);
-      Scene scene = cube_field(n, instances);
-      const std::size_t drawn = 12 * n;
-      DeviceScene ds(set, scene, build_world_bvh(scene));
-      SceneAnimator animator(scene, "all");
-      // Untimed: the first update builds the tree and allocates.
-      const double first_bvh_ms = animator.update(0.0, set, ds).bvh_ms;
-      std::vector<double> pose, build, upload, total;
-      std::size_t bytes = 0;
-      unsigned rebuilds = 0;
-      for (unsigned f = 1; f <= frames; ++f) {
-        const SceneAnimator::Update u = animator.update(f / 30.0, set, ds);
-        pose.push_back(u.pose_ms);
-        build.push_back(u.bvh_ms);
-        upload.push_back(u.upload_ms);
-        total.push_back(u.pose_ms + u.bvh_ms + u.upload_ms);
-        bytes = u.bytes;
-        rebuilds += u.rebuilt ? 1u : 0u;
+        const std::size_t n = std::stoul(item);
+        Scene scene = cube_field(n, instances);
+        const std::size_t drawn = 12 * n;
+        DeviceScene ds(set, scene, build_world_bvh(scene));
+        SceneAnimator animator(scene, "all");
+        // Untimed: the first update builds the tree and allocates.
+        const double first_bvh_ms = animator.update(0.0, set, ds).bvh_ms;
+        std::vector<double> pose, build, upload, total;
+        std::size_t bytes = 0;
+        unsigned rebuilds = 0;
+        for (unsigned f = 1; f <= frames; ++f) {
+          const SceneAnimator::Update u = animator.update(f / 30.0, set, ds);
+          pose.push_back(u.pose_ms);
+          build.push_back(u.bvh_ms);
+          upload.push_back(u.upload_ms);
+          total.push_back(u.pose_ms + u.bvh_ms + u.upload_ms);
+          bytes = u.bytes;
+          rebuilds += u.rebuilt ? 1u : 0u;
+        }
+        const double t = bench::median(total);
+        std::printf("%10zu %10s %12zu %10.2f %10.2f %10.2f %10.2f %5u/%-3u %12.2f %12.1f %14.2f\n", n,
+                    instances ? "instances" : "posed", drawn, bench::median(pose), bench::median(build),
+                    bench::median(upload), t, rebuilds, frames, static_cast<double>(bytes) / (1024.0 * 1024.0),
+                    t * 1e6 / static_cast<double>(drawn), first_bvh_ms);
       }
-      const double t = bench::median(total);
-      std::printf("%10zu %10s %12zu %10.2f %10.2f %10.2f %10.2f %5u/%-3u %12.2f %12.1f %14.2f\n", n,
-                  instances ? "instances" : "posed", drawn, bench::median(pose), bench::median(build),
-                  bench::median(upload), t, rebuilds, frames, static_cast<double>(bytes) / (1024.0 * 1024.0),
-                  t * 1e6 / static_cast<double>(drawn), first_bvh_ms);
-    }
     return 0;
   });
 }

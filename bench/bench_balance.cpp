@@ -155,8 +155,9 @@ int main(int argc, char** argv) {
     std::printf("makespan static / dynamic: x%.2f; median slowest-device busy static / dynamic: x%.2f\n",
                 results[0].makespan_ms / results[1].makespan_ms,
                 median(results[0].slowest_ms) / median(results[1].slowest_ms));
-    if (ref_spp > 0) std::printf("right eye, frame 0, vs %u spp reference: %.2f dB PSNR, relMSE %.4f (both modes)\n",
-                                 ref_spp, psnr, rel_mse);
+    if (ref_spp > 0)
+      std::printf("right eye, frame 0, vs %u spp reference: %.2f dB PSNR, relMSE %.4f (both modes)\n", ref_spp, psnr,
+                  rel_mse);
     std::printf("images static vs dynamic: %s\n",
                 mismatched ? (std::to_string(mismatched) + " eye-frames differ").c_str() : "bit-identical every frame");
     return mismatched ? 2 : 0;

@@ -1,8 +1,8 @@
-// bench_bvh_build: build_bvh (with and without spatial splits, and with splits on trial) against Embree's own BVH build of
-// the same triangles (an RTCScene with one triangle geometry, rtcCommitScene), side by side in
-// one process. Embree's scene build is the reference for what a build of this input should cost
-// on this machine: `high` (RTC_BUILD_QUALITY_HIGH, its spatial-split builder) is the counterpart
-// of build_bvh with splits, `medium` (binned SAH) of build_bvh without.
+// bench_bvh_build: build_bvh (with and without spatial splits, and with splits on trial) against Embree's own BVH build
+// of the same triangles (an RTCScene with one triangle geometry, rtcCommitScene), side by side in one process. Embree's
+// scene build is the reference for what a build of this input should cost on this machine: `high`
+// (RTC_BUILD_QUALITY_HIGH, its spatial-split builder) is the counterpart of build_bvh with splits, `medium` (binned
+// SAH) of build_bvh without.
 //
 // Scenes: any scene spec load_scene accepts (cornell, atrium, a file), and `slivers`: N long
 // thin triangles all crossing the unit cube (a user's file of ~101k overlapping slivers once
@@ -60,10 +60,10 @@ double embree_build_ms(const std::vector<px::SceneTriangle>& triangles, RTCBuild
   RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
   rtcSetGeometryBuildQuality(geometry, quality);
   const std::size_t n = triangles.size();
-  auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
-      geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), 3 * n));
-  auto* indices = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-      geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), n));
+  auto* vertices = static_cast<float*>(
+      rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), 3 * n));
+  auto* indices = static_cast<unsigned*>(
+      rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), n));
   if (!vertices || !indices) throw std::runtime_error("Embree: allocating geometry buffers failed");
   for (std::size_t i = 0; i < n; ++i)
     for (int k = 0; k < 3; ++k) {
@@ -91,8 +91,8 @@ struct Row {
   px::FlatBvh split_tree, binned_tree;
 };
 
-Row measure(const std::string& name, const std::vector<px::SceneTriangle>& tris, int repeats,
-            bool with_unbounded, px::BvhLayout layout) {
+Row measure(const std::string& name, const std::vector<px::SceneTriangle>& tris, int repeats, bool with_unbounded,
+            px::BvhLayout layout) {
   Row row;
   row.scene = name;
   row.triangles = tris.size();
@@ -125,9 +125,11 @@ Row measure(const std::string& name, const std::vector<px::SceneTriangle>& tris,
     row.trial = trial.stats;
     high_ms.push_back(embree_build_ms(tris, RTC_BUILD_QUALITY_HIGH));
     medium_ms.push_back(embree_build_ms(tris, RTC_BUILD_QUALITY_MEDIUM));
-    std::fprintf(stderr, "[bench] %s round %d: split %.1f ms, binned %.1f ms, trial %.1f ms, embree high %.1f ms, "
-                 "medium %.1f ms\n", name.c_str(), r + 1, split_ms.back(), binned_ms.back(), trial_ms.back(),
-                 high_ms.back(), medium_ms.back());
+    std::fprintf(stderr,
+                 "[bench] %s round %d: split %.1f ms, binned %.1f ms, trial %.1f ms, embree high %.1f ms, "
+                 "medium %.1f ms\n",
+                 name.c_str(), r + 1, split_ms.back(), binned_ms.back(), trial_ms.back(), high_ms.back(),
+                 medium_ms.back());
   }
   row.split_ms = median(split_ms);
   row.binned_ms = median(binned_ms);
@@ -193,10 +195,8 @@ int main(int argc, char** argv) {
   int repeats = 5;
   std::string csv;
   bool unbounded = false;
-  app.add_flag("--unbounded", unbounded,
-               "also time spatial splits without the split budget (the behaviour before it)");
-  app.add_option("--scene", scenes, "scenes to measure (repeatable; `slivers` is generated)")
-      ->capture_default_str();
+  app.add_flag("--unbounded", unbounded, "also time spatial splits without the split budget (the behaviour before it)");
+  app.add_option("--scene", scenes, "scenes to measure (repeatable; `slivers` is generated)")->capture_default_str();
   app.add_option("--slivers", sliver_count, "triangles in the `slivers` scene")->capture_default_str();
   app.add_option("--repeats", repeats, "timed rounds (median reported)")
       ->check(CLI::Range(1, 1000))
@@ -241,51 +241,55 @@ int main(int argc, char** argv) {
         traces.push_back(trace_speed(*set, name, scene, std::move(row.split_tree), std::move(row.binned_tree),
                                      trace_width, trace_height, repeats));
     }
-    std::printf("\n%-10s %8s | %10s %10s %10s %10s | %8s %8s | %9s %9s %9s %6s %9s %8s\n", "scene",
-                "tris", "px split", "px binned", "emb high", "emb med", "split/hi", "bin/med",
-                "SAH split", "SAH bin", "refs/tri", "depth", "calls/tri", "fallback");
+    std::printf("\n%-10s %8s | %10s %10s %10s %10s | %8s %8s | %9s %9s %9s %6s %9s %8s\n", "scene", "tris", "px split",
+                "px binned", "emb high", "emb med", "split/hi", "bin/med", "SAH split", "SAH bin", "refs/tri", "depth",
+                "calls/tri", "fallback");
     for (const auto& r : rows)
       std::printf("%-10s %8zu | %10.1f %10.1f %10.1f %10.1f | %8.2f %8.2f | %9.2f %9.2f %9.3f %6d %9.1f %8s\n",
-                  r.scene.c_str(), r.triangles, r.split_ms, r.binned_ms, r.high_ms, r.medium_ms,
-                  r.split_ms / r.high_ms, r.binned_ms / r.medium_ms, r.split.sah_cost,
-                  r.binned.sah_cost, double(r.split.leaf_triangles) / double(r.triangles),
-                  r.split.depth, double(r.split.split_calls) / double(r.triangles),
-                  r.split.split_budget_exceeded ? "binned" : "-");
-    std::printf("\nbuild ms, medians of %d interleaved rounds; px = build_bvh (validation not "
-                "included), emb = Embree rtcCommitScene of one triangle geometry at build quality "
-                "high (spatial splits) / medium (binned SAH); refs/tri = leaf references per scene "
-                "triangle with spatial splits; calls/tri = split-callback calls per triangle of the (last) spatial-split attempt; fallback = binned: the split budget ran out and build_bvh rebuilt with binned SAH (so px split includes the cancelled attempt)\n",
-                repeats);
+                  r.scene.c_str(), r.triangles, r.split_ms, r.binned_ms, r.high_ms, r.medium_ms, r.split_ms / r.high_ms,
+                  r.binned_ms / r.medium_ms, r.split.sah_cost, r.binned.sah_cost,
+                  double(r.split.leaf_triangles) / double(r.triangles), r.split.depth,
+                  double(r.split.split_calls) / double(r.triangles), r.split.split_budget_exceeded ? "binned" : "-");
+    std::printf(
+        "\nbuild ms, medians of %d interleaved rounds; px = build_bvh (validation not "
+        "included), emb = Embree rtcCommitScene of one triangle geometry at build quality "
+        "high (spatial splits) / medium (binned SAH); refs/tri = leaf references per scene "
+        "triangle with spatial splits; calls/tri = split-callback calls per triangle of the (last) spatial-split "
+        "attempt; fallback = binned: the split budget ran out and build_bvh rebuilt with binned SAH (so px split "
+        "includes the cancelled attempt)\n",
+        repeats);
     std::printf("\nBVH layout %s: px split/binned include collapsing the binary tree into it:\n",
                 px::to_string(layout));
     for (const auto& r : rows)
-      std::printf("%-10s collapse %.2f ms of px split %.1f ms (%.1f%%)\n", r.scene.c_str(), r.collapse_ms,
-                  r.split_ms, r.split_ms > 0 ? 100.0 * r.collapse_ms / r.split_ms : 0.0);
-    std::printf("\nspatial splits on trial (the rule for scenes of %zu triangles or more, forced here): binned "
-                "first, splits tried on every 16th triangle, the scene rebuilt with them if they gain %.0f%% there\n",
-                px::BvhBuildOptions{}.split_trial_triangles, 100.0 * px::BvhBuildOptions{}.split_min_gain);
-    std::printf("%-10s %10s %9s %10s %10s %10s %9s %9s\n", "scene", "trial ms", "trial/hi", "sampled",
-                "gain there", "gain whole", "splits?", "SAH");
+      std::printf("%-10s collapse %.2f ms of px split %.1f ms (%.1f%%)\n", r.scene.c_str(), r.collapse_ms, r.split_ms,
+                  r.split_ms > 0 ? 100.0 * r.collapse_ms / r.split_ms : 0.0);
+    std::printf(
+        "\nspatial splits on trial (the rule for scenes of %zu triangles or more, forced here): binned "
+        "first, splits tried on every 16th triangle, the scene rebuilt with them if they gain %.0f%% there\n",
+        px::BvhBuildOptions{}.split_trial_triangles, 100.0 * px::BvhBuildOptions{}.split_min_gain);
+    std::printf("%-10s %10s %9s %10s %10s %10s %9s %9s\n", "scene", "trial ms", "trial/hi", "sampled", "gain there",
+                "gain whole", "splits?", "SAH");
     for (const auto& r : rows)
       std::printf("%-10s %10.1f %9.2f %10zu %9.1f%% %9.1f%% %9s %9.2f\n", r.scene.c_str(), r.trial_ms,
                   r.trial_ms / r.high_ms, r.trial.split_trial_sampled, 100.0 * r.trial.split_trial_gain,
                   r.binned.sah_cost > 0 ? 100.0 * (1.0 - r.split.sah_cost / r.binned.sah_cost) : 0.0,
                   r.trial.split_trial_taken ? "yes" : "no", r.trial.sah_cost);
     if (unbounded) {
-      std::printf("\n%-10s %12s %12s %10s %11s %11s\n", "scene", "unbounded ms", "bounded ms",
-                  "emb high", "unbnd/high", "bound/high");
+      std::printf("\n%-10s %12s %12s %10s %11s %11s\n", "scene", "unbounded ms", "bounded ms", "emb high", "unbnd/high",
+                  "bound/high");
       for (const auto& r : rows)
-        std::printf("%-10s %12.1f %12.1f %10.1f %11.2f %11.2f   (unbounded: SAH %.2f, %.1f "
-                    "calls/tri, refs/tri %.3f)\n",
-                    r.scene.c_str(), r.unbounded_ms, r.split_ms, r.high_ms,
-                    r.unbounded_ms / r.high_ms, r.split_ms / r.high_ms, r.unbounded.sah_cost,
-                    double(r.unbounded.split_calls) / double(r.triangles),
-                    double(r.unbounded.leaf_triangles) / double(r.triangles));
+        std::printf(
+            "%-10s %12.1f %12.1f %10.1f %11.2f %11.2f   (unbounded: SAH %.2f, %.1f "
+            "calls/tri, refs/tri %.3f)\n",
+            r.scene.c_str(), r.unbounded_ms, r.split_ms, r.high_ms, r.unbounded_ms / r.high_ms, r.split_ms / r.high_ms,
+            r.unbounded.sah_cost, double(r.unbounded.split_calls) / double(r.triangles),
+            double(r.unbounded.leaf_triangles) / double(r.triangles));
     }
     if (!traces.empty()) {
-      std::printf("\ntrace speed of the two trees (%s layout, one device, %ux%u primary rays and one diffuse bounce; "
-                  "Mrays/s from device time, medians of %d):\n",
-                  px::to_string(set->bvh_layout()), trace_width, trace_height, repeats);
+      std::printf(
+          "\ntrace speed of the two trees (%s layout, one device, %ux%u primary rays and one diffuse bounce; "
+          "Mrays/s from device time, medians of %d):\n",
+          px::to_string(set->bvh_layout()), trace_width, trace_height, repeats);
       std::printf("%-10s %9s %9s | %10s %10s %8s | %10s %10s %8s | %7s\n", "scene", "SAH split", "SAH bin",
                   "split prim", "bin prim", "split/bin", "split bnc", "bin bnc", "split/bin", "differ");
       for (const auto& t : traces) {
@@ -295,8 +299,9 @@ int main(int argc, char** argv) {
                     t.split_primary / t.binned_primary, t.split_bounce, t.binned_bounce,
                     t.split_bounce / t.binned_bounce, t.differ);
       }
-      std::printf("differ: rays (primary and bounce) whose closest hit is another triangle in the two trees: "
-                  "ties at equal distance\n");
+      std::printf(
+          "differ: rays (primary and bounce) whose closest hit is another triangle in the two trees: "
+          "ties at equal distance\n");
     }
     if (!csv.empty()) {
       std::ofstream out(csv);
@@ -305,14 +310,13 @@ int main(int argc, char** argv) {
              "split_calls_per_triangle,split_budget_exceeded,trial_ms,trial_sampled,trial_gain,"
              "trial_took_splits,sah_trial\n";
       for (const auto& r : rows)
-        out << r.scene << ',' << r.triangles << ',' << r.split_ms << ',' << r.binned_ms << ','
-            << r.high_ms << ',' << r.medium_ms << ',' << r.split_ms / r.high_ms << ','
-            << r.binned_ms / r.medium_ms << ',' << r.split.sah_cost << ',' << r.binned.sah_cost
-            << ',' << double(r.split.leaf_triangles) / double(r.triangles) << ',' << r.split.depth
-            << ',' << double(r.split.split_calls) / double(r.triangles) << ','
-            << r.split.split_budget_exceeded << ',' << r.trial_ms << ',' << r.trial.split_trial_sampled
-            << ',' << r.trial.split_trial_gain << ',' << r.trial.split_trial_taken << ',' << r.trial.sah_cost
-            << '\n';
+        out << r.scene << ',' << r.triangles << ',' << r.split_ms << ',' << r.binned_ms << ',' << r.high_ms << ','
+            << r.medium_ms << ',' << r.split_ms / r.high_ms << ',' << r.binned_ms / r.medium_ms << ','
+            << r.split.sah_cost << ',' << r.binned.sah_cost << ','
+            << double(r.split.leaf_triangles) / double(r.triangles) << ',' << r.split.depth << ','
+            << double(r.split.split_calls) / double(r.triangles) << ',' << r.split.split_budget_exceeded << ','
+            << r.trial_ms << ',' << r.trial.split_trial_sampled << ',' << r.trial.split_trial_gain << ','
+            << r.trial.split_trial_taken << ',' << r.trial.sah_cost << '\n';
     }
     return 0;
   });

@@ -127,8 +127,8 @@ std::vector<Ray> random_rays(const Scene& flat, std::size_t count, std::uint32_t
 void top_level_cost(const std::vector<std::size_t>& counts, int subdivisions, unsigned repeats) {
   std::printf("(a) per-frame top level: instances of one %d-triangle mesh, median of %u\n",
               20 * (1 << (2 * subdivisions)) + 1, repeats);
-  std::printf("%10s %14s %18s %14s %12s %12s\n", "instances", "top nodes", "build_top_level ms",
-              "buffer ms", "KiB/frame", "ns/instance");
+  std::printf("%10s %14s %18s %14s %12s %12s\n", "instances", "top nodes", "build_top_level ms", "buffer ms",
+              "KiB/frame", "ns/instance");
   for (const std::size_t n : counts) {
     const Scene scene = instanced_field(n, subdivisions, false, 1);
     const std::vector<MeshPlacement> placements(scene.instancing.meshes.size());
@@ -138,7 +138,8 @@ void top_level_cost(const std::vector<std::size_t>& counts, int subdivisions, un
     for (std::size_t i = mesh.first; i < mesh.first + mesh.count; ++i)
       for (const glm::vec3& p : scene.triangles[i].p) lo = glm::min(lo, p), hi = glm::max(hi, p);
     std::vector<InstanceBox> boxes;
-    for (const MeshInstance& inst : scene.instancing.instances) boxes.push_back(place_box(lo, hi, inst.object_to_world));
+    for (const MeshInstance& inst : scene.instancing.instances)
+      boxes.push_back(place_box(lo, hi, inst.object_to_world));
     std::vector<double> build_ms, buffer_ms;
     std::size_t bytes = 0, nodes = 0;
     for (unsigned r = 0; r <= repeats; ++r) {  // r = 0: untimed warm-up
@@ -164,10 +165,11 @@ void trace_speed(DeviceSet& set, std::size_t instances, int subdivisions, std::s
   const Scene scene = instanced_field(instances, subdivisions, true, 2);
   Scene flat = scene;
   flatten_instances(flat);
-  std::printf("\n(b) trace: %zu instances of a %zu-triangle mesh + ground quad (%zu triangles stored, %zu drawn), "
-              "%zu random rays, 1 device, layout %s, median of %u\n",
-              instances, scene.instancing.meshes[0].count, scene.triangles.size(), flat.triangles.size(), ray_count,
-              to_string(set.bvh_layout()), repeats);
+  std::printf(
+      "\n(b) trace: %zu instances of a %zu-triangle mesh + ground quad (%zu triangles stored, %zu drawn), "
+      "%zu random rays, 1 device, layout %s, median of %u\n",
+      instances, scene.instancing.meshes[0].count, scene.triangles.size(), flat.triangles.size(), ray_count,
+      to_string(set.bvh_layout()), repeats);
   auto t0 = clock_type::now();
   DeviceScene inst_dev(set, scene, build_world_bvh(scene));
   const double inst_setup = ms_since(t0);
@@ -207,9 +209,10 @@ void trace_speed(DeviceSet& set, std::size_t instances, int subdivisions, std::s
               double(inst_dev.bytes_in_context()) / 1048576.0, mi / mf);
   std::printf("%12s %12.2f %16.2f %14.0f %14.2f %12.3f\n", "flattened", mf, median(flat_kernel), flat_setup,
               double(flat_dev.bytes_in_context()) / 1048576.0, 1.0);
-  std::printf("agreement: hit/miss same for %.6f of rays (%zu differ); both hit %zu: max |dt|/t %.3g (at t = %.3g), "
-              "%zu over 1e-4; max |dt|/max(t, 1) %.3g\n",
-              double(agree) / double(rays.size()), rays.size() - agree, both, max_rel, worst_t, over, max_abs);
+  std::printf(
+      "agreement: hit/miss same for %.6f of rays (%zu differ); both hit %zu: max |dt|/t %.3g (at t = %.3g), "
+      "%zu over 1e-4; max |dt|/max(t, 1) %.3g\n",
+      double(agree) / double(rays.size()), rays.size() - agree, both, max_rel, worst_t, over, max_abs);
 }
 
 void device_bytes(DeviceSet& set, const std::vector<std::size_t>& counts, int subdivisions) {
@@ -230,7 +233,8 @@ void device_bytes(DeviceSet& set, const std::vector<std::size_t>& counts, int su
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"bench_instances: per-frame top-level cost, two-level vs flattened trace speed, device bytes of instances"};
+  CLI::App app{
+      "bench_instances: per-frame top-level cost, two-level vs flattened trace speed, device bytes of instances"};
   std::string counts = "1,1000,100000", byte_counts = "1,1024";
   unsigned repeats = 9, trace_repeats = 9;
   int top_subdiv = 3, trace_subdiv = 4, devices = 1;
@@ -238,16 +242,21 @@ int main(int argc, char** argv) {
   bool skip_a = false, skip_b = false, skip_c = false;
   app.add_option("--counts", counts, "(a) comma list of instance counts")->capture_default_str();
   app.add_option("--repeats", repeats, "(a) timed repeats per count (after one untimed)")
-      ->check(CLI::Range(1u, 10000u))->capture_default_str();
+      ->check(CLI::Range(1u, 10000u))
+      ->capture_default_str();
   app.add_option("--mesh-subdiv", top_subdiv, "(a) icosphere subdivisions of the mesh (3: 1,281 triangles)")
-      ->check(CLI::Range(0, 7))->capture_default_str();
-  app.add_option("--trace-instances", trace_instances, "(b) instances traced")->check(CLI::Range(1, 1 << 20))
+      ->check(CLI::Range(0, 7))
+      ->capture_default_str();
+  app.add_option("--trace-instances", trace_instances, "(b) instances traced")
+      ->check(CLI::Range(1, 1 << 20))
       ->capture_default_str();
   app.add_option("--trace-subdiv", trace_subdiv, "(b, c) icosphere subdivisions (4: 5,121 triangles)")
-      ->check(CLI::Range(0, 7))->capture_default_str();
+      ->check(CLI::Range(0, 7))
+      ->capture_default_str();
   app.add_option("--rays", rays, "(b) random rays per trace")->check(CLI::Range(1, 1 << 26))->capture_default_str();
   app.add_option("--trace-repeats", trace_repeats, "(b) timed traces of each scene, interleaved (after one untimed)")
-      ->check(CLI::Range(1u, 1000u))->capture_default_str();
+      ->check(CLI::Range(1u, 1000u))
+      ->capture_default_str();
   app.add_option("--byte-counts", byte_counts, "(c) comma list of instance counts; ratios are to the first")
       ->capture_default_str();
   app.add_option("--devices", devices, "(b, c) OpenCL devices")->check(CLI::Range(1, 64))->capture_default_str();

@@ -34,9 +34,9 @@ struct PipelineResult {
   std::string name;
   double makespan_ms = 0, median_frame_ms = 0, reprojected = 0;
   std::map<std::pair<int, int>, std::vector<double>> stage_ms;  // (stage, device) -> per frame
-  double right_psnr = 0, right_rel_mse = 0;            // frame 0: no history yet
-  double last_right_psnr = 0, last_right_rel_mse = 0;  // the last frame, with history
-  std::vector<double> frame_ms;  // wall time of each timed frame
+  double right_psnr = 0, right_rel_mse = 0;                     // frame 0: no history yet
+  double last_right_psnr = 0, last_right_rel_mse = 0;           // the last frame, with history
+  std::vector<double> frame_ms;                                 // wall time of each timed frame
   int owner = 0;
 };
 
@@ -44,10 +44,11 @@ struct PipelineResult {
 // (CL_KERNEL_PRIVATE_MEM_SIZE: on a GPU, registers spilled to memory) built for the scene's
 // features and with every feature.
 void print_kernel_private_memory(px::DeviceSet& set, px::DeviceScene& ds) {
-  const std::pair<const char*, const char*> kernels[] = {
-      {"pathtrace/path_trace.cl", "path_trace"}, {"pathtrace/path_trace.cl", "path_trace_list"},
-      {"pathtrace/wavefront.cl", "wf_shade"},    {"pipeline/gbuffer.cl", "gbuffer"},
-      {"trace/trace_rays.cl", "trace_closest"}};
+  const std::pair<const char*, const char*> kernels[] = {{"pathtrace/path_trace.cl", "path_trace"},
+                                                         {"pathtrace/path_trace.cl", "path_trace_list"},
+                                                         {"pathtrace/wavefront.cl", "wf_shade"},
+                                                         {"pipeline/gbuffer.cl", "gbuffer"},
+                                                         {"trace/trace_rays.cl", "trace_closest"}};
   const cl::Device& device = set.devices()[0].device;
   std::printf("private memory per work-item (bytes, CL_KERNEL_PRIVATE_MEM_SIZE): scene kernels / general kernels\n");
   const px::KernelChoice before = ds.kernel_choice();
@@ -93,7 +94,8 @@ int main(int argc, char** argv) {
   std::optional<px::BvhLayout> bvh_layout;
   px::bench::add_bvh_layout_flag(app, bvh_layout);
   app.add_option("--fps", fps, "camera-path time step")->capture_default_str();
-  app.add_option("--ref-spp", ref_spp, "samples of the frame-0 reference (0 = skip the error figures)")->capture_default_str();
+  app.add_option("--ref-spp", ref_spp, "samples of the frame-0 reference (0 = skip the error figures)")
+      ->capture_default_str();
   app.add_option("--csv", csv, "per stage and device medians as CSV (owner = 1 on the owner device)");
   app.add_option("--summary-csv", summary_csv, "per scene and pipeline: makespan, Hz, error vs the reference");
   app.add_option("--frames-csv", frames_csv, "per scene, pipeline and timed frame: wall ms");
@@ -153,8 +155,8 @@ int main(int argc, char** argv) {
       const px::Scene& scene = on_devices.loaded.scene;
       px::DeviceSet& set = on_devices.devices;
       const px::DeviceScene& ds = on_devices.device_scene;
-      std::fprintf(stderr, "[bench] %s: %d devices (%s), BVH nodes %s\n", name.c_str(), set.size(), px::to_string(set.mode()),
-                   px::to_string(set.bvh_layout()));
+      std::fprintf(stderr, "[bench] %s: %d devices (%s), BVH nodes %s\n", name.c_str(), set.size(),
+                   px::to_string(set.mode()), px::to_string(set.bvh_layout()));
 
       // References of frame 0 and of the last frame (the camera moves between them).
       const unsigned last = warmup + frames - 1;
@@ -189,7 +191,8 @@ int main(int argc, char** argv) {
       }
       if (compare_gbuffer) runs.push_back({px::PipelineKind::Proposed, runs[0].overlap, false, "proposed-gpass"});
       if (compare_kernels)
-        runs.push_back({px::PipelineKind::Proposed, runs[0].overlap, true, "proposed-general", px::KernelChoice::General});
+        runs.push_back(
+            {px::PipelineKind::Proposed, runs[0].overlap, true, "proposed-general", px::KernelChoice::General});
       std::fprintf(stderr, "[bench] %s: kernels for the scene's features: %s\n", name.c_str(),
                    px::describe_kernel_features(ds.scene_features()).c_str());
       for (const Run& run : runs) {
@@ -260,17 +263,20 @@ int main(int argc, char** argv) {
       if (compare_kernels) print_kernel_private_memory(set, on_devices.device_scene);
       for (const auto& r : results) {
         if (r.name == "proposed-1q")
-          std::printf("side queue: proposed vs proposed-1q: x%.2f (makespan ratio)\n", r.makespan_ms / results[0].makespan_ms);
+          std::printf("side queue: proposed vs proposed-1q: x%.2f (makespan ratio)\n",
+                      r.makespan_ms / results[0].makespan_ms);
         if (r.name == "proposed-gpass")
           std::printf("G-buffer from the path tracer: proposed vs proposed-gpass: x%.2f (makespan ratio)\n",
                       r.makespan_ms / results[0].makespan_ms);
         if (r.name == "proposed-general")
           std::printf("kernels for the scene's features (%s): proposed vs proposed-general: x%.2f (makespan ratio)\n",
-                      px::describe_kernel_features(ds.scene_features()).c_str(), r.makespan_ms / results[0].makespan_ms);
+                      px::describe_kernel_features(ds.scene_features()).c_str(),
+                      r.makespan_ms / results[0].makespan_ms);
       }
       std::printf("\nmedian device ms per frame, by stage and device:\n%-22s", "stage");
       for (const auto& r : results)
-        for (int d = 0; d < set.size(); ++d) std::printf(" %9s", (short_name(r.name) + "/d" + std::to_string(d)).c_str());
+        for (int d = 0; d < set.size(); ++d)
+          std::printf(" %9s", (short_name(r.name) + "/d" + std::to_string(d)).c_str());
       std::printf("\n");
       for (int stage : {2, 12, 3, 4, 5, 6, 7, 8, 9}) {
         std::printf("%-3d %-18s", stage, px::stage_name(static_cast<px::Stage>(stage)));
@@ -280,9 +286,8 @@ int main(int argc, char** argv) {
             const double m = it == r.stage_ms.end() ? 0.0 : median(it->second);
             std::printf(" %9.2f", m);
             if (csv_out && it != r.stage_ms.end())
-              csv_out << name << ',' << r.name << ',' << stage << ','
-                      << px::stage_name(static_cast<px::Stage>(stage)) << ',' << d << ',' << (d == r.owner) << ','
-                      << m << '\n';
+              csv_out << name << ',' << r.name << ',' << stage << ',' << px::stage_name(static_cast<px::Stage>(stage))
+                      << ',' << d << ',' << (d == r.owner) << ',' << m << '\n';
           }
         std::printf("\n");
       }

@@ -163,7 +163,7 @@ int main(int argc, char** argv) {
       std::vector<FrameError> errors(frames);
       for (unsigned f = 0; f < frames; ++f) {
         const auto st = pipeline.render(f, static_cast<float>(f) / fps);
-        if (f == 0) continue;  // kernel compilation
+        if (f == 0) continue;                            // kernel compilation
         if (!per_frame_csv.empty() && f + 1 < frames) {  // the last frame is measured below
           const auto image = pipeline.radiance();
           if (c.devices == 1) single_frames[f] = image;
@@ -235,9 +235,10 @@ int main(int argc, char** argv) {
              << ',' << e.band_psnr_vs_single << ',' << e.cambi << '\n';
         }
     }
-    std::printf("\nmedians over frames 1..%u (frame 0 compiles kernels); PSNR vs a %u spp reference, mean of both eyes; "
-                "'band vs 1-dev' = PSNR of the seam bands against the 1-device denoised image (inf = identical)\n",
-                frames - 1, ref_spp);
+    std::printf(
+        "\nmedians over frames 1..%u (frame 0 compiles kernels); PSNR vs a %u spp reference, mean of both eyes; "
+        "'band vs 1-dev' = PSNR of the seam bands against the 1-device denoised image (inf = identical)\n",
+        frames - 1, ref_spp);
     return 0;
   });
 }

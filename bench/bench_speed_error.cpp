@@ -56,7 +56,8 @@ int main(int argc, char** argv) {
       px::ReferenceOptions ref_opt;
       ref_opt.spp = ref_spp;
       ref_opt.bounces = bounces;
-      const auto ref = px::render_reference(tracer, 0.0f, 0, width, height, ref_opt, px::eta_printer(name + " reference"));
+      const auto ref =
+          px::render_reference(tracer, 0.0f, 0, width, height, ref_opt, px::eta_printer(name + " reference"));
       opt.seed = 0;
       for (unsigned spp : spps) {
         opt.spp = spp;
@@ -80,18 +81,21 @@ int main(int argc, char** argv) {
     return 0;
   });
   if (rc != 0) return rc;
-  std::printf("\n%-10s %5s %14s %14s %12s %10s\n", "scene", "spp", "ms/frame wall", "ms/frame dev", "relMSE", "PSNR dB");
+  std::printf("\n%-10s %5s %14s %14s %12s %10s\n", "scene", "spp", "ms/frame wall", "ms/frame dev", "relMSE",
+              "PSNR dB");
   for (const auto& r : rows)
     std::printf("%-10s %5u %14.1f %14.1f %12.5f %10.2f\n", r.scene.c_str(), r.spp, r.wall_ms, r.device_ms, r.rel_mse,
                 r.psnr);
-  std::printf("\n%ux%u per eye, stereo frame = both eyes, %d devices, %u bounces; medians of %d frames; error vs a "
-              "%u spp reference, mean of both eyes and of the frames\n",
-              width, height, devices, bounces, repeats, ref_spp);
+  std::printf(
+      "\n%ux%u per eye, stereo frame = both eyes, %d devices, %u bounces; medians of %d frames; error vs a "
+      "%u spp reference, mean of both eyes and of the frames\n",
+      width, height, devices, bounces, repeats, ref_spp);
   if (!csv.empty()) {
     std::ofstream out(csv);
     out << "scene,spp,wall_ms,device_ms,rel_mse,psnr_db\n";
     for (const auto& r : rows)
-      out << r.scene << ',' << r.spp << ',' << r.wall_ms << ',' << r.device_ms << ',' << r.rel_mse << ',' << r.psnr << '\n';
+      out << r.scene << ',' << r.spp << ',' << r.wall_ms << ',' << r.device_ms << ',' << r.rel_mse << ',' << r.psnr
+          << '\n';
   }
   return 0;
 }

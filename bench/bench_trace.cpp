@@ -118,7 +118,9 @@ int main(int argc, char** argv) {
   app.add_option("--width", width)->capture_default_str();
   app.add_option("--height", height)->capture_default_str();
   app.add_option("--devices", devices, "OpenCL devices the rays are split across")->capture_default_str();
-  app.add_option("--repeats", repeats, "timed repetitions (median reported)")->check(CLI::Range(1, 1000))->capture_default_str();
+  app.add_option("--repeats", repeats, "timed repetitions (median reported)")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
   app.add_option("--threads", threads, "Embree threads (std::thread chunks)")->capture_default_str();
   app.add_option("--csv", csv, "also write the table as CSV");
   app.add_option("--layout", layout_names,
@@ -134,12 +136,13 @@ int main(int argc, char** argv) {
     // --layout, one set in its own layout (by device type).
     std::vector<std::unique_ptr<px::DeviceSet>> sets;
     if (layouts.empty()) {
-      sets.push_back(std::make_unique<px::DeviceSet>(px::DeviceSet::create({devices, px::DeviceMode::Auto, "", std::nullopt})));
+      sets.push_back(
+          std::make_unique<px::DeviceSet>(px::DeviceSet::create({devices, px::DeviceMode::Auto, "", std::nullopt})));
       layouts.push_back(sets.back()->bvh_layout());
     } else {
       for (px::BvhLayout layout : layouts)
-        sets.push_back(std::make_unique<px::DeviceSet>(
-            px::DeviceSet::create({devices, px::DeviceMode::Auto, "", layout})));
+        sets.push_back(
+            std::make_unique<px::DeviceSet>(px::DeviceSet::create({devices, px::DeviceMode::Auto, "", layout})));
     }
     const px::DeviceSet& first = *sets.front();
     std::fprintf(stderr, "[bench] %d device(s), %s mode: %s\n", first.size(), px::to_string(first.mode()),
@@ -181,20 +184,20 @@ int main(int argc, char** argv) {
                 ("Mrays/s " + std::to_string(threads) + "t").c_str(), "Mrays/s", "k/e", "");
     for (const auto& r : rows)
       std::printf("%-10s %-15s %-7s %9zu %12.2f %12.2f %12.2f %12.2f %8.3f %6d\n", r.scene.c_str(), r.set.c_str(),
-                  r.layout.c_str(), r.rays,
-                  r.kernel_mrays, r.kernel_wall_mrays, r.embree_mrays, r.embree1_mrays, r.kernel_mrays / r.embree_mrays,
-                  r.mismatches);
-    std::printf("\nmedians of %d runs; kernel = device time from profiling events, kernel+io = host wall time "
-                "including ray upload and hit download; ratio = kernel / embree (%d threads); diff = rays whose "
-                "closest hit differs from Embree's\n",
-                repeats, threads);
+                  r.layout.c_str(), r.rays, r.kernel_mrays, r.kernel_wall_mrays, r.embree_mrays, r.embree1_mrays,
+                  r.kernel_mrays / r.embree_mrays, r.mismatches);
+    std::printf(
+        "\nmedians of %d runs; kernel = device time from profiling events, kernel+io = host wall time "
+        "including ray upload and hit download; ratio = kernel / embree (%d threads); diff = rays whose "
+        "closest hit differs from Embree's\n",
+        repeats, threads);
     if (!csv.empty()) {
       std::ofstream out(csv);
       out << "scene,rays,layout,count,kernel_mrays,kernel_io_mrays,embree_mrays,embree_1t_mrays,ratio,mismatches\n";
       for (const auto& r : rows)
-        out << r.scene << ',' << r.set << ',' << r.layout << ',' << r.rays << ',' << r.kernel_mrays << ',' << r.kernel_wall_mrays << ','
-            << r.embree_mrays << ',' << r.embree1_mrays << ',' << r.kernel_mrays / r.embree_mrays << ','
-            << r.mismatches << '\n';
+        out << r.scene << ',' << r.set << ',' << r.layout << ',' << r.rays << ',' << r.kernel_mrays << ','
+            << r.kernel_wall_mrays << ',' << r.embree_mrays << ',' << r.embree1_mrays << ','
+            << r.kernel_mrays / r.embree_mrays << ',' << r.mismatches << '\n';
     }
     return 0;
   });

@@ -43,7 +43,7 @@ inline std::vector<px::Ray> primary_rays(const px::Scene& scene, unsigned w, uns
 
 // Cosine-weighted directions around each primary hit's geometric normal (facing the viewer).
 inline std::vector<px::Ray> bounce_rays(const px::Scene& scene, const std::vector<px::Ray>& primary,
-                                 const std::vector<px::Hit>& hits, px::RayBatchTracer& tracer) {
+                                        const std::vector<px::Hit>& hits, px::RayBatchTracer& tracer) {
   std::vector<glm::vec3> points, normals;
   for (std::size_t i = 0; i < hits.size(); ++i) {
     if (hits[i].prim == PX_NO_HIT) continue;
@@ -63,8 +63,8 @@ inline std::vector<px::Ray> bounce_rays(const px::Scene& scene, const std::vecto
     const glm::vec3 a = std::abs(n.x) > 0.9f ? glm::vec3(0, 1, 0) : glm::vec3(1, 0, 0);
     const glm::vec3 t = glm::normalize(glm::cross(a, n)), b = glm::cross(n, t);
     const float r = std::sqrt(u01(rng)), phi = 6.2831853f * u01(rng);
-    const glm::vec3 d = glm::normalize(r * std::cos(phi) * t + r * std::sin(phi) * b +
-                                       std::sqrt(std::max(0.0f, 1.0f - r * r)) * n);
+    const glm::vec3 d =
+        glm::normalize(r * std::cos(phi) * t + r * std::sin(phi) * b + std::sqrt(std::max(0.0f, 1.0f - r * r)) * n);
     px::Ray ray{};
     for (int k = 0; k < 3; ++k) {
       ray.org[k] = origins[i][k];

@@ -575,7 +575,8 @@ TEST(SceneOnDevices, AStaticScenesHostTrianglesAreReleasedAnAnimatedOnesKept) {
       pixels_of(PathTracer(still.devices, still.device_scene, still.loaded.scene).render_stereo(0.0f, 0, 16, 12, opt));
   const LoadedScene kept = load_and_build("cornell", true);
   DeviceScene ds(still.devices, kept.scene, kept.bvh);
-  EXPECT_TRUE(bit_identical(released, pixels_of(PathTracer(still.devices, ds, kept.scene).render_stereo(0.0f, 0, 16, 12, opt))));
+  EXPECT_TRUE(bit_identical(released,
+                            pixels_of(PathTracer(still.devices, ds, kept.scene).render_stereo(0.0f, 0, 16, 12, opt))));
   SceneOnDevices moving(cube_on_floor_file(dir), {1, DeviceMode::Auto, "", std::nullopt}, true);
   EXPECT_EQ(moving.loaded.scene.triangles.size(), moving.loaded.triangle_count);
 }

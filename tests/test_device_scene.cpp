@@ -395,7 +395,8 @@ TEST(DeviceScene, AFlatSceneBuildsItsTreeFromCornersPackedWhereItsTrianglesWere)
   EXPECT_FALSE(kept.host_part);
   ASSERT_EQ(kept.scene.triangles.size(), std::size_t(2 * n * n));
   ASSERT_EQ(for_devices.bvh.nodes.size(), kept.bvh.nodes.size());
-  EXPECT_EQ(std::memcmp(for_devices.bvh.nodes.data(), kept.bvh.nodes.data(), kept.bvh.nodes.size() * sizeof(BvhNode)), 0);
+  EXPECT_EQ(std::memcmp(for_devices.bvh.nodes.data(), kept.bvh.nodes.data(), kept.bvh.nodes.size() * sizeof(BvhNode)),
+            0);
   SceneOnDevices on(std::move(for_devices), {2, DeviceMode::Auto, "", std::nullopt});
   EXPECT_TRUE(on.device_scene.flat_shading());
   const DeviceScene kept_ds(on.devices, kept.scene, kept.bvh);

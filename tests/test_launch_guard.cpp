@@ -114,7 +114,8 @@ TEST(PoclLaunchGuard, EightQueuesLaunchingOneKernelAtGrowingSizesRunToTheEnd) {
 TEST(PoclLaunchGuard, LaunchesNoWiderThanBeforeOnlyWaitForTheWideningOne) {
   // Strips of different heights: three queues, sizes that differ between queues and repeat.
   DeviceSet set = DeviceSet::create({3, DeviceMode::SharedQueues, "", std::nullopt});
-  if (!set.guards_launches()) GTEST_SKIP() << "no guard on these devices (not PoCL CPU, or PARALLAX_POCL_LAUNCH_GUARD=off)";
+  if (!set.guards_launches())
+    GTEST_SKIP() << "no guard on these devices (not PoCL CPU, or PARALLAX_POCL_LAUNCH_GUARD=off)";
   std::vector<std::size_t> sizes;
   for (int frame = 0; frame < 12; ++frame)
     for (std::size_t rows : {21, 21, 22}) sizes.push_back(rows * 96 + (frame == 5 ? 64u : 0u));  // frame 5 grows

@@ -727,8 +727,8 @@ StereoPipeline::Options pipeline_options(PipelineKind kind, SeamMode seams = Sea
   return opt;
 }
 
-DenoisedRun run_pipeline(const LoadedScene& loaded, int devices, SeamMode seams, unsigned frames, unsigned w, unsigned h,
-                         unsigned iterations = 5, bool denoise = true) {
+DenoisedRun run_pipeline(const LoadedScene& loaded, int devices, SeamMode seams, unsigned frames, unsigned w,
+                         unsigned h, unsigned iterations = 5, bool denoise = true) {
   DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, "", std::nullopt});
   DeviceScene ds(set, loaded.scene, loaded.bvh);
   StereoPipeline::Options opt = pipeline_options(PipelineKind::Proposed, seams);

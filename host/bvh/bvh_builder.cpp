@@ -7,7 +7,7 @@
 #include "bvh/embree_build_tree.h"
 #include "bvh/embree_reference.h"  // embree_device(), take_embree_error()
 #include "bvh/spatial_splits.h"
-#include "bvh/wide_bvh.h"        // ensure_layout
+#include "bvh/wide_bvh.h"  // ensure_layout
 
 #include <embree3/rtcore_builder.h>
 
@@ -49,7 +49,6 @@ std::atomic<std::uint64_t> g_next_build_id{1};  // BuildContext::build_id
 // calls per triangle plus a floor for small scenes; past it the build is cancelled and redone
 // with binned SAH, which costs a fraction of what Embree's own spatial-split build does.
 constexpr std::uint64_t kSplitCallsFloor = std::uint64_t{1} << 20;
-
 
 double half_area(const float lo[3], const float hi[3]) {
   const double dx = double(hi[0]) - lo[0], dy = double(hi[1]) - lo[1], dz = double(hi[2]) - lo[2];
@@ -112,8 +111,7 @@ void compute_bvh_stats(FlatBvh& bvh) {
 namespace {
 
 // The BvhTriangles of the scene triangles `leaf_prims`, in that (leaf) order.
-std::vector<BvhTriangle> leaf_triangles(const TriangleSource& triangles,
-                                        const std::vector<std::uint32_t>& leaf_prims) {
+std::vector<BvhTriangle> leaf_triangles(const TriangleSource& triangles, const std::vector<std::uint32_t>& leaf_prims) {
   std::vector<BvhTriangle> out;
   out.reserve(leaf_prims.size());
   for (const std::uint32_t prim : leaf_prims) {
@@ -223,8 +221,7 @@ bool build_once(const TriangleSource& triangles, const BvhBuildOptions& options,
   std::vector<std::uint32_t> leaf_prims;  // the leaves' scene triangles, in leaf order
   try {
     if (context.out_of_memory) throw std::runtime_error("BVH: Embree allocator out of memory");
-    if (context.unexpected_arity)
-      throw std::runtime_error("BVH: Embree produced a node without exactly two children");
+    if (context.unexpected_arity) throw std::runtime_error("BVH: Embree produced a node without exactly two children");
     if (context.oversized_leaf)
       throw std::runtime_error("BVH: Embree produced a leaf larger than PX_BVH_MAX_LEAF_SIZE");
     out.nodes.clear();
@@ -259,8 +256,7 @@ namespace {
 // One tree over `triangles` with `options`, whatever it takes: spatial splits past their work
 // budget are redone with binned SAH, and a build that hits Embree's depth limit is redone with a
 // relaxed one (the flattener restores the limit). Leaves the stats to the caller.
-void build_tree(const TriangleSource& triangles, const BvhBuildOptions& options, unsigned int sah_block,
-                FlatBvh& bvh) {
+void build_tree(const TriangleSource& triangles, const BvhBuildOptions& options, unsigned int sah_block, FlatBvh& bvh) {
   BvhBuildOptions used = options;
   std::string first_error;
   bool over_budget = false;
@@ -283,8 +279,8 @@ void build_tree(const TriangleSource& triangles, const BvhBuildOptions& options,
       built = build_once(triangles, used, sah_block, kRelaxedDepth, bvh, second_error, over_budget);
     }
     if (!built)
-      throw std::runtime_error("Embree: rtcBuildBVH failed: " + first_error + "; retry with " +
-                               "maxDepth " + std::to_string(kRelaxedDepth) + ": " + second_error);
+      throw std::runtime_error("Embree: rtcBuildBVH failed: " + first_error + "; retry with " + "maxDepth " +
+                               std::to_string(kRelaxedDepth) + ": " + second_error);
   }
 }
 
@@ -295,8 +291,8 @@ void build_tree(const TriangleSource& triangles, const BvhBuildOptions& options,
 // sizes against the scene's extent. Its triangles lie further apart than the scene's, so the
 // sample over-states the gain rather than missing it. A compact sample (a subtree of the binned
 // tree) was tried first: it missed atrium's 12% gain, which lives in its top levels.
-double sampled_split_gain(const TriangleSource& triangles, const BvhBuildOptions& options,
-                          unsigned int sah_block, std::size_t& sampled) {
+double sampled_split_gain(const TriangleSource& triangles, const BvhBuildOptions& options, unsigned int sah_block,
+                          std::size_t& sampled) {
   std::size_t stride = 16;
   const std::size_t cap = options.split_trial_max_sample;
   if (cap > 0 && triangles.size() > stride * cap) stride = (triangles.size() + cap - 1) / cap;
@@ -328,26 +324,23 @@ double sampled_split_gain(const TriangleSource& triangles, const BvhBuildOptions
 FlatBvh build_bvh(const TriangleSource& triangles, const BvhBuildOptions& options, std::optional<BvhLayout> layout) {
   const auto start = std::chrono::steady_clock::now();
   if (triangles.empty()) throw std::runtime_error("BVH: cannot build over an empty scene");
-  if (triangles.size() >= PX_NO_HIT)
-    throw std::runtime_error("BVH: too many triangles for 32-bit indices");
+  if (triangles.size() >= PX_NO_HIT) throw std::runtime_error("BVH: too many triangles for 32-bit indices");
   if (options.max_leaf_size < 1 || options.max_leaf_size > PX_BVH_MAX_LEAF_SIZE)
-    throw std::invalid_argument("BVH: max_leaf_size must be in 1.." +
-                                std::to_string(PX_BVH_MAX_LEAF_SIZE));
+    throw std::invalid_argument("BVH: max_leaf_size must be in 1.." + std::to_string(PX_BVH_MAX_LEAF_SIZE));
   if (!(options.split_min_gain >= 0.0 && options.split_min_gain <= 1.0))
     throw std::invalid_argument("BVH: split_min_gain must be in [0, 1]");
   for (std::size_t i = 0; i < triangles.size(); ++i)
     for (int c = 0; c < 3; ++c)
       if (const glm::vec3& p = triangles.p(i)[c]; !std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
-        throw std::runtime_error("BVH: triangle " + std::to_string(i) +
-                                 " has a non-finite vertex");
+        throw std::runtime_error("BVH: triangle " + std::to_string(i) + " has a non-finite vertex");
 
   FlatBvh bvh;
   // Leaves sized for the wide layouts' 4-triangle blocks (BvhBuildOptions::block_leaves_from):
   // Embree's SAH then counts a leaf's intersection cost per started block of 4 triangles.
   const bool block_leaves = options.block_leaves(triangles.size());
   const unsigned int sah_block = block_leaves ? 4u : 1u;
-  const bool trial = options.spatial_splits && options.split_trial_triangles > 0 &&
-                     triangles.size() >= options.split_trial_triangles;
+  const bool trial =
+      options.spatial_splits && options.split_trial_triangles > 0 && triangles.size() >= options.split_trial_triangles;
   if (trial) {
     // The trial first, while nothing but the scene is held: run after the scene's tree, its
     // sample and two small trees stood beside that tree's leaf triangles at the start's peak
@@ -375,8 +368,7 @@ FlatBvh build_bvh(const TriangleSource& triangles, const BvhBuildOptions& option
   bvh.stats.block_leaves = block_leaves;
   // The wide nodes the kernels traverse (when the caller's layout is a wide one).
   if (layout && *layout != BvhLayout::Binary) bvh.stats.collapse_ms = ensure_layout(bvh, *layout);
-  bvh.stats.build_ms =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  bvh.stats.build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return bvh;
 }
 

@@ -133,8 +133,8 @@ std::optional<FlatBvh> BvhCache::load(const TriangleSource& triangles, const Bvh
   return bvh;
 }
 
-std::string BvhCache::store(const FlatBvh& bvh, const TriangleSource& triangles,
-                            const BvhBuildOptions& options, std::string* why) const {
+std::string BvhCache::store(const FlatBvh& bvh, const TriangleSource& triangles, const BvhBuildOptions& options,
+                            std::string* why) const {
   if (dir_.empty()) {
     if (why) *why = "no cache folder";
     return "";

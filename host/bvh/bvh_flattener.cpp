@@ -38,8 +38,7 @@ class Flattener {
  public:
   // Writes the nodes to out.nodes and the leaves' scene triangle indices, in leaf order, to
   // `leaf_prims` (leaf_triangles makes the BvhTriangles of them once Embree's tree is gone).
-  Flattener(const TriangleSource& scene, FlatBvh& out, std::vector<std::uint32_t>& leaf_prims,
-            int max_depth)
+  Flattener(const TriangleSource& scene, FlatBvh& out, std::vector<std::uint32_t>& leaf_prims, int max_depth)
       : scene_(scene), out_(out), leaf_prims_(leaf_prims), max_depth_(max_depth) {}
 
   void flatten(TempNode* root) {
@@ -80,8 +79,7 @@ class Flattener {
     }
   }
 
-  void set_child(std::uint32_t node_index, int side, const RTCBounds& box, std::uint32_t index,
-                 std::uint32_t count) {
+  void set_child(std::uint32_t node_index, int side, const RTCBounds& box, std::uint32_t index, std::uint32_t count) {
     BvhNode& node = out_.nodes[node_index];
     float* lo = side == 0 ? node.lmin : node.rmin;
     float* hi = side == 0 ? node.lmax : node.rmax;
@@ -107,8 +105,7 @@ class Flattener {
       // the deepest place where a balanced rebuild fits.
       keep = true;
       for (const TempNode* child : node->child)
-        if (!child->is_leaf &&
-            depth + 1 + ceil_log2(static_cast<const TempInner*>(child)->leaf_count) > max_depth_)
+        if (!child->is_leaf && depth + 1 + ceil_log2(static_cast<const TempInner*>(child)->leaf_count) > max_depth_)
           keep = false;
       if (!keep) {
         std::vector<LeafItem> items;
@@ -175,9 +172,8 @@ class Flattener {
     for (int k = 1; k < 3; ++k)
       if (cmax[k] - cmin[k] > cmax[axis] - cmin[axis]) axis = k;
     const std::size_t half = (n + 1) / 2;
-    std::nth_element(items, items + half, items + n, [axis](const LeafItem& a, const LeafItem& b) {
-      return a.centroid[axis] < b.centroid[axis];
-    });
+    std::nth_element(items, items + half, items + n,
+                     [axis](const LeafItem& a, const LeafItem& b) { return a.centroid[axis] < b.centroid[axis]; });
 
     const auto index = static_cast<std::uint32_t>(out_.nodes.size());
     out_.nodes.emplace_back();
@@ -203,8 +199,8 @@ class Flattener {
 
 }  // namespace
 
-void flatten_tree(const TriangleSource& scene, TempNode* root, FlatBvh& out,
-                  std::vector<std::uint32_t>& leaf_prims, int max_depth) {
+void flatten_tree(const TriangleSource& scene, TempNode* root, FlatBvh& out, std::vector<std::uint32_t>& leaf_prims,
+                  int max_depth) {
   Flattener(scene, out, leaf_prims, max_depth).flatten(root);
 }
 

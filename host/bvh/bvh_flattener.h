@@ -23,7 +23,7 @@ namespace px::embree_build {
 // flatten_tree writes the nodes of the tree under `root` to out.nodes (depth-first, the root
 // first) and the leaves' scene triangle indices, in leaf order, to `leaf_prims`. Throws
 // std::runtime_error if even balanced subtrees cannot keep the leaves within `max_depth`.
-void flatten_tree(const TriangleSource& scene, TempNode* root, FlatBvh& out,
-                  std::vector<std::uint32_t>& leaf_prims, int max_depth);
+void flatten_tree(const TriangleSource& scene, TempNode* root, FlatBvh& out, std::vector<std::uint32_t>& leaf_prims,
+                  int max_depth);
 
 }  // namespace px::embree_build

@@ -76,8 +76,7 @@ Box triangle_box(const BuildTriangle& t) {
 // normal, 9 edge cross products). Deliberately a different method from the builder's polygon
 // clipping, so the two check each other. The box is grown by `tol`.
 bool triangle_overlaps_box(const BuildTriangle& tri, const Box& box, double tol) {
-  const Vec3d center = {0.5 * (box.lo[0] + box.hi[0]), 0.5 * (box.lo[1] + box.hi[1]),
-                        0.5 * (box.lo[2] + box.hi[2])};
+  const Vec3d center = {0.5 * (box.lo[0] + box.hi[0]), 0.5 * (box.lo[1] + box.hi[1]), 0.5 * (box.lo[2] + box.hi[2])};
   const double half[3] = {0.5 * (box.hi[0] - box.lo[0]) + tol, 0.5 * (box.hi[1] - box.lo[1]) + tol,
                           0.5 * (box.hi[2] - box.lo[2]) + tol};
   const Vec3d v[3] = {vertex(tri, 0) - center, vertex(tri, 1) - center, vertex(tri, 2) - center};
@@ -85,8 +84,7 @@ bool triangle_overlaps_box(const BuildTriangle& tri, const Box& box, double tol)
 
   auto separated = [&](const Vec3d& axis) {
     const double p0 = dot(axis, v[0]), p1 = dot(axis, v[1]), p2 = dot(axis, v[2]);
-    const double r = half[0] * std::abs(axis.x) + half[1] * std::abs(axis.y) +
-                     half[2] * std::abs(axis.z);
+    const double r = half[0] * std::abs(axis.x) + half[1] * std::abs(axis.y) + half[2] * std::abs(axis.z);
     // A relative slack keeps rounding of the projections from separating touching sets.
     const double slack = 1e-12 * (std::abs(p0) + std::abs(p1) + std::abs(p2) + r);
     return std::min({p0, p1, p2}) > r + slack || std::max({p0, p1, p2}) < -r - slack;
@@ -110,9 +108,15 @@ bool has_nan(const float* lo, const float* hi) {
 
 // Points every triangle must have inside the union of the leaf boxes that reference it:
 // vertices, edge midpoints, centroid and three interior points.
-constexpr double kSamples[][3] = {{1, 0, 0},         {0, 1, 0},         {0, 0, 1},
-                                  {0.5, 0.5, 0},     {0, 0.5, 0.5},     {0.5, 0, 0.5},
-                                  {1. / 3, 1. / 3, 1. / 3}, {0.6, 0.2, 0.2}, {0.2, 0.6, 0.2},
+constexpr double kSamples[][3] = {{1, 0, 0},
+                                  {0, 1, 0},
+                                  {0, 0, 1},
+                                  {0.5, 0.5, 0},
+                                  {0, 0.5, 0.5},
+                                  {0.5, 0, 0.5},
+                                  {1. / 3, 1. / 3, 1. / 3},
+                                  {0.6, 0.2, 0.2},
+                                  {0.2, 0.6, 0.2},
                                   {0.2, 0.2, 0.6}};
 
 // One child slot of a node, whatever the layout.
@@ -160,8 +164,7 @@ struct WideNodes {
     return c;
   }
   static const char* side_name(int side) {
-    static const char* names[8] = {"slot 0", "slot 1", "slot 2", "slot 3",
-                                   "slot 4", "slot 5", "slot 6", "slot 7"};
+    static const char* names[8] = {"slot 0", "slot 1", "slot 2", "slot 3", "slot 4", "slot 5", "slot 6", "slot 7"};
     return names[side];
   }
 };
@@ -311,8 +314,8 @@ std::vector<std::uint8_t> walk_tree(const Nodes& tree, std::size_t tri_count, Re
       const int child_depth = e.depth + 1;
       if (count[side] > 0) {
         if (child_depth > PX_BVH_MAX_DEPTH)
-          report.error(tree.name, "leaf under node ", e.node, " at depth ", child_depth,
-                       " exceeds PX_BVH_MAX_DEPTH ", PX_BVH_MAX_DEPTH);
+          report.error(tree.name, "leaf under node ", e.node, " at depth ", child_depth, " exceeds PX_BVH_MAX_DEPTH ",
+                       PX_BVH_MAX_DEPTH);
         if (count[side] > PX_BVH_MAX_LEAF_SIZE)
           report.error(tree.name, "leaf under node ", e.node, " holds ", count[side],
                        " triangles, more than PX_BVH_MAX_LEAF_SIZE");
@@ -360,9 +363,9 @@ struct SceneSource {
   void check_entry(const Name& name, std::uint64_t i, const BvhTriangle& t, Report& report) const {
     const BuildTriangle s = triangles[t.prim];
     bool same = t.material == s.material;
-    for (int k = 0; k < 3; ++k)
-      same = same && t.v0[k] == s.p[0][k] && t.v1[k] == s.p[1][k] && t.v2[k] == s.p[2][k];
-    if (!same) report.error(name, "triangle entry ", i, " does not match scene triangle ", t.prim, " (vertices or material)");
+    for (int k = 0; k < 3; ++k) same = same && t.v0[k] == s.p[0][k] && t.v1[k] == s.p[1][k] && t.v2[k] == s.p[2][k];
+    if (!same)
+      report.error(name, "triangle entry ", i, " does not match scene triangle ", t.prim, " (vertices or material)");
   }
 };
 struct LeafSource {
@@ -389,10 +392,9 @@ struct LeafSource {
 // the report does not depend on the threads. (The 10M heightfield's binary tree: 0.93 s on one
 // thread.)
 template <typename Nodes, typename Source>
-void validate_tree(const Nodes& tree, const FlatBvh& bvh, const Source& source, Report& report,
-                   unsigned parts = 1) {
+void validate_tree(const Nodes& tree, const FlatBvh& bvh, const Source& source, Report& report, unsigned parts = 1) {
   const std::size_t tri_count = bvh.triangles.size();
-  std::vector<std::uint8_t> entry_refs(tri_count, 0);      // leaves covering each triangle entry (up to 255)
+  std::vector<std::uint8_t> entry_refs(tri_count, 0);  // leaves covering each triangle entry (up to 255)
   // Per scene triangle: kRefMask, its leaf entries (saturating); kOutside, some leaf box does
   // not hold it whole.
   constexpr std::uint8_t kRefMask = 0x7f, kOutside = 0x80;
@@ -410,7 +412,8 @@ void validate_tree(const Nodes& tree, const FlatBvh& bvh, const Source& source, 
     Report& nodes = part == 0 ? report : node_problems;
     std::vector<std::uint8_t> seen =
         walk_tree(tree, tri_count, nodes, [&](const Box& box, std::uint64_t first, std::uint32_t count) {
-          const std::uint64_t begin = std::max<std::uint64_t>(first, lo), end = std::min<std::uint64_t>(first + count, hi);
+          const std::uint64_t begin = std::max<std::uint64_t>(first, lo),
+                              end = std::min<std::uint64_t>(first + count, hi);
           for (std::uint64_t i = begin; i < end; ++i) {
             if (entry_refs[i] < 255) ++entry_refs[i];
             const BvhTriangle& t = bvh.triangles[i];
@@ -432,8 +435,8 @@ void validate_tree(const Nodes& tree, const FlatBvh& bvh, const Source& source, 
   for (const std::vector<std::uint8_t>& other : part_state)
     for (std::size_t p = 0; p < scene_count; ++p) {
       const unsigned sum = unsigned(prim_state[p] & kRefMask) + unsigned(other[p] & kRefMask);
-      prim_state[p] = static_cast<std::uint8_t>(std::min<unsigned>(sum, kRefMask) |
-                                                ((prim_state[p] | other[p]) & kOutside));
+      prim_state[p] =
+          static_cast<std::uint8_t>(std::min<unsigned>(sum, kRefMask) | ((prim_state[p] | other[p]) & kOutside));
     }
   std::vector<std::vector<std::uint8_t>>().swap(part_state);
   const auto refs = [&](std::size_t p) { return prim_state[p] & kRefMask; };
@@ -443,12 +446,11 @@ void validate_tree(const Nodes& tree, const FlatBvh& bvh, const Source& source, 
   for (std::size_t i = node_count; i-- > 0;)
     if (!node_seen[i]) ++unreached, first_unreached = i;
   if (unreached > 0)
-    report.error(tree.name, unreached, " nodes are not reachable from the root (first: ", first_unreached,
-                 ")");
+    report.error(tree.name, unreached, " nodes are not reachable from the root (first: ", first_unreached, ")");
   for (std::size_t i = 0; i < tri_count; ++i)
     if (entry_refs[i] != 1)
-      report.error(tree.name, "triangle entry ", i, " is in ", int(entry_refs[i]), entry_refs[i] == 255 ? " or more" : "",
-                   " leaves (expected 1)");
+      report.error(tree.name, "triangle entry ", i, " is in ", int(entry_refs[i]),
+                   entry_refs[i] == 255 ? " or more" : "", " leaves (expected 1)");
   std::vector<std::uint8_t>().swap(entry_refs);
 
   // Scene triangles in several leaves: their leaf boxes, grouped by triangle with a counting
@@ -491,7 +493,8 @@ void validate_tree(const Nodes& tree, const FlatBvh& bvh, const Source& source, 
       continue;
     }
     if (refs(prim) == 1) {
-      if (prim_state[prim] & kOutside) report.error(tree.name, "scene triangle ", prim, " is not inside the box of its leaf");
+      if (prim_state[prim] & kOutside)
+        report.error(tree.name, "scene triangle ", prim, " is not inside the box of its leaf");
       continue;
     }
     const std::size_t begin = slot[prim], end = slot[prim + 1];

@@ -44,7 +44,7 @@ AxisGrid choose_grid(float lo, float hi) {
   if (extent > 0.0) e = std::max(e, static_cast<int>(std::floor(std::log2(extent / 255.0))) - 1);
   for (; e <= kMaxExponent; ++e) {
     const double scale = std::ldexp(1.0, e);
-    const double k = std::floor(double(lo) / scale);  // lo / scale is exact (power of two)
+    const double k = std::floor(double(lo) / scale);            // lo / scale is exact (power of two)
     if (k < -kExactLimit || k + 255.0 > kExactLimit) continue;  // planes not all exact floats
     if ((k + 255.0) * scale < double(hi)) continue;             // 255 steps do not reach hi
     return {e, scale, k};

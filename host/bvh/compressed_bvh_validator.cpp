@@ -82,15 +82,16 @@ void validate_compressed(const FlatBvh& bvh, Report& report) {
       } else {
         const std::uint64_t leaf = std::uint64_t{n.leaf_base} + meta_rank(m);
         if (leaf >= bvh.cleaf_first.size())
-          report.error("cwbvh node ", c, " slot ", i, " leaf ", leaf, " is past the ", bvh.cleaf_first.size(), " leaves");
+          report.error("cwbvh node ", c, " slot ", i, " leaf ", leaf, " is past the ", bvh.cleaf_first.size(),
+                       " leaves");
         else if (bvh.cleaf_first[leaf] != ref.child[i])
-          report.error("cwbvh node ", c, " slot ", i, " leaf starts at triangle ", bvh.cleaf_first[leaf],
-                       ", wide8 at ", ref.child[i]);
+          report.error("cwbvh node ", c, " slot ", i, " leaf starts at triangle ", bvh.cleaf_first[leaf], ", wide8 at ",
+                       ref.child[i]);
       }
     }
     if (std::uint64_t{n.child_base} + interior > cn.size())
-      report.error("cwbvh node ", c, " interior children ", n.child_base, "..", std::uint64_t{n.child_base} + interior - 1,
-                   " are past the ", cn.size(), " nodes");
+      report.error("cwbvh node ", c, " interior children ", n.child_base, "..",
+                   std::uint64_t{n.child_base} + interior - 1, " are past the ", cn.size(), " nodes");
   }
 }
 

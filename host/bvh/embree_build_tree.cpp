@@ -26,8 +26,7 @@ void* create_node(RTCThreadLocalAllocator allocator, unsigned int child_count, v
 void set_node_children(void* node_ptr, void** children, unsigned int child_count, void*) {
   auto* node = static_cast<TempInner*>(node_ptr);
   if (!node) return;
-  for (unsigned int i = 0; i < std::min(child_count, 2u); ++i)
-    node->child[i] = static_cast<TempNode*>(children[i]);
+  for (unsigned int i = 0; i < std::min(child_count, 2u); ++i) node->child[i] = static_cast<TempNode*>(children[i]);
 }
 
 void set_node_bounds(void* node_ptr, const RTCBounds** bounds, unsigned int child_count, void*) {
@@ -36,8 +35,8 @@ void set_node_bounds(void* node_ptr, const RTCBounds** bounds, unsigned int chil
   for (unsigned int i = 0; i < std::min(child_count, 2u); ++i) node->bounds[i] = *bounds[i];
 }
 
-void* create_leaf(RTCThreadLocalAllocator allocator, const RTCBuildPrimitive* primitives,
-                  size_t primitive_count, void* user) {
+void* create_leaf(RTCThreadLocalAllocator allocator, const RTCBuildPrimitive* primitives, size_t primitive_count,
+                  void* user) {
   auto* context = static_cast<BuildContext*>(user);
   void* memory = rtcThreadLocalAlloc(allocator, sizeof(TempLeaf), alignof(TempLeaf));
   if (!memory) {
@@ -51,8 +50,7 @@ void* create_leaf(RTCThreadLocalAllocator allocator, const RTCBuildPrimitive* pr
     // With spatial splits two fragments of one triangle can land in the same leaf; the leaf
     // box already covers both, so one reference is enough and saves an intersection.
     const std::uint32_t prim = primitives[i].primID;
-    if (std::find(leaf->prims, leaf->prims + leaf->count, prim) != leaf->prims + leaf->count)
-      continue;
+    if (std::find(leaf->prims, leaf->prims + leaf->count, prim) != leaf->prims + leaf->count) continue;
     if (leaf->count == PX_BVH_MAX_LEAF_SIZE) {
       context->oversized_leaf = true;
       break;

@@ -31,7 +31,7 @@ struct TempInner : TempNode {
   TempNode* child[2];
   RTCBounds bounds[2];
   // Filled by a single-threaded pass after the build, for the depth limit (see Flattener).
-  int height;             // levels below this node: 1 when both children are leaves
+  int height;              // levels below this node: 1 when both children are leaves
   std::size_t leaf_count;  // leaves in this subtree
 };
 
@@ -72,7 +72,7 @@ inline void set_empty(RTCBounds* bounds) {
 void* create_node(RTCThreadLocalAllocator allocator, unsigned int child_count, void* user);
 void set_node_children(void* node_ptr, void** children, unsigned int child_count, void*);
 void set_node_bounds(void* node_ptr, const RTCBounds** bounds, unsigned int child_count, void*);
-void* create_leaf(RTCThreadLocalAllocator allocator, const RTCBuildPrimitive* primitives,
-                  size_t primitive_count, void* user);
+void* create_leaf(RTCThreadLocalAllocator allocator, const RTCBuildPrimitive* primitives, size_t primitive_count,
+                  void* user);
 
 }  // namespace px::embree_build

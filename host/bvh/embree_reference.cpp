@@ -39,8 +39,7 @@ struct DeviceHolder {
 void throw_if_embree_failed(const char* what) {
   std::string message = take_embree_error();
   const RTCError code = rtcGetDeviceError(embree_device());
-  if (message.empty() && code != RTC_ERROR_NONE)
-    message = "RTCError " + std::to_string(static_cast<int>(code));
+  if (message.empty() && code != RTC_ERROR_NONE) message = "RTCError " + std::to_string(static_cast<int>(code));
   if (!message.empty()) throw std::runtime_error(std::string("Embree: ") + what + ": " + message);
 }
 
@@ -88,10 +87,10 @@ EmbreeReference::EmbreeReference(const std::vector<SceneTriangle>& triangles) {
     const std::size_t n = triangles.size();
     // Unshared vertices: three per triangle, so primID i is triangles[i] without an index
     // remap. rtcSetNewGeometryBuffer pads the allocation as Embree's SIMD loads require.
-    auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
-        geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), 3 * n));
-    auto* indices = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-        geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), n));
+    auto* vertices = static_cast<float*>(
+        rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), 3 * n));
+    auto* indices = static_cast<unsigned*>(
+        rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), n));
     if (!vertices || !indices) {
       rtcReleaseGeometry(geometry);
       rtcReleaseScene(scene_);
@@ -159,15 +158,13 @@ bool EmbreeReference::occluded(const Ray& ray) const {
   return r.tfar == -std::numeric_limits<float>::infinity();
 }
 
-void EmbreeReference::intersect_all(const std::vector<Ray>& rays, std::vector<Hit>& hits,
-                                    int threads) const {
+void EmbreeReference::intersect_all(const std::vector<Ray>& rays, std::vector<Hit>& hits, int threads) const {
   hits.resize(rays.size());
   const std::size_t n = rays.size();
   auto trace_range = [&](std::size_t begin, std::size_t end) {
     for (std::size_t i = begin; i < end; ++i) hits[i] = intersect(rays[i]);
   };
-  const std::size_t chunks =
-      std::clamp<std::size_t>(threads > 0 ? threads : 1, 1, std::max<std::size_t>(n, 1));
+  const std::size_t chunks = std::clamp<std::size_t>(threads > 0 ? threads : 1, 1, std::max<std::size_t>(n, 1));
   if (chunks == 1) {
     trace_range(0, n);
     return;
@@ -175,8 +172,7 @@ void EmbreeReference::intersect_all(const std::vector<Ray>& rays, std::vector<Hi
   // Contiguous chunks keep neighbouring (coherent) rays on one thread, as a tile would.
   std::vector<std::thread> workers;
   workers.reserve(chunks - 1);
-  for (std::size_t c = 1; c < chunks; ++c)
-    workers.emplace_back(trace_range, n * c / chunks, n * (c + 1) / chunks);
+  for (std::size_t c = 1; c < chunks; ++c) workers.emplace_back(trace_range, n * c / chunks, n * (c + 1) / chunks);
   trace_range(0, n / chunks);
   for (auto& worker : workers) worker.join();
 }

@@ -20,10 +20,10 @@ struct BvhBuildStats {
   std::size_t scene_triangles = 0;
   std::size_t leaf_triangles = 0;  // > scene_triangles when spatial splits duplicated some
   std::size_t nodes = 0;
-  int depth = 0;                   // root = depth 1... leaves included as a level below nodes
-  double build_ms = 0.0;           // includes collapse_ms
-  double collapse_ms = 0.0;        // binary -> wide (and compressed) nodes (0 for the binary layout)
-  double sah_cost = 0.0;           // SAH cost of the flattened tree (traversal 1, intersection 1)
+  int depth = 0;             // root = depth 1... leaves included as a level below nodes
+  double build_ms = 0.0;     // includes collapse_ms
+  double collapse_ms = 0.0;  // binary -> wide (and compressed) nodes (0 for the binary layout)
+  double sah_cost = 0.0;     // SAH cost of the flattened tree (traversal 1, intersection 1)
   // Spatial splits are bounded in work: a build may call the split callback at most
   // split_call_budget(scene_triangles) times; past that it is redone with binned SAH
   // (split_budget_exceeded), which on overlapping slivers costs a small fraction of what the
@@ -65,9 +65,7 @@ constexpr std::uint32_t kWideIndexLimit = 1u << 29;
 
 // An absent child (a root with a single leaf, an unused wide slot): its box is inverted on
 // every axis (types.h: min = +FLT_MAX, max = -FLT_MAX), so no ray ever enters it.
-inline bool is_absent_box(const float* lo, const float* hi) {
-  return lo[0] > hi[0] && lo[1] > hi[1] && lo[2] > hi[2];
-}
+inline bool is_absent_box(const float* lo, const float* hi) { return lo[0] > hi[0] && lo[1] > hi[1] && lo[2] > hi[2]; }
 // Slot i of a wide node (Bvh4Node, Bvh8Node), whose planes are stored structure-of-arrays.
 template <typename WideNode>
 bool is_absent_slot(const WideNode& n, int i) {

@@ -51,9 +51,7 @@ int clip_polygon(const Point3d* in, int n, int axis, double plane, bool keep_bel
 // covers zero and subnormals without feeding a subnormal operand to the FPU, which would cost a
 // microcode assist). At most 2 ulps looser than exact; plain arithmetic instead of
 // std::nextafter because a large spatial-split build calls this ~10^8 times.
-float outward_step(float f) {
-  return std::max(std::abs(f) * 0x1p-23f, std::numeric_limits<float>::min());
-}
+float outward_step(float f) { return std::max(std::abs(f) * 0x1p-23f, std::numeric_limits<float>::min()); }
 // The step is masked by the comparison instead of chosen by it: which way rounding to nearest
 // went is a coin toss, and GCC turns a ?: here into a branch; ~10^8 mispredicted branches were a
 // quarter of a large spatial-split build. f - 0 and f + 0 are f exactly.
@@ -117,11 +115,11 @@ struct PolygonCache {
   Point3d poly[kMaxPolygon];
 
   bool matches(std::uint64_t id, std::uint32_t p, const float lo[3], const float hi[3]) const {
-    return build_id == id && prim == p && box[0] == lo[0] && box[1] == lo[1] && box[2] == lo[2] &&
-           box[3] == hi[0] && box[4] == hi[1] && box[5] == hi[2];
+    return build_id == id && prim == p && box[0] == lo[0] && box[1] == lo[1] && box[2] == lo[2] && box[3] == hi[0] &&
+           box[4] == hi[1] && box[5] == hi[2];
   }
-  void store(std::uint64_t id, std::uint32_t p, const float lo[3], const float hi[3],
-             const Point3d* polygon, int count) {
+  void store(std::uint64_t id, std::uint32_t p, const float lo[3], const float hi[3], const Point3d* polygon,
+             int count) {
     build_id = id, prim = p, n = count;
     for (int k = 0; k < 3; ++k) box[k] = lo[k], box[3 + k] = hi[k];
     std::copy(polygon, polygon + count, poly);
@@ -172,8 +170,8 @@ int clip_triangle_to_box(const std::array<float, 9>& p, const float lo[3], const
 
 }  // namespace
 
-void split_primitive(const RTCBuildPrimitive* primitive, unsigned int dim, float pos,
-                     RTCBounds* left, RTCBounds* right, void* user) {
+void split_primitive(const RTCBuildPrimitive* primitive, unsigned int dim, float pos, RTCBounds* left, RTCBounds* right,
+                     void* user) {
   auto* context = static_cast<BuildContext*>(user);
   const std::uint32_t prim = primitive->primID;
   const float lo[3] = {primitive->lower_x, primitive->lower_y, primitive->lower_z};
@@ -197,8 +195,8 @@ void split_primitive(const RTCBuildPrimitive* primitive, unsigned int dim, float
   }
   if (++caches.pending_calls == kSplitCountBatch) {
     caches.pending_calls = 0;
-    if (context->split_calls.fetch_add(kSplitCountBatch, std::memory_order_relaxed) +
-            kSplitCountBatch > context->split_budget)
+    if (context->split_calls.fetch_add(kSplitCountBatch, std::memory_order_relaxed) + kSplitCountBatch >
+        context->split_budget)
       context->over_budget.store(true, std::memory_order_relaxed);
   }
   if (context->over_budget.load(std::memory_order_relaxed)) {

@@ -15,7 +15,7 @@ namespace px::embree_build {
 // RTCBuildArguments::splitPrimitive; `user` is the build's BuildContext (embree_build_tree.h).
 // Counts its calls against BuildContext::split_budget and, once over it, cancels the build by
 // throwing (rtcBuildBVH reports an error; BuildContext::over_budget tells why).
-void split_primitive(const RTCBuildPrimitive* primitive, unsigned int dim, float pos,
-                     RTCBounds* left, RTCBounds* right, void* user);
+void split_primitive(const RTCBuildPrimitive* primitive, unsigned int dim, float pos, RTCBounds* left, RTCBounds* right,
+                     void* user);
 
 }  // namespace px::embree_build

@@ -60,7 +60,7 @@ TopLevelBvh build_top_level(const std::vector<InstanceBox>& boxes) {
   // Builds the node for instances [first, first + count) (count > PX_TLAS_MAX_LEAF, or the
   // root) and returns its index.
   std::function<std::uint32_t(std::size_t, std::size_t, int)> build = [&](std::size_t first, std::size_t count,
-                                                                           int depth) -> std::uint32_t {
+                                                                          int depth) -> std::uint32_t {
     out.depth = std::max(out.depth, depth);
     const std::uint32_t index = static_cast<std::uint32_t>(out.nodes.size());
     out.nodes.push_back(BvhNode{});
@@ -154,7 +154,8 @@ std::vector<std::uint32_t> instance_buffer_words(const Scene& scene, const std::
   const std::size_t order_at = sizeof header + top.nodes.size() * sizeof(BvhNode);  // 16-byte aligned
   header.order = static_cast<std::uint32_t>(order_at / 16);
   header.records = static_cast<std::uint32_t>((order_at + top.order.size() * 4 + 15) / 16);
-  std::vector<std::uint32_t> words((header.records * std::size_t(16) + in.instances.size() * sizeof(SceneInstance)) / 4);
+  std::vector<std::uint32_t> words((header.records * std::size_t(16) + in.instances.size() * sizeof(SceneInstance)) /
+                                   4);
   auto* bytes = reinterpret_cast<std::uint8_t*>(words.data());
   std::memcpy(bytes, &header, sizeof header);
   std::memcpy(bytes + sizeof header, top.nodes.data(), top.nodes.size() * sizeof(BvhNode));

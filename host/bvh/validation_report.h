@@ -32,8 +32,7 @@ class Report {
   BvhValidation finish() {
     result_.ok = count_ == 0;
     if (count_ > result_.errors.size())
-      result_.errors.push_back("... and " + std::to_string(count_ - result_.errors.size()) +
-                               " more");
+      result_.errors.push_back("... and " + std::to_string(count_ - result_.errors.size()) + " more");
     return result_;
   }
 

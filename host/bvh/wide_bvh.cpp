@@ -79,8 +79,7 @@ class Collapser {
     for (int i = 0; i < W; ++i) {
       const bool used = i < size;
       // Depth-first: the first interior child's subtree follows its parent in memory.
-      const std::uint32_t child =
-          !used ? 0u : (children[i].count > 0 ? children[i].index : emit(children[i].index));
+      const std::uint32_t child = !used ? 0u : (children[i].count > 0 ? children[i].index : emit(children[i].index));
       Node& node = out_[index];  // emit() may have reallocated
       const float big = std::numeric_limits<float>::max();
       node.lo_x[i] = used ? children[i].lo[0] : big;
@@ -193,18 +192,19 @@ template <typename Node>
 std::size_t device_form_bytes(std::size_t node_count, std::size_t leaves) {
   static_assert(sizeof(Node) % 16 == 0 && sizeof(BvhLeafBlock) % 16 == 0);
   const std::size_t bytes = node_count * sizeof(Node) + leaves * sizeof(BvhLeafBlock);
-  if (bytes / 16 >= kWideIndexLimit) throw std::runtime_error("BVH: wide node buffer too large for 29-bit leaf offsets");
+  if (bytes / 16 >= kWideIndexLimit)
+    throw std::runtime_error("BVH: wide node buffer too large for 29-bit leaf offsets");
   return bytes;
 }
 
 // Writes node `n` (whose leaf slots hold their first triangle) as node `k` of the device form
 // at `bytes`, its leaf slots pointing at their blocks behind the `node_count` nodes.
 template <int W, typename Node>
-void write_device_node(Node n, std::size_t k, std::size_t node_count, const LeafStarts& starts,
-                       unsigned char* bytes) {
+void write_device_node(Node n, std::size_t k, std::size_t node_count, const LeafStarts& starts, unsigned char* bytes) {
   for (int i = 0; i < W; ++i)
     if (n.count[i] != 0)
-      n.child[i] = static_cast<std::uint32_t>((node_count * sizeof(Node) + starts.block_at(n.child[i]) * sizeof(BvhLeafBlock)) / 16);
+      n.child[i] = static_cast<std::uint32_t>(
+          (node_count * sizeof(Node) + starts.block_at(n.child[i]) * sizeof(BvhLeafBlock)) / 16);
   std::memcpy(bytes + k * sizeof(Node), &n, sizeof n);
 }
 

@@ -17,9 +17,9 @@
 // three in-order queues, a trivial kernel launched round-robin with a growing global size
 // (64, 128, 192, ... items, local size 64), each launch long enough (a few ms) that three
 // overlap; it aborted in a good part of the runs (more often with four queues), never with two
-// queues, never with equal global sizes (docs/measurements.md, PoCL faults). parallax hits it whenever three or more devices (queues, sub-devices
-// or POCL_DEVICES entries: the list is process-wide) run one stage over strips of different
-// heights, and whenever a strip grows (dynamic strips).
+// queues, never with equal global sizes (docs/measurements.md, PoCL faults). parallax hits it whenever three or more
+// devices (queues, sub-devices or POCL_DEVICES entries: the list is process-wide) run one stage over strips of
+// different heights, and whenever a strip grows (dynamic strips).
 //
 // The guard. Every launch goes through launch_1d, with one local size and no offset, so all
 // launches of one kernel share one chain of entries and only the global size decides. The guard

@@ -42,7 +42,8 @@ struct DeviceScene::SceneTables {
 };
 
 cl_uint DeviceSceneBuffers::bind(cl::Kernel& kernel, cl_uint first) const {
-  for (const cl::Buffer* b : {&nodes, &triangles, &shading, &materials, &textures, &texels, &lights, &colours, &instances})
+  for (const cl::Buffer* b :
+       {&nodes, &triangles, &shading, &materials, &textures, &texels, &lights, &colours, &instances})
     kernel.setArg(first++, *b);
   return first;
 }
@@ -62,9 +63,9 @@ void release_tail(unsigned char* bytes, std::size_t used, std::size_t size) {
 // What `make` makes of each of `triangles` (Record: TriangleShading, FlatTriangleShading when
 // every triangle is flat, or a BuildTriangle's corners), written over the triangles
 // themselves, in order: record i (64, 16 or 40 bytes at that many times i) is written after
-// triangle i (100 bytes at 100 i) is read, and ends before triangle i + 1 begins, so nothing is overwritten before it is read. The whole pages past the
-// last record are handed back to the system (MADV_DONTNEED; a block that large is a private
-// mapping of its own). The result owns the triangles' block.
+// triangle i (100 bytes at 100 i) is read, and ends before triangle i + 1 begins, so nothing is overwritten before it
+// is read. The whole pages past the last record are handed back to the system (MADV_DONTNEED; a block that large is a
+// private mapping of its own). The result owns the triangles' block.
 template <typename Record, typename Make>
 SceneBytes records_in_place(std::vector<SceneTriangle>&& triangles, Make make) {
   static_assert(sizeof(Record) <= sizeof(SceneTriangle), "records must fit where the triangles were");
@@ -213,7 +214,8 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
     const SceneInstancing& in = scene.instancing;
     for (std::size_t i = in.world_triangles; i < scene.triangles.size(); ++i)
       if (tri_flags[i] & PX_TRI_EMISSIVE)
-        throw std::logic_error("DeviceScene: an instanced mesh emits light (the light table holds world triangles only)");
+        throw std::logic_error(
+            "DeviceScene: an instanced mesh emits light (the light table holds world triangles only)");
     if (mesh_bvhs.empty()) mesh_bvhs = build_mesh_bvhs(scene, layout);
     if (mesh_bvhs.size() != in.meshes.size())
       throw std::logic_error("DeviceScene: " + std::to_string(mesh_bvhs.size()) + " mesh trees for " +
@@ -286,7 +288,8 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
              std::move(instance_words), std::move(tables), tri_flags, layout_start);
 }
 
-void DeviceScene::store_layout(const DeviceLayoutStore& store, const DeviceLayoutParts& parts, std::size_t scene_triangles) {
+void DeviceScene::store_layout(const DeviceLayoutStore& store, const DeviceLayoutParts& parts,
+                               std::size_t scene_triangles) {
   const auto t = std::chrono::steady_clock::now();
   std::string why;
   std::string path;
@@ -296,8 +299,8 @@ void DeviceScene::store_layout(const DeviceLayoutStore& store, const DeviceLayou
   }
   layout_store_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
   if (!store.quiet && !path.empty())
-    std::fprintf(stderr, "[bvh] the %s device layout cached in %s for the next run (%.0f ms)\n", to_string(parts.layout),
-                 path.c_str(), layout_store_ms_);
+    std::fprintf(stderr, "[bvh] the %s device layout cached in %s for the next run (%.0f ms)\n",
+                 to_string(parts.layout), path.c_str(), layout_store_ms_);
   if (!store.quiet && path.empty())
     std::fprintf(stderr, "[bvh] warning: could not cache the device layout (%s)\n", why.c_str());
 }
@@ -334,8 +337,8 @@ std::shared_ptr<DeviceScene::HostPart> DeviceScene::make_host_part(
   std::vector<SceneTriangle> taken = take_triangles();  // scene.triangles are gone from here on
   const std::size_t n = taken.size();
   if (n != host->scene_triangles)
-    throw std::logic_error("DeviceScene: take_triangles handed over " + std::to_string(n) + " triangles, not the scene's " +
-                           std::to_string(host->scene_triangles));
+    throw std::logic_error("DeviceScene: take_triangles handed over " + std::to_string(n) +
+                           " triangles, not the scene's " + std::to_string(host->scene_triangles));
   if (corners) {
     // The records to a block of their own, the corners over the triangles (in the order
     // records_in_place reads them).
@@ -348,7 +351,8 @@ std::shared_ptr<DeviceScene::HostPart> DeviceScene::make_host_part(
     host->shading = {records->data(), n * sizeof(FlatTriangleShading), sizeof(FlatTriangleShading), records};
     *corners = {packed.owner, static_cast<const BuildTriangle*>(packed.data), n};
   } else {
-    host->shading = has_flat_shading(taken) ? flat_shading_in_place(std::move(taken)) : shading_in_place(std::move(taken));
+    host->shading =
+        has_flat_shading(taken) ? flat_shading_in_place(std::move(taken)) : shading_in_place(std::move(taken));
   }
   host->ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return host;
@@ -374,9 +378,9 @@ void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh
     ensure_layout(bvh, layout);
     const BvhValidation check = validate_layout_from_leaves(bvh, scene_triangles);
     if (!check.ok)
-      throw std::runtime_error(std::string("internal error: the ") + to_string(layout) +
-                               " nodes of the scene's BVH failed validation: " +
-                               (check.errors.empty() ? "" : check.errors.front()));
+      throw std::runtime_error(
+          std::string("internal error: the ") + to_string(layout) +
+          " nodes of the scene's BVH failed validation: " + (check.errors.empty() ? "" : check.errors.front()));
   }
   const std::size_t layout_nodes = layout == BvhLayout::Wide4         ? bvh.nodes4.size()
                                    : layout == BvhLayout::Wide8       ? bvh.nodes8.size()
@@ -438,7 +442,8 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, std::shared_ptr
     throw std::logic_error(std::string("DeviceScene: a mapped ") + to_string(mapped->layout()) + " layout for a " +
                            to_string(layout_) + " device set");
   if (!scene.instancing.empty() || scene.rig || mapped->shading_count() != scene.triangles.size())
-    throw std::logic_error("DeviceScene: a mapped layout serves a static scene without instances, of its own triangles");
+    throw std::logic_error(
+        "DeviceScene: a mapped layout serves a static scene without instances, of its own triangles");
   layout_from_cache_ = true;
   const std::vector<std::uint32_t> tri_flags = triangle_flags(scene);
   std::vector<std::uint32_t> instance_words = instance_buffer_words(scene, {}, scene.triangles.size());
@@ -469,8 +474,8 @@ DeviceScene::SceneTables DeviceScene::make_tables(const Scene& scene, const std:
   t.features = px::kernel_features(t.materials, tri_flags, light_params, !scene.vertex_colours.empty(), instanced);
   if (!scene.vertex_colours.empty()) {
     if (scene.vertex_colours.size() != scene.triangles.size())
-      throw std::logic_error("DeviceScene: " + std::to_string(scene.vertex_colours.size()) + " vertex colour entries for " +
-                             std::to_string(scene.triangles.size()) + " triangles");
+      throw std::logic_error("DeviceScene: " + std::to_string(scene.vertex_colours.size()) +
+                             " vertex colour entries for " + std::to_string(scene.triangles.size()) + " triangles");
     t.colours.reserve(3 * scene.vertex_colours.size());
     for (const auto& tri : scene.vertex_colours)
       for (const glm::vec3& c : tri) t.colours.push_back({{c.x, c.y, c.z, 1.0f}});

@@ -2,8 +2,8 @@
 // scene): BVH nodes, leaf-order triangles, per-triangle shading, materials, textures, the
 // emissive-triangle table, vertex colours and the instances (their top level and matrices). A
 // scene with instances keeps each instanced mesh's tree and leaf triangles after the world's in
-// the same node and triangle buffers (types.h: the instance buffer). One set of read-only buffers in the set's OpenCL context, shared by
-// all its devices (on(d) gives every device the same buffers); a buffer larger than a device's
+// the same node and triangle buffers (types.h: the instance buffer). One set of read-only buffers in the set's OpenCL
+// context, shared by all its devices (on(d) gives every device the same buffers); a buffer larger than a device's
 // CL_DEVICE_MAX_MEM_ALLOC_SIZE (or PARALLAX_MAX_ALLOC_BYTES) is refused with an error naming it.
 // Kernels take these as their last parameters (PX_SCENE_PARAMS in kernels/scene/scene_view.h);
 // bind() sets them in that order.
@@ -204,8 +204,8 @@ class DeviceScene {
   void store_layout(const DeviceLayoutStore& store, const DeviceLayoutParts& parts, std::size_t scene_triangles);
   // ... and the upload of everything.
   void upload_all(DeviceSet& devices, const Scene& scene, HostBytes nodes, HostBytes triangles, HostBytes shading,
-                  std::vector<std::uint32_t> instance_words, SceneTables tables, const std::vector<std::uint32_t>& tri_flags,
-                  std::chrono::steady_clock::time_point layout_start);
+                  std::vector<std::uint32_t> instance_words, SceneTables tables,
+                  const std::vector<std::uint32_t>& tri_flags, std::chrono::steady_clock::time_point layout_start);
   // triangle_flags(scene), fixed by the materials: kept for update_geometry (animated scenes).
   std::vector<std::uint32_t> tri_flags_;
   // What update_geometry last wrote to each of those buffers (empty until its first call, which

@@ -27,9 +27,12 @@ TriangleShading shading_of(const SceneTriangle& t) {
   copy3(s.n0, t.n[0]);
   copy3(s.n1, t.n[1]);
   copy3(s.n2, t.n[2]);
-  s.uv0[0] = t.uv[0].x; s.uv0[1] = t.uv[0].y;
-  s.uv1[0] = t.uv[1].x; s.uv1[1] = t.uv[1].y;
-  s.uv2[0] = t.uv[2].x; s.uv2[1] = t.uv[2].y;
+  s.uv0[0] = t.uv[0].x;
+  s.uv0[1] = t.uv[0].y;
+  s.uv1[0] = t.uv[1].x;
+  s.uv1[1] = t.uv[1].y;
+  s.uv2[0] = t.uv[2].x;
+  s.uv2[1] = t.uv[2].y;
   s.material = t.material;
   return s;
 }
@@ -78,8 +81,7 @@ std::vector<GpuMaterial> make_gpu_materials(const Scene& scene) {
     const bool has_specular = (m.specular.x + m.specular.y + m.specular.z) > 0.0f;
     // A dielectric is its own lobe: it is neither mirror nor glossy, whatever Ks says.
     const bool opaque = !m.dielectric;
-    g.flags = (opaque && m.mirror ? PX_MAT_MIRROR : 0u) |
-              (opaque && !m.mirror && has_specular ? PX_MAT_GLOSSY : 0u) |
+    g.flags = (opaque && m.mirror ? PX_MAT_MIRROR : 0u) | (opaque && !m.mirror && has_specular ? PX_MAT_GLOSSY : 0u) |
               (m.dielectric ? PX_MAT_DIELECTRIC : 0u) | (m.is_emissive() ? PX_MAT_EMISSIVE : 0u) |
               (m.two_sided ? PX_MAT_TWO_SIDED_EMITTER : 0u);
   }
@@ -159,8 +161,8 @@ void fill_light_params(const Scene& scene, std::size_t light_count, FrameParams&
     const float e_sun = std::max(0.0f, luminance(scene.sun.radiance)) * sun_solid_angle;
     // A surface facing the zenith: 2 pi integral over mu = cos(theta) of
     // mix(horizon, zenith, sqrt(mu)) mu dmu = pi horizon + 4 pi (zenith - horizon) / 5.
-    const float e_sky = std::max(0.0f, kPi * luminance(scene.sky.horizon) +
-                                           0.8f * kPi * luminance(scene.sky.zenith - scene.sky.horizon));
+    const float e_sky = std::max(
+        0.0f, kPi * luminance(scene.sky.horizon) + 0.8f * kPi * luminance(scene.sky.zenith - scene.sky.horizon));
     if (e_sun + e_sky > 0.0f && std::isfinite(e_sun + e_sky)) {
       // Neither below a tenth of the pair's share: a dim sky still gets its next-event samples.
       const float sun_fraction = std::clamp(e_sun / (e_sun + e_sky), 0.1f, 0.9f);

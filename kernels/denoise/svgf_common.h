@@ -243,7 +243,7 @@ inline float px_gradient_lambda(const global float4* gradient, uint x, uint y, u
   if (!gradient) return 0.0f;
   const uint strata_w = (width + PX_GRADIENT_STRATUM - 1u) / PX_GRADIENT_STRATUM;
   const float4 g = gradient[(y / PX_GRADIENT_STRATUM) * strata_w + x / PX_GRADIENT_STRATUM];
-  return g.y > 0.0f ? fmin(1.0f, fabs(g.x) / g.y) : 0.0f;
+  return g.y > 0.0f ? fmin(1.0f, PX_GRADIENT_GAIN * fabs(g.x) / g.y) : 0.0f;
 }
 
 #endif /* PARALLAX_SVGF_COMMON_H */

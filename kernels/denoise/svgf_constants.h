@@ -62,5 +62,9 @@
  * normals as cos^PX_GRADIENT_SIGMA_N, depths within PX_GRADIENT_REL_DEPTH x the nearer one. */
 #define PX_GRADIENT_SIGMA_N 32.0f
 #define PX_GRADIENT_REL_DEPTH 0.1f
+/* lambda = min(1, PX_GRADIENT_GAIN x |difference| / larger shade). */
+#ifndef PX_GRADIENT_GAIN
+#define PX_GRADIENT_GAIN 1.0f
+#endif
 
 #endif /* PARALLAX_SVGF_CONSTANTS_H */

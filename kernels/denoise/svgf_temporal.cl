@@ -86,9 +86,10 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
       return;
     }
     /* Emitters pass through; the environment is accumulated (colour, history length). */
-    const float4 env = g->material_class == PX_CLASS_MISS && have_history
-                           ? px_environment_temporal(c, g, y, prev_gbuf, prev_illum, prev_moments, &p, &prev_cam, lambda)
-                           : (float4)(c, 1.0f);
+    const float4 env =
+        g->material_class == PX_CLASS_MISS && have_history
+            ? px_environment_temporal(c, g, y, prev_gbuf, prev_illum, prev_moments, &p, &prev_cam, lambda)
+            : (float4)(c, 1.0f);
     out_illum[i] = (float4)(env.xyz, 0.0f);
     out_moments[i] = (float4)(0.0f, 0.0f, env.w, 0.0f);
     return;

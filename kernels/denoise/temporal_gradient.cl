@@ -46,7 +46,8 @@ inline float px_gradient_shade(const SceneView* scene, const FrameParams* fp, fl
   dir /= len;
   const Hit hit = px_trace_closest_leaf(scene, origin, dir, 0.0f, INFINITY);
   /* The texel names the scene's triangle; the hit, the BVH leaf's (which holds the former). */
-  if (miss ? hit.prim != PX_NO_HIT : (hit.prim == PX_NO_HIT || scene->tris[hit.prim].prim != g->prim || hit.inst != g->inst))
+  if (miss ? hit.prim != PX_NO_HIT
+           : (hit.prim == PX_NO_HIT || scene->tris[hit.prim].prim != g->prim || hit.inst != g->inst))
     return 0.0f;
   float4 albedo;
   const float l = px_luminance(px_trace_path(scene, fp, origin, dir, key, &albedo, 0, 0));

@@ -53,8 +53,8 @@ class DenoiseStage : public StageUnit {
 
   // The widest read of this frame's G-buffer beyond the strip. Halo seams: a-trous taps at
   // 2 * 2^(iterations-1), history taps at temporal_rows + 1, the variance estimate at 3, the
-  // motion pass at PX_SVGF_NEAR_MOTION_REACH, the temporal gradients at PX_GRADIENT_ROWS, plus one row for the depth gradient and the taps'
-  // luminance guide (svgf_luma's 3x3); bilateral seams: the band plus the filter's 3 rows;
+  // motion pass at PX_SVGF_NEAR_MOTION_REACH, the temporal gradients at PX_GRADIENT_ROWS, plus one row for the depth
+  // gradient and the taps' luminance guide (svgf_luma's 3x3); bilateral seams: the band plus the filter's 3 rows;
   // independent: nothing beyond the strip.
   static unsigned gbuffer_rows_read(const Options& options);
   void run(const std::vector<const Operation*>& ops, const FrameInputs& in) override;

@@ -7,8 +7,7 @@
 
 namespace px {
 
-TemporalGradients::TemporalGradients(DeviceSet& devices, int device, unsigned width, unsigned height,
-                                     QueueLanes* lanes)
+TemporalGradients::TemporalGradients(DeviceSet& devices, int device, unsigned width, unsigned height, QueueLanes* lanes)
     : devices_(devices),
       device_(device),
       lanes_(lanes),
