@@ -3,11 +3,13 @@
  * grid, so that a stratum whose pick saw no change, or had none to see, still learns that the
  * light around it changed, and one noisy difference does not drop a history alone.
  *
- * Each stratum holds sums over its valid picks: (difference, larger shade, count). A step is a
+ * Each stratum holds its pick's (shade now, shade last frame, the larger, |difference|), zeros
+ * without a valid pick, and a step averages them over its neighbours. A step is a
  * 3x3 B-spline kernel (1 2 1) at spacing `step` strata, weighted by how alike the strata's centre
  * texels are (normal and depth; the environment only with the environment), normalised by the
- * weights of the taps present. The ratio of the first two sums, |difference| / larger shade, is
- * what svgf_temporal and svgf_antialias read as lambda: the share of the history to drop. */
+ * weights of the taps present. svgf_common.h reads the result: the ratio of the first two (how
+ * the light changed) and of the last two (lambda: the share of the history to drop). Ratios of
+ * weighted sums, so strata without a valid pick count for nothing. */
 #include "shared/types.h"
 #include "denoise/svgf_constants.h"
 

@@ -129,6 +129,7 @@ kernel void svgf_antialias(global float4* resolved, global float4* history, cons
           }
         m1 /= count;
         const float3 sigma = sqrt(fmax(m2 / count - m1 * m1, (float3)(0.0f, 0.0f, 0.0f)));
+        hist *= px_gradient_ratio(gradient, (uint)x, (uint)y, p.width); /* as svgf_temporal's */
         hist = px_from_ycocg(clamp(px_ycocg(hist), m1 - PX_TAA_CLIP_SIGMA * sigma, m1 + PX_TAA_CLIP_SIGMA * sigma));
         len = fmin((float)p.max_history, floor(hist_len / wsum + 0.5f) + 1.0f);
         /* Motion: resampled history blurs a little more with every bilinear read and lags behind
@@ -136,7 +137,7 @@ kernel void svgf_antialias(global float4* resolved, global float4* history, cons
         const float moved = length((float2)(fx - (float)x, fy - (float)y));
         float a = fmax(fmax(alpha, 1.0f / len), fmin(PX_TAA_MOTION_ALPHA_MAX, PX_TAA_MOTION_ALPHA * moved));
         /* The lighting changed here (temporal gradients): as in svgf_temporal. */
-        const float lambda = px_gradient_lambda(gradient, (uint)x, (uint)y, p.width);
+        const float lambda = fmin(1.0f, PX_GRADIENT_TAA_GAIN * px_gradient_lambda(gradient, (uint)x, (uint)y, p.width));
         if (lambda > 0.0f) {
           a = mix(a, 1.0f, lambda);
           len = fmax(1.0f, len * (1.0f - lambda));

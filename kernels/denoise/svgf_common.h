@@ -237,13 +237,26 @@ inline FilterCentre px_filter_centre_at(const global float4* guide, int x, int y
 }
 
 /* The temporal gradients' lambda at pixel (x, y) (gradient_filter.cl: the stratum's filtered
- * |difference| / larger shade): the share of the history that the lighting's change since last
- * frame made untrue, 0 where nothing changed (or no gradients: `gradient` null), 1 at most. */
+ * sum of |shade now - shade last frame| over the sum of the larger of the two): the share of the
+ * history that the lighting's change since last frame made untrue, 0 where nothing changed (or
+ * no gradients: `gradient` null), 1 at most. */
 inline float px_gradient_lambda(const global float4* gradient, uint x, uint y, uint width) {
   if (!gradient) return 0.0f;
   const uint strata_w = (width + PX_GRADIENT_STRATUM - 1u) / PX_GRADIENT_STRATUM;
   const float4 g = gradient[(y / PX_GRADIENT_STRATUM) * strata_w + x / PX_GRADIENT_STRATUM];
-  return g.y > 0.0f ? fmin(1.0f, PX_GRADIENT_GAIN * fabs(g.x) / g.y) : 0.0f;
+  return g.z > 0.0f ? fmin(1.0f, g.w / g.z) : 0.0f;
+}
+
+/* How much brighter the light at pixel (x, y) is than last frame's (the stratum's filtered
+ * shades now / last frame's, the same paths): the history is scaled by it before blending, so
+ * it follows a light that changes smoothly instead of lagging. 1 without gradients, and where
+ * the two sums say too little (either below PX_GRADIENT_MIN_SHADE of the larger). */
+inline float px_gradient_ratio(const global float4* gradient, uint x, uint y, uint width) {
+  if (!gradient) return 1.0f;
+  const uint strata_w = (width + PX_GRADIENT_STRATUM - 1u) / PX_GRADIENT_STRATUM;
+  const float4 g = gradient[(y / PX_GRADIENT_STRATUM) * strata_w + x / PX_GRADIENT_STRATUM];
+  if (!(g.x > PX_GRADIENT_MIN_SHADE * g.z && g.y > PX_GRADIENT_MIN_SHADE * g.z)) return 1.0f;
+  return clamp(g.x / g.y, PX_GRADIENT_MIN_RATIO, 1.0f / PX_GRADIENT_MIN_RATIO);
 }
 
 #endif /* PARALLAX_SVGF_COMMON_H */

@@ -62,9 +62,13 @@
  * normals as cos^PX_GRADIENT_SIGMA_N, depths within PX_GRADIENT_REL_DEPTH x the nearer one. */
 #define PX_GRADIENT_SIGMA_N 32.0f
 #define PX_GRADIENT_REL_DEPTH 0.1f
-/* lambda = min(1, PX_GRADIENT_GAIN x |difference| / larger shade). */
-#ifndef PX_GRADIENT_GAIN
-#define PX_GRADIENT_GAIN 1.0f
-#endif
+/* The history follows the light's change by the ratio of the strata's shades (now / last frame)
+ * where both sums are at least PX_GRADIENT_MIN_SHADE of the larger shades' and the ratio lies
+ * within [PX_GRADIENT_MIN_RATIO, 1 / PX_GRADIENT_MIN_RATIO]. The anti-aliasing, whose history is
+ * twice as long (alpha 0.1 against 0.2), drops PX_GRADIENT_TAA_GAIN x lambda of it. The values
+ * were chosen on the moving-panel scene (docs/measurements.md, temporal gradients). */
+#define PX_GRADIENT_MIN_SHADE 0.1f
+#define PX_GRADIENT_MIN_RATIO 0.5f
+#define PX_GRADIENT_TAA_GAIN 2.0f
 
 #endif /* PARALLAX_SVGF_CONSTANTS_H */

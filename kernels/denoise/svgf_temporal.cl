@@ -144,6 +144,13 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
   if (wsum > 0.0f) {
     hist /= wsum;
     hist_m /= wsum;
+    /* Temporal gradients: the light here changed by this factor since last frame (1 where it
+     * did not, or without gradients): the history follows it. */
+    const float ratio = px_gradient_ratio(gradient, i % p.width, (uint)y, p.width);
+    if (ratio != 1.0f) {
+      hist *= ratio;
+      hist_m *= (float2)(ratio, ratio * ratio);
+    }
     len = fmin((float)p.max_history, floor(hist_len / wsum + 0.5f) + 1.0f);
     float a = fmax(p.alpha, 1.0f / len);
     /* Beside a moving object a still surface's illumination changes from frame to frame: the

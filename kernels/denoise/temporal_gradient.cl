@@ -7,7 +7,9 @@
  * seen from this frame's camera, with the same random numbers as last frame's shade of it, in
  * this frame's scene. Where nothing changed the two shades are the same path and agree to the
  * bit; the difference is what the lighting did. gradient_filter.cl spreads the strata's
- * differences and SVGF's temporal passes drop history in proportion.
+ * shades; SVGF's temporal passes scale their history by the ratio of the shades (a light that
+ * brightens or dims smoothly) and drop the share that their differences say changed otherwise (a
+ * shadow that moves, a light switched).
  *
  * The same kernel also shades this frame's chosen pixel of each stratum, which next frame's
  * gradient compares against: two paths per stratum, 2/9 of a path per pixel at most.
@@ -63,8 +65,8 @@ inline float px_gradient_shade(const SceneView* scene, const FrameParams* fp, fl
  *   ref[pick]: (this frame's shade of this frame's pick, 1 if valid else 0, frame, 0), in the
  *              full-frame per-pixel buffer next frame reads as `prev_ref` (it moves between
  *              devices with the strips like SVGF's history, by pixel rows);
- *   raw[s]:    (shade now - shade last frame, the larger of the two, 1, 0) for last frame's pick,
- *              or 0 without a gradient. */
+ *   raw[s]:    (shade now, shade last frame, the larger of the two, |their difference|) for last
+ *              frame's pick, or 0 without a gradient. */
 kernel void gradient_shade(global float4* raw, global float4* ref, const global float4* prev_ref,
                            const global GBufferTexel* gbuf, const global GBufferTexel* prev_gbuf,
                            volatile global uint* nonfinite, const global float4* tri_motion, FrameParams fp,
@@ -95,7 +97,7 @@ kernel void gradient_shade(global float4* raw, global float4* ref, const global 
     if (known && !moved) {
       const SampleKey key_was = px_sample_key(was.x, was.y, gp.frame - 1u, gp.eye, PX_GRADIENT_SAMPLE, gp.seed);
       const float shade = px_gradient_shade(&scene, &fp, origin, g, key_was, nonfinite, &ok);
-      if (ok) out = (float4)(shade - before.x, fmax(shade, before.x), 1.0f, 0.0f);
+      if (ok) out = (float4)(shade, before.x, fmax(shade, before.x), fabs(shade - before.x));
     }
   }
   raw[sy * gp.strata_w + sx] = out;
