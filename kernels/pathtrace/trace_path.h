@@ -30,4 +30,21 @@ inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float
   return v.radiance;
 }
 
+/* px_trace_path for a camera ray whose first hit is known already (`first`, traced by the
+ * caller): the same path, one closest-hit trace fewer. */
+inline float3 px_trace_path_from_hit(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir,
+                                     SampleKey key, Hit first, float4* primary_albedo) {
+  PathVertex v = px_camera_path(org, dir);
+  for (uint bounce = 0; bounce <= fp->max_bounces; ++bounce) {
+    const Hit hit = bounce == 0u ? first : px_trace_closest_leaf(scene, v.org, v.dir, 0.0f, INFINITY);
+    ShadowRay shadow;
+    const int goes_on = px_path_vertex(scene, fp, key, bounce, hit, &v, &shadow);
+    if (shadow.valid && !px_trace_any(scene, shadow.org, shadow.dir, 0.0f, shadow.tmax))
+      v.radiance += shadow.contribution;
+    if (!goes_on) break;
+  }
+  *primary_albedo = v.primary_albedo;
+  return v.radiance;
+}
+
 #endif

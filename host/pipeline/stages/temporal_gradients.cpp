@@ -78,7 +78,11 @@ void TemporalGradients::run(const cl::Program& shading, const DeviceSceneBuffers
   k.setArg(a++, prev_gbuf);
   k.setArg(a++, nonfinite);
   set_optional_buffer(k, a++, scene.motion() ? &scene.motion : nullptr);
-  k.setArg(a++, fp);
+  // The re-shaded paths stop after PX_GRADIENT_MAX_BOUNCES bounces: the change of the light a
+  // surface sees is measured by its first bounces, at a fraction of the image's paths' cost.
+  FrameParams shade_fp = fp;
+  shade_fp.max_bounces = std::min<cl_uint>(fp.max_bounces, PX_GRADIENT_MAX_BOUNCES);
+  k.setArg(a++, shade_fp);
   k.setArg(a++, cam);
   k.setArg(a++, params(shaded, shaded, gbuffer_rows, 0, fp));
   scene.bind(k, a);
