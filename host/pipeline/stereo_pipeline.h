@@ -182,6 +182,11 @@ class StereoPipeline {
   // Pixels of eye `eye` that got the motion edges' extra samples in the last frame
   // (DenoiseStage::Options::motion_edge_samples; 0 without denoising or motion).
   std::size_t motion_edge_pixels(int eye) { return denoise_ ? denoise_->motion_edge_pixels(eye) : 0; }
+  DeviceSet& devices() const { return devices_; }
+  // The temporal gradients of eye `eye` on device `d` after the last frame (null: none there).
+  const TemporalGradients* temporal_gradients(int d, int eye) const {
+    return denoise_ ? denoise_->gradients(d, eye) : nullptr;
+  }
 
  private:
   // The unit that runs `stage`'s operations (std::logic_error if the schedule names a stage no

@@ -244,7 +244,7 @@ inline float px_gradient_lambda(const global float4* gradient, uint x, uint y, u
   if (!gradient) return 0.0f;
   const uint strata_w = (width + PX_GRADIENT_STRATUM - 1u) / PX_GRADIENT_STRATUM;
   const float4 g = gradient[(y / PX_GRADIENT_STRATUM) * strata_w + x / PX_GRADIENT_STRATUM];
-  return g.z > 0.0f ? fmin(1.0f, g.w / g.z) : 0.0f;
+  return g.z > 0.0f ? fmin(1.0f, 1.0f * g.w / g.z) : 0.0f;
 }
 
 /* How much brighter the light at pixel (x, y) is than last frame's (the stratum's filtered

@@ -69,7 +69,7 @@
  * were chosen on the moving-panel scene (docs/measurements.md, temporal gradients). */
 /* The re-shaded paths' bounces at most (the image's own at most): the change of the light a surface
  * sees shows in its first bounces, at a fraction of a full path's cost. */
-#define PX_GRADIENT_MAX_BOUNCES 2
+#define PX_GRADIENT_MAX_BOUNCES 1
 #define PX_GRADIENT_MIN_SHADE 0.1f
 #define PX_GRADIENT_MIN_RATIO 0.5f
 #define PX_GRADIENT_TAA_GAIN 2.0f

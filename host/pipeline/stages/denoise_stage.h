@@ -68,6 +68,8 @@ class DenoiseStage : public StageUnit {
   // end_frame() it is held here as the next frame's history, and the frame images' buffer is
   // the one the next frame overwrites.
   const cl::Buffer& last_gbuffer(int d, int e) const { return dev_[d].gbuffer_prev[e]; }
+  // Eye `e`'s temporal gradients on local device `d` (null without them).
+  const TemporalGradients* gradients(int d, int e) const { return dev_[d].gradients[e].get(); }
   // How many pixels of eye `e` on this process's devices got the motion edges' samples in the
   // last frame (a blocking read; tests and reports).
   std::size_t motion_edge_pixels(int e);

@@ -47,6 +47,10 @@ class TemporalGradients {
   // The filtered strata: (difference, larger shade, share of valid picks, 0) per stratum; lambda
   // = |x| / y (svgf_common.h, px_gradient_lambda).
   const cl::Buffer& lambda() const { return filtered_[final_]; }
+  // The unfiltered strata of the last run (tests compare the filter with a host one).
+  const cl::Buffer& raw() const { return raw_; }
+  unsigned strata_width() const { return strata_w_; }
+  unsigned strata_height() const { return strata_h_; }
   // This frame's shades of this frame's picks (a float4 per pixel at the picked pixels), and last
   // frame's, which a device that took over rows from a neighbour must fetch with them.
   const cl::Buffer& shades() const { return shades_[parity_]; }
