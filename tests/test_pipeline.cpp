@@ -315,7 +315,11 @@ TEST(StereoPipeline, EveryOperationIsExecutedAndTimed) {
     for (const Operation& op : ops) {
       expected.insert({static_cast<int>(op.stage), op.device});
       if (op.stage == Stage::Transfer) expected.insert({static_cast<int>(op.stage), op.to});
-      if (op.stage == Stage::Denoise) expected.insert({static_cast<int>(Stage::RecordPrevious), op.device});
+      // Inside the denoise unit: the history copies (stage 7) and the temporal gradients.
+      if (op.stage == Stage::Denoise) {
+        expected.insert({static_cast<int>(Stage::RecordPrevious), op.device});
+        expected.insert({static_cast<int>(Stage::TemporalGradient), op.device});
+      }
     }
     for (const StageTiming& t : stats.stages) timed.insert({static_cast<int>(t.stage), t.device});
     // Halo exchanges of the denoiser are transfers between neighbours that no transfer

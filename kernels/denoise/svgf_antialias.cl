@@ -129,18 +129,19 @@ kernel void svgf_antialias(global float4* resolved, global float4* history, cons
           }
         m1 /= count;
         const float3 sigma = sqrt(fmax(m2 / count - m1 * m1, (float3)(0.0f, 0.0f, 0.0f)));
-        hist *= px_gradient_ratio(gradient, (uint)x, (uint)y, p.width); /* as svgf_temporal's */
+        /* Temporal gradients, as in svgf_temporal (not on an object that moved). */
+        const global float4* grad = motion && motion[i].w == PX_MOTION_MOVED ? 0 : gradient;
+        hist *= px_gradient_ratio(grad, (uint)x, (uint)y, p.width);
         hist = px_from_ycocg(clamp(px_ycocg(hist), m1 - PX_TAA_CLIP_SIGMA * sigma, m1 + PX_TAA_CLIP_SIGMA * sigma));
         len = fmin((float)p.max_history, floor(hist_len / wsum + 0.5f) + 1.0f);
         /* Motion: resampled history blurs a little more with every bilinear read and lags behind
          * what the view now shows, so a pixel that moved trusts it less. */
         const float moved = length((float2)(fx - (float)x, fy - (float)y));
         float a = fmax(fmax(alpha, 1.0f / len), fmin(PX_TAA_MOTION_ALPHA_MAX, PX_TAA_MOTION_ALPHA * moved));
-        /* The lighting changed here (temporal gradients): as in svgf_temporal. */
-        const float lambda = fmin(1.0f, PX_GRADIENT_TAA_GAIN * px_gradient_lambda(gradient, (uint)x, (uint)y, p.width));
+        const float lambda = fmin(1.0f, PX_GRADIENT_TAA_GAIN * px_gradient_lambda(grad, (uint)x, (uint)y, p.width));
         if (lambda > 0.0f) {
           a = mix(a, 1.0f, lambda);
-          len = fmax(1.0f, len * (1.0f - lambda));
+          len = fmax(1.0f, floor(len * (1.0f - lambda) + 0.5f)); /* a whole count, as everywhere */
         }
         out = mix(hist, c, a);
         if (!(isfinite(out.x) && isfinite(out.y) && isfinite(out.z))) {

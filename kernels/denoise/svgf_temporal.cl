@@ -44,7 +44,7 @@ inline float4 px_environment_temporal(float3 c, const global GBufferTexel* g, in
   float a = fmax(p->alpha, 1.0f / len);
   if (lambda > 0.0f) { /* the sky changed (a sun that turns): as svgf_temporal's surfaces */
     a = mix(a, 1.0f, lambda);
-    len = fmax(1.0f, len * (1.0f - lambda));
+    len = fmax(1.0f, floor(len * (1.0f - lambda) + 0.5f)); /* a whole count, as everywhere */
   }
   return (float4)(mix(hist / wsum, c, a), len);
 }
@@ -73,7 +73,11 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
   const global GBufferTexel* g = gbuf + i;
   const float3 c = color[i].xyz;
   /* Temporal gradients: the share of the history the lighting's change made untrue. */
-  const float lambda = px_gradient_lambda(gradient, i % p.width, (uint)y, p.width);
+  /* Not on an object that moved: its history follows the motion rules below, and the strata's
+   * shades around it (still surfaces only) say nothing of its own light. */
+  const int own_motion = motion && motion[i].w == PX_MOTION_MOVED;
+  const global float4* grad = own_motion ? 0 : gradient;
+  const float lambda = px_gradient_lambda(grad, i % p.width, (uint)y, p.width);
   if (!px_filtered_class(g->material_class)) {
     /* A silhouette pixel whose samples all hit a filtered surface borrows a neighbour's
      * geometry (PX_SVGF_BORROWED); it has no geometry of its own to match history with, so its
@@ -146,7 +150,7 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
     hist_m /= wsum;
     /* Temporal gradients: the light here changed by this factor since last frame (1 where it
      * did not, or without gradients): the history follows it. */
-    const float ratio = px_gradient_ratio(gradient, i % p.width, (uint)y, p.width);
+    const float ratio = px_gradient_ratio(grad, i % p.width, (uint)y, p.width);
     if (ratio != 1.0f) {
       hist *= ratio;
       hist_m *= (float2)(ratio, ratio * ratio);
@@ -171,7 +175,7 @@ kernel void svgf_temporal(global float4* out_illum, global float4* out_moments, 
     if (lambda > 0.0f) {
       a = mix(a, 1.0f, lambda);
       am = mix(am, 1.0f, lambda);
-      len = fmax(1.0f, len * (1.0f - lambda));
+      len = fmax(1.0f, floor(len * (1.0f - lambda) + 0.5f)); /* a whole count, as everywhere */
     }
     out = mix(hist, illum, a);
     m = mix(hist_m, cur_m, am);
