@@ -1214,5 +1214,30 @@ TEST(SvgfDistributed, StripsThatCannotMoveAreRefused) {
   EXPECT_THROW(baseline.set_strips({{0, 8}, {8, 20}}), std::invalid_argument);
 }
 
+// The a-trous step count is honoured: on the first frame (no history: the spatial filter alone)
+// five steps come closer to a converged reference than one, by a wide margin (each step doubles
+// the filter's reach: one leaves blotches), and the images differ. A denoiser that ran one step
+// whatever was asked (or always five) gives the same error for both and fails.
+TEST(SvgfDistributed, FiveAtrousStepsFilterMoreThanOne) {
+  const unsigned w = 96, h = 72;
+  auto run = [&](unsigned iterations) { return run_pipeline(cornell(), 1, SeamMode::Halo, 1, w, h, iterations); };
+  const DenoisedRun one = run(1), five = run(5);
+  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
+  DeviceScene ds(set, cornell().scene, cornell().bvh);
+  PathTracer tracer(set, ds, cornell().scene);
+  ReferenceOptions ref_opt;
+  ref_opt.spp = 256;
+  ref_opt.bounces = 3;
+  const auto reference = render_reference(tracer, 0.0f, 0, w, h, ref_opt);
+  for (int e = 0; e < 2; ++e) {
+    // Below the emitter (the emitter's edge is the jitter's, not the filter's), relative error.
+    const double e1 = compare_images(one.frames[0][e], reference[e], int(h) / 4).rel_mse;
+    const double e5 = compare_images(five.frames[0][e], reference[e], int(h) / 4).rel_mse;
+    std::printf("[ measure  ] eye %d: relMSE after 1 a-trous step %.3g, after 5 %.3g (x%.2f)\n", e, e1, e5, e5 / e1);
+    EXPECT_LT(e5, 0.7 * e1) << "eye " << e;
+    EXPECT_NE(one.frames[0][e].rgb, five.frames[0][e].rgb) << "eye " << e;
+  }
+}
+
 }  // namespace
 }  // namespace px
