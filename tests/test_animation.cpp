@@ -969,14 +969,14 @@ TEST(MotionTrail, AMovingObjectLeavesNoMoreErrorWhereItWentThanAStillOne) {
   }
 }
 
-
 // ---- lights that move ----
 
 // A directional light (KHR_lights_punctual, 3 lux) on a node that turns about x over two
 // seconds (LINEAR: keys at 0, 1, 2 s), as the child of `parent` node 0 which the clip turns,
 // with a fixed turn of its own (`child_rotation`, x y z w); a grey floor at y = 0 (24 x 24), a
 // camera 3 units above it looking straight down. `keys` holds the parent's rotations.
-std::string turning_sun_file(const TempDir& dir, const std::vector<glm::dquat>& keys, const glm::dquat& child_rotation) {
+std::string turning_sun_file(const TempDir& dir, const std::vector<glm::dquat>& keys,
+                             const glm::dquat& child_rotation) {
   GltfBuilder g;
   const int floor_pos = g.floats({-12, 0, -12, 12, 0, -12, 12, 0, 12, -12, 0, 12}, "VEC3", 4);
   g.add("meshes", {{"primitives", json::array({{{"attributes", {{"POSITION", floor_pos}}},
@@ -994,16 +994,15 @@ std::string turning_sun_file(const TempDir& dir, const std::vector<glm::dquat>& 
       {"KHR_lights_punctual", {{"lights", json::array({{{"type", "directional"}, {"intensity", 3.0}}})}}}};
   g.doc["scene"] = 0;
   g.doc["scenes"] = json::array({{{"nodes", {0, 2, 3}}}});
-  g.doc["nodes"] = json::array(
-      {{{"children", {1}}},
-       {{"rotation", {child_rotation.x, child_rotation.y, child_rotation.z, child_rotation.w}},
-        {"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}}},
-       {{"mesh", 0}},
-       {{"camera", 0}, {"translation", {0, 3, 0}}, {"rotation", {-h, 0, 0, h}}}});
-  g.doc["animations"] = json::array(
-      {{{"name", "day"},
-        {"samplers", json::array({{{"input", in}, {"output", out}}})},
-        {"channels", json::array({{{"sampler", 0}, {"target", {{"node", 0}, {"path", "rotation"}}}}})}}});
+  g.doc["nodes"] = json::array({{{"children", {1}}},
+                                {{"rotation", {child_rotation.x, child_rotation.y, child_rotation.z, child_rotation.w}},
+                                 {"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}}},
+                                {{"mesh", 0}},
+                                {{"camera", 0}, {"translation", {0, 3, 0}}, {"rotation", {-h, 0, 0, h}}}});
+  g.doc["animations"] =
+      json::array({{{"name", "day"},
+                    {"samplers", json::array({{{"input", in}, {"output", out}}})},
+                    {"channels", json::array({{{"sampler", 0}, {"target", {{"node", 0}, {"path", "rotation"}}}}})}}});
   return dir.write("turning_sun.gltf", g.text()).string();
 }
 
@@ -1046,7 +1045,8 @@ TEST(MovingLights, AnAnimatedDirectionalLightTurnsTheSun) {
   EXPECT_EQ(still.sun.direction, loaded.direction);
   // A scene file that gives the sun its own direction keeps it.
   const std::string placed = dir.write("placed.json", R"({"mesh": "turning_sun.gltf",
-      "sun": {"direction": [0, 1, 0], "radiance": [5, 5, 5]}})").string();
+      "sun": {"direction": [0, 1, 0], "radiance": [5, 5, 5]}})")
+                                 .string();
   Scene fixed = load_scene(placed);
   SceneAnimator(fixed, "all").pose(1.0);
   EXPECT_EQ(fixed.sun.direction, glm::vec3(0, 1, 0));
@@ -1060,21 +1060,22 @@ TEST(MovingLights, SunKeysInterpolateAlongTheGreatCircleAndSet) {
   dir.write("tri.obj", "v -1 0 -1\nv 1 0 -1\nv 0 0 1\nf 1 3 2\n");
   const std::string file = dir.write("day.json", R"({"mesh": "tri.obj", "sun": {"radiance": [100, 90, 80],
       "keys": [{"time": 0, "direction": [0, 1, 0]}, {"time": 2, "direction": [2, 2, 0]},
-               {"time": 3, "direction": [1, 0, 0]}, {"time": 4, "direction": [1, -1, 0]}]}})").string();
+               {"time": 3, "direction": [1, 0, 0]}, {"time": 4, "direction": [1, -1, 0]}]}})")
+                               .string();
   Scene scene = load_scene(file);
   ASSERT_EQ(scene.sun_path.size(), 4u);
   EXPECT_EQ(scene.sun.direction, glm::vec3(0, 1, 0));  // the first key's until posed
-  SceneAnimator animator(scene, "none");                 // keys play whatever --animation says
+  SceneAnimator animator(scene, "none");               // keys play whatever --animation says
   ASSERT_TRUE(animator.moves());
   const double s22 = std::sin(kPi / 8), c22 = std::cos(kPi / 8), r = std::sqrt(0.5);
   struct Expect {
     double t, x, y, fade;
   };
   const Expect cases[] = {
-      {0.0, 0, 1, 1},       {1.0, s22, c22, 1},   // half of 45 degrees from the zenith
-      {2.0, r, r, 1},       {2.5, c22, s22, 1},   // 67.5 degrees from the zenith
-      {3.0, 1, 0, 0.5},                           // on the horizon: half the disk
-      {3.5, c22, -s22, 0},  {4.0, r, -r, 0},  {9.0, r, -r, 0},  // set, and held
+      {0.0, 0, 1, 1},      {1.0, s22, c22, 1},                   // half of 45 degrees from the zenith
+      {2.0, r, r, 1},      {2.5, c22, s22, 1},                   // 67.5 degrees from the zenith
+      {3.0, 1, 0, 0.5},                                          // on the horizon: half the disk
+      {3.5, c22, -s22, 0}, {4.0, r, -r, 0},    {9.0, r, -r, 0},  // set, and held
   };
   for (const Expect& e : cases) {
     animator.pose(e.t);

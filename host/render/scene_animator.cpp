@@ -41,7 +41,9 @@ SceneAnimator::SceneAnimator(Scene& scene, const std::string& choice)
     follow_camera_ = rest.position == scene.camera.position && rest.target == scene.camera.target;
   }
   const std::vector<char> moving = moving_nodes(rig, clips_);
-  const auto moved = [&](int node) { return node >= 0 && static_cast<std::size_t>(node) < moving.size() && moving[static_cast<std::size_t>(node)]; };
+  const auto moved = [&](int node) {
+    return node >= 0 && static_cast<std::size_t>(node) < moving.size() && moving[static_cast<std::size_t>(node)];
+  };
   // The glTF sun follows its node unless a scene file gave the sun keys or its own direction.
   if (moved(rig.sun_node) && sun_keys_.empty() && scene.sun.enabled) {
     glm::vec3 rest;

@@ -61,7 +61,7 @@ class SceneAnimator {
   std::vector<int> clips_;
   bool moves_ = false;
   bool geometry_moves_ = false;    // a clip moves a mesh, a skin's joint or the camera (not only the sun)
-  bool follow_camera_ = false;   // the scene's camera is the rig's glTF camera
+  bool follow_camera_ = false;     // the scene's camera is the rig's glTF camera
   bool sun_follows_node_ = false;  // the scene's sun is the rig's glTF light, on a node a clip moves
   std::vector<SunKey> sun_keys_;   // the scene file's sun keys (they win over a glTF light)
   Camera base_camera_;

@@ -9,8 +9,8 @@ glm::vec3 sun_path_direction(const std::vector<SunKey>& keys, double time_s) {
   if (keys.empty()) return glm::vec3(0.0f, 1.0f, 0.0f);
   if (!(time_s > double(keys.front().time))) return keys.front().direction;
   if (time_s >= double(keys.back().time)) return keys.back().direction;
-  const auto next = std::upper_bound(keys.begin(), keys.end(), time_s,
-                                     [](double t, const SunKey& k) { return t < double(k.time); });
+  const auto next =
+      std::upper_bound(keys.begin(), keys.end(), time_s, [](double t, const SunKey& k) { return t < double(k.time); });
   const auto prev = next - 1;
   const double u = (time_s - double(prev->time)) / (double(next->time) - double(prev->time));
   const glm::dvec3 a(prev->direction), b(next->direction);
@@ -38,7 +38,8 @@ bool check_sun_keys(const std::vector<SunKey>& keys, const std::string& name, st
     const std::string at = name + "[" + std::to_string(i) + "]";
     const SunKey& k = keys[i];
     if (!std::isfinite(k.time) || k.time < 0.0f) return fail(at + ".time", "must be a finite number >= 0 (seconds)");
-    if (i > 0 && !(k.time > keys[i - 1].time)) return fail(at + ".time", "must be greater than the previous key's time");
+    if (i > 0 && !(k.time > keys[i - 1].time))
+      return fail(at + ".time", "must be greater than the previous key's time");
     const float len = glm::length(k.direction);
     if (!(len > 0.0f) || !std::isfinite(len)) return fail(at + ".direction", "must be a finite, non-zero vector");
     if (i > 0 && glm::dot(k.direction / len, glm::normalize(keys[i - 1].direction)) < -0.9999f)
