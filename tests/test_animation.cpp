@@ -2,6 +2,7 @@
 // and skinning against an evaluation written here independently of the loader, the per-frame
 // device update against a fresh upload of the same pose, N devices bit-identical with
 // animation playing, and the motion pass against a quad's analytic motion.
+#include "app/commands.h"
 #include "app/scene_setup.h"
 #include "bvh/bvh_builder.h"
 #include "bvh/bvh_layout.h"
@@ -22,6 +23,7 @@
 #include "scene/primitives.h"
 #include "scene/scene_loader.h"
 #include "scene/scene_rig.h"
+#include "scene/sun_path.h"
 #include "support/gltf_builder.h"
 #include "support/test_support.h"
 
@@ -965,6 +967,188 @@ TEST(MotionTrail, AMovingObjectLeavesNoMoreErrorWhereItWentThanAStillOne) {
                 err_still - on_still > 0.0 ? (err_moving - on_moving) / (err_still - on_still) : 0.0);
     EXPECT_LE(err_moving / n, bound * err_still / n) << spp << " spp";
   }
+}
+
+// ---- lights that move ----
+
+// A directional light (KHR_lights_punctual, 3 lux) on a node that turns about x over two
+// seconds (LINEAR: keys at 0, 1, 2 s), as the child of `parent` node 0 which the clip turns,
+// with a fixed turn of its own (`child_rotation`, x y z w); a grey floor at y = 0 (24 x 24), a
+// camera 3 units above it looking straight down. `keys` holds the parent's rotations.
+std::string turning_sun_file(const TempDir& dir, const std::vector<glm::dquat>& keys,
+                             const glm::dquat& child_rotation) {
+  GltfBuilder g;
+  const int floor_pos = g.floats({-12, 0, -12, 12, 0, -12, 12, 0, 12, -12, 0, 12}, "VEC3", 4);
+  g.add("meshes", {{"primitives", json::array({{{"attributes", {{"POSITION", floor_pos}}},
+                                                {"indices", g.uint16s({0, 2, 1, 0, 3, 2}, "SCALAR", 6)}}})}});
+  std::vector<float> times, quats;
+  for (std::size_t k = 0; k < keys.size(); ++k) {
+    times.push_back(float(k));
+    for (double v : {keys[k].x, keys[k].y, keys[k].z, keys[k].w}) quats.push_back(float(v));
+  }
+  const int in = g.floats(times, "SCALAR", keys.size()), out = g.floats(quats, "VEC4", keys.size());
+  g.add("cameras", {{"type", "perspective"}, {"perspective", {{"yfov", 0.8}, {"znear", 0.1}}}});
+  const double h = std::sqrt(0.5);
+  g.doc["extensionsUsed"] = {"KHR_lights_punctual"};
+  g.doc["extensions"] = {
+      {"KHR_lights_punctual", {{"lights", json::array({{{"type", "directional"}, {"intensity", 3.0}}})}}}};
+  g.doc["scene"] = 0;
+  g.doc["scenes"] = json::array({{{"nodes", {0, 2, 3}}}});
+  g.doc["nodes"] = json::array({{{"children", {1}}},
+                                {{"rotation", {child_rotation.x, child_rotation.y, child_rotation.z, child_rotation.w}},
+                                 {"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}}},
+                                {{"mesh", 0}},
+                                {{"camera", 0}, {"translation", {0, 3, 0}}, {"rotation", {-h, 0, 0, h}}}});
+  g.doc["animations"] =
+      json::array({{{"name", "day"},
+                    {"samplers", json::array({{{"input", in}, {"output", out}}})},
+                    {"channels", json::array({{{"sampler", 0}, {"target", {{"node", 0}, {"path", "rotation"}}}}})}}});
+  return dir.write("turning_sun.gltf", g.text()).string();
+}
+
+glm::dquat about_x(double degrees) { return glm::angleAxis(glm::radians(degrees), glm::dvec3(1, 0, 0)); }
+
+// The sun follows its node through an animated ancestor: at every time its direction is the
+// light's +z (it shines along -z) turned by the parent's keyed rotation (slerped between keys,
+// written here with glm) and the child's own turn. Only the sun moves: no geometry changes.
+TEST(MovingLights, AnAnimatedDirectionalLightTurnsTheSun) {
+  const TempDir dir;
+  const std::vector<glm::dquat> keys = {about_x(-90), about_x(-60), about_x(-20)};
+  const glm::dquat child = glm::angleAxis(glm::radians(30.0), glm::dvec3(0, 1, 0));
+  Scene scene = load_scene(turning_sun_file(dir, keys, child));
+  ASSERT_TRUE(scene.sun.enabled);
+  const Sun loaded = scene.sun;
+  const std::vector<SceneTriangle> rest = scene.triangles;
+  SceneAnimator animator(scene, "all");
+  EXPECT_TRUE(animator.moves());
+  EXPECT_TRUE(animator.sun_moves());
+  EXPECT_NE(animator.describe().find("turning the sun"), std::string::npos) << animator.describe();
+  for (double t : {0.0, 0.25, 1.0, 1.6, 2.0, 2.5}) {
+    animator.pose(t);
+    const double ct = std::fmod(t, 2.0);  // the clip loops over its 2 s
+    const std::size_t k = std::min<std::size_t>(std::size_t(ct), 1);
+    const glm::dquat parent = glm::slerp(keys[k], keys[k + 1], ct - double(k));
+    const glm::dvec3 towards = parent * child * glm::dvec3(0, 0, 1);
+    EXPECT_NEAR(scene.sun.direction.x, towards.x, 1e-5) << t;
+    EXPECT_NEAR(scene.sun.direction.y, towards.y, 1e-5) << t;
+    EXPECT_NEAR(scene.sun.direction.z, towards.z, 1e-5) << t;
+    // Well above the horizon all along (at least 20 degrees): the radiance is the light's.
+    EXPECT_EQ(scene.sun.radiance, loaded.radiance) << t;
+    EXPECT_EQ(scene.triangles.size(), rest.size());
+    EXPECT_TRUE(std::memcmp(scene.triangles.data(), rest.data(), rest.size() * sizeof(SceneTriangle)) == 0);
+  }
+  // --animation none: the sun stays at rest.
+  Scene still = load_scene(turning_sun_file(dir, keys, child));
+  SceneAnimator none(still, "none");
+  EXPECT_FALSE(none.moves());
+  none.pose(1.0);
+  EXPECT_EQ(still.sun.direction, loaded.direction);
+  // A scene file that gives the sun its own direction keeps it.
+  const std::string placed = dir.write("placed.json", R"({"mesh": "turning_sun.gltf",
+      "sun": {"direction": [0, 1, 0], "radiance": [5, 5, 5]}})")
+                                 .string();
+  Scene fixed = load_scene(placed);
+  SceneAnimator(fixed, "all").pose(1.0);
+  EXPECT_EQ(fixed.sun.direction, glm::vec3(0, 1, 0));
+}
+
+// A scene file's sun keys, against interpolation worked by hand: the direction turns along
+// the great circle at an even angular speed between keys, holds outside them, and the sun
+// fades as its disk sets (0.27 degrees radius: half of it at elevation 0, none below).
+TEST(MovingLights, SunKeysInterpolateAlongTheGreatCircleAndSet) {
+  const TempDir dir;
+  dir.write("tri.obj", "v -1 0 -1\nv 1 0 -1\nv 0 0 1\nf 1 3 2\n");
+  const std::string file = dir.write("day.json", R"({"mesh": "tri.obj", "sun": {"radiance": [100, 90, 80],
+      "keys": [{"time": 0, "direction": [0, 1, 0]}, {"time": 2, "direction": [2, 2, 0]},
+               {"time": 3, "direction": [1, 0, 0]}, {"time": 4, "direction": [1, -1, 0]}]}})")
+                               .string();
+  Scene scene = load_scene(file);
+  ASSERT_EQ(scene.sun_path.size(), 4u);
+  EXPECT_EQ(scene.sun.direction, glm::vec3(0, 1, 0));  // the first key's until posed
+  SceneAnimator animator(scene, "none");               // keys play whatever --animation says
+  ASSERT_TRUE(animator.moves());
+  const double s22 = std::sin(kPi / 8), c22 = std::cos(kPi / 8), r = std::sqrt(0.5);
+  struct Expect {
+    double t, x, y, fade;
+  };
+  const Expect cases[] = {
+      {0.0, 0, 1, 1},      {1.0, s22, c22, 1},                   // half of 45 degrees from the zenith
+      {2.0, r, r, 1},      {2.5, c22, s22, 1},                   // 67.5 degrees from the zenith
+      {3.0, 1, 0, 0.5},                                          // on the horizon: half the disk
+      {3.5, c22, -s22, 0}, {4.0, r, -r, 0},    {9.0, r, -r, 0},  // set, and held
+  };
+  for (const Expect& e : cases) {
+    animator.pose(e.t);
+    EXPECT_NEAR(scene.sun.direction.x, e.x, 1e-6) << e.t;
+    EXPECT_NEAR(scene.sun.direction.y, e.y, 1e-6) << e.t;
+    EXPECT_NEAR(scene.sun.direction.z, 0.0, 1e-6) << e.t;
+    EXPECT_NEAR(scene.sun.radiance.x, 100.0 * e.fade, 1e-3) << e.t;
+    EXPECT_NEAR(scene.sun.radiance.z, 80.0 * e.fade, 1e-3) << e.t;
+    EXPECT_TRUE(scene.sun.enabled);  // the kernels keep their sun feature; a set sun gives nothing
+  }
+  EXPECT_NEAR(sun_above_horizon(glm::vec3(1, 0.5f * std::sin(glm::radians(0.27f)), 0), 0.27f), 0.75f, 1e-3);
+}
+
+// The mean radiance of a render's pixels (both eyes).
+double mean_of(const std::array<ImageRGB, 2>& eyes) {
+  double sum = 0.0;
+  std::size_t n = 0;
+  for (const ImageRGB& e : eyes)
+    for (float v : e.rgb) {
+      sum += v;
+      ++n;
+    }
+  return sum / double(n);
+}
+
+// An image check: a floor lit only by the turning glTF sun (no sky, no emitter) is as bright as
+// the cosine of the sun's zenith angle says (Lambert), at the frame times `render` uses; and
+// `reference --frame N` (posed once at frame N's time) and `render` (posed frame after frame
+// up to N) give the kernels the same sun, to the bit.
+TEST(MovingLights, AFloorLitByTheTurningSunFollowsTheCosineOfItsZenithAngle) {
+  const TempDir dir;
+  // Zenith at 0 s, 60 degrees from it at 1 s, 80 degrees at 2 s (the clip's end: it loops).
+  const std::string gltf = turning_sun_file(dir, {about_x(-90), about_x(-30), about_x(-10)}, glm::dquat(1, 0, 0, 0));
+  const std::string file = dir.write("lit.json", R"({"mesh": "turning_sun.gltf", "sky": {"enabled": false}})").string();
+  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
+  LoadedScene a = load_and_build(file, /*quiet=*/true);
+  ASSERT_FALSE(a.scene.sky.enabled);
+  DeviceScene da(set, a.scene, a.bvh);
+  SceneAnimator animator(a.scene, "all");
+  ASSERT_TRUE(animator.sun_moves());
+  PathTracer tracer(set, da, a.scene);
+  PathTracer::Options opt;
+  opt.spp = 4;
+  opt.bounces = 2;
+  const FrameClock clock{4.0f};  // frames 0, 4, 6 at 0, 1, 1.5 s: 70 degrees from the zenith
+  std::vector<double> means, cosines;
+  FrameParams at_frame_6{};
+  for (unsigned f = 0; f <= 6; ++f) {
+    const SceneAnimator::Update u = animator.update(clock.time_s(f), set, da);
+    EXPECT_EQ(u.bytes, 0u) << "only the sun moves: no geometry is written";
+    if (f != 0 && f != 4 && f != 6) continue;
+    means.push_back(mean_of(tracer.render_stereo(clock.camera_time_s(f), f, 32, 24, opt)));
+    cosines.push_back(a.scene.sun.direction.y);
+    if (f == 6) at_frame_6 = PathTracer::frame_params(a.scene, da.light_count(), opt, 0, 0, 24, f);
+  }
+  EXPECT_NEAR(cosines[1], 0.5, 1e-5);
+  EXPECT_NEAR(cosines[2], std::cos(glm::radians(70.0)), 1e-5);
+  for (std::size_t i = 1; i < means.size(); ++i) {
+    const double ratio = means[i] / means[0], expected = cosines[i] / cosines[0];
+    std::printf("sun %zu: floor %.4f, ratio to the zenith sun's %.4f (cosines %.4f)\n", i, means[i], ratio, expected);
+    EXPECT_NEAR(ratio, expected, 0.03 * expected) << "sun " << i;
+  }
+  // `reference --frame 6`: a fresh load, posed once at frame 6's time.
+  LoadedScene b = load_and_build(file, true);
+  DeviceScene db(set, b.scene, b.bvh);
+  SceneAnimator once(b.scene, "all");
+  once.update(clock.time_s(6), set, db);
+  const FrameParams ref = PathTracer::frame_params(b.scene, db.light_count(), opt, 0, 0, 24, 6);
+  EXPECT_EQ(std::memcmp(ref.sun_dir, at_frame_6.sun_dir, sizeof ref.sun_dir), 0);
+  EXPECT_EQ(std::memcmp(ref.sun_radiance, at_frame_6.sun_radiance, sizeof ref.sun_radiance), 0);
+  EXPECT_EQ(ref.p_sun, at_frame_6.p_sun);
+  // And the image at rest (the sun at the zenith) is not frame 6's: the check can fail.
+  EXPECT_LT(means[2], 0.5 * means[0]);
 }
 
 }  // namespace

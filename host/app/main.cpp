@@ -66,7 +66,10 @@ const char* kSceneHelp =
 
 const char* kAnimationHelp =
     "which of a glTF scene's animation clips play: all, none (the rest pose), a clip's name "
-    "or its index; frame f is at time f / fps, and each clip loops over its own length";
+    "or its index; frame f is at time f / fps, and each clip loops over its own length. What can move: "
+    "the nodes the clips drive (meshes, emissive ones included: moving lights; skins; the camera; "
+    "the directional light that is the sun), and, whatever --animation says, a scene file's "
+    "camera_path and sun keys (scenes/README.md)";
 
 // --scene, --sky, --instancing, --kernels and --animation: what every rendering command reads
 // its scene with.

@@ -5,6 +5,7 @@
 #include "bvh/bvh_validator.h"
 #include "bvh/wide_bvh.h"
 #include "scene/scene_rig.h"
+#include "scene/sun_path.h"
 
 #include <algorithm>
 #include <chrono>
@@ -21,52 +22,88 @@ double ms_since(clock_type::time_point t0) {
 
 }  // namespace
 
-SceneAnimator::SceneAnimator(Scene& scene, const std::string& choice) : scene_(scene), base_camera_(scene.camera) {
+SceneAnimator::SceneAnimator(Scene& scene, const std::string& choice)
+    : scene_(scene), base_camera_(scene.camera), base_sun_(scene.sun) {
+  // A scene file's sun keys play whatever --animation says, as its camera path does.
+  if (scene.sun.enabled) sun_keys_ = scene.sun_path;
   if (!scene.rig) {
     if (!choice.empty() && choice != "all" && choice != "none")
       throw std::invalid_argument("--animation " + choice + ": the scene " + scene.name + " has no animations");
+    moves_ = !sun_keys_.empty();
     return;
   }
-  clips_ = select_clips(scene.rig->clips, choice);
-  moves_ = rig_moves(*scene.rig, clips_);
+  const SceneRig& rig = *scene.rig;
+  clips_ = select_clips(rig.clips, choice);
+  moves_ = rig_moves(rig, clips_) || !sun_keys_.empty();
   // The glTF camera follows its node unless a scene file placed the camera itself.
-  if (scene.rig->camera_node >= 0 && scene.camera_path.empty()) {
-    const Camera rest = rig_camera(*scene.rig, rig_world_matrices(*scene.rig, 0.0, {}), scene.camera);
+  if (rig.camera_node >= 0 && scene.camera_path.empty()) {
+    const Camera rest = rig_camera(rig, rig_world_matrices(rig, 0.0, {}), scene.camera);
     follow_camera_ = rest.position == scene.camera.position && rest.target == scene.camera.target;
+  }
+  const std::vector<char> moving = moving_nodes(rig, clips_);
+  const auto moved = [&](int node) {
+    return node >= 0 && static_cast<std::size_t>(node) < moving.size() && moving[static_cast<std::size_t>(node)];
+  };
+  // The glTF sun follows its node unless a scene file gave the sun keys or its own direction.
+  if (moved(rig.sun_node) && sun_keys_.empty() && scene.sun.enabled) {
+    glm::vec3 rest;
+    sun_follows_node_ = sun_from_node(rig_world_matrices(rig, 0.0, {})[static_cast<std::size_t>(rig.sun_node)], rest) &&
+                        rest == scene.sun.direction;
+  }
+  // Only what the devices' geometry holds needs it rewritten: a clip that moves nothing but the
+  // sun (and nodes that carry nothing) leaves the triangles as loaded. A moving camera keeps
+  // the rewrite it always had (its frames' motion buffers).
+  geometry_moves_ = moved(rig.camera_node);
+  for (const RigMeshInstance& inst : rig.instances) {
+    geometry_moves_ |= moved(inst.node);
+    if (inst.skin >= 0 && static_cast<std::size_t>(inst.skin) < rig.skins.size())
+      for (int j : rig.skins[static_cast<std::size_t>(inst.skin)].joints) geometry_moves_ |= moved(j);
   }
 }
 
 std::string SceneAnimator::describe() const {
-  if (!scene_.rig) return "none (static scene)";
-  if (clips_.empty()) return "none (the rest pose)";
-  std::string out;
+  std::string sun;
+  if (!sun_keys_.empty()) {
+    char keys[96];
+    std::snprintf(keys, sizeof keys, "the sun's %zu keys (%.2f s, then held)", sun_keys_.size(),
+                  double(sun_keys_.back().time));
+    sun = keys;
+  }
+  if (!scene_.rig || clips_.empty()) {
+    if (!sun.empty()) return sun;
+    return scene_.rig ? "none (the rest pose)" : "none (static scene)";
+  }
+  std::string out = sun;
   for (int c : clips_) {
     const AnimationClip& clip = scene_.rig->clips[static_cast<std::size_t>(c)];
     char len[32];
     std::snprintf(len, sizeof len, " (%.2f s)", clip.duration);
     out += (out.empty() ? "'" : ", '") + clip.name + "'" + len;
   }
-  return out + ", looping";
+  return out + ", looping" + (sun_follows_node_ ? " (turning the sun)" : "");
 }
 
 void SceneAnimator::pose(double time_s) {
   if (!moves_) return;
+  if (!sun_keys_.empty()) scene_.sun = moving_sun(base_sun_, sun_path_direction(sun_keys_, time_s));
+  if (!scene_.rig || !(geometry_moves_ || follow_camera_ || sun_follows_node_)) return;
+  const std::vector<glm::dmat4> world = rig_world_matrices(*scene_.rig, time_s, clips_);
+  glm::vec3 towards;
+  if (sun_follows_node_ && sun_from_node(world[static_cast<std::size_t>(scene_.rig->sun_node)], towards))
+    scene_.sun = moving_sun(base_sun_, towards);
+  if (follow_camera_) scene_.camera = rig_camera(*scene_.rig, world, base_camera_);
+  if (!geometry_moves_) return;
   if (scene_.instancing.empty()) {
-    pose_rig(*scene_.rig, time_s, clips_, scene_.triangles);
-  } else {
-    // The world's triangles come first in scene.triangles; the instances' meshes after them
-    // never change (their matrices move them).
-    const std::vector<glm::dmat4> world = rig_world_matrices(*scene_.rig, time_s, clips_);
-    pose_rig(*scene_.rig, world, world_);
-    if (world_.size() != scene_.instancing.world_triangles)
-      throw std::logic_error("SceneAnimator: the posed world has another triangle count");
-    std::copy(world_.begin(), world_.end(), scene_.triangles.begin());
-    rig_instance_matrices(*scene_.rig, world, scene_.instancing);
-    if (follow_camera_) scene_.camera = rig_camera(*scene_.rig, world, base_camera_);
+    pose_rig(*scene_.rig, world, scene_.triangles);
     return;
   }
-  if (follow_camera_)
-    scene_.camera = rig_camera(*scene_.rig, rig_world_matrices(*scene_.rig, time_s, clips_), base_camera_);
+  // The world's triangles come first in scene.triangles; the instances' meshes after them never
+  // change (their matrices move them).
+  pose_rig(*scene_.rig, world, world_);
+  if (world_.size() != scene_.instancing.world_triangles)
+    throw std::logic_error("SceneAnimator: the posed world has another triangle count");
+  std::copy(world_.begin(), world_.end(), scene_.triangles.begin());
+  rig_instance_matrices(*scene_.rig, world, scene_.instancing);
 }
 
 SceneAnimator::Update SceneAnimator::update(double time_s, DeviceSet& devices, DeviceScene& device_scene) {
@@ -75,6 +112,7 @@ SceneAnimator::Update SceneAnimator::update(double time_s, DeviceSet& devices, D
   auto t0 = clock_type::now();
   pose(time_s);
   u.pose_ms = ms_since(t0);
+  if (!geometry_moves_) return u;  // the sun alone: the next launch's FrameParams carry it
   t0 = clock_type::now();
   // The world tree covers the world's own triangles: all of them, or those before the
   // instances' meshes (none: no world tree; the instances' top level is built with the upload).

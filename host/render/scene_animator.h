@@ -1,5 +1,8 @@
 // Brings an animated scene (Scene::rig) to a frame's time: poses its triangles (and a glTF
 // camera on an animated node), rebuilds the BVH over them and rewrites the devices' geometry.
+// The sun moves on the same clock: a scene file's sun keys (Scene::sun_path) or a glTF
+// directional light on a node a clip turns (sun_path.h); a frame whose only change is the sun
+// rewrites no geometry (the kernels read the sun from each launch's FrameParams).
 // One clock: the caller passes frame f's time f / fps, the same in `render`, `reference`,
 // `view` and on every MPI rank, so every rank and device poses the same triangles bit for bit.
 //
@@ -28,14 +31,17 @@ class SceneAnimator {
   // std::invalid_argument naming the scene's clips when there is no such clip.
   SceneAnimator(Scene& scene, const std::string& choice);
 
-  // Whether the selected clips move anything: when not, update() does nothing and the scene
-  // stays as loaded (its rest pose).
+  // Whether the selected clips move anything or the scene's sun has keys: when not, update()
+  // does nothing and the scene stays as loaded (its rest pose).
   bool moves() const { return moves_; }
+  // Whether the sun moves (keys, or a clip turning the glTF light's node).
+  bool sun_moves() const { return !sun_keys_.empty() || sun_follows_node_; }
   // Names of the clips that play, for the console.
   std::string describe() const;
 
-  // Poses scene.triangles (and the camera, where it is an animated glTF camera) at `time_s`,
-  // on the host only: the reference renderer and the preview, which build their BVH after.
+  // Poses scene.triangles (and the camera, where it is an animated glTF camera, and the sun,
+  // where it moves) at `time_s`, on the host only: the reference renderer and the preview,
+  // which build their BVH after.
   void pose(double time_s);
 
   struct Update {
@@ -54,8 +60,12 @@ class SceneAnimator {
   Scene& scene_;
   std::vector<int> clips_;
   bool moves_ = false;
-  bool follow_camera_ = false;  // the scene's camera is the rig's glTF camera
+  bool geometry_moves_ = false;    // a clip moves a mesh, a skin's joint or the camera (not only the sun)
+  bool follow_camera_ = false;     // the scene's camera is the rig's glTF camera
+  bool sun_follows_node_ = false;  // the scene's sun is the rig's glTF light, on a node a clip moves
+  std::vector<SunKey> sun_keys_;   // the scene file's sun keys (they win over a glTF light)
   Camera base_camera_;
+  Sun base_sun_;  // as loaded: its radiance, which a moving sun fades at the horizon
   std::vector<SceneTriangle> previous_;
   std::vector<glm::mat4> previous_matrices_;  // the instances' last frame (Scene::instancing)
   std::vector<SceneTriangle> world_;          // with instances: the world's triangles posed

@@ -109,8 +109,9 @@ class Converter {
   // KHR_lights_punctual. The renderer's lights are emissive triangles, one sun and a sky: the
   // first directional light becomes the sun (its illuminance, lux, spread over the sun disk's
   // solid angle as radiance); point and spot lights have no counterpart and are named in the
-  // warning line. The light's rest pose is used (an animated light does not move).
-  void light(int index, const glm::dmat4& world, const std::string& where);
+  // warning line. The sun is placed at the node's rest pose; in a scene that moves, a clip that
+  // turns the node turns it (SceneRig::sun_node, SceneAnimator).
+  void light(int index, const glm::dmat4& world, const std::string& where, int node);
 
   std::uint32_t default_material();
   void mesh(int index, const glm::dmat4& world, const std::string& where, int node, int skin);

@@ -3,6 +3,7 @@
 #include "scene/gltf_converter.h"
 
 #include "scene/primitives.h"
+#include "scene/sun_path.h"
 
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtc/type_ptr.hpp>
@@ -123,7 +124,7 @@ void Converter::visit(int index, const glm::dmat4& parent, int parent_index, con
   if (n.mesh >= 0) mesh(n.mesh, world, where, index, n.skin);
   for (const auto& [ext, value] : n.extensions) {
     if (ext == "KHR_lights_punctual" && value.IsObject() && value.Has("light") && value.Get("light").IsInt())
-      light(value.Get("light").GetNumberAsInt(), world, where);
+      light(value.Get("light").GetNumberAsInt(), world, where, index);
     else
       unsupported_.add("node extension " + ext, where);
   }
@@ -155,7 +156,7 @@ void Converter::camera(int index, const glm::dmat4& world, const std::string& wh
   if (rig_) rig_->camera_node = node;
 }
 
-void Converter::light(int index, const glm::dmat4& world, const std::string& where) {
+void Converter::light(int index, const glm::dmat4& world, const std::string& where, int node) {
   if (index < 0 || std::size_t(index) >= model_.lights.size())
     read_.fail(where + " names light " + std::to_string(index) + ", which does not exist");
   const tinygltf::Light& l = model_.lights[std::size_t(index)];
@@ -167,9 +168,8 @@ void Converter::light(int index, const glm::dmat4& world, const std::string& whe
     unsupported_.add("directional lights after the first (KHR_lights_punctual)", where);
     return;
   }
-  const glm::dvec3 travel(world * glm::dvec4(0.0, 0.0, -1.0, 0.0));
-  const double len = glm::length(travel);
-  if (!(len > 0.0) || !std::isfinite(len)) {
+  glm::vec3 towards;
+  if (!sun_from_node(world, towards)) {
     scene_.stats.warnings.push_back(path_ + ": " + where + ": directional light with a degenerate direction; ignored");
     return;
   }
@@ -179,9 +179,11 @@ void Converter::light(int index, const glm::dmat4& world, const std::string& whe
   const float lux = std::isfinite(l.intensity) && l.intensity > 0.0 ? float(std::min(l.intensity, 1e9)) : 0.0f;
   Sun& sun = scene_.sun;
   sun.enabled = lux > 0.0f;
-  sun.direction = glm::vec3(-travel / len);  // towards the light
+  sun.direction = towards;
   const double cos_max = std::cos(glm::radians(double(sun.angular_radius_deg)));
   sun.radiance = colour * float(lux / (2.0 * std::numbers::pi * (1.0 - cos_max)));
+  // A clip that turns the node (or an ancestor) turns the sun (SceneAnimator).
+  if (rig_ && sun.enabled) rig_->sun_node = node;
 }
 
 std::uint32_t Converter::default_material() {

@@ -88,6 +88,14 @@ struct Sun {
   float angular_radius_deg = 0.27f;
 };
 
+// One keyframe of a scene file's moving sun (its "sun": {"keys": [...]}); the direction is
+// evaluated by time in seconds on the animation's clock (sun_path.h: along the great circle
+// between keys; before the first / after the last key it holds).
+struct SunKey {
+  float time = 0.0f;
+  glm::vec3 direction{0.0f, 1.0f, 0.0f};  // unit vector towards the sun
+};
+
 // Simple analytic sky: radiance blends from horizon to zenith by the direction's elevation;
 // below the horizon it is `ground`.
 struct Sky {
@@ -138,6 +146,7 @@ struct Scene {
   float meters_per_unit = 1.0f;        // scene units -> metres
   float ipd_m = 0.062f;                // interpupillary distance in metres
   Sun sun;
+  std::vector<SunKey> sun_path;  // empty = the sun stays where `sun` puts it (or a glTF clip turns it)
   Sky sky;
   SceneStats stats;
   // How the scene moves (a glTF file with animations; scene_rig.h), or null for a static scene.

@@ -5,6 +5,7 @@
 #include "scene/instancing.h"
 #include "scene/scene_rig.h"
 #include "scene/scene_loader.h"
+#include "scene/sun_path.h"
 
 #include <algorithm>
 #include <cctype>
@@ -387,8 +388,34 @@ Scene load_scene_file(const std::string& path, const SceneLoadOptions& options) 
   if (doc.contains("sun")) {
     const json& sun = doc["sun"];
     r.require_object(sun, "sun");
-    r.check_keys(sun, "sun.", {"enabled", "direction", "radiance", "angular_radius_deg"});
+    r.check_keys(sun, "sun.", {"enabled", "direction", "keys", "radiance", "angular_radius_deg"});
     scene.sun.enabled = sun.contains("enabled") ? r.boolean(sun["enabled"], "sun.enabled") : true;
+    if (sun.contains("keys") && sun.contains("direction"))
+      r.fail("sun.direction", "not allowed together with sun.keys (each key gives the direction at its time)");
+    if (sun.contains("keys")) {
+      // A sun that moves, keyed like the camera path (sun_path.h evaluates it, SceneAnimator
+      // poses it every frame); until then the first key's direction.
+      const json& keys_json = sun["keys"];
+      if (!keys_json.is_array()) r.fail("sun.keys", std::string("must be an array, got ") + keys_json.type_name());
+      std::vector<SunKey> keys;
+      for (std::size_t i = 0; i < keys_json.size(); ++i) {
+        const std::string key = "sun.keys[" + std::to_string(i) + "]";
+        const json& k = keys_json[i];
+        r.require_object(k, key);
+        r.check_keys(k, key + ".", {"time", "direction"});
+        for (const char* required : {"time", "direction"})
+          if (!k.contains(required)) r.fail(key + "." + required, "missing");
+        SunKey sk;
+        sk.time = r.number(k["time"], key + ".time");
+        sk.direction = r.vec3(k["direction"], key + ".direction");
+        keys.push_back(sk);
+      }
+      std::string bad_key, what;
+      if (!check_sun_keys(keys, "sun.keys", bad_key, what)) r.fail(bad_key, what);
+      for (SunKey& k : keys) k.direction = glm::normalize(k.direction);
+      scene.sun.direction = keys.front().direction;
+      scene.sun_path = std::move(keys);
+    }
     if (sun.contains("direction")) {
       const glm::vec3 d = r.vec3(sun["direction"], "sun.direction");
       const float len = glm::length(d);

@@ -73,6 +73,7 @@ struct SceneRig {
   std::vector<RigSkin> skins;
   std::vector<AnimationClip> clips;
   int camera_node = -1;  // the node of the scene's camera (-1: not a glTF camera)
+  int sun_node = -1;     // the node of the directional light that is the scene's sun (-1: none)
   std::size_t triangle_count = 0;
 };
 
