@@ -41,8 +41,8 @@ std::string panel_room_file(const TempDir& dir) {
                                                   {"indices", g.uint16s({0, 1, 2, 0, 2, 3}, "SCALAR", 6)},
                                                   {"material", material}}})}});
   };
-  quad({-4, 0, 9, 4, 0, 9, 4, 0, -4, -4, 0, -4}, 0);      // mesh 0: floor, facing up
-  quad({-4, 0, -4, 4, 0, -4, 4, 4, -4, -4, 4, -4}, 0);    // mesh 1: back wall, facing +z
+  quad({-4, 0, 9, 4, 0, 9, 4, 0, -4, -4, 0, -4}, 0);                          // mesh 0: floor, facing up
+  quad({-4, 0, -4, 4, 0, -4, 4, 4, -4, -4, 4, -4}, 0);                        // mesh 1: back wall, facing +z
   quad({-0.5f, 0, -0.5f, 0.5f, 0, -0.5f, 0.5f, 0, 0.5f, -0.5f, 0, 0.5f}, 2);  // mesh 2: panel, facing down
   // mesh 3: a unit box, 12 triangles
   std::vector<float> p;
@@ -51,12 +51,12 @@ std::string panel_room_file(const TempDir& dir) {
     p.push_back((i & 2) ? 1.0f : 0.0f);
     p.push_back((i & 4) ? 0.5f : -0.5f);
   }
-  g.add("meshes", {{"primitives", json::array({{{"attributes", {{"POSITION", g.floats(p, "VEC3", 8)}}},
-                                                {"indices", g.uint16s({0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4,
-                                                                       1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6,
-                                                                       1, 3, 5, 3, 7, 5},
-                                                                      "SCALAR", 36)},
-                                                {"material", 1}}})}});
+  g.add("meshes",
+        {{"primitives", json::array({{{"attributes", {{"POSITION", g.floats(p, "VEC3", 8)}}},
+                                      {"indices", g.uint16s({0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4,
+                                                             2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5},
+                                                            "SCALAR", 36)},
+                                      {"material", 1}}})}});
   const int times = g.floats({0.0f, 2.0f}, "SCALAR", 2);
   const int slide = g.floats({-4, 3.5f, 0, 4, 3.5f, 0}, "VEC3", 2);
   g.add("cameras", {{"type", "perspective"}, {"perspective", {{"yfov", 0.9}, {"znear", 0.1}}}});
@@ -81,8 +81,7 @@ struct Renders {
 // bounces, denoised, with or without temporal gradients, on `devices` devices. `each` (optional)
 // is called with the pipeline after every frame.
 Renders render_run(const std::string& file, const std::string& animation, unsigned w, unsigned h, unsigned frames,
-                   bool gradients, int devices,
-                   const std::function<void(StereoPipeline&, unsigned)>& each = nullptr) {
+                   bool gradients, int devices, const std::function<void(StereoPipeline&, unsigned)>& each = nullptr) {
   DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, "", std::nullopt});
   LoadedScene loaded = load_and_build(file, true);
   DeviceScene ds(set, loaded.scene, loaded.bvh);
@@ -123,7 +122,7 @@ bool same_bits(const ImageRGB& a, const ImageRGB& b) {
 // The case at a test's size: a light sliding over a still room, 1 spp. Without gradients
 // the denoiser's history keeps the light where it was (the pool of light and the box's shadow
 // trail it): the last frame's error is tens of times the still run's. With them it must stay
-// within the bound, both eyes. The figures at the size: docs/measurements.md, temporal
+// within the bound, both eyes. The figures at the size: docs/measurements.md, Temporal
 // gradients.
 TEST(TemporalGradients, ALightThatMovesIsFollowed) {
   const TempDir dir;
@@ -203,8 +202,8 @@ TEST(TemporalGradients, TheFilterIsTheHostsFilter) {
       auto weight = [&](const GBufferTexel& c, const GBufferTexel& t) {
         const bool cm = c.material_class == PX_CLASS_MISS, tm = t.material_class == PX_CLASS_MISS;
         if (cm || tm) return cm && tm ? 1.0 : 0.0;
-        const double cosine = std::max(
-            0.0, double(c.normal[0]) * t.normal[0] + double(c.normal[1]) * t.normal[1] + double(c.normal[2]) * t.normal[2]);
+        const double cosine = std::max(0.0, double(c.normal[0]) * t.normal[0] + double(c.normal[1]) * t.normal[1] +
+                                                double(c.normal[2]) * t.normal[2]);
         const double dz = std::abs(double(c.depth) - t.depth) / (0.1 * std::max(std::min(c.depth, t.depth), 1e-6f));
         return dz < 1.0 ? std::pow(cosine, 32.0) * (1.0 - dz) : 0.0;
       };
@@ -234,7 +233,8 @@ TEST(TemporalGradients, TheFilterIsTheHostsFilter) {
       for (std::size_t i = 0; i < raw.size(); ++i) {
         changed += raw[i].s[3];
         for (int c = 0; c < 4; ++c)
-          EXPECT_NEAR(got[i].s[c], cur[i][c], 1e-4 * (1.0 + std::abs(cur[i][c]))) << "stratum " << i << " channel " << c;
+          EXPECT_NEAR(got[i].s[c], cur[i][c], 1e-4 * (1.0 + std::abs(cur[i][c])))
+              << "stratum " << i << " channel " << c;
       }
       EXPECT_GT(changed, 0.0) << "eye " << e << ": the light moved, some strata saw it";
       ++checked;

@@ -66,7 +66,7 @@
  * where both sums are at least PX_GRADIENT_MIN_SHADE of the larger shades' and the ratio lies
  * within [PX_GRADIENT_MIN_RATIO, 1 / PX_GRADIENT_MIN_RATIO]. The anti-aliasing, whose history is
  * twice as long (alpha 0.1 against 0.2), drops PX_GRADIENT_TAA_GAIN x lambda of it. The values
- * were chosen on the moving-panel scene (docs/measurements.md, temporal gradients). */
+ * were chosen on the moving-panel scene (docs/measurements.md, Temporal gradients). */
 /* The re-shaded paths' bounces at most (the image's own at most): the change of the light a surface
  * sees shows in its first bounces, at a fraction of a full path's cost. */
 #define PX_GRADIENT_MAX_BOUNCES 1
