@@ -8,6 +8,7 @@
 #include "pipeline/stereo_pipeline.h"
 #include "pipeline/strip_schedule.h"
 #include "render/path_tracer.h"
+#include "render/reference_render.h"
 #include "scene/scene_loader.h"
 
 #include <string>
@@ -27,13 +28,13 @@ struct DeviceChoice {
 struct SceneChoice {
   // A JSON scene file (scenes/*.json), an OBJ, glTF or binary glTF file, or a built-in name.
   std::string name = "cornell";
-  SkyMode sky = SkyMode::kAuto;  // light for scenes without any (see load_scene)
-  // glTF scenes: a mesh that several nodes draw becomes instances of one copy (off: flat copies).
-  bool instancing = true;
+  // --sky (light for scenes without any) and --instancing (glTF: a mesh that several nodes draw
+  // becomes instances of one copy; off: flat copies), with the loaders' defaults.
+  SceneLoadOptions load;
   KernelChoice kernels = KernelChoice::Scene;  // the scene's features or all
   std::string animation = "all";               // which glTF clips play (all, none, a name or index)
 
-  SceneLoadOptions load_options() const { return {sky, instancing}; }
+  const SceneLoadOptions& load_options() const { return load; }
 };
 
 // Pixels of each eye (--width, --height).
@@ -112,8 +113,8 @@ struct ViewCommand {
 struct ReferenceCommand {
   SceneChoice scene;
   ImageSize size;
-  unsigned spp = 4096;
-  unsigned pass_spp = 16;  // samples per progressive pass
+  unsigned spp = ReferenceOptions{}.spp;
+  unsigned pass_spp = 16;  // samples per progressive pass (smaller than ReferenceOptions' for progress output)
   unsigned frame = 0;
   FrameClock clock;  // the animation the reference belongs to
   unsigned bounces = PathTracer::Options{}.bounces;

@@ -75,17 +75,17 @@ const char* kAnimationHelp =
 // its scene with.
 void add_scene_flags(CLI::App* cmd, px::SceneChoice& s) {
   cmd->add_option("--scene", s.name, kSceneHelp)->capture_default_str();
-  add_word_option(cmd, "--sky", s.sky, px::sky_words(),
+  add_word_option(cmd, "--sky", s.load.sky, px::sky_words(),
                   "default sky environment: auto (only for a scene without any light: no emitter, sun or sky), "
                   "on (also beside the scene's own lights, unless it has a sky), off (never; an unlit scene "
                   "renders black)");
   // CLI11 reads on/off as a bool; the check keeps the flag to those two words.
-  cmd->add_option("--instancing", s.instancing,
+  cmd->add_option("--instancing", s.load.instancing,
                   "glTF scenes: on (a mesh that several nodes draw becomes instances of one copy) or off (flat "
                   "copies, one per node)")
       ->type_name("TEXT")
       ->check(CLI::IsMember({"on", "off"}))
-      ->default_str(s.instancing ? "on" : "off");
+      ->default_str(s.load.instancing ? "on" : "off");
   add_word_option(cmd, "--kernels", s.kernels, px::kernel_words(),
                   "which features the scene-dependent kernels (path tracers, G-buffer, trace, preview) are compiled "
                   "with: scene (only those the loaded scene uses: no texture, cut-out, glass, normal-map, sun or sky "

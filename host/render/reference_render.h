@@ -12,8 +12,8 @@ namespace px {
 struct ReferenceOptions {
   unsigned spp = 4096;
   unsigned pass_spp = 64;
-  unsigned bounces = 6;
-  std::uint32_t seed = 0x5eed;  // differs from the default render seed: independent samples
+  unsigned bounces = PathTracer::Options{}.bounces;  // the renderer's default path length
+  std::uint32_t seed = 0x5eed;                       // differs from the default render seed: independent samples
   // Polled after each pass: true stops early (Ctrl-C), and the images average the passes done.
   std::function<bool()> stop;
 };
