@@ -9,29 +9,9 @@
 #include "pipeline/gbuffer_texel.h"
 #include "trace/traverse.h"
 
-/* Radiance along one camera path, its vertices in a loop (path_vertex.h); *primary_albedo
- * receives PathVertex::primary_albedo. If `gbuffer_texel` is not null, the camera ray's texel
- * (gbuffer_texel.h) goes there. If `gbuffer_hit` is not null, it is the camera ray's hit, already
- * traced (by the G-buffer pass, for the same ray). */
-inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir, SampleKey key,
-                            float4* primary_albedo, global GBufferTexel* gbuffer_texel, const global Hit* gbuffer_hit) {
-  PathVertex v = px_camera_path(org, dir);
-  for (uint bounce = 0; bounce <= fp->max_bounces; ++bounce) {
-    const Hit hit =
-        bounce == 0u && gbuffer_hit ? *gbuffer_hit : px_trace_closest_leaf(scene, v.org, v.dir, 0.0f, INFINITY);
-    if (bounce == 0u && gbuffer_texel) *gbuffer_texel = px_gbuffer_texel(scene, v.dir, hit);
-    ShadowRay shadow;
-    const int goes_on = px_path_vertex(scene, fp, key, bounce, hit, &v, &shadow);
-    if (shadow.valid && !px_trace_any(scene, shadow.org, shadow.dir, 0.0f, shadow.tmax))
-      v.radiance += shadow.contribution;
-    if (!goes_on) break;
-  }
-  *primary_albedo = v.primary_albedo;
-  return v.radiance;
-}
-
-/* px_trace_path for a camera ray whose first hit is known already (`first`, traced by the
- * caller): the same path, one closest-hit trace fewer. */
+/* Radiance along one camera path whose first hit is `first` (already traced by the caller), its
+ * vertices in a loop (path_vertex.h); *primary_albedo receives PathVertex::primary_albedo. The
+ * temporal gradients' re-shading calls it directly with the hit it checked. */
 inline float3 px_trace_path_from_hit(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir,
                                      SampleKey key, Hit first, float4* primary_albedo) {
   PathVertex v = px_camera_path(org, dir);
@@ -45,6 +25,16 @@ inline float3 px_trace_path_from_hit(const SceneView* scene, const FrameParams* 
   }
   *primary_albedo = v.primary_albedo;
   return v.radiance;
+}
+
+/* Radiance along one camera path (px_trace_path_from_hit). If `gbuffer_texel` is not null, the
+ * camera ray's texel (gbuffer_texel.h) goes there. If `gbuffer_hit` is not null, it is the camera
+ * ray's hit, already traced (by the G-buffer pass, for the same ray). */
+inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir, SampleKey key,
+                            float4* primary_albedo, global GBufferTexel* gbuffer_texel, const global Hit* gbuffer_hit) {
+  const Hit first = gbuffer_hit ? *gbuffer_hit : px_trace_closest_leaf(scene, org, dir, 0.0f, INFINITY);
+  if (gbuffer_texel) *gbuffer_texel = px_gbuffer_texel(scene, dir, first);
+  return px_trace_path_from_hit(scene, fp, org, dir, key, first, primary_albedo);
 }
 
 #endif
