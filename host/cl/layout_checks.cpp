@@ -77,6 +77,10 @@ static_assert(offsetof(FrameParams, p_sun) == 28 && offsetof(FrameParams, light_
 static_assert(offsetof(FrameParams, frame) == 80 && offsetof(FrameParams, rr_start_bounce) == 104);
 static_assert(offsetof(FrameParams, row0) == 108 && offsetof(FrameParams, rows) == 112);
 static_assert(offsetof(FrameParams, sample_offset) == 116 && offsetof(FrameParams, first_sample_on_gbuffer_ray) == 120);
+static_assert(offsetof(FrameParams, direct_light) == 124);
+static_assert(sizeof(RestirParams) == 64);
+static_assert(offsetof(RestirParams, candidates) == 24 && offsetof(RestirParams, max_history) == 40);
+static_assert(offsetof(RestirParams, tag) == 44 && offsetof(RestirParams, temporal_rows) == 52);
 static_assert(offsetof(GBufferTexel, depth) == 12 && offsetof(GBufferTexel, material_class) == 28);
 static_assert(offsetof(GBufferTexel, prim) == 32 && offsetof(GBufferTexel, inst) == 36 && sizeof(GBufferTexel) == 40);
 static_assert(sizeof(SvgfParams) == 64);

@@ -15,6 +15,7 @@
 namespace px {
 
 enum class LightSampling : std::uint32_t { Mis = PX_LIGHTS_MIS, Nee = PX_LIGHTS_NEE, Bsdf = PX_LIGHTS_BSDF };
+enum class DirectLight : std::uint32_t { Power = PX_DIRECT_POWER, Tree = PX_DIRECT_TREE, Restir = PX_DIRECT_RESTIR };
 
 class PathTracer {
  public:
@@ -25,6 +26,7 @@ class PathTracer {
     unsigned bounces = 6;
     unsigned rr_start_bounce = 3;  // Russian roulette from this bounce on
     LightSampling light_sampling = LightSampling::Mis;
+    DirectLight direct_light = DirectLight::Power;
     std::uint32_t seed = 0;
     // A frame's sample 0 of every pixel goes through the camera's jitter point of the frame
     // (CameraParams::jitter, px_sample_camera_dir): the G-buffer's ray, so the path tracer can write the G-buffer

@@ -25,8 +25,8 @@ inline float3 px_render_sample(const SceneView* scene, const FrameParams* fp, co
   const SampleKey key = px_sample_key(x, y, fp->frame, fp->eye, fp->sample_offset + s, fp->seed);
   const float3 dir = px_sample_camera_dir(fp, cam, key, x, y, s);
   const int on_gbuffer_ray = px_sample_on_gbuffer_ray(fp, s);
-  return px_trace_path(scene, fp, px_camera_origin(cam), dir, key, albedo, on_gbuffer_ray ? gbuffer_texel : 0,
-                       on_gbuffer_ray ? gbuffer_hit : 0);
+  return px_trace_path(scene, fp, px_camera_origin(cam), dir, key, px_restir_lights_first_vertex(fp, s), albedo,
+                       on_gbuffer_ray ? gbuffer_texel : 0, on_gbuffer_ray ? gbuffer_hit : 0);
 }
 
 /* Mean radiance of pixel (x, y): fp->spp paths; a path with non-finite radiance is dropped

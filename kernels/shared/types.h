@@ -507,7 +507,8 @@ typedef struct LightTriangle {
  * 116..119 sample_offset (index of this launch's first sample: progressive passes)
  * 120..123 first_sample_on_gbuffer_ray (1: the frame's sample 0 is the G-buffer's ray, through the
  *          camera's jitter position CameraParams::jitter)
- * 124..127 padding */
+ * 124..127 direct_light (PX_DIRECT_*: how next-event estimation picks among emissive triangles, and
+ *          whether ReSTIR DI lights the first vertex of the frame's sample 0) */
 typedef struct FrameParams {
   float sun_dir[3];
   float sun_cos_max;
@@ -530,7 +531,7 @@ typedef struct FrameParams {
   uint rows;
   uint sample_offset;
   uint first_sample_on_gbuffer_ray;
-  uint pad;
+  uint direct_light;
 } FrameParams;
 
 /* Largest FrameParams::max_bounces the host accepts: two sample dimensions per bounce must
@@ -542,6 +543,13 @@ typedef struct FrameParams {
 #define PX_LIGHTS_MIS 0u
 #define PX_LIGHTS_NEE 1u
 #define PX_LIGHTS_BSDF 2u
+
+/* Direct-light strategies (FrameParams::direct_light): emissive triangles chosen by power (a CDF
+ * over the table), by the light tree, or by the light tree with ReSTIR DI at the first vertex of
+ * each pixel's G-buffer ray (whose next-event estimation the path tracer then leaves out). */
+#define PX_DIRECT_POWER 0u
+#define PX_DIRECT_TREE 1u
+#define PX_DIRECT_RESTIR 2u
 
 /* The wavefront path tracer (kernels/pathtrace/wavefront.cl) keeps every path of a launch (one
  * per (pixel, sample) pair, path i = slot * spp + sample) in global memory between its kernels.
@@ -662,6 +670,42 @@ typedef struct GradientParams {
   uint have_history;
   uint pad;
 } GradientParams;
+
+/* ReSTIR DI launch constants (restir/restir_di.cl), 64 bytes, passed by value to both passes.
+ *
+ *   0..3 width  4..7 height  8..11 row0  12..15 rows (rows a row launch covers; a list launch
+ *  ignores them)  16..19 lo_row  20..23 hi_row (rows whose reservoirs the pass may read: the
+ *  strip and the margin this device computed, or fetched last frame's)  24..27 candidates
+ *  28..31 neighbours  32..35 radius (spatial reuse, pixels)  36..39 temporal (0/1)
+ *  40..43 max_history (cap of a reused reservoir's confidence M, in units of candidates)
+ *  44..47 tag (this frame's reservoirs: frame + 1)  48..51 prev_tag (last frame's)
+ *  52..55 temporal_rows (largest vertical offset of last frame's pixel)  56..63 padding */
+typedef struct RestirParams {
+  uint width;
+  uint height;
+  uint row0;
+  uint rows;
+  uint lo_row;
+  uint hi_row;
+  uint candidates;
+  uint neighbours;
+  uint radius;
+  uint temporal;
+  float max_history;
+  uint tag;
+  uint prev_tag;
+  uint temporal_rows;
+  uint pad[2];
+} RestirParams;
+
+/* Bounds of ReSTIR DI's private arrays and loops (RestirParams::candidates, ::neighbours). */
+#define PX_RESTIR_MAX_CANDIDATES 64u
+#define PX_RESTIR_MAX_NEIGHBOURS 4u
+/* A reservoir is reused only between surfaces whose shading normals are within ~25 degrees and
+ * whose planes are within 5% of the viewing distance: reuse across an edge would be unbiased too
+ * (the weights see to that) but brings samples that mostly miss. */
+#define PX_RESTIR_MIN_NORMAL_COS 0.9f
+#define PX_RESTIR_MAX_PLANE_DISTANCE 0.05f
 
 #ifndef __OPENCL_C_VERSION__
 } /* namespace px */
