@@ -31,7 +31,7 @@ StereoPipeline::Options restir_options(DirectLight mode, bool denoise) {
 }
 
 FrameRun render_frames(const std::string& scene, const StereoPipeline::Options& opt, unsigned w, unsigned h,
-                  unsigned frames, int devices) {
+                       unsigned frames, int devices) {
   DeviceSet set = DeviceSet::create({devices, DeviceMode::Auto, "", std::nullopt});
   LoadedScene loaded = load_and_build(scene, true);
   DeviceScene ds(set, loaded.scene, loaded.bvh);
@@ -41,7 +41,8 @@ FrameRun render_frames(const std::string& scene, const StereoPipeline::Options& 
     p.render(f, 0.0f);
     const std::array<ImageRGB, 2> img = p.radiance();
     for (int e = 0; e < 2; ++e) {
-      if (f == 0) run.mean[e] = img[e];
+      if (f == 0)
+        run.mean[e] = img[e];
       else
         for (std::size_t i = 0; i < img[e].rgb.size(); ++i) run.mean[e].rgb[i] += img[e].rgb[i];
       run.last[e] = img[e];
@@ -78,7 +79,8 @@ bool same_bits(const ImageRGB& a, const ImageRGB& b) {
 TEST(Restir, StillFramesConvergeToTheReference) {
   const unsigned w = 48, h = 32;
   const auto ref = reference("cornell", w, h, 1024);
-  StereoPipeline::Options ro = restir_options(DirectLight::Restir, false), po = restir_options(DirectLight::Power, false);
+  StereoPipeline::Options ro = restir_options(DirectLight::Restir, false),
+                          po = restir_options(DirectLight::Power, false);
   ro.pipeline = po.pipeline = PipelineKind::Mono;
   const FrameRun restir = render_frames("cornell", ro, w, h, 64, 2);
   const FrameRun power = render_frames("cornell", po, w, h, 64, 2);
@@ -110,7 +112,8 @@ TEST(Restir, AnyDeviceCountAndPipelineGivesOneDevicesImages) {
     for (int devices : {2, 3, 4}) {
       const FrameRun many = render_frames("cornell", opt, w, h, 3, devices);
       for (int e = 0; e < 2; ++e)
-        EXPECT_TRUE(same_bits(many.last[e], one.last[e])) << devices << " devices, eye " << e << ", denoise " << denoise;
+        EXPECT_TRUE(same_bits(many.last[e], one.last[e]))
+            << devices << " devices, eye " << e << ", denoise " << denoise;
     }
     StereoPipeline::Options base = opt;
     base.pipeline = PipelineKind::Baseline;

@@ -102,8 +102,8 @@ kernel void restir_candidates(global float4* reservoirs, global uint4* hits, con
   const uint x = pixel % rp.width, y = pixel / rp.width;
   const SceneView scene = PX_SCENE_VIEW();
   const float3 eye = px_camera_origin(&cam);
-  const Hit hit = px_trace_closest_leaf(&scene, eye, px_camera_dir(&cam, x, y, cam.jitter[0], cam.jitter[1]), 0.0f,
-                                        INFINITY);
+  const Hit hit =
+      px_trace_closest_leaf(&scene, eye, px_camera_dir(&cam, x, y, cam.jitter[0], cam.jitter[1]), 0.0f, INFINITY);
   hits[pixel] = px_pack_hit(hit);
   ShadingPoint sps[2];
   sps[0] = px_shading_point(&scene, hit, eye);

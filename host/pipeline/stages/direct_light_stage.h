@@ -29,11 +29,11 @@ namespace px {
 class DirectLightStage : public StageUnit {
  public:
   struct Options {
-    unsigned candidates = 8;   // light samples resampled per pixel and frame
-    unsigned neighbours = 3;   // spatial reuse: reservoirs of this many neighbours (<= PX_RESTIR_MAX_NEIGHBOURS)
-    unsigned radius = 16;      // spatial reuse: neighbours within this many pixels
-    bool temporal = true;      // reuse last frame's reservoir at the surface's previous pixel
-    float max_history = 20.0f;  // a reused reservoir's confidence cap, in frames' worth of candidates
+    unsigned candidates = 8;      // light samples resampled per pixel and frame
+    unsigned neighbours = 3;      // spatial reuse: reservoirs of this many neighbours (<= PX_RESTIR_MAX_NEIGHBOURS)
+    unsigned radius = 16;         // spatial reuse: neighbours within this many pixels
+    bool temporal = true;         // reuse last frame's reservoir at the surface's previous pixel
+    float max_history = 20.0f;    // a reused reservoir's confidence cap, in frames' worth of candidates
     unsigned temporal_rows = 16;  // largest vertical offset of the previous pixel (as SVGF's)
   };
   // `tracer`: the path tracing unit whose frame parameters (lights, seed, frame) the passes share.
@@ -51,10 +51,10 @@ class DirectLightStage : public StageUnit {
   RestirParams params(RowRange rows, RowRange readable, unsigned frame) const;
 
   struct PerEye {
-    cl::Buffer reservoirs;                // this frame's, after temporal reuse (2 float4 a pixel)
-    std::array<cl::Buffer, 2> final;      // after spatial reuse: [parity] this frame's, the other last frame's
-    std::array<cl::Buffer, 2> hits;       // the pixels' G-buffer hits (uint4 a pixel), as `final`
-    StagingBuffer staging;                // rows leaving the device
+    cl::Buffer reservoirs;            // this frame's, after temporal reuse (2 float4 a pixel)
+    std::array<cl::Buffer, 2> final;  // after spatial reuse: [parity] this frame's, the other last frame's
+    std::array<cl::Buffer, 2> hits;   // the pixels' G-buffer hits (uint4 a pixel), as `final`
+    StagingBuffer staging;            // rows leaving the device
   };
   Options options_;
   const PathTraceStage& tracer_;
