@@ -33,10 +33,10 @@ namespace px {
 
 namespace {
 
-constexpr float kPitch = 4.0f;         // room size, wall centre to wall centre
-constexpr float kHeight = 3.0f;        // floor to ceiling
-constexpr float kWall = 0.2f;          // wall thickness
-constexpr float kDoorWidth = 1.2f;     // doorway between neighbouring rooms
+constexpr float kPitch = 4.0f;      // room size, wall centre to wall centre
+constexpr float kHeight = 3.0f;     // floor to ceiling
+constexpr float kWall = 0.2f;       // wall thickness
+constexpr float kDoorWidth = 1.2f;  // doorway between neighbouring rooms
 constexpr float kDoorHeight = 2.2f;
 constexpr float kLampDrop = 0.01f;     // lamps hang this far under the ceiling
 constexpr float kLampMargin = 0.25f;   // from the walls' faces to the outermost lamp cells
