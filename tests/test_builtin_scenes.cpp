@@ -1,5 +1,5 @@
-// Built-in scenes (Cornell box from its published data, the procedural atrium) and the mesh
-// primitives they are made of.
+// Built-in scenes (Cornell box from its published data, the procedural atrium, the many-lights
+// rooms) and the mesh primitives they are made of.
 #include "scene/primitives.h"
 #include "scene/scene_loader.h"
 
@@ -216,7 +216,7 @@ TEST(Primitives, LathesAndCylindersAreClosed) {
 
 TEST(BuiltinScenes, EveryBuiltinIsValid) {
   const auto& names = builtin_scene_names();
-  ASSERT_EQ(names.size(), 3u);
+  ASSERT_EQ(names.size(), 4u);
   for (const std::string& name : names) {
     const Scene s = name == "atrium" ? make_builtin_scene(name, {{"detail", 0.05}}) : make_builtin_scene(name);
     expect_all_valid(s, name);
@@ -444,6 +444,181 @@ TEST(Atrium, LitBySunAndSkyWithAWalkingCamera) {
     for (const SceneTriangle& t : s.triangles) nearest = std::min(nearest, distance_to_triangle(k.position, t));
     EXPECT_GT(nearest, 0.25f) << "camera key at t = " << k.time << " s is inside or against geometry";
   }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Rooms (many lights)
+
+// Room (column along x, row along z) of a point, on the generator's 4 m pitch.
+glm::ivec2 room_of(glm::vec3 p) { return {int(std::floor(p.x / 4.0f)), int(std::floor(p.z / 4.0f))}; }
+
+struct Lamp {
+  glm::vec3 centre{0.0f};
+  double area = 0.0;
+  glm::vec3 emission{0.0f};
+  int triangles = 0;
+};
+
+// The emitters grouped by material (every lamp has its own).
+std::map<std::uint32_t, Lamp> lamps_of(const Scene& s) {
+  std::map<std::uint32_t, Lamp> lamps;
+  for (const SceneTriangle& t : s.triangles) {
+    const Material& m = s.materials[t.material];
+    if (!m.is_emissive()) continue;
+    Lamp& l = lamps[t.material];
+    const double a = triangle_area(t);
+    l.centre += float(a) * (t.p[0] + t.p[1] + t.p[2]) / 3.0f;
+    l.area += a;
+    l.emission = m.emission;
+    ++l.triangles;
+  }
+  for (auto& [material, l] : lamps) l.centre /= float(l.area);
+  return lamps;
+}
+
+float luminance_of(glm::vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+
+TEST(Rooms, SixteenRoomsOfSixtyFourLamps) {
+  const Scene s = make_builtin_scene("rooms");
+  expect_all_valid(s, "rooms");
+  EXPECT_FALSE(s.sun.enabled);
+  EXPECT_FALSE(s.sky.enabled);
+  std::size_t emissive = 0;
+  for (const SceneTriangle& t : s.triangles) emissive += s.materials[t.material].is_emissive();
+  EXPECT_EQ(emissive, 2048u);
+  const auto lamps = lamps_of(s);
+  ASSERT_EQ(lamps.size(), 1024u);
+  std::map<std::pair<int, int>, int> per_room;
+  for (const auto& [material, l] : lamps) {
+    EXPECT_EQ(l.triangles, 2) << "lamp " << material << " is not one quad";
+    const glm::ivec2 r = room_of(l.centre);
+    ++per_room[{r.x, r.y}];
+  }
+  ASSERT_EQ(per_room.size(), 16u);
+  for (const auto& [room, count] : per_room) {
+    EXPECT_GE(room.first, 0);
+    EXPECT_LT(room.first, 4);
+    EXPECT_GE(room.second, 0);
+    EXPECT_LT(room.second, 4);
+    EXPECT_EQ(count, 64) << "room " << room.first << "," << room.second;
+  }
+  // A building 16 x 3 x 16 m (plus half a wall's thickness all round).
+  const Bounds b = bounds_of(s.triangles);
+  EXPECT_NEAR(b.hi.x - b.lo.x, 16.2f, 1e-3f);
+  EXPECT_NEAR(b.hi.z - b.lo.z, 16.2f, 1e-3f);
+  EXPECT_NEAR(b.hi.y - b.lo.y, 3.0f, 1e-3f);
+}
+
+TEST(Rooms, EveryLampFacesDownJustUnderItsRoomsCeiling) {
+  const Scene s = make_builtin_scene("rooms");
+  std::size_t checked = 0;
+  for (const SceneTriangle& t : s.triangles) {
+    if (!s.materials[t.material].is_emissive()) continue;
+    EXPECT_LT(geometric_normal(t).y, -0.999f) << "a lamp must face down";
+    const glm::vec3 c = (t.p[0] + t.p[1] + t.p[2]) / 3.0f;
+    // Straight up from just above the lamp: the ceiling, within 5 cm.
+    const auto up = first_hit(s.triangles, c + glm::vec3(0.0f, 1e-3f, 0.0f), {0.0f, 1.0f, 0.0f});
+    ASSERT_TRUE(up.has_value());
+    const SceneTriangle& above = s.triangles[*up];
+    EXPECT_EQ(s.materials[above.material].name, "ceiling");
+    EXPECT_GT(above.p[0].y - c.y, 0.0f);
+    EXPECT_LT(above.p[0].y - c.y, 0.05f);
+    // Inside its room, clear of the walls (0.1 m either side of the grid lines).
+    const glm::ivec2 r = room_of(c);
+    for (const glm::vec3& p : t.p) {
+      EXPECT_GT(p.x, 4.0f * float(r.x) + 0.1f);
+      EXPECT_LT(p.x, 4.0f * float(r.x + 1) - 0.1f);
+      EXPECT_GT(p.z, 4.0f * float(r.y) + 0.1f);
+      EXPECT_LT(p.z, 4.0f * float(r.y + 1) - 0.1f);
+    }
+    ++checked;
+  }
+  EXPECT_EQ(checked, 2048u);
+}
+
+TEST(Rooms, LampsDifferInPowerAndColour) {
+  const Scene s = make_builtin_scene("rooms");
+  double lo = 1e30, hi = 0.0;
+  int warm = 0, cool = 0, neutral = 0;
+  std::map<std::array<float, 3>, int> distinct;
+  for (const auto& [material, l] : lamps_of(s)) {
+    const double power = glm::pi<double>() * l.area * luminance_of(l.emission);
+    lo = std::min(lo, power);
+    hi = std::max(hi, power);
+    const float r = l.emission.x, b = l.emission.z;
+    if (r > 1.3f * b)
+      ++warm;
+    else if (b > 1.15f * r)
+      ++cool;
+    else
+      ++neutral;
+    ++distinct[{l.emission.x, l.emission.y, l.emission.z}];
+  }
+  EXPECT_GT(hi / lo, 10.0) << "powers " << lo << " to " << hi;
+  EXPECT_LT(hi / lo, 40.0) << "powers " << lo << " to " << hi;
+  EXPECT_GT(warm, 200);
+  EXPECT_GT(cool, 200);
+  EXPECT_GT(neutral, 200);
+  EXPECT_EQ(distinct.size(), 1024u);
+}
+
+TEST(Rooms, CameraSeesItsRoomAndTheNextThroughTheDoorway) {
+  const Scene s = make_builtin_scene("rooms");
+  const glm::ivec2 home = room_of(s.camera.position);
+  EXPECT_EQ(home, glm::ivec2(1, 1));
+  for (const CameraKey& k : s.camera_path) EXPECT_EQ(room_of(k.position), home);
+  // Primary rays of a 16:9 image (as the renders are), traced by brute force.
+  const glm::vec3 forward = glm::normalize(s.camera.target - s.camera.position);
+  const glm::vec3 right = glm::normalize(glm::cross(forward, s.camera.up));
+  const glm::vec3 up = glm::cross(right, forward);
+  const float tan_half = std::tan(glm::radians(0.5f * s.camera.vfov_deg)), aspect = 16.0f / 9.0f;
+  std::map<std::pair<int, int>, int> seen;
+  int misses = 0, rays = 0;
+  for (int y = 0; y < 18; ++y)
+    for (int x = 0; x < 32; ++x) {
+      const float sx = (2.0f * (float(x) + 0.5f) / 32.0f - 1.0f) * tan_half * aspect;
+      const float sy = (1.0f - 2.0f * (float(y) + 0.5f) / 18.0f) * tan_half;
+      const glm::vec3 d = glm::normalize(forward + sx * right + sy * up);
+      const auto hit = first_hit(s.triangles, s.camera.position, d);
+      ++rays;
+      if (!hit) {
+        ++misses;
+        continue;
+      }
+      const SceneTriangle& t = s.triangles[*hit];
+      // Where the ray ends, not the triangle's centroid (floor and ceiling span every room).
+      const glm::vec3 e1 = t.p[1] - t.p[0], e2 = t.p[2] - t.p[0], n = glm::cross(e1, e2);
+      const glm::vec3 at = s.camera.position + d * (glm::dot(t.p[0] - s.camera.position, n) / glm::dot(d, n));
+      const glm::ivec2 r = room_of(at);
+      ++seen[{r.x, r.y}];
+    }
+  EXPECT_EQ(misses, 0) << "the building is closed";
+  const int own = seen[{home.x, home.y}], next = seen[{home.x + 1, home.y}];
+  EXPECT_GT(own, rays / 4) << "its own room fills much of the view";
+  EXPECT_GT(next, rays / 50) << "the next room shows through the doorway";
+}
+
+TEST(Rooms, ParametersScaleTheGridAndTheLampsAndSeedsAreDeterministic) {
+  const Scene small = make_builtin_scene("rooms", {{"grid", 2}, {"lamps", 3}});
+  std::size_t emissive = 0;
+  for (const SceneTriangle& t : small.triangles) emissive += small.materials[t.material].is_emissive();
+  EXPECT_EQ(emissive, 2u * 4u * 9u);
+  expect_all_valid(small, "rooms grid 2");
+  const Scene a = make_builtin_scene("rooms", {{"seed", 3}});
+  const Scene b = make_builtin_scene("rooms", {{"seed", 3}});
+  const Scene c = make_builtin_scene("rooms", {{"seed", 4}});
+  ASSERT_EQ(a.triangles.size(), b.triangles.size());
+  ASSERT_EQ(a.materials.size(), c.materials.size());
+  bool same = true, differs = false;
+  for (std::size_t i = 0; i < a.materials.size(); ++i) {
+    same &= a.materials[i].emission == b.materials[i].emission;
+    differs |= a.materials[i].emission != c.materials[i].emission;
+  }
+  EXPECT_TRUE(same);
+  EXPECT_TRUE(differs);
+  EXPECT_THROW(make_builtin_scene("rooms", {{"grid", 0}}), SceneError);
+  EXPECT_THROW(make_builtin_scene("rooms", {{"lamps", 17}}), SceneError);
+  EXPECT_THROW(make_builtin_scene("rooms", {{"rooms", 4}}), SceneError);
 }
 
 }  // namespace

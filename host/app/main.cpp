@@ -62,7 +62,7 @@ void add_size_flags(CLI::App* cmd, px::ImageSize& size) {
 
 const char* kSceneHelp =
     "scene: a JSON scene file (scenes/*.json), an OBJ, glTF 2.0 (.gltf) or binary glTF (.glb) "
-    "file, or a built-in name (cornell, cornell-glossy, atrium)";
+    "file, or a built-in name (cornell, cornell-glossy, atrium, rooms)";
 
 const char* kAnimationHelp =
     "which of a glTF scene's animation clips play: all, none (the rest pose), a clip's name "

@@ -8,7 +8,7 @@
 namespace px {
 
 const std::vector<std::string>& builtin_scene_names() {
-  static const std::vector<std::string> names = {"cornell", "cornell-glossy", "atrium"};
+  static const std::vector<std::string> names = {"cornell", "cornell-glossy", "atrium", "rooms"};
   return names;
 }
 
@@ -16,6 +16,7 @@ Scene make_builtin_scene(const std::string& name, const nlohmann::json& params) 
   if (name == "cornell") return make_cornell_scene(params, false);
   if (name == "cornell-glossy") return make_cornell_scene(params, true);
   if (name == "atrium") return make_atrium_scene(params);
+  if (name == "rooms") return make_rooms_scene(params);
   std::string list;
   for (const std::string& n : builtin_scene_names()) list += (list.empty() ? "" : ", ") + n;
   throw SceneError("unknown built-in scene '" + name + "' (built-in scenes: " + list + ")");

@@ -19,6 +19,9 @@ Scene make_cornell_scene(const nlohmann::json& params, bool glossy);
 // The procedural colonnaded courtyard.
 Scene make_atrium_scene(const nlohmann::json& params);
 
+// A grid of rooms joined by doorways, lit by many small ceiling lamps (the many-lights case).
+Scene make_rooms_scene(const nlohmann::json& params);
+
 // Throws SceneError unless `params` is null or an object whose keys are all in `known`.
 void check_generator_params(std::string_view generator, const nlohmann::json& params,
                             std::initializer_list<std::string_view> known);

@@ -13,7 +13,7 @@ namespace px {
 //   - a path to a scene JSON file (scenes/*.json; format documented in scenes/README.md),
 //   - a path to an .obj, .gltf or .glb file (camera: a glTF's first perspective camera, else
 //     framed on the bounding box),
-//   - the name of a built-in generator: "cornell", "cornell-glossy", "atrium".
+//   - the name of a built-in generator: "cornell", "cornell-glossy", "atrium", "rooms".
 // Whatever the source, the scene's coordinates are then checked (check_coordinate_range), and
 // light is seen to by `options.sky` (one warning line says what was done):
 //   kAuto: a scene without any light (no emitter, sun or sky) gets default_sky();
