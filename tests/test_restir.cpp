@@ -216,3 +216,26 @@ TEST(Restir, ManyLightsLowerEveryFramesError) {
 
 }  // namespace
 }  // namespace px
+
+namespace px {
+namespace {
+
+// The right eye's holes with and without the left eye's reservoirs (Options::stereo_reuse): the
+// proposed pipeline, lamp field, raw 1 spp, last frame against the reference (figures printed).
+TEST(Restir, RightEyeHolesWithTheLeftEyesReservoirs) {
+  const test::TempDir dir;
+  const std::string file = lamp_field_file(dir);
+  const unsigned w = 64, h = 40;
+  const auto ref = reference(file, w, h, 2048);
+  StereoPipeline::Options on = restir_options(DirectLight::Restir, false), off = on;
+  off.restir.stereo_reuse = false;
+  const FrameRun with = render_frames(file, on, w, h, 8, 2);
+  const FrameRun without = render_frames(file, off, w, h, 8, 2);
+  const double r_with = compare_images(with.last[1], ref[1]).rel_mse;
+  const double r_without = compare_images(without.last[1], ref[1]).rel_mse;
+  std::printf("right eye relMSE: with the left eye's reservoirs %.4f, without %.4f\n", r_with, r_without);
+  EXPECT_LE(r_with, r_without * 1.05);
+}
+
+}  // namespace
+}  // namespace px

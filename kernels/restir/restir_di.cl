@@ -54,6 +54,21 @@ inline int px_restir_similar(const ShadingPoint* a, const ShadingPoint* b) {
   return fabs(dot(a->ng, b->p - a->p)) <= PX_RESTIR_MAX_PLANE_DISTANCE * a->depth;
 }
 
+/* The pixel of camera *cam whose footprint point p falls in: 0 when p is behind the camera. */
+inline int px_restir_project(const CameraParams* cam, float3 p, uint width, uint height, int* px, int* py) {
+  const float3 d = p - px_camera_origin(cam);
+  const float zf = dot(d, (float3)(cam->forward[0], cam->forward[1], cam->forward[2]));
+  if (!(zf > 0.0f)) return 0;
+  const float sx = dot(d, (float3)(cam->right[0], cam->right[1], cam->right[2])) / zf;
+  const float sy = dot(d, (float3)(cam->up[0], cam->up[1], cam->up[2])) / zf;
+  const float fx = (sx / (cam->tan_half_fov_y * cam->aspect) + 1.0f) * 0.5f * (float)width;
+  const float fy = (1.0f - sy / cam->tan_half_fov_y) * 0.5f * (float)height;
+  if (!(fx >= 0.0f && fx < (float)width && fy >= 0.0f && fy < (float)height)) return 0;
+  *px = (int)fx;
+  *py = (int)fy;
+  return 1;
+}
+
 /* The coin for candidate k of a merge or a stream: component k % 4 of dimension dim + k / 4. */
 inline float px_restir_coin(SampleKey key, uint dim, uint k) {
   const float4 u = px_sample4(key, dim + k / 4u);
@@ -130,16 +145,9 @@ kernel void restir_candidates(global float4* reservoirs, global uint4* hits, con
 
   if (rp.temporal && prev_reservoirs) {
     const float3 prev_eye = px_camera_origin(&prev_cam);
-    const float3 d = sps[0].p - prev_eye;
-    const float zf = dot(d, (float3)(prev_cam.forward[0], prev_cam.forward[1], prev_cam.forward[2]));
-    if (zf > 0.0f) {
-      const float sx = dot(d, (float3)(prev_cam.right[0], prev_cam.right[1], prev_cam.right[2])) / zf;
-      const float sy = dot(d, (float3)(prev_cam.up[0], prev_cam.up[1], prev_cam.up[2])) / zf;
-      const float fx = (sx / (prev_cam.tan_half_fov_y * prev_cam.aspect) + 1.0f) * 0.5f * (float)rp.width;
-      const float fy = (1.0f - sy / prev_cam.tan_half_fov_y) * 0.5f * (float)rp.height;
-      const int px = (int)floor(fx), py = (int)floor(fy);
-      if (px >= 0 && px < (int)rp.width && py >= (int)rp.lo_row && py < (int)rp.hi_row &&
-          abs(py - (int)y) <= (int)rp.temporal_rows) {
+    int px, py;
+    if (px_restir_project(&prev_cam, sps[0].p, rp.width, rp.height, &px, &py)) {
+      if (py >= (int)rp.lo_row && py < (int)rp.hi_row && abs(py - (int)y) <= (int)rp.temporal_rows) {
         const uint q = (uint)py * rp.width + (uint)px;
         Reservoir t = px_load_reservoir(prev_reservoirs, q);
         if (t.tag == rp.prev_tag && t.M > 0.0f) {
@@ -162,20 +170,25 @@ kernel void restir_candidates(global float4* reservoirs, global uint4* hits, con
 
 /* Pass 2 over the same pixels: merges the pixel's reservoir with those of up to rp.neighbours
  * pixels within rp.radius in rows [rp.lo_row, rp.hi_row) that pass 1 wrote this frame (tag
- * rp.tag) and that see a similar surface, keeps the result for next frame (`final`), and shades:
+ * rp.tag) and that see a similar surface, and, where `other_reservoirs` is given (the right eye's
+ * holes: the left eye's final reservoirs of this frame, seen by `other_cam`), with the other eye's
+ * reservoir at the pixel where that eye sees the surface, in the same row (the eyes' strips hold
+ * the same rows, so the row is always this device's), if it sees a similar surface there; keeps
+ * the result for next frame (`final`), and shades:
  * one shadow ray toward the sample kept; if it arrives, f Le cos G W over the pixel's sample
  * count is added to `radiance` (a non-finite value is counted in *nonfinite, never added). */
 kernel void restir_spatial_shade(global float4* radiance, volatile global uint* nonfinite, global float4* final,
                                  const global float4* reservoirs, const global uint4* hits, const global uint* list,
-                                 const global uint* list_count, RestirParams rp, FrameParams fp, CameraParams cam,
-                                 PX_SCENE_PARAMS) {
+                                 const global uint* list_count, const global float4* other_reservoirs,
+                                 const global uint4* other_hits, RestirParams rp, FrameParams fp, CameraParams cam,
+                                 CameraParams other_cam, PX_SCENE_PARAMS) {
   uint pixel;
   if (!px_restir_pixel(get_global_id(0), list, list_count, &rp, &pixel)) return;
   const int x = (int)(pixel % rp.width), y = (int)(pixel / rp.width);
   const SceneView scene = PX_SCENE_VIEW();
   const float3 eye = px_camera_origin(&cam);
-  ShadingPoint sps[1 + PX_RESTIR_MAX_NEIGHBOURS];
-  Reservoir rs[1 + PX_RESTIR_MAX_NEIGHBOURS];
+  ShadingPoint sps[2 + PX_RESTIR_MAX_NEIGHBOURS];
+  Reservoir rs[2 + PX_RESTIR_MAX_NEIGHBOURS];
   sps[0] = px_shading_point(&scene, px_unpack_hit(hits[pixel]), eye);
   rs[0] = px_load_reservoir(reservoirs, pixel);
   if (!sps[0].valid) {
@@ -198,6 +211,18 @@ kernel void restir_spatial_shade(global float4* radiance, volatile global uint* 
     if (!px_restir_similar(sps, sps + n)) continue;
     rs[n] = nr;
     ++n;
+  }
+  int ox, oy;
+  if (other_reservoirs && px_restir_project(&other_cam, sps[0].p, rp.width, rp.height, &ox, &oy) && oy == y) {
+    const uint q = (uint)oy * rp.width + (uint)ox;
+    const Reservoir orr = px_load_reservoir(other_reservoirs, q);
+    if (orr.tag == rp.tag && orr.M > 0.0f) {
+      sps[n] = px_shading_point(&scene, px_unpack_hit(other_hits[q]), px_camera_origin(&other_cam));
+      if (px_restir_similar(sps, sps + n)) {
+        rs[n] = orr;
+        ++n;
+      }
+    }
   }
   const Reservoir r = n > 1u ? px_restir_merge(&scene, &fp, sps, rs, n, key, PX_RESTIR_MAX_NEIGHBOURS, rp.tag) : rs[0];
   px_store_reservoir(final, pixel, r);

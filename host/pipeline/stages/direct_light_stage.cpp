@@ -125,10 +125,15 @@ void DirectLightStage::run_eye(int e, const std::vector<RowRange>& strip, const 
     shade.setArg(4, pe.hits[parity_]);
     set_optional_buffer(shade, 5, holes ? &f.holes : nullptr);
     set_optional_buffer(shade, 6, holes ? &f.hole_count : nullptr);
-    shade.setArg(7, rp);
-    shade.setArg(8, fp);
-    shade.setArg(9, in.cams[e]);
-    env_.scene_on(d).bind(shade, 10);
+    // The left eye's reservoirs of this frame (its stage ran before hole filling, on this device).
+    const bool stereo = holes && options_.stereo_reuse && frame_tag_[0] == in.frame + 1;
+    set_optional_buffer(shade, 7, stereo ? &dev_[d][0].final[parity_] : nullptr);
+    set_optional_buffer(shade, 8, stereo ? &dev_[d][0].hits[parity_] : nullptr);
+    shade.setArg(9, rp);
+    shade.setArg(10, fp);
+    shade.setArg(11, in.cams[e]);
+    shade.setArg(12, in.cams[0]);
+    env_.scene_on(d).bind(shade, 13);
     env_.log.record(Stage::DirectLight, d, launch_1d(env_.queue(d), shade, env_.pixels(strip[d])), "spatial + shade");
   }
   frame_strips_[e] = strip;

@@ -35,6 +35,9 @@ class DirectLightStage : public StageUnit {
     bool temporal = true;         // reuse last frame's reservoir at the surface's previous pixel
     float max_history = 20.0f;    // a reused reservoir's confidence cap, in frames' worth of candidates
     unsigned temporal_rows = 16;  // largest vertical offset of the previous pixel (as SVGF's)
+    // The right eye's holes also reuse the left eye's reservoir where the left eye sees the same
+    // surface (glossy surfaces, which reprojection leaves to the holes).
+    bool stereo_reuse = true;
   };
   // `tracer`: the path tracing unit whose frame parameters (lights, seed, frame) the passes share.
   // `right_eye_holes`: the right eye's operations cover its hole list (stereo pipelines), not rows.
