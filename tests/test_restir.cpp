@@ -106,7 +106,8 @@ TEST(Restir, StillFramesConvergeToTheReference) {
 namespace px {
 namespace {
 
-// Strips, devices and pipelines: the reservoirs a pixel gets do not depend on who computes it.
+// Strips, devices, pipelines and path tracers: the reservoirs a pixel gets do not depend on who
+// computes it, and both path tracers leave the same vertices to ReSTIR.
 TEST(Restir, AnyDeviceCountAndPipelineGivesOneDevicesImages) {
   const unsigned w = 40, h = 37;  // rows that split unevenly
   for (bool denoise : {false, true}) {
@@ -122,6 +123,10 @@ TEST(Restir, AnyDeviceCountAndPipelineGivesOneDevicesImages) {
     base.pipeline = PipelineKind::Baseline;
     const FrameRun baseline = render_frames("cornell", base, w, h, 3, 3);
     for (int e = 0; e < 2; ++e) EXPECT_TRUE(same_bits(baseline.last[e], one.last[e])) << "baseline, eye " << e;
+    StereoPipeline::Options wave = opt;
+    wave.path_kernel = PathTraceKernel::Wavefront;
+    const FrameRun wavefront = render_frames("cornell", wave, w, h, 3, 2);
+    for (int e = 0; e < 2; ++e) EXPECT_TRUE(same_bits(wavefront.last[e], one.last[e])) << "wavefront, eye " << e;
   }
 }
 
