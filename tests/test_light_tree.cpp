@@ -111,7 +111,9 @@ struct TreeSetup {
   std::vector<std::uint8_t> two_sided;
   LightTree tree;
   explicit TreeSetup(const Scene& s)
-      : lights(make_light_table(s)), two_sided(light_two_sidedness(s, lights)), tree(LightTree::build(lights, two_sided)) {}
+      : lights(make_light_table(s)),
+        two_sided(light_two_sidedness(s, lights)),
+        tree(LightTree::build(lights, two_sided)) {}
 };
 
 // Every node's box holds its lights' vertices, its power is theirs summed, its cone holds their
@@ -438,8 +440,8 @@ TEST(LightTree, RefitAfterMovingLightsKeepsBoundsAndPmf) {
   TreeSetup again = t;
   ASSERT_TRUE(again.tree.refit(t.lights, t.two_sided));
   ASSERT_EQ(again.tree.nodes().size(), t.tree.nodes().size());
-  EXPECT_EQ(std::memcmp(again.tree.nodes().data(), t.tree.nodes().data(), t.tree.nodes().size() * sizeof(LightTreeNode)),
-            0);
+  EXPECT_EQ(
+      std::memcmp(again.tree.nodes().data(), t.tree.nodes().data(), t.tree.nodes().size() * sizeof(LightTreeNode)), 0);
   EXPECT_FALSE(again.tree.refit(std::vector<LightTriangle>(moved.begin(), moved.end() - 1),
                                 std::vector<std::uint8_t>(count - 1, 0)));
 }
