@@ -20,6 +20,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <random>
 
 namespace px {
@@ -534,6 +535,43 @@ TEST(LightTree, TreeAndPowerConvergeToTheSameImage) {
     }
     EXPECT_EQ(r.tracer->nonfinite_paths(), 0u);
   }
+}
+
+TEST(LightTree, WavefrontGivesTheMegakernelsPixels) {
+  // prev_p travels in the path state's spare w components: the wavefront tracer's MIS weights
+  // must be the megakernel's, to the bit.
+  Render r(lamp_room());
+  DeviceSet& set = one_device();
+  const cl::CommandQueue& queue = set.devices()[0].queue;
+  const unsigned w = 24, h = 16;
+  PathTracer::Options opt;
+  opt.spp = 3;
+  opt.bounces = 4;
+  opt.direct_light = DirectLight::Tree;
+  const FrameParams fp = PathTracer::frame_params(r.scene, r.device_scene->light_count(), opt, 0, 0, h, 1);
+  const CameraParams cam = make_eye_camera(evaluate_camera(r.scene, 0.0f), Eye::Left, r.scene.ipd_units(), w, h);
+  const std::size_t bytes = std::size_t{w} * h * sizeof(cl_float4);
+  auto run = [&](const std::function<void(const PathTracer::Targets&)>& trace) {
+    cl::Buffer radiance(set.context(), CL_MEM_READ_WRITE, bytes), albedo(set.context(), CL_MEM_READ_WRITE, bytes);
+    cl::Buffer nonfinite(set.context(), CL_MEM_READ_WRITE, sizeof(cl_uint));
+    queue.enqueueFillBuffer(nonfinite, cl_uint{0}, 0, sizeof(cl_uint));
+    trace({radiance, albedo, nonfinite});
+    std::vector<cl_float4> out(std::size_t{w} * h);
+    queue.enqueueReadBuffer(radiance, CL_TRUE, 0, bytes, out.data());
+    return out;
+  };
+  const auto mega = run([&](const PathTracer::Targets& t) {
+    PathTracer::launch(queue, set.program("pathtrace/path_trace.cl"), r.device_scene->on(0), t, fp, cam, w);
+  });
+  WavefrontPathTracer::Scratch scratch;
+  const auto wave = run([&](const PathTracer::Targets& t) {
+    WavefrontPathTracer::trace_rows(set.context(), queue, set.program("pathtrace/wavefront.cl"), r.device_scene->on(0),
+                                    scratch, t, fp, cam, w);
+  });
+  EXPECT_EQ(std::memcmp(mega.data(), wave.data(), bytes), 0);
+  double sum = 0;
+  for (const auto& px : mega) sum += px.s[0];
+  EXPECT_GT(sum, 0.0);
 }
 
 }  // namespace
