@@ -15,7 +15,7 @@
 namespace px {
 
 // What the tree knows of one light: its box, power and cone of emission (a LightTreeNode's
-// fields, kept in double-free float as the kernels read them).
+// fields, in float as the kernels read them).
 struct LightBounds {
   float lo[3] = {0.0f, 0.0f, 0.0f};
   float hi[3] = {0.0f, 0.0f, 0.0f};

@@ -494,22 +494,15 @@ typedef struct LightTriangle {
   float pdf_select;
 } LightTriangle;
 
-/* One node of the light tree (host/render/light_tree.h; Conty Estevez and Kulla 2018), 64
- * bytes. The scene's `lights` buffer holds, one after the other:
- *   LightTriangle x n (the table, sorted by prim), LightTreeNode x (2n - 1) (root first, every
- *   node before its children; one leaf per light), uint trail x n padded to 64 bytes (bit i of
- *   light k's trail: the path from the root to k's leaf takes child 1 at depth i).
- * A node bounds its lights: their box, their total power phi (area x luminance(emission), x 2
- * if two-sided), and the cone of their emitting normals: `axis`, half-angle theta_o of the
- * normals around it, theta_e the spread of emission around a normal (pi/2 for a Lambertian
- * surface). A leaf is one light: its triangle's box and geometric normal, theta_o 0 (pi if it
- * emits from both faces). A point light would be a leaf with an empty box (min = max) and the
- * whole sphere as cone (theta_o = pi), a spot light the spot's axis and cone as theta_e.
- *
- *   0..11 bounds_min[3]  12..23 bounds_max[3]  24..27 phi  28..39 axis[3]
- *  40..43 cos_theta_o    44..47 cos_theta_e    48..55 child[2]  56..63 padding
- * child[i]: a node index, or PX_LIGHT_TREE_LEAF | light index; a leaf's child[0] is its light,
- * its child[1] the same. */
+/* One node of the light tree (host/render/light_tree.h), 64 bytes. The `lights` buffer holds
+ * LightTriangle x n (the table, by prim), LightTreeNode x (2n - 1) (root first, parents before
+ * children, one leaf per light), uint trail x n padded to 64 bytes (bit i: light k's path from the
+ * root takes child[1] at depth i). A node bounds its lights: box, total power phi (area x
+ * luminance, x 2 if two-sided), cone of emitting normals (axis, theta_o) and spread theta_e of
+ * emission around a normal. Leaf: the triangle's box and normal, theta_o 0 (pi if two-sided),
+ * theta_e pi/2; a point light would be an empty box with theta_o = pi (spot: its axis, theta_e).
+ *   0..11 bounds_min[3]  12..23 bounds_max[3]  24..27 phi  28..39 axis[3]  40..43 cos_theta_o
+ *  44..47 cos_theta_e  48..55 child[2] (node index, or PX_LIGHT_TREE_LEAF | light: a leaf)  56..63 pad */
 #define PX_LIGHT_TREE_LEAF 0x80000000u
 typedef struct LightTreeNode {
   float bounds_min[3];
@@ -571,10 +564,8 @@ typedef struct FrameParams {
 #define PX_LIGHTS_NEE 1u
 #define PX_LIGHTS_BSDF 2u
 
-/* How next-event estimation picks an emissive triangle (FrameParams::direct_light): by power
- * (the CDF of LightTriangle::cdf), or by the light tree's importance at the shading point
- * (shading/light_tree.h). ReSTIR DI (restir) draws its candidates from the tree; without its
- * reservoirs it is the tree. */
+/* FrameParams::direct_light: NEE picks a triangle by power (LightTriangle::cdf) or by the light
+ * tree (shading/light_tree.h); restir draws its candidates from the tree (alone, it is the tree). */
 #define PX_DIRECT_POWER 0u
 #define PX_DIRECT_TREE 1u
 #define PX_DIRECT_RESTIR 2u
