@@ -17,6 +17,7 @@ FrameParams PathTracer::frame_params(const Scene& scene, std::size_t light_count
   fp.max_bounces = options.bounces;
   fp.seed = options.seed;
   fp.light_sampling = static_cast<cl_uint>(options.light_sampling);
+  fp.direct_light = static_cast<cl_uint>(options.direct_light);
   fp.rr_start_bounce = options.rr_start_bounce;
   fp.row0 = row0;
   fp.rows = rows;

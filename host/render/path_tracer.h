@@ -15,6 +15,9 @@
 namespace px {
 
 enum class LightSampling : std::uint32_t { Mis = PX_LIGHTS_MIS, Nee = PX_LIGHTS_NEE, Bsdf = PX_LIGHTS_BSDF };
+// How next-event estimation picks an emissive triangle: by power, by the light tree's importance
+// at the shading point (kernels/shading/light_tree.h), or ReSTIR DI over the tree's candidates.
+enum class DirectLight : std::uint32_t { Power = PX_DIRECT_POWER, Tree = PX_DIRECT_TREE, Restir = PX_DIRECT_RESTIR };
 
 class PathTracer {
  public:
@@ -25,6 +28,7 @@ class PathTracer {
     unsigned bounces = 6;
     unsigned rr_start_bounce = 3;  // Russian roulette from this bounce on
     LightSampling light_sampling = LightSampling::Mis;
+    DirectLight direct_light = DirectLight::Power;
     std::uint32_t seed = 0;
     // A frame's sample 0 of every pixel goes through the camera's jitter point of the frame
     // (CameraParams::jitter, px_sample_camera_dir): the G-buffer's ray, so the path tracer can write the G-buffer

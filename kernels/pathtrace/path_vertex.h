@@ -29,6 +29,7 @@ typedef struct PathVertex {
   float3 throughput;
   float3 radiance; /* gathered so far */
   float3 prev_n;   /* shading normal of the last vertex (the environment's MIS pdf) */
+  float3 prev_p;   /* hit point of the last vertex (the light tree's MIS pmf, with prev_n) */
   float prev_pdf;  /* pdf of the last BSDF sample (MIS) */
   int prev_delta;  /* the last bounce was a delta one (the camera ray counts as one) */
   /* The demodulation albedo of the first vertex (px_demodulation_albedo; 1 where the ray
@@ -74,6 +75,7 @@ inline PathVertex px_camera_path(float3 org, float3 dir) {
   v.throughput = (float3)(1.0f, 1.0f, 1.0f);
   v.radiance = (float3)(0.0f, 0.0f, 0.0f);
   v.prev_n = (float3)(0.0f, 1.0f, 0.0f);
+  v.prev_p = org;
   v.prev_pdf = 0.0f;
   v.prev_delta = 1;
   v.primary_albedo = (float4)(1.0f, 1.0f, 1.0f, 0.0f);
@@ -131,7 +133,11 @@ inline int px_path_vertex(const SceneView* scene, const FrameParams* fp, SampleK
         w = 0.0f;
       } else if (use_nee) {
         const int li = px_find_light(scene, fp->light_count, prim);
-        const float lp = li >= 0 ? px_triangle_light_pdf(fp, scene->lights + li, hit.t, fabs(dot(ng, dir))) : 0.0f;
+        /* The light's selection probability where NEE would have picked it: the last vertex. */
+        const float lp = li >= 0 ? px_triangle_light_pdf(fp, scene->lights + li,
+                                                         px_light_select_pmf(scene, fp, li, v->prev_p, v->prev_n),
+                                                         hit.t, fabs(dot(ng, dir)))
+                                 : 0.0f;
         w = px_mis_power(v->prev_pdf, lp);
       }
     }
@@ -179,6 +185,7 @@ inline int px_path_vertex(const SceneView* scene, const FrameParams* fp, SampleK
   v->prev_pdf = bs.pdf;
   v->prev_delta = bs.delta;
   v->prev_n = ns;
+  v->prev_p = p;
 
   if (bounce + 1u >= fp->rr_start_bounce) {
     const float q = fmin(0.95f, fmax(v->throughput.x, fmax(v->throughput.y, v->throughput.z)));
