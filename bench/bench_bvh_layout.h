@@ -25,4 +25,17 @@ inline CLI::Option* add_bvh_layout_flag(CLI::App& app, std::optional<BvhLayout>&
       ->check(CLI::IsMember(bvh_layout_words()));
 }
 
+// --direct-light power|tree|restir (app/cli_enums.h's words), into `mode`.
+inline CLI::Option* add_direct_light_flag(CLI::App& app, DirectLight& mode) {
+  return app
+      .add_option_function<std::string>(
+          "--direct-light",
+          [&mode](const std::string& word) {
+            for (const auto& [w, value] : direct_light_words())
+              if (w == word) mode = value;
+          },
+          "how next-event estimation picks an emissive triangle: power (default), tree (the light tree), restir")
+      ->check(CLI::IsMember(direct_light_words()));
+}
+
 }  // namespace px::bench

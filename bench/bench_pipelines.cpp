@@ -93,6 +93,8 @@ int main(int argc, char** argv) {
   app.add_option("--devices", devices)->capture_default_str();
   std::optional<px::BvhLayout> bvh_layout;
   px::bench::add_bvh_layout_flag(app, bvh_layout);
+  px::DirectLight direct_light = px::DirectLight::Power;
+  px::bench::add_direct_light_flag(app, direct_light);
   app.add_option("--fps", fps, "camera-path time step")->capture_default_str();
   app.add_option("--ref-spp", ref_spp, "samples of the frame-0 reference (0 = skip the error figures)")
       ->capture_default_str();
@@ -200,6 +202,7 @@ int main(int argc, char** argv) {
         opt.pipeline = run.kind;
         opt.trace.spp = spp;
         opt.trace.bounces = bounces;
+        opt.trace.direct_light = direct_light;
         opt.overlap = run.overlap;
         opt.gbuffer_from_path_tracer = run.gbuffer_from_path_tracer;
         opt.hole_fill.spread = spread;

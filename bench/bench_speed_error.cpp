@@ -6,6 +6,7 @@
 //       --ref-spp 4096 --spp 1 --spp 2 --spp 4 --spp 8 --devices 2 --csv speed_error.csv
 #include "app/guarded_main.h"
 #include "app/scene_setup.h"
+#include "bench_bvh_layout.h"
 #include "bench_common.h"
 #include "image/image_metrics.h"
 #include "render/path_tracer.h"
@@ -39,6 +40,8 @@ int main(int argc, char** argv) {
   app.add_option("--devices", devices)->capture_default_str();
   app.add_option("--repeats", repeats, "timed frames per level (median)")->capture_default_str();
   app.add_option("--csv", csv, "write the table as CSV");
+  px::DirectLight direct_light = px::DirectLight::Power;
+  px::bench::add_direct_light_flag(app, direct_light);
   CLI11_PARSE(app, argc, argv);
 
   struct Row {
@@ -53,6 +56,7 @@ int main(int argc, char** argv) {
       px::PathTracer tracer(on_devices.devices, on_devices.device_scene, on_devices.loaded.scene);
       px::PathTracer::Options opt;
       opt.bounces = bounces;
+      opt.direct_light = direct_light;
       px::ReferenceOptions ref_opt;
       ref_opt.spp = ref_spp;
       ref_opt.bounces = bounces;

@@ -33,6 +33,12 @@ const WordTable<LightSampling>& light_sampling_words() {
   return words;
 }
 
+const WordTable<DirectLight>& direct_light_words() {
+  static const WordTable<DirectLight> words{
+      {"power", DirectLight::Power}, {"tree", DirectLight::Tree}, {"restir", DirectLight::Restir}};
+  return words;
+}
+
 const WordTable<DeviceMode>& device_mode_words() {
   static const WordTable<DeviceMode> words{{"auto", DeviceMode::Auto},
                                            {"subdevices", DeviceMode::SubDevices},
@@ -98,6 +104,7 @@ StereoPipeline::Options::Aovs parse_aov_list(const std::string& list) {
 const std::string& cli_word(PipelineKind value) { return word_of(pipeline_words(), value); }
 const std::string& cli_word(SeamMode value) { return word_of(seam_mode_words(), value); }
 const std::string& cli_word(LightSampling value) { return word_of(light_sampling_words(), value); }
+const std::string& cli_word(DirectLight value) { return word_of(direct_light_words(), value); }
 const std::string& cli_word(DeviceMode value) { return word_of(device_mode_words(), value); }
 const std::string& cli_word(StripBalance value) { return word_of(balance_words(), value); }
 const std::string& cli_word(PathTraceKernel value) { return word_of(path_tracer_words(), value); }

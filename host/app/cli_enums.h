@@ -27,6 +27,7 @@ using WordTable = std::vector<std::pair<std::string, Enum>>;
 const WordTable<PipelineKind>& pipeline_words();                // mono, proposed, baseline
 const WordTable<SeamMode>& seam_mode_words();                   // halo, independent, bilateral
 const WordTable<LightSampling>& light_sampling_words();         // mis, nee, bsdf
+const WordTable<DirectLight>& direct_light_words();             // power, tree, restir
 const WordTable<DeviceMode>& device_mode_words();               // auto, subdevices, platform, queues
 const WordTable<StripBalance>& balance_words();                 // static, dynamic
 const WordTable<SkyMode>& sky_words();                          // auto, on, off
@@ -40,6 +41,7 @@ const WordTable<std::optional<BvhLayout>>& bvh_layout_words();  // auto (nullopt
 const std::string& cli_word(PipelineKind value);
 const std::string& cli_word(SeamMode value);
 const std::string& cli_word(LightSampling value);
+const std::string& cli_word(DirectLight value);
 const std::string& cli_word(DeviceMode value);
 const std::string& cli_word(StripBalance value);
 const std::string& cli_word(SkyMode value);

@@ -158,6 +158,7 @@ int run_reference(const ReferenceCommand& cmd) {
   opt.spp = cmd.spp;
   opt.pass_spp = cmd.pass_spp;
   opt.bounces = cmd.bounces;
+  opt.direct_light = cmd.direct_light;
   check_camera(scene, clock.camera_time_s(cmd.frame), "reference frame " + std::to_string(cmd.frame));
   // Ctrl-C stops after the pass in flight and writes the average of the passes done.
   opt.stop = [] { return interrupted(); };

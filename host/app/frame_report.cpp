@@ -103,6 +103,7 @@ void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode de
       {"jitter", cli_word(options_.jitter)},
       {"taa_alpha", denoise.svgf.taa_alpha},
       {"path_tracer", cli_word(options_.path_kernel)},
+      {"direct_light", cli_word(options_.trace.direct_light)},
       {"bvh_layout", to_string(bvh_layout)},
       {"kernels", cli_word(cmd_.scene.kernels)},
       {"kernel_features", kernel_feature_list(scene.kernel_features())},

@@ -118,6 +118,10 @@ CLI::Option* add_pipeline_flags(CLI::App* cmd, px::RenderCommand& r) {
                   "all paths, their state in memory between steps (images are identical)");
   add_word_option(cmd, "--light-sampling", p.trace.light_sampling, px::light_sampling_words(),
                   "mis (NEE + BSDF sampling, power heuristic), nee (next-event only), bsdf (BSDF sampling only)");
+  add_word_option(cmd, "--direct-light", p.trace.direct_light, px::direct_light_words(),
+                  "how next-event estimation picks an emissive triangle: power (in proportion to its power), tree "
+                  "(a light tree: in proportion to its estimated contribution at the shading point), restir "
+                  "(ReSTIR DI over the tree's candidates)");
   cmd->add_option("--seed", p.trace.seed, "seed of the sample streams")->capture_default_str();
   add_word_option(cmd, "--jitter", p.jitter, px::jitter_words(),
                   "where in each pixel a frame's G-buffer ray and first sample go: halton (a Halton (2,3) point "
@@ -305,6 +309,18 @@ int main(int argc, char** argv) {
   reference_cmd->add_option("--bounces", reference.bounces, "maximum path length")
       ->check(CLI::Range(0u, px::PathTracer::kMaxBounces))
       ->capture_default_str();
+  // The word is checked before add_word_option's own checks: restir gets its reason, not a list.
+  add_word_option(reference_cmd, "--direct-light", reference.direct_light, px::direct_light_words(),
+                  "how next-event estimation picks an emissive triangle: power or tree (the same image, with less "
+                  "noise where many lights are out of reach); not restir: a reference is plain path tracing")
+      ->transform(CLI::Validator(
+          [](std::string& word) {
+            return word == "restir" ? std::string(
+                                          "restir is not for references, which stay plain path tracing: "
+                                          "use power or tree")
+                                    : std::string();
+          },
+          ""));
   reference_cmd->add_option("--exposure", reference.exposure, "PNG preview scale")->capture_default_str();
   reference_cmd->add_option("--out", reference.out, "output directory")->capture_default_str();
   reference_cmd->add_flag("--overwrite", reference.overwrite, "allow writing into a non-empty output directory");

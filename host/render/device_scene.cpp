@@ -1,6 +1,7 @@
 #include "render/device_scene.h"
 
 #include "render/device_buffers.h"
+#include "render/light_tree.h"
 
 #include "bvh/bvh_validator.h"
 #include "bvh/scene_bvhs.h"
@@ -467,8 +468,8 @@ DeviceScene::SceneTables DeviceScene::make_tables(const Scene& scene, const std:
                                                   bool instanced) {
   SceneTables t;
   t.materials = make_gpu_materials(scene);
-  t.lights = make_light_table(scene);
-  t.light_count = t.lights.size();
+  // The table and its light tree, one buffer (types.h, LightTreeNode).
+  t.lights = make_light_buffer(scene, t.light_count);
   FrameParams light_params{};
   fill_light_params(scene, t.light_count, light_params);
   t.features = px::kernel_features(t.materials, tri_flags, light_params, !scene.vertex_colours.empty(), instanced);
@@ -582,9 +583,21 @@ std::size_t DeviceScene::update_geometry(DeviceSet& devices, const Scene& scene,
         instance_buffer_words(scene, placements, scene.instancing.world_triangles, nullptr, previous_instances);
   }
   const auto shading = make_triangle_shading(scene);
-  const auto lights = make_light_table(scene);
   // An emitter posed edge-on to nothing (zero area) leaves the table for this frame.
-  light_count_ = lights.size();
+  const auto table = make_light_table(scene);
+  light_count_ = table.size();
+  // Emitters that move keep the tree's topology (a refit: bounds, cones and power from the leaves
+  // up) while the table holds the same triangles; a table that changed gets a new tree.
+  const auto two_sided = light_two_sidedness(scene, table);
+  const bool same_lights = light_prims_.size() == table.size() &&
+                           std::equal(table.begin(), table.end(), light_prims_.begin(),
+                                      [](const LightTriangle& l, std::uint32_t prim) { return l.prim == prim; });
+  if (!same_lights || !light_tree_.refit(table, two_sided)) {
+    light_tree_ = LightTree::build(table, two_sided);
+    light_prims_.resize(table.size());
+    for (std::size_t i = 0; i < table.size(); ++i) light_prims_[i] = table[i].prim;
+  }
+  const auto lights = light_buffer(table, light_tree_);
   std::vector<cl_float4> motion;
   if (previous) {
     if (previous->size() != scene.triangles.size())

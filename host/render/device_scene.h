@@ -16,6 +16,7 @@
 #include "cl/device_set.h"
 #include "render/device_layout_cache.h"
 #include "render/kernel_features.h"
+#include "render/light_tree.h"
 #include "render/scene_tables.h"
 #include "scene/scene.h"
 
@@ -217,6 +218,9 @@ class DeviceScene {
   double upload_ms_ = 0.0;
   double layout_ms_ = 0.0;
   std::size_t light_count_ = 0;
+  // update_geometry's light tree and the prims of the table it was built for (refit while they stay).
+  LightTree light_tree_;
+  std::vector<std::uint32_t> light_prims_;
   std::size_t instance_count_ = 0, instance_bytes_ = 0;
   // CPU devices: the buffers are the host arrays themselves (CL_MEM_USE_HOST_PTR), kept here.
   bool host_backed_ = false;

@@ -17,12 +17,12 @@ FrameParams PathTracer::frame_params(const Scene& scene, std::size_t light_count
   fp.max_bounces = options.bounces;
   fp.seed = options.seed;
   fp.light_sampling = static_cast<cl_uint>(options.light_sampling);
+  fp.direct_light = static_cast<cl_uint>(options.direct_light);
   fp.rr_start_bounce = options.rr_start_bounce;
   fp.row0 = row0;
   fp.rows = rows;
   fp.sample_offset = sample_offset;
   fp.first_sample_on_gbuffer_ray = options.first_sample_on_gbuffer_ray ? 1u : 0u;
-  fp.direct_light = static_cast<cl_uint>(options.direct_light);
   return fp;
 }
 

@@ -15,6 +15,8 @@
 namespace px {
 
 enum class LightSampling : std::uint32_t { Mis = PX_LIGHTS_MIS, Nee = PX_LIGHTS_NEE, Bsdf = PX_LIGHTS_BSDF };
+// How next-event estimation picks an emissive triangle: by power, by the light tree's importance
+// at the shading point (kernels/shading/light_tree.h), or ReSTIR DI over the tree's candidates.
 enum class DirectLight : std::uint32_t { Power = PX_DIRECT_POWER, Tree = PX_DIRECT_TREE, Restir = PX_DIRECT_RESTIR };
 
 class PathTracer {

@@ -15,6 +15,11 @@ std::array<ImageRGB, 2> render_reference(PathTracer& tracer, float time_s, std::
   PathTracer::Options opt;
   opt.bounces = options.bounces;
   opt.seed = options.seed;
+  if (options.direct_light == DirectLight::Restir)
+    throw std::invalid_argument(
+        "reference: --direct-light restir is not for references (plain path tracing: power or "
+        "tree)");
+  opt.direct_light = options.direct_light;
   opt.first_sample_on_gbuffer_ray = false;  // the whole pixel, every sample jittered
   std::array<std::vector<double>, 2> sum;
   for (auto& s : sum) s.assign(static_cast<std::size_t>(width) * height * 3, 0.0);

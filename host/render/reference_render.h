@@ -14,6 +14,9 @@ struct ReferenceOptions {
   unsigned pass_spp = 64;
   unsigned bounces = PathTracer::Options{}.bounces;  // the renderer's default path length
   std::uint32_t seed = 0x5eed;                       // differs from the default render seed: independent samples
+  // How NEE picks emissive triangles: power or tree converge to the same image; restir is refused
+  // (render_reference throws std::invalid_argument): a reference stays plain path tracing.
+  DirectLight direct_light = DirectLight::Power;
   // Polled after each pass: true stops early (Ctrl-C), and the images average the passes done.
   std::function<bool()> stop;
 };

@@ -29,6 +29,7 @@ typedef struct PathVertex {
   float3 throughput;
   float3 radiance; /* gathered so far */
   float3 prev_n;   /* shading normal of the last vertex (the environment's MIS pdf) */
+  float3 prev_p;   /* hit point of the last vertex (the light tree's MIS pmf, with prev_n) */
   float prev_pdf;  /* pdf of the last BSDF sample (MIS) */
   int prev_delta;  /* the last bounce was a delta one (the camera ray counts as one) */
   /* ReSTIR DI (restir/restir_di.cl) lights the first vertex of each pixel's G-buffer ray in its
@@ -89,6 +90,7 @@ inline PathVertex px_camera_path(float3 org, float3 dir, int restir_first_vertex
   v.throughput = (float3)(1.0f, 1.0f, 1.0f);
   v.radiance = (float3)(0.0f, 0.0f, 0.0f);
   v.prev_n = (float3)(0.0f, 1.0f, 0.0f);
+  v.prev_p = org;
   v.prev_pdf = 0.0f;
   v.prev_delta = 1;
   v.restir = restir_first_vertex ? PX_RESTIR_VERTEX_NEXT : 0;
@@ -147,7 +149,11 @@ inline int px_path_vertex(const SceneView* scene, const FrameParams* fp, SampleK
         w = 0.0f;
       } else if (use_nee) {
         const int li = px_find_light(scene, fp->light_count, prim);
-        const float lp = li >= 0 ? px_triangle_light_pdf(fp, scene->lights + li, hit.t, fabs(dot(ng, dir))) : 0.0f;
+        /* The light's selection probability where NEE would have picked it: the last vertex. */
+        const float lp = li >= 0 ? px_triangle_light_pdf(fp, scene->lights + li,
+                                                         px_light_select_pmf(scene, fp, li, v->prev_p, v->prev_n),
+                                                         hit.t, fabs(dot(ng, dir)))
+                                 : 0.0f;
         w = px_mis_power(v->prev_pdf, lp);
       }
     }
@@ -196,6 +202,7 @@ inline int px_path_vertex(const SceneView* scene, const FrameParams* fp, SampleK
   v->prev_delta = bs.delta;
   v->restir = v->restir == PX_RESTIR_VERTEX_NEXT ? PX_RESTIR_VERTEX_LAST : 0;
   v->prev_n = ns;
+  v->prev_p = p;
 
   if (bounce + 1u >= fp->rr_start_bounce) {
     const float q = fmin(0.95f, fmax(v->throughput.x, fmax(v->throughput.y, v->throughput.z)));

@@ -30,9 +30,9 @@ inline void px_store_path(global float4* states, uint i, const PathVertex* v) {
   s[0] = (float4)(v->org, v->prev_pdf);
   /* w: prev_delta (0/1) + 2 x restir (PathVertex::restir, 0..2). */
   s[1] = (float4)(v->dir, (float)((v->prev_delta ? 1 : 0) + 2 * v->restir));
-  s[2] = (float4)(v->throughput, 0.0f);
-  s[3] = (float4)(v->radiance, 0.0f);
-  s[4] = (float4)(v->prev_n, 0.0f);
+  s[2] = (float4)(v->throughput, v->prev_p.x);
+  s[3] = (float4)(v->radiance, v->prev_p.y);
+  s[4] = (float4)(v->prev_n, v->prev_p.z);
   s[5] = v->primary_albedo;
 }
 
@@ -46,9 +46,11 @@ inline PathVertex px_load_path(const global float4* states, uint i) {
   const int bits = (int)d.w;
   v.prev_delta = bits & 1;
   v.restir = bits >> 1;
-  v.throughput = s[2].xyz;
-  v.radiance = s[3].xyz;
-  v.prev_n = s[4].xyz;
+  const float4 t = s[2], r = s[3], n = s[4];
+  v.throughput = t.xyz;
+  v.radiance = r.xyz;
+  v.prev_n = n.xyz;
+  v.prev_p = (float3)(t.w, r.w, n.w);
   v.primary_albedo = s[5];
   return v;
 }
@@ -172,9 +174,9 @@ kernel void wf_connect(global float4* states, const global float4* shadows, cons
   const float4 o = r[0];
   if (px_trace_any(&scene, o.xyz, r[1].xyz, 0.0f, o.w)) return;
   global float4* radiance = states + (size_t)i * PX_PATH_STATE_FLOAT4S + 3;
-  float3 l = (*radiance).xyz;
-  l += r[2].xyz;
-  *radiance = (float4)(l, 0.0f);
+  float4 l = *radiance; /* w: prev_p.y, kept */
+  l.xyz += r[2].xyz;
+  *radiance = l;
 }
 
 /* Slot k's pixel: its fp.spp samples summed in sample order (dropping and counting non-finite

@@ -103,23 +103,6 @@ inline LightContribution px_restir_evaluate(const SceneView* s, const FrameParam
   return c;
 }
 
-/* One emissive triangle for a shading point at p with normal n, chosen by power (the CDF of the
- * LightTriangle table, as px_sample_light); *pmf receives its probability. */
-inline int px_choose_triangle_light(const SceneView* s, const FrameParams* fp, float3 p, float3 n, float u,
-                                    float* pmf) {
-  if (fp->light_count == 0u) return -1;
-  int lo = 0, hi = (int)fp->light_count - 1;
-  while (lo < hi) {
-    const int mid = (lo + hi) / 2;
-    if (s->lights[mid].cdf > u)
-      hi = mid;
-    else
-      lo = mid + 1;
-  }
-  *pmf = s->lights[lo].pdf_select;
-  return lo;
-}
-
 /* One candidate for shading point *sp from the scene's light sampler (the kinds as
  * px_sample_light picks them; among triangles by the chosen direct-light strategy): writes
  * (*light, *y) and returns its source density in the sample's measure (area for triangles,
@@ -131,7 +114,7 @@ inline float px_restir_candidate(const SceneView* s, const FrameParams* fp, cons
   float pick = u.z;
   if (PX_HAS(PX_FEATURE_EMISSIVE) && pick < fp->p_triangles) {
     float pmf = 0.0f;
-    const int li = px_choose_triangle_light(s, fp, sp->p, sp->ns, u.w, &pmf);
+    const int li = px_pick_triangle_light(s, fp, sp->p, sp->ns, u.w, &pmf);
     if (li < 0 || !(pmf > 0.0f)) return 0.0f;
     const global LightTriangle* l = s->lights + li;
     if (!(l->area > 0.0f)) return 0.0f;

@@ -1,8 +1,9 @@
 /* Lights: emissive triangles (front face only, unless their material is two-sided), and an environment made of a sun
  * disk and an analytic sky. Next-event estimation first picks a kind of light (FrameParams p_*), then: triangles - one
- * triangle by power (binary search of the CDF), a uniform point on it; sun       - a uniform direction inside the sun's
- * cone; sky       - a cosine-weighted direction around the shading normal. The sun and sky form one environment: a
- * direction inside the sun's cone sees the sun, any other the sky. Its light pdf is the mixture p_sun pdf_sun + p_sky
+ * triangle by power (binary search of the CDF) or, with FrameParams::direct_light tree or restir, by the light tree's
+ * importance at the shading point (light_tree.h), a uniform point on it; sun       - a uniform direction inside the
+ * sun's cone; sky       - a cosine-weighted direction around the shading normal. The sun and sky form one environment:
+ * a direction inside the sun's cone sees the sun, any other the sky. Its light pdf is the mixture p_sun pdf_sun + p_sky
  * pdf_sky, so a direction has the same density whichever strategy produced it, which is what MIS needs. */
 #ifndef PARALLAX_LIGHTS_H
 #define PARALLAX_LIGHTS_H
@@ -10,6 +11,7 @@
 #include "sampling/warp.h"
 #include "scene/scene_view.h"
 #include "shading/bsdf.h"
+#include "shading/light_tree.h"
 
 inline float3 px_sky_radiance(const FrameParams* fp, float3 d) {
   if (!PX_HAS(PX_FEATURE_SKY)) return (float3)(0.0f, 0.0f, 0.0f); /* the host zeroes a disabled sky */
@@ -49,11 +51,24 @@ inline int px_find_light(const SceneView* s, uint count, uint prim) {
   return -1;
 }
 
-/* Density (solid angle, selection included) of NEE reaching emissive triangle `light` at
- * distance `dist`, arriving with cosine `cos_light` to its plane. */
-inline float px_triangle_light_pdf(const FrameParams* fp, const global LightTriangle* l, float dist, float cos_light) {
+/* Whether next-event estimation picks triangles through the light tree (restir draws its
+ * candidates the same way). */
+inline int px_direct_light_tree(const FrameParams* fp) { return fp->direct_light != PX_DIRECT_POWER; }
+
+/* The probability that next-event estimation at point p with shading normal n picks emissive
+ * triangle `light` (index into the table) among the triangles. */
+inline float px_light_select_pmf(const SceneView* s, const FrameParams* fp, int light, float3 p, float3 n) {
+  if (px_direct_light_tree(fp)) return px_light_tree_pmf(s, fp->light_count, p, n, light);
+  return s->lights[light].pdf_select;
+}
+
+/* Density (solid angle, selection included) of NEE reaching emissive triangle `l`, picked with
+ * probability `select` among the triangles, at distance `dist`, arriving with cosine
+ * `cos_light` to its plane. */
+inline float px_triangle_light_pdf(const FrameParams* fp, const global LightTriangle* l, float select, float dist,
+                                   float cos_light) {
   if (cos_light <= 0.0f || l->area <= 0.0f) return 0.0f;
-  return fp->p_triangles * l->pdf_select * dist * dist / (l->area * cos_light);
+  return fp->p_triangles * select * dist * dist / (l->area * cos_light);
 }
 
 typedef struct LightSample {
@@ -63,6 +78,29 @@ typedef struct LightSample {
   float pdf; /* solid angle, light-type selection included; 0 = no sample */
 } LightSample;
 
+/* One emissive triangle for next-event estimation at point p with shading normal n, by the
+ * direct-light strategy (power: the first entry whose inclusive CDF exceeds u; tree: the light
+ * tree's walk), its selection probability in *select; -1 for none. ReSTIR's candidates are picked
+ * by the same function. */
+inline int px_pick_triangle_light(const SceneView* s, const FrameParams* fp, float3 p, float3 n, float u,
+                                  float* select) {
+  *select = 0.0f;
+  if (fp->light_count == 0u) return -1;
+  if (px_direct_light_tree(fp)) return px_light_tree_sample(s, fp->light_count, p, n, u, select);
+  int lo = 0, hi = (int)fp->light_count - 1;
+  while (lo < hi) {
+    const int mid = (lo + hi) / 2;
+    if (s->lights[mid].cdf > u)
+      hi = mid;
+    else
+      lo = mid + 1;
+  }
+  *select = s->lights[lo].pdf_select;
+  return lo;
+}
+
+/* A light sample for point p with shading normal n (the tree's choice depends on both: the MIS
+ * weight of a BSDF-sampled hit asks px_light_select_pmf at the same p and n). */
 inline LightSample px_sample_light(const SceneView* s, const FrameParams* fp, float3 p, float3 n, float4 u) {
   LightSample ls;
   ls.pdf = 0.0f;
@@ -71,16 +109,9 @@ inline LightSample px_sample_light(const SceneView* s, const FrameParams* fp, fl
   ls.wi = n;
   float pick = u.z;
   if (PX_HAS(PX_FEATURE_EMISSIVE) && pick < fp->p_triangles) {
-    if (fp->light_count == 0u) return ls;
-    /* First entry whose inclusive CDF exceeds u.w. */
-    int lo = 0, hi = (int)fp->light_count - 1;
-    while (lo < hi) {
-      const int mid = (lo + hi) / 2;
-      if (s->lights[mid].cdf > u.w)
-        hi = mid;
-      else
-        lo = mid + 1;
-    }
+    float select;
+    const int lo = px_pick_triangle_light(s, fp, p, n, u.w, &select);
+    if (lo < 0) return ls;
     const global LightTriangle* l = s->lights + lo;
     const float2 b = px_uniform_triangle(u.x, u.y);
     const float3 v0 = px_load3(l->v0), v1 = px_load3(l->v1), v2 = px_load3(l->v2);
@@ -95,7 +126,7 @@ inline LightSample px_sample_light(const SceneView* s, const FrameParams* fp, fl
      * BSDF-sampled ray that hits its back gets no emission. */
     const uint flags = s->materials[s->shading[l->prim].material].flags;
     if (!(PX_HAS(PX_FEATURE_TWO_SIDED) && (flags & PX_MAT_TWO_SIDED_EMITTER)) && dot(ng, ls.wi) >= 0.0f) return ls;
-    ls.pdf = px_triangle_light_pdf(fp, l, ls.dist, fabs(dot(ng, ls.wi)));
+    ls.pdf = px_triangle_light_pdf(fp, l, select, ls.dist, fabs(dot(ng, ls.wi)));
     ls.radiance = px_load3(l->emission);
     return ls;
   }

@@ -494,6 +494,27 @@ typedef struct LightTriangle {
   float pdf_select;
 } LightTriangle;
 
+/* One node of the light tree (host/render/light_tree.h), 64 bytes. The `lights` buffer holds
+ * LightTriangle x n (the table, by prim), LightTreeNode x (2n - 1) (root first, parents before
+ * children, one leaf per light), uint trail x n padded to 64 bytes (bit i: light k's path from the
+ * root takes child[1] at depth i). A node bounds its lights: box, total power phi (area x
+ * luminance, x 2 if two-sided), cone of emitting normals (axis, theta_o) and spread theta_e of
+ * emission around a normal. Leaf: the triangle's box and normal, theta_o 0 (pi if two-sided),
+ * theta_e pi/2; a point light would be an empty box with theta_o = pi (spot: its axis, theta_e).
+ *   0..11 bounds_min[3]  12..23 bounds_max[3]  24..27 phi  28..39 axis[3]  40..43 cos_theta_o
+ *  44..47 cos_theta_e  48..55 child[2] (node index, or PX_LIGHT_TREE_LEAF | light: a leaf)  56..63 pad */
+#define PX_LIGHT_TREE_LEAF 0x80000000u
+typedef struct LightTreeNode {
+  float bounds_min[3];
+  float bounds_max[3];
+  float phi;
+  float axis[3];
+  float cos_theta_o;
+  float cos_theta_e;
+  uint child[2];
+  uint pad[2];
+} LightTreeNode;
+
 /* Everything a path-tracing launch needs besides buffers, 128 bytes, passed by value.
  *
  *   0..11 sun_dir[3] (towards the sun)         12..15 sun_cos_max (cos of angular radius)
@@ -558,9 +579,9 @@ typedef struct FrameParams {
  *   path state, PX_PATH_STATE_FLOAT4S float4 (96 bytes; PathVertex in pathtrace/path_vertex.h):
  *     0  org.xyz, prev_pdf            the next ray's origin; the last BSDF sample's pdf
  *     1  dir.xyz, prev_delta          the next ray's direction; 1.0f after a delta bounce
- *     2  throughput.xyz, 0
- *     3  radiance.xyz, 0              gathered so far
- *     4  prev_n.xyz, 0                the last vertex's shading normal
+ *     2  throughput.xyz, prev_p.x
+ *     3  radiance.xyz, prev_p.y       gathered so far; prev_p: the last vertex's hit point
+ *     4  prev_n.xyz, prev_p.z         the last vertex's shading normal
  *     5  primary_albedo               the denoiser's demodulation albedo (w: coverage)
  *   shadow ray, PX_SHADOW_RAY_FLOAT4S float4 (48 bytes; ShadowRay there):
  *     0  org.xyz, tmax
