@@ -207,16 +207,23 @@ TEST(Restir, ManyLightsLowerEveryFramesError) {
   ro.pipeline = po.pipeline = PipelineKind::Mono;
   const FrameRun restir = render_frames(file, ro, w, h, 64, 2);
   const FrameRun power = render_frames(file, po, w, h, 64, 2);
+  double l_restir = 0.0, l_ref = 0.0;
   for (int e = 0; e < 2; ++e) {
     const double r_last = compare_images(restir.last[e], ref[e]).rel_mse;
     const double p_last = compare_images(power.last[e], ref[e]).rel_mse;
     std::printf(
-        "eye %d: last frame relMSE restir %.4f power %.4f (x%.2f); mean luminance restir/power %.4f, restir/ref %.4f\n",
-        e, r_last, p_last, p_last / r_last, mean_luminance(power.mean[e]) / mean_luminance(ref[e]),
-        mean_luminance(restir.mean[e]) / mean_luminance(ref[e]));
+        "eye %d: last frame relMSE ReSTIR %.4f, next-event estimation %.4f (x%.1f); 64 frames' mean luminance "
+        "over the reference's: ReSTIR %.4f, next-event estimation %.4f\n",
+        e, r_last, p_last, p_last / r_last, mean_luminance(restir.mean[e]) / mean_luminance(ref[e]),
+        mean_luminance(power.mean[e]) / mean_luminance(ref[e]));
     EXPECT_LT(3.0 * r_last, p_last) << "eye " << e;
-    EXPECT_NEAR(mean_luminance(restir.mean[e]) / mean_luminance(power.mean[e]), 1.0, 0.02) << "eye " << e;
+    l_restir += mean_luminance(restir.mean[e]);
+    l_ref += mean_luminance(ref[e]);
   }
+  /* Reuse correlates pixels and frames: over seeds the 64-frame mean of one eye scatters by about
+   * 1.5% around the reference's (docs/measurements.md, Many lights); both eyes pooled, 3% is far
+   * outside that scatter and well inside what a missing lamp or a doubled one would do. */
+  EXPECT_NEAR(l_restir / l_ref, 1.0, 0.03);
 }
 
 }  // namespace
