@@ -34,9 +34,10 @@ std::string plane_scene(const TempDir& dir, const std::string& name, const std::
              "mtllib plane.mtl\nv -20 0 -20\nv 20 0 -20\nv 20 0 20\nv -20 0 20\nvn 0 1 0\nusemtl grey\n"
              "f 1//1 3//1 2//1\nf 1//1 4//1 3//1\n");
   const std::filesystem::path p = dir.path() / (name + ".json");
-  write_text(p, "{\"mesh\": \"plane.obj\", \"ipd_m\": 0, \"camera\": {\"position\": [0, 4, 0], \"target\": [0, 0, 0], "
-                "\"up\": [0, 0, -1], \"vfov_deg\": " +
-                    std::to_string(fov) + "}, \"lights\": " + lights + "}");
+  write_text(p,
+             "{\"mesh\": \"plane.obj\", \"ipd_m\": 0, \"camera\": {\"position\": [0, 4, 0], \"target\": [0, 0, 0], "
+             "\"up\": [0, 0, -1], \"vfov_deg\": " +
+                 std::to_string(fov) + "}, \"lights\": " + lights + "}");
   return p.string();
 }
 
@@ -77,11 +78,12 @@ const char* mode_name(DirectLight m) {
 
 TEST(PunctualLights, SceneFileLightsAreReadAndBadOnesRefused) {
   TempDir dir;
-  const std::string ok = plane_scene(dir, "ok",
-                                     "[{\"type\": \"point\", \"position\": [1, 2, 3], \"intensity\": 5, \"color\": "
-                                     "[1, 0.5, 0]}, {\"type\": \"spot\", \"position\": [0, 3, 0], \"intensity\": [1, "
-                                     "2, 3], \"direction\": [0, -2, 0], \"inner_cone_deg\": 10, \"outer_cone_deg\": 30}]",
-                                     30.0f);
+  const std::string ok =
+      plane_scene(dir, "ok",
+                  "[{\"type\": \"point\", \"position\": [1, 2, 3], \"intensity\": 5, \"color\": "
+                  "[1, 0.5, 0]}, {\"type\": \"spot\", \"position\": [0, 3, 0], \"intensity\": [1, "
+                  "2, 3], \"direction\": [0, -2, 0], \"inner_cone_deg\": 10, \"outer_cone_deg\": 30}]",
+                  30.0f);
   const Scene s = load_scene(ok);
   ASSERT_EQ(s.punctual_lights.size(), 2u);
   EXPECT_FALSE(s.sky.enabled);  // the lights light it: no default sky
@@ -167,7 +169,8 @@ TEST(PunctualLights, SpotLightIsFullInsideItsInnerConeAndDarkOutsideItsOuterCone
         const double angle = std::atan(std::sqrt(px * px + pz * pz) / 2.0) * 180.0 / M_PI;
         if (angle < 16.0) {
           ++inside;
-          EXPECT_NEAR(luminance_at(is, x, y) / luminance_at(ip, x, y), 1.0, 1e-3) << mode_name(mode) << " " << x << ", " << y;
+          EXPECT_NEAR(luminance_at(is, x, y) / luminance_at(ip, x, y), 1.0, 1e-3)
+              << mode_name(mode) << " " << x << ", " << y;
         } else if (angle > 34.0) {
           ++outside;
           EXPECT_EQ(luminance_at(is, x, y), 0.0) << mode_name(mode) << " " << x << ", " << y;
@@ -183,14 +186,14 @@ TEST(PunctualLights, SpotLightIsFullInsideItsInnerConeAndDarkOutsideItsOuterCone
 // triangle, counting and tree measures) converge to next-event estimation's mean by power.
 TEST(PunctualLights, RestirConvergesToThePowerMean) {
   TempDir dir;
-  const std::string scene = plane_scene(
-      dir, "many",
-      "[{\"type\": \"point\", \"position\": [1, 1, 0], \"intensity\": 4},"
-      " {\"type\": \"point\", \"position\": [-1.5, 0.5, 1], \"intensity\": [1, 3, 0.5]},"
-      " {\"type\": \"point\", \"position\": [0, 3, -2], \"intensity\": 20},"
-      " {\"type\": \"spot\", \"position\": [0, 1.5, 1.5], \"intensity\": 30, \"direction\": [0, -1, -0.5],"
-      "  \"inner_cone_deg\": 15, \"outer_cone_deg\": 35}]",
-      60.0f);
+  const std::string scene =
+      plane_scene(dir, "many",
+                  "[{\"type\": \"point\", \"position\": [1, 1, 0], \"intensity\": 4},"
+                  " {\"type\": \"point\", \"position\": [-1.5, 0.5, 1], \"intensity\": [1, 3, 0.5]},"
+                  " {\"type\": \"point\", \"position\": [0, 3, -2], \"intensity\": 20},"
+                  " {\"type\": \"spot\", \"position\": [0, 1.5, 1.5], \"intensity\": 30, \"direction\": [0, -1, -0.5],"
+                  "  \"inner_cone_deg\": 15, \"outer_cone_deg\": 35}]",
+                  60.0f);
   const ImageRGB power = render_mean(scene, DirectLight::Power, 32, 32, 48);
   const ImageRGB restir = render_mean(scene, DirectLight::Restir, 32, 32, 48);
   const ImageRGB tree = render_mean(scene, DirectLight::Tree, 32, 32, 48);
