@@ -5,8 +5,9 @@
  * index into the LightTriangle table and y = (b1, b2) barycentrics on it, or PX_RESTIR_ENVIRONMENT
  * with y a direction. Evaluating a sample therefore re-reads the light's current vertices and
  * emission: a reservoir kept from last frame lights a pixel from where its lamp is now, never
- * from where it was. Triangle samples are measured by area and environment samples by solid
- * angle, for every pixel alike, so moving a sample between pixels needs no Jacobian.
+ * from where it was. Triangle samples are measured by area, environment samples by solid angle
+ * and point or spot lights (y unused) by counting, for every pixel alike, so moving a sample
+ * between pixels needs no Jacobian.
  *
  * Kept per pixel as two float4 (32 bytes):
  *   [0] light (uint bits), y.x, y.y, y.z
@@ -76,6 +77,11 @@ inline LightContribution px_restir_evaluate(const SceneView* s, const FrameParam
   if (light == PX_RESTIR_ENVIRONMENT) {
     c.wi = y;
     le = px_environment(fp, y);
+  } else if (PX_HAS(PX_FEATURE_EMISSIVE) && light < fp->light_count && px_is_punctual_light(s->lights + light)) {
+    /* A point or spot light: Le is its intensity towards sp, G = 1 / d^2 (no cosine at it). */
+    le = px_punctual_light_towards(s->lights + light, sp->p, &c.wi, &c.dist);
+    if (!(c.dist > 0.0f)) return c;
+    g = 1.0f / (c.dist * c.dist);
   } else if (PX_HAS(PX_FEATURE_EMISSIVE) && light < fp->light_count) {
     const global LightTriangle* l = s->lights + light;
     const float3 v0 = px_load3(l->v0), v1 = px_load3(l->v1), v2 = px_load3(l->v2);
@@ -106,7 +112,7 @@ inline LightContribution px_restir_evaluate(const SceneView* s, const FrameParam
 /* One candidate for shading point *sp from the scene's light sampler (the kinds as
  * px_sample_light picks them; among triangles by the chosen direct-light strategy): writes
  * (*light, *y) and returns its source density in the sample's measure (area for triangles,
- * solid angle for the environment), 0 for no candidate. */
+ * solid angle for the environment, counting for a point or spot light), 0 for no candidate. */
 inline float px_restir_candidate(const SceneView* s, const FrameParams* fp, const ShadingPoint* sp, float4 u,
                                  uint* light, float3* y) {
   *light = PX_RESTIR_NO_LIGHT;
@@ -117,6 +123,10 @@ inline float px_restir_candidate(const SceneView* s, const FrameParams* fp, cons
     const int li = px_pick_triangle_light(s, fp, sp->p, sp->ns, u.w, &pmf);
     if (li < 0 || !(pmf > 0.0f)) return 0.0f;
     const global LightTriangle* l = s->lights + li;
+    if (px_is_punctual_light(l)) {
+      *light = (uint)li;
+      return fp->p_triangles * pmf; /* counting measure: the probability of the light itself */
+    }
     if (!(l->area > 0.0f)) return 0.0f;
     const float2 b = px_uniform_triangle(u.x, u.y);
     *light = (uint)li;

@@ -244,7 +244,8 @@ typedef struct CompressedBvh8Node {
 #define PX_FEATURE_SKY 0x200u
 #define PX_FEATURE_VERTEX_COLOURS 0x400u /* glTF COLOR_0: per-vertex colours multiply the diffuse colour */
 #define PX_FEATURE_INSTANCES 0x800u      /* meshes drawn by several nodes: a top level over instances */
-#define PX_FEATURES_ALL 0xfffu
+#define PX_FEATURE_PUNCTUAL 0x1000u      /* point and spot lights in the light table (LightTriangle) */
+#define PX_FEATURES_ALL 0x1fffu
 #if defined(__OPENCL_C_VERSION__)
 #ifndef PX_FEATURES
 #define PX_FEATURES PX_FEATURES_ALL
@@ -482,7 +483,12 @@ typedef struct TextureInfo {
  * normalised to 1 at the last entry, and `pdf_select` this triangle's probability.
  *
  *   0..11 v0[3]  12..15 prim   16..27 v1[3]  28..31 area
- *  32..43 v2[3]  44..47 cdf    48..59 emission[3]  60..63 pdf_select */
+ *  32..43 v2[3]  44..47 cdf    48..59 emission[3]  60..63 pdf_select
+ * Point and spot lights (PX_FEATURE_PUNCTUAL) follow the triangles: prim PX_LIGHT_PUNCTUAL + k
+ * (Scene::punctual_lights[k]; above every triangle, so the table stays sorted by prim), area 0,
+ * v0 the position, v1 the spot's axis, v2 the falloff's (scale, offset, cos_outer), emission the
+ * intensity (W/sr); power 4 pi I, a spot's 2 pi (1 - (cos_inner + cos_outer) / 2) I. */
+#define PX_LIGHT_PUNCTUAL 0xc0000000u
 typedef struct LightTriangle {
   float v0[3];
   uint prim;
@@ -500,7 +506,7 @@ typedef struct LightTriangle {
  * root takes child[1] at depth i). A node bounds its lights: box, total power phi (area x
  * luminance, x 2 if two-sided), cone of emitting normals (axis, theta_o) and spread theta_e of
  * emission around a normal. Leaf: the triangle's box and normal, theta_o 0 (pi if two-sided),
- * theta_e pi/2; a point light would be an empty box with theta_o = pi (spot: its axis, theta_e).
+ * theta_e pi/2; a point light: its point, phi its intensity's luminance, theta_o pi (a spot: its axis, the outer cone).
  *   0..11 bounds_min[3]  12..23 bounds_max[3]  24..27 phi  28..39 axis[3]  40..43 cos_theta_o
  *  44..47 cos_theta_e  48..55 child[2] (node index, or PX_LIGHT_TREE_LEAF | light: a leaf)  56..63 pad */
 #define PX_LIGHT_TREE_LEAF 0x80000000u
