@@ -1,5 +1,6 @@
 // Compile-time proof that the host sees kernels/shared/types.h with the byte layout that the
 // header documents (and that OpenCL C gives it: 4-byte scalars only, no implicit padding).
+#include "restir/restir_params.h"
 #include "shared/types.h"
 
 #include <cstddef>

@@ -16,6 +16,7 @@
 #ifndef PARALLAX_RESTIR_RESERVOIR_H
 #define PARALLAX_RESTIR_RESERVOIR_H
 
+#include "restir/restir_params.h"
 #include "restir/shading_point.h"
 #include "shading/lights.h"
 

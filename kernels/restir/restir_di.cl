@@ -171,10 +171,11 @@ kernel void restir_candidates(global float4* reservoirs, global uint4* hits, con
 /* Pass 2 over the same pixels: merges the pixel's reservoir with those of up to rp.neighbours
  * pixels within rp.radius in rows [rp.lo_row, rp.hi_row) that pass 1 wrote this frame (tag
  * rp.tag) and that see a similar surface, and, where `other_reservoirs` is given (the right eye's
- * holes: the left eye's final reservoirs of this frame, seen by `other_cam`), with the other eye's
+ * holes: the left eye's kept reservoirs of this frame, seen by `other_cam`), with the other eye's
  * reservoir at the pixel where that eye sees the surface, in the same row (the eyes' strips hold
  * the same rows, so the row is always this device's), if it sees a similar surface there; keeps
- * the result for next frame (`final`), and shades:
+ * for next frame the pixel's reservoir from pass 1 (`final`: temporal reuse never sees spatial
+ * reuse's samples), and shades:
  * one shadow ray toward the sample kept; if it arrives, f Le cos G W over the pixel's sample
  * count is added to `radiance` (a non-finite value is counted in *nonfinite, never added). */
 kernel void restir_spatial_shade(global float4* radiance, volatile global uint* nonfinite, global float4* final,
@@ -224,8 +225,11 @@ kernel void restir_spatial_shade(global float4* radiance, volatile global uint* 
       }
     }
   }
-  const Reservoir r = n > 1u ? px_restir_merge(&scene, &fp, sps, rs, n, key, PX_RESTIR_MAX_NEIGHBOURS, rp.tag) : rs[0];
-  px_store_reservoir(final, pixel, r);
+  Reservoir r = n > 1u ? px_restir_merge(&scene, &fp, sps, rs, n, key, PX_RESTIR_MAX_NEIGHBOURS, rp.tag) : rs[0];
+  /* Next frame reuses the reservoir before spatial reuse: feeding the merged one back (as
+   * Bitterli et al. do) measured a bias of a few percent that grows with the candidates and
+   * neighbours (docs/measurements.md, Many lights); kept apart, frames converge to the reference. */
+  px_store_reservoir(final, pixel, rs[0]);
   if (r.light == PX_RESTIR_NO_LIGHT || !(r.W > 0.0f)) return;
   const LightContribution c = px_restir_evaluate(&scene, &fp, sps, r.light, r.y);
   if (!(c.target > 0.0f)) return;

@@ -469,8 +469,7 @@ typedef struct CameraParams {
   uint pad[2];
 } CameraParams;
 
-/* Where a texture's texels start in the shared texel buffer (float4 RGBA, linear, rows top to
- * bottom), 16 bytes. */
+/* Where a texture's texels start in the texel buffer (float4 RGBA, linear, rows top to bottom), 16 bytes. */
 typedef struct TextureInfo {
   uint offset; /* in texels */
   uint width;
@@ -505,8 +504,8 @@ typedef struct LightTriangle {
  * children, one leaf per light), uint trail x n padded to 64 bytes (bit i: light k's path from the
  * root takes child[1] at depth i). A node bounds its lights: box, total power phi (area x
  * luminance, x 2 if two-sided), cone of emitting normals (axis, theta_o) and spread theta_e of
- * emission around a normal. Leaf: the triangle's box and normal, theta_o 0 (pi if two-sided),
- * theta_e pi/2; a point light: its point, phi its intensity's luminance, theta_o pi (a spot: its axis, the outer cone).
+ * emission around a normal. Leaf: the triangle's box and normal, theta_o 0 (pi if two-sided), theta_e pi/2;
+ * a point light: its point, phi its intensity's luminance, theta_o pi (a spot: its axis, the outer cone).
  *   0..11 bounds_min[3]  12..23 bounds_max[3]  24..27 phi  28..39 axis[3]  40..43 cos_theta_o
  *  44..47 cos_theta_e  48..55 child[2] (node index, or PX_LIGHT_TREE_LEAF | light: a leaf)  56..63 pad */
 #define PX_LIGHT_TREE_LEAF 0x80000000u
@@ -530,12 +529,9 @@ typedef struct LightTreeNode {
  *  64..75 sky_ground[3]                        76..79 light_count (LightTriangle entries)
  *  80..83 frame   84..87 eye   88..91 spp   92..95 max_bounces
  *  96..99 seed   100..103 light_sampling (PX_LIGHTS_*)  104..107 rr_start_bounce
- * 108..111 row0 (first image row of this launch)  112..115 rows
+ * 108..111 row0 (first image row of this launch)  112..115 rows  124..127 direct_light (PX_DIRECT_*)
  * 116..119 sample_offset (index of this launch's first sample: progressive passes)
- * 120..123 first_sample_on_gbuffer_ray (1: the frame's sample 0 is the G-buffer's ray, through the
- *          camera's jitter position CameraParams::jitter)
- * 124..127 direct_light (PX_DIRECT_*: how next-event estimation picks among emissive triangles, and
- *          whether ReSTIR DI lights the first vertex of the frame's sample 0) */
+ * 120..123 first_sample_on_gbuffer_ray (1: sample 0 is the G-buffer's ray, through CameraParams::jitter) */
 typedef struct FrameParams {
   float sun_dir[3];
   float sun_cos_max;
@@ -571,9 +567,8 @@ typedef struct FrameParams {
 #define PX_LIGHTS_NEE 1u
 #define PX_LIGHTS_BSDF 2u
 
-/* Direct-light strategies (FrameParams::direct_light): emissive triangles chosen by power (a CDF
- * over the table), by the light tree, or by the light tree with ReSTIR DI at the first vertex of
- * each pixel's G-buffer ray (whose next-event estimation the path tracer then leaves out). */
+/* FrameParams::direct_light: lights picked by power (a CDF), by the light tree, or by the tree
+ * with ReSTIR DI at each pixel's first vertex (no next-event estimate there: stage 14 adds it). */
 #define PX_DIRECT_POWER 0u
 #define PX_DIRECT_TREE 1u
 #define PX_DIRECT_RESTIR 2u
@@ -697,42 +692,6 @@ typedef struct GradientParams {
   uint have_history;
   uint pad;
 } GradientParams;
-
-/* ReSTIR DI launch constants (restir/restir_di.cl), 64 bytes, passed by value to both passes.
- *
- *   0..3 width  4..7 height  8..11 row0  12..15 rows (rows a row launch covers; a list launch
- *  ignores them)  16..19 lo_row  20..23 hi_row (rows whose reservoirs the pass may read: the
- *  strip and the margin this device computed, or fetched last frame's)  24..27 candidates
- *  28..31 neighbours  32..35 radius (spatial reuse, pixels)  36..39 temporal (0/1)
- *  40..43 max_history (cap of a reused reservoir's confidence M, in units of candidates)
- *  44..47 tag (this frame's reservoirs: frame + 1)  48..51 prev_tag (last frame's)
- *  52..55 temporal_rows (largest vertical offset of last frame's pixel)  56..63 padding */
-typedef struct RestirParams {
-  uint width;
-  uint height;
-  uint row0;
-  uint rows;
-  uint lo_row;
-  uint hi_row;
-  uint candidates;
-  uint neighbours;
-  uint radius;
-  uint temporal;
-  float max_history;
-  uint tag;
-  uint prev_tag;
-  uint temporal_rows;
-  uint pad[2];
-} RestirParams;
-
-/* Bounds of ReSTIR DI's private arrays and loops (RestirParams::candidates, ::neighbours). */
-#define PX_RESTIR_MAX_CANDIDATES 64u
-#define PX_RESTIR_MAX_NEIGHBOURS 4u
-/* A reservoir is reused only between surfaces whose shading normals are within ~25 degrees and
- * whose planes are within 5% of the viewing distance: reuse across an edge would be unbiased too
- * (the weights see to that) but brings samples that mostly miss. */
-#define PX_RESTIR_MIN_NORMAL_COS 0.9f
-#define PX_RESTIR_MAX_PLANE_DISTANCE 0.05f
 
 #ifndef __OPENCL_C_VERSION__
 } /* namespace px */

@@ -12,13 +12,14 @@
 //
 // Rows: the spatial taps of a strip's pixels reach `radius` rows beyond it; the unit computes the
 // candidates and temporal reuse of those margin rows itself (from the same sample streams, so they
-// equal the neighbour's), and fetches from the neighbours last frame's final reservoirs and
+// equal the neighbour's), and fetches from the neighbours last frame's kept reservoirs and
 // surfaces within radius + temporal_rows of the strip (and, when strips moved, the rows it took
 // over). N devices and MPI ranks therefore give one device's image bit for bit.
 #pragma once
 
 #include "pipeline/stages/path_trace_stage.h"
 #include "pipeline/stages/stage_unit.h"
+#include "restir/restir_params.h"
 
 #include <array>
 #include <optional>
@@ -29,7 +30,9 @@ namespace px {
 class DirectLightStage : public StageUnit {
  public:
   struct Options {
-    unsigned candidates = 8;      // light samples resampled per pixel and frame
+    // Light samples resampled per pixel and frame; more did not pay on CPUs (docs/measurements.md,
+    // Many lights).
+    unsigned candidates = 1;
     unsigned neighbours = 3;      // spatial reuse: reservoirs of this many neighbours (<= PX_RESTIR_MAX_NEIGHBOURS)
     unsigned radius = 16;         // spatial reuse: neighbours within this many pixels
     bool temporal = true;         // reuse last frame's reservoir at the surface's previous pixel
@@ -55,7 +58,7 @@ class DirectLightStage : public StageUnit {
 
   struct PerEye {
     cl::Buffer reservoirs;            // this frame's, after temporal reuse (2 float4 a pixel)
-    std::array<cl::Buffer, 2> final;  // after spatial reuse: [parity] this frame's, the other last frame's
+    std::array<cl::Buffer, 2> final;  // kept for next frame (after temporal reuse): [parity] this frame's
     std::array<cl::Buffer, 2> hits;   // the pixels' G-buffer hits (uint4 a pixel), as `final`
     StagingBuffer staging;            // rows leaving the device
   };
