@@ -183,8 +183,8 @@ inline int px_path_vertex(const SceneView* scene, const FrameParams* fp, SampleK
       const float3 f = px_bsdf_eval(&bsdf, ns, wo, ls.wi);
       if (f.x + f.y + f.z > 0.0f) {
         /* A point or spot light is a delta: BSDF sampling never finds it, NEE alone counts. */
-        const int delta_light = PX_HAS(PX_FEATURE_PUNCTUAL) && ls.delta;
-        const float w = use_bsdf_light && !delta_light ? px_mis_power(ls.pdf, px_bsdf_pdf(&bsdf, ns, wo, ls.wi)) : 1.0f;
+        float w = use_bsdf_light ? px_mis_power(ls.pdf, px_bsdf_pdf(&bsdf, ns, wo, ls.wi)) : 1.0f;
+        if (PX_HAS(PX_FEATURE_PUNCTUAL) && ls.delta) w = 1.0f;
         shadow->valid = 1;
         shadow->org = origin;
         shadow->dir = ls.wi;

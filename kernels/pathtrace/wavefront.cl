@@ -201,8 +201,7 @@ kernel void wf_resolve(global float4* out, global float4* albedo_out, volatile g
   for (uint s = 0; s < spp; ++s) {
     const global float4* st = states + (size_t)(k * spp + s) * PX_PATH_STATE_FLOAT4S;
     const float3 l = st[3].xyz;
-    if (px_finite3(l)) {
-      sum += l;
+    if (px_add_sample(&sum, l)) {
       albedo_sum += st[5];
       ++good;
     } else {

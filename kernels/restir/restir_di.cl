@@ -242,5 +242,11 @@ kernel void restir_spatial_shade(global float4* radiance, volatile global uint* 
     return;
   }
   const float4 had = radiance[pixel];
-  if (had.w > 0.0f) radiance[pixel] = (float4)(had.xyz + direct / had.w, had.w);
+  if (!(had.w > 0.0f)) return;
+  const float3 sum = had.xyz + direct / had.w;
+  if (!px_finite3(sum)) {
+    atomic_inc(nonfinite);
+    return;
+  }
+  radiance[pixel] = (float4)(sum, had.w);
 }
