@@ -93,7 +93,7 @@ int main(int argc, char** argv) {
   app.add_option("--devices", devices)->capture_default_str();
   std::optional<px::BvhLayout> bvh_layout;
   px::bench::add_bvh_layout_flag(app, bvh_layout);
-  px::DirectLight direct_light = px::DirectLight::Power;
+  px::DirectLight direct_light = px::PathTracer::Options{}.direct_light;
   px::bench::add_direct_light_flag(app, direct_light);
   app.add_option("--fps", fps, "camera-path time step")->capture_default_str();
   app.add_option("--ref-spp", ref_spp, "samples of the frame-0 reference (0 = skip the error figures)")

@@ -40,7 +40,7 @@ int main(int argc, char** argv) {
   app.add_option("--devices", devices)->capture_default_str();
   app.add_option("--repeats", repeats, "timed frames per level (median)")->capture_default_str();
   app.add_option("--csv", csv, "write the table as CSV");
-  px::DirectLight direct_light = px::DirectLight::Power;
+  px::DirectLight direct_light = px::PathTracer::Options{}.direct_light;
   px::bench::add_direct_light_flag(app, direct_light);
   CLI11_PARSE(app, argc, argv);
 

@@ -12,7 +12,8 @@
 #   --scenes LIST    comma list of built-in names or scene files (DLB_SCENES; default rooms,cornell,
 #                    cornell-glossy,atrium and the shared bunny, ../shared/scenes/real/bunny/bunny.json,
 #                    when that folder exists)
-#   --modes LIST     direct-light modes (DLB_MODES; default every mode `render --help` lists for
+#   --modes LIST     direct-light modes (DLB_MODES; an entry MODE:FLAG=VALUE:... adds render flags to
+#                    that row, e.g. restir:--restir-candidates=2; default every mode `render --help` lists for
 #                    --direct-light; `power` alone, with no flag passed, where the build has no such flag)
 #   --width W --height H   pixels per eye (DLB_WIDTH 320, DLB_HEIGHT 180)
 #   --frames N       frames rendered; the last (N - 1) is measured (DLB_FRAMES 16)
@@ -77,8 +78,9 @@ render_modes="$(accepted_modes render)"
 reference_modes="$(accepted_modes reference)"
 if [ -z "$modes" ]; then modes="${render_modes:-power}"; fi
 IFS=, read -r -a mode_list <<<"$modes"
-for m in "${mode_list[@]}"; do
-  [ -n "$m" ] || die "--modes has an empty entry: '$modes'"
+for entry in "${mode_list[@]}"; do
+  [ -n "$entry" ] || die "--modes has an empty entry: '$modes'"
+  m="${entry%%:*}"
   if [ -z "$render_modes" ]; then
     [ "$m" = power ] || die "this build's render has no --direct-light: only 'power' (today's sampler) can run, not '$m'"
   elif [[ ",$render_modes," != *",$m,"* ]]; then
@@ -166,17 +168,22 @@ for i in "${!scene_list[@]}"; do
     rm -rf "$ref" && mv "$tmp" "$ref"
     log "$k: reference took $((SECONDS - t0)) s"
   fi
-  for m in "${mode_list[@]}"; do
-    dir="$out/cases/$k/$m"
+  for entry in "${mode_list[@]}"; do
+    # MODE or MODE:FLAG=VALUE:FLAG=VALUE... (more render flags for that row, e.g. restir:--restir-candidates=2)
+    m="$entry"
+    IFS=: read -r -a parts <<<"$entry"
     dl=()
-    [ -n "$render_modes" ] && dl=(--direct-light "$m")
+    [ -n "$render_modes" ] && dl=(--direct-light "${parts[0]}")
+    dl+=("${parts[@]:1}")
+    safe="$(printf '%s' "$m" | tr -c 'A-Za-z0-9._-' '_')"
+    dir="$out/cases/$k/$safe"
     common=(--scene "$s" --spp "$spp" --bounces "$bounces" --devices "$devices" --width "$width" --height "$height"
             --frames "$frames" --fps "$fps" "${dl[@]}")
     for kind in denoised raw; do
       extra=()
       [ "$kind" = raw ] && extra=(--no-denoise)
       log "$k / $m: render, $kind"
-      run "${k}_${m}_$kind" "$build/parallax" render "${common[@]}" "${extra[@]}" --report "$dir/$kind.json" \
+      run "${k}_${safe}_$kind" "$build/parallax" render "${common[@]}" "${extra[@]}" --report "$dir/$kind.json" \
         --out "$dir/$kind"
       find "$dir/$kind" -name 'frame_*' ! -name "${tag}_*" -delete  # only the measured frame is kept
     done

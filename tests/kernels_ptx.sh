@@ -20,8 +20,8 @@ while IFS= read -r -d '' file; do
   # complementary halves of them (PX_FEATURES, kernels/shared/types.h): a build for a scene's
   # features must compile, and without warnings (a constant operand in a feature test warns).
   # Last, the data layouts a static scene's start picks: leaf refs and flat shading records.
-  for variant in "2 0x7ff" "4 0x7ff" "8 0x7ff" "9 0x7ff" "8 0x000" "8 0x555" "8 0x2aa" \
-                 "8 0x7ff -DPX_LEAF_REFS=1 -DPX_FLAT_SHADING=1" "9 0x000 -DPX_FLAT_SHADING=1"; do
+  for variant in "2 0x1fff" "4 0x1fff" "8 0x1fff" "9 0x1fff" "8 0x000" "8 0x1555" "8 0x0aaa" \
+                 "8 0x1fff -DPX_LEAF_REFS=1 -DPX_FLAT_SHADING=1" "9 0x000 -DPX_FLAT_SHADING=1"; do
     read -r width features extra <<<"$variant"
     count=$((count + 1))
     # shellcheck disable=SC2086  # $extra: zero or more -D options

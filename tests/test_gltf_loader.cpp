@@ -452,6 +452,43 @@ TEST(GltfLoader, VertexColoursMultiplyTheDiffuseColour) {
   EXPECT_GT(a.y, 1.5 * a.z);
 }
 
+// KHR_lights_punctual point and spot lights: placed at their node's world origin (through its
+// parent), a spot shining along the node's -z; candela x colour as the intensity; the cones as given.
+TEST(GltfLoader, PointAndSpotLightsTakeTheirNodesPlacement) {
+  TempDir dir;
+  Gltf g = make_mesh({-10, -10, 0, 10, -10, 0, 10, 10, 0, -10, 10, 0}, {0, 1, 2, 0, 2, 3});
+  g.doc["extensionsUsed"] = {"KHR_lights_punctual"};
+  g.doc["extensions"] = {{"KHR_lights_punctual",
+                          {{"lights", json::array({{{"type", "point"}, {"color", {1.0, 0.5, 0.25}}, {"intensity", 8.0}},
+                                                   {{"type", "spot"},
+                                                    {"intensity", 2.0},
+                                                    {"spot", {{"innerConeAngle", 0.2}, {"outerConeAngle", 0.5}}}}})}}}};
+  // Node 1 (a parent moved by (1, 2, 3)) holds node 2, the point light at (0, 0, 4) in its frame;
+  // node 3, the spot at (0, 5, 0), turned -90 degrees about x: its -z becomes world -y.
+  const double h = std::sqrt(0.5);
+  g.doc["nodes"].push_back({{"translation", {1, 2, 3}}, {"children", {2}}});
+  g.doc["nodes"].push_back({{"translation", {0, 0, 4}}, {"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}}});
+  g.doc["nodes"].push_back({{"translation", {0, 5, 0}},
+                            {"rotation", {-h, 0.0, 0.0, h}},
+                            {"extensions", {{"KHR_lights_punctual", {{"light", 1}}}}}});
+  g.doc["scenes"][0]["nodes"] = {0, 1, 3};
+  const Scene s = load_scene(write_embedded(dir, "lamps.gltf", g).string(), {SkyMode::kOff});
+  ASSERT_EQ(s.punctual_lights.size(), 2u);
+  EXPECT_FALSE(s.sky.enabled);  // lit: no default sky
+  EXPECT_EQ(count_warnings_containing(s, "KHR_lights_punctual"), 0);
+  const PunctualLight& point = s.punctual_lights[0];
+  EXPECT_FALSE(point.spot);
+  EXPECT_NEAR(glm::length(point.position - glm::vec3(1, 2, 7)), 0.0f, 1e-5f);
+  EXPECT_NEAR(glm::length(point.intensity - glm::vec3(8, 4, 2)), 0.0f, 1e-5f);
+  const PunctualLight& spot = s.punctual_lights[1];
+  EXPECT_TRUE(spot.spot);
+  EXPECT_NEAR(glm::length(spot.position - glm::vec3(0, 5, 0)), 0.0f, 1e-5f);
+  EXPECT_NEAR(glm::length(spot.direction - glm::vec3(0, -1, 0)), 0.0f, 1e-5f);
+  EXPECT_NEAR(spot.inner_cone_rad, 0.2f, 1e-6f);
+  EXPECT_NEAR(spot.outer_cone_rad, 0.5f, 1e-6f);
+  EXPECT_NEAR(spot.intensity.x, 2.0f, 1e-6f);
+}
+
 TEST(GltfLoader, UnsupportedFeaturesAreNamedInOneWarningLine) {
   TempDir dir;
   Gltf g = make_mesh(kPos, kIdx, {}, kUv);
@@ -462,7 +499,8 @@ TEST(GltfLoader, UnsupportedFeaturesAreNamedInOneWarningLine) {
   g.doc["samplers"] = json::array({{{"wrapS", 33071}}});
   g.doc["textures"] = json::array({{{"source", 0}, {"sampler", 0}}});
   g.doc["extensionsUsed"] = {"KHR_lights_punctual", "KHR_materials_sheen"};
-  g.doc["extensions"] = {{"KHR_lights_punctual", {{"lights", json::array({{{"type", "point"}, {"intensity", 5.0}}})}}}};
+  g.doc["extensions"] = {
+      {"KHR_lights_punctual", {{"lights", json::array({{{"type", "point"}, {"intensity", 5.0}, {"range", 3.0}}})}}}};
   g.doc["nodes"].push_back({{"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}}});
   g.doc["scenes"][0]["nodes"] = {0, 1};
   g.doc["materials"] = json::array({{{"alphaMode", "BLEND"},
@@ -472,8 +510,8 @@ TEST(GltfLoader, UnsupportedFeaturesAreNamedInOneWarningLine) {
   const Scene s = load_gltf(write_embedded(dir, "odd.gltf", g).string());
   EXPECT_EQ(s.triangles.size(), 3u);
   EXPECT_EQ(count_warnings_containing(s, "ignored glTF features"), 1);
-  for (const char* feature : {"line primitives", "alphaMode BLEND", "KHR_materials_sheen", "point and spot lights",
-                              "wrap modes", "occlusionTexture"})
+  for (const char* feature :
+       {"line primitives", "alphaMode BLEND", "KHR_materials_sheen", "light range", "wrap modes", "occlusionTexture"})
     EXPECT_EQ(count_warnings_containing(s, feature), 1) << feature;
   EXPECT_EQ(count_warnings_containing(s, "missing.png"), 1);
   // An embedded image that is no image loses its texture, with a warning; the file loads.

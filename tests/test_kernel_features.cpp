@@ -126,6 +126,16 @@ LoadedScene every_feature_scene() {
   lamp.emission = {4.0f, 3.5f, 3.0f};
   lamp.two_sided = true;
   s.materials = {floor, glass, mirror, glossy, lamp};
+  PunctualLight bulb;  // a point light and a spot light (PX_FEATURE_PUNCTUAL)
+  bulb.position = {1.5f, 1.5f, 1.0f};
+  bulb.intensity = {2.0f, 1.5f, 1.0f};
+  PunctualLight spot = bulb;
+  spot.spot = true;
+  spot.position = {-1.0f, 2.0f, 0.5f};
+  spot.direction = glm::normalize(glm::vec3(0.3f, -1.0f, 0.0f));
+  spot.inner_cone_rad = 0.3f;
+  spot.outer_cone_rad = 0.6f;
+  s.punctual_lights = {bulb, spot};
   append_quad(s.triangles, {-3, -1, -3}, {-3, -1, 3}, {3, -1, 3}, {3, -1, -3}, 0,
               {glm::vec2(0, 0), glm::vec2(0, 3), glm::vec2(3, 3), glm::vec2(3, 0)});
   append_icosphere(s.triangles, {-0.9f, -0.2f, 0.0f}, 0.7f, 2, 1);
@@ -244,6 +254,7 @@ TEST(KernelFeatures, SceneKernelsGiveTheGeneralKernelsImagesWithEveryFeature) {
   fewer.scene.sun.enabled = false;
   fewer.scene.sky.enabled = false;
   fewer.scene.materials[4].two_sided = false;
+  fewer.scene.punctual_lights.clear();
   expect_same_images(fewer);
 }
 

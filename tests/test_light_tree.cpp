@@ -13,6 +13,7 @@
 #include "render/wavefront_path_tracer.h"
 #include "scene/builtin_scenes.h"
 #include "scene/primitives.h"
+#include "scene/punctual_light.h"
 #include "scene/scene_loader.h"
 
 #include <gtest/gtest.h>
@@ -307,6 +308,68 @@ TEST(LightTree, PmfSumsToOneAndMatchesTheHostWalk) {
     for (std::size_t k = 0; k < c.lights.size(); ++k) sum += floor_pmf[i * c.lights.size() + k];
     EXPECT_NEAR(sum, 1.0, 1e-4) << "floor point " << i;
   }
+}
+
+// Point and spot lights among the triangles (Scene::punctual_lights, after them in the table):
+// each leaf is its light's point with phi its intensity's luminance and the whole sphere (a spot:
+// its axis and outer cone); the kernel's pmf is the host walk's with host_importance written from
+// angles, and sums to 1 with what sampling finds; the table's pmf is each light's power share.
+TEST(LightTree, PointAndSpotLightLeavesAndPmf) {
+  Scene scene = random_lights(120, 7);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-10.0f, 10.0f);
+  for (int i = 0; i < 40; ++i) {
+    PunctualLight l;
+    l.spot = i % 2 == 1;
+    l.position = glm::vec3(u(rng), u(rng), u(rng));
+    l.direction = glm::normalize(glm::vec3(u(rng), u(rng), u(rng)));
+    l.intensity = glm::vec3(1.0f + std::abs(u(rng)), 2.0f, 0.5f);
+    l.inner_cone_rad = 0.2f;
+    l.outer_cone_rad = 0.3f + 0.1f * float(i % 7);
+    scene.punctual_lights.push_back(l);
+  }
+  const TreeSetup t(scene);
+  const std::size_t count = t.lights.size();
+  std::size_t first = count;
+  for (std::size_t k = 0; k < count; ++k)
+    if (t.lights[k].prim >= PX_LIGHT_PUNCTUAL && first == count) first = k;
+  ASSERT_EQ(count - first, 40u);
+  for (std::size_t k = first; k < count; ++k) {
+    const PunctualLight& l = scene.punctual_lights[t.lights[k].prim - PX_LIGHT_PUNCTUAL];
+    EXPECT_EQ(t.lights[k].area, 0.0f);
+    if (k > 0) EXPECT_GT(t.lights[k].prim, t.lights[k - 1].prim);  // still sorted by prim
+    std::uint32_t at = 0;
+    for (unsigned depth = 0; !(t.tree.nodes()[at].child[0] & PX_LIGHT_TREE_LEAF); ++depth)
+      at = t.tree.nodes()[at].child[(t.tree.trails()[k] >> depth) & 1u];
+    const LightTreeNode& leaf = t.tree.nodes()[at];
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_EQ(leaf.bounds_min[c], l.position[c]);
+      EXPECT_EQ(leaf.bounds_max[c], l.position[c]);
+    }
+    EXPECT_NEAR(leaf.phi, 0.2126 * l.intensity.x + 0.7152 * l.intensity.y + 0.0722 * l.intensity.z, 1e-5);
+    EXPECT_NEAR(leaf.cos_theta_o, l.spot ? std::cos(l.outer_cone_rad) : -1.0f, 1e-6);
+    // The CDF's power: 4 pi I (a spot: the cone halfway between its angles), in watts / pi.
+    const double lum = leaf.phi;
+    const double want =
+        l.spot ? 2.0 * (1.0 - 0.5 * (std::cos(0.2) + std::cos(double(l.outer_cone_rad)))) * lum : 4.0 * lum;
+    double total = 0.0;
+    for (std::size_t j = 0; j < count; ++j)
+      total += j < first ? triangle_light_bounds(t.lights[j], t.two_sided[j] != 0).phi : 0.0;
+    for (const PunctualLight& q : scene.punctual_lights) total += punctual_light_power(q);
+    EXPECT_NEAR(t.lights[k].pdf_select, want / total, 1e-4 * want / total);
+  }
+  std::vector<cl_float4> p, n;
+  random_points(32, 9, p, n);
+  const auto buffer = light_buffer(t.lights, t.tree);
+  const std::vector<float> pmf = kernel_pmfs(buffer, count, p, n);
+  std::size_t mismatches = 0;
+  for (std::size_t i = 0; i < p.size(); ++i)
+    for (std::size_t k = 0; k < count; ++k) {
+      const double want = host_pmf(t.tree, d3(p[i]), d3(n[i]), k);
+      if (std::abs(pmf[i * count + k] - want) > 1e-3 * want + 1e-7) ++mismatches;
+    }
+  EXPECT_LE(mismatches, p.size() * count / 1000) << "of " << p.size() * count;
+  expect_pmf_sums_to_one(buffer, count, pmf, p, n);
 }
 
 TEST(LightTree, SamplingFrequenciesMatchThePmfAndItsBits) {

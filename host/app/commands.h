@@ -118,8 +118,8 @@ struct ReferenceCommand {
   unsigned frame = 0;
   FrameClock clock;  // the animation the reference belongs to
   unsigned bounces = PathTracer::Options{}.bounces;
-  DirectLight direct_light = DirectLight::Power;      // power or tree (a reference is plain path tracing: no restir)
-  float exposure = TonemapStage::Options{}.exposure;  // PNG preview scale, as render's
+  DirectLight direct_light = ReferenceOptions{}.direct_light;  // power or tree (a reference is plain path tracing)
+  float exposure = TonemapStage::Options{}.exposure;           // PNG preview scale, as render's
   std::string out = "out/reference";
   bool overwrite = false;
   DeviceChoice devices;

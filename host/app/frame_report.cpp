@@ -104,6 +104,13 @@ void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode de
       {"taa_alpha", denoise.svgf.taa_alpha},
       {"path_tracer", cli_word(options_.path_kernel)},
       {"direct_light", cli_word(options_.trace.direct_light)},
+      {"restir", StereoPipeline::wants_direct_light_stage(options_)
+                     ? nlohmann::json{{"candidates", options_.restir.candidates},
+                                      {"neighbours", options_.restir.neighbours},
+                                      {"radius", options_.restir.radius},
+                                      {"temporal", options_.restir.temporal},
+                                      {"stereo_reuse", options_.restir.stereo_reuse}}
+                     : nlohmann::json(nullptr)},
       {"bvh_layout", to_string(bvh_layout)},
       {"kernels", cli_word(cmd_.scene.kernels)},
       {"kernel_features", kernel_feature_list(scene.kernel_features())},

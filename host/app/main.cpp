@@ -122,6 +122,14 @@ CLI::Option* add_pipeline_flags(CLI::App* cmd, px::RenderCommand& r) {
                   "how next-event estimation picks an emissive triangle: power (in proportion to its power), tree "
                   "(a light tree: in proportion to its estimated contribution at the shading point), restir "
                   "(ReSTIR DI over the tree's candidates)");
+  cmd->add_option("--restir-candidates", p.restir.candidates,
+                  "with --direct-light restir: light samples resampled per pixel and frame before reuse")
+      ->check(CLI::Range(1u, static_cast<unsigned>(PX_RESTIR_MAX_CANDIDATES)))
+      ->capture_default_str();
+  cmd->add_option("--restir-neighbours", p.restir.neighbours,
+                  "with --direct-light restir: neighbours whose reservoirs each pixel reuses (0: no spatial reuse)")
+      ->check(CLI::Range(0u, static_cast<unsigned>(PX_RESTIR_MAX_NEIGHBOURS)))
+      ->capture_default_str();
   cmd->add_option("--seed", p.trace.seed, "seed of the sample streams")->capture_default_str();
   add_word_option(cmd, "--jitter", p.jitter, px::jitter_words(),
                   "where in each pixel a frame's G-buffer ray and first sample go: halton (a Halton (2,3) point "

@@ -1,5 +1,6 @@
 // Compile-time proof that the host sees kernels/shared/types.h with the byte layout that the
 // header documents (and that OpenCL C gives it: 4-byte scalars only, no implicit padding).
+#include "restir/restir_params.h"
 #include "shared/types.h"
 
 #include <cstddef>
@@ -82,6 +83,9 @@ static_assert(offsetof(FrameParams, frame) == 80 && offsetof(FrameParams, rr_sta
 static_assert(offsetof(FrameParams, row0) == 108 && offsetof(FrameParams, rows) == 112);
 static_assert(offsetof(FrameParams, sample_offset) == 116 && offsetof(FrameParams, first_sample_on_gbuffer_ray) == 120);
 static_assert(offsetof(FrameParams, direct_light) == 124);
+static_assert(sizeof(RestirParams) == 64);
+static_assert(offsetof(RestirParams, candidates) == 24 && offsetof(RestirParams, max_history) == 40);
+static_assert(offsetof(RestirParams, tag) == 44 && offsetof(RestirParams, temporal_rows) == 52);
 static_assert(offsetof(GBufferTexel, depth) == 12 && offsetof(GBufferTexel, material_class) == 28);
 static_assert(offsetof(GBufferTexel, prim) == 32 && offsetof(GBufferTexel, inst) == 36 && sizeof(GBufferTexel) == 40);
 static_assert(sizeof(SvgfParams) == 64);

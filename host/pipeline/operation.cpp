@@ -48,6 +48,10 @@ std::vector<Access> accesses(const Operation& op) {
       // Its own strip. The halo rows it exchanges with its neighbours are read and written by
       // commands on the neighbours' queues, by their own denoise operations of the same batch.
       return {{d, Image::Radiance, e, true}, {d, Image::Albedo, e, false}, {d, Image::GBuffer, e, false}};
+    case Stage::DirectLight:
+      // Adds to the radiance of its rows (the right eye: of its holes).
+      if (e == 1) return {{d, Image::Holes, -1, false}, {d, Image::Radiance, e, true}};
+      return {{d, Image::Radiance, e, true}};
     case Stage::Tonemap: return {{d, Image::Radiance, e, false}, {d, Image::Rgba, e, true}};
     case Stage::Transfer: {
       std::vector<Access> a;

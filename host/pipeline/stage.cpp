@@ -17,6 +17,7 @@ const char* stage_name(Stage s) {
     case Stage::Output: return "output";
     case Stage::PathTraceRight: return "path trace right";
     case Stage::TemporalGradient: return "temporal gradient";
+    case Stage::DirectLight: return "direct light";
   }
   return "?";
 }

@@ -24,6 +24,9 @@ enum class Stage : int {
   // Ours, inside the denoise unit like stage 7: the temporal gradients' shading and filtering
   // (pipeline/stages/temporal_gradients.h), timed apart from SVGF's own passes.
   TemporalGradient = 13,
+  // Ours: ReSTIR DI at the first hit (pipeline/stages/direct_light_stage.h), with
+  // `--direct-light restir`: after stage 2 (or 12) for its eye, after stage 5 for the right eye's holes.
+  DirectLight = 14,
 };
 const char* stage_name(Stage s);
 

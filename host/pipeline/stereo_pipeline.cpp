@@ -1,6 +1,7 @@
 #include "pipeline/stereo_pipeline.h"
 
 #include "cl/profiling.h"
+#include "pipeline/stages/direct_light_stage.h"
 #include "pipeline/stages/gbuffer_stage.h"
 #include "pipeline/stages/hole_fill_stage.h"
 #include "pipeline/stages/reproject_stage.h"
@@ -23,7 +24,7 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
       height_(height),
       options_(options),
       schedule_(make_schedule(options.pipeline, layout_.count(), height, options.denoise.has_value(), {},
-                              wants_gbuffer(options))),
+                              wants_gbuffer(options), wants_direct_light_stage(options))),
       images_(layout_.count()),
       lanes_(devices, !cluster_ && wants_side_queue(options.overlap, devices)),
       transfer_(devices, layout_, cluster_, width, height, log_, lanes_),
@@ -41,6 +42,9 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
   add_unit<GBufferStage>({Stage::GBuffer});
   add_unit<ReprojectStage>({Stage::Reproject});
   add_unit<HoleFillStage>({Stage::HoleFill}, *path_trace_, options.hole_fill);
+  if (wants_direct_light_stage(options))
+    add_unit<DirectLightStage>({Stage::DirectLight}, options.restir, *path_trace_,
+                               options.pipeline != PipelineKind::Mono);
   if (options.denoise) denoise_ = &add_unit<DenoiseStage>({Stage::Denoise}, *options.denoise, path_trace_);
   add_unit<TonemapStage>({Stage::Tonemap}, options.tonemap);
   add_unit<TransferStage>({Stage::Transfer},
@@ -253,7 +257,7 @@ void StereoPipeline::set_strips(const std::vector<RowRange>& strips) {
   // make_schedule checks the strips and refuses the baseline pipeline; the history moves to the
   // new strips in the next frame's denoising (DenoiseStage).
   schedule_ = make_schedule(options_.pipeline, layout_.count(), height_, options_.denoise.has_value(), strips,
-                            wants_gbuffer(options_));
+                            wants_gbuffer(options_), wants_direct_light_stage(options_));
 }
 
 std::vector<std::uint8_t> StereoPipeline::hole_mask() {

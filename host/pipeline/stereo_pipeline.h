@@ -15,6 +15,7 @@
 #include "pipeline/queue_lanes.h"
 #include "pipeline/row_transfer.h"
 #include "pipeline/stages/denoise_stage.h"
+#include "pipeline/stages/direct_light_stage.h"
 #include "pipeline/stages/hole_fill_stage.h"
 #include "pipeline/stages/path_trace_stage.h"
 #include "pipeline/stages/stage_unit.h"
@@ -88,6 +89,8 @@ class StereoPipeline {
     Overlap overlap = Overlap::Auto;
     // Stage 5's work-items: a hole each, or a (hole, sample) pair each on GPUs (hole_fill_stage.h).
     HoleFillStage::Options hole_fill;
+    // Stage 14, with trace.direct_light = restir: ReSTIR DI's candidates and reuse.
+    DirectLightStage::Options restir;
     // Where in each pixel the frame's G-buffer ray and first sample go (pixel_jitter.h): a
     // Halton (2, 3) point per frame, so that accumulation over frames covers the pixel, or
     // always the centre.
@@ -173,6 +176,11 @@ class StereoPipeline {
   const std::array<ImageRGB, 2>& normal_aov() const { return normal_aov_; }
   // Whether `options` schedule the G-buffer stage where denoising alone would not (mono).
   static bool wants_gbuffer(const Options& options) { return options.aovs.normal; }
+  // ReSTIR DI (stage 14) runs where the path tracer leaves each pixel's first vertex to it.
+  static bool wants_direct_light_stage(const Options& options) {
+    return options.trace.direct_light == DirectLight::Restir && options.trace.light_sampling == LightSampling::Mis &&
+           options.trace.first_sample_on_gbuffer_ray;
+  }
 
   // Inspection (tests, debugging; one process): gathered from whichever device owns each row.
   // Per right-eye pixel: 1 if the last frame filled it by path tracing (a hole), else 0.

@@ -83,6 +83,7 @@ struct StageRow {
   Split left, right;
   bool denoise_only = false;
   TransferPayload payload = TransferPayload::None;
+  bool direct_light_only = false;  // scheduled only with ReSTIR DI (`--direct-light restir`)
 };
 
 // The pipelines. Adding a stage to one is adding a row here and its unit under stages/.
@@ -90,8 +91,10 @@ const std::vector<StageRow>& pipeline_table(PipelineKind pipeline) {
   static const std::vector<StageRow> proposed = {
       {Stage::PathTraceLeft, Split::Own, Split::None},
       {Stage::GBuffer, Split::Own, Split::Own},
+      {Stage::DirectLight, Split::Own, Split::None, false, TransferPayload::None, true},
       {Stage::Reproject, Split::None, Split::Own},
       {Stage::HoleFill, Split::None, Split::Own},
+      {Stage::DirectLight, Split::None, Split::Own, false, TransferPayload::None, true},
       {Stage::Denoise, Split::Own, Split::Own, true},
       {Stage::Tonemap, Split::Own, Split::Own},
       {Stage::Transfer, Split::Own, Split::Own, false, TransferPayload::FinishedImage},
@@ -100,14 +103,17 @@ const std::vector<StageRow>& pipeline_table(PipelineKind pipeline) {
       {Stage::PathTraceLeft, Split::Shuffled, Split::None},
       {Stage::Transfer, Split::Shuffled, Split::None, false, TransferPayload::LinearRadiance},
       {Stage::GBuffer, Split::Owner, Split::Owner},
+      {Stage::DirectLight, Split::Owner, Split::None, false, TransferPayload::None, true},
       {Stage::Reproject, Split::None, Split::Owner},
       {Stage::HoleFill, Split::None, Split::Owner},
+      {Stage::DirectLight, Split::None, Split::Owner, false, TransferPayload::None, true},
       {Stage::Denoise, Split::Owner, Split::Owner, true},
       {Stage::Tonemap, Split::Owner, Split::Owner},
   };
   static const std::vector<StageRow> mono = {
       {Stage::PathTraceLeft, Split::Own, Split::None},
       {Stage::PathTraceRight, Split::None, Split::Own},
+      {Stage::DirectLight, Split::Own, Split::Own, false, TransferPayload::None, true},
       {Stage::GBuffer, Split::Own, Split::Own, true},
       {Stage::Denoise, Split::Own, Split::Own, true},
       {Stage::Tonemap, Split::Own, Split::Own},
@@ -142,7 +148,7 @@ void check_strips(const std::vector<RowRange>& strips, int devices, unsigned hei
 }
 
 FrameSchedule make_schedule(PipelineKind pipeline, int devices, unsigned height, bool denoise,
-                            const std::vector<RowRange>& strips, bool gbuffer) {
+                            const std::vector<RowRange>& strips, bool gbuffer, bool direct_light) {
   if (devices < 1) throw std::invalid_argument("make_schedule: at least one device");
   if (!strips.empty()) {
     if (!has_movable_strips(pipeline))
@@ -194,6 +200,7 @@ FrameSchedule make_schedule(PipelineKind pipeline, int devices, unsigned height,
   };
   for (const StageRow& row : pipeline_table(pipeline)) {
     if (row.denoise_only && !denoise && !(gbuffer && row.stage == Stage::GBuffer)) continue;
+    if (row.direct_light_only && !direct_light) continue;
     fs.stages.push_back(work(row.stage, devices, height, rows_of(row.left), rows_of(row.right)));
     fs.stages.back().payload = row.payload;
   }

@@ -77,13 +77,16 @@ std::vector<unsigned> bit_reversed_order(unsigned n);
 // baseline: PT (shuffled, -), transfer of the left radiance, then everything on the owner.
 // mono: PT left (own, -), PT right (-, own), [G-buffer, SVGF], tonemap, transfer.
 // Bracketed stages are scheduled only with `denoise`; mono's G-buffer also with `gbuffer`
-// (render --aov normal: a G-buffer without denoising).
+// (render --aov normal: a G-buffer without denoising). With `direct_light` (ReSTIR DI), stage 14
+// follows each eye's path tracing where its pixels get their final radiance: proposed (own, -)
+// after the G-buffer and (-, own) after hole filling; baseline the same on the owner; mono (own,
+// own) after both path traces.
 // `strips` (proposed and mono only): the per-device strips to use instead of the even split,
 // strip i on device i — what a load balancer moves between frames. They must be contiguous,
 // top to bottom, cover every row once and give each device at least one row
 // (std::invalid_argument otherwise; check_strips says why).
 FrameSchedule make_schedule(PipelineKind pipeline, int devices, unsigned height, bool denoise = false,
-                            const std::vector<RowRange>& strips = {}, bool gbuffer = false);
+                            const std::vector<RowRange>& strips = {}, bool gbuffer = false, bool direct_light = false);
 
 // Whether a pipeline's strips can move between frames: proposed and mono give each device one
 // strip of every per-pixel stage; baseline's many shuffled strips are balanced by construction.

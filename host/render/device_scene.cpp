@@ -472,7 +472,10 @@ DeviceScene::SceneTables DeviceScene::make_tables(const Scene& scene, const std:
   t.lights = make_light_buffer(scene, t.light_count);
   FrameParams light_params{};
   fill_light_params(scene, t.light_count, light_params);
-  t.features = px::kernel_features(t.materials, tri_flags, light_params, !scene.vertex_colours.empty(), instanced);
+  const bool punctual = std::any_of(t.lights.begin(), t.lights.begin() + std::ptrdiff_t(t.light_count),
+                                    [](const LightTriangle& l) { return l.prim >= PX_LIGHT_PUNCTUAL; });
+  t.features =
+      px::kernel_features(t.materials, tri_flags, light_params, !scene.vertex_colours.empty(), instanced, punctual);
   if (!scene.vertex_colours.empty()) {
     if (scene.vertex_colours.size() != scene.triangles.size())
       throw std::logic_error("DeviceScene: " + std::to_string(scene.vertex_colours.size()) +
@@ -553,6 +556,36 @@ void DeviceScene::upload_all(DeviceSet& devices, const Scene& scene, HostBytes n
   per_device_.assign(devices.devices().size(), b);
 }
 
+std::vector<LightTriangle> DeviceScene::posed_light_buffer(const Scene& scene) {
+  // An emitter posed edge-on to nothing (zero area) leaves the table for this frame.
+  const auto table = make_light_table(scene);
+  light_count_ = table.size();
+  // Emitters that move keep the tree's topology (a refit: bounds, cones and power from the leaves
+  // up) while the table holds the same lights; a table that changed gets a new tree.
+  const auto two_sided = light_two_sidedness(scene, table);
+  const bool same_lights = light_prims_.size() == table.size() &&
+                           std::equal(table.begin(), table.end(), light_prims_.begin(),
+                                      [](const LightTriangle& l, std::uint32_t prim) { return l.prim == prim; });
+  if (!same_lights || !light_tree_.refit(table, two_sided)) {
+    light_tree_ = LightTree::build(table, two_sided);
+    light_prims_.resize(table.size());
+    for (std::size_t i = 0; i < table.size(); ++i) light_prims_[i] = table[i].prim;
+  }
+  return light_buffer(table, light_tree_);
+}
+
+std::size_t DeviceScene::update_lights(DeviceSet& devices, const Scene& scene) {
+  if (per_device_.empty()) throw std::logic_error("DeviceScene::update_lights before any upload");
+  const auto lights = posed_light_buffer(scene);
+  const AllocationLimits limits = allocation_limits(devices);
+  DeviceSceneBuffers b = per_device_.front();
+  std::size_t written = 0;
+  rewrite("light", b.lights, capacity_.lights, shadows_.lights, devices.context(), devices.devices().front().queue,
+          lights, limits, written);
+  per_device_.assign(per_device_.size(), b);
+  return written;
+}
+
 std::size_t DeviceScene::update_geometry(DeviceSet& devices, const Scene& scene, FlatBvh& bvh,
                                          const std::vector<SceneTriangle>* previous,
                                          const std::vector<glm::mat4>* previous_instances) {
@@ -583,21 +616,7 @@ std::size_t DeviceScene::update_geometry(DeviceSet& devices, const Scene& scene,
         instance_buffer_words(scene, placements, scene.instancing.world_triangles, nullptr, previous_instances);
   }
   const auto shading = make_triangle_shading(scene);
-  // An emitter posed edge-on to nothing (zero area) leaves the table for this frame.
-  const auto table = make_light_table(scene);
-  light_count_ = table.size();
-  // Emitters that move keep the tree's topology (a refit: bounds, cones and power from the leaves
-  // up) while the table holds the same triangles; a table that changed gets a new tree.
-  const auto two_sided = light_two_sidedness(scene, table);
-  const bool same_lights = light_prims_.size() == table.size() &&
-                           std::equal(table.begin(), table.end(), light_prims_.begin(),
-                                      [](const LightTriangle& l, std::uint32_t prim) { return l.prim == prim; });
-  if (!same_lights || !light_tree_.refit(table, two_sided)) {
-    light_tree_ = LightTree::build(table, two_sided);
-    light_prims_.resize(table.size());
-    for (std::size_t i = 0; i < table.size(); ++i) light_prims_[i] = table[i].prim;
-  }
-  const auto lights = light_buffer(table, light_tree_);
+  const auto lights = posed_light_buffer(scene);
   std::vector<cl_float4> motion;
   if (previous) {
     if (previous->size() != scene.triangles.size())

@@ -134,6 +134,9 @@ class DeviceScene {
   std::size_t update_geometry(DeviceSet& devices, const Scene& scene, FlatBvh& bvh,
                               const std::vector<SceneTriangle>* previous,
                               const std::vector<glm::mat4>* previous_instances = nullptr);
+  // A frame whose only change is where point and spot lights are (SceneAnimator): the light
+  // table and its tree rewritten as update_geometry would. Returns the bytes written.
+  std::size_t update_lights(DeviceSet& devices, const Scene& scene);
   // Bytes of scene data in the set's context, shared by all its devices (one copy per context).
   std::size_t bytes_in_context() const { return bytes_in_context_; }
   // Host time to create and write those buffers (blocking writes), ms.
@@ -220,6 +223,8 @@ class DeviceScene {
   std::size_t light_count_ = 0;
   // update_geometry's light tree and the prims of the table it was built for (refit while they stay).
   LightTree light_tree_;
+  // The scene's light buffer as it now stands: the tree refitted or rebuilt (light_count_ set).
+  std::vector<LightTriangle> posed_light_buffer(const Scene& scene);
   std::vector<std::uint32_t> light_prims_;
   std::size_t instance_count_ = 0, instance_bytes_ = 0;
   // CPU devices: the buffers are the host arrays themselves (CL_MEM_USE_HOST_PTR), kept here.

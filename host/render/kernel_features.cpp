@@ -4,7 +4,7 @@
 
 namespace px {
 
-static_assert(PX_FEATURES_ALL == (1u << 12) - 1u, "kernel_feature_names() lists one name per PX_FEATURE_* bit");
+static_assert(PX_FEATURES_ALL == (1u << 13) - 1u, "kernel_feature_names() lists one name per PX_FEATURE_* bit");
 
 namespace {
 
@@ -15,8 +15,9 @@ bool any_nonzero(const float (&c)[3]) { return c[0] != 0.0f || c[1] != 0.0f || c
 
 std::uint32_t kernel_features(const std::vector<GpuMaterial>& materials,
                               const std::vector<std::uint32_t>& triangle_flags, const FrameParams& light_params,
-                              bool vertex_colours, bool instances) {
-  std::uint32_t f = (vertex_colours ? PX_FEATURE_VERTEX_COLOURS : 0u) | (instances ? PX_FEATURE_INSTANCES : 0u);
+                              bool vertex_colours, bool instances, bool punctual_lights) {
+  std::uint32_t f = (vertex_colours ? PX_FEATURE_VERTEX_COLOURS : 0u) | (instances ? PX_FEATURE_INSTANCES : 0u) |
+                    (punctual_lights ? PX_FEATURE_PUNCTUAL : 0u);
   for (const auto& m : materials) {
     if (m.diffuse_texture >= 0 || m.specular_texture >= 0) f |= PX_FEATURE_TEXTURES;
     if (m.normal_texture >= 0) f |= PX_FEATURE_NORMAL_MAP;
@@ -47,9 +48,9 @@ std::uint32_t kernel_features(const std::vector<GpuMaterial>& materials,
 }
 
 const std::vector<std::string>& kernel_feature_names() {
-  static const std::vector<std::string> names{"textures", "alpha-test", "dielectric",     "mirror",
-                                              "ggx",      "normal-map", "emissive",       "two-sided",
-                                              "sun",      "sky",        "vertex-colours", "instances"};
+  static const std::vector<std::string> names{"textures",       "alpha-test", "dielectric", "mirror", "ggx",
+                                              "normal-map",     "emissive",   "two-sided",  "sun",    "sky",
+                                              "vertex-colours", "instances",  "punctual"};
   return names;
 }
 

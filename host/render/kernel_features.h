@@ -20,10 +20,11 @@ enum class KernelChoice { Scene, General };
 
 // The PX_FEATURE_* bits that branches in the kernels can take for this scene data
 // (`vertex_colours`: the scene has per-vertex colours, Scene::vertex_colours; `instances`: it
-// has instances, Scene::instancing).
+// has instances, Scene::instancing; `punctual_lights`: its light table holds point or spot
+// lights, has_punctual_lights).
 std::uint32_t kernel_features(const std::vector<GpuMaterial>& materials,
                               const std::vector<std::uint32_t>& triangle_flags, const FrameParams& light_params,
-                              bool vertex_colours = false, bool instances = false);
+                              bool vertex_colours = false, bool instances = false, bool punctual_lights = false);
 
 // Feature names in bit order ("textures", "alpha-test", ...), and of a mask.
 const std::vector<std::string>& kernel_feature_names();

@@ -246,6 +246,28 @@ LightBounds triangle_light_bounds(const LightTriangle& light, bool two_sided) {
   return b;
 }
 
+LightBounds punctual_light_bounds(const LightTriangle& light) {
+  LightBounds b;
+  std::memcpy(b.lo, light.v0, sizeof b.lo);
+  std::memcpy(b.hi, light.v0, sizeof b.hi);
+  // Its intensity, as a triangle's area x radiance is its intensity along its normal: the
+  // importance's power / d^2 is then what each sends a point facing it.
+  b.phi = static_cast<float>(std::max(0.0, luminance(light.emission)));
+  const Vec3 axis = load(light.v1);
+  const double len = length(axis);
+  store(b.axis, len > 0.0 ? axis * (1.0 / len) : Vec3{0.0, 0.0, 1.0});
+  // A spot emits within its outer cone (v2[2], its cosine; -1 for a point light: every way).
+  b.cos_theta_o = len > 0.0 ? light.v2[2] : -1.0f;
+  // theta_e pi/2, as a triangle's: a point inside the cone sees the whole intensity (cos_p 1 >
+  // cos_theta_e); one outside, a cosine-weighted remainder (never zero where it could be lit).
+  b.cos_theta_e = 0.0f;
+  return b;
+}
+
+LightBounds light_bounds(const LightTriangle& light, bool two_sided) {
+  return light.prim >= PX_LIGHT_PUNCTUAL ? punctual_light_bounds(light) : triangle_light_bounds(light, two_sided);
+}
+
 LightBounds union_of(const LightBounds& a, const LightBounds& b) {
   LightBounds u;
   for (int k = 0; k < 3; ++k) {
@@ -271,7 +293,7 @@ LightTree LightTree::build(const std::vector<LightTriangle>& lights, const std::
   std::vector<Item> items(lights.size());
   for (std::size_t i = 0; i < lights.size(); ++i) {
     Item& it = items[i];
-    it.b = triangle_light_bounds(lights[i], two_sided[i] != 0);
+    it.b = light_bounds(lights[i], two_sided[i] != 0);
     for (int k = 0; k < 3; ++k) it.centroid[k] = 0.5f * (it.b.lo[k] + it.b.hi[k]);
     it.light = static_cast<std::uint32_t>(i);
   }
@@ -291,7 +313,7 @@ bool LightTree::refit(const std::vector<LightTriangle>& lights, const std::vecto
     LightBounds b;
     if (c0 & PX_LIGHT_TREE_LEAF) {
       const std::uint32_t l = c0 & ~PX_LIGHT_TREE_LEAF;
-      b = triangle_light_bounds(lights[l], two_sided[l] != 0);
+      b = light_bounds(lights[l], two_sided[l] != 0);
     } else {
       b = union_of(bounds_of(nodes_[c0]), bounds_of(nodes_[c1]));
     }
@@ -309,7 +331,10 @@ unsigned LightTree::depth() const {
 std::vector<std::uint8_t> light_two_sidedness(const Scene& scene, const std::vector<LightTriangle>& lights) {
   std::vector<std::uint8_t> out(lights.size());
   for (std::size_t i = 0; i < lights.size(); ++i)
-    out[i] = scene.materials.at(scene.triangles.at(lights[i].prim).material).two_sided ? 1 : 0;
+    out[i] =
+        lights[i].prim < PX_LIGHT_PUNCTUAL && scene.materials.at(scene.triangles.at(lights[i].prim).material).two_sided
+            ? 1
+            : 0;
   return out;
 }
 

@@ -29,6 +29,13 @@ struct LightBounds {
 // theta_o = 0 (pi if `two_sided`), theta_e = pi/2.
 LightBounds triangle_light_bounds(const LightTriangle& light, bool two_sided);
 
+// A point or spot light's bounds (types.h, LightTriangle: prim >= PX_LIGHT_PUNCTUAL): its point,
+// phi the luminance of its intensity, the whole sphere (a spot: its axis and outer cone),
+// theta_e pi/2.
+LightBounds punctual_light_bounds(const LightTriangle& light);
+// Either, by the entry's prim (`two_sided` matters to triangles only).
+LightBounds light_bounds(const LightTriangle& light, bool two_sided);
+
 // The union of two bounds: the box around both, the summed power, the smallest cone (of the
 // kind pbrt-v4's DirectionCone::Union makes) holding both cones, the wider theta_e.
 LightBounds union_of(const LightBounds& a, const LightBounds& b);

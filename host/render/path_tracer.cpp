@@ -89,8 +89,11 @@ std::array<ImageRGB, 2> PathTracer::render_stereo(float time_s, std::uint32_t fr
       const cl_uint zero = 0;
       l.counter = cl::Buffer(devices_.context(), CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, sizeof(cl_uint),
                              const_cast<cl_uint*>(&zero));
+      // No ReSTIR stage follows this launch: its first vertices keep next-event estimation (by the tree).
+      PathTracer::Options plain = options;
+      if (plain.direct_light == DirectLight::Restir) plain.direct_light = DirectLight::Tree;
       const FrameParams fp =
-          frame_params(scene_, device_scene_.light_count(), options, e, l.row0, l.rows, frame, sample_offset);
+          frame_params(scene_, device_scene_.light_count(), plain, e, l.row0, l.rows, frame, sample_offset);
       l.done = launch(dev.queue, program, device_scene_.on(d), {l.out, l.albedo, l.counter}, fp, cam, width);
       l.pixels.resize(pixels);
       launches.push_back(std::move(l));

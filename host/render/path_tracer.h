@@ -28,7 +28,9 @@ class PathTracer {
     unsigned bounces = 6;
     unsigned rr_start_bounce = 3;  // Russian roulette from this bounce on
     LightSampling light_sampling = LightSampling::Mis;
-    DirectLight direct_light = DirectLight::Power;
+    // The light tree: on the many-lights scene 4.3x power's raw efficiency (1.5x denoised), and
+    // within timing noise of it elsewhere (docs/measurements.md, Many lights).
+    DirectLight direct_light = DirectLight::Tree;
     std::uint32_t seed = 0;
     // A frame's sample 0 of every pixel goes through the camera's jitter point of the frame
     // (CameraParams::jitter, px_sample_camera_dir): the G-buffer's ray, so the path tracer can write the G-buffer

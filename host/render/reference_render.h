@@ -16,7 +16,7 @@ struct ReferenceOptions {
   std::uint32_t seed = 0x5eed;                       // differs from the default render seed: independent samples
   // How NEE picks emissive triangles: power or tree converge to the same image; restir is refused
   // (render_reference throws std::invalid_argument): a reference stays plain path tracing.
-  DirectLight direct_light = DirectLight::Power;
+  DirectLight direct_light = PathTracer::Options{}.direct_light;
   // Polled after each pass: true stops early (Ctrl-C), and the images average the passes done.
   std::function<bool()> stop;
 };

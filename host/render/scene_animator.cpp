@@ -4,6 +4,7 @@
 #include "bvh/bvh_refit.h"
 #include "bvh/bvh_validator.h"
 #include "bvh/wide_bvh.h"
+#include "scene/punctual_light.h"
 #include "scene/scene_rig.h"
 #include "scene/sun_path.h"
 
@@ -50,6 +51,12 @@ SceneAnimator::SceneAnimator(Scene& scene, const std::string& choice)
     sun_follows_node_ = sun_from_node(rig_world_matrices(rig, 0.0, {})[static_cast<std::size_t>(rig.sun_node)], rest) &&
                         rest == scene.sun.direction;
   }
+  // glTF point and spot lights follow their nodes; a frame where only they move rewrites the
+  // light table alone (DeviceScene::update_lights).
+  for (std::size_t i = 0; i < rig.light_nodes.size() && i < scene.punctual_lights.size(); ++i)
+    if (moved(rig.light_nodes[i])) moving_lights_.push_back(i);
+  moves_ = moves_ || !moving_lights_.empty();
+  base_lights_ = scene.punctual_lights;
   // Only what the devices' geometry holds needs it rewritten: a clip that moves nothing but the
   // sun (and nodes that carry nothing) leaves the triangles as loaded. A moving camera keeps
   // the rewrite it always had (its frames' motion buffers).
@@ -86,8 +93,14 @@ std::string SceneAnimator::describe() const {
 void SceneAnimator::pose(double time_s) {
   if (!moves_) return;
   if (!sun_keys_.empty()) scene_.sun = moving_sun(base_sun_, sun_path_direction(sun_keys_, time_s));
-  if (!scene_.rig || !(geometry_moves_ || follow_camera_ || sun_follows_node_)) return;
+  if (!scene_.rig || !(geometry_moves_ || follow_camera_ || sun_follows_node_ || !moving_lights_.empty())) return;
   const std::vector<glm::dmat4> world = rig_world_matrices(*scene_.rig, time_s, clips_);
+  for (std::size_t i : moving_lights_) {
+    PunctualLight light = base_lights_[i];
+    // A pose that makes the node degenerate leaves the light where it rests.
+    place_light_at_node(world[static_cast<std::size_t>(scene_.rig->light_nodes[i])], light);
+    scene_.punctual_lights[i] = light;
+  }
   glm::vec3 towards;
   if (sun_follows_node_ && sun_from_node(world[static_cast<std::size_t>(scene_.rig->sun_node)], towards))
     scene_.sun = moving_sun(base_sun_, towards);
@@ -112,7 +125,15 @@ SceneAnimator::Update SceneAnimator::update(double time_s, DeviceSet& devices, D
   auto t0 = clock_type::now();
   pose(time_s);
   u.pose_ms = ms_since(t0);
-  if (!geometry_moves_) return u;  // the sun alone: the next launch's FrameParams carry it
+  if (!geometry_moves_) {
+    // The sun alone: the next launch's FrameParams carry it. Point and spot lights: their table.
+    if (!moving_lights_.empty()) {
+      t0 = clock_type::now();
+      u.bytes = device_scene.update_lights(devices, scene_);
+      u.upload_ms = ms_since(t0);
+    }
+    return u;
+  }
   t0 = clock_type::now();
   // The world tree covers the world's own triangles: all of them, or those before the
   // instances' meshes (none: no world tree; the instances' top level is built with the upload).

@@ -2,7 +2,9 @@
 // camera on an animated node), rebuilds the BVH over them and rewrites the devices' geometry.
 // The sun moves on the same clock: a scene file's sun keys (Scene::sun_path) or a glTF
 // directional light on a node a clip turns (sun_path.h); a frame whose only change is the sun
-// rewrites no geometry (the kernels read the sun from each launch's FrameParams).
+// rewrites no geometry (the kernels read the sun from each launch's FrameParams). glTF point and
+// spot lights on moving nodes move too: their light table entries (and the light tree) are
+// rewritten each frame, with the geometry or alone.
 // One clock: the caller passes frame f's time f / fps, the same in `render`, `reference`,
 // `view` and on every MPI rank, so every rank and device poses the same triangles bit for bit.
 //
@@ -60,10 +62,12 @@ class SceneAnimator {
   Scene& scene_;
   std::vector<int> clips_;
   bool moves_ = false;
-  bool geometry_moves_ = false;    // a clip moves a mesh, a skin's joint or the camera (not only the sun)
-  bool follow_camera_ = false;     // the scene's camera is the rig's glTF camera
-  bool sun_follows_node_ = false;  // the scene's sun is the rig's glTF light, on a node a clip moves
-  std::vector<SunKey> sun_keys_;   // the scene file's sun keys (they win over a glTF light)
+  bool geometry_moves_ = false;             // a clip moves a mesh, a skin's joint or the camera (not only the sun)
+  bool follow_camera_ = false;              // the scene's camera is the rig's glTF camera
+  bool sun_follows_node_ = false;           // the scene's sun is the rig's glTF light, on a node a clip moves
+  std::vector<SunKey> sun_keys_;            // the scene file's sun keys (they win over a glTF light)
+  std::vector<std::size_t> moving_lights_;  // Scene::punctual_lights on nodes a clip moves
+  std::vector<PunctualLight> base_lights_;  // as loaded (their intensity and cones)
   Camera base_camera_;
   Sun base_sun_;  // as loaded: its radiance, which a moving sun fades at the horizon
   std::vector<SceneTriangle> previous_;

@@ -1,10 +1,13 @@
 // The scene's tables for the kernels: shading records, materials, lights (scene_tables.h).
 #include "render/scene_tables.h"
 
+#include "scene/punctual_light.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <numbers>
+#include <stdexcept>
 
 namespace px {
 
@@ -93,8 +96,8 @@ std::vector<LightTriangle> make_light_table(const Scene& scene) {
   double total = 0.0;
   std::vector<char> emissive(scene.materials.size());
   for (std::size_t k = 0; k < emissive.size(); ++k) emissive[k] = scene.materials[k].is_emissive();
-  if (std::find(emissive.begin(), emissive.end(), 1) == emissive.end()) return out;  // no emitter at all
-  for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
+  const bool any_emitter = std::find(emissive.begin(), emissive.end(), 1) != emissive.end();
+  for (std::size_t i = 0; any_emitter && i < scene.triangles.size(); ++i) {
     const SceneTriangle& t = scene.triangles[i];
     if (!emissive.at(t.material)) continue;
     const Material& m = scene.materials[t.material];
@@ -109,6 +112,30 @@ std::vector<LightTriangle> make_light_table(const Scene& scene) {
     copy3(l.emission, m.emission);
     l.prim = static_cast<std::uint32_t>(i);
     l.area = area;
+    l.pdf_select = static_cast<float>(power);  // normalised below
+    total += power;
+    out.push_back(l);
+  }
+  // Point and spot lights after the triangles (types.h, LightTriangle), power in the table's unit:
+  // watts / pi, as a triangle's area x radiance.
+  if (scene.punctual_lights.size() >= PX_LIGHT_PUNCTUAL)
+    throw std::length_error("make_light_table: more point and spot lights than a prim can name");
+  if (scene.triangles.size() > PX_LIGHT_PUNCTUAL)
+    throw std::length_error("make_light_table: too many triangles to name point and spot lights after them");
+  for (std::size_t k = 0; k < scene.punctual_lights.size(); ++k) {
+    const PunctualLight& p = scene.punctual_lights[k];
+    const double power = punctual_light_power(p);
+    if (!(power > 0.0) || !std::isfinite(power)) continue;
+    const SpotRamp ramp = spot_ramp(p);
+    LightTriangle l{};
+    copy3(l.v0, p.position);
+    copy3(l.v1, p.direction);
+    l.v2[0] = ramp.scale;
+    l.v2[1] = ramp.offset;
+    l.v2[2] = ramp.cos_outer;
+    copy3(l.emission, p.intensity);
+    l.prim = PX_LIGHT_PUNCTUAL + static_cast<std::uint32_t>(k);
+    l.area = 0.0f;
     l.pdf_select = static_cast<float>(power);  // normalised below
     total += power;
     out.push_back(l);

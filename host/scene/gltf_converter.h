@@ -106,12 +106,14 @@ class Converter {
   void visit(int index, const glm::dmat4& parent, int parent_index, const std::string& from, int depth);
   void camera(int index, const glm::dmat4& world, const std::string& where, int node);
 
-  // KHR_lights_punctual. The renderer's lights are emissive triangles, one sun and a sky: the
-  // first directional light becomes the sun (its illuminance, lux, spread over the sun disk's
-  // solid angle as radiance); point and spot lights have no counterpart and are named in the
-  // warning line. The sun is placed at the node's rest pose; in a scene that moves, a clip that
-  // turns the node turns it (SceneRig::sun_node, SceneAnimator).
+  // KHR_lights_punctual. The first directional light becomes the sun (its illuminance, lux,
+  // spread over the sun disk's solid angle as radiance); point and spot lights become
+  // Scene::punctual_lights (candela as W/sr; `range` ignored, named in the warning line). Each is
+  // placed at the node's rest pose; in a scene that moves, a clip that moves the node moves it
+  // (SceneRig::sun_node, SceneRig::light_nodes, SceneAnimator).
   void light(int index, const glm::dmat4& world, const std::string& where, int node);
+  // A point or spot light: onto Scene::punctual_lights, its node onto SceneRig::light_nodes.
+  void punctual_light(const tinygltf::Light& l, int index, const glm::dmat4& world, const std::string& where, int node);
 
   std::uint32_t default_material();
   void mesh(int index, const glm::dmat4& world, const std::string& where, int node, int skin);

@@ -3,6 +3,7 @@
 #include "scene/gltf_converter.h"
 
 #include "scene/primitives.h"
+#include "scene/punctual_light.h"
 #include "scene/sun_path.h"
 
 #include <glm/gtc/quaternion.hpp>
@@ -160,8 +161,12 @@ void Converter::light(int index, const glm::dmat4& world, const std::string& whe
   if (index < 0 || std::size_t(index) >= model_.lights.size())
     read_.fail(where + " names light " + std::to_string(index) + ", which does not exist");
   const tinygltf::Light& l = model_.lights[std::size_t(index)];
+  if (l.type == "point" || l.type == "spot") {
+    punctual_light(l, index, world, where, node);
+    return;
+  }
   if (l.type != "directional") {
-    unsupported_.add("point and spot lights (KHR_lights_punctual)", where);
+    unsupported_.add("lights of type '" + l.type + "' (KHR_lights_punctual)", where);
     return;
   }
   if (scene_.sun.enabled) {
@@ -184,6 +189,39 @@ void Converter::light(int index, const glm::dmat4& world, const std::string& whe
   sun.radiance = colour * float(lux / (2.0 * std::numbers::pi * (1.0 - cos_max)));
   // A clip that turns the node (or an ancestor) turns the sun (SceneAnimator).
   if (rig_ && sun.enabled) rig_->sun_node = node;
+}
+
+void Converter::punctual_light(const tinygltf::Light& l, int index, const glm::dmat4& world, const std::string& where,
+                               int node) {
+  PunctualLight light;
+  light.spot = l.type == "spot";
+  if (!place_light_at_node(world, light)) {
+    scene_.stats.warnings.push_back(path_ + ": " + where + ": " + l.type + " light " + std::to_string(index) +
+                                    " with a degenerate placement; ignored");
+    return;
+  }
+  glm::vec3 colour(1.0f);
+  for (std::size_t c = 0; c < 3 && c < l.color.size(); ++c)
+    colour[int(c)] = finite_clamped(l.color[c], 0.0f, 1.0f, 1.0f);
+  // Candela taken as W/sr (scene.h, PunctualLight).
+  const float candela = std::isfinite(l.intensity) && l.intensity > 0.0 ? float(std::min(l.intensity, 1e9)) : 0.0f;
+  light.intensity = colour * candela;
+  if (light.spot) {
+    // The spec's bounds: 0 <= inner < outer <= pi/2; out-of-range values are clamped into them.
+    const double half_pi = std::numbers::pi / 2.0;
+    const double outer = std::isfinite(l.spot.outerConeAngle) ? l.spot.outerConeAngle : std::numbers::pi / 4.0;
+    const double inner = std::isfinite(l.spot.innerConeAngle) ? l.spot.innerConeAngle : 0.0;
+    light.outer_cone_rad = float(std::clamp(outer, 1e-4, half_pi));
+    light.inner_cone_rad = float(std::clamp(inner, 0.0, double(light.outer_cone_rad)));
+  }
+  if (l.range > 0.0) unsupported_.add("light range (lights fall off as 1/d^2 without a cut-off)", where);
+  if (!(candela > 0.0f)) return;
+  scene_.punctual_lights.push_back(light);
+  // A clip that moves the node (or an ancestor) moves the light (SceneAnimator).
+  if (rig_) {
+    rig_->light_nodes.resize(scene_.punctual_lights.size() - 1, -1);
+    rig_->light_nodes.push_back(node);
+  }
 }
 
 std::uint32_t Converter::default_material() {

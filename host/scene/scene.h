@@ -96,6 +96,22 @@ struct SunKey {
   glm::vec3 direction{0.0f, 1.0f, 0.0f};  // unit vector towards the sun
 };
 
+// A point or spot light (glTF KHR_lights_punctual on a node, or a scene file's "lights" entry).
+// `intensity` is radiant intensity in the renderer's radiometric units (W/sr): glTF's candela
+// times the light's colour, taken as they are, as emission radiance and the sun's radiance are
+// (nothing here converts photometric units). A point light shines alike in every direction; a
+// spot light along `direction` with glTF's smooth falloff between the cones: full inside
+// `inner_cone_rad` of the axis, nothing beyond `outer_cone_rad`, the square of a linear ramp in
+// the cosine between. glTF's `range` is ignored: the light falls off as 1 / d^2 everywhere.
+struct PunctualLight {
+  bool spot = false;
+  glm::vec3 position{0.0f};
+  glm::vec3 direction{0.0f, -1.0f, 0.0f};  // spot only: unit vector the light shines along
+  glm::vec3 intensity{0.0f};               // W/sr, linear RGB
+  float inner_cone_rad = 0.0f;             // spot only: 0 <= inner < outer <= pi/2
+  float outer_cone_rad = 0.7853982f;       // pi / 4, glTF's default
+};
+
 // Simple analytic sky: radiance blends from horizon to zenith by the direction's elevation;
 // below the horizon it is `ground`.
 struct Sky {
@@ -148,6 +164,9 @@ struct Scene {
   Sun sun;
   std::vector<SunKey> sun_path;  // empty = the sun stays where `sun` puts it (or a glTF clip turns it)
   Sky sky;
+  // Point and spot lights; a glTF light on a node a clip moves follows the node
+  // (SceneRig::light_nodes, SceneAnimator).
+  std::vector<PunctualLight> punctual_lights;
   SceneStats stats;
   // How the scene moves (a glTF file with animations; scene_rig.h), or null for a static scene.
   // `triangles` then hold its rest pose until a SceneAnimator poses them for a frame's time.

@@ -95,6 +95,8 @@ Camera frame_bounds(const Scene& scene) {
 
 bool has_light(const Scene& scene) {
   if (scene.sun.enabled || scene.sky.enabled) return true;
+  for (const PunctualLight& l : scene.punctual_lights)
+    if (l.intensity.x > 0.0f || l.intensity.y > 0.0f || l.intensity.z > 0.0f) return true;
   return std::any_of(scene.materials.begin(), scene.materials.end(), [](const Material& m) { return m.is_emissive(); });
 }
 
@@ -280,13 +282,62 @@ json parse_json_file(const std::string& path) {
   return doc;
 }
 
+// A scene file's "lights": point and spot lights added to those of the mesh (scene.h,
+// PunctualLight).
+void read_punctual_lights(const SceneFileReader& r, const json& list, Scene& scene) {
+  if (!list.is_array()) r.fail("lights", std::string("must be an array, got ") + list.type_name());
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const std::string key = "lights[" + std::to_string(i) + "]";
+    const json& l = list[i];
+    r.require_object(l, key);
+    r.check_keys(l, key + ".",
+                 {"type", "position", "intensity", "color", "direction", "inner_cone_deg", "outer_cone_deg"});
+    for (const char* required : {"type", "position", "intensity"})
+      if (!l.contains(required)) r.fail(key + "." + required, "missing");
+    PunctualLight light;
+    const std::string type = r.string(l["type"], key + ".type");
+    if (type != "point" && type != "spot") r.fail(key + ".type", "must be \"point\" or \"spot\", got '" + type + "'");
+    light.spot = type == "spot";
+    light.position = r.vec3(l["position"], key + ".position");
+    const json& intensity = l["intensity"];
+    if (intensity.is_number()) {
+      const float candela = r.number(intensity, key + ".intensity");
+      if (candela < 0.0f) r.fail(key + ".intensity", "must not be negative");
+      const glm::vec3 colour = l.contains("color") ? r.non_negative_vec3(l["color"], key + ".color") : glm::vec3(1.0f);
+      light.intensity = candela * colour;
+    } else {
+      if (l.contains("color")) r.fail(key + ".color", "only allowed with a number intensity (an array is the colour)");
+      light.intensity = r.non_negative_vec3(intensity, key + ".intensity");
+    }
+    if (!light.spot) {
+      for (const char* spot_only : {"direction", "inner_cone_deg", "outer_cone_deg"})
+        if (l.contains(spot_only)) r.fail(key + "." + spot_only, "only allowed for a spot light");
+    } else {
+      if (!l.contains("direction")) r.fail(key + ".direction", "missing (a spot light needs its axis)");
+      const glm::vec3 d = r.vec3(l["direction"], key + ".direction");
+      const float len = glm::length(d);
+      if (!(len > 0.0f) || !std::isfinite(len)) r.fail(key + ".direction", "must be a non-zero vector");
+      light.direction = d / len;
+      float inner = 0.0f, outer = 45.0f;
+      if (l.contains("outer_cone_deg")) outer = r.number(l["outer_cone_deg"], key + ".outer_cone_deg");
+      if (l.contains("inner_cone_deg")) inner = r.number(l["inner_cone_deg"], key + ".inner_cone_deg");
+      if (!(outer > 0.0f && outer <= 90.0f)) r.fail(key + ".outer_cone_deg", "must be within (0, 90] degrees");
+      if (!(inner >= 0.0f && inner < outer))
+        r.fail(key + ".inner_cone_deg", "must be within [0, outer_cone_deg) degrees");
+      light.inner_cone_rad = glm::radians(inner);
+      light.outer_cone_rad = glm::radians(outer);
+    }
+    scene.punctual_lights.push_back(light);
+  }
+}
+
 Scene load_scene_file(const std::string& path, const SceneLoadOptions& options) {
   const json doc = parse_json_file(path);
   const SceneFileReader r(path);
   if (!doc.is_object()) throw SceneError(path + ": the scene file must hold a JSON object");
   r.check_keys(doc, "",
                {"name", "mesh", "generator", "generator_params", "meters_per_unit", "ipd_m", "camera", "camera_path",
-                "sun", "sky", "two_sided_emitters"});
+                "sun", "sky", "two_sided_emitters", "lights"});
 
   // The base scene: a mesh or a generator, exactly one.
   const bool has_mesh = doc.contains("mesh"), has_generator = doc.contains("generator");
@@ -429,6 +480,7 @@ Scene load_scene_file(const std::string& path, const SceneLoadOptions& options) 
       scene.sun.angular_radius_deg = a;
     }
   }
+  if (doc.contains("lights")) read_punctual_lights(r, doc["lights"], scene);
   if (doc.contains("sky")) {
     const json& sky = doc["sky"];
     r.require_object(sky, "sky");

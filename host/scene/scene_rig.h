@@ -74,6 +74,9 @@ struct SceneRig {
   std::vector<AnimationClip> clips;
   int camera_node = -1;  // the node of the scene's camera (-1: not a glTF camera)
   int sun_node = -1;     // the node of the directional light that is the scene's sun (-1: none)
+  // Per glTF point or spot light, in Scene::punctual_lights' order (lights a scene file adds after
+  // them have none): its node, whose origin is the light's position and whose -z its direction.
+  std::vector<int> light_nodes;
   std::size_t triangle_count = 0;
 };
 

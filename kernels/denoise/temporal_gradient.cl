@@ -52,7 +52,7 @@ inline float px_gradient_shade(const SceneView* scene, const FrameParams* fp, fl
            : (hit.prim == PX_NO_HIT || scene->tris[hit.prim].prim != g->prim || hit.inst != g->inst))
     return 0.0f;
   float4 albedo;
-  const float l = px_luminance(px_trace_path_from_hit(scene, fp, origin, dir, key, hit, &albedo));
+  const float l = px_luminance(px_trace_path_from_hit(scene, fp, origin, dir, key, hit, 0, &albedo));
   if (!isfinite(l)) {
     atomic_inc(nonfinite);
     return 0.0f;

@@ -25,8 +25,8 @@ inline float3 px_render_sample(const SceneView* scene, const FrameParams* fp, co
   const SampleKey key = px_sample_key(x, y, fp->frame, fp->eye, fp->sample_offset + s, fp->seed);
   const float3 dir = px_sample_camera_dir(fp, cam, key, x, y, s);
   const int on_gbuffer_ray = px_sample_on_gbuffer_ray(fp, s);
-  return px_trace_path(scene, fp, px_camera_origin(cam), dir, key, albedo, on_gbuffer_ray ? gbuffer_texel : 0,
-                       on_gbuffer_ray ? gbuffer_hit : 0);
+  return px_trace_path(scene, fp, px_camera_origin(cam), dir, key, px_restir_lights_first_vertex(fp, s), albedo,
+                       on_gbuffer_ray ? gbuffer_texel : 0, on_gbuffer_ray ? gbuffer_hit : 0);
 }
 
 /* Mean radiance of pixel (x, y): fp->spp paths; a path with non-finite radiance is dropped
@@ -45,8 +45,7 @@ inline float4 px_render_pixel(const SceneView* scene, const FrameParams* fp, con
   for (uint s = 0; s < fp->spp; ++s) {
     float4 a;
     const float3 l = px_render_sample(scene, fp, cam, x, y, s, &a, gbuffer_texel, gbuffer_hit);
-    if (px_finite3(l)) {
-      sum += l;
+    if (px_add_sample(&sum, l)) {
       albedo_sum += a;
       ++good;
     } else {
@@ -116,8 +115,9 @@ kernel void path_trace_list_samples(global float4* samples, volatile global uint
 
 /* The pixels of path_trace_list_samples: per hole, its spp samples summed in sample order (as
  * px_render_pixel sums them), then the same mean. */
-kernel void resolve_hole_samples(global float4* out, global float4* albedo_out, const global float4* samples,
-                                 const global uint* holes, const global uint* hole_count, uint spp) {
+kernel void resolve_hole_samples(global float4* out, global float4* albedo_out, volatile global uint* nonfinite,
+                                 const global float4* samples, const global uint* holes, const global uint* hole_count,
+                                 uint spp) {
   const uint hole = get_global_id(0);
   if (hole >= *hole_count) return;
   float3 sum = (float3)(0.0f, 0.0f, 0.0f);
@@ -126,10 +126,12 @@ kernel void resolve_hole_samples(global float4* out, global float4* albedo_out, 
   for (uint s = 0; s < spp; ++s) {
     const uint i = hole * spp + s;
     const float4 l = samples[2u * i];
-    if (l.w > 0.0f) {
-      sum += l.xyz;
+    if (!(l.w > 0.0f)) continue; /* counted by path_trace_list_samples */
+    if (px_add_sample(&sum, l.xyz)) {
       albedo_sum += samples[2u * i + 1u];
       ++good;
+    } else {
+      atomic_inc(nonfinite);
     }
   }
   const uint p = holes[hole];
@@ -157,6 +159,11 @@ kernel void path_trace_list_more(global float4* out, global float4* albedo_out, 
   const float4 had = out[p];
   const float n = had.w > 0.0f ? (float)fp.sample_offset : 0.0f;
   const float total = n + more.w;
-  out[p] = (float4)((had.xyz * n + more.xyz * more.w) / total, total);
+  const float3 joined = (had.xyz * n + more.xyz * more.w) / total;
+  if (!px_finite3(joined)) {
+    atomic_inc(nonfinite);
+    return;
+  }
+  out[p] = (float4)(joined, total);
   albedo_out[p] = (albedo_out[p] * n + albedo * more.w) / total;
 }

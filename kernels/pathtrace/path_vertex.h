@@ -32,6 +32,11 @@ typedef struct PathVertex {
   float3 prev_p;   /* hit point of the last vertex (the light tree's MIS pmf, with prev_n) */
   float prev_pdf;  /* pdf of the last BSDF sample (MIS) */
   int prev_delta;  /* the last bounce was a delta one (the camera ray counts as one) */
+  /* ReSTIR DI (restir/restir_di.cl) lights the first vertex of each pixel's G-buffer ray in its
+   * own pass: PX_RESTIR_VERTEX_NEXT on such a camera ray (its vertex makes no next-event
+   * estimate), PX_RESTIR_VERTEX_LAST after that vertex (emission its non-delta BSDF sample finds
+   * is ReSTIR's already, and counts 0), else 0. */
+  int restir;
   /* The demodulation albedo of the first vertex (px_demodulation_albedo; 1 where the ray
    * escapes or meets an emitter, whose radiance is its own "illumination") and, in w, 1 where
    * that vertex is a surface the denoiser filters (not an emitter, not the environment), else 0. */
@@ -68,7 +73,17 @@ inline float3 px_sample_camera_dir(const FrameParams* fp, const CameraParams* ca
   return px_camera_dir(cam, x, y, u.x, u.y);
 }
 
-inline PathVertex px_camera_path(float3 org, float3 dir) {
+#define PX_RESTIR_VERTEX_NEXT 1
+#define PX_RESTIR_VERTEX_LAST 2
+
+/* Whether sample s is a camera ray whose first vertex ReSTIR DI lights (PathVertex::restir). */
+inline int px_restir_lights_first_vertex(const FrameParams* fp, uint s) {
+  return fp->direct_light == PX_DIRECT_RESTIR && fp->light_sampling == PX_LIGHTS_MIS && px_sample_on_gbuffer_ray(fp, s);
+}
+
+/* A camera path from org along dir; `restir_first_vertex`: its first vertex's direct light is
+ * ReSTIR's (px_restir_lights_first_vertex). */
+inline PathVertex px_camera_path(float3 org, float3 dir, int restir_first_vertex) {
   PathVertex v;
   v.org = org;
   v.dir = dir;
@@ -78,6 +93,7 @@ inline PathVertex px_camera_path(float3 org, float3 dir) {
   v.prev_p = org;
   v.prev_pdf = 0.0f;
   v.prev_delta = 1;
+  v.restir = restir_first_vertex ? PX_RESTIR_VERTEX_NEXT : 0;
   v.primary_albedo = (float4)(1.0f, 1.0f, 1.0f, 0.0f);
   return v;
 }
@@ -98,7 +114,7 @@ inline int px_path_vertex(const SceneView* scene, const FrameParams* fp, SampleK
     const float3 le = px_environment(fp, dir);
     float w = 1.0f;
     if (!v->prev_delta) {
-      if (!use_bsdf_light)
+      if (!use_bsdf_light || v->restir == PX_RESTIR_VERTEX_LAST)
         w = 0.0f;
       else if (use_nee)
         w = px_mis_power(v->prev_pdf, px_environment_pdf(fp, v->prev_n, dir));
@@ -129,7 +145,7 @@ inline int px_path_vertex(const SceneView* scene, const FrameParams* fp, SampleK
   if (PX_HAS(PX_FEATURE_EMISSIVE) && (mat->flags & PX_MAT_EMISSIVE) && (front_face || two_sided)) {
     float w = 1.0f;
     if (!v->prev_delta) {
-      if (!use_bsdf_light) {
+      if (!use_bsdf_light || v->restir == PX_RESTIR_VERTEX_LAST) {
         w = 0.0f;
       } else if (use_nee) {
         const int li = px_find_light(scene, fp->light_count, prim);
@@ -161,12 +177,14 @@ inline int px_path_vertex(const SceneView* scene, const FrameParams* fp, SampleK
 
   /* Next-event estimation (only the non-delta part of the BSDF can use it). */
   const int has_smooth = bsdf.p_specular < 1.0f || !bsdf.mirror;
-  if (use_nee && has_smooth) {
+  if (use_nee && has_smooth && v->restir != PX_RESTIR_VERTEX_NEXT) {
     const LightSample ls = px_sample_light(scene, fp, p, ns, u_light);
     if (ls.pdf > 0.0f && dot(ng, ls.wi) > 0.0f && dot(ns, ls.wi) > 0.0f) {
       const float3 f = px_bsdf_eval(&bsdf, ns, wo, ls.wi);
       if (f.x + f.y + f.z > 0.0f) {
-        const float w = use_bsdf_light ? px_mis_power(ls.pdf, px_bsdf_pdf(&bsdf, ns, wo, ls.wi)) : 1.0f;
+        /* A point or spot light is a delta: BSDF sampling never finds it, NEE alone counts. */
+        float w = use_bsdf_light ? px_mis_power(ls.pdf, px_bsdf_pdf(&bsdf, ns, wo, ls.wi)) : 1.0f;
+        if (PX_HAS(PX_FEATURE_PUNCTUAL) && ls.delta) w = 1.0f;
         shadow->valid = 1;
         shadow->org = origin;
         shadow->dir = ls.wi;
@@ -184,6 +202,7 @@ inline int px_path_vertex(const SceneView* scene, const FrameParams* fp, SampleK
   v->throughput *= bs.weight;
   v->prev_pdf = bs.pdf;
   v->prev_delta = bs.delta;
+  v->restir = v->restir == PX_RESTIR_VERTEX_NEXT ? PX_RESTIR_VERTEX_LAST : 0;
   v->prev_n = ns;
   v->prev_p = p;
 

@@ -5,6 +5,17 @@
 
 inline int px_finite3(float3 v) { return isfinite(v.x) && isfinite(v.y) && isfinite(v.z); }
 
+/* Adds sample l to the pixel's *sum if l is finite and the sum stays finite (a few samples near the
+ * float limit can overflow it); returns whether it did. A sample not added is dropped from the
+ * pixel's mean and counted as non-finite by the caller. */
+inline int px_add_sample(float3* sum, float3 l) {
+  if (!px_finite3(l)) return 0;
+  const float3 s = *sum + l;
+  if (!px_finite3(s)) return 0;
+  *sum = s;
+  return 1;
+}
+
 /* A pixel's mean from the sum of its `good` finite samples: (rgb, good), and in *albedo the mean
  * albedo (w: the coverage). No finite path: (1, 1, 1, 0). */
 inline float4 px_pixel_mean(float3 sum, float4 albedo_sum, uint good, float4* albedo) {

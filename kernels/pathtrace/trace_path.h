@@ -10,11 +10,13 @@
 #include "trace/traverse.h"
 
 /* Radiance along one camera path whose first hit is `first` (already traced by the caller), its
- * vertices in a loop (path_vertex.h); *primary_albedo receives PathVertex::primary_albedo. The
- * temporal gradients' re-shading calls it directly with the hit it checked. */
+ * vertices in a loop (path_vertex.h); *primary_albedo receives PathVertex::primary_albedo;
+ * `restir_first_vertex` as px_camera_path's. The temporal gradients' re-shading calls it directly
+ * with the hit it checked (and next-event estimation at every vertex: it compares the lighting of
+ * two frames, which ReSTIR's reuse would blur). */
 inline float3 px_trace_path_from_hit(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir,
-                                     SampleKey key, Hit first, float4* primary_albedo) {
-  PathVertex v = px_camera_path(org, dir);
+                                     SampleKey key, Hit first, int restir_first_vertex, float4* primary_albedo) {
+  PathVertex v = px_camera_path(org, dir, restir_first_vertex);
   for (uint bounce = 0; bounce <= fp->max_bounces; ++bounce) {
     const Hit hit = bounce == 0u ? first : px_trace_closest_leaf(scene, v.org, v.dir, 0.0f, INFINITY);
     ShadowRay shadow;
@@ -31,10 +33,11 @@ inline float3 px_trace_path_from_hit(const SceneView* scene, const FrameParams* 
  * camera ray's texel (gbuffer_texel.h) goes there. If `gbuffer_hit` is not null, it is the camera
  * ray's hit, already traced (by the G-buffer pass, for the same ray). */
 inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir, SampleKey key,
-                            float4* primary_albedo, global GBufferTexel* gbuffer_texel, const global Hit* gbuffer_hit) {
+                            int restir_first_vertex, float4* primary_albedo, global GBufferTexel* gbuffer_texel,
+                            const global Hit* gbuffer_hit) {
   const Hit first = gbuffer_hit ? *gbuffer_hit : px_trace_closest_leaf(scene, org, dir, 0.0f, INFINITY);
   if (gbuffer_texel) *gbuffer_texel = px_gbuffer_texel(scene, dir, first);
-  return px_trace_path_from_hit(scene, fp, org, dir, key, first, primary_albedo);
+  return px_trace_path_from_hit(scene, fp, org, dir, key, first, restir_first_vertex, primary_albedo);
 }
 
 #endif

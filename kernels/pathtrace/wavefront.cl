@@ -28,7 +28,8 @@
 inline void px_store_path(global float4* states, uint i, const PathVertex* v) {
   global float4* s = states + (size_t)i * PX_PATH_STATE_FLOAT4S;
   s[0] = (float4)(v->org, v->prev_pdf);
-  s[1] = (float4)(v->dir, v->prev_delta ? 1.0f : 0.0f);
+  /* w: prev_delta (0/1) + 2 x restir (PathVertex::restir, 0..2). */
+  s[1] = (float4)(v->dir, (float)((v->prev_delta ? 1 : 0) + 2 * v->restir));
   s[2] = (float4)(v->throughput, v->prev_p.x);
   s[3] = (float4)(v->radiance, v->prev_p.y);
   s[4] = (float4)(v->prev_n, v->prev_p.z);
@@ -42,7 +43,9 @@ inline PathVertex px_load_path(const global float4* states, uint i) {
   v.org = o.xyz;
   v.prev_pdf = o.w;
   v.dir = d.xyz;
-  v.prev_delta = d.w != 0.0f;
+  const int bits = (int)d.w;
+  v.prev_delta = bits & 1;
+  v.restir = bits >> 1;
   const float4 t = s[2], r = s[3], n = s[4];
   v.throughput = t.xyz;
   v.radiance = r.xyz;
@@ -62,7 +65,7 @@ inline void px_generate(global float4* states, global uint* path_pixel, global u
                         const CameraParams* cam, uint pixel, uint i) {
   const SampleKey key = px_path_key(fp, cam->width, pixel, i);
   const float3 dir = px_sample_camera_dir(fp, cam, key, pixel % cam->width, pixel / cam->width, i % fp->spp);
-  const PathVertex v = px_camera_path(px_camera_origin(cam), dir);
+  const PathVertex v = px_camera_path(px_camera_origin(cam), dir, px_restir_lights_first_vertex(fp, i % fp->spp));
   px_store_path(states, i, &v);
   path_pixel[i] = pixel;
   queue[i] = i;
@@ -198,8 +201,7 @@ kernel void wf_resolve(global float4* out, global float4* albedo_out, volatile g
   for (uint s = 0; s < spp; ++s) {
     const global float4* st = states + (size_t)(k * spp + s) * PX_PATH_STATE_FLOAT4S;
     const float3 l = st[3].xyz;
-    if (px_finite3(l)) {
-      sum += l;
+    if (px_add_sample(&sum, l)) {
       albedo_sum += st[5];
       ++good;
     } else {

@@ -1,5 +1,6 @@
-/* Lights: emissive triangles (front face only, unless their material is two-sided), and an environment made of a sun
- * disk and an analytic sky. Next-event estimation first picks a kind of light (FrameParams p_*), then: triangles - one
+/* Lights: emissive triangles (front face only, unless their material is two-sided), point and spot lights (entries of
+ * the same table, picked like the triangles: a delta, no density), and an environment made of a sun disk and an
+ * analytic sky. Next-event estimation first picks a kind of light (FrameParams p_*), then: triangles - one
  * triangle by power (binary search of the CDF) or, with FrameParams::direct_light tree or restir, by the light tree's
  * importance at the shading point (light_tree.h), a uniform point on it; sun       - a uniform direction inside the
  * sun's cone; sky       - a cosine-weighted direction around the shading normal. The sun and sky form one environment:
@@ -76,7 +77,48 @@ typedef struct LightSample {
   float dist; /* INFINITY for the environment */
   float3 radiance;
   float pdf; /* solid angle, light-type selection included; 0 = no sample */
+  int delta; /* a point or spot light: radiance is I falloff / d^2, pdf the probability of picking
+              * it (no density; no BSDF sample reaches it, so its MIS weight is 1) */
 } LightSample;
+
+/* Whether light table entry l is a point or spot light (types.h, LightTriangle). */
+inline int px_is_punctual_light(const global LightTriangle* l) {
+  return PX_HAS(PX_FEATURE_PUNCTUAL) && l->prim >= PX_LIGHT_PUNCTUAL;
+}
+
+/* A point or spot light seen from p: the unit direction to it in *wi, the distance in *dist, and
+ * its intensity towards p (glTF's spot falloff: the square of a ramp in the cosine to the axis,
+ * whose scale and offset are v2[0], v2[1]; 1 for a point light). 0 when p is on the light. */
+inline float3 px_punctual_light_towards(const global LightTriangle* l, float3 p, float3* wi, float* dist) {
+  const float3 to = px_load3(l->v0) - p;
+  const float d2 = dot(to, to);
+  *dist = sqrt(d2);
+  *wi = d2 > 0.0f ? to / *dist : (float3)(0.0f, 0.0f, 1.0f);
+  if (!(d2 > 0.0f)) return (float3)(0.0f, 0.0f, 0.0f);
+  const float a = clamp(dot(px_load3(l->v1), -*wi) * l->v2[0] + l->v2[1], 0.0f, 1.0f);
+  return px_load3(l->emission) * (a * a);
+}
+
+/* One emissive triangle for next-event estimation at point p with shading normal n, by the
+ * direct-light strategy (power: the first entry whose inclusive CDF exceeds u; tree: the light
+ * tree's walk), its selection probability in *select; -1 for none. ReSTIR's candidates are picked
+ * by the same function. */
+inline int px_pick_triangle_light(const SceneView* s, const FrameParams* fp, float3 p, float3 n, float u,
+                                  float* select) {
+  *select = 0.0f;
+  if (fp->light_count == 0u) return -1;
+  if (px_direct_light_tree(fp)) return px_light_tree_sample(s, fp->light_count, p, n, u, select);
+  int lo = 0, hi = (int)fp->light_count - 1;
+  while (lo < hi) {
+    const int mid = (lo + hi) / 2;
+    if (s->lights[mid].cdf > u)
+      hi = mid;
+    else
+      lo = mid + 1;
+  }
+  *select = s->lights[lo].pdf_select;
+  return lo;
+}
 
 /* A light sample for point p with shading normal n (the tree's choice depends on both: the MIS
  * weight of a BSDF-sampled hit asks px_light_select_pmf at the same p and n). */
@@ -86,27 +128,21 @@ inline LightSample px_sample_light(const SceneView* s, const FrameParams* fp, fl
   ls.dist = INFINITY;
   ls.radiance = (float3)(0.0f, 0.0f, 0.0f);
   ls.wi = n;
+  ls.delta = 0;
   float pick = u.z;
   if (PX_HAS(PX_FEATURE_EMISSIVE) && pick < fp->p_triangles) {
-    if (fp->light_count == 0u) return ls;
-    int lo = 0;
     float select;
-    if (px_direct_light_tree(fp)) {
-      lo = px_light_tree_sample(s, fp->light_count, p, n, u.w, &select);
-      if (lo < 0) return ls;
-    } else {
-      /* First entry whose inclusive CDF exceeds u.w. */
-      int hi = (int)fp->light_count - 1;
-      while (lo < hi) {
-        const int mid = (lo + hi) / 2;
-        if (s->lights[mid].cdf > u.w)
-          hi = mid;
-        else
-          lo = mid + 1;
-      }
-      select = s->lights[lo].pdf_select;
-    }
+    const int lo = px_pick_triangle_light(s, fp, p, n, u.w, &select);
+    if (lo < 0) return ls;
     const global LightTriangle* l = s->lights + lo;
+    if (px_is_punctual_light(l)) {
+      const float3 intensity = px_punctual_light_towards(l, p, &ls.wi, &ls.dist);
+      if (!(ls.dist > 0.0f) || !(px_luminance(intensity) > 0.0f)) return ls;
+      ls.radiance = intensity / (ls.dist * ls.dist);
+      ls.pdf = fp->p_triangles * select;
+      ls.delta = 1;
+      return ls;
+    }
     const float2 b = px_uniform_triangle(u.x, u.y);
     const float3 v0 = px_load3(l->v0), v1 = px_load3(l->v1), v2 = px_load3(l->v2);
     const float3 q = (1.0f - b.x - b.y) * v0 + b.x * v1 + b.y * v2;

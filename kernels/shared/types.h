@@ -244,7 +244,8 @@ typedef struct CompressedBvh8Node {
 #define PX_FEATURE_SKY 0x200u
 #define PX_FEATURE_VERTEX_COLOURS 0x400u /* glTF COLOR_0: per-vertex colours multiply the diffuse colour */
 #define PX_FEATURE_INSTANCES 0x800u      /* meshes drawn by several nodes: a top level over instances */
-#define PX_FEATURES_ALL 0xfffu
+#define PX_FEATURE_PUNCTUAL 0x1000u      /* point and spot lights in the light table (LightTriangle) */
+#define PX_FEATURES_ALL 0x1fffu
 #if defined(__OPENCL_C_VERSION__)
 #ifndef PX_FEATURES
 #define PX_FEATURES PX_FEATURES_ALL
@@ -468,8 +469,7 @@ typedef struct CameraParams {
   uint pad[2];
 } CameraParams;
 
-/* Where a texture's texels start in the shared texel buffer (float4 RGBA, linear, rows top to
- * bottom), 16 bytes. */
+/* Where a texture's texels start in the texel buffer (float4 RGBA, linear, rows top to bottom), 16 bytes. */
 typedef struct TextureInfo {
   uint offset; /* in texels */
   uint width;
@@ -482,7 +482,12 @@ typedef struct TextureInfo {
  * normalised to 1 at the last entry, and `pdf_select` this triangle's probability.
  *
  *   0..11 v0[3]  12..15 prim   16..27 v1[3]  28..31 area
- *  32..43 v2[3]  44..47 cdf    48..59 emission[3]  60..63 pdf_select */
+ *  32..43 v2[3]  44..47 cdf    48..59 emission[3]  60..63 pdf_select
+ * Point and spot lights (PX_FEATURE_PUNCTUAL) follow the triangles: prim PX_LIGHT_PUNCTUAL + k
+ * (Scene::punctual_lights[k]; above every triangle, so the table stays sorted by prim), area 0,
+ * v0 the position, v1 the spot's axis, v2 the falloff's (scale, offset, cos_outer), emission the
+ * intensity (W/sr); power 4 pi I, a spot's 2 pi (1 - (cos_inner + cos_outer) / 2) I. */
+#define PX_LIGHT_PUNCTUAL 0xc0000000u
 typedef struct LightTriangle {
   float v0[3];
   uint prim;
@@ -499,8 +504,8 @@ typedef struct LightTriangle {
  * children, one leaf per light), uint trail x n padded to 64 bytes (bit i: light k's path from the
  * root takes child[1] at depth i). A node bounds its lights: box, total power phi (area x
  * luminance, x 2 if two-sided), cone of emitting normals (axis, theta_o) and spread theta_e of
- * emission around a normal. Leaf: the triangle's box and normal, theta_o 0 (pi if two-sided),
- * theta_e pi/2; a point light would be an empty box with theta_o = pi (spot: its axis, theta_e).
+ * emission around a normal. Leaf: the triangle's box and normal, theta_o 0 (pi if two-sided), theta_e pi/2;
+ * a point light: its point, phi its intensity's luminance, theta_o pi (a spot: its axis, the outer cone).
  *   0..11 bounds_min[3]  12..23 bounds_max[3]  24..27 phi  28..39 axis[3]  40..43 cos_theta_o
  *  44..47 cos_theta_e  48..55 child[2] (node index, or PX_LIGHT_TREE_LEAF | light: a leaf)  56..63 pad */
 #define PX_LIGHT_TREE_LEAF 0x80000000u
@@ -524,11 +529,9 @@ typedef struct LightTreeNode {
  *  64..75 sky_ground[3]                        76..79 light_count (LightTriangle entries)
  *  80..83 frame   84..87 eye   88..91 spp   92..95 max_bounces
  *  96..99 seed   100..103 light_sampling (PX_LIGHTS_*)  104..107 rr_start_bounce
- * 108..111 row0 (first image row of this launch)  112..115 rows
+ * 108..111 row0 (first image row of this launch)  112..115 rows  124..127 direct_light (PX_DIRECT_*)
  * 116..119 sample_offset (index of this launch's first sample: progressive passes)
- * 120..123 first_sample_on_gbuffer_ray (1: the frame's sample 0 is the G-buffer's ray, through the
- *          camera's jitter position CameraParams::jitter)
- * 124..127 direct_light (PX_DIRECT_*: how next-event estimation picks an emissive triangle) */
+ * 120..123 first_sample_on_gbuffer_ray (1: sample 0 is the G-buffer's ray, through CameraParams::jitter) */
 typedef struct FrameParams {
   float sun_dir[3];
   float sun_cos_max;
@@ -564,8 +567,8 @@ typedef struct FrameParams {
 #define PX_LIGHTS_NEE 1u
 #define PX_LIGHTS_BSDF 2u
 
-/* FrameParams::direct_light: NEE picks a triangle by power (LightTriangle::cdf) or by the light
- * tree (shading/light_tree.h); restir draws its candidates from the tree (alone, it is the tree). */
+/* FrameParams::direct_light: lights picked by power (a CDF), by the light tree, or by the tree
+ * with ReSTIR DI at each pixel's first vertex (no next-event estimate there: stage 14 adds it). */
 #define PX_DIRECT_POWER 0u
 #define PX_DIRECT_TREE 1u
 #define PX_DIRECT_RESTIR 2u

@@ -74,10 +74,11 @@ void HoleFillStage::run(const std::vector<const Operation*>& ops, const FrameInp
     cl::Kernel resolve(program, "resolve_hole_samples");
     resolve.setArg(0, f.radiance[1]);
     resolve.setArg(1, f.albedo[1]);
-    resolve.setArg(2, scratch.samples);
-    resolve.setArg(3, f.holes);
-    resolve.setArg(4, f.hole_count);
-    resolve.setArg(5, static_cast<cl_uint>(fp.spp));
+    resolve.setArg(2, f.nonfinite_paths);
+    resolve.setArg(3, scratch.samples);
+    resolve.setArg(4, f.holes);
+    resolve.setArg(5, f.hole_count);
+    resolve.setArg(6, static_cast<cl_uint>(fp.spp));
     env_.log.record(Stage::HoleFill, op->device, launch_1d(env_.queue(op->device), resolve, env_.pixels(op->rows)),
                     "resolve");
   }
