@@ -23,4 +23,10 @@ RowRange widen(RowRange rows, unsigned radius, unsigned height) {
   return {rows.begin > radius ? rows.begin - radius : 0u, std::min(height, rows.end + radius)};
 }
 
+std::vector<RowRange> widen(const std::vector<RowRange>& rows, unsigned radius, unsigned height) {
+  std::vector<RowRange> out(rows.size());
+  for (std::size_t i = 0; i < rows.size(); ++i) out[i] = widen(rows[i], radius, height);
+  return out;
+}
+
 }  // namespace px

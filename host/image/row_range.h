@@ -17,5 +17,7 @@ std::vector<RowRange> split_rows(unsigned height, unsigned strips);
 
 // `rows` widened by `radius` rows each side, clipped to [0, height); empty stays empty.
 RowRange widen(RowRange rows, unsigned radius, unsigned height);
+// Each of `rows` widened so (per device: a strip and the margin a pass reads).
+std::vector<RowRange> widen(const std::vector<RowRange>& rows, unsigned radius, unsigned height);
 
 }  // namespace px

@@ -20,6 +20,7 @@
 #include "shading/lights.h"
 #include "shading/material.h"
 #include "shading/normal_map.h"
+#include "shading/surface_shading.h"
 #include "trace/ray_offset.h"
 #include "render/camera.h"
 
@@ -125,21 +126,12 @@ inline int px_path_vertex(const SceneView* scene, const FrameParams* fp, SampleK
 
   const SurfaceHit surf = px_surface_hit(scene, hit);
   const uint prim = surf.prim;
-  const global PxTriangleShading* sh = surf.sh;
   const global GpuMaterial* mat = surf.mat;
-  const float3 v0 = surf.v0, v1 = surf.v1, v2 = surf.v2;
   const float3 p = surf.p;
   const float3 wo = -dir;
-  float3 ng = surf.ng;
-  float3 ns = surf.ns;
-  /* The winding order's normal is the front; emitters light only that side (unless two-sided). */
-  const int front_face = dot(ng, wo) > 0.0f;
-  /* The side the path arrives from, for glass: the geometric normal oriented like the vertex
-   * normals (outwards on closed meshes), taken before the two-sided flips below. */
-  const int outside = front_face == (dot(ng, ns) >= 0.0f);
-  /* Two-sided surfaces: face both normals towards the viewer of this vertex. */
-  if (!front_face) ng = -ng;
-  if (dot(ns, ng) < 0.0f) ns = -ns;
+  float3 ng, ns;
+  int outside;
+  const int front_face = px_face_viewer(&surf, wo, &ng, &ns, &outside);
 
   int two_sided = PX_HAS(PX_FEATURE_TWO_SIDED) && (mat->flags & PX_MAT_TWO_SIDED_EMITTER);
   if (PX_HAS(PX_FEATURE_EMISSIVE) && (mat->flags & PX_MAT_EMISSIVE) && (front_face || two_sided)) {
@@ -161,14 +153,7 @@ inline int px_path_vertex(const SceneView* scene, const FrameParams* fp, SampleK
   }
   if (bounce == fp->max_bounces) return 0;
 
-  float3 albedo = px_load3(mat->diffuse);
-  if (PX_HAS(PX_FEATURE_TEXTURES) && mat->diffuse_texture >= 0)
-    albedo *= px_texture_bilinear(scene, mat->diffuse_texture, px_interpolate_uv(sh, hit.u, hit.v)).xyz;
-  if (PX_HAS(PX_FEATURE_VERTEX_COLOURS)) albedo *= px_vertex_colour(scene, prim, hit.u, hit.v);
-  const float2 uv = px_interpolate_uv(sh, hit.u, hit.v);
-  if (PX_HAS(PX_FEATURE_NORMAL_MAP) && mat->normal_texture >= 0)
-    ns = px_normal_mapped(scene, mat, sh, v0, v1, v2, uv, ns, wo);
-  const Bsdf bsdf = px_material_bsdf(scene, mat, albedo, uv, outside);
+  const Bsdf bsdf = px_surface_bsdf(scene, &surf, hit, wo, outside, &ns);
   if (bounce == 0u && !(mat->flags & PX_MAT_EMISSIVE))
     v->primary_albedo = (float4)(px_demodulation_albedo(&bsdf), 1.0f);
   const float3 origin = px_offset_ray_origin(p, ng);

@@ -85,18 +85,9 @@ inline LightContribution px_restir_evaluate(const SceneView* s, const FrameParam
     g = 1.0f / (c.dist * c.dist);
   } else if (PX_HAS(PX_FEATURE_EMISSIVE) && light < fp->light_count) {
     const global LightTriangle* l = s->lights + light;
-    const float3 v0 = px_load3(l->v0), v1 = px_load3(l->v1), v2 = px_load3(l->v2);
-    const float3 q = (1.0f - y.x - y.y) * v0 + y.x * v1 + y.y * v2;
-    const float3 to = q - sp->p;
-    const float d2 = dot(to, to);
-    if (!(d2 > 0.0f)) return c;
-    c.dist = sqrt(d2);
-    c.wi = to / c.dist;
-    const float3 nl = normalize(cross(v1 - v0, v2 - v0));
-    /* One-sided emitters light only their front, as in px_sample_light. */
-    const uint flags = s->materials[s->shading[l->prim].material].flags;
-    if (!(PX_HAS(PX_FEATURE_TWO_SIDED) && (flags & PX_MAT_TWO_SIDED_EMITTER)) && dot(nl, c.wi) >= 0.0f) return c;
-    g = fabs(dot(nl, c.wi)) / d2;
+    float cos_light;
+    if (!px_triangle_light_point(s, l, y.xy, sp->p, &c.wi, &c.dist, &cos_light)) return c;
+    g = cos_light / (c.dist * c.dist);
     le = px_load3(l->emission);
   } else {
     return c;

@@ -11,8 +11,7 @@
 #include "shared/types.h"
 #include "scene/scene_view.h"
 #include "shading/bsdf.h"
-#include "shading/material.h"
-#include "shading/normal_map.h"
+#include "shading/surface_shading.h"
 #include "trace/ray_offset.h"
 
 typedef struct ShadingPoint {
@@ -33,26 +32,14 @@ inline ShadingPoint px_shading_point(const SceneView* scene, Hit hit, float3 eye
   sp.p = sp.ng = sp.ns = sp.wo = sp.origin = (float3)(0.0f, 0.0f, 0.0f);
   if (hit.prim == PX_NO_HIT) return sp;
   const SurfaceHit surf = px_surface_hit(scene, hit);
-  const global GpuMaterial* mat = surf.mat;
   const float3 to_eye = eye - surf.p;
   sp.depth = length(to_eye);
   if (!(sp.depth > 0.0f)) return sp;
   const float3 wo = to_eye / sp.depth;
-  float3 ng = surf.ng;
-  float3 ns = surf.ns;
-  /* As px_path_vertex: the side the viewer is on, for glass; then both normals to that side. */
-  const int front_face = dot(ng, wo) > 0.0f;
-  const int outside = front_face == (dot(ng, ns) >= 0.0f);
-  if (!front_face) ng = -ng;
-  if (dot(ns, ng) < 0.0f) ns = -ns;
-  float3 albedo = px_load3(mat->diffuse);
-  if (PX_HAS(PX_FEATURE_TEXTURES) && mat->diffuse_texture >= 0)
-    albedo *= px_texture_bilinear(scene, mat->diffuse_texture, px_interpolate_uv(surf.sh, hit.u, hit.v)).xyz;
-  if (PX_HAS(PX_FEATURE_VERTEX_COLOURS)) albedo *= px_vertex_colour(scene, surf.prim, hit.u, hit.v);
-  const float2 uv = px_interpolate_uv(surf.sh, hit.u, hit.v);
-  if (PX_HAS(PX_FEATURE_NORMAL_MAP) && mat->normal_texture >= 0)
-    ns = px_normal_mapped(scene, mat, surf.sh, surf.v0, surf.v1, surf.v2, uv, ns, wo);
-  sp.bsdf = px_material_bsdf(scene, mat, albedo, uv, outside);
+  float3 ng, ns;
+  int outside;
+  px_face_viewer(&surf, wo, &ng, &ns, &outside);
+  sp.bsdf = px_surface_bsdf(scene, &surf, hit, wo, outside, &ns);
   sp.p = surf.p;
   sp.ng = ng;
   sp.ns = ns;

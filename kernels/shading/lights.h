@@ -72,6 +72,26 @@ inline float px_triangle_light_pdf(const FrameParams* fp, const global LightTria
   return fp->p_triangles * select * dist * dist / (l->area * cos_light);
 }
 
+/* The point with barycentrics b on emissive triangle *l as seen from p: the direction *wi and
+ * distance *dist to it, and in *cos_light the |cosine| at the light. 0 where it sends p nothing:
+ * p on its plane, or behind a one-sided emitter (exactly as a BSDF-sampled ray that hits its back
+ * gets no emission). Shared by next-event estimation and ReSTIR's evaluation of a kept sample. */
+inline int px_triangle_light_point(const SceneView* s, const global LightTriangle* l, float2 b, float3 p, float3* wi,
+                                   float* dist, float* cos_light) {
+  const float3 v0 = px_load3(l->v0), v1 = px_load3(l->v1), v2 = px_load3(l->v2);
+  const float3 q = (1.0f - b.x - b.y) * v0 + b.x * v1 + b.y * v2;
+  const float3 to = q - p;
+  const float d2 = dot(to, to);
+  if (!(d2 > 0.0f)) return 0;
+  *dist = sqrt(d2);
+  *wi = to / *dist;
+  const float3 ng = normalize(cross(v1 - v0, v2 - v0));
+  const uint flags = s->materials[s->shading[l->prim].material].flags;
+  if (!(PX_HAS(PX_FEATURE_TWO_SIDED) && (flags & PX_MAT_TWO_SIDED_EMITTER)) && dot(ng, *wi) >= 0.0f) return 0;
+  *cos_light = fabs(dot(ng, *wi));
+  return 1;
+}
+
 typedef struct LightSample {
   float3 wi;
   float dist; /* INFINITY for the environment */
@@ -143,20 +163,9 @@ inline LightSample px_sample_light(const SceneView* s, const FrameParams* fp, fl
       ls.delta = 1;
       return ls;
     }
-    const float2 b = px_uniform_triangle(u.x, u.y);
-    const float3 v0 = px_load3(l->v0), v1 = px_load3(l->v1), v2 = px_load3(l->v2);
-    const float3 q = (1.0f - b.x - b.y) * v0 + b.x * v1 + b.y * v2;
-    const float3 to = q - p;
-    const float d2 = dot(to, to);
-    if (!(d2 > 0.0f)) return ls;
-    ls.dist = sqrt(d2);
-    ls.wi = to / ls.dist;
-    const float3 ng = normalize(cross(v1 - v0, v2 - v0));
-    /* Seen from behind, a one-sided emitter sends nothing: no sample (pdf 0), exactly as a
-     * BSDF-sampled ray that hits its back gets no emission. */
-    const uint flags = s->materials[s->shading[l->prim].material].flags;
-    if (!(PX_HAS(PX_FEATURE_TWO_SIDED) && (flags & PX_MAT_TWO_SIDED_EMITTER)) && dot(ng, ls.wi) >= 0.0f) return ls;
-    ls.pdf = px_triangle_light_pdf(fp, l, select, ls.dist, fabs(dot(ng, ls.wi)));
+    float cos_light;
+    if (!px_triangle_light_point(s, l, px_uniform_triangle(u.x, u.y), p, &ls.wi, &ls.dist, &cos_light)) return ls;
+    ls.pdf = px_triangle_light_pdf(fp, l, select, ls.dist, cos_light);
     ls.radiance = px_load3(l->emission);
     return ls;
   }

@@ -61,14 +61,8 @@ unsigned DenoiseStage::gbuffer_rows_read(const Options& o) {
 void DenoiseStage::run(const std::vector<const Operation*>& ops, const FrameInputs& in) {
   // The eyes these operations denoise (with the side lane, each eye comes as its own batch).
   for (int e = 0; e < 2; ++e) {
-    std::vector<RowRange> strip(env_.layout.count());
-    bool any = false;
-    for (const Operation* op : ops)
-      if (op->eye == e) {
-        strip[op->device] = op->rows;
-        any = true;
-      }
-    if (!any) continue;
+    const std::vector<RowRange> strip = eye_rows(ops, e);
+    if (strip.empty()) continue;
     denoise_eye(e, strip, in);
     frame_strips_[e] = strip;
   }
@@ -81,11 +75,7 @@ void DenoiseStage::denoise_eye(int e, const std::vector<RowRange>& strip, const 
   auto readable = [&](int d) { return halo ? image : strip[d]; };
   auto svgf = [&](int d) -> SvgfDenoiser& { return *dev_[d].svgf[e]; };
   auto halo_staging = [&](int d) -> StagingBuffer& { return dev_[d].halo[e]; };
-  auto widened = [&](unsigned radius) {
-    std::vector<RowRange> out(strip.size());
-    for (std::size_t d = 0; d < strip.size(); ++d) out[d] = widen(strip[d], radius, env_.height);
-    return out;
-  };
+  auto widened = [&](unsigned radius) { return widen(strip, radius, env_.height); };
   // Copies into each device the rows within `radius` of its strip that its neighbours own.
   auto exchange_halo = [&](const RowTransfer::BufferOf& buffer, unsigned radius) {
     env_.transfer.exchange(buffer, strip, widened(radius), sizeof(cl_float4), halo_staging);

@@ -56,14 +56,8 @@ RestirParams DirectLightStage::params(RowRange rows, RowRange readable, unsigned
 
 void DirectLightStage::run(const std::vector<const Operation*>& ops, const FrameInputs& in) {
   for (int e = 0; e < 2; ++e) {
-    std::vector<RowRange> strip(env_.layout.count());
-    bool any = false;
-    for (const Operation* op : ops)
-      if (op->eye == e) {
-        strip[op->device] = op->rows;
-        any = true;
-      }
-    if (any) run_eye(e, strip, in);
+    const std::vector<RowRange> strip = eye_rows(ops, e);
+    if (!strip.empty()) run_eye(e, strip, in);
   }
 }
 
@@ -71,12 +65,7 @@ void DirectLightStage::run_eye(int e, const std::vector<RowRange>& strip, const 
   const int n = env_.layout.count();
   const bool holes = e == 1 && right_eye_holes_;
   const unsigned reach = holes ? 0u : options_.radius;  // rows beyond the strip the spatial taps read
-  auto widened = [&](unsigned radius) {
-    std::vector<RowRange> out(strip.size());
-    for (std::size_t d = 0; d < strip.size(); ++d)
-      out[d] = strip[d].size() ? widen(strip[d], radius, env_.height) : strip[d];
-    return out;
-  };
+  auto widened = [&](unsigned radius) { return widen(strip, radius, env_.height); };
   // Last frame's final reservoirs and hits live with last frame's strips: fetch those within the
   // temporal taps' reach of the rows this device computes candidates for.
   const unsigned prev_tag = history_tag_[e] == in.frame ? history_tag_[e] : 0u;  // frame - 1 + 1

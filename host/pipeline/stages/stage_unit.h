@@ -61,6 +61,19 @@ class StageUnit {
   virtual void end_frame(const FrameInputs&) {}
 
  protected:
+  // The rows each device's operation of eye `eye` among `ops` covers (empty for a device without
+  // one); empty altogether where no operation is of that eye.
+  std::vector<RowRange> eye_rows(const std::vector<const Operation*>& ops, int eye) const {
+    std::vector<RowRange> rows(env_.layout.count());
+    bool any = false;
+    for (const Operation* op : ops)
+      if (op->eye == eye) {
+        rows[op->device] = op->rows;
+        any = true;
+      }
+    return any ? rows : std::vector<RowRange>{};
+  }
+
   StageEnv& env_;
 };
 
