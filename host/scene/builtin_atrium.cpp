@@ -30,35 +30,6 @@ namespace {
 
 constexpr float kPi = std::numbers::pi_v<float>;
 
-// splitmix64: tiny, fast and the same on every platform, so a seed always gives the same scene.
-class Rng {
- public:
-  explicit Rng(std::uint64_t seed) : state_(seed) {}
-  std::uint64_t next() {
-    std::uint64_t z = (state_ += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    return z ^ (z >> 31);
-  }
-  float uniform() { return float(next() >> 40) * (1.0f / 16777216.0f); }  // [0, 1)
-  float range(float lo, float hi) { return lo + (hi - lo) * uniform(); }
-  glm::vec3 unit_vector() {
-    const float z = range(-1.0f, 1.0f), phi = range(0.0f, 2.0f * kPi);
-    const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
-    return {r * std::cos(phi), r * std::sin(phi), z};
-  }
-  // Uniform in the unit ball (rejection: accepts ~52%).
-  glm::vec3 in_unit_ball() {
-    for (;;) {
-      const glm::vec3 p(range(-1, 1), range(-1, 1), range(-1, 1));
-      if (glm::dot(p, p) <= 1.0f) return p;
-    }
-  }
-
- private:
-  std::uint64_t state_;
-};
-
 struct Tessellation {
   int column_facets;    // around a column
   int shaft_rings;      // along a column shaft
@@ -114,7 +85,7 @@ Texture make_leaf_texture(std::uint64_t seed) {
     float length, half_width;
     glm::vec3 colour;
   };
-  Rng rng(seed ^ 0x1eafull);
+  GeneratorRng rng(seed ^ 0x1eafull);
   // The twig runs up the middle of the image (y grows downwards, as the rows are stored).
   const glm::vec2 twig_from(0.5f, 0.98f), twig_to(0.5f, 0.04f);
   std::vector<Leaf> leaves;
@@ -297,7 +268,7 @@ void append_arcade_bay(std::vector<SceneTriangle>& tris, glm::vec3 c0, glm::vec3
 
 // A cloud of leaf cards filling the ellipsoid (center, radii): each card a square of about
 // `card_size` with random orientation, textured with the whole leaf texture.
-void append_foliage(std::vector<SceneTriangle>& tris, Rng& rng, glm::vec3 center, glm::vec3 radii, int cards,
+void append_foliage(std::vector<SceneTriangle>& tris, GeneratorRng& rng, glm::vec3 center, glm::vec3 radii, int cards,
                     float card_size) {
   for (int i = 0; i < cards; ++i) {
     const glm::vec3 p = center + radii * rng.in_unit_ball();
@@ -315,7 +286,7 @@ void append_foliage(std::vector<SceneTriangle>& tris, Rng& rng, glm::vec3 center
 }
 
 // Open-topped planter box (walls 6 cm thick) filled with soil, centred on `foot`, and a shrub.
-void append_planter(std::vector<SceneTriangle>& tris, Rng& rng, glm::vec3 foot, const Tessellation& tess) {
+void append_planter(std::vector<SceneTriangle>& tris, GeneratorRng& rng, glm::vec3 foot, const Tessellation& tess) {
   const float half = 0.6f, height = 0.6f, wall = 0.06f;
   const glm::vec3 lo = foot + glm::vec3(-half, 0.0f, -half), hi = foot + glm::vec3(half, height, half);
   append_box(tris, lo, {hi.x, hi.y, lo.z + wall}, kTerracotta);
@@ -328,7 +299,7 @@ void append_planter(std::vector<SceneTriangle>& tris, Rng& rng, glm::vec3 foot, 
 }
 
 // A tree: tapering trunk and a crown of leaf cards.
-void append_tree(std::vector<SceneTriangle>& tris, Rng& rng, glm::vec3 foot, const Tessellation& tess) {
+void append_tree(std::vector<SceneTriangle>& tris, GeneratorRng& rng, glm::vec3 foot, const Tessellation& tess) {
   const glm::vec2 trunk[] = {{0.22f, 0.0f}, {0.16f, 1.5f}, {0.12f, 3.0f}, {0.0f, 3.3f}};
   append_lathe(tris, foot, trunk, std::max(6, tess.column_facets / 3), kBark);
   const int cards = std::max(24, int(std::lround(22000.0f * tess.foliage_scale)));
@@ -352,7 +323,7 @@ Scene make_atrium_scene(const nlohmann::json& params) {
   scene.textures.push_back(make_leaf_texture(seed));
   auto& tris = scene.triangles;
   tris.reserve(std::size_t(620000 * std::pow(detail, 1.5)) + 20000);
-  Rng rng(seed);
+  GeneratorRng rng(seed);
 
   constexpr float W = 32.0f, D = 22.0f;  // courtyard floor [0, W] x [0, D]
   constexpr float kWallHeight = 9.0f, kWallThickness = 0.5f;

@@ -39,14 +39,6 @@ void append_block(std::vector<SceneTriangle>& tris, const glm::vec3 (&top)[4], s
   }
 }
 
-Material diffuse_material(const char* name, glm::vec3 albedo) {
-  Material m;
-  m.name = name;
-  m.diffuse = albedo;
-  m.roughness = 1.0f;
-  return m;
-}
-
 }  // namespace
 
 Scene make_cornell_scene(const nlohmann::json& params, bool glossy) {

@@ -42,39 +42,14 @@ constexpr float kLampDrop = 0.01f;     // lamps hang this far under the ceiling
 constexpr float kLampMargin = 0.25f;   // from the walls' faces to the outermost lamp cells
 constexpr float kBaseRadiance = 9.0f;  // the dimmest lamp's radiance factor (see Exposure above)
 
-// splitmix64, as the atrium's generator uses: one seed gives one scene on every platform.
-class Rng {
- public:
-  explicit Rng(std::uint64_t seed) : state_(seed) {}
-  std::uint64_t next() {
-    std::uint64_t z = (state_ += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    return z ^ (z >> 31);
-  }
-  float uniform() { return float(next() >> 40) * (1.0f / 16777216.0f); }  // [0, 1)
-  float range(float lo, float hi) { return lo + (hi - lo) * uniform(); }
-
- private:
-  std::uint64_t state_;
-};
-
 // Surface materials; the lamps' own materials follow them.
 enum : std::uint32_t { kFloor, kCeiling, kPlaster, kSage, kClay, kSlate };
 constexpr std::uint32_t kWallMaterials[] = {kPlaster, kPlaster, kSage, kClay, kSlate};
 
-Material diffuse_material(const char* name, glm::vec3 albedo) {
-  Material m;
-  m.name = name;
-  m.diffuse = albedo;
-  m.roughness = 1.0f;
-  return m;
-}
-
 float luminance(glm::vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
 
 // A lamp's colour of luminance 1: warm, cool or neutral white, tinted a little.
-glm::vec3 lamp_colour(Rng& rng) {
+glm::vec3 lamp_colour(GeneratorRng& rng) {
   static const glm::vec3 kBases[] = {{1.0f, 0.72f, 0.45f}, {0.62f, 0.78f, 1.0f}, {1.0f, 0.97f, 0.92f}};
   const glm::vec3 base = kBases[rng.next() % 3];
   const glm::vec3 tint(rng.range(0.85f, 1.15f), rng.range(0.85f, 1.15f), rng.range(0.85f, 1.15f));
@@ -128,7 +103,7 @@ Scene make_rooms_scene(const nlohmann::json& params) {
   scene.materials.push_back(diffuse_material("clay", {0.62f, 0.40f, 0.30f}));
   scene.materials.push_back(diffuse_material("slate", {0.35f, 0.40f, 0.50f}));
 
-  Rng rng(seed ^ 0x600d1a3bull);
+  GeneratorRng rng(seed ^ 0x600d1a3bull);
   auto& tris = scene.triangles;
   const float size = kPitch * float(grid), h = 0.5f * kWall;
 

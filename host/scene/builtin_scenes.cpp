@@ -55,4 +55,12 @@ double generator_number(std::string_view generator, const nlohmann::json& params
   return v;
 }
 
+Material diffuse_material(const char* name, glm::vec3 albedo) {
+  Material m;
+  m.name = name;
+  m.diffuse = albedo;
+  m.roughness = 1.0f;
+  return m;
+}
+
 }  // namespace px
