@@ -582,7 +582,7 @@ TEST(LightTree, TreeAndPowerConvergeToTheSameImage) {
     opt.direct_light = DirectLight::Tree;
     opt.seed = 99;  // independent samples
     const auto tree = r.tracer->render_stereo(0.0f, 0, 32, 24, opt);
-    opt.direct_light = DirectLight::Restir;  // the tree, until ReSTIR's reservoirs exist
+    opt.direct_light = DirectLight::Restir;  // render_stereo runs no ReSTIR stage: restir is the tree there
     const auto restir = r.tracer->render_stereo(0.0f, 0, 32, 24, opt);
     for (int e = 0; e < 2; ++e) {
       const double mp = luminance_mean(power[e]), mt = luminance_mean(tree[e]);

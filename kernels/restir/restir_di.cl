@@ -107,7 +107,9 @@ inline Reservoir px_restir_merge(const SceneView* s, const FrameParams* fp, cons
  * then merges last frame's reservoir (prev_reservoirs, written with tag rp.prev_tag) of the pixel
  * the surface point fell in, found through `prev_cam`, if that pixel saw a similar surface
  * (prev_hits) and lies in rows [rp.lo_row, rp.hi_row) within rp.temporal_rows of the pixel's
- * row. Writes the pixel's reservoir (tag rp.tag) to `reservoirs`. */
+ * row. Writes the pixel's reservoir (tag rp.tag) to `reservoirs`: what pass 2 reuses, and what next
+ * frame's pass 1 reuses in turn (never pass 2's merge: feeding that back measured a bias of a few
+ * percent that grows with the candidates and neighbours, docs/measurements.md, Many lights). */
 kernel void restir_candidates(global float4* reservoirs, global uint4* hits, const global float4* prev_reservoirs,
                               const global uint4* prev_hits, const global uint* list, const global uint* list_count,
                               RestirParams rp, FrameParams fp, CameraParams cam, CameraParams prev_cam,
@@ -173,12 +175,10 @@ kernel void restir_candidates(global float4* reservoirs, global uint4* hits, con
  * rp.tag) and that see a similar surface, and, where `other_reservoirs` is given (the right eye's
  * holes: the left eye's kept reservoirs of this frame, seen by `other_cam`), with the other eye's
  * reservoir at the pixel where that eye sees the surface, in the same row (the eyes' strips hold
- * the same rows, so the row is always this device's), if it sees a similar surface there; keeps
- * for next frame the pixel's reservoir from pass 1 (`final`: temporal reuse never sees spatial
- * reuse's samples), and shades:
+ * the same rows, so the row is always this device's), if it sees a similar surface there; and shades:
  * one shadow ray toward the sample kept; if it arrives, f Le cos G W over the pixel's sample
  * count is added to `radiance` (a non-finite value is counted in *nonfinite, never added). */
-kernel void restir_spatial_shade(global float4* radiance, volatile global uint* nonfinite, global float4* final,
+kernel void restir_spatial_shade(global float4* radiance, volatile global uint* nonfinite,
                                  const global float4* reservoirs, const global uint4* hits, const global uint* list,
                                  const global uint* list_count, const global float4* other_reservoirs,
                                  const global uint4* other_hits, RestirParams rp, FrameParams fp, CameraParams cam,
@@ -191,11 +191,8 @@ kernel void restir_spatial_shade(global float4* radiance, volatile global uint* 
   ShadingPoint sps[2 + PX_RESTIR_MAX_NEIGHBOURS];
   Reservoir rs[2 + PX_RESTIR_MAX_NEIGHBOURS];
   sps[0] = px_shading_point(&scene, px_unpack_hit(hits[pixel]), eye);
+  if (!sps[0].valid) return;
   rs[0] = px_load_reservoir(reservoirs, pixel);
-  if (!sps[0].valid) {
-    px_store_reservoir(final, pixel, px_empty_reservoir(rp.tag));
-    return;
-  }
   const SampleKey key = px_sample_key((uint)x, (uint)y, fp.frame, fp.eye, PX_RESTIR_SPATIAL_STREAM, fp.seed);
   uint n = 1;
   const uint neighbours = min(rp.neighbours, (uint)PX_RESTIR_MAX_NEIGHBOURS);
@@ -225,11 +222,7 @@ kernel void restir_spatial_shade(global float4* radiance, volatile global uint* 
       }
     }
   }
-  Reservoir r = n > 1u ? px_restir_merge(&scene, &fp, sps, rs, n, key, PX_RESTIR_MAX_NEIGHBOURS, rp.tag) : rs[0];
-  /* Next frame reuses the reservoir before spatial reuse: feeding the merged one back (as
-   * Bitterli et al. do) measured a bias of a few percent that grows with the candidates and
-   * neighbours (docs/measurements.md, Many lights); kept apart, frames converge to the reference. */
-  px_store_reservoir(final, pixel, rs[0]);
+  const Reservoir r = n > 1u ? px_restir_merge(&scene, &fp, sps, rs, n, key, PX_RESTIR_MAX_NEIGHBOURS, rp.tag) : rs[0];
   if (r.light == PX_RESTIR_NO_LIGHT || !(r.W > 0.0f)) return;
   const LightContribution c = px_restir_evaluate(&scene, &fp, sps, r.light, r.y);
   if (!(c.target > 0.0f)) return;

@@ -26,9 +26,8 @@ DirectLightStage::DirectLightStage(StageEnv& env, const Options& options, const 
         q.enqueueFillBuffer(b, cl_uint{0}, 0, bytes);
         return b;
       };
-      pe.reservoirs = zeroed(pixels * 2 * sizeof(cl_float4));
       for (int k = 0; k < 2; ++k) {
-        pe.final[k] = zeroed(pixels * 2 * sizeof(cl_float4));
+        pe.reservoirs[k] = zeroed(pixels * 2 * sizeof(cl_float4));
         pe.hits[k] = zeroed(pixels * sizeof(cl_uint4));
       }
     }
@@ -66,14 +65,14 @@ void DirectLightStage::run_eye(int e, const std::vector<RowRange>& strip, const 
   const bool holes = e == 1 && right_eye_holes_;
   const unsigned reach = holes ? 0u : options_.radius;  // rows beyond the strip the spatial taps read
   auto widened = [&](unsigned radius) { return widen(strip, radius, env_.height); };
-  // Last frame's final reservoirs and hits live with last frame's strips: fetch those within the
+  // Last frame's reservoirs and hits live with last frame's strips: fetch those within the
   // temporal taps' reach of the rows this device computes candidates for.
   const unsigned prev_tag = history_tag_[e] == in.frame ? history_tag_[e] : 0u;  // frame - 1 + 1
   const std::vector<RowRange> prev_rows = widened(reach + options_.temporal_rows + 1);
   if (prev_tag && options_.temporal && n > 1) {
     auto staging = [&](int d) -> StagingBuffer& { return dev_[d][e].staging; };
     const int last = 1 - parity_;
-    env_.transfer.exchange([&](int d) -> const cl::Buffer& { return dev_[d][e].final[last]; }, history_strips_[e],
+    env_.transfer.exchange([&](int d) -> const cl::Buffer& { return dev_[d][e].reservoirs[last]; }, history_strips_[e],
                            prev_rows, 2 * sizeof(cl_float4), staging);
     env_.transfer.exchange([&](int d) -> const cl::Buffer& { return dev_[d][e].hits[last]; }, history_strips_[e],
                            prev_rows, sizeof(cl_uint4), staging);
@@ -90,9 +89,9 @@ void DirectLightStage::run_eye(int e, const std::vector<RowRange>& strip, const 
     RestirParams rp = params(computed, prev_rows[d], in.frame);
     rp.prev_tag = prev_tag;
     cl::Kernel candidates(program, "restir_candidates");
-    candidates.setArg(0, pe.reservoirs);
+    candidates.setArg(0, pe.reservoirs[parity_]);
     candidates.setArg(1, pe.hits[parity_]);
-    set_optional_buffer(candidates, 2, prev_tag ? &pe.final[1 - parity_] : nullptr);
+    set_optional_buffer(candidates, 2, prev_tag ? &pe.reservoirs[1 - parity_] : nullptr);
     candidates.setArg(3, pe.hits[1 - parity_]);
     set_optional_buffer(candidates, 4, holes ? &f.holes : nullptr);
     set_optional_buffer(candidates, 5, holes ? &f.hole_count : nullptr);
@@ -109,20 +108,19 @@ void DirectLightStage::run_eye(int e, const std::vector<RowRange>& strip, const 
     cl::Kernel shade(program, "restir_spatial_shade");
     shade.setArg(0, f.radiance[e]);
     shade.setArg(1, f.nonfinite_paths);
-    shade.setArg(2, pe.final[parity_]);
-    shade.setArg(3, pe.reservoirs);
-    shade.setArg(4, pe.hits[parity_]);
-    set_optional_buffer(shade, 5, holes ? &f.holes : nullptr);
-    set_optional_buffer(shade, 6, holes ? &f.hole_count : nullptr);
+    shade.setArg(2, pe.reservoirs[parity_]);
+    shade.setArg(3, pe.hits[parity_]);
+    set_optional_buffer(shade, 4, holes ? &f.holes : nullptr);
+    set_optional_buffer(shade, 5, holes ? &f.hole_count : nullptr);
     // The left eye's reservoirs of this frame (its stage ran before hole filling, on this device).
     const bool stereo = holes && options_.stereo_reuse && frame_tag_[0] == in.frame + 1;
-    set_optional_buffer(shade, 7, stereo ? &dev_[d][0].final[parity_] : nullptr);
-    set_optional_buffer(shade, 8, stereo ? &dev_[d][0].hits[parity_] : nullptr);
-    shade.setArg(9, rp);
-    shade.setArg(10, fp);
-    shade.setArg(11, in.cams[e]);
-    shade.setArg(12, in.cams[0]);
-    env_.scene_on(d).bind(shade, 13);
+    set_optional_buffer(shade, 6, stereo ? &dev_[d][0].reservoirs[parity_] : nullptr);
+    set_optional_buffer(shade, 7, stereo ? &dev_[d][0].hits[parity_] : nullptr);
+    shade.setArg(8, rp);
+    shade.setArg(9, fp);
+    shade.setArg(10, in.cams[e]);
+    shade.setArg(11, in.cams[0]);
+    env_.scene_on(d).bind(shade, 12);
     env_.log.record(Stage::DirectLight, d, launch_1d(env_.queue(d), shade, env_.pixels(strip[d])), "spatial + shade");
   }
   frame_strips_[e] = strip;

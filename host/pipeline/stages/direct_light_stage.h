@@ -12,7 +12,7 @@
 //
 // Rows: the spatial taps of a strip's pixels reach `radius` rows beyond it; the unit computes the
 // candidates and temporal reuse of those margin rows itself (from the same sample streams, so they
-// equal the neighbour's), and fetches from the neighbours last frame's kept reservoirs and
+// equal the neighbour's), and fetches from the neighbours last frame's reservoirs and
 // surfaces within radius + temporal_rows of the strip (and, when strips moved, the rows it took
 // over). N devices and MPI ranks therefore give one device's image bit for bit.
 #pragma once
@@ -57,10 +57,11 @@ class DirectLightStage : public StageUnit {
   RestirParams params(RowRange rows, RowRange readable, unsigned frame) const;
 
   struct PerEye {
-    cl::Buffer reservoirs;            // this frame's, after temporal reuse (2 float4 a pixel)
-    std::array<cl::Buffer, 2> final;  // kept for next frame (after temporal reuse): [parity] this frame's
-    std::array<cl::Buffer, 2> hits;   // the pixels' G-buffer hits (uint4 a pixel), as `final`
-    StagingBuffer staging;            // rows leaving the device
+    // After temporal reuse (2 float4 a pixel), what spatial reuse and next frame read:
+    // [parity_] this frame's, the other last frame's.
+    std::array<cl::Buffer, 2> reservoirs;
+    std::array<cl::Buffer, 2> hits;  // the pixels' G-buffer hits (uint4 a pixel), as `reservoirs`
+    StagingBuffer staging;           // rows leaving the device
   };
   Options options_;
   const PathTraceStage& tracer_;
