@@ -2,7 +2,7 @@
 # `mpirun -np R parallax render` gives the same EXR pixels as one process with one device:
 # strips on R ranks (one device each), halo seams and strip transfers as MPI messages, a
 # 3-frame animation with denoising; plus strips that move between ranks (--balance dynamic),
-# the baseline pipeline, and a rank that cannot start (its scene file is missing) stopping
+# the baseline pipeline, ReSTIR DI's reservoirs, and a rank that cannot start (its scene file is missing) stopping
 # every rank with a message instead of a hang; and an animated glTF posed alike on every rank. Pixels are compared with `parallax compare --exact`
 # (every channel of every EXR pixel bit for bit, lights above 1 included).
 # Usage: mpi_render.sh PATH/TO/parallax
@@ -55,6 +55,16 @@ if timeout 300 "${mpi[@]}" -np 3 "$bin" "${common[@]}" --devices 1 --balance dyn
   --out "$tmp/dyn" >"$tmp/dyn.log" 2>&1; then
   same_pixels "mpirun -np 3 --balance dynamic" "$tmp/one" "$tmp/dyn"
 else bad "mpirun -np 3 --balance dynamic failed"; tail -20 "$tmp/dyn.log"; fi
+
+# ReSTIR DI: the spatial neighbours' reservoirs cross rank borders through the halo rows, and last
+# frame's reservoirs would travel with strips that move (--balance dynamic; whether they move in three
+# frames depends on the measured times), as SVGF's history does.
+"$bin" "${common[@]}" --devices 1 --direct-light restir --out "$tmp/one_restir" >/dev/null 2>&1 ||
+  bad "the one-process ReSTIR render failed"
+if timeout 300 "${mpi[@]}" -np 3 "$bin" "${common[@]}" --devices 1 --direct-light restir --balance dynamic --balance-step 3 \
+  --out "$tmp/restir" >"$tmp/restir.log" 2>&1; then
+  same_pixels "mpirun -np 3 --direct-light restir --balance dynamic" "$tmp/one_restir" "$tmp/restir"
+else bad "mpirun -np 3 --direct-light restir failed"; tail -20 "$tmp/restir.log"; fi
 
 # Two devices on each of two ranks (4 devices), baseline pipeline (strips travel to the owner).
 if timeout 300 "${mpi[@]}" -np 2 "$bin" "${common[@]}" --devices 2 --pipeline baseline --out "$tmp/base" \
