@@ -48,8 +48,8 @@ inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float
                             const global Hit* gbuffer_hit) {
   Hit first = {INFINITY, 0.0f, 0.0f, PX_NO_HIT, PX_NO_INSTANCE}; /* not read without gbuffer_hit */
   if (gbuffer_hit) first = *gbuffer_hit;
-  return px_trace_path_vertices(scene, fp, org, dir, key, gbuffer_hit != 0, first, restir_first_vertex,
-                                primary_albedo, gbuffer_texel);
+  return px_trace_path_vertices(scene, fp, org, dir, key, gbuffer_hit != 0, first, restir_first_vertex, primary_albedo,
+                                gbuffer_texel);
 }
 
 #endif
