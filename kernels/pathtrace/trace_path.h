@@ -11,18 +11,27 @@
 
 /* Radiance along one camera path from org along dir, its vertices in a loop (path_vertex.h);
  * *primary_albedo receives PathVertex::primary_albedo; `restir_first_vertex` as px_camera_path's.
- * With `have_first`, `first` is the camera ray's hit, already traced by the caller; else the loop
- * traces it as it traces every later ray. If `gbuffer_texel` is not null, the camera ray's texel
- * (gbuffer_texel.h) goes there. The loop holds the path's only closest-hit query, so that a GPU
- * build inlines one traversal (its stacks, its registers) for the camera ray and the bounces
- * alike (docs/measurements.md, "GPU registers from ptxas"). */
+ * The camera ray's hit, if the caller has traced it already: *first (private) or *first_global;
+ * with neither (null), the loop traces it as it traces every later ray. If `gbuffer_texel` is not
+ * null, the camera ray's texel (gbuffer_texel.h) goes there. The loop holds the path's only
+ * closest-hit query, so that a GPU build inlines one traversal (its stacks, its registers) for the
+ * camera ray and the bounces alike, and the given hit is read where it is used, so that it does not
+ * stay in registers through the bounces (docs/measurements.md, "GPU registers from ptxas"). */
 inline float3 px_trace_path_vertices(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir,
-                                     SampleKey key, int have_first, Hit first, int restir_first_vertex,
-                                     float4* primary_albedo, global GBufferTexel* gbuffer_texel) {
+                                     SampleKey key, const Hit* first, const global Hit* first_global,
+                                     int restir_first_vertex, float4* primary_albedo,
+                                     global GBufferTexel* gbuffer_texel) {
   PathVertex v = px_camera_path(org, dir, restir_first_vertex);
   for (uint bounce = 0; bounce <= fp->max_bounces; ++bounce) {
-    const Hit hit = bounce == 0u && have_first ? first : px_trace_closest_leaf(scene, v.org, v.dir, 0.0f, INFINITY);
-    if (bounce == 0u && gbuffer_texel) *gbuffer_texel = px_gbuffer_texel(scene, dir, hit);
+    Hit hit;
+    if (bounce == 0u && first)
+      hit = *first;
+    else if (bounce == 0u && first_global)
+      hit = *first_global;
+    else
+      hit = px_trace_closest_leaf(scene, v.org, v.dir, 0.0f, INFINITY);
+    /* At bounce 0, v.dir is the camera ray's direction. */
+    if (bounce == 0u && gbuffer_texel) *gbuffer_texel = px_gbuffer_texel(scene, v.dir, hit);
     ShadowRay shadow;
     const int goes_on = px_path_vertex(scene, fp, key, bounce, hit, &v, &shadow);
     if (shadow.valid && !px_trace_any(scene, shadow.org, shadow.dir, 0.0f, shadow.tmax))
@@ -38,7 +47,7 @@ inline float3 px_trace_path_vertices(const SceneView* scene, const FrameParams* 
  * every vertex: it compares the lighting of two frames, which ReSTIR's reuse would blur). */
 inline float3 px_trace_path_from_hit(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir,
                                      SampleKey key, Hit first, int restir_first_vertex, float4* primary_albedo) {
-  return px_trace_path_vertices(scene, fp, org, dir, key, 1, first, restir_first_vertex, primary_albedo, 0);
+  return px_trace_path_vertices(scene, fp, org, dir, key, &first, 0, restir_first_vertex, primary_albedo, 0);
 }
 
 /* Radiance along one camera path (px_trace_path_vertices). If `gbuffer_hit` is not null, it is the
@@ -46,9 +55,7 @@ inline float3 px_trace_path_from_hit(const SceneView* scene, const FrameParams* 
 inline float3 px_trace_path(const SceneView* scene, const FrameParams* fp, float3 org, float3 dir, SampleKey key,
                             int restir_first_vertex, float4* primary_albedo, global GBufferTexel* gbuffer_texel,
                             const global Hit* gbuffer_hit) {
-  Hit first = {INFINITY, 0.0f, 0.0f, PX_NO_HIT, PX_NO_INSTANCE}; /* not read without gbuffer_hit */
-  if (gbuffer_hit) first = *gbuffer_hit;
-  return px_trace_path_vertices(scene, fp, org, dir, key, gbuffer_hit != 0, first, restir_first_vertex, primary_albedo,
+  return px_trace_path_vertices(scene, fp, org, dir, key, 0, gbuffer_hit, restir_first_vertex, primary_albedo,
                                 gbuffer_texel);
 }
 
