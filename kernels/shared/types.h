@@ -24,10 +24,13 @@ typedef std::uint8_t uchar; /* only in byte arrays of 4-byte-multiple length (Co
 #define PX_LOCAL_SIZE 64
 
 /* Deepest BVH the kernels can traverse. The host asks Embree for at most this depth
- * (RTCBuildArguments::maxDepth) and the validator re-checks it; the traversal stack holds
- * PX_BVH_STACK_SIZE entries, which covers a depth-first walk of such a tree. */
+ * (RTCBuildArguments::maxDepth) and the validator re-checks it (leaves at depth <= 40, the root
+ * at 1, so interior nodes at <= 39). The binary walk pushes at most one entry per interior level
+ * above the node it is at, so PX_BVH_STACK_SIZE = PX_BVH_MAX_DEPTH entries cover it: every entry
+ * is private memory a GPU work-item holds once per traversal it inlines (docs/measurements.md,
+ * "GPU registers from ptxas"). */
 #define PX_BVH_MAX_DEPTH 40
-#define PX_BVH_STACK_SIZE 48
+#define PX_BVH_STACK_SIZE PX_BVH_MAX_DEPTH
 
 /* Largest leaf the builder produces. */
 #define PX_BVH_MAX_LEAF_SIZE 4
@@ -333,9 +336,11 @@ typedef struct SceneInstance {
   uint pad[2];
 } SceneInstance;
 
-/* Top-level traversal stack: the host builds the top level by median splits, so it is at most
- * log2(instances) + 1 deep; 64 covers any instance count a uint holds. */
-#define PX_TLAS_STACK_SIZE 64
+/* Top-level traversal stack: the host builds the top level by median splits (root at depth 1,
+ * a node with more than PX_TLAS_MAX_LEAF instances split in halves), so its interior nodes are at
+ * most 31 deep for any instance count a uint holds, and 32 entries cover the walk
+ * (top_level_bvh.cpp refuses a deeper one). */
+#define PX_TLAS_STACK_SIZE 32
 #define PX_TLAS_MAX_LEAF 2
 
 /* A ray, 32 bytes. Hits count in the open interval (tmin, tmax), closest hit and occlusion
