@@ -139,6 +139,7 @@ void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode de
         {"device_layout_ms", scene.layout_ms()},
         {"device_layout_from_cache", scene.layout_from_cache()},
         {"device_layout_cache_store_ms", scene.layout_store_ms()},
+        {"cache_write_background_ms", start.background_cache_write_ms},
         {"scene_hash_ms", start.scene_hash_ms},
         {"upload_ms", scene.upload_ms()},
         {"scene_host_backed", scene.host_backed()},

@@ -169,6 +169,8 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
                          const std::function<std::vector<SceneTriangle>()>& take_triangles) {
   const auto layout_start = std::chrono::steady_clock::now();
   const bool instanced = !scene.instancing.empty();
+  // This constructor changes the tree from its first step (a BVH cache write may read it).
+  if (store.before_tree_changes && (instanced || scene.rig || !take_triangles)) store.before_tree_changes();
   if (!instanced && !scene.rig && take_triangles) {
     std::shared_ptr<HostPart> host = prepare_host(scene, take_triangles);
     // lay_out_static counts the host part's time itself.
@@ -290,20 +292,29 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
 }
 
 void DeviceScene::store_layout(const DeviceLayoutStore& store, const DeviceLayoutParts& parts,
-                               std::size_t scene_triangles) {
-  const auto t = std::chrono::steady_clock::now();
-  std::string why;
-  std::string path;
-  {
-    const ProgressTicker ticker(store.quiet ? "" : "[bvh] still writing the device layout cache");
-    path = store.cache->store(store.content_key, store.options, scene_triangles, parts, &why);
+                               std::size_t scene_triangles, std::vector<std::shared_ptr<const void>> keep) {
+  // The write itself, on this thread or the writer's: it returns its time.
+  const auto write = [cache = *store.cache, key = store.content_key, options = store.options, quiet = store.quiet,
+                      parts, scene_triangles] {
+    const auto t = std::chrono::steady_clock::now();
+    std::string why;
+    const std::string path = cache.store(key, options, scene_triangles, parts, &why);
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+    if (!quiet && !path.empty())
+      std::fprintf(stderr, "[bvh] the %s device layout cached in %s for the next run (%.0f ms)\n",
+                   to_string(parts.layout), path.c_str(), ms);
+    if (!quiet && path.empty())
+      std::fprintf(stderr, "[bvh] warning: could not cache the device layout (%s)\n", why.c_str());
+    return ms;
+  };
+  if (store.background && !keep.empty()) {
+    // The arrays stay alive for the write through `keep` (no copy: on CPU devices they are the
+    // buffers themselves).
+    store.background->submit([write, keep = std::move(keep)] { write(); }, BackgroundWrites::Start::AfterFirstFrame);
+    return;
   }
-  layout_store_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
-  if (!store.quiet && !path.empty())
-    std::fprintf(stderr, "[bvh] the %s device layout cached in %s for the next run (%.0f ms)\n",
-                 to_string(parts.layout), path.c_str(), layout_store_ms_);
-  if (!store.quiet && path.empty())
-    std::fprintf(stderr, "[bvh] warning: could not cache the device layout (%s)\n", why.c_str());
+  const ProgressTicker ticker(store.quiet ? "" : "[bvh] still writing the device layout cache");
+  layout_store_ms_ = write();
 }
 
 // The device-independent part of a static scene's layout (prepare_host).
@@ -362,7 +373,10 @@ std::shared_ptr<DeviceScene::HostPart> DeviceScene::make_host_part(
 DeviceScene::DeviceScene(DeviceSet& devices, std::shared_ptr<HostPart> host, const Scene& scene, FlatBvh bvh,
                          const DeviceLayoutStore& store) {
   const auto layout_start = std::chrono::steady_clock::now();
-  if (!host) throw std::logic_error("DeviceScene: no host part");
+  if (!host) {
+    if (store.before_tree_changes) store.before_tree_changes();
+    throw std::logic_error("DeviceScene: no host part");
+  }
   lay_out_static(devices, scene, std::move(bvh), std::move(host), store, layout_start);
 }
 
@@ -371,10 +385,17 @@ void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh
   const BvhLayout layout = devices.bvh_layout();
   layout_ = layout;
   const std::size_t scene_triangles = host->scene_triangles;
-  set_triangle_flags(bvh, host->tri_flags);
+  // A BVH cache write may be reading the tree (store.before_tree_changes): nothing below changes
+  // or frees it before that write is done, nor does a throw free it before.
+  struct TreeReaders {
+    const std::function<void()>& done;
+    ~TreeReaders() {
+      if (done) done();
+    }
+  } tree_readers{store.before_tree_changes};
   // The scene's triangles are shading records now: nodes the tree lacks (load_and_build leaves
   // the wide ones to here) are made and validated against the leaf triangles, which the loader's
-  // validator has found to be copies of the scene's.
+  // validator has found to be copies of the scene's. Neither reads the triangles' flags.
   if (!has_layout(bvh, layout)) {
     ensure_layout(bvh, layout);
     const BvhValidation check = validate_layout_from_leaves(bvh, scene_triangles);
@@ -383,6 +404,8 @@ void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh
           std::string("internal error: the ") + to_string(layout) +
           " nodes of the scene's BVH failed validation: " + (check.errors.empty() ? "" : check.errors.front()));
   }
+  if (store.before_tree_changes) store.before_tree_changes();
+  set_triangle_flags(bvh, host->tri_flags);
   const std::size_t layout_nodes = layout == BvhLayout::Wide4         ? bvh.nodes4.size()
                                    : layout == BvhLayout::Wide8       ? bvh.nodes8.size()
                                    : layout == BvhLayout::Compressed8 ? bvh.cnodes.size()
@@ -401,22 +424,7 @@ void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh
     node_bytes = owned_bytes(device_wide_nodes(bvh, layout));
     release_nodes(bvh, std::nullopt);
   }
-  if (store.cache && store.cache->enabled()) {
-    // The layout as it goes to the devices, for the next start to map (device_layout_cache.h).
-    DeviceLayoutParts parts;
-    parts.layout = layout;
-    parts.stats = bvh.stats;
-    parts.layout_nodes = layout_nodes;
-    parts.nodes = layout == BvhLayout::Binary ? static_cast<const void*>(bvh.nodes.data()) : node_bytes.data;
-    parts.node_bytes = layout == BvhLayout::Binary ? bvh.nodes.size() * sizeof(BvhNode) : node_bytes.bytes;
-    parts.triangles = leaf_refs_ ? static_cast<const void*>(refs.data()) : bvh.triangles.data();
-    parts.triangle_count = leaf_refs_ ? refs.count : bvh.triangles.size();
-    parts.triangle_size = leaf_refs_ ? sizeof(BvhLeafRef) : sizeof(BvhTriangle);
-    parts.shading = host->shading.data;
-    parts.shading_size = host->shading.element;
-    parts.shading_count = host->shading.bytes / parts.shading_size;
-    store_layout(store, parts, scene_triangles);
-  }
+  const BvhBuildStats stats = bvh.stats;
   if (layout == BvhLayout::Binary) node_bytes = owned_bytes(std::move(bvh.nodes));
   HostBytes triangle_bytes;
   if (leaf_refs_) {
@@ -424,6 +432,22 @@ void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh
     triangle_bytes = {owner->data(), owner->bytes(), sizeof(BvhLeafRef), owner};
   } else {
     triangle_bytes = owned_bytes(std::move(bvh.triangles));
+  }
+  if (store.cache && store.cache->enabled()) {
+    // The layout as it goes to the devices, for the next start to map (device_layout_cache.h).
+    DeviceLayoutParts parts;
+    parts.layout = layout;
+    parts.stats = stats;
+    parts.layout_nodes = layout_nodes;
+    parts.nodes = node_bytes.data;
+    parts.node_bytes = node_bytes.bytes;
+    parts.triangles = triangle_bytes.data;
+    parts.triangle_size = triangle_bytes.element;
+    parts.triangle_count = triangle_bytes.bytes / triangle_bytes.element;
+    parts.shading = host->shading.data;
+    parts.shading_size = host->shading.element;
+    parts.shading_count = host->shading.bytes / parts.shading_size;
+    store_layout(store, parts, scene_triangles, {node_bytes.owner, triangle_bytes.owner, host->shading.owner});
   }
   light_count_ = host->tables.light_count;
   scene_features_ = host->tables.features;

@@ -14,6 +14,7 @@
 #include "bvh/flat_bvh.h"
 #include "bvh/top_level_bvh.h"
 #include "cl/device_set.h"
+#include "io/background_writes.h"
 #include "render/device_layout_cache.h"
 #include "render/kernel_features.h"
 #include "render/light_tree.h"
@@ -56,6 +57,14 @@ struct DeviceLayoutStore {
   std::uint64_t content_key = 0;  // scene_content_key(scene)
   BvhBuildOptions options;        // those the tree was built with
   bool quiet = true;              // else say where it went (stderr)
+  // A static scene laid out from its host part (prepare_host) is written there on a thread of
+  // its own once the first frame is on its way (BackgroundWrites::Start::AfterFirstFrame), from
+  // the arrays the devices got (CPU devices read those very arrays; a GPU set's are kept for
+  // the write); null, or any other scene: written before the constructor returns.
+  BackgroundWrites* background = nullptr;
+  // Called before the constructor first changes or frees the tree it was handed, and before it
+  // throws: a BVH cache write may still be reading it (scene_setup.cpp). Null: none.
+  std::function<void()> before_tree_changes;
 };
 
 class DeviceScene {
@@ -205,7 +214,10 @@ class DeviceScene {
   void lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh bvh, std::shared_ptr<HostPart> host,
                       const DeviceLayoutStore& store, std::chrono::steady_clock::time_point layout_start);
   // Writes `parts` to the store's cache, saying so unless quiet; layout_store_ms_ is its time.
-  void store_layout(const DeviceLayoutStore& store, const DeviceLayoutParts& parts, std::size_t scene_triangles);
+  // With the store's background writes and `keep` (the owners of the arrays `parts` points
+  // into), on their thread instead (layout_store_ms_ 0; their busy_ms() says).
+  void store_layout(const DeviceLayoutStore& store, const DeviceLayoutParts& parts, std::size_t scene_triangles,
+                    std::vector<std::shared_ptr<const void>> keep = {});
   // ... and the upload of everything.
   void upload_all(DeviceSet& devices, const Scene& scene, HostBytes nodes, HostBytes triangles, HostBytes shading,
                   std::vector<std::uint32_t> instance_words, SceneTables tables,
