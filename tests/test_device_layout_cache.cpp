@@ -10,6 +10,7 @@
 #include "bvh/wide_bvh.h"
 #include "render/device_layout_cache.h"
 #include "render/device_scene.h"
+#include "render/indexed_shading.h"
 #include "render/path_tracer.h"
 #include "io/content_hash.h"
 #include "scene/primitives.h"
@@ -510,6 +511,49 @@ TEST(DeviceLayoutCache, NoFolderMeansNoCacheAndNoError) {
 // A scene of flat, untextured triangles (a mesh without normals or uvs) is laid out with
 // 16-byte FlatTriangleShading records (DeviceScene::flat_shading); its cache file holds them, a
 // start maps them as such, and the mapped scene renders what the full records render.
+// A smooth scene's indexed records (DeviceScene::indexed_shading) and their vertex table are
+// one shading section: stored with the kind in the header, mapped back byte for byte, and a
+// device scene made from the mapping builds the same kernels; a header that says another kind
+// for those bytes is a miss.
+TEST(DeviceLayoutCache, ASmoothSceneIsStoredAndMappedWithItsIndexedRecords) {
+  test::TempDir dir;
+  const DeviceLayoutCache cache{dir.path().string()};
+  Scene scene;  // icospheres: vertices shared by their triangles, as a smooth mesh's are
+  Material lamp;
+  lamp.emission = glm::vec3(4.0f);
+  scene.materials = {Material{}, lamp};
+  for (int i = 0; i < 4; ++i) append_icosphere(scene.triangles, {1.5f * i, 0.0f, 0.0f}, 0.6f, 3, i == 3 ? 1 : 0);
+  for (SceneTriangle& t : scene.triangles)
+    for (int k = 0; k < 3; ++k) t.uv[k] = glm::vec2(t.p[k].x, t.p[k].z);
+  ASSERT_FALSE(has_flat_shading(scene.triangles));
+  const std::uint64_t key = scene_content_key(scene);
+  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
+  DeviceLayoutStore store;
+  store.cache = &cache;
+  store.content_key = key;
+  Scene handed = scene;
+  const auto host = DeviceScene::prepare_host(handed, [&handed] { return std::exchange(handed.triangles, {}); });
+  const DeviceScene stored(set, host, handed, build_bvh(scene.triangles, {}, /*layout=*/std::nullopt), store);
+  ASSERT_TRUE(stored.indexed_shading());
+  auto mapped = cache.open(key, set.bvh_layout(), BvhBuildOptions{}, scene.triangles.size());
+  ASSERT_NE(mapped, nullptr);
+  EXPECT_EQ(mapped->shading_records(), ShadingRecords::Indexed);
+  EXPECT_EQ(mapped->shading_size(), sizeof(IndexedTriangleShading));
+  EXPECT_EQ(mapped->shading_count(), scene.triangles.size());
+  EXPECT_GT(mapped->shading_bytes(), scene.triangles.size() * sizeof(IndexedTriangleShading));
+  EXPECT_TRUE(mapped->verify_payload());
+  std::size_t bad = 0;
+  for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
+    const TriangleShading got = expand_indexed_shading(mapped->shading(), i), want = shading_of(scene.triangles[i]);
+    bad += std::memcmp(&got, &want, sizeof got) != 0;
+  }
+  EXPECT_EQ(bad, 0u);
+  const DeviceScene from_file(set, scene, mapped);
+  EXPECT_TRUE(from_file.indexed_shading());
+  EXPECT_EQ(from_file.kernel_options(), stored.kernel_options());
+  EXPECT_EQ(from_file.bytes_in_context(), stored.bytes_in_context());
+}
+
 TEST(DeviceLayoutCache, AFlatSceneIsStoredAndMappedWithItsSixteenByteRecords) {
   test::TempDir dir;
   const DeviceLayoutCache cache{dir.path().string()};

@@ -126,7 +126,7 @@ void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode de
         {"split_trial_sampled", bvh.split_trial_sampled},
         {"split_trial_ms", bvh.split_trial_ms}}},
       {"scene_device_bytes", scene.bytes_in_context()},
-      {"shading_records", scene.flat_shading() ? "flat" : "full"},
+      {"shading_records", to_string(scene.shading_records())},
       {"instances", scene.instance_count()},
       {"instance_bytes", scene.instance_bytes()},
       {"start",

@@ -274,11 +274,12 @@ static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, cons
       return out;
     }
   }
-  // A flat static scene on its way to the devices makes its shading records now, and its tree
-  // from the 40-byte corners packed where its 100-byte triangles were (prepare_flat_host).
+  // A static scene on its way to the devices makes its shading records now (flat or indexed
+  // ones), and its tree from the 40-byte corners packed where its 100-byte triangles were
+  // (prepare_host_before_tree).
   DeviceScene::BuildCorners corners;
   if (map_device_layout && !instanced && !out.scene.rig && !out.scene.triangles.empty())
-    out.host_part = DeviceScene::prepare_flat_host(out.scene, take_static_triangles(out.scene), corners);
+    out.host_part = DeviceScene::prepare_host_before_tree(out.scene, take_static_triangles(out.scene), corners);
   const TriangleSource tree_source = out.host_part ? corners.source() : TriangleSource(tree_triangles);
   if (!tree_source.empty()) build_world_tree(out, tree_source, quiet, collapse_later(out, map_device_layout));
   if (instanced) {

@@ -67,8 +67,8 @@ struct LoadedScene {
   // (`tree_write`; the device scene waits for it before it changes the tree), the device layout
   // once the first frame is on its way. Null for other callers: they write before returning.
   // Declared last, so destroyed first: a tree is never freed under its write.
-  std::optional<BackgroundWrites::Ticket> tree_write;
-  std::shared_ptr<BackgroundWrites> cache_writes;
+  std::optional<BackgroundWrites::Ticket> tree_write{};
+  std::shared_ptr<BackgroundWrites> cache_writes{};
 };
 
 // Throws SceneError / std::runtime_error with a user-facing message on failure.

@@ -59,9 +59,8 @@ bool BackgroundWrites::any() const {
 void BackgroundWrites::run() {
   std::unique_lock<std::mutex> lock(mutex_);
   for (;;) {
-    changed_.wait(lock, [&] {
-      return stop_ || (!queue_.empty() && (queue_.front().start == Start::Now || gate_open_));
-    });
+    changed_.wait(lock,
+                  [&] { return stop_ || (!queue_.empty() && (queue_.front().start == Start::Now || gate_open_)); });
     if (queue_.empty()) return;  // stop_ and nothing left
     Entry entry = std::move(queue_.front());
     queue_.pop_front();
