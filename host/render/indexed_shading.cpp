@@ -13,7 +13,7 @@ namespace {
 
 constexpr std::size_t kRecordWords = sizeof(IndexedTriangleShading) / 4;  // 4
 constexpr std::size_t kVertexWords = sizeof(ShadingVertex) / 4;           // 5
-// The recent-vertex table: 2^17 slots (512 KiB, in a core's L2), well past the vertices between
+// The recent-vertex table: 2^17 slots (1 MiB, in a core's L2), well past the vertices between
 // a grid vertex's first and last triangle (two rows of quads: a few thousand at 10M triangles).
 constexpr std::uint32_t kRecentBits = 17;
 
@@ -49,26 +49,34 @@ std::uint64_t hash_of(const std::uint32_t* w) {
 
 std::uint32_t IndexedShadingBuilder::entry(const std::uint32_t* w, std::uint64_t h) {
   std::uint32_t* table = block_->data() + kRecordWords * triangles_;
-  const auto same = [&](std::uint32_t e) { return std::memcmp(table + kVertexWords * e, w, 20) == 0; };
+  // A slot holds the entry's index + 1 and, above it, 32 bits of its hash: a slot of another
+  // vertex is passed over without reading its entry (a cache miss of its own).
+  const std::uint64_t tag = h & 0xffffffff00000000ull;
+  const auto same = [&](std::uint64_t slot) {
+    return (slot & 0xffffffff00000000ull) == tag &&
+           std::memcmp(table + kVertexWords * (static_cast<std::uint32_t>(slot) - 1), w, 20) == 0;
+  };
   // The vertices made lately first (in a core's cache), then every vertex.
-  std::uint32_t& recent = recent_[static_cast<std::size_t>(h >> (64 - kRecentBits))];
-  if (recent != 0 && same(recent - 1)) return recent - 1;
+  std::uint64_t& recent = recent_[static_cast<std::size_t>((h >> 8) & ((std::size_t{1} << kRecentBits) - 1))];
+  if (recent != 0 && same(recent)) return static_cast<std::uint32_t>(recent) - 1;
   std::size_t mask = all_.size() - 1, at = static_cast<std::size_t>(h) & mask;
   for (; all_[at] != 0; at = (at + 1) & mask)
-    if (same(all_[at] - 1)) {
+    if (same(all_[at])) {
       recent = all_[at];
-      return all_[at] - 1;
+      return static_cast<std::uint32_t>(all_[at]) - 1;
     }
   const auto e = static_cast<std::uint32_t>(vertices_++);
   std::memcpy(table + kVertexWords * e, w, 20);
-  all_[at] = recent = e + 1;
+  all_[at] = recent = tag | (e + 1);
   if (2 * vertices_ > all_.size()) {  // at most half full: twice the slots, every entry again
-    std::vector<std::uint32_t> wider(2 * all_.size(), 0u);
+    std::vector<std::uint64_t> wider(2 * all_.size(), 0u);
     mask = wider.size() - 1;
-    for (std::uint32_t v = 0; v < vertices_; ++v) {
-      std::size_t i = static_cast<std::size_t>(hash_of(table + kVertexWords * v)) & mask;
-      while (wider[i] != 0) i = (i + 1) & mask;
-      wider[i] = v + 1;
+    for (const std::uint64_t slot : all_) {
+      if (slot == 0) continue;
+      const std::uint64_t hv = hash_of(table + kVertexWords * (static_cast<std::uint32_t>(slot) - 1));
+      std::size_t k = static_cast<std::size_t>(hv) & mask;
+      while (wider[k] != 0) k = (k + 1) & mask;
+      wider[k] = slot;
     }
     all_.swap(wider);
   }
@@ -107,8 +115,8 @@ void IndexedShadingBuilder::resolve(const Pending& p) {
 IndexedShadingBuilder::Result IndexedShadingBuilder::finish() {
   if (added_ != triangles_) throw std::logic_error("IndexedShadingBuilder: fewer triangles than announced");
   for (std::size_t i = added_ > kPending ? added_ - kPending : 0; i < added_; ++i) resolve(pending_[i % kPending]);
-  std::vector<std::uint32_t>().swap(recent_);
-  std::vector<std::uint32_t>().swap(all_);
+  std::vector<std::uint64_t>().swap(recent_);
+  std::vector<std::uint64_t>().swap(all_);
   Result out;
   out.vertices = vertices_;
   const std::size_t used = 4 * (kRecordWords * triangles_ + kVertexWords * vertices_);

@@ -21,7 +21,7 @@ namespace px {
 // as it reads the triangles it packs into build corners). A vertex is found again by its bits
 // (normal and uv): first in a small direct-mapped table of the vertices made lately (meshes list
 // a vertex's triangles near one another as a rule, and that table stays in a core's cache), then
-// in a hash table of every vertex (4 bytes a slot, at most half full; gone at the end).
+// in a hash table of every vertex (8 bytes a slot, at most half full; gone at the end).
 // The block holds the records, then the vertex table (one buffer: the kernels reach the table
 // by each record's relative offsets). It is sized for the worst case (three entries of its own
 // per triangle) without being touched; the pages past the table go back at the end.
@@ -41,8 +41,9 @@ class IndexedShadingBuilder {
  private:
   std::size_t triangles_ = 0, added_ = 0, vertices_ = 0;
   std::shared_ptr<std::vector<std::uint32_t, UninitializedAllocator<std::uint32_t>>> block_;
-  std::vector<std::uint32_t> recent_;  // entry index + 1 by hash of its bits; 0: none
-  std::vector<std::uint32_t> all_;     // every entry (index + 1), open addressing, at most half full
+  // Slots: an entry's index + 1, 32 bits of its hash above; 0: none.
+  std::vector<std::uint64_t> recent_;  // the latest entry of each hash (2^17 slots)
+  std::vector<std::uint64_t> all_;     // every entry, open addressing, at most half full
   // A triangle waiting for its lookups (add): its corners' bits and their hashes.
   struct Pending {
     std::size_t triangle = 0;
