@@ -2,7 +2,8 @@
 # `render` writes the BVH and device layout caches on a thread of its own, beside the first frame
 # (host/io/background_writes.h): the process still waits for them, so once it has exited both
 # files are there, whole (no temporary left), and the next runs read them back: the same layout
-# mapped, the tree read for another layout, every image the same bits as the first run's.
+# mapped, the tree read for another layout, every image the same bits as the first run's; an
+# interrupt during the start leaves no half-written file.
 # Usage: tests/cache_writes.sh PARALLAX_BINARY
 set -u
 bin="$1"
@@ -48,6 +49,29 @@ for run in warm binary; do
       fail "$run $eye eye differs from the cold run's"
     fi
   done
+done
+
+# Ctrl-C a second into a run of 400 frames (during its start or its frames): it stops (130) and
+# still waits for its cache writes; whatever the folder holds then is whole: no temporary file,
+# and a run from it renders the cold run's image.
+export PARALLAX_CACHE_DIR="$tmp/cache-int"
+"$bin" render --scene "$tmp/grid.obj" --sky on --width 48 --height 32 --frames 400 --spp 2 --devices 2 --no-denoise \
+  --out "$tmp/int" >"$tmp/int.log" 2>&1 &
+pid=$!
+sleep 1
+kill -INT "$pid" 2>/dev/null
+wait "$pid"
+rc=$?
+if [ "$rc" = 130 ]; then ok "interrupted run ends (130)"; else fail "interrupted run exit $rc"; tail -3 "$tmp/int.log"; fi
+if [ -z "$(find "$tmp/cache-int" -name '.*' -type f 2>/dev/null)" ]; then ok "no temporary file after the interrupt"
+else fail "a temporary cache file was left"; fi
+runs after-int >/dev/null || fail "run after the interrupt"
+for eye in left right; do
+  if "$bin" compare --exact "$tmp/after-int/frame_0000_$eye.exr" "$tmp/cold/frame_0000_$eye.exr" >/dev/null 2>&1; then
+    ok "after the interrupt, $eye eye: the cold run's image"
+  else
+    fail "after the interrupt, $eye eye differs"
+  fi
 done
 
 if [ "$fails" -eq 0 ]; then echo "cache_writes: all passed"; else echo "cache_writes: $fails failed"; fi
