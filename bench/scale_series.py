@@ -17,7 +17,8 @@ Usage: bench/scale_series.py [--sizes 0.25,1,4,10] [--build build] [--work build
                              [--width 320] [--height 180] [--devices 2] [--repeat 3] [--offline]
                              [--smooth]
 --smooth writes per-vertex normals and texture coordinates as well (as scanned and modelled
-meshes come), which parallax keeps in 64-byte shading records instead of flat ones' 16.
+meshes come), which parallax keeps in indexed shading records (16 bytes a triangle beside each
+vertex's normal and uv once) instead of flat ones' 16 bytes.
 Sizes are in millions of triangles. Each start runs --repeat times (cold parallax and Mitsuba
 alternating); the table gives the median time, its range and the highest peak. Writes
 <work>/results.csv and prints a Markdown table.

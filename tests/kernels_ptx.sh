@@ -19,9 +19,10 @@ while IFS= read -r -d '' file; do
   # Every BVH layout with every feature, then the wide layout with no scene feature and with two
   # complementary halves of them (PX_FEATURES, kernels/shared/types.h): a build for a scene's
   # features must compile, and without warnings (a constant operand in a feature test warns).
-  # Last, the data layouts a static scene's start picks: leaf refs and flat shading records.
+  # Last, the data layouts a static scene's start picks: leaf refs, flat and indexed shading records.
   for variant in "2 0x1fff" "4 0x1fff" "8 0x1fff" "9 0x1fff" "8 0x000" "8 0x1555" "8 0x0aaa" \
-                 "8 0x1fff -DPX_LEAF_REFS=1 -DPX_FLAT_SHADING=1" "9 0x000 -DPX_FLAT_SHADING=1"; do
+                 "8 0x1fff -DPX_LEAF_REFS=1 -DPX_FLAT_SHADING=1" "9 0x000 -DPX_FLAT_SHADING=1" \
+                 "8 0x1fff -DPX_LEAF_REFS=1 -DPX_INDEXED_SHADING=1" "2 0x000 -DPX_INDEXED_SHADING=1"; do
     read -r width features extra <<<"$variant"
     count=$((count + 1))
     # shellcheck disable=SC2086  # $extra: zero or more -D options

@@ -6,12 +6,15 @@
 // material flag, another layout, a cut or damaged file) must be a miss, never an error. Also
 // ContentHash, the key's hash: independent of how its input is split, and sensitive to a bit.
 #include "app/scene_setup.h"
+#include "bvh/bvh_cache.h"
 #include "bvh/wide_bvh.h"
 #include "render/device_layout_cache.h"
 #include "render/device_scene.h"
+#include "render/indexed_shading.h"
 #include "render/path_tracer.h"
 #include "io/content_hash.h"
 #include "scene/primitives.h"
+#include "scene/scene_loader.h"
 #include "support/brute_force.h"
 #include "support/bvh_layout_test.h"
 #include "support/scoped_env.h"
@@ -351,6 +354,9 @@ TEST(DeviceLayoutCache, StartsMapTheSetsLayoutAndSetAnotherLayoutAside) {
   {
     SceneOnDevices fill(spec, one, true);
     EXPECT_FALSE(fill.device_scene.layout_from_cache());
+    // Written on a thread of its own once the first frame is on its way (none here).
+    EXPECT_EQ(device_layout_files(), 0) << "held for the first frame";
+    fill.wait_for_cache_writes();
     EXPECT_EQ(device_layout_files(), 1) << "the first start stored its layout";
     EXPECT_TRUE(same_hits(hits_of(fill)));
   }
@@ -386,6 +392,94 @@ TEST(DeviceLayoutCache, StartsMapTheSetsLayoutAndSetAnotherLayoutAside) {
   }
 }
 
+// The cache files of a start through SceneOnDevices are written on a thread of their own: the
+// BVH cache at once, the device layout once the first frame is on its way (render says when);
+// a start that ends without saying so (an error, an interrupt, a bench) still waits for both
+// as it goes. What they hold is read back by the next starts: the layout mapped, the tree read
+// for another layout, every hit the same as a start without any cache.
+TEST(DeviceLayoutCache, CacheWritesRunOffTheStartAndAreCompleteWhenItEnds) {
+  test::TempDir dir;
+  const std::filesystem::path cache_dir = dir.path() / "cache";
+  const test::ScopedEnv cache_env("PARALLAX_CACHE_DIR", cache_dir.string());
+  const test::ScopedEnv cache_on("PARALLAX_BVH_CACHE", std::nullopt);
+  // A 120 x 100 grid, 24,000 triangles: past the caches' threshold of 20,000.
+  std::string obj;
+  const int nx = 120, ny = 100;
+  for (int j = 0; j <= ny; ++j)
+    for (int i = 0; i <= nx; ++i)
+      obj += "v " + std::to_string(0.05 * i) + " " + std::to_string(0.2 * std::sin(0.3 * i + 0.1 * j)) + " " +
+             std::to_string(0.05 * j) + "\n";
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const int a = j * (nx + 1) + i + 1, b = a + 1, c = a + nx + 1, d = c + 1;
+      obj += "f " + std::to_string(a) + " " + std::to_string(c) + " " + std::to_string(b) + "\n";
+      obj += "f " + std::to_string(b) + " " + std::to_string(c) + " " + std::to_string(d) + "\n";
+    }
+  const std::string spec = dir.write("grid.obj", obj).string();
+  const DeviceOptions one{1, DeviceMode::Auto, "", std::nullopt};
+  std::vector<Ray> rays;
+  for (int k = 0; k < 200; ++k)
+    rays.push_back(test::make_ray({0.03f * (k % 20) + 0.1f, 2.0f, 0.025f * (k / 10) + 0.1f}, {0.0f, -1.0f, 0.0f}));
+  const auto hits_of = [&](SceneOnDevices& s) { return RayBatchTracer(s.devices, s.device_scene).closest(rays); };
+  const auto files = [&](const char* prefix) {
+    int n = 0;
+    if (std::filesystem::exists(cache_dir))
+      for (const auto& e : std::filesystem::directory_iterator(cache_dir))
+        n += e.path().filename().string().rfind(prefix, 0) == 0;
+    return n;
+  };
+  std::vector<Hit> expected;
+  {
+    const test::ScopedEnv cache_off("PARALLAX_BVH_CACHE", "off");
+    SceneOnDevices none(spec, one, /*quiet=*/true);
+    expected = hits_of(none);
+  }
+  const auto same_hits = [&](const std::vector<Hit>& h) {
+    for (std::size_t i = 0; i < h.size(); ++i)
+      if (h[i].prim != expected[i].prim || h[i].t != expected[i].t || h[i].prim == PX_NO_HIT) return false;
+    return h.size() == expected.size();
+  };
+  {
+    SceneOnDevices cold(spec, one, true);
+    ASSERT_NE(cold.loaded.cache_writes, nullptr);
+    EXPECT_TRUE(cold.loaded.cache_writes->any());
+    EXPECT_TRUE(cold.loaded.tree_write.has_value()) << "the tree was built, so its write was queued";
+    EXPECT_EQ(files("device-layout-"), 0) << "held for the first frame";
+    EXPECT_EQ(cold.device_scene.layout_store_ms(), 0.0) << "not written by the start itself";
+    EXPECT_TRUE(same_hits(hits_of(cold)));
+  }  // no wait_for_cache_writes: the start's end waits
+  EXPECT_EQ(files("bvh-"), 1);
+  EXPECT_EQ(files("device-layout-"), 1);
+  EXPECT_EQ(files("."), 0) << "no temporary file left behind";
+  {
+    const Scene scene = load_scene(spec);
+    const auto mapped =
+        DeviceLayoutCache(cache_dir.string())
+            .open(scene_content_key(scene), bvh_layout_for(false), BvhBuildOptions{}, scene.triangles.size());
+    ASSERT_NE(mapped, nullptr);
+    EXPECT_TRUE(mapped->verify_payload());
+    EXPECT_TRUE(BvhCache(cache_dir.string()).load(TriangleSource(scene.triangles), BvhBuildOptions{}).has_value());
+  }
+  {
+    SceneOnDevices warm(spec, one, true);
+    EXPECT_TRUE(warm.device_scene.layout_from_cache());
+    EXPECT_TRUE(same_hits(hits_of(warm)));
+    warm.wait_for_cache_writes();
+    EXPECT_EQ(warm.loaded.times.background_cache_write_ms, 0.0) << "nothing to write";
+  }
+  {
+    // Another layout: no device layout of it in the cache, the tree read from the BVH cache.
+    SceneOnDevices other(spec, test::options_in_layout(bvh_layout_for(/*all_gpus=*/true)), true);
+    EXPECT_FALSE(other.device_scene.layout_from_cache());
+    EXPECT_TRUE(other.loaded.times.bvh_from_cache);
+    EXPECT_TRUE(same_hits(hits_of(other)));
+    other.first_frame_on_its_way();
+    other.wait_for_cache_writes();
+    EXPECT_GT(other.loaded.times.background_cache_write_ms, 0.0) << "its own layout written";
+  }
+  EXPECT_EQ(files("device-layout-"), 2);
+}
+
 TEST(DeviceLayoutCache, NoFolderMeansNoCacheAndNoError) {
   const DeviceLayoutCache cache("");
   EXPECT_FALSE(cache.enabled());
@@ -417,6 +511,49 @@ TEST(DeviceLayoutCache, NoFolderMeansNoCacheAndNoError) {
 // A scene of flat, untextured triangles (a mesh without normals or uvs) is laid out with
 // 16-byte FlatTriangleShading records (DeviceScene::flat_shading); its cache file holds them, a
 // start maps them as such, and the mapped scene renders what the full records render.
+// A smooth scene's indexed records (DeviceScene::indexed_shading) and their vertex table are
+// one shading section: stored with the kind in the header, mapped back byte for byte, and a
+// device scene made from the mapping builds the same kernels; a header that says another kind
+// for those bytes is a miss.
+TEST(DeviceLayoutCache, ASmoothSceneIsStoredAndMappedWithItsIndexedRecords) {
+  test::TempDir dir;
+  const DeviceLayoutCache cache{dir.path().string()};
+  Scene scene;  // icospheres: vertices shared by their triangles, as a smooth mesh's are
+  Material lamp;
+  lamp.emission = glm::vec3(4.0f);
+  scene.materials = {Material{}, lamp};
+  for (int i = 0; i < 4; ++i) append_icosphere(scene.triangles, {1.5f * i, 0.0f, 0.0f}, 0.6f, 3, i == 3 ? 1 : 0);
+  for (SceneTriangle& t : scene.triangles)
+    for (int k = 0; k < 3; ++k) t.uv[k] = glm::vec2(t.p[k].x, t.p[k].z);
+  ASSERT_FALSE(has_flat_shading(scene.triangles));
+  const std::uint64_t key = scene_content_key(scene);
+  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
+  DeviceLayoutStore store;
+  store.cache = &cache;
+  store.content_key = key;
+  Scene handed = scene;
+  const auto host = DeviceScene::prepare_host(handed, [&handed] { return std::exchange(handed.triangles, {}); });
+  const DeviceScene stored(set, host, handed, build_bvh(scene.triangles, {}, /*layout=*/std::nullopt), store);
+  ASSERT_TRUE(stored.indexed_shading());
+  auto mapped = cache.open(key, set.bvh_layout(), BvhBuildOptions{}, scene.triangles.size());
+  ASSERT_NE(mapped, nullptr);
+  EXPECT_EQ(mapped->shading_records(), ShadingRecords::Indexed);
+  EXPECT_EQ(mapped->shading_size(), sizeof(IndexedTriangleShading));
+  EXPECT_EQ(mapped->shading_count(), scene.triangles.size());
+  EXPECT_GT(mapped->shading_bytes(), scene.triangles.size() * sizeof(IndexedTriangleShading));
+  EXPECT_TRUE(mapped->verify_payload());
+  std::size_t bad = 0;
+  for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
+    const TriangleShading got = expand_indexed_shading(mapped->shading(), i), want = shading_of(scene.triangles[i]);
+    bad += std::memcmp(&got, &want, sizeof got) != 0;
+  }
+  EXPECT_EQ(bad, 0u);
+  const DeviceScene from_file(set, scene, mapped);
+  EXPECT_TRUE(from_file.indexed_shading());
+  EXPECT_EQ(from_file.kernel_options(), stored.kernel_options());
+  EXPECT_EQ(from_file.bytes_in_context(), stored.bytes_in_context());
+}
+
 TEST(DeviceLayoutCache, AFlatSceneIsStoredAndMappedWithItsSixteenByteRecords) {
   test::TempDir dir;
   const DeviceLayoutCache cache{dir.path().string()};

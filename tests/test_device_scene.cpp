@@ -5,6 +5,7 @@
 #include "bvh/bvh_cache.h"
 #include "bvh/bvh_validator.h"
 #include "render/device_scene.h"
+#include "render/indexed_shading.h"
 #include "render/path_tracer.h"
 #include "scene/scene_loader.h"
 #include "scene/primitives.h"
@@ -16,6 +17,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdlib>
 #include <cstring>
@@ -204,7 +206,14 @@ TEST(DeviceScene, TwoStepsBeforeTheDevicesGiveTheOneStepBuffers) {
                               &DeviceSceneBuffers::materials})  // lights: a placeholder (no emitter)
       EXPECT_EQ(read_back(set, two.on(1).*member), read_back(set, one.on(0).*member));
     EXPECT_EQ(read_back(set, two.on(0).nodes), read_back(set, kept.on(0).nodes));
-    EXPECT_EQ(read_back(set, two.on(0).shading), read_back(set, kept.on(0).shading));
+    // The spheres are smooth: indexed records in two steps, which read as the full ones.
+    ASSERT_TRUE(two.indexed_shading());
+    const auto indexed = read_back(set, two.on(0).shading), full = read_back(set, kept.on(0).shading);
+    ASSERT_EQ(full.size(), scene.triangles.size() * sizeof(TriangleShading));
+    for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
+      const TriangleShading r = expand_indexed_shading(indexed.data(), i);
+      ASSERT_EQ(std::memcmp(&r, full.data() + i * sizeof r, sizeof r), 0) << "triangle " << i;
+    }
     if (!two.leaf_refs()) {
       EXPECT_EQ(read_back(set, two.on(0).triangles), read_back(set, kept.on(0).triangles));
     }
@@ -289,6 +298,88 @@ TEST(DeviceScene, AFlatUntexturedSceneGetsSixteenByteRecordsAndTheSameImage) {
   const Scene spheres_scene = spheres();
   const DeviceScene smooth_ds(set, smooth_host, smooth, build_bvh(spheres_scene.triangles, {}, std::nullopt));
   EXPECT_FALSE(smooth_ds.flat_shading());
+}
+
+// A smooth scene (per-vertex normals and texture coordinates, a texture read through them)
+// goes to the devices with indexed records: 16 bytes a triangle beside each distinct vertex's
+// normal and uv once (types.h: IndexedTriangleShading), and renders the full records' image to
+// the bit, since the kernels built with PX_INDEXED_SHADING read the same floats. The records
+// read back as the full ones (the host's reading of their relative offsets against shading_of),
+// the table holds each distinct vertex once; PARALLAX_INDEXED_SHADING=off keeps full records
+// (the second code path), and so does a mesh whose vertices share nothing (faceted normals).
+TEST(DeviceScene, ASmoothSceneGetsIndexedRecordsAndTheSameImage) {
+  Scene scene = make_builtin_scene("cornell");
+  for (int i = 0; i < 3; ++i) append_icosphere(scene.triangles, {-0.5f + 0.5f * i, 0.3f, 0.2f}, 0.15f, 3, 0);
+  // A checker texture on every material, read through uvs made from the positions.
+  Texture checker;
+  checker.width = checker.height = 4;
+  for (int y = 0; y < 4; ++y)
+    for (int x = 0; x < 4; ++x)
+      for (const float c : {(x + y) % 2 ? 0.9f : 0.2f, 0.5f, (x + y) % 2 ? 0.1f : 0.8f, 1.0f})
+        checker.rgba.push_back(c);
+  scene.textures.push_back(checker);
+  for (Material& m : scene.materials)
+    if (!m.is_emissive()) m.diffuse_texture = 0;
+  for (SceneTriangle& t : scene.triangles)
+    for (int k = 0; k < 3; ++k) t.uv[k] = glm::vec2(2.0f * t.p[k].x + 0.3f * t.p[k].y, 2.0f * t.p[k].z);
+  ASSERT_FALSE(has_flat_shading(scene.triangles));
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, "", std::nullopt});
+  const auto two_steps = [&set](const Scene& s) {
+    Scene handed = s;
+    const auto host = DeviceScene::prepare_host(handed, [&handed] { return std::exchange(handed.triangles, {}); });
+    return DeviceScene(set, host, handed, build_bvh(s.triangles, {}, /*layout=*/std::nullopt));
+  };
+  const DeviceScene full(set, scene, build_bvh(scene.triangles));
+  const DeviceScene indexed = two_steps(scene);
+  EXPECT_EQ(full.shading_records(), ShadingRecords::Full);
+  ASSERT_TRUE(indexed.indexed_shading());
+  EXPECT_NE(indexed.kernel_options().find("-DPX_INDEXED_SHADING=1"), std::string::npos);
+  EXPECT_EQ(full.kernel_options().find("PX_INDEXED_SHADING"), std::string::npos);
+  // The records against shading_of, byte for byte, and the table: each distinct vertex once.
+  const auto bytes = read_back(set, indexed.on(0).shading);
+  const std::size_t n = scene.triangles.size();
+  ASSERT_GE(bytes.size(), n * sizeof(IndexedTriangleShading));
+  std::size_t bad = 0;
+  std::vector<std::array<std::uint32_t, 5>> distinct;
+  for (std::size_t i = 0; i < n; ++i) {
+    const TriangleShading got = expand_indexed_shading(bytes.data(), i), want = shading_of(scene.triangles[i]);
+    bad += std::memcmp(&got, &want, sizeof got) != 0;
+    for (int k = 0; k < 3; ++k) {
+      std::array<std::uint32_t, 5> v;
+      std::memcpy(v.data(), &scene.triangles[i].n[k], 12);
+      std::memcpy(v.data() + 3, &scene.triangles[i].uv[k], 8);
+      distinct.push_back(v);
+    }
+  }
+  EXPECT_EQ(bad, 0u);
+  std::sort(distinct.begin(), distinct.end());
+  distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
+  EXPECT_EQ(bytes.size(), n * sizeof(IndexedTriangleShading) + distinct.size() * sizeof(ShadingVertex));
+  EXPECT_LT(bytes.size(), n * sizeof(TriangleShading) / 2) << "the icospheres' vertices are shared";
+  // The same picture: two eyes, textures, four bounces.
+  PathTracer::Options opt;
+  opt.spp = 4;
+  opt.bounces = 4;
+  PathTracer a(set, full, scene), b(set, indexed, scene);
+  const auto ia = a.render_stereo(0.0f, 2, 48, 32, opt), ib = b.render_stereo(0.0f, 2, 48, 32, opt);
+  expect_identical_eyes(ia, ib);
+  double sum = 0.0;
+  for (float v : ia[0].rgb) sum += v;
+  EXPECT_GT(sum, 0.0) << "a picture, not a black frame";
+  {
+    const test::ScopedEnv off("PARALLAX_INDEXED_SHADING", "off");
+    const DeviceScene kept = two_steps(scene);
+    EXPECT_EQ(kept.shading_records(), ShadingRecords::Full);
+    PathTracer c(set, kept, scene);
+    expect_identical_eyes(ia, c.render_stereo(0.0f, 2, 48, 32, opt));
+  }
+  // Faceted normals with uvs: no vertex is shared, indexed records would not be smaller.
+  Scene faceted = scene;
+  for (SceneTriangle& t : faceted.triangles) {
+    const glm::vec3 g = glm::normalize(glm::cross(t.p[1] - t.p[0], t.p[2] - t.p[0]));
+    for (int k = 0; k < 3; ++k) t.n[k] = g + glm::vec3(0.0f, 1e-3f * float(k), 0.0f);
+  }
+  EXPECT_EQ(two_steps(faceted).shading_records(), ShadingRecords::Full);
 }
 
 // A flat static scene that goes to the devices makes its records before its tree

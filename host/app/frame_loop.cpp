@@ -186,6 +186,8 @@ void RenderLoop::step(unsigned f) {
   const SceneAnimator::Update update =
       animator_->update(clock_.time_s(f), on_devices_->devices, on_devices_->device_scene);
   if (animator_->moves()) animation_totals_.add(update);
+  // The cache files the next start reads are written beside the first frame, not before it.
+  if (f == 0) on_devices_->first_frame_on_its_way();
   const FrameStats st = pipeline.render(f, clock_.camera_time_s(f));
   if (!root_) {  // rank 0 holds the frame, decides the next and writes everything
     done_ = f + 1;
@@ -244,6 +246,8 @@ void RenderLoop::step(unsigned f) {
 }
 
 int RenderLoop::finish() {
+  // The cache files are complete (or absent) before the process goes on to exit.
+  on_devices_->wait_for_cache_writes();
   if (!root_) return 0;
   const StereoPipeline& pipeline = *pipeline_;
   const DeviceSet& devices = on_devices_->devices;
@@ -327,6 +331,10 @@ void RenderLoop::print_summary() const {
         t.validate_ms, t.bvh_validated_when_cached ? " (validated when cached)" : "",
         t.cache_store_ms + ds.layout_store_ms() > 0.0
             ? (", cache write " + std::to_string(static_cast<long>(t.cache_store_ms + ds.layout_store_ms())) + " ms")
+                  .c_str()
+        : t.background_cache_write_ms > 0.0
+            ? (", cache write " + std::to_string(static_cast<long>(t.background_cache_write_ms)) +
+               " ms in the background")
                   .c_str()
             : "",
         ds.layout_ms(), ds.upload_ms(), static_cast<double>(ds.bytes_in_context()) / (1024.0 * 1024.0), devices.size(),

@@ -69,6 +69,8 @@ void print_scene_upload(const DeviceScene& scene, int devices) {
                static_cast<double>(scene.bytes_in_context()) / (1024.0 * 1024.0), devices, scene.upload_ms());
   if (scene.flat_shading())
     std::fprintf(stderr, "[scene] flat triangles without texture coordinates: 16-byte shading records, not 64\n");
+  if (scene.indexed_shading())
+    std::fprintf(stderr, "[scene] smooth triangles: 16-byte shading records and each vertex's normal and uv once\n");
   if (scene.instance_count() > 0)
     std::fprintf(stderr, "[scene] %zu instances: their top level and records take %.1f KiB of that\n",
                  scene.instance_count(), static_cast<double>(scene.instance_bytes()) / 1024.0);

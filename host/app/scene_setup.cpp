@@ -56,9 +56,10 @@ void build_world_tree(LoadedScene& out, const TriangleSource& tree_triangles, bo
   const auto t2 = clock::now();
   std::optional<FlatBvh> cached;
   std::uint32_t validated_layouts = 0;
+  std::uint64_t key = 0;  // the cache's key for these triangles (set by a load that looked)
   {
     const ProgressTicker ticker(quiet || !cacheable ? "" : "[bvh] still reading the BVH cache");
-    cached = cache.load(tree_triangles, build_options, &validated_layouts);
+    cached = cache.load(tree_triangles, build_options, &validated_layouts, &key);
   }
   const bool from_cache = cached.has_value();
   if (from_cache) {
@@ -144,17 +145,31 @@ void build_world_tree(LoadedScene& out, const TriangleSource& tree_triangles, bo
     throw std::runtime_error(msg);
   }
   if (cacheable && !from_cache && !BvhCache::default_dir().empty()) {
-    std::string why;
-    const auto t4 = clock::now();
-    std::string path;
-    {
-      const ProgressTicker ticker(quiet ? "" : "[bvh] still writing the BVH cache");
-      path = cache.store(out.bvh, tree_triangles, build_options, &why);
+    // What the file holds points into the tree's arrays; its key was made by the load above
+    // (the triangles may be gone by the time it is written).
+    const BvhCache::Contents contents = BvhCache::contents_of(out.bvh);
+    const std::size_t scene_triangles = tree_triangles.size();
+    const auto write = [cache, contents, key, scene_triangles, quiet] {
+      std::string why;
+      const auto t = Clock::now();
+      const std::string path = cache.store(contents, key, scene_triangles, &why);
+      if (!quiet && !path.empty())
+        std::fprintf(stderr, "[bvh] cached in %s for the next run (%.0f ms)\n", path.c_str(), ms(t, Clock::now()));
+      if (!quiet && path.empty()) std::fprintf(stderr, "[bvh] warning: could not cache the BVH (%s)\n", why.c_str());
+    };
+    if (out.cache_writes) {
+      // On the writer's thread from now, beside the device set's creation and the wide nodes'
+      // collapse; the device scene waits for it before it changes the tree
+      // (DeviceLayoutStore::before_tree_changes).
+      out.tree_write = out.cache_writes->submit(write, BackgroundWrites::Start::Now);
+    } else {
+      const auto t4 = clock::now();
+      {
+        const ProgressTicker ticker(quiet ? "" : "[bvh] still writing the BVH cache");
+        write();
+      }
+      out.times.cache_store_ms = ms(t4, clock::now());
     }
-    out.times.cache_store_ms = ms(t4, clock::now());
-    if (!quiet && !path.empty()) std::fprintf(stderr, "[bvh] cached in %s for the next run\n", path.c_str());
-    if (!quiet && path.empty() && !BvhCache::default_dir().empty())
-      std::fprintf(stderr, "[bvh] warning: could not cache the BVH (%s)\n", why.c_str());
   }
 }
 
@@ -183,6 +198,7 @@ static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, cons
   using clock = Clock;
   LoadedScene out;
   out.bvh_layout = requested_layout.value_or(bvh_layout_for(/*all_gpus=*/false));
+  if (map_device_layout) out.cache_writes = std::make_shared<BackgroundWrites>();
   auto t0 = clock::now();
   if (!quiet) std::fprintf(stderr, "[scene] loading %s ...\n", spec.c_str());
   {
@@ -258,11 +274,12 @@ static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, cons
       return out;
     }
   }
-  // A flat static scene on its way to the devices makes its shading records now, and its tree
-  // from the 40-byte corners packed where its 100-byte triangles were (prepare_flat_host).
+  // A static scene on its way to the devices makes its shading records now (flat or indexed
+  // ones), and its tree from the 40-byte corners packed where its 100-byte triangles were
+  // (prepare_host_before_tree).
   DeviceScene::BuildCorners corners;
   if (map_device_layout && !instanced && !out.scene.rig && !out.scene.triangles.empty())
-    out.host_part = DeviceScene::prepare_flat_host(out.scene, take_static_triangles(out.scene), corners);
+    out.host_part = DeviceScene::prepare_host_before_tree(out.scene, take_static_triangles(out.scene), corners);
   const TriangleSource tree_source = out.host_part ? corners.source() : TriangleSource(tree_triangles);
   if (!tree_source.empty()) build_world_tree(out, tree_source, quiet, collapse_later(out, map_device_layout));
   if (instanced) {
@@ -335,6 +352,11 @@ DeviceScene make_device_scene(DeviceSet& devices, LoadedScene& loaded,
   store.cache = &cache;
   store.content_key = loaded.content_key;
   store.quiet = loaded.quiet;
+  store.background = loaded.cache_writes.get();
+  if (loaded.cache_writes && loaded.tree_write)
+    store.before_tree_changes = [writes = loaded.cache_writes, ticket = *loaded.tree_write] {
+      writes->wait_for(ticket);
+    };
   if (host_part) return DeviceScene(devices, std::exchange(host_part, {}), loaded.scene, std::move(loaded.bvh), store);
   // The tree's host copy is not needed once its nodes are on the devices, nor a static scene's
   // triangles once the device scene has made what it makes of them (before its largest part).
@@ -359,6 +381,16 @@ SceneOnDevices::SceneOnDevices(LoadedScene scene, const DeviceOptions& device_op
   }
   loaded.times.host_rss_after_start_mib = resident_mib();
   preload_image_codec();  // see load_and_build
+}
+
+void SceneOnDevices::first_frame_on_its_way() {
+  if (loaded.cache_writes) loaded.cache_writes->first_frame_on_its_way();
+}
+
+void SceneOnDevices::wait_for_cache_writes() {
+  if (!loaded.cache_writes) return;
+  loaded.cache_writes->wait();
+  loaded.times.background_cache_write_ms = loaded.cache_writes->busy_ms();
 }
 
 }  // namespace px

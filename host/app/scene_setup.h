@@ -6,6 +6,7 @@
 #include "bvh/bvh_layout.h"
 #include "bvh/flat_bvh.h"
 #include "cl/device_set.h"
+#include "io/background_writes.h"
 #include "render/device_scene.h"
 #include "scene/scene.h"
 #include "scene/scene_loader.h"
@@ -25,7 +26,10 @@ struct StartTimes {
   // The tree came from the cache with its wide nodes validated when it was stored (bvh_cache.h):
   // not validated again.
   bool bvh_validated_when_cached = false;
-  double cache_store_ms = 0.0;
+  double cache_store_ms = 0.0;  // writing the BVH cache before the start went on
+  // The cache files written on their own thread (LoadedScene::cache_writes): that thread's time,
+  // known once they are done (SceneOnDevices::wait_for_cache_writes).
+  double background_cache_write_ms = 0.0;
   // The tree came as its device layout, mapped from the device layout cache
   // (device_layout_cache.h): no tree was read, laid out or validated. bvh_ms is then the time to
   // hash the scene and map the file.
@@ -58,6 +62,13 @@ struct LoadedScene {
   // The triangles' count and bounds, kept when SceneOnDevices releases the triangles.
   std::size_t triangle_count = 0;
   glm::vec3 bounds_lo{0.0f}, bounds_hi{0.0f};
+  // A start for the devices (load_and_build's map_device_layout) writes its cache files on a
+  // thread of their own (background_writes.h): the BVH cache at once, from `bvh`'s arrays
+  // (`tree_write`; the device scene waits for it before it changes the tree), the device layout
+  // once the first frame is on its way. Null for other callers: they write before returning.
+  // Declared last, so destroyed first: a tree is never freed under its write.
+  std::optional<BackgroundWrites::Ticket> tree_write{};
+  std::shared_ptr<BackgroundWrites> cache_writes{};
 };
 
 // Throws SceneError / std::runtime_error with a user-facing message on failure.
@@ -85,6 +96,12 @@ struct SceneOnDevices {
   SceneOnDevices(LoadedScene scene, const DeviceOptions& device_options, KernelChoice kernels = KernelChoice::Scene);
   SceneOnDevices(const SceneOnDevices&) = delete;
   SceneOnDevices& operator=(const SceneOnDevices&) = delete;
+
+  // Lets the cache writes held for the first frame run (render calls it as its first frame
+  // goes out), and waits for all of them (the summary reports their time; the destructor waits
+  // too). No-ops without any.
+  void first_frame_on_its_way();
+  void wait_for_cache_writes();
 
   LoadedScene loaded;
   // A static scene without instances (not mapped from the cache): its shading records are made

@@ -2,6 +2,7 @@
 #include "bvh/wide_bvh.h"
 
 #include "io/atomic_file.h"
+#include "io/content_hash.h"
 #include "io/environment.h"
 
 #include <cstdio>
@@ -16,27 +17,12 @@ namespace px {
 namespace {
 
 constexpr char kMagic[8] = {'P', 'X', 'B', 'V', 'H', 'C', '0', '1'};
-constexpr std::uint32_t kFormatVersion = 2;  // 2: validated_layouts
+constexpr std::uint32_t kFormatVersion = 3;  // 2: validated_layouts; 3: ContentHash, not FNV-1a
 #ifndef PX_BVH_BUILDER_SHA
 #define PX_BVH_BUILDER_SHA "unknown"
 #endif
 // SHA-1 of the builder's sources (set by CMake): a rebuilt builder never reads an old file.
 constexpr const char* kBuilderSha = PX_BVH_BUILDER_SHA;
-
-struct Fnv1a {
-  std::uint64_t h = 1469598103934665603ull;
-  void bytes(const void* data, std::size_t n) {
-    const auto* p = static_cast<const unsigned char*>(data);
-    for (std::size_t i = 0; i < n; ++i) {
-      h ^= p[i];
-      h *= 1099511628211ull;
-    }
-  }
-  template <typename T>
-  void value(const T& v) {
-    bytes(&v, sizeof v);
-  }
-};
 
 // Fixed-size header (all fields 8 bytes wide: no padding, same on every platform we build for).
 struct Header {
@@ -48,18 +34,18 @@ struct Header {
   std::uint64_t validated_layouts;  // bvh_layout_bit of each wide layout the tree carried when stored
 };
 
-std::uint64_t payload_checksum(const Header& h, const FlatBvh& bvh) {
-  Fnv1a f;
+std::uint64_t payload_checksum(const Header& h, const BvhNode* nodes, const BvhTriangle* triangles) {
+  ContentHash f(3);
   f.value(h);
-  f.bytes(bvh.nodes.data(), bvh.nodes.size() * sizeof(BvhNode));
-  f.bytes(bvh.triangles.data(), bvh.triangles.size() * sizeof(BvhTriangle));
-  return f.h;
+  f.bytes(nodes, h.nodes * sizeof(BvhNode));
+  f.bytes(triangles, h.triangles * sizeof(BvhTriangle));
+  return f.digest();
 }
 
 }  // namespace
 
 std::uint64_t bvh_input_hash(const TriangleSource& triangles, const BvhBuildOptions& options) {
-  Fnv1a f;
+  ContentHash f(4);
   f.value(kFormatVersion);
   f.bytes(kBuilderSha, std::strlen(kBuilderSha));
   f.value(static_cast<std::uint64_t>(sizeof(BvhNode)));
@@ -76,7 +62,7 @@ std::uint64_t bvh_input_hash(const TriangleSource& triangles, const BvhBuildOpti
     f.bytes(triangles.p(i), 3 * sizeof(glm::vec3));
     f.value(triangles.material(i));
   }
-  return f.h;
+  return f.digest();
 }
 
 std::string BvhCache::default_dir() {
@@ -96,10 +82,11 @@ std::string BvhCache::path_for(std::uint64_t key) const {
 std::uint32_t bvh_layout_bit(BvhLayout layout) { return 1u << static_cast<unsigned>(bvh_layout_width(layout)); }
 
 std::optional<FlatBvh> BvhCache::load(const TriangleSource& triangles, const BvhBuildOptions& options,
-                                      std::uint32_t* validated_layouts) const {
+                                      std::uint32_t* validated_layouts, std::uint64_t* key_out) const {
   if (validated_layouts) *validated_layouts = 0;
   if (dir_.empty()) return std::nullopt;
   const std::uint64_t key = bvh_input_hash(triangles, options);
+  if (key_out) *key_out = key;
   std::ifstream in(path_for(key), std::ios::binary);
   if (!in) return std::nullopt;
   Header h{};
@@ -120,7 +107,7 @@ std::optional<FlatBvh> BvhCache::load(const TriangleSource& triangles, const Bvh
       !in.read(reinterpret_cast<char*>(bvh.triangles.data()), h.triangles * sizeof(BvhTriangle)) ||
       !in.read(reinterpret_cast<char*>(&checksum), sizeof checksum) || in.peek() != std::ifstream::traits_type::eof())
     return std::nullopt;
-  if (checksum != payload_checksum(h, bvh)) return std::nullopt;
+  if (checksum != payload_checksum(h, bvh.nodes.data(), bvh.triangles.data())) return std::nullopt;
   bvh.stats.scene_triangles = h.scene_triangles;
   bvh.stats.leaf_triangles = h.triangles;
   bvh.stats.nodes = h.nodes;
@@ -133,7 +120,28 @@ std::optional<FlatBvh> BvhCache::load(const TriangleSource& triangles, const Bvh
   return bvh;
 }
 
+BvhCache::Contents BvhCache::contents_of(const FlatBvh& bvh) {
+  Contents c;
+  c.nodes = bvh.nodes.data();
+  c.node_count = bvh.nodes.size();
+  c.triangles = bvh.triangles.data();
+  c.triangle_count = bvh.triangles.size();
+  c.stats = bvh.stats;
+  for (const BvhLayout l : {BvhLayout::Wide4, BvhLayout::Wide8, BvhLayout::Compressed8})
+    if (has_layout(bvh, l)) c.validated_layouts |= bvh_layout_bit(l);
+  return c;
+}
+
 std::string BvhCache::store(const FlatBvh& bvh, const TriangleSource& triangles, const BvhBuildOptions& options,
+                            std::string* why) const {
+  if (dir_.empty()) {
+    if (why) *why = "no cache folder";
+    return "";
+  }
+  return store(contents_of(bvh), bvh_input_hash(triangles, options), triangles.size(), why);
+}
+
+std::string BvhCache::store(const Contents& tree, std::uint64_t key, std::size_t scene_triangles,
                             std::string* why) const {
   if (dir_.empty()) {
     if (why) *why = "no cache folder";
@@ -146,23 +154,22 @@ std::string BvhCache::store(const FlatBvh& bvh, const TriangleSource& triangles,
     h.format = kFormatVersion;
     h.node_size = sizeof(BvhNode);
     h.triangle_size = sizeof(BvhTriangle);
-    h.key = bvh_input_hash(triangles, options);
-    h.scene_triangles = triangles.size();
-    h.nodes = bvh.nodes.size();
-    h.triangles = bvh.triangles.size();
-    h.depth = static_cast<std::uint64_t>(bvh.stats.depth);
-    h.split_budget_exceeded = bvh.stats.split_budget_exceeded;
-    h.split_calls = bvh.stats.split_calls;
-    h.build_ms = bvh.stats.build_ms;
-    h.sah_cost = bvh.stats.sah_cost;
-    for (const BvhLayout l : {BvhLayout::Wide4, BvhLayout::Wide8, BvhLayout::Compressed8})
-      if (has_layout(bvh, l)) h.validated_layouts |= bvh_layout_bit(l);
-    const std::uint64_t checksum = payload_checksum(h, bvh);
+    h.key = key;
+    h.scene_triangles = scene_triangles;
+    h.nodes = tree.node_count;
+    h.triangles = tree.triangle_count;
+    h.depth = static_cast<std::uint64_t>(tree.stats.depth);
+    h.split_budget_exceeded = tree.stats.split_budget_exceeded;
+    h.split_calls = tree.stats.split_calls;
+    h.build_ms = tree.stats.build_ms;
+    h.sah_cost = tree.stats.sah_cost;
+    h.validated_layouts = tree.validated_layouts;
+    const std::uint64_t checksum = payload_checksum(h, tree.nodes, tree.triangles);
     const std::string path = path_for(h.key);
     AtomicFileWriter out(path);
     out.write({reinterpret_cast<const char*>(&h), sizeof h});
-    out.write({reinterpret_cast<const char*>(bvh.nodes.data()), bvh.nodes.size() * sizeof(BvhNode)});
-    out.write({reinterpret_cast<const char*>(bvh.triangles.data()), bvh.triangles.size() * sizeof(BvhTriangle)});
+    out.write({reinterpret_cast<const char*>(tree.nodes), tree.node_count * sizeof(BvhNode)});
+    out.write({reinterpret_cast<const char*>(tree.triangles), tree.triangle_count * sizeof(BvhTriangle)});
     out.write({reinterpret_cast<const char*>(&checksum), sizeof checksum});
     out.commit();
     return path;

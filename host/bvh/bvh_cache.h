@@ -2,7 +2,7 @@
 // (atrium's 550k triangles: ~6 s on 2 cores, several times Embree's own build), and the same
 // scene is loaded again and again; the flattened BVH is a few tens of MB to read back.
 //
-// Key: a 64-bit FNV-1a hash of everything the build reads — every triangle's vertices and
+// Key: a 64-bit ContentHash (io/content_hash.h) of everything the build reads — every triangle's vertices and
 // material, the build options — and of the builder itself (a SHA-1 of its sources, set by
 // CMake, and the layouts' sizes), so an edited scene, another option or a changed builder is
 // simply a miss. A file holds a
@@ -44,12 +44,29 @@ class BvhCache {
   // The cached BVH for these triangles and options, or nullopt (miss, or an unreadable file).
   // `validated_layouts` (if given): the bvh_layout_bit of each wide layout validated with the
   // tree before it was stored (0 on a miss).
+  // `key` (if given): the file's key (bvh_input_hash), for a store after a miss.
   std::optional<FlatBvh> load(const TriangleSource& triangles, const BvhBuildOptions& options,
-                              std::uint32_t* validated_layouts = nullptr) const;
+                              std::uint32_t* validated_layouts = nullptr, std::uint64_t* key = nullptr) const;
   // Stores `bvh` (built from these triangles and options), which must have passed validate_bvh
   // with the wide nodes it carries (recorded as validated). Returns the file written, or "" with
   // `why` set when it could not be (a cache never fails a run).
   std::string store(const FlatBvh& bvh, const TriangleSource& triangles, const BvhBuildOptions& options,
+                    std::string* why = nullptr) const;
+  // What a file holds of a tree: the binary nodes and leaf triangles (as built: flags 0), its
+  // statistics and the wide layouts validated with it (bvh_layout_bit). It points into the
+  // tree's arrays: a write on another thread (scene_setup.cpp) holds no copy of them.
+  struct Contents {
+    const BvhNode* nodes = nullptr;
+    std::size_t node_count = 0;
+    const BvhTriangle* triangles = nullptr;
+    std::size_t triangle_count = 0;
+    BvhBuildStats stats;
+    std::uint32_t validated_layouts = 0;
+  };
+  static Contents contents_of(const FlatBvh& bvh);
+  // store() with the key load() gave on its miss (the triangles are not read again: they may be
+  // gone), and the scene's triangle count.
+  std::string store(const Contents& tree, std::uint64_t key, std::size_t scene_triangles,
                     std::string* why = nullptr) const;
   std::string path_for(std::uint64_t key) const;
 

@@ -56,6 +56,8 @@ static_assert(offsetof(TriangleShading, uv0) == 12 && offsetof(TriangleShading, 
 static_assert(offsetof(TriangleShading, uv1) == 32 && offsetof(TriangleShading, n2) == 40);
 static_assert(offsetof(TriangleShading, uv2) == 52 && offsetof(TriangleShading, material) == 60);
 static_assert(sizeof(FlatTriangleShading) == 16 && offsetof(FlatTriangleShading, material) == 12);
+static_assert(sizeof(IndexedTriangleShading) == 16 && offsetof(IndexedTriangleShading, material) == 12);
+static_assert(sizeof(ShadingVertex) == 20 && offsetof(ShadingVertex, uv) == 12);
 
 static_assert(sizeof(GpuMaterial) == 80);
 static_assert(offsetof(GpuMaterial, diffuse_texture) == 12 && offsetof(GpuMaterial, roughness) == 28);

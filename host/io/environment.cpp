@@ -56,6 +56,7 @@ Environment parse_environment(const std::function<const char*(const char*)>& loo
   e.bvh_cache = parse_switch("PARALLAX_BVH_CACHE", lookup("PARALLAX_BVH_CACHE"), e.problems);
   e.cache_dir = text(lookup("PARALLAX_CACHE_DIR"));
   e.huge_pages = parse_switch("PARALLAX_HUGE_PAGES", lookup("PARALLAX_HUGE_PAGES"), e.problems);
+  e.indexed_shading = parse_switch("PARALLAX_INDEXED_SHADING", lookup("PARALLAX_INDEXED_SHADING"), e.problems);
   return e;
 }
 

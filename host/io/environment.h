@@ -19,6 +19,9 @@
 //                                                   parallax, else HOME/.cache/parallax)
 //   PARALLAX_HUGE_PAGES          huge_pages         `off`: large allocations not advised onto
 //                                                   transparent huge pages
+//   PARALLAX_INDEXED_SHADING     indexed_shading    `off`: smooth meshes keep 64-byte shading
+//                                                   records, not indexed ones (the layout
+//                                                   before them, to compare against)
 //
 // The switches take one word for off, `off`; `on` (or an empty value) is the default.
 #pragma once
@@ -38,6 +41,7 @@ struct Environment {
   bool bvh_cache = true;            // PARALLAX_BVH_CACHE
   std::string cache_dir;            // PARALLAX_CACHE_DIR ("" = the default folder)
   bool huge_pages = true;           // PARALLAX_HUGE_PAGES
+  bool indexed_shading = true;      // PARALLAX_INDEXED_SHADING
   // One line per variable whose value was not understood, naming it, the value and what was
   // kept instead.
   std::vector<std::string> problems;

@@ -20,6 +20,9 @@ struct Slot {
 volatile std::sig_atomic_t g_signal = 0;
 constexpr int kMaxPartials = 8;
 Slot g_partials[kMaxPartials]{};
+// Which partial slots are taken: the frame loop's files and the cache writes
+// (background_writes.h) register from two threads.
+std::atomic<bool> g_partial_taken[kMaxPartials]{};
 Slot g_lock{};
 Slot g_dirs[kMaxDirs]{};
 std::atomic<bool> g_installed{false};
@@ -81,14 +84,20 @@ const char* interrupt_signal_name() {
   return "a signal";
 }
 
-// Registration happens on the main thread only; the handler only reads.
+// A thread claims a slot before filling it; the handler only reads.
 int register_partial_file(const char* path) {
   for (int i = 0; i < kMaxPartials; ++i)
-    if (!g_partials[i].set) return fill(g_partials[i], path) ? i : -1;
+    if (!g_partial_taken[i].exchange(true)) {
+      if (fill(g_partials[i], path)) return i;
+      g_partial_taken[i].store(false);
+      return -1;
+    }
   return -1;
 }
 void unregister_partial_file(int slot) {
-  if (slot >= 0 && slot < kMaxPartials) g_partials[slot].set = 0;
+  if (slot < 0 || slot >= kMaxPartials) return;
+  g_partials[slot].set = 0;
+  g_partial_taken[slot].store(false);
 }
 void register_lock_file(const char* path) { fill(g_lock, path); }
 void unregister_lock_file() { g_lock.set = 0; }

@@ -19,7 +19,7 @@ namespace px {
 namespace {
 
 constexpr char kMagic[8] = {'P', 'X', 'D', 'L', 'A', 'Y', '0', '1'};
-constexpr std::uint64_t kFormatVersion = 1;
+constexpr std::uint64_t kFormatVersion = 2;  // 2: shading_records, shading_bytes
 constexpr std::size_t kPage = 4096;
 // The start's sample of the payload: the first kSampleBytes of every sample_stride() bytes, at
 // most kSamples of them. Few, since a mapped file's touched pages count as the process's memory,
@@ -46,6 +46,7 @@ struct DeviceLayoutHeader {
   std::uint64_t nodes_offset, node_bytes, triangles_offset, triangle_count, shading_offset, shading_count;
   std::uint64_t file_bytes;
   std::uint64_t layout_nodes;
+  std::uint64_t shading_records, shading_bytes;  // ShadingRecords; the section's bytes
   std::uint64_t stat_leaf_triangles, stat_nodes, stat_depth, stat_split_budget_exceeded, stat_split_calls;
   double stat_build_ms, stat_collapse_ms, stat_sah_cost;
   std::uint64_t sample_checksum;   // kSampleBytes of every sample_stride() of the payload
@@ -71,6 +72,21 @@ std::uint64_t sample_checksum(const unsigned char* payload, std::size_t n) {
 std::uint64_t payload_checksum(const unsigned char* payload, std::size_t n) { return content_hash(payload, n, 2); }
 
 }  // namespace
+
+const char* to_string(ShadingRecords records) {
+  switch (records) {
+    case ShadingRecords::Full: return "full";
+    case ShadingRecords::Flat: return "flat";
+    case ShadingRecords::Indexed: return "indexed";
+  }
+  return "?";
+}
+
+std::size_t record_size(ShadingRecords records) {
+  return records == ShadingRecords::Full   ? sizeof(TriangleShading)
+         : records == ShadingRecords::Flat ? sizeof(FlatTriangleShading)
+                                           : sizeof(IndexedTriangleShading);
+}
 
 std::uint64_t scene_content_key(const Scene& scene) {
   ContentHash h;
@@ -145,13 +161,18 @@ std::shared_ptr<const MappedDeviceLayout> DeviceLayoutCache::open(std::uint64_t 
       h.node_size == (layout == BvhLayout::Binary ? sizeof(BvhNode) : 4) &&
       (h.triangle_size == sizeof(BvhTriangle) ||
        (h.triangle_size == sizeof(BvhLeafRef) && (layout == BvhLayout::Wide4 || layout == BvhLayout::Wide8))) &&
-      (h.shading_size == sizeof(TriangleShading) || h.shading_size == sizeof(FlatTriangleShading)) &&
+      h.shading_records <= static_cast<std::uint64_t>(ShadingRecords::Indexed) &&
+      h.shading_size == record_size(static_cast<ShadingRecords>(h.shading_records)) &&
+      h.shading_bytes >= h.shading_count * h.shading_size &&
+      (h.shading_records == static_cast<std::uint64_t>(ShadingRecords::Indexed)
+           ? (h.shading_bytes - h.shading_count * h.shading_size) % sizeof(ShadingVertex) == 0
+           : h.shading_bytes == h.shading_count * h.shading_size) &&
       h.leaf_block_size == sizeof(BvhLeafBlock) && h.scene_triangles == scene_triangles &&
       h.shading_count == scene_triangles && h.file_bytes == length && h.nodes_offset == kPage && h.node_bytes > 0 &&
       h.triangle_count > 0 && h.triangles_offset == round_up(h.nodes_offset + h.node_bytes) &&
       h.triangle_count <= (length / h.triangle_size) &&
       h.shading_offset == round_up(h.triangles_offset + h.triangle_count * h.triangle_size) &&
-      h.shading_offset + h.shading_count * h.shading_size == length;
+      h.shading_offset + h.shading_bytes == length;
   if (!header_ok) {
     ::close(fd);
     return nullptr;
@@ -175,6 +196,8 @@ std::shared_ptr<const MappedDeviceLayout> DeviceLayoutCache::open(std::uint64_t 
   m->shading_offset_ = h.shading_offset;
   m->shading_count_ = h.shading_count;
   m->shading_size_ = h.shading_size;
+  m->shading_bytes_ = h.shading_bytes;
+  m->shading_records_ = static_cast<ShadingRecords>(h.shading_records);
   m->payload_checksum_ = h.payload_checksum;
   BvhBuildStats& s = m->stats_;
   s.scene_triangles = h.scene_triangles;
@@ -199,9 +222,11 @@ std::string DeviceLayoutCache::store(std::uint64_t content_key, const BvhBuildOp
   try {
     if (!parts.nodes || parts.node_bytes == 0 || !parts.triangles || parts.triangle_count == 0 ||
         (parts.triangle_size != sizeof(BvhTriangle) && parts.triangle_size != sizeof(BvhLeafRef)) || !parts.shading ||
-        parts.shading_count != scene_triangles ||
-        (parts.shading_size != sizeof(TriangleShading) && parts.shading_size != sizeof(FlatTriangleShading)))
+        parts.shading_count != scene_triangles || parts.shading_size != record_size(parts.shading_records) ||
+        (parts.shading_bytes != 0 && parts.shading_bytes < parts.shading_count * parts.shading_size))
       throw std::invalid_argument("incomplete device layout");
+    const std::size_t shading_bytes =
+        parts.shading_bytes != 0 ? parts.shading_bytes : parts.shading_count * parts.shading_size;
     std::filesystem::create_directories(dir_);
     DeviceLayoutHeader h{};
     std::memcpy(h.magic, kMagic, sizeof kMagic);
@@ -219,7 +244,9 @@ std::string DeviceLayoutCache::store(std::uint64_t content_key, const BvhBuildOp
     h.triangle_count = parts.triangle_count;
     h.shading_offset = round_up(h.triangles_offset + h.triangle_count * h.triangle_size);
     h.shading_count = parts.shading_count;
-    h.file_bytes = h.shading_offset + h.shading_count * h.shading_size;
+    h.shading_records = static_cast<std::uint64_t>(parts.shading_records);
+    h.shading_bytes = shading_bytes;
+    h.file_bytes = h.shading_offset + shading_bytes;
     h.layout_nodes = parts.layout_nodes;
     h.stat_leaf_triangles = parts.stats.leaf_triangles;
     h.stat_nodes = parts.stats.nodes;
@@ -241,7 +268,7 @@ std::string DeviceLayoutCache::store(std::uint64_t content_key, const BvhBuildOp
         {zeros.data(), h.triangles_offset - (h.nodes_offset + h.node_bytes)},
         {parts.triangles, h.triangle_count * h.triangle_size},
         {zeros.data(), h.shading_offset - (h.triangles_offset + h.triangle_count * h.triangle_size)},
-        {parts.shading, h.shading_count * h.shading_size}};
+        {parts.shading, shading_bytes}};
     ContentHash full(2), sample(1);
     const std::size_t stride = sample_stride(h.file_bytes - h.nodes_offset);
     std::size_t at = 0;  // payload offset

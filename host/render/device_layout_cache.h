@@ -25,8 +25,11 @@
 //   nodes   the node buffer's bytes (uint words)
 //   tris    the leaf triangles, triangle_count records of triangle_size bytes: BvhTriangle, or
 //           BvhLeafRef in the Wide4 and Wide8 layouts (DeviceScene::leaf_refs)
-//   shading shading_count records of shading_size bytes (scene order): TriangleShading, or
-//           FlatTriangleShading for a scene of flat, untextured triangles (DeviceScene::flat_shading)
+//   shading shading_count records of shading_size bytes (scene order): TriangleShading,
+//           FlatTriangleShading for a scene of flat, untextured triangles (DeviceScene::flat_shading),
+//           or IndexedTriangleShading and then its vertex table for a smooth mesh
+//           (DeviceScene::indexed_shading): shading_bytes in all, the header's shading_records
+//           says which
 #pragma once
 
 #include "bvh/bvh_builder.h"
@@ -42,6 +45,13 @@
 #include <vector>
 
 namespace px {
+
+// The shading buffer's records (types.h): TriangleShading (64 bytes), FlatTriangleShading (16:
+// every triangle flat and untextured), or IndexedTriangleShading (16) followed by its table of
+// ShadingVertex (20 bytes each: a smooth mesh's vertices).
+enum class ShadingRecords : std::uint32_t { Full = 0, Flat = 1, Indexed = 2 };
+const char* to_string(ShadingRecords records);  // "full", "flat", "indexed"
+std::size_t record_size(ShadingRecords records);
 
 // A hash of what the device layout of `scene` depends on, whatever the node layout: its
 // triangles (all attributes) and each material's triangle flags. device_layout_key() adds the
@@ -68,10 +78,13 @@ class MappedDeviceLayout {
   const void* triangles() const { return at(triangles_offset_); }
   std::size_t triangle_count() const { return triangle_count_; }
   std::size_t triangle_size() const { return triangle_size_; }
-  // The shading records: shading_count of shading_size bytes (TriangleShading or FlatTriangleShading).
+  // The shading records: shading_count of shading_size bytes (ShadingRecords says which), and
+  // for indexed records their vertex table after them: shading_bytes in all.
   const void* shading() const { return at(shading_offset_); }
   std::size_t shading_count() const { return shading_count_; }
   std::size_t shading_size() const { return shading_size_; }
+  std::size_t shading_bytes() const { return shading_bytes_; }
+  ShadingRecords shading_records() const { return shading_records_; }
   std::size_t file_bytes() const { return length_; }
   const std::string& path() const { return path_; }
 
@@ -91,7 +104,8 @@ class MappedDeviceLayout {
   std::size_t layout_nodes_ = 0;
   std::size_t nodes_offset_ = 0, node_bytes_ = 0;
   std::size_t triangles_offset_ = 0, triangle_count_ = 0, triangle_size_ = sizeof(BvhTriangle);
-  std::size_t shading_offset_ = 0, shading_count_ = 0, shading_size_ = sizeof(TriangleShading);
+  std::size_t shading_offset_ = 0, shading_count_ = 0, shading_size_ = sizeof(TriangleShading), shading_bytes_ = 0;
+  ShadingRecords shading_records_ = ShadingRecords::Full;
   std::uint64_t payload_checksum_ = 0;
 };
 
@@ -108,6 +122,10 @@ struct DeviceLayoutParts {
   const void* shading = nullptr;                    // shading_count records of shading_size bytes (scene order)
   std::size_t shading_count = 0;
   std::size_t shading_size = sizeof(TriangleShading);  // or sizeof(FlatTriangleShading)
+  ShadingRecords shading_records = ShadingRecords::Full;
+  // The shading section's bytes: the records, and for indexed ones their vertex table (0: the
+  // records alone, shading_count * shading_size).
+  std::size_t shading_bytes = 0;
 };
 
 class DeviceLayoutCache {

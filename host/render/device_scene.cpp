@@ -1,6 +1,7 @@
 #include "render/device_scene.h"
 
 #include "render/device_buffers.h"
+#include "render/indexed_shading.h"
 #include "render/light_tree.h"
 
 #include "bvh/bvh_validator.h"
@@ -103,7 +104,8 @@ std::string DeviceScene::kernel_options() const {
   char features[16];
   std::snprintf(features, sizeof features, "0x%03x", kernel_features());
   return "-DPX_BVH_WIDTH=" + std::to_string(bvh_layout_width(layout_)) + " -DPX_FEATURES=" + features +
-         (leaf_refs_ ? " -DPX_LEAF_REFS=1" : "") + (flat_shading_ ? " -DPX_FLAT_SHADING=1" : "");
+         (leaf_refs_ ? " -DPX_LEAF_REFS=1" : "") + (flat_shading() ? " -DPX_FLAT_SHADING=1" : "") +
+         (indexed_shading() ? " -DPX_INDEXED_SHADING=1" : "");
 }
 
 namespace {
@@ -169,6 +171,8 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
                          const std::function<std::vector<SceneTriangle>()>& take_triangles) {
   const auto layout_start = std::chrono::steady_clock::now();
   const bool instanced = !scene.instancing.empty();
+  // This constructor changes the tree from its first step (a BVH cache write may read it).
+  if (store.before_tree_changes && (instanced || scene.rig || !take_triangles)) store.before_tree_changes();
   if (!instanced && !scene.rig && take_triangles) {
     std::shared_ptr<HostPart> host = prepare_host(scene, take_triangles);
     // lay_out_static counts the host part's time itself.
@@ -289,28 +293,12 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
              std::move(instance_words), std::move(tables), tri_flags, layout_start);
 }
 
-void DeviceScene::store_layout(const DeviceLayoutStore& store, const DeviceLayoutParts& parts,
-                               std::size_t scene_triangles) {
-  const auto t = std::chrono::steady_clock::now();
-  std::string why;
-  std::string path;
-  {
-    const ProgressTicker ticker(store.quiet ? "" : "[bvh] still writing the device layout cache");
-    path = store.cache->store(store.content_key, store.options, scene_triangles, parts, &why);
-  }
-  layout_store_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
-  if (!store.quiet && !path.empty())
-    std::fprintf(stderr, "[bvh] the %s device layout cached in %s for the next run (%.0f ms)\n",
-                 to_string(parts.layout), path.c_str(), layout_store_ms_);
-  if (!store.quiet && path.empty())
-    std::fprintf(stderr, "[bvh] warning: could not cache the device layout (%s)\n", why.c_str());
-}
-
 // The device-independent part of a static scene's layout (prepare_host).
 struct DeviceScene::HostPart {
   std::vector<std::uint32_t> tri_flags;
   SceneTables tables;
-  HostBytes shading;  // TriangleShading or FlatTriangleShading records (shading.element says which)
+  HostBytes shading;  // the records (and an indexed one's vertex table)
+  ShadingRecords records = ShadingRecords::Full;
   std::size_t scene_triangles = 0;
   double ms = 0.0;  // the time it took, counted in layout_ms()
 };
@@ -328,6 +316,13 @@ std::shared_ptr<DeviceScene::HostPart> DeviceScene::prepare_flat_host(
   return make_host_part(scene, take_triangles, &corners);
 }
 
+std::shared_ptr<DeviceScene::HostPart> DeviceScene::prepare_host_before_tree(
+    const Scene& scene, const std::function<std::vector<SceneTriangle>()>& take_triangles, BuildCorners& corners) {
+  require_static_scene(scene, take_triangles);
+  if (!environment().indexed_shading && !has_flat_shading(scene.triangles)) return nullptr;
+  return make_host_part(scene, take_triangles, &corners);
+}
+
 std::shared_ptr<DeviceScene::HostPart> DeviceScene::make_host_part(
     const Scene& scene, const std::function<std::vector<SceneTriangle>()>& take_triangles, BuildCorners* corners) {
   const auto start = std::chrono::steady_clock::now();
@@ -340,20 +335,42 @@ std::shared_ptr<DeviceScene::HostPart> DeviceScene::make_host_part(
   if (n != host->scene_triangles)
     throw std::logic_error("DeviceScene: take_triangles handed over " + std::to_string(n) +
                            " triangles, not the scene's " + std::to_string(host->scene_triangles));
-  if (corners) {
+  const bool flat = has_flat_shading(taken);
+  const bool indexed = !flat && environment().indexed_shading;
+  const auto corner_of = [](const SceneTriangle& t) { return BuildTriangle{{t.p[0], t.p[1], t.p[2]}, t.material}; };
+  if (corners && flat) {
     // The records to a block of their own, the corners over the triangles (in the order
     // records_in_place reads them).
     auto records = std::make_shared<std::vector<FlatTriangleShading>>();
     records->reserve(n);
-    const HostBytes packed = records_in_place<BuildTriangle>(std::move(taken), [&records](const SceneTriangle& t) {
+    const HostBytes packed = records_in_place<BuildTriangle>(std::move(taken), [&](const SceneTriangle& t) {
       records->push_back(flat_shading_of(t));
-      return BuildTriangle{{t.p[0], t.p[1], t.p[2]}, t.material};
+      return corner_of(t);
     });
     host->shading = {records->data(), n * sizeof(FlatTriangleShading), sizeof(FlatTriangleShading), records};
+    host->records = ShadingRecords::Flat;
     *corners = {packed.owner, static_cast<const BuildTriangle*>(packed.data), n};
+  } else if (indexed) {
+    IndexedShadingBuilder builder(n);
+    if (corners) {
+      const HostBytes packed = records_in_place<BuildTriangle>(std::move(taken), [&](const SceneTriangle& t) {
+        builder.add(t);
+        return corner_of(t);
+      });
+      *corners = {packed.owner, static_cast<const BuildTriangle*>(packed.data), n};
+    } else {
+      for (const SceneTriangle& t : taken) builder.add(t);
+      std::vector<SceneTriangle>().swap(taken);
+    }
+    IndexedShadingBuilder::Result made = builder.finish();
+    host->shading = std::move(made.bytes);
+    host->records = made.indexed ? ShadingRecords::Indexed : ShadingRecords::Full;
+  } else if (flat) {
+    host->shading = flat_shading_in_place(std::move(taken));
+    host->records = ShadingRecords::Flat;
   } else {
-    host->shading =
-        has_flat_shading(taken) ? flat_shading_in_place(std::move(taken)) : shading_in_place(std::move(taken));
+    if (corners) throw std::logic_error("DeviceScene: corners asked for full records");
+    host->shading = shading_in_place(std::move(taken));
   }
   host->ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return host;
@@ -362,7 +379,10 @@ std::shared_ptr<DeviceScene::HostPart> DeviceScene::make_host_part(
 DeviceScene::DeviceScene(DeviceSet& devices, std::shared_ptr<HostPart> host, const Scene& scene, FlatBvh bvh,
                          const DeviceLayoutStore& store) {
   const auto layout_start = std::chrono::steady_clock::now();
-  if (!host) throw std::logic_error("DeviceScene: no host part");
+  if (!host) {
+    if (store.before_tree_changes) store.before_tree_changes();
+    throw std::logic_error("DeviceScene: no host part");
+  }
   lay_out_static(devices, scene, std::move(bvh), std::move(host), store, layout_start);
 }
 
@@ -371,10 +391,17 @@ void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh
   const BvhLayout layout = devices.bvh_layout();
   layout_ = layout;
   const std::size_t scene_triangles = host->scene_triangles;
-  set_triangle_flags(bvh, host->tri_flags);
+  // A BVH cache write may be reading the tree (store.before_tree_changes): nothing below changes
+  // or frees it before that write is done, nor does a throw free it before.
+  struct TreeReaders {
+    const std::function<void()>& done;
+    ~TreeReaders() {
+      if (done) done();
+    }
+  } tree_readers{store.before_tree_changes};
   // The scene's triangles are shading records now: nodes the tree lacks (load_and_build leaves
   // the wide ones to here) are made and validated against the leaf triangles, which the loader's
-  // validator has found to be copies of the scene's.
+  // validator has found to be copies of the scene's. Neither reads the triangles' flags.
   if (!has_layout(bvh, layout)) {
     ensure_layout(bvh, layout);
     const BvhValidation check = validate_layout_from_leaves(bvh, scene_triangles);
@@ -383,6 +410,8 @@ void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh
           std::string("internal error: the ") + to_string(layout) +
           " nodes of the scene's BVH failed validation: " + (check.errors.empty() ? "" : check.errors.front()));
   }
+  if (store.before_tree_changes) store.before_tree_changes();
+  set_triangle_flags(bvh, host->tri_flags);
   const std::size_t layout_nodes = layout == BvhLayout::Wide4         ? bvh.nodes4.size()
                                    : layout == BvhLayout::Wide8       ? bvh.nodes8.size()
                                    : layout == BvhLayout::Compressed8 ? bvh.cnodes.size()
@@ -401,22 +430,7 @@ void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh
     node_bytes = owned_bytes(device_wide_nodes(bvh, layout));
     release_nodes(bvh, std::nullopt);
   }
-  if (store.cache && store.cache->enabled()) {
-    // The layout as it goes to the devices, for the next start to map (device_layout_cache.h).
-    DeviceLayoutParts parts;
-    parts.layout = layout;
-    parts.stats = bvh.stats;
-    parts.layout_nodes = layout_nodes;
-    parts.nodes = layout == BvhLayout::Binary ? static_cast<const void*>(bvh.nodes.data()) : node_bytes.data;
-    parts.node_bytes = layout == BvhLayout::Binary ? bvh.nodes.size() * sizeof(BvhNode) : node_bytes.bytes;
-    parts.triangles = leaf_refs_ ? static_cast<const void*>(refs.data()) : bvh.triangles.data();
-    parts.triangle_count = leaf_refs_ ? refs.count : bvh.triangles.size();
-    parts.triangle_size = leaf_refs_ ? sizeof(BvhLeafRef) : sizeof(BvhTriangle);
-    parts.shading = host->shading.data;
-    parts.shading_size = host->shading.element;
-    parts.shading_count = host->shading.bytes / parts.shading_size;
-    store_layout(store, parts, scene_triangles);
-  }
+  const BvhBuildStats stats = bvh.stats;
   if (layout == BvhLayout::Binary) node_bytes = owned_bytes(std::move(bvh.nodes));
   HostBytes triangle_bytes;
   if (leaf_refs_) {
@@ -425,9 +439,27 @@ void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh
   } else {
     triangle_bytes = owned_bytes(std::move(bvh.triangles));
   }
+  if (store.cache && store.cache->enabled()) {
+    // The layout as it goes to the devices, for the next start to map (device_layout_cache.h).
+    DeviceLayoutParts parts;
+    parts.layout = layout;
+    parts.stats = stats;
+    parts.layout_nodes = layout_nodes;
+    parts.nodes = node_bytes.data;
+    parts.node_bytes = node_bytes.bytes;
+    parts.triangles = triangle_bytes.data;
+    parts.triangle_size = triangle_bytes.element;
+    parts.triangle_count = triangle_bytes.bytes / triangle_bytes.element;
+    parts.shading = host->shading.data;
+    parts.shading_size = host->shading.element;
+    parts.shading_count = scene_triangles;
+    parts.shading_records = host->records;
+    parts.shading_bytes = host->shading.bytes;
+    store_layout(store, parts, scene_triangles, {node_bytes.owner, triangle_bytes.owner, host->shading.owner});
+  }
   light_count_ = host->tables.light_count;
   scene_features_ = host->tables.features;
-  flat_shading_ = host->shading.element == sizeof(FlatTriangleShading);
+  shading_records_ = host->records;
   // The host part's time (made before the devices, when it was) is part of the layout's.
   layout_start -= std::chrono::duration_cast<std::chrono::steady_clock::duration>(
       std::chrono::duration<double, std::milli>(host->ms));
@@ -455,8 +487,8 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, std::shared_ptr
   leaf_refs_ = mapped->triangle_size() == sizeof(BvhLeafRef);
   HostBytes triangles{mapped->triangles(), mapped->triangle_count() * mapped->triangle_size(), mapped->triangle_size(),
                       owner};
-  flat_shading_ = mapped->shading_size() == sizeof(FlatTriangleShading);
-  HostBytes shading{mapped->shading(), mapped->shading_count() * mapped->shading_size(), mapped->shading_size(), owner};
+  shading_records_ = mapped->shading_records();
+  HostBytes shading{mapped->shading(), mapped->shading_bytes(), mapped->shading_size(), owner};
   SceneTables tables = make_tables(scene, tri_flags, false);
   light_count_ = tables.light_count;
   scene_features_ = tables.features;

@@ -14,6 +14,7 @@
 #include "bvh/flat_bvh.h"
 #include "bvh/top_level_bvh.h"
 #include "cl/device_set.h"
+#include "io/background_writes.h"
 #include "render/device_layout_cache.h"
 #include "render/kernel_features.h"
 #include "render/light_tree.h"
@@ -56,6 +57,14 @@ struct DeviceLayoutStore {
   std::uint64_t content_key = 0;  // scene_content_key(scene)
   BvhBuildOptions options;        // those the tree was built with
   bool quiet = true;              // else say where it went (stderr)
+  // A static scene laid out from its host part (prepare_host) is written there on a thread of
+  // its own once the first frame is on its way (BackgroundWrites::Start::AfterFirstFrame), from
+  // the arrays the devices got (CPU devices read those very arrays; a GPU set's are kept for
+  // the write); null, or any other scene: written before the constructor returns.
+  BackgroundWrites* background = nullptr;
+  // Called before the constructor first changes or frees the tree it was handed, and before it
+  // throws: a BVH cache write may still be reading it (scene_setup.cpp). Null: none.
+  std::function<void()> before_tree_changes;
 };
 
 class DeviceScene {
@@ -110,6 +119,12 @@ class DeviceScene {
   static std::shared_ptr<HostPart> prepare_flat_host(const Scene& scene,
                                                      const std::function<std::vector<SceneTriangle>()>& take_triangles,
                                                      BuildCorners& corners);
+  // prepare_flat_host for flat scenes and, as well, for smooth ones (the rest): their indexed
+  // records (indexed_shading(), indexed_shading.h) go to a block of their own and the corners
+  // where the triangles were, the same way. Null only where PARALLAX_INDEXED_SHADING=off keeps
+  // a smooth scene's 64-byte records (made after its tree, as before indexed records).
+  static std::shared_ptr<HostPart> prepare_host_before_tree(
+      const Scene& scene, const std::function<std::vector<SceneTriangle>()>& take_triangles, BuildCorners& corners);
   // A static scene without instances whose layout a start mapped from the cache
   // (DeviceLayoutCache::open) in the set's layout: its sections are the node, triangle and
   // shading buffers (CPU devices read the mapping itself), nothing is laid out.
@@ -166,7 +181,14 @@ class DeviceScene {
   // and the material) instead of TriangleShading (64): a static scene without instances, handed
   // over or mapped, whose every triangle is flat and has no texture coordinates
   // (has_flat_shading). kernel_options() then says PX_FLAT_SHADING; the images are the same.
-  bool flat_shading() const { return flat_shading_; }
+  bool flat_shading() const { return shading_records_ == ShadingRecords::Flat; }
+  // Whether it holds IndexedTriangleShading records and their vertex table (types.h: 16 bytes a
+  // triangle and 20 a distinct vertex): a static scene without instances, handed over or mapped,
+  // whose triangles are not all flat (a smooth mesh), unless PARALLAX_INDEXED_SHADING=off or
+  // its vertices share too little to pay. kernel_options() then says PX_INDEXED_SHADING; the
+  // images are the same.
+  bool indexed_shading() const { return shading_records_ == ShadingRecords::Indexed; }
+  ShadingRecords shading_records() const { return shading_records_; }
   // The build options of the scene-dependent kernels (path tracers, G-buffer, trace, preview):
   // the node layout and the PX_FEATURES the kernels carry (kernel_features.h).
   std::string kernel_options() const;
@@ -180,7 +202,8 @@ class DeviceScene {
 
  private:
   // prepare_host's and prepare_flat_host's work, once they checked the scene is static: with
-  // `corners`, the flat records go to a block of their own and the corners over the triangles.
+  // `corners`, the flat or indexed records go to a block of their own and the corners over the
+  // triangles.
   static std::shared_ptr<HostPart> make_host_part(const Scene& scene,
                                                   const std::function<std::vector<SceneTriangle>()>& take_triangles,
                                                   BuildCorners* corners);
@@ -205,7 +228,10 @@ class DeviceScene {
   void lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh bvh, std::shared_ptr<HostPart> host,
                       const DeviceLayoutStore& store, std::chrono::steady_clock::time_point layout_start);
   // Writes `parts` to the store's cache, saying so unless quiet; layout_store_ms_ is its time.
-  void store_layout(const DeviceLayoutStore& store, const DeviceLayoutParts& parts, std::size_t scene_triangles);
+  // With the store's background writes and `keep` (the owners of the arrays `parts` points
+  // into), on their thread instead (layout_store_ms_ 0; their busy_ms() says).
+  void store_layout(const DeviceLayoutStore& store, const DeviceLayoutParts& parts, std::size_t scene_triangles,
+                    std::vector<std::shared_ptr<const void>> keep = {});
   // ... and the upload of everything.
   void upload_all(DeviceSet& devices, const Scene& scene, HostBytes nodes, HostBytes triangles, HostBytes shading,
                   std::vector<std::uint32_t> instance_words, SceneTables tables,
@@ -234,7 +260,7 @@ class DeviceScene {
   double layout_store_ms_ = 0.0;
   BvhLayout layout_ = BvhLayout::Binary;
   bool leaf_refs_ = false;
-  bool flat_shading_ = false;
+  ShadingRecords shading_records_ = ShadingRecords::Full;
   std::uint32_t scene_features_ = PX_FEATURES_ALL;
   KernelChoice choice_ = KernelChoice::Scene;
 };

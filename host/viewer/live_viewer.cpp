@@ -94,6 +94,8 @@ void render_loop(const ViewCommand& cmd, RenderSession& session, SceneAnimator& 
       animator.update(scripted ? frame_clock.time_s(f) : path_time, session.devices, session.device_scene);
       const Camera camera = flying ? fly : evaluate_camera(scene, t);
       const FrameQuality quality = pipeline.quality();
+      // The cache files the next start reads are written beside the first frame (scene_setup.h).
+      if (f == 0) session.first_frame_on_its_way();
       const FrameStats st = pipeline.render(f, camera);
       // Frame 0 compiles the kernels (seconds on PoCL): it says nothing about the frame time.
       if (controller && f > 0) pipeline.set_quality(controller->update(quality, StereoPipeline::frame_cost(st)));

@@ -7,8 +7,10 @@
 
 typedef struct SceneView {
   const global BvhNode* nodes;
-  const global PxLeafTriangle* tris;       /* leaf order: BvhTriangle, or BvhLeafRef (PX_LEAF_REFS) */
-  const global PxTriangleShading* shading; /* TriangleShading, or FlatTriangleShading (PX_FLAT_SHADING) */
+  const global PxLeafTriangle* tris; /* leaf order: BvhTriangle, or BvhLeafRef (PX_LEAF_REFS) */
+  /* TriangleShading, FlatTriangleShading (PX_FLAT_SHADING) or IndexedTriangleShading with its
+   * vertex table after the records (PX_INDEXED_SHADING) */
+  const global PxTriangleShading* shading;
   const global GpuMaterial* materials;
   const global TextureInfo* textures;
   const global float4* texels;
@@ -57,10 +59,21 @@ inline float3 px_load3(const global float* p) { return (float3)(p[0], p[1], p[2]
 inline float3 px_load3_private(const float* p) { return (float3)(p[0], p[1], p[2]); }
 
 /* Vertex k's shading normal and texture coordinates in a scene triangle's shading record. A
- * flat record (PX_FLAT_SHADING) has one normal for the three and no texture coordinates. */
+ * flat record (PX_FLAT_SHADING) has one normal for the three and no texture coordinates; an
+ * indexed one (PX_INDEXED_SHADING) points to its vertices' entries. */
 #if defined(PX_FLAT_SHADING) && PX_FLAT_SHADING
 inline float3 px_shading_normal(const global PxTriangleShading* sh, int k) { return px_load3(sh->n); }
 inline float2 px_shading_uv(const global PxTriangleShading* sh, int k) { return (float2)(0.0f, 0.0f); }
+#elif defined(PX_INDEXED_SHADING) && PX_INDEXED_SHADING
+/* An indexed record (types.h: IndexedTriangleShading): vertex k's ShadingVertex lies sh->v[k]
+ * floats past the record. */
+inline float3 px_shading_normal(const global PxTriangleShading* sh, int k) {
+  return px_load3((const global float*)sh + sh->v[k]);
+}
+inline float2 px_shading_uv(const global PxTriangleShading* sh, int k) {
+  const global float* e = (const global float*)sh + sh->v[k];
+  return (float2)(e[3], e[4]);
+}
 #else
 inline float3 px_shading_normal(const global PxTriangleShading* sh, int k) {
   return px_load3(k == 0 ? sh->n0 : k == 1 ? sh->n1 : sh->n2);

@@ -367,44 +367,8 @@ typedef struct Hit {
 #define PX_NO_INSTANCE 0xffffffffu
 #define PX_NO_HIT 0xffffffffu
 
-/* Per-scene-triangle shading attributes, 64 bytes, indexed by Hit::prim (scene order, not
- * leaf order: traversal never reads them, only shading does).
- *
- *   0..11 n0[3]  12..19 uv0[2]  20..31 n1[3]  32..39 uv1[2]  40..51 n2[3]  52..59 uv2[2]
- *  60..63 material */
-typedef struct TriangleShading {
-  float n0[3];
-  float uv0[2];
-  float n1[3];
-  float uv1[2];
-  float n2[3];
-  float uv2[2];
-  uint material;
-} TriangleShading;
-
-/* The shading record of a scene whose every triangle is flat (its three vertex normals the
- * same bits) and has no texture coordinates (all six +0): 16 bytes instead of 64. Such a scene
- * (a mesh without NORMAL and TEXCOORD_0, e.g. a scanned or generated heightfield) has nothing
- * per vertex to shade with, and a full record would repeat the normal three times beside six
- * zeros: at 10M triangles 458 MiB of 610 on every device. Kernels built with PX_FLAT_SHADING read
- * these (DeviceScene::flat_shading); they compute the same expressions as with full records,
- * with n for n0, n1 and n2 and zero uvs, so the images are the same bits.
- *
- *   0..11 n[3]  12..15 material */
-typedef struct FlatTriangleShading {
-  float n[3];
-  uint material;
-} FlatTriangleShading;
-
-#ifdef __OPENCL_C_VERSION__
-/* The shading buffer's element type as kernels see it (read through px_shading_normal and
- * px_shading_uv, kernels/scene/scene_view.h). */
-#if defined(PX_FLAT_SHADING) && PX_FLAT_SHADING
-typedef FlatTriangleShading PxTriangleShading;
-#else
-typedef TriangleShading PxTriangleShading;
-#endif
-#endif
+/* The shading records (TriangleShading and its flat and indexed forms). */
+#include "shared/shading_records.h"
 
 /* Material as the kernels read it, 80 bytes.
  *
