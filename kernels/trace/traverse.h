@@ -390,7 +390,7 @@ inline int px_intersect_block(const SceneView* scene, const global float* block,
   const uint first = header[0];
   if (PX_HAS(PX_FEATURE_ALPHA_TEST) && (header[2] & PX_TRI_ALPHA_TESTED))
     return px_intersect_leaf(scene, block, first, count, s, tmin, best);
-  const float ox = px_axis(s->org, s->kx), oy = px_axis(s->org, s->ky), oz = px_axis(s->org, s->kz);
+  const float ox = s->ox, oy = s->oy, oz = s->oz;
   const int kx = 4 * s->kx, ky = 4 * s->ky, kz = 4 * s->kz;
   const float4 az = vload4(0, block + kz) - oz;
   const float4 bz = vload4(0, block + 12 + kz) - oz;
