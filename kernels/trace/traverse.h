@@ -362,12 +362,9 @@ inline uint px_wide_boxes(const global float* node, const WideRay* w, float tmin
                        tmin, tmax, t_enter);
 }
 
-/* Slot i's stack entry: node index, or leaf block offset in 16-byte units | count << 29. */
-inline uint pxw_child_entry(const global float* node, uint i) {
-  const global uint* child = (const global uint*)(node + 6 * PXW);
-  const global uint* count = (const global uint*)(node + 7 * PXW);
-  return child[i] | (count[i] << 29);
-}
+/* Slot i's stack entry: node index, or leaf block offset in 16-byte units | count << 29, as the
+ * device form's child row holds it (types.h). */
+inline uint pxw_child_entry(const global float* node, uint i) { return ((const global uint*)(node + 6 * PXW))[i]; }
 
 /* The child / count rows are read only after the box test: start their miss now. */
 inline void pxw_prefetch_node_rest(const global float* node) { PX_PREFETCH(node + 6 * PXW); }
