@@ -429,6 +429,16 @@ inline int px_intersect_block(const SceneView* scene, const global float* block,
   return 1;
 }
 
+/* Traversal counters for bench_trace --counters (a build with -DPX_TRACE_COUNTERS=1; never in
+ * a renderer's build): px_tree_closest then returns in hit.inst the nodes visited (bits 0..7),
+ * leaf blocks intersected (8..15), child boxes hit (16..23) and stack pushes (24..31) of the
+ * ray, each saturating at 255. Scenes with instances use inst for the instance: not counted. */
+#if defined(PX_TRACE_COUNTERS) && PX_TRACE_COUNTERS
+#define PX_COUNT(counter, n) ((counter) = min((counter) + (uint)(n), 255u))
+#else
+#define PX_COUNT(counter, n)
+#endif
+
 /* Closest hit. Stack entries are nodes or leaves (a leaf as its block's offset in 16-byte
  * units | count << 29; DeviceScene keeps offsets below 2^29), each with its entry distance.
  * Of a node's hit children the nearest is visited next without touching the stack (a single
@@ -453,14 +463,20 @@ inline Hit px_tree_closest(const SceneView* scene, float3 org, float3 dir, float
   float stack_t[PXW_STACK];
   int sp = 0;
   uint entry = 0;
+#if defined(PX_TRACE_COUNTERS) && PX_TRACE_COUNTERS
+  uint n_nodes = 0u, n_leaves = 0u, n_hits = 0u, n_pushes = 0u;
+#endif
   for (;;) {
     if (entry >> 29) {
+      PX_COUNT(n_leaves, 1);
       px_intersect_block(scene, nodes + (size_t)(entry & 0x1fffffffu) * 4, entry >> 29, &shear, tmin, &best);
     } else {
       const global float* node = nodes + (size_t)entry * PXW_NODE_FLOATS;
       pxw_prefetch_node_rest(node);
       pxw_float enter_v;
       uint mask = px_wide_boxes(node, &wray, tmin, best.t, &enter_v);
+      PX_COUNT(n_nodes, 1);
+      PX_COUNT(n_hits, popcount(mask));
       if (mask != 0u) {
         uint i = px_lowest_bit(mask);
         mask &= mask - 1u;
@@ -488,6 +504,7 @@ inline Hit px_tree_closest(const SceneView* scene, float3 org, float3 dir, float
           }
           px_prefetch_entry(nodes, e);
           if (sp >= PXW_STACK) break; /* unreachable for validated trees */
+          PX_COUNT(n_pushes, 1);
           int j = sp++;
           while (j > base && stack_t[j - 1] < t) {
             stack_t[j] = stack_t[j - 1];
@@ -512,6 +529,9 @@ inline Hit px_tree_closest(const SceneView* scene, float3 org, float3 dir, float
     }
     if (!found) break;
   }
+#if defined(PX_TRACE_COUNTERS) && PX_TRACE_COUNTERS
+  best.inst = n_nodes | n_leaves << 8 | n_hits << 16 | n_pushes << 24;
+#endif
   return best;
 }
 
