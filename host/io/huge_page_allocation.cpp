@@ -62,10 +62,11 @@ void advise_huge_pages(void* p, std::size_t n) {
 }
 
 // Large blocks start on a cache line. glibc serves them with mmap, whose chunk header puts the
-// block 16 bytes past a page boundary, so each 64-byte line of an array in it straddled two
+// block 16 bytes past a page boundary, so every 64 bytes of an array in it straddled two
 // lines: a 256-byte 8-wide BVH node then spans 5 lines, half its 32-byte plane rows are split
 // loads, and a 160-byte leaf block spans 4 lines every other block (CPU devices read the node
-// buffer in place: CL_MEM_USE_HOST_PTR). posix_memalign'd memory goes back through free.
+// buffer in place: CL_MEM_USE_HOST_PTR; docs/measurements.md, "Where the trace kernel loses to
+// Embree"). posix_memalign'd memory goes back through free.
 constexpr std::size_t kLineAlignFrom = std::size_t{64} << 10;
 constexpr std::size_t kCacheLine = 64;
 
