@@ -13,6 +13,9 @@
 //   build/bench_trace --scene atrium --width 640 --height 360 --devices 1 --repeats 7 [--csv F]
 //   build/bench_trace --layout binary --layout wide4 --layout wide8 --layout cwbvh
 // Each layout's node memory (nodes, and the leaf blocks the wide layouts append) goes to stderr.
+// --counters also traces each wide layout's ray sets once with a kernel built with
+// PX_TRACE_COUNTERS (kernels/trace/traverse.h) and prints the mean nodes, leaf blocks, child
+// boxes hit and stack pushes per ray (untimed).
 #include "app/guarded_main.h"
 #include "app/scene_setup.h"
 #include "bench_common.h"
@@ -104,6 +107,17 @@ std::vector<Row> measure(const std::string& scene_name, const std::string& set_n
   return rows;
 }
 
+// Mean per-ray traversal counters of a PX_TRACE_COUNTERS kernel's hits (types in traverse.h).
+void print_counters(const std::string& scene, const std::string& set, const char* layout,
+                    const std::vector<px::Hit>& hits) {
+  double sum[4] = {0, 0, 0, 0};
+  for (const px::Hit& h : hits)
+    for (int k = 0; k < 4; ++k) sum[k] += (h.inst >> (8 * k)) & 255u;
+  const double n = std::max<double>(1.0, static_cast<double>(hits.size()));
+  std::printf("counters %-10s %-15s %-7s nodes %.2f leaves %.2f child-hits %.2f pushes %.2f per ray\n", scene.c_str(),
+              set.c_str(), layout, sum[0] / n, sum[1] / n, sum[2] / n, sum[3] / n);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -123,6 +137,10 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--threads", threads, "Embree threads (std::thread chunks)")->capture_default_str();
   app.add_option("--csv", csv, "also write the table as CSV");
+  bool counters = false;
+  app.add_flag("--counters", counters,
+               "also print the wide layouts' mean nodes, leaf blocks, child hits and pushes per ray (a counting "
+               "kernel build, untimed)");
   app.add_option("--layout", layout_names,
                  "BVH node layouts to trace, side by side (binary, wide4, wide8, cwbvh; repeatable; default: the "
                  "device type's)");
@@ -177,6 +195,12 @@ int main(int argc, char** argv) {
       for (auto& r : measure(name, "primary", primary, tracers, layouts, embree, repeats, threads)) rows.push_back(r);
       for (auto& r : measure(name, "diffuse-bounce", bounce, tracers, layouts, embree, repeats, threads))
         rows.push_back(r);
+      for (std::size_t l = 0; counters && l < layouts.size(); ++l) {
+        if (layouts[l] == px::BvhLayout::Binary) continue;
+        px::RayBatchTracer counting(*sets[l], *scenes_per_layout[l], "-DPX_TRACE_COUNTERS=1");
+        print_counters(name, "primary", px::to_string(layouts[l]), counting.closest(primary));
+        print_counters(name, "diffuse-bounce", px::to_string(layouts[l]), counting.closest(bounce));
+      }
     }
     std::printf("\n%-10s %-15s %-7s %9s %12s %12s %12s %12s %8s %6s\n", "scene", "rays", "layout", "count", "kernel",
                 "kernel+io", "embree", "embree-1t", "ratio", "diff");

@@ -939,10 +939,12 @@ TEST(WideBvh, DeviceFormHoldsEveryLeafAsABlock) {
         continue;
       }
       ++leaves;
-      ASSERT_GE(dev.child[i], node_units);
-      ASSERT_LE((dev.child[i] * 16 + sizeof(BvhLeafBlock)) / 4, words.size());
+      EXPECT_EQ(dev.child[i] >> 29, host.count[i]) << "a leaf slot's entry carries its count";
+      const std::uint32_t block = dev.child[i] & 0x1fffffffu;
+      ASSERT_GE(block, node_units);
+      ASSERT_LE((block * 16 + sizeof(BvhLeafBlock)) / 4, words.size());
       BvhLeafBlock b;
-      std::memcpy(&b, words.data() + dev.child[i] * 4, sizeof b);
+      std::memcpy(&b, words.data() + block * 4, sizeof b);
       EXPECT_EQ(b.first, host.child[i]);
       EXPECT_EQ(b.count, host.count[i]);
       std::uint32_t flags = 0;

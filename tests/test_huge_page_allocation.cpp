@@ -11,6 +11,7 @@
 #include <memory>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace px {
 bool huge_page_allocation_compiled_in();
@@ -57,6 +58,20 @@ TEST(HugePageAllocation, ALargeBlockIsBackedByHugePagesOnceWritten) {
   ASSERT_GE(kb, 0) << "no mapping holds the block";
   // Whole 2 MiB pages inside the block, less what the kernel could not find free at the time.
   EXPECT_GE(kb, static_cast<long>(kBytes / 1024 / 2)) << "THP setting '" << setting << "'";
+}
+
+// Large arrays (the device layout's node buffer, which CPU devices read in place) start on a
+// 64-byte cache line; glibc's mmap'd blocks alone start 16 bytes past one. Several sizes, as the
+// block a size gets differs; a few smaller blocks first so the heap is not fresh.
+TEST(HugePageAllocation, LargeBlocksStartOnACacheLine) {
+  if (!px::huge_page_allocation_compiled_in()) GTEST_SKIP() << "a sanitizer's operator new is in use";
+  std::vector<std::unique_ptr<char[]>> small;
+  for (int i = 0; i < 8; ++i) small.emplace_back(new char[24 + 40 * i]);
+  for (std::size_t bytes :
+       {std::size_t{64} << 10, (std::size_t{1} << 20) + 8, std::size_t{9} << 20, (std::size_t{70} << 20) + 4}) {
+    const std::vector<std::uint32_t> words(bytes / 4);
+    EXPECT_EQ(reinterpret_cast<std::uintptr_t>(words.data()) % 64, 0u) << bytes << " bytes";
+  }
 }
 
 }  // namespace

@@ -198,13 +198,15 @@ std::size_t device_form_bytes(std::size_t node_count, std::size_t leaves) {
 }
 
 // Writes node `n` (whose leaf slots hold their first triangle) as node `k` of the device form
-// at `bytes`, its leaf slots pointing at their blocks behind the `node_count` nodes.
+// at `bytes`, its leaf slots pointing at their blocks behind the `node_count` nodes, the count
+// in the top 3 bits (types.h: the slot's whole stack entry in one word).
 template <int W, typename Node>
 void write_device_node(Node n, std::size_t k, std::size_t node_count, const LeafStarts& starts, unsigned char* bytes) {
   for (int i = 0; i < W; ++i)
     if (n.count[i] != 0)
       n.child[i] = static_cast<std::uint32_t>(
-          (node_count * sizeof(Node) + starts.block_at(n.child[i]) * sizeof(BvhLeafBlock)) / 16);
+                       (node_count * sizeof(Node) + starts.block_at(n.child[i]) * sizeof(BvhLeafBlock)) / 16) |
+                   (n.count[i] << 29);
   std::memcpy(bytes + k * sizeof(Node), &n, sizeof n);
 }
 

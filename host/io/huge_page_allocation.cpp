@@ -61,9 +61,24 @@ void advise_huge_pages(void* p, std::size_t n) {
   if (end > begin) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
 }
 
+// Large blocks start on a cache line. glibc serves them with mmap, whose chunk header puts the
+// block 16 bytes past a page boundary, so every 64 bytes of an array in it straddled two
+// lines: a 256-byte 8-wide BVH node then spans 5 lines, half its 32-byte plane rows are split
+// loads, and a 160-byte leaf block spans 4 lines every other block (CPU devices read the node
+// buffer in place: CL_MEM_USE_HOST_PTR; docs/measurements.md, "Where the trace kernel loses to
+// Embree"). posix_memalign'd memory goes back through free.
+constexpr std::size_t kLineAlignFrom = std::size_t{64} << 10;
+constexpr std::size_t kCacheLine = 64;
+
+void* allocate_block(std::size_t n) {
+  if (n < kLineAlignFrom) return std::malloc(n == 0 ? 1 : n);
+  void* p = nullptr;
+  return posix_memalign(&p, kCacheLine, n) == 0 ? p : nullptr;
+}
+
 void* allocate(std::size_t n) {
   for (;;) {
-    void* p = std::malloc(n == 0 ? 1 : n);
+    void* p = allocate_block(n);
     if (p) {
       if (n >= kHugeFrom && huge_pages_wanted()) advise_huge_pages(p, n);
       return p;

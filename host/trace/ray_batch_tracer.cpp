@@ -7,14 +7,17 @@
 
 namespace px {
 
-RayBatchTracer::RayBatchTracer(DeviceSet& devices, const DeviceScene& scene) : devices_(devices), scene_(scene) {}
+RayBatchTracer::RayBatchTracer(DeviceSet& devices, const DeviceScene& scene, std::string extra_options)
+    : devices_(devices),
+      scene_(scene),
+      options_(extra_options.empty() ? scene.kernel_options() : scene.kernel_options() + " " + extra_options) {}
 
 template <typename Out>
 std::vector<Out> RayBatchTracer::run(const char* kernel_name, const std::vector<Ray>& rays) {
   std::vector<Out> out(rays.size());
   last_kernel_ms_ = 0.0;
   if (rays.empty()) return out;
-  const cl::Program& program = devices_.program("trace/trace_rays.cl", scene_.kernel_options());
+  const cl::Program& program = devices_.program("trace/trace_rays.cl", options_);
   const std::size_t n = devices_.size();
   struct Chunk {
     std::size_t first, count;
@@ -70,7 +73,7 @@ std::vector<glm::vec3> RayBatchTracer::offset_origins(const std::vector<glm::vec
   cl::Buffer bp(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, count * sizeof(cl_float4), p.data());
   cl::Buffer bn(ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, count * sizeof(cl_float4), nrm.data());
   cl::Buffer bo(ctx, CL_MEM_WRITE_ONLY, count * sizeof(cl_float4));
-  cl::Kernel k(devices_.program("trace/trace_rays.cl", scene_.kernel_options()), "offset_origins");
+  cl::Kernel k(devices_.program("trace/trace_rays.cl", options_), "offset_origins");
   k.setArg(0, bp);
   k.setArg(1, bn);
   k.setArg(2, bo);

@@ -9,13 +9,16 @@
 #include "shared/types.h"
 
 #include <glm/glm.hpp>
+#include <string>
 #include <vector>
 
 namespace px {
 
 class RayBatchTracer {
  public:
-  RayBatchTracer(DeviceSet& devices, const DeviceScene& scene);
+  // `extra_options`: more kernel build options after the scene's (bench_trace --counters passes
+  // -DPX_TRACE_COUNTERS=1).
+  RayBatchTracer(DeviceSet& devices, const DeviceScene& scene, std::string extra_options = {});
 
   std::vector<Hit> closest(const std::vector<Ray>& rays);
   std::vector<std::uint32_t> occluded(const std::vector<Ray>& rays);
@@ -33,6 +36,7 @@ class RayBatchTracer {
 
   DeviceSet& devices_;
   const DeviceScene& scene_;
+  std::string options_;
   double last_kernel_ms_ = 0.0;
 };
 

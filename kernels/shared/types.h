@@ -114,8 +114,10 @@ typedef struct Bvh8Node {
  * structure-of-arrays, so the watertight test runs on all of them with float4 ops. Device form
  * only: DeviceScene appends one block per leaf after the wide nodes in the node buffer (Bvh4Node,
  * Bvh8Node: in leaf order, that of their first triangles) and points the leaf slot's `child` at
- * its block, in 16-byte units from the buffer's start (the host's Bvh4Node / Bvh8Node keep the first triangle index, as
- * the binary nodes do).
+ * its block, in 16-byte units from the buffer's start, with the leaf's triangle count in bits
+ * 29..31 (block | count << 29: the slot's stack entry, read in one load; DeviceScene keeps
+ * offsets below 2^29; the count row keeps the count too). The host's Bvh4Node / Bvh8Node keep
+ * the first triangle index, as the binary nodes do.
  *
  *     0..143  v[9][4]  rows v0.x v0.y v0.z v1.x v1.y v1.z v2.x v2.y v2.z; lane j = triangle
  *                      first + j; lanes >= count repeat lane 0

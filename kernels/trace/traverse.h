@@ -184,6 +184,27 @@ inline int px_tree_any(const SceneView* scene, float3 org, float3 dir, float tmi
 /* The compressed tree is the Bvh8Node tree re-stored (same nodes, same depth), so the 8-wide
  * bound holds for it too: (8 - 1) * PX_BVH_MAX_DEPTH + 1 = 281 entries. */
 #define PXW_STACK PX_WBVH_STACK_SIZE(PXW)
+/* x86's movemask (the sign bit of each lane into one integer: one instruction, where the
+ * portable reduction below takes eight) where the kernel compiler targets AVX, as PoCL does on
+ * CPUs that have it; the portable code elsewhere (GPUs, older CPUs). */
+#if defined(__x86_64__) && defined(__AVX__) && defined(__has_builtin)
+#if __has_builtin(__builtin_ia32_movmskps256) && __has_builtin(__builtin_ia32_movmskps)
+#define PX_HAS_MOVEMASK 1
+#endif
+#endif
+#ifndef PX_HAS_MOVEMASK
+#define PX_HAS_MOVEMASK 0
+#endif
+/* Bit i set when lane i of a 4-lane comparison result is true. */
+inline uint px_mask4(int4 m) {
+#if PX_HAS_MOVEMASK
+  return (uint)__builtin_ia32_movmskps(as_float4(m));
+#else
+  const int4 b = m & (int4)(1, 2, 4, 8);
+  const int2 q = b.lo | b.hi;
+  return (uint)(q.x | q.y);
+#endif
+}
 #if PXW == 8
 typedef float8 pxw_float;
 typedef int8 pxw_int;
@@ -191,21 +212,21 @@ typedef int8 pxw_int;
 #define pxw_vstore vstore8
 /* Bit i set when lane i is true (a comparison result: all bits set or none). */
 inline uint pxw_mask(pxw_int m) {
+#if PX_HAS_MOVEMASK
+  return (uint)__builtin_ia32_movmskps256(as_float8(m));
+#else
   const int8 b = m & (int8)(1, 2, 4, 8, 16, 32, 64, 128);
   const int4 h = b.lo | b.hi;
   const int2 q = h.lo | h.hi;
   return (uint)(q.x | q.y);
+#endif
 }
 #elif PXW == 4
 typedef float4 pxw_float;
 typedef int4 pxw_int;
 #define pxw_vload vload4
 #define pxw_vstore vstore4
-inline uint pxw_mask(pxw_int m) {
-  const int4 b = m & (int4)(1, 2, 4, 8);
-  const int2 q = b.lo | b.hi;
-  return (uint)(q.x | q.y);
-}
+inline uint pxw_mask(pxw_int m) { return px_mask4(m); }
 #else
 #error "PX_BVH_WIDTH must be 2, 4, 8 or 9 (PX_BVH_COMPRESSED8)"
 #endif
@@ -341,12 +362,9 @@ inline uint px_wide_boxes(const global float* node, const WideRay* w, float tmin
                        tmin, tmax, t_enter);
 }
 
-/* Slot i's stack entry: node index, or leaf block offset in 16-byte units | count << 29. */
-inline uint pxw_child_entry(const global float* node, uint i) {
-  const global uint* child = (const global uint*)(node + 6 * PXW);
-  const global uint* count = (const global uint*)(node + 7 * PXW);
-  return child[i] | (count[i] << 29);
-}
+/* Slot i's stack entry: node index, or leaf block offset in 16-byte units | count << 29, as the
+ * device form's child row holds it (types.h). */
+inline uint pxw_child_entry(const global float* node, uint i) { return ((const global uint*)(node + 6 * PXW))[i]; }
 
 /* The child / count rows are read only after the box test: start their miss now. */
 inline void pxw_prefetch_node_rest(const global float* node) { PX_PREFETCH(node + 6 * PXW); }
@@ -369,7 +387,7 @@ inline int px_intersect_block(const SceneView* scene, const global float* block,
   const uint first = header[0];
   if (PX_HAS(PX_FEATURE_ALPHA_TEST) && (header[2] & PX_TRI_ALPHA_TESTED))
     return px_intersect_leaf(scene, block, first, count, s, tmin, best);
-  const float ox = px_axis(s->org, s->kx), oy = px_axis(s->org, s->ky), oz = px_axis(s->org, s->kz);
+  const float ox = s->ox, oy = s->oy, oz = s->oz;
   const int kx = 4 * s->kx, ky = 4 * s->ky, kz = 4 * s->kz;
   const float4 az = vload4(0, block + kz) - oz;
   const float4 bz = vload4(0, block + 12 + kz) - oz;
@@ -383,7 +401,7 @@ inline int px_intersect_block(const SceneView* scene, const global float* block,
   float4 eu = cx * by - cy * bx;
   float4 ev = ax * cy - ay * cx;
   float4 ew = bx * ay - by * ax;
-  if (any((eu == 0.0f) | (ev == 0.0f) | (ew == 0.0f)))
+  if (px_mask4((eu == 0.0f) | (ev == 0.0f) | (ew == 0.0f)) != 0u)
     return px_intersect_leaf(scene, block, first, count, s, tmin, best);
   int4 ok = !(((eu < 0.0f) | (ev < 0.0f) | (ew < 0.0f)) & ((eu > 0.0f) | (ev > 0.0f) | (ew > 0.0f)));
   float4 det = eu + ev + ew;
@@ -396,36 +414,30 @@ inline int px_intersect_block(const SceneView* scene, const global float* block,
   ew = select(ew, -ew, flip);
   ok &= (tt > tmin * det) & (tt < best->t * det);
   ok &= (int4)(0, 1, 2, 3) < (int4)((int)count);
-  if (!any(ok)) return 0;
+  if (px_mask4(ok) == 0u) return 0;
   const float4 inv = 1.0f / det;
-  /* The nearest hit lane, the lowest on equal t, picked with vector selects (no private
-   * array to index). */
+  /* The nearest hit lane, the lowest on equal t: the lowest set bit of the lanes at the minimum
+   * (no branch per lane, which mispredicts wherever the hit lane varies). */
   const float4 t4 = select((float4)(INFINITY), tt * inv, ok);
-  const float4 u4 = ev * inv, v4 = ew * inv;
   const float tm = fmin(fmin(t4.x, t4.y), fmin(t4.z, t4.w));
-  float4 su = u4, sv = v4;
-  uint lane;
-  if (t4.x == tm) {
-    lane = 0u;
-  } else if (t4.y == tm) {
-    lane = 1u;
-    su.x = u4.y;
-    sv.x = v4.y;
-  } else if (t4.z == tm) {
-    lane = 2u;
-    su.x = u4.z;
-    sv.x = v4.z;
-  } else {
-    lane = 3u;
-    su.x = u4.w;
-    sv.x = v4.w;
-  }
+  const uint lane = px_lowest_bit(px_mask4(t4 == tm));
+  const uint4 pick = (uint4)(lane);
   best->t = tm;
-  best->u = su.x;
-  best->v = sv.x;
+  best->u = shuffle(ev * inv, pick).x;
+  best->v = shuffle(ew * inv, pick).x;
   best->prim = first + lane;
   return 1;
 }
+
+/* Traversal counters for bench_trace --counters (a build with -DPX_TRACE_COUNTERS=1; never in
+ * a renderer's build): px_tree_closest then returns in hit.inst the nodes visited (bits 0..7),
+ * leaf blocks intersected (8..15), child boxes hit (16..23) and stack pushes (24..31) of the
+ * ray, each saturating at 255. Scenes with instances use inst for the instance: not counted. */
+#if defined(PX_TRACE_COUNTERS) && PX_TRACE_COUNTERS
+#define PX_COUNT(counter, n) ((counter) = min((counter) + (uint)(n), 255u))
+#else
+#define PX_COUNT(counter, n)
+#endif
 
 /* Closest hit. Stack entries are nodes or leaves (a leaf as its block's offset in 16-byte
  * units | count << 29; DeviceScene keeps offsets below 2^29), each with its entry distance.
@@ -451,14 +463,20 @@ inline Hit px_tree_closest(const SceneView* scene, float3 org, float3 dir, float
   float stack_t[PXW_STACK];
   int sp = 0;
   uint entry = 0;
+#if defined(PX_TRACE_COUNTERS) && PX_TRACE_COUNTERS
+  uint n_nodes = 0u, n_leaves = 0u, n_hits = 0u, n_pushes = 0u;
+#endif
   for (;;) {
     if (entry >> 29) {
+      PX_COUNT(n_leaves, 1);
       px_intersect_block(scene, nodes + (size_t)(entry & 0x1fffffffu) * 4, entry >> 29, &shear, tmin, &best);
     } else {
       const global float* node = nodes + (size_t)entry * PXW_NODE_FLOATS;
       pxw_prefetch_node_rest(node);
       pxw_float enter_v;
       uint mask = px_wide_boxes(node, &wray, tmin, best.t, &enter_v);
+      PX_COUNT(n_nodes, 1);
+      PX_COUNT(n_hits, popcount(mask));
       if (mask != 0u) {
         uint i = px_lowest_bit(mask);
         mask &= mask - 1u;
@@ -486,6 +504,7 @@ inline Hit px_tree_closest(const SceneView* scene, float3 org, float3 dir, float
           }
           px_prefetch_entry(nodes, e);
           if (sp >= PXW_STACK) break; /* unreachable for validated trees */
+          PX_COUNT(n_pushes, 1);
           int j = sp++;
           while (j > base && stack_t[j - 1] < t) {
             stack_t[j] = stack_t[j - 1];
@@ -510,6 +529,9 @@ inline Hit px_tree_closest(const SceneView* scene, float3 org, float3 dir, float
     }
     if (!found) break;
   }
+#if defined(PX_TRACE_COUNTERS) && PX_TRACE_COUNTERS
+  best.inst = n_nodes | n_leaves << 8 | n_hits << 16 | n_pushes << 24;
+#endif
   return best;
 }
 

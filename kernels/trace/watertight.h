@@ -19,8 +19,8 @@
 
 /* Per-ray constants of the shear transform, computed once per ray. */
 typedef struct RayShear {
-  float3 org;
-  int kx, ky, kz; /* permuted axes; kz = dominant direction axis */
+  float ox, oy, oz; /* the origin in the permuted axis order (kx, ky, kz) */
+  int kx, ky, kz;   /* permuted axes; kz = dominant direction axis */
   float sx, sy, sz;
 } RayShear;
 
@@ -28,7 +28,6 @@ inline float px_axis(float3 v, int k) { return k == 0 ? v.x : (k == 1 ? v.y : v.
 
 inline RayShear px_make_shear(float3 org, float3 dir) {
   RayShear s;
-  s.org = org;
   float3 a = fabs(dir);
   s.kz = (a.x >= a.y && a.x >= a.z) ? 0 : (a.y >= a.z ? 1 : 2);
   s.kx = s.kz == 2 ? 0 : s.kz + 1;
@@ -43,6 +42,10 @@ inline RayShear px_make_shear(float3 org, float3 dir) {
   s.sx = px_axis(dir, s.kx) / dz;
   s.sy = px_axis(dir, s.ky) / dz;
   s.sz = 1.0f / dz;
+  /* Picked once per ray: every triangle test needs them, and picking is three selects each. */
+  s.ox = px_axis(org, s.kx);
+  s.oy = px_axis(org, s.ky);
+  s.oz = px_axis(org, s.kz);
   return s;
 }
 
@@ -57,7 +60,7 @@ inline RayShear px_make_shear(float3 org, float3 dir) {
 inline int px_intersect_triangle_strided(const RayShear* s, const global float* v0, const global float* v1,
                                          const global float* v2, int stride, float tmin, float tmax, float* t, float* u,
                                          float* v) {
-  const float ox = px_axis(s->org, s->kx), oy = px_axis(s->org, s->ky), oz = px_axis(s->org, s->kz);
+  const float ox = s->ox, oy = s->oy, oz = s->oz;
   const int kx = stride * s->kx, ky = stride * s->ky, kz = stride * s->kz;
   const float az = v0[kz] - oz, bz = v1[kz] - oz, cz = v2[kz] - oz;
   const float ax = (v0[kx] - ox) - s->sx * az;
