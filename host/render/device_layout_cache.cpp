@@ -19,7 +19,8 @@ namespace px {
 namespace {
 
 constexpr char kMagic[8] = {'P', 'X', 'D', 'L', 'A', 'Y', '0', '1'};
-constexpr std::uint64_t kFormatVersion = 3;  // 2: shading_records, shading_bytes; 3: wide leaf slots hold block | count << 29
+// 2: shading_records, shading_bytes; 3: wide leaf slots hold block | count << 29.
+constexpr std::uint64_t kFormatVersion = 3;
 constexpr std::size_t kPage = 4096;
 // The start's sample of the payload: the first kSampleBytes of every sample_stride() bytes, at
 // most kSamples of them. Few, since a mapped file's touched pages count as the process's memory,

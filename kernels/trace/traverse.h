@@ -32,8 +32,9 @@ inline int px_cut_out(const SceneView* scene, const global PxLeafTriangle* tri, 
  * the leaf's block `block` (types.h: BvhLeafBlock rows, 4 floats apart), the same floats, the
  * same operations and the same order; without it `block` is not read (the binary layout passes
  * none). */
-inline int px_intersect_leaf(const SceneView* scene, const global float* block, uint first, uint count,
-                             const RayShear* shear, float tmin, Hit* best) {
+__attribute__((always_inline)) inline int px_intersect_leaf(const SceneView* scene, const global float* block,
+                                                            uint first, uint count, const RayShear* shear, float tmin,
+                                                            Hit* best) {
   int any = 0;
   for (uint j = 0; j < count; ++j) {
     const uint i = first + j;
@@ -250,18 +251,18 @@ inline pxw_float pxw_min(pxw_float a, pxw_float b) { return select(b, a, a < b);
 #define PX_PREFETCH(p) prefetch((p), 1)
 #endif
 
-/* Prefetches the lines of a stack entry (node or leaf block, see px_trace_closest_leaf). */
+/* Prefetches the lines of a stack entry (node or leaf block, see px_trace_closest_leaf), four
+ * lines either way: a leaf block's 160 bytes (16-aligned) from its first byte to its last, a
+ * node's lines (a smaller node's last line more than once); without a branch on the entry's
+ * kind, which a mix of leaf and interior children makes unpredictable. */
 inline void px_prefetch_entry(const global float* nodes, uint e) {
-  if (e >> 29) {
-    const global float* b = nodes + (size_t)(e & 0x1fffffffu) * 4; /* 160 bytes, 16-aligned */
-    PX_PREFETCH(b);
-    PX_PREFETCH(b + 16);
-    PX_PREFETCH(b + 32);
-    PX_PREFETCH(b + 39);
-  } else {
-    const global float* n = nodes + (size_t)e * PXW_NODE_FLOATS;
-    for (int k = 0; k < PXW_NODE_FLOATS; k += 16) PX_PREFETCH(n + k);
-  }
+  const uint leaf = e >> 29;
+  const size_t start = leaf ? (size_t)(e & 0x1fffffffu) * 4 : (size_t)e * PXW_NODE_FLOATS;
+  const global float* p = nodes + start;
+  PX_PREFETCH(p);
+  PX_PREFETCH(p + 16);
+  PX_PREFETCH(p + (leaf ? 32 : min(32, PXW_NODE_FLOATS - 1)));
+  PX_PREFETCH(p + (leaf ? 39 : PXW_NODE_FLOATS - 1));
 }
 
 /* Per-ray constants of the wide box test. */
@@ -380,9 +381,12 @@ inline uint px_lowest_bit(uint m) { return 31u - clz(m & (0u - m)); }
  * there), and for alpha-tested leaves, the leaf is intersected triangle by triangle instead.
  * Among hit lanes the nearest wins (the lowest lane on equal t). `count` is the leaf's triangle
  * count, which the caller has from the node (the block's own count field holds the same).
- * Returns 1 on any hit. */
-inline int px_intersect_block(const SceneView* scene, const global float* block, uint count, const RayShear* s,
-                              float tmin, Hit* best) {
+ * Returns 1 on any hit. Forced inline, with the one-by-one fallback and its triangle test: a call
+ * from the traversal loop makes the loop save its ymm ray constants around it (every vector
+ * register is caller-saved), and with a call left on the rare fallback path alone LLVM placed
+ * those saves on every leaf visit ("Where the trace kernel loses to Embree"). */
+__attribute__((always_inline)) inline int px_intersect_block(const SceneView* scene, const global float* block,
+                                                             uint count, const RayShear* s, float tmin, Hit* best) {
   const global uint* header = (const global uint*)(block + 36);
   const uint first = header[0];
   if (PX_HAS(PX_FEATURE_ALPHA_TEST) && (header[2] & PX_TRI_ALPHA_TESTED))
@@ -492,16 +496,15 @@ inline Hit px_tree_closest(const SceneView* scene, float3 org, float3 dir, float
         while (mask != 0u) {
           i = px_lowest_bit(mask);
           mask &= mask - 1u;
-          float t = enter[i];
-          uint e = pxw_child_entry(node, i);
-          if (t <= near_t) { /* the new child becomes the nearest; push the old one */
-            const float ft = near_t;
-            const uint fe = near_e;
-            near_t = t;
-            near_e = e;
-            t = ft;
-            e = fe;
-          }
+          const float ct = enter[i];
+          const uint ce = pxw_child_entry(node, i);
+          /* The new child becomes the nearest where it is not farther; the other is pushed.
+           * Selects, not a branch: which of two hit children is nearer is a coin toss. */
+          const int closer = ct <= near_t;
+          const float t = closer ? near_t : ct;
+          const uint e = closer ? near_e : ce;
+          near_t = closer ? ct : near_t;
+          near_e = closer ? ce : near_e;
           px_prefetch_entry(nodes, e);
           if (sp >= PXW_STACK) break; /* unreachable for validated trees */
           PX_COUNT(n_pushes, 1);

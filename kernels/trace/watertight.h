@@ -56,10 +56,11 @@ inline RayShear px_make_shear(float3 org, float3 dir) {
  * Vertices are read component-wise in the ray's permuted axis order straight from memory
  * (indexed loads), which is cheaper than permuting float3 values with selects; `stride` is the
  * distance in floats between a vertex's x, y and z (1 for float[3]; 4 for a lane of a leaf
- * block's rows). */
-inline int px_intersect_triangle_strided(const RayShear* s, const global float* v0, const global float* v1,
-                                         const global float* v2, int stride, float tmin, float tmax, float* t, float* u,
-                                         float* v) {
+ * block's rows). Forced inline for the wide traversal's leaf test (traverse.h, px_intersect_block). */
+__attribute__((always_inline)) inline int px_intersect_triangle_strided(const RayShear* s, const global float* v0,
+                                                                        const global float* v1, const global float* v2,
+                                                                        int stride, float tmin, float tmax, float* t,
+                                                                        float* u, float* v) {
   const float ox = s->ox, oy = s->oy, oz = s->oz;
   const int kx = stride * s->kx, ky = stride * s->ky, kz = stride * s->kz;
   const float az = v0[kz] - oz, bz = v1[kz] - oz, cz = v2[kz] - oz;
