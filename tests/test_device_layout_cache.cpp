@@ -465,7 +465,8 @@ TEST(DeviceLayoutCache, CacheWritesRunOffTheStartAndAreCompleteWhenItEnds) {
     EXPECT_TRUE(warm.device_scene.layout_from_cache());
     EXPECT_TRUE(same_hits(hits_of(warm)));
     warm.wait_for_cache_writes();
-    EXPECT_EQ(warm.loaded.times.background_cache_write_ms, 0.0) << "nothing to write";
+    EXPECT_EQ(files("device-layout-"), 1) << "nothing new to write";
+    EXPECT_EQ(files("bvh-"), 1);
   }
   {
     // Another layout: no device layout of it in the cache, the tree read from the BVH cache.
@@ -474,10 +475,12 @@ TEST(DeviceLayoutCache, CacheWritesRunOffTheStartAndAreCompleteWhenItEnds) {
     EXPECT_TRUE(other.loaded.times.bvh_from_cache);
     EXPECT_TRUE(same_hits(hits_of(other)));
     other.first_frame_on_its_way();
+    EXPECT_EQ(files("device-layout-"), 1) << "its own layout held for the first frame";
     other.wait_for_cache_writes();
-    EXPECT_GT(other.loaded.times.background_cache_write_ms, 0.0) << "its own layout written";
+    EXPECT_EQ(files("device-layout-"), 2) << "its own layout written";
   }
   EXPECT_EQ(files("device-layout-"), 2);
+  EXPECT_EQ(files("."), 0) << "no temporary file left behind";
 }
 
 TEST(DeviceLayoutCache, NoFolderMeansNoCacheAndNoError) {
