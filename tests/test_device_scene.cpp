@@ -383,7 +383,7 @@ TEST(DeviceScene, ASmoothSceneGetsIndexedRecordsAndTheSameImage) {
 }
 
 // A flat static scene that goes to the devices makes its records before its tree
-// (prepare_flat_host): the tree is then built, validated and keyed in the cache from the corners
+// (prepare_host_before_tree): the tree is then built, validated and keyed in the cache from the corners
 // packed where the triangles were, and comes out the same tree, under the same cache key, as
 // one built from the scene's triangles; the device scene renders the one-step constructor's
 // image. A scene that is not flat is left alone. And the start that does it: load_and_build
@@ -392,7 +392,7 @@ TEST(DeviceScene, AFlatSceneBuildsItsTreeFromCornersPackedWhereItsTrianglesWere)
   const Scene scene = flat_cornell_with_slivers();
   Scene handed = scene;
   DeviceScene::BuildCorners corners;
-  const auto host = DeviceScene::prepare_flat_host(
+  const auto host = DeviceScene::prepare_host_before_tree(
       handed, [&handed] { return std::exchange(handed.triangles, {}); }, corners);
   ASSERT_TRUE(host);
   EXPECT_TRUE(handed.triangles.empty());
@@ -432,11 +432,13 @@ TEST(DeviceScene, AFlatSceneBuildsItsTreeFromCornersPackedWhereItsTrianglesWere)
   opt.bounces = 3;
   PathTracer a(set, full, scene), b(set, flat, scene);
   expect_identical_eyes(a.render_stereo(0.0f, 1, 40, 28, opt), b.render_stereo(0.0f, 1, 40, 28, opt));
-  // Not flat: nothing taken, no host part.
+  // Not flat, with its 64-byte records kept (PARALLAX_INDEXED_SHADING=off): nothing taken, no
+  // host part.
+  const test::ScopedEnv full_records("PARALLAX_INDEXED_SHADING", "off");
   Scene smooth = spheres();
   bool taken = false;
   DeviceScene::BuildCorners none;
-  EXPECT_FALSE(DeviceScene::prepare_flat_host(
+  EXPECT_FALSE(DeviceScene::prepare_host_before_tree(
       smooth,
       [&] {
         taken = true;

@@ -55,8 +55,8 @@ struct LoadedScene {
   std::shared_ptr<const MappedDeviceLayout> device_layout{};
   bool quiet = false;
   StartTimes times{};
-  // A flat static scene loaded for the devices (map_device_layout) and not mapped from the cache:
-  // its shading records, made before its tree (DeviceScene::prepare_flat_host), the triangles
+  // A static scene loaded for the devices (map_device_layout) and not mapped from the cache:
+  // its shading records, made before its tree (DeviceScene::prepare_host_before_tree), the triangles
   // gone since; SceneOnDevices hands it to the device scene. Null for every other scene.
   std::shared_ptr<DeviceScene::HostPart> host_part{};
   // The triangles' count and bounds, kept when SceneOnDevices releases the triangles.

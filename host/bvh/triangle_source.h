@@ -1,9 +1,9 @@
 // The triangles a BVH is built over, as its builder, validator and cache read them: each
 // triangle's three corners and its material, wherever they lie. Either the scene's own
-// SceneTriangles (100 bytes apart) or BuildTriangles (40 bytes): a flat static scene that goes
+// SceneTriangles (100 bytes apart) or BuildTriangles (40 bytes): a static scene that goes
 // to the devices turns its triangles into shading records before its tree is built, and keeps
 // for the build only the corners and the materials, packed where the triangles were
-// (DeviceScene::prepare_flat_host), so that the build's arrays never stand beside the 100-byte
+// (DeviceScene::prepare_host_before_tree), so that the build's arrays never stand beside the 100-byte
 // triangles. Both read the same floats, so the trees and the cache keys are the same.
 #pragma once
 

@@ -309,13 +309,6 @@ std::shared_ptr<DeviceScene::HostPart> DeviceScene::prepare_host(
   return make_host_part(scene, take_triangles, nullptr);
 }
 
-std::shared_ptr<DeviceScene::HostPart> DeviceScene::prepare_flat_host(
-    const Scene& scene, const std::function<std::vector<SceneTriangle>()>& take_triangles, BuildCorners& corners) {
-  require_static_scene(scene, take_triangles);
-  if (!has_flat_shading(scene.triangles)) return nullptr;
-  return make_host_part(scene, take_triangles, &corners);
-}
-
 std::shared_ptr<DeviceScene::HostPart> DeviceScene::prepare_host_before_tree(
     const Scene& scene, const std::function<std::vector<SceneTriangle>()>& take_triangles, BuildCorners& corners) {
   require_static_scene(scene, take_triangles);

@@ -103,26 +103,21 @@ class DeviceScene {
                                                 const std::function<std::vector<SceneTriangle>()>& take_triangles);
   DeviceScene(DeviceSet& devices, std::shared_ptr<HostPart> host, const Scene& scene, FlatBvh bvh,
               const DeviceLayoutStore& store = {});
-  // prepare_host for a start whose tree is not built yet, when every triangle is flat
-  // (has_flat_shading; otherwise null, and nothing is taken): the 16-byte records go to a block
+  // prepare_host for a start whose tree is not built yet: the records (16-byte flat ones where
+  // every triangle is flat, has_flat_shading; else indexed ones, indexed_shading.h) go to a block
   // of their own, and each triangle's corners and material (BuildTriangle, 40 bytes) are packed
   // where the triangles were, into `corners`, which the tree is then built, validated and cached
   // from (TriangleSource). The 100-byte triangles are gone before the build begins, so the
   // build's arrays never stand beside them (the cold start's highest point: 48 bytes a triangle
-  // lower). The corners' memory goes with the last copy of `corners`.
+  // lower). The corners' memory goes with the last copy of `corners`. Null, and nothing taken,
+  // only where PARALLAX_INDEXED_SHADING=off keeps a smooth scene's 64-byte records (made after
+  // its tree).
   struct BuildCorners {
     std::shared_ptr<const void> owner;
     const BuildTriangle* data = nullptr;
     std::size_t count = 0;
     TriangleSource source() const { return {data, count}; }
   };
-  static std::shared_ptr<HostPart> prepare_flat_host(const Scene& scene,
-                                                     const std::function<std::vector<SceneTriangle>()>& take_triangles,
-                                                     BuildCorners& corners);
-  // prepare_flat_host for flat scenes and, as well, for smooth ones (the rest): their indexed
-  // records (indexed_shading(), indexed_shading.h) go to a block of their own and the corners
-  // where the triangles were, the same way. Null only where PARALLAX_INDEXED_SHADING=off keeps
-  // a smooth scene's 64-byte records (made after its tree, as before indexed records).
   static std::shared_ptr<HostPart> prepare_host_before_tree(
       const Scene& scene, const std::function<std::vector<SceneTriangle>()>& take_triangles, BuildCorners& corners);
   // A static scene without instances whose layout a start mapped from the cache
@@ -201,7 +196,7 @@ class DeviceScene {
   void set_kernel_choice(KernelChoice choice) { choice_ = choice; }
 
  private:
-  // prepare_host's and prepare_flat_host's work, once they checked the scene is static: with
+  // prepare_host's and prepare_host_before_tree's work, once they checked the scene is static: with
   // `corners`, the flat or indexed records go to a block of their own and the corners over the
   // triangles.
   static std::shared_ptr<HostPart> make_host_part(const Scene& scene,
