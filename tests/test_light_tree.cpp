@@ -67,19 +67,34 @@ double host_importance(const LightTreeNode& node, D3 p, D3 n) {
   return std::max(0.0, node.phi * std::cos(theta_p) / d2 * std::cos(std::max(0.0, theta_i - theta_b)));
 }
 
-// The probability of `light` by walking its trail with host_importance.
+// The probability of `light` by walking its trail with host_importance, as the kernels define the
+// walk: from an interior node, one of the up to four nodes two levels below (a child that is a
+// leaf stands for itself) in proportion to its importance among them.
 double host_pmf(const LightTree& tree, D3 p, D3 n, std::size_t light) {
   if (tree.light_count() == 1) return 1.0;
   const auto& nodes = tree.nodes();
+  const auto is_leaf = [&](std::uint32_t at) { return (nodes[at].child[0] & PX_LIGHT_TREE_LEAF) != 0; };
+  const std::uint32_t trail = tree.trails()[light];
   std::uint32_t at = 0;
+  unsigned depth = 0;
   double prob = 1.0;
-  for (unsigned depth = 0; !(nodes[at].child[0] & PX_LIGHT_TREE_LEAF); ++depth) {
-    const double i0 = host_importance(nodes[nodes[at].child[0]], p, n);
-    const double i1 = host_importance(nodes[nodes[at].child[1]], p, n);
-    if (!(i0 + i1 > 0)) return 0;
-    const unsigned right = (tree.trails()[light] >> depth) & 1u;
-    prob *= (right ? i1 : i0) / (i0 + i1);
-    at = nodes[at].child[right];
+  while (!is_leaf(at)) {
+    std::vector<std::uint32_t> candidates;
+    for (std::uint32_t c : nodes[at].child) {
+      if (is_leaf(c)) {
+        candidates.push_back(c);
+      } else {
+        candidates.push_back(nodes[c].child[0]);
+        candidates.push_back(nodes[c].child[1]);
+      }
+    }
+    double total = 0;
+    for (std::uint32_t c : candidates) total += host_importance(nodes[c], p, n);
+    if (!(total > 0)) return 0;
+    const std::uint32_t child = nodes[at].child[(trail >> depth++) & 1u];
+    const std::uint32_t next = is_leaf(child) ? child : nodes[child].child[(trail >> depth++) & 1u];
+    prob *= host_importance(nodes[next], p, n) / total;
+    at = next;
   }
   EXPECT_EQ(nodes[at].child[0] & ~PX_LIGHT_TREE_LEAF, light) << "the trail leads to another leaf";
   return prob;
@@ -337,7 +352,9 @@ TEST(LightTree, PointAndSpotLightLeavesAndPmf) {
   for (std::size_t k = first; k < count; ++k) {
     const PunctualLight& l = scene.punctual_lights[t.lights[k].prim - PX_LIGHT_PUNCTUAL];
     EXPECT_EQ(t.lights[k].area, 0.0f);
-    if (k > 0) EXPECT_GT(t.lights[k].prim, t.lights[k - 1].prim);  // still sorted by prim
+    if (k > 0) {
+      EXPECT_GT(t.lights[k].prim, t.lights[k - 1].prim);  // still sorted by prim
+    }
     std::uint32_t at = 0;
     for (unsigned depth = 0; !(t.tree.nodes()[at].child[0] & PX_LIGHT_TREE_LEAF); ++depth)
       at = t.tree.nodes()[at].child[(t.tree.trails()[k] >> depth) & 1u];

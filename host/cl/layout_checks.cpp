@@ -79,6 +79,12 @@ static_assert(sizeof(LightTreeNode) == 64 && sizeof(LightTreeNode) == sizeof(Lig
 static_assert(offsetof(LightTreeNode, bounds_max) == 12 && offsetof(LightTreeNode, phi) == 24);
 static_assert(offsetof(LightTreeNode, axis) == 28 && offsetof(LightTreeNode, cos_theta_o) == 40);
 static_assert(offsetof(LightTreeNode, cos_theta_e) == 44 && offsetof(LightTreeNode, child) == 48);
+static_assert(offsetof(LightTreeNode, sin_theta_o) == 56 && offsetof(LightTreeNode, radius) == 60);
+static_assert(sizeof(LightTreeWideNode) == 4 * sizeof(LightTriangle) && offsetof(LightTreeWideNode, bounds_max) == 48);
+static_assert(offsetof(LightTreeWideNode, axis) == 96 && offsetof(LightTreeWideNode, phi) == 144);
+static_assert(offsetof(LightTreeWideNode, cos_theta_o) == 160 && offsetof(LightTreeWideNode, sin_theta_o) == 176);
+static_assert(offsetof(LightTreeWideNode, cos_theta_e) == 192 && offsetof(LightTreeWideNode, radius) == 208);
+static_assert(offsetof(LightTreeWideNode, child) == 224);
 static_assert(sizeof(FrameParams) == 128);
 static_assert(offsetof(FrameParams, p_sun) == 28 && offsetof(FrameParams, light_count) == 76);
 static_assert(offsetof(FrameParams, frame) == 80 && offsetof(FrameParams, rr_start_bounce) == 104);

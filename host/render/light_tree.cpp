@@ -111,6 +111,11 @@ void node_from_bounds(LightTreeNode& node, const LightBounds& b) {
   std::memcpy(node.axis, b.axis, sizeof b.axis);
   node.cos_theta_o = b.cos_theta_o;
   node.cos_theta_e = b.cos_theta_e;
+  // What the kernels' importance derives from the fields above, once here rather than at every
+  // visit (kernels/shading/light_tree.h).
+  node.sin_theta_o = std::sqrt(std::max(0.0f, 1.0f - b.cos_theta_o * b.cos_theta_o));
+  const float dx = b.hi[0] - b.lo[0], dy = b.hi[1] - b.lo[1], dz = b.hi[2] - b.lo[2];
+  node.radius = 0.5f * std::sqrt(dx * dx + dy * dy + dz * dz);
 }
 
 LightBounds bounds_of(const LightTreeNode& node) {
@@ -338,18 +343,70 @@ std::vector<std::uint8_t> light_two_sidedness(const Scene& scene, const std::vec
   return out;
 }
 
+namespace {
+
+// The wide node made from interior node `binary` of `nodes` (types.h, LightTreeWideNode), and,
+// before it returns, those made from its interior lanes; returns its index in `wide`.
+std::uint32_t collapse(const std::vector<LightTreeNode>& nodes, std::uint32_t binary,
+                       std::vector<LightTreeWideNode>& wide) {
+  const auto is_leaf = [&](std::uint32_t at) { return (nodes[at].child[0] & PX_LIGHT_TREE_LEAF) != 0; };
+  const auto index = static_cast<std::uint32_t>(wide.size());
+  wide.emplace_back();
+  std::uint32_t lanes[4];
+  bool used[4];
+  for (int side = 0; side < 2; ++side) {
+    const std::uint32_t c = nodes[binary].child[side];
+    lanes[2 * side] = is_leaf(c) ? c : nodes[c].child[0];
+    lanes[2 * side + 1] = is_leaf(c) ? c : nodes[c].child[1];
+    used[2 * side] = true;
+    used[2 * side + 1] = !is_leaf(c);
+  }
+  for (int k = 0; k < 4; ++k) {
+    // Filled after the recursion: the vector may have moved.
+    std::uint32_t child = PX_LIGHT_TREE_EMPTY;
+    if (used[k]) child = is_leaf(lanes[k]) ? nodes[lanes[k]].child[0] : collapse(nodes, lanes[k], wide);
+    LightTreeWideNode& w = wide[index];
+    w.child[k] = child;
+    if (!used[k]) continue;  // zero fields: importance 0, and the walk forces it besides
+    const LightTreeNode& n = nodes[lanes[k]];
+    for (int a = 0; a < 3; ++a) {
+      w.bounds_min[a][k] = n.bounds_min[a];
+      w.bounds_max[a][k] = n.bounds_max[a];
+      w.axis[a][k] = n.axis[a];
+    }
+    w.phi[k] = n.phi;
+    w.cos_theta_o[k] = n.cos_theta_o;
+    w.sin_theta_o[k] = n.sin_theta_o;
+    w.cos_theta_e[k] = n.cos_theta_e;
+    w.radius[k] = n.radius;
+  }
+  return index;
+}
+
+}  // namespace
+
+std::vector<LightTreeWideNode> wide_light_nodes(const LightTree& tree) {
+  std::vector<LightTreeWideNode> wide;
+  if (tree.light_count() < 2) return wide;
+  wide.reserve(tree.nodes().size() / 2 + 1);
+  collapse(tree.nodes(), 0, wide);
+  return wide;
+}
+
 std::vector<LightTriangle> light_buffer(const std::vector<LightTriangle>& lights, const LightTree& tree) {
   if (lights.empty()) return {};
   if (tree.light_count() != lights.size() || tree.nodes().size() != 2 * lights.size() - 1)
     throw std::logic_error("light_buffer: a light tree of another light table");
   constexpr std::size_t kTrailsPerRecord = sizeof(LightTriangle) / sizeof(std::uint32_t);
   const std::size_t trail_records = (lights.size() + kTrailsPerRecord - 1) / kTrailsPerRecord;
-  std::vector<LightTriangle> out(lights.size() + tree.nodes().size() + trail_records);
-  static_assert(sizeof(LightTreeNode) == sizeof(LightTriangle));
+  const std::vector<LightTreeWideNode> wide = wide_light_nodes(tree);
+  constexpr std::size_t kRecordsPerWideNode = sizeof(LightTreeWideNode) / sizeof(LightTriangle);
+  static_assert(sizeof(LightTreeWideNode) == kRecordsPerWideNode * sizeof(LightTriangle));
+  std::vector<LightTriangle> out(lights.size() + trail_records + wide.size() * kRecordsPerWideNode);
   std::memcpy(out.data(), lights.data(), lights.size() * sizeof(LightTriangle));
-  std::memcpy(out.data() + lights.size(), tree.nodes().data(), tree.nodes().size() * sizeof(LightTreeNode));
-  std::memcpy(out.data() + lights.size() + tree.nodes().size(), tree.trails().data(),
-              tree.trails().size() * sizeof(std::uint32_t));
+  std::memcpy(out.data() + lights.size(), tree.trails().data(), tree.trails().size() * sizeof(std::uint32_t));
+  if (!wide.empty())
+    std::memcpy(out.data() + lights.size() + trail_records, wide.data(), wide.size() * sizeof(LightTreeWideNode));
   return out;
 }
 

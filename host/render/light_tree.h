@@ -69,8 +69,12 @@ class LightTree {
 // Whether each light of `lights` (a table make_light_table made from `scene`) emits from both faces.
 std::vector<std::uint8_t> light_two_sidedness(const Scene& scene, const std::vector<LightTriangle>& lights);
 
-// The scene's `lights` buffer: the table, then the tree's nodes, then its trails padded to 64
-// bytes (types.h, LightTreeNode), as 64-byte records. Empty for an empty table.
+// The tree as the kernels walk it: two levels of the binary tree to a node (types.h,
+// LightTreeWideNode), root first. Empty for fewer than two lights.
+std::vector<LightTreeWideNode> wide_light_nodes(const LightTree& tree);
+
+// The scene's `lights` buffer: the table, then the tree's trails padded to 64 bytes, then its
+// wide nodes (types.h, LightTreeWideNode), as 64-byte records. Empty for an empty table.
 std::vector<LightTriangle> light_buffer(const std::vector<LightTriangle>& lights, const LightTree& tree);
 
 // make_light_table, its tree built, packed by light_buffer; `tree`, if not null, receives the tree.

@@ -470,15 +470,14 @@ typedef struct LightTriangle {
   float pdf_select;
 } LightTriangle;
 
-/* One node of the light tree (host/render/light_tree.h), 64 bytes. The `lights` buffer holds
- * LightTriangle x n (the table, by prim), LightTreeNode x (2n - 1) (root first, parents before
- * children, one leaf per light), uint trail x n padded to 64 bytes (bit i: light k's path from the
- * root takes child[1] at depth i). A node bounds its lights: box, total power phi (area x
- * luminance, x 2 if two-sided), cone of emitting normals (axis, theta_o) and spread theta_e of
- * emission around a normal. Leaf: the triangle's box and normal, theta_o 0 (pi if two-sided), theta_e pi/2;
- * a point light: its point, phi its intensity's luminance, theta_o pi (a spot: its axis, the outer cone).
+/* One node of the light tree (host/render/light_tree.h), 64 bytes: the binary tree the host builds
+ * and refits. A node bounds its lights: box, total power phi (area x luminance, x 2 if
+ * two-sided), cone of emitting normals (axis, theta_o) and spread theta_e of emission around a
+ * normal. Leaf: the triangle's box and normal, theta_o 0 (pi if two-sided), theta_e pi/2; a point
+ * light: its point, phi its intensity's luminance, theta_o pi (a spot: its axis, the outer cone).
  *   0..11 bounds_min[3]  12..23 bounds_max[3]  24..27 phi  28..39 axis[3]  40..43 cos_theta_o
- *  44..47 cos_theta_e  48..55 child[2] (node index, or PX_LIGHT_TREE_LEAF | light: a leaf)  56..63 pad */
+ *  44..47 cos_theta_e  48..55 child[2] (node index, or PX_LIGHT_TREE_LEAF | light: a leaf)
+ *  56..59 sin_theta_o  60..63 radius (half the box's diagonal): both derived from the fields above. */
 #define PX_LIGHT_TREE_LEAF 0x80000000u
 typedef struct LightTreeNode {
   float bounds_min[3];
@@ -488,8 +487,35 @@ typedef struct LightTreeNode {
   float cos_theta_o;
   float cos_theta_e;
   uint child[2];
-  uint pad[2];
+  float sin_theta_o;
+  float radius;
 } LightTreeNode;
+
+/* The light tree as the kernels walk it, 256 bytes: the binary tree two levels to a node. Lane k of
+ * a wide node is a node of the binary tree two levels below the one it was made from (lanes 0, 1
+ * under child[0], lanes 2, 3 under child[1]), or, where that child is a leaf, the leaf itself in
+ * the first of its two lanes and PX_LIGHT_TREE_EMPTY in the second. Each field holds the four
+ * lanes' LightTreeNode fields side by side, so that a walk reads a field of all four with one
+ * aligned 16-byte load (kernels/shading/light_tree.h).
+ *    0..47 bounds_min[3][4]   48..95 bounds_max[3][4]   96..143 axis[3][4]   144..159 phi[4]
+ *  160..175 cos_theta_o[4]  176..191 sin_theta_o[4]  192..207 cos_theta_e[4]  208..223 radius[4]
+ *  224..239 child[4] (wide node index, PX_LIGHT_TREE_LEAF | light, or PX_LIGHT_TREE_EMPTY)  240..255 pad
+ * The `lights` buffer holds LightTriangle x n (the table, by prim), uint trail x n padded to 64 bytes
+ * (bit i: light k's path from the root of the binary tree takes child[1] at depth i), then the wide
+ * nodes, root first, as 4 records each. */
+#define PX_LIGHT_TREE_EMPTY 0xffffffffu
+typedef struct LightTreeWideNode {
+  float bounds_min[3][4];
+  float bounds_max[3][4];
+  float axis[3][4];
+  float phi[4];
+  float cos_theta_o[4];
+  float sin_theta_o[4];
+  float cos_theta_e[4];
+  float radius[4];
+  uint child[4];
+  uint pad[4];
+} LightTreeWideNode;
 
 /* Everything a path-tracing launch needs besides buffers, 128 bytes, passed by value.
  *
