@@ -382,6 +382,81 @@ TEST(DeviceScene, ASmoothSceneGetsIndexedRecordsAndTheSameImage) {
   EXPECT_EQ(two_steps(faceted).shading_records(), ShadingRecords::Full);
 }
 
+// A large scene's triangles hand their pages back as the pass that makes its records and corners
+// over them reads them (records_in_place, from 8 MiB: here 26 MB of triangles, several hand-backs),
+// never a page that is still to be read or already holds corners: every corner is its triangle's
+// to the bit and every record the one shading_of / flat_shading_of makes of it, smooth (indexed
+// records beside the vertices' table) and flat.
+TEST(DeviceScene, ALargeScenesTrianglesGoBackAsTheyAreReadAndItsCornersAndRecordsStayWhole) {
+  const int n = 360;  // 259,200 triangles
+  Scene smooth;
+  smooth.materials.push_back(Material{});
+  struct Vertex {
+    glm::vec3 p, n;
+    glm::vec2 uv;
+  };
+  const auto vertex = [n](int x, int z) {
+    Vertex v;
+    v.p = {x / float(n) * 2.0f - 1.0f, 0.1f * std::sin(0.37f * x) * std::cos(0.23f * z), z / float(n) * 2.0f - 1.0f};
+    v.n = glm::normalize(glm::vec3(-0.037f * std::cos(0.37f * x), 1.0f, 0.023f * std::sin(0.23f * z)));
+    v.uv = {x / float(n), z / float(n)};
+    return v;
+  };
+  for (int z = 0; z < n; ++z)
+    for (int x = 0; x < n; ++x) {
+      const Vertex a = vertex(x, z), b = vertex(x + 1, z), c = vertex(x, z + 1), d = vertex(x + 1, z + 1);
+      for (const std::array<const Vertex*, 3>& t : {std::array{&a, &c, &b}, std::array{&b, &c, &d}}) {
+        SceneTriangle tri;
+        for (int k = 0; k < 3; ++k) {
+          tri.p[k] = t[k]->p;
+          tri.n[k] = t[k]->n;
+          tri.uv[k] = t[k]->uv;
+        }
+        smooth.triangles.push_back(tri);
+      }
+    }
+  ASSERT_GE(smooth.triangles.size() * sizeof(SceneTriangle), std::size_t{24} << 20);
+  Scene flat = smooth;
+  for (SceneTriangle& t : flat.triangles) {
+    const glm::vec3 g = glm::normalize(glm::cross(t.p[1] - t.p[0], t.p[2] - t.p[0]));
+    for (int k = 0; k < 3; ++k) {
+      t.n[k] = g;
+      t.uv[k] = glm::vec2(0.0f);
+    }
+  }
+  ASSERT_TRUE(has_flat_shading(flat.triangles));
+  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
+  for (const Scene* scene : {&smooth, &flat}) {
+    Scene handed = *scene;
+    DeviceScene::BuildCorners corners;
+    const auto host = DeviceScene::prepare_host_before_tree(
+        handed, [&handed] { return std::exchange(handed.triangles, {}); }, corners);
+    ASSERT_TRUE(host);
+    const std::size_t count = scene->triangles.size();
+    ASSERT_EQ(corners.count, count);
+    std::size_t bad_corners = 0;
+    for (std::size_t i = 0; i < count; ++i)
+      bad_corners += std::memcmp(corners.data[i].p, scene->triangles[i].p, sizeof corners.data[i].p) != 0 ||
+                     corners.data[i].material != scene->triangles[i].material;
+    EXPECT_EQ(bad_corners, 0u);
+    const DeviceScene on(set, host, handed, build_bvh(corners.source(), {}, /*layout=*/std::nullopt));
+    ASSERT_EQ(scene == &flat, on.flat_shading());
+    ASSERT_EQ(scene == &smooth, on.indexed_shading());
+    const auto bytes = read_back(set, on.on(0).shading);
+    std::size_t bad_records = 0;
+    for (std::size_t i = 0; i < count; ++i) {
+      if (scene == &flat) {
+        const FlatTriangleShading want = flat_shading_of(scene->triangles[i]);
+        bad_records += std::memcmp(bytes.data() + i * sizeof want, &want, sizeof want) != 0;
+      } else {
+        const TriangleShading got = expand_indexed_shading(bytes.data(), i), want = shading_of(scene->triangles[i]);
+        bad_records += std::memcmp(&got, &want, sizeof got) != 0;
+      }
+    }
+    EXPECT_EQ(bad_records, 0u) << (scene == &flat ? "flat" : "smooth");
+  }
+}
+
 // A flat static scene that goes to the devices makes its records before its tree
 // (prepare_host_before_tree): the tree is then built, validated and keyed in the cache from the corners
 // packed where the triangles were, and comes out the same tree, under the same cache key, as

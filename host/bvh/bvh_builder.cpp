@@ -8,6 +8,7 @@
 #include "bvh/embree_reference.h"  // embree_device(), take_embree_error()
 #include "bvh/spatial_splits.h"
 #include "bvh/wide_bvh.h"  // ensure_layout
+#include "io/free_heap.h"
 
 #include <embree3/rtcore_builder.h>
 
@@ -363,6 +364,9 @@ FlatBvh build_bvh(const TriangleSource& triangles, const BvhBuildOptions& option
     build_tree(triangles, options, sah_block, bvh);
   }
 
+  // The flattener's leaf indices and Embree's freed blocks are in the heap now: handed back
+  // before the validator's tables stand beside the tree (io/free_heap.h).
+  give_back_free_heap(triangles.size());
   compute_bvh_stats(bvh);
   bvh.stats.scene_triangles = triangles.size();
   bvh.stats.block_leaves = block_leaves;

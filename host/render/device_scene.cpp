@@ -53,13 +53,13 @@ cl_uint DeviceSceneBuffers::bind(cl::Kernel& kernel, cl_uint first) const {
 namespace {
 
 // Hands the whole pages of block [bytes + used, bytes + size) back to the system (MADV_DONTNEED:
-// a block that large is a private mapping of its own), from 8 MiB.
-void release_tail(unsigned char* bytes, std::size_t used, std::size_t size) {
-  constexpr std::size_t kReleaseFrom = std::size_t{8} << 20;
+// a block that large is a private mapping of its own), from `from` bytes (8 MiB: a smaller
+// block may share its pages with others).
+void release_tail(unsigned char* bytes, std::size_t used, std::size_t size, std::size_t from = std::size_t{8} << 20) {
   const auto page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
   const auto begin = (reinterpret_cast<std::uintptr_t>(bytes + used) + page - 1) / page * page;
   const auto end = reinterpret_cast<std::uintptr_t>(bytes + size) / page * page;
-  if (end > begin && end - begin >= kReleaseFrom) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_DONTNEED);
+  if (end > begin && end - begin >= from) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_DONTNEED);
 }
 
 // What `make` makes of each of `triangles` (Record: TriangleShading, FlatTriangleShading when
@@ -67,21 +67,42 @@ void release_tail(unsigned char* bytes, std::size_t used, std::size_t size) {
 // themselves, in order: record i (64, 16 or 40 bytes at that many times i) is written after
 // triangle i (100 bytes at 100 i) is read, and ends before triangle i + 1 begins, so nothing is overwritten before it
 // is read. The whole pages past the last record are handed back to the system (MADV_DONTNEED; a block that large is a
-// private mapping of its own). The result owns the triangles' block.
+// private mapping of its own): those the pass has read, as it goes, in steps of kReleaseStep
+// triangles (what `make` builds beside them, a smooth scene's indexed records, then never stands
+// beside the whole block: docs/measurements.md, Start at paper scale, "What is resident at each
+// highest point"), the rest at the end. The pages under the records are never handed back, so
+// none is touched twice. The result owns the triangles' block.
 template <typename Record, typename Make>
 SceneBytes records_in_place(std::vector<SceneTriangle>&& triangles, Make make) {
   static_assert(sizeof(Record) <= sizeof(SceneTriangle), "records must fit where the triangles were");
   static_assert(std::is_trivially_copyable_v<SceneTriangle> && std::is_trivially_copyable_v<Record>);
+  constexpr std::size_t kReleaseStep = std::size_t{1} << 16;     // triangles (6.4 MB) between hand-backs
+  constexpr std::uintptr_t kHugePage = std::uintptr_t{2} << 20;  // whole ones: none is split
   auto owner = std::make_shared<std::vector<SceneTriangle>>(std::move(triangles));
   const std::size_t n = owner->size();
   auto* bytes = reinterpret_cast<unsigned char*>(owner->data());
+  const std::size_t records_end = n * sizeof(Record), block_end = n * sizeof(SceneTriangle);
+  // A block under 8 MiB keeps its pages (release_tail); huge pages from the first whole one past
+  // the records up to `released` are handed back.
+  const bool as_it_goes = block_end >= (std::size_t{8} << 20);
+  std::size_t released = records_end;
   for (std::size_t i = 0; i < n; ++i) {
     SceneTriangle t;
     std::memcpy(&t, bytes + i * sizeof(SceneTriangle), sizeof t);
     const Record s = make(t);
     std::memcpy(bytes + i * sizeof(Record), &s, sizeof s);
+    if (as_it_goes && (i + 1) % kReleaseStep == 0) {
+      const auto base = reinterpret_cast<std::uintptr_t>(bytes);
+      const std::uintptr_t begin = (base + released + kHugePage - 1) & ~(kHugePage - 1);
+      const std::uintptr_t end = (base + (i + 1) * sizeof(SceneTriangle)) & ~(kHugePage - 1);
+      if (end > begin) {
+        madvise(reinterpret_cast<void*>(begin), end - begin, MADV_DONTNEED);
+        released = end - base;
+      }
+    }
   }
-  release_tail(bytes, n * sizeof(Record), n * sizeof(SceneTriangle));
+  // The rest: from the records' end (the pages up to the first whole huge page past it too).
+  release_tail(bytes, records_end, block_end, as_it_goes ? 1 : std::size_t{8} << 20);
   return {bytes, n * sizeof(Record), sizeof(Record), owner};
 }
 
