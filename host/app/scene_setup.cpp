@@ -127,8 +127,8 @@ void build_world_tree(LoadedScene& out, const TriangleSource& tree_triangles, bo
   }
   out.times.validate_ms = ms(t3, clock::now());
   out.times.bvh_validated_when_cached = validated_when_cached;
-  // The validator's tables (about 12 bytes a triangle) are freed into the heap: handed back
-  // before the device layout is made beside it.
+  // The validator's tables are freed into the heap: handed back before the device layout is
+  // made beside the tree.
   give_back_free_heap(tree_triangles.size());
   if (!check.ok && from_cache) {
     // A cached file that passed its checksum but not the validator (a builder bug fixed since,
@@ -210,9 +210,8 @@ static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, cons
     const ProgressTicker ticker(quiet ? "" : "[scene] still loading " + spec);
     out.scene = load_scene(spec, options);
   }
-  // The loader's decoded attributes and index buffers (a smooth 4M-triangle glTF: about 120 MiB)
-  // are freed into the heap: handed back before the shading records are made beside the scene's
-  // triangles.
+  // What the loader freed (decoded attributes, index buffers) is in the heap: handed back before
+  // the shading records are made beside the scene's triangles.
   give_back_free_heap(out.scene.triangles.size());
   const auto& st = out.scene.stats;
   out.triangle_count = drawn_triangle_count(out.scene);

@@ -7,7 +7,7 @@
 // threshold that grows likewise. So a step's freed arrays stayed resident and stood beside the
 // next step's at its highest point: the glTF loader's decoded attributes beside the shading
 // records being made, the validator's tables beside the device layout, the layout's temporaries
-// beside the first frame (docs/measurements.md, Start at paper scale, "What is resident at each
+// beside the first frame (docs/measurements.md, "What is resident at each
 // highest point"). malloc_trim hands back every whole free page of every arena.
 #pragma once
 

@@ -69,7 +69,7 @@ void release_tail(unsigned char* bytes, std::size_t used, std::size_t size, std:
 // is read. The whole pages past the last record are handed back to the system (MADV_DONTNEED; a block that large is a
 // private mapping of its own): those the pass has read, as it goes, in steps of kReleaseStep
 // triangles (what `make` builds beside them, a smooth scene's indexed records, then never stands
-// beside the whole block: docs/measurements.md, Start at paper scale, "What is resident at each
+// beside the whole block: docs/measurements.md, "What is resident at each
 // highest point"), the rest at the end. The pages under the records are never handed back, so
 // none is touched twice. The result owns the triangles' block.
 template <typename Record, typename Make>

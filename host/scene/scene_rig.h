@@ -110,9 +110,8 @@ void emit_primitive(const RigPrimitive& prim, const glm::dmat4& world, const std
                     std::vector<std::array<glm::vec3, 3>>* colours = nullptr);
 // emit_primitive (no skin, every triangle that is not dropped) for the last copy of a static
 // mesh's primitive, which nothing reads afterwards: its own positions, normals and uvs are turned
-// to world space in place instead of into arrays beside them (a smooth 4M-triangle glTF: 64 MiB
-// less at the load's highest point; docs/measurements.md, Start at paper scale, "What is resident
-// at each highest point"). The same triangles.
+// to world space in place instead of into arrays beside them, which stood at the load's highest
+// point (docs/measurements.md, "What is resident at each highest point"). The same triangles.
 void emit_last_copy(RigPrimitive& prim, const glm::dmat4& world, std::vector<SceneTriangle>& out, SceneStats& stats,
                     std::vector<std::array<glm::vec3, 3>>* colours = nullptr);
 
