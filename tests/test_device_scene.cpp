@@ -7,6 +7,7 @@
 #include "render/device_scene.h"
 #include "render/indexed_shading.h"
 #include "render/path_tracer.h"
+#include "render/scene_tables.h"
 #include "scene/scene_loader.h"
 #include "scene/primitives.h"
 #include "scene/scene_rig.h"
@@ -22,6 +23,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -380,6 +382,45 @@ TEST(DeviceScene, ASmoothSceneGetsIndexedRecordsAndTheSameImage) {
     for (int k = 0; k < 3; ++k) t.n[k] = g + glm::vec3(0.0f, 1e-3f * float(k), 0.0f);
   }
   EXPECT_EQ(two_steps(faceted).shading_records(), ShadingRecords::Full);
+}
+
+// A static scene keeps its triangle flags per material (they follow from the material alone):
+// set on the leaf triangles by material they are the flags triangle_flags gives each triangle,
+// and the flags the scene uses, or-ed, leave out a material no triangle has (which would otherwise
+// compile alpha testing into the kernels for nothing).
+TEST(DeviceScene, TriangleFlagsByMaterialAreThePerTriangleFlags) {
+  Scene scene = make_builtin_scene("cornell");
+  Texture cutout;
+  cutout.width = cutout.height = 1;
+  cutout.rgba = {1.0f, 1.0f, 1.0f, 0.5f};
+  scene.textures.push_back(cutout);
+  Material leaves;
+  leaves.diffuse = glm::vec3(0.3f, 0.6f, 0.2f);
+  leaves.alpha_texture = 0;
+  scene.materials.push_back(leaves);
+  scene.materials.push_back(leaves);  // never used
+  const auto used_material = static_cast<std::uint32_t>(scene.materials.size() - 2);
+  for (std::size_t i = 0; i < scene.triangles.size(); i += 7) scene.triangles[i].material = used_material;
+  const std::vector<std::uint32_t> per_triangle = triangle_flags(scene), per_material = material_triangle_flags(scene);
+  FlatBvh a = build_bvh(scene.triangles), b = a;
+  set_triangle_flags(a, per_triangle);
+  set_triangle_flags_by_material(b, per_material);
+  std::uint32_t any = 0, differ = 0;
+  for (std::size_t i = 0; i < a.triangles.size(); ++i) {
+    differ += a.triangles[i].flags != b.triangles[i].flags;
+    any |= a.triangles[i].flags;
+  }
+  EXPECT_EQ(differ, 0u);
+  EXPECT_EQ(any, std::uint32_t{PX_TRI_ALPHA_TESTED | PX_TRI_EMISSIVE}) << "both kinds present";
+  std::uint32_t used = 0;
+  for (const std::uint32_t f : per_triangle) used |= f;
+  EXPECT_EQ(used_triangle_flags(scene, per_material), used);
+  for (SceneTriangle& t : scene.triangles)
+    if (t.material == used_material) t.material = 0;
+  EXPECT_EQ(used_triangle_flags(scene, per_material) & PX_TRI_ALPHA_TESTED, 0u)
+      << "the cut-out materials are on no triangle now";
+  b.triangles[0].material = static_cast<std::uint32_t>(per_material.size());
+  EXPECT_THROW(set_triangle_flags_by_material(b, per_material), std::out_of_range);
 }
 
 // A large scene's triangles hand their pages back as the pass that makes its records and corners

@@ -386,4 +386,12 @@ void set_triangle_flags(FlatBvh& bvh, const std::vector<std::uint32_t>& flags_pe
   }
 }
 
+void set_triangle_flags_by_material(FlatBvh& bvh, const std::vector<std::uint32_t>& flags_per_material) {
+  for (BvhTriangle& t : bvh.triangles) {
+    if (t.material >= flags_per_material.size())
+      throw std::out_of_range("set_triangle_flags_by_material: a material past the table");
+    t.flags = flags_per_material[t.material];
+  }
+}
+
 }  // namespace px

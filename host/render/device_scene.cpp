@@ -316,7 +316,9 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
 
 // The device-independent part of a static scene's layout (prepare_host).
 struct DeviceScene::HostPart {
-  std::vector<std::uint32_t> tri_flags;
+  // A static scene's triangle flags follow from their materials (triangle_flags): kept per
+  // material, not per triangle, and set on the leaf triangles by their material.
+  std::vector<std::uint32_t> material_flags;
   SceneTables tables;
   HostBytes shading;  // the records (and an indexed one's vertex table)
   ShadingRecords records = ShadingRecords::Full;
@@ -342,8 +344,8 @@ std::shared_ptr<DeviceScene::HostPart> DeviceScene::make_host_part(
   const auto start = std::chrono::steady_clock::now();
   auto host = std::make_shared<HostPart>();
   host->scene_triangles = scene.triangles.size();
-  host->tri_flags = triangle_flags(scene);
-  host->tables = make_tables(scene, host->tri_flags, false);
+  host->material_flags = material_triangle_flags(scene);
+  host->tables = make_tables(scene, {used_triangle_flags(scene, host->material_flags)}, false);
   std::vector<SceneTriangle> taken = take_triangles();  // scene.triangles are gone from here on
   const std::size_t n = taken.size();
   if (n != host->scene_triangles)
@@ -425,7 +427,7 @@ void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh
           " nodes of the scene's BVH failed validation: " + (check.errors.empty() ? "" : check.errors.front()));
   }
   if (store.before_tree_changes) store.before_tree_changes();
-  set_triangle_flags(bvh, host->tri_flags);
+  set_triangle_flags_by_material(bvh, host->material_flags);
   const std::size_t layout_nodes = layout == BvhLayout::Wide4         ? bvh.nodes4.size()
                                    : layout == BvhLayout::Wide8       ? bvh.nodes8.size()
                                    : layout == BvhLayout::Compressed8 ? bvh.cnodes.size()
@@ -478,7 +480,8 @@ void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh
   layout_start -= std::chrono::duration_cast<std::chrono::steady_clock::duration>(
       std::chrono::duration<double, std::milli>(host->ms));
   upload_all(devices, scene, std::move(node_bytes), std::move(triangle_bytes), std::move(host->shading),
-             instance_buffer_words(scene, {}, scene_triangles), std::move(host->tables), host->tri_flags, layout_start);
+             instance_buffer_words(scene, {}, scene_triangles), std::move(host->tables), /*tri_flags=*/{},
+             layout_start);
 }
 
 DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, std::shared_ptr<const MappedDeviceLayout> mapped) {
