@@ -66,12 +66,10 @@ void release_tail(unsigned char* bytes, std::size_t used, std::size_t size, std:
 // every triangle is flat, or a BuildTriangle's corners), written over the triangles
 // themselves, in order: record i (64, 16 or 40 bytes at that many times i) is written after
 // triangle i (100 bytes at 100 i) is read, and ends before triangle i + 1 begins, so nothing is overwritten before it
-// is read. The whole pages past the last record are handed back to the system (MADV_DONTNEED; a block that large is a
-// private mapping of its own): those the pass has read, as it goes, in steps of kReleaseStep
-// triangles (what `make` builds beside them, a smooth scene's indexed records, then never stands
-// beside the whole block: docs/measurements.md, "What is resident at each
-// highest point"), the rest at the end. The pages under the records are never handed back, so
-// none is touched twice. The result owns the triangles' block.
+// is read. The whole pages past the last record go back to the system (MADV_DONTNEED): those the
+// pass has read as it goes, so that what `make` builds (indexed records) never stands beside the
+// whole block (docs/measurements.md, "What is resident at each highest point"), the rest at the
+// end; none under the records, so none is touched twice. The result owns the triangles' block.
 template <typename Record, typename Make>
 SceneBytes records_in_place(std::vector<SceneTriangle>&& triangles, Make make) {
   static_assert(sizeof(Record) <= sizeof(SceneTriangle), "records must fit where the triangles were");
@@ -82,8 +80,7 @@ SceneBytes records_in_place(std::vector<SceneTriangle>&& triangles, Make make) {
   const std::size_t n = owner->size();
   auto* bytes = reinterpret_cast<unsigned char*>(owner->data());
   const std::size_t records_end = n * sizeof(Record), block_end = n * sizeof(SceneTriangle);
-  // A block under 8 MiB keeps its pages (release_tail); huge pages from the first whole one past
-  // the records up to `released` are handed back.
+  // Under 8 MiB, none go (release_tail); whole huge pages past the records up to `released` have.
   const bool as_it_goes = block_end >= (std::size_t{8} << 20);
   std::size_t released = records_end;
   for (std::size_t i = 0; i < n; ++i) {
