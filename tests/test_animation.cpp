@@ -32,6 +32,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -55,6 +56,55 @@ KeyframeTrack track(std::vector<double> times, std::vector<glm::dvec4> values, I
   t.values = std::move(values);
   t.interpolation = i;
   return t;
+}
+
+// A static mesh's last copy is turned to world space in its own arrays (emit_last_copy) instead of
+// beside them (emit_primitive): the same triangles, bit for bit, and the same drops, whatever the
+// transform (a mirror turns the winding), with a normal that degenerates, a non-finite uv, a
+// degenerate triangle and vertex colours.
+TEST(SceneRig, ALastCopyMadeInPlaceIsTheCopyMadeBesideIt) {
+  RigPrimitive prim;
+  const int n = 12;
+  for (int z = 0; z <= n; ++z)
+    for (int x = 0; x <= n; ++x) {
+      prim.positions.push_back({0.3f * x - 1.7f, 0.11f * std::sin(1.3f * x) * std::cos(0.7f * z), 0.29f * z + 0.1f});
+      prim.normals.push_back(glm::normalize(glm::vec3(0.2f * std::cos(1.1f * x), 1.0f, -0.3f * std::sin(0.9f * z))));
+      prim.uvs.push_back({x / float(n), 1.0f - z / float(n) * 0.75f});
+      prim.colours.push_back({x / float(n), 0.5f, z / float(n)});
+    }
+  prim.normals[5] = glm::vec3(0.0f);                                       // its corners take the geometric normal
+  prim.uvs[7] = glm::vec2(std::numeric_limits<float>::quiet_NaN(), 0.5f);  // zero
+  for (std::uint32_t z = 0; z < std::uint32_t(n); ++z)
+    for (std::uint32_t x = 0; x < std::uint32_t(n); ++x) {
+      const std::uint32_t a = z * (n + 1) + x, b = a + 1, c = a + n + 1, d = c + 1;
+      prim.triangles.push_back({a, c, b});
+      prim.triangles.push_back({b, c, d});
+    }
+  prim.triangles.push_back({0, 0, 1});  // degenerate: dropped by both
+  prim.material = 2;
+  const glm::dmat4 turned = glm::scale(
+      glm::rotate(glm::translate(glm::dmat4(1.0), glm::dvec3(0.4, -2.0, 3.5)), 0.7, glm::dvec3(0.3, 1.0, -0.2)),
+      glm::dvec3(1.5, 0.25, 2.0));
+  const glm::dmat4 mirrored = glm::scale(turned, glm::dvec3(-1.0, 1.0, 1.0));
+  for (const glm::dmat4& world : {glm::dmat4(1.0), turned, mirrored}) {
+    std::vector<SceneTriangle> beside, in_place;
+    std::vector<std::array<glm::vec3, 3>> colours_beside, colours_in_place;
+    SceneStats stats_beside, stats_in_place;
+    emit_primitive(prim, world, nullptr, nullptr, nullptr, beside, stats_beside, &colours_beside);
+    RigPrimitive consumed = prim;
+    emit_last_copy(consumed, world, in_place, stats_in_place, &colours_in_place);
+    ASSERT_EQ(beside.size(), prim.triangles.size() - 1);
+    ASSERT_EQ(in_place.size(), beside.size());
+    EXPECT_EQ(std::memcmp(in_place.data(), beside.data(), beside.size() * sizeof(SceneTriangle)), 0);
+    ASSERT_EQ(colours_in_place.size(), colours_beside.size());
+    EXPECT_EQ(
+        std::memcmp(colours_in_place.data(), colours_beside.data(), colours_beside.size() * sizeof(colours_beside[0])),
+        0);
+    EXPECT_EQ(stats_in_place.dropped_degenerate, 1u);
+    EXPECT_EQ(stats_beside.dropped_degenerate, 1u);
+    // It did turn the primitive's own vertices (that is where the memory is saved).
+    EXPECT_EQ(consumed.positions[0], in_place[0].p[0]) << "triangle 0 begins at vertex 0";
+  }
 }
 
 TEST(KeyframeTrack, StepAndLinearMatchHandValues) {

@@ -12,6 +12,7 @@
 #include "render/device_scene.h"
 #include "render/indexed_shading.h"
 #include "render/path_tracer.h"
+#include "io/background_writes.h"
 #include "io/content_hash.h"
 #include "scene/primitives.h"
 #include "scene/scene_loader.h"
@@ -23,11 +24,15 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <random>
+#include <thread>
 
 namespace px {
 namespace {
@@ -474,13 +479,43 @@ TEST(DeviceLayoutCache, CacheWritesRunOffTheStartAndAreCompleteWhenItEnds) {
     EXPECT_FALSE(other.device_scene.layout_from_cache());
     EXPECT_TRUE(other.loaded.times.bvh_from_cache);
     EXPECT_TRUE(same_hits(hits_of(other)));
-    other.first_frame_on_its_way();
+    // Checked before the first frame lets it go (after, it may be written at once).
     EXPECT_EQ(files("device-layout-"), 1) << "its own layout held for the first frame";
+    other.first_frame_on_its_way();
     other.wait_for_cache_writes();
     EXPECT_EQ(files("device-layout-"), 2) << "its own layout written";
   }
   EXPECT_EQ(files("device-layout-"), 2);
   EXPECT_EQ(files("."), 0) << "no temporary file left behind";
+}
+
+// Waiting for a write that is still running (DeviceScene waits for the BVH cache's before it
+// changes the tree) runs the jobs up to it, and only those: a job queued after it for the first
+// frame (the device layout's write) is still held until first_frame_on_its_way(). It had opened the
+// gate for good, and the layout's write then ran during the start whenever the BVH cache's write
+// had outlasted the tree's collapse. (The pauses order the threads; no time is measured.)
+TEST(BackgroundWrites, WaitingForARunningWriteDoesNotReleaseTheWritesHeldForTheFirstFrame) {
+  BackgroundWrites writes;
+  std::promise<void> release;
+  std::shared_future<void> released = release.get_future().share();
+  std::atomic<bool> tree_written{false}, layout_written{false};
+  const auto tree = writes.submit(
+      [released, &tree_written] {
+        released.wait();
+        tree_written = true;
+      },
+      BackgroundWrites::Start::Now);
+  std::thread waiter([&] { writes.wait_for(tree); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // the waiter is waiting, as a rule
+  release.set_value();
+  waiter.join();
+  EXPECT_TRUE(tree_written);
+  writes.submit([&layout_written] { layout_written = true; }, BackgroundWrites::Start::AfterFirstFrame);
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // time enough to run, were it let
+  EXPECT_FALSE(layout_written) << "held for the first frame";
+  writes.first_frame_on_its_way();
+  writes.wait();
+  EXPECT_TRUE(layout_written);
 }
 
 TEST(DeviceLayoutCache, NoFolderMeansNoCacheAndNoError) {

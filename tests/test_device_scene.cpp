@@ -7,6 +7,7 @@
 #include "render/device_scene.h"
 #include "render/indexed_shading.h"
 #include "render/path_tracer.h"
+#include "render/scene_tables.h"
 #include "scene/scene_loader.h"
 #include "scene/primitives.h"
 #include "scene/scene_rig.h"
@@ -22,6 +23,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -380,6 +382,120 @@ TEST(DeviceScene, ASmoothSceneGetsIndexedRecordsAndTheSameImage) {
     for (int k = 0; k < 3; ++k) t.n[k] = g + glm::vec3(0.0f, 1e-3f * float(k), 0.0f);
   }
   EXPECT_EQ(two_steps(faceted).shading_records(), ShadingRecords::Full);
+}
+
+// A static scene keeps its triangle flags per material (they follow from the material alone):
+// set on the leaf triangles by material they are the flags triangle_flags gives each triangle,
+// and the flags the scene uses, or-ed, leave out a material no triangle has (which would otherwise
+// compile alpha testing into the kernels for nothing).
+TEST(DeviceScene, TriangleFlagsByMaterialAreThePerTriangleFlags) {
+  Scene scene = make_builtin_scene("cornell");
+  Texture cutout;
+  cutout.width = cutout.height = 1;
+  cutout.rgba = {1.0f, 1.0f, 1.0f, 0.5f};
+  scene.textures.push_back(cutout);
+  Material leaves;
+  leaves.diffuse = glm::vec3(0.3f, 0.6f, 0.2f);
+  leaves.alpha_texture = 0;
+  scene.materials.push_back(leaves);
+  scene.materials.push_back(leaves);  // never used
+  const auto used_material = static_cast<std::uint32_t>(scene.materials.size() - 2);
+  for (std::size_t i = 0; i < scene.triangles.size(); i += 7) scene.triangles[i].material = used_material;
+  const std::vector<std::uint32_t> per_triangle = triangle_flags(scene), per_material = material_triangle_flags(scene);
+  FlatBvh a = build_bvh(scene.triangles), b = a;
+  set_triangle_flags(a, per_triangle);
+  set_triangle_flags_by_material(b, per_material);
+  std::uint32_t any = 0, differ = 0;
+  for (std::size_t i = 0; i < a.triangles.size(); ++i) {
+    differ += a.triangles[i].flags != b.triangles[i].flags;
+    any |= a.triangles[i].flags;
+  }
+  EXPECT_EQ(differ, 0u);
+  EXPECT_EQ(any, std::uint32_t{PX_TRI_ALPHA_TESTED | PX_TRI_EMISSIVE}) << "both kinds present";
+  std::uint32_t used = 0;
+  for (const std::uint32_t f : per_triangle) used |= f;
+  EXPECT_EQ(used_triangle_flags(scene, per_material), used);
+  for (SceneTriangle& t : scene.triangles)
+    if (t.material == used_material) t.material = 0;
+  EXPECT_EQ(used_triangle_flags(scene, per_material) & PX_TRI_ALPHA_TESTED, 0u)
+      << "the cut-out materials are on no triangle now";
+  b.triangles[0].material = static_cast<std::uint32_t>(per_material.size());
+  EXPECT_THROW(set_triangle_flags_by_material(b, per_material), std::out_of_range);
+}
+
+// A large scene's triangles hand their pages back as the pass that makes its records and corners
+// over them reads them (records_in_place, from 8 MiB: here 26 MB of triangles, several hand-backs),
+// never a page that is still to be read or already holds corners: every corner is its triangle's
+// to the bit and every record the one shading_of / flat_shading_of makes of it, smooth (indexed
+// records beside the vertices' table) and flat.
+TEST(DeviceScene, ALargeScenesTrianglesGoBackAsTheyAreReadAndItsCornersAndRecordsStayWhole) {
+  const int n = 360;  // 259,200 triangles
+  Scene smooth;
+  smooth.materials.push_back(Material{});
+  struct Vertex {
+    glm::vec3 p, n;
+    glm::vec2 uv;
+  };
+  const auto vertex = [n](int x, int z) {
+    Vertex v;
+    v.p = {x / float(n) * 2.0f - 1.0f, 0.1f * std::sin(0.37f * x) * std::cos(0.23f * z), z / float(n) * 2.0f - 1.0f};
+    v.n = glm::normalize(glm::vec3(-0.037f * std::cos(0.37f * x), 1.0f, 0.023f * std::sin(0.23f * z)));
+    v.uv = {x / float(n), z / float(n)};
+    return v;
+  };
+  for (int z = 0; z < n; ++z)
+    for (int x = 0; x < n; ++x) {
+      const Vertex a = vertex(x, z), b = vertex(x + 1, z), c = vertex(x, z + 1), d = vertex(x + 1, z + 1);
+      for (const std::array<const Vertex*, 3>& t : {std::array{&a, &c, &b}, std::array{&b, &c, &d}}) {
+        SceneTriangle tri;
+        for (int k = 0; k < 3; ++k) {
+          tri.p[k] = t[k]->p;
+          tri.n[k] = t[k]->n;
+          tri.uv[k] = t[k]->uv;
+        }
+        smooth.triangles.push_back(tri);
+      }
+    }
+  ASSERT_GE(smooth.triangles.size() * sizeof(SceneTriangle), std::size_t{24} << 20);
+  Scene flat = smooth;
+  for (SceneTriangle& t : flat.triangles) {
+    const glm::vec3 g = glm::normalize(glm::cross(t.p[1] - t.p[0], t.p[2] - t.p[0]));
+    for (int k = 0; k < 3; ++k) {
+      t.n[k] = g;
+      t.uv[k] = glm::vec2(0.0f);
+    }
+  }
+  ASSERT_TRUE(has_flat_shading(flat.triangles));
+  DeviceSet set = DeviceSet::create({1, DeviceMode::Auto, "", std::nullopt});
+  for (const Scene* scene : {&smooth, &flat}) {
+    Scene handed = *scene;
+    DeviceScene::BuildCorners corners;
+    const auto host = DeviceScene::prepare_host_before_tree(
+        handed, [&handed] { return std::exchange(handed.triangles, {}); }, corners);
+    ASSERT_TRUE(host);
+    const std::size_t count = scene->triangles.size();
+    ASSERT_EQ(corners.count, count);
+    std::size_t bad_corners = 0;
+    for (std::size_t i = 0; i < count; ++i)
+      bad_corners += std::memcmp(corners.data[i].p, scene->triangles[i].p, sizeof corners.data[i].p) != 0 ||
+                     corners.data[i].material != scene->triangles[i].material;
+    EXPECT_EQ(bad_corners, 0u);
+    const DeviceScene on(set, host, handed, build_bvh(corners.source(), {}, /*layout=*/std::nullopt));
+    ASSERT_EQ(scene == &flat, on.flat_shading());
+    ASSERT_EQ(scene == &smooth, on.indexed_shading());
+    const auto bytes = read_back(set, on.on(0).shading);
+    std::size_t bad_records = 0;
+    for (std::size_t i = 0; i < count; ++i) {
+      if (scene == &flat) {
+        const FlatTriangleShading want = flat_shading_of(scene->triangles[i]);
+        bad_records += std::memcmp(bytes.data() + i * sizeof want, &want, sizeof want) != 0;
+      } else {
+        const TriangleShading got = expand_indexed_shading(bytes.data(), i), want = shading_of(scene->triangles[i]);
+        bad_records += std::memcmp(&got, &want, sizeof got) != 0;
+      }
+    }
+    EXPECT_EQ(bad_records, 0u) << (scene == &flat ? "flat" : "smooth");
+  }
 }
 
 // A flat static scene that goes to the devices makes its records before its tree

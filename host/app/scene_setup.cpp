@@ -6,6 +6,7 @@
 #include "bvh/scene_bvhs.h"
 #include "bvh/wide_bvh.h"
 #include "image/image_io.h"
+#include "io/free_heap.h"
 #include "render/device_layout_cache.h"
 #include "scene/instancing.h"
 #include "io/progress_ticker.h"
@@ -126,6 +127,9 @@ void build_world_tree(LoadedScene& out, const TriangleSource& tree_triangles, bo
   }
   out.times.validate_ms = ms(t3, clock::now());
   out.times.bvh_validated_when_cached = validated_when_cached;
+  // The validator's tables are freed into the heap: handed back before the device layout is
+  // made beside the tree.
+  give_back_free_heap(tree_triangles.size());
   if (!check.ok && from_cache) {
     // A cached file that passed its checksum but not the validator (a builder bug fixed since,
     // with the same sources hash?): rebuild rather than fail.
@@ -206,6 +210,9 @@ static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, cons
     const ProgressTicker ticker(quiet ? "" : "[scene] still loading " + spec);
     out.scene = load_scene(spec, options);
   }
+  // What the loader freed (decoded attributes, index buffers) is in the heap: handed back before
+  // the shading records are made beside the scene's triangles.
+  give_back_free_heap(out.scene.triangles.size());
   const auto& st = out.scene.stats;
   out.triangle_count = drawn_triangle_count(out.scene);
   if (!out.scene.triangles.empty()) {
@@ -379,6 +386,9 @@ SceneOnDevices::SceneOnDevices(LoadedScene scene, const DeviceOptions& device_op
     std::vector<SceneTriangle>().swap(loaded.scene.triangles);
     std::vector<std::array<glm::vec3, 3>>().swap(loaded.scene.vertex_colours);
   }
+  // What the device layout freed (its temporaries, the tree's binary nodes) goes back before the
+  // first frame's buffers, PoCL's work-group memory and the image codec's libraries come.
+  give_back_free_heap(loaded.triangle_count);
   loaded.times.host_rss_after_start_mib = resident_mib();
   preload_image_codec();  // see load_and_build
 }

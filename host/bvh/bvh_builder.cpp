@@ -8,6 +8,7 @@
 #include "bvh/embree_reference.h"  // embree_device(), take_embree_error()
 #include "bvh/spatial_splits.h"
 #include "bvh/wide_bvh.h"  // ensure_layout
+#include "io/free_heap.h"
 
 #include <embree3/rtcore_builder.h>
 
@@ -363,6 +364,9 @@ FlatBvh build_bvh(const TriangleSource& triangles, const BvhBuildOptions& option
     build_tree(triangles, options, sah_block, bvh);
   }
 
+  // The flattener's leaf indices and Embree's freed blocks are in the heap now: handed back
+  // before the validator's tables stand beside the tree (io/free_heap.h).
+  give_back_free_heap(triangles.size());
   compute_bvh_stats(bvh);
   bvh.stats.scene_triangles = triangles.size();
   bvh.stats.block_leaves = block_leaves;
@@ -379,6 +383,14 @@ void set_triangle_flags(FlatBvh& bvh, const std::vector<std::uint32_t>& flags_pe
     if (t.prim >= flags_per_scene_triangle.size())
       throw std::out_of_range("set_triangle_flags: fewer flags than scene triangles");
     t.flags = flags_per_scene_triangle[t.prim];
+  }
+}
+
+void set_triangle_flags_by_material(FlatBvh& bvh, const std::vector<std::uint32_t>& flags_per_material) {
+  for (BvhTriangle& t : bvh.triangles) {
+    if (t.material >= flags_per_material.size())
+      throw std::out_of_range("set_triangle_flags_by_material: a material past the table");
+    t.flags = flags_per_material[t.material];
   }
 }
 

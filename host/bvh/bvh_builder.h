@@ -70,5 +70,8 @@ void compute_bvh_stats(FlatBvh& bvh);
 // Sets BvhTriangle::flags of every leaf triangle from a per-scene-triangle table
 // (PX_TRI_* bits). Throws std::out_of_range if the table is shorter than the scene.
 void set_triangle_flags(FlatBvh& bvh, const std::vector<std::uint32_t>& flags_per_scene_triangle);
+// The same where the flags follow from the material alone (BvhTriangle::material indexes
+// `flags_per_material`). Throws std::out_of_range for a material past the table.
+void set_triangle_flags_by_material(FlatBvh& bvh, const std::vector<std::uint32_t>& flags_per_material);
 
 }  // namespace px

@@ -1,5 +1,6 @@
 #include "io/background_writes.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <exception>
@@ -28,8 +29,10 @@ void BackgroundWrites::first_frame_on_its_way() {
 
 void BackgroundWrites::wait_for(Ticket ticket) {
   std::unique_lock<std::mutex> lock(mutex_);
-  if (ticket >= next_) return;
-  gate_open_ = true;  // a held job before it would hold it too
+  if (ticket >= next_ || done_ > ticket) return;
+  // A held job before it would hold it too: the jobs up to this one may run, not those after it
+  // (the device layout's write, queued later, still waits for the first frame).
+  run_upto_ = std::max(run_upto_, ticket + 1);
   changed_.notify_all();
   changed_.wait(lock, [&] { return done_ > ticket; });
 }
@@ -59,8 +62,10 @@ bool BackgroundWrites::any() const {
 void BackgroundWrites::run() {
   std::unique_lock<std::mutex> lock(mutex_);
   for (;;) {
-    changed_.wait(lock,
-                  [&] { return stop_ || (!queue_.empty() && (queue_.front().start == Start::Now || gate_open_)); });
+    changed_.wait(lock, [&] {
+      return stop_ || (!queue_.empty() &&
+                       (queue_.front().start == Start::Now || gate_open_ || queue_.front().ticket < run_upto_));
+    });
     if (queue_.empty()) return;  // stop_ and nothing left
     Entry entry = std::move(queue_.front());
     queue_.pop_front();

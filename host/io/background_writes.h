@@ -59,6 +59,7 @@ class BackgroundWrites {
   std::thread thread_;
   bool gate_open_ = false, stop_ = false;
   Ticket next_ = 0, done_ = 0;  // tickets below done_ have run (jobs run in order)
+  Ticket run_upto_ = 0;         // held jobs below it run before the first frame (wait_for)
   double busy_ms_ = 0.0;
 };
 

@@ -53,35 +53,53 @@ cl_uint DeviceSceneBuffers::bind(cl::Kernel& kernel, cl_uint first) const {
 namespace {
 
 // Hands the whole pages of block [bytes + used, bytes + size) back to the system (MADV_DONTNEED:
-// a block that large is a private mapping of its own), from 8 MiB.
-void release_tail(unsigned char* bytes, std::size_t used, std::size_t size) {
-  constexpr std::size_t kReleaseFrom = std::size_t{8} << 20;
+// a block that large is a private mapping of its own), from `from` bytes (8 MiB: a smaller
+// block may share its pages with others).
+void release_tail(unsigned char* bytes, std::size_t used, std::size_t size, std::size_t from = std::size_t{8} << 20) {
   const auto page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
   const auto begin = (reinterpret_cast<std::uintptr_t>(bytes + used) + page - 1) / page * page;
   const auto end = reinterpret_cast<std::uintptr_t>(bytes + size) / page * page;
-  if (end > begin && end - begin >= kReleaseFrom) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_DONTNEED);
+  if (end > begin && end - begin >= from) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_DONTNEED);
 }
 
 // What `make` makes of each of `triangles` (Record: TriangleShading, FlatTriangleShading when
 // every triangle is flat, or a BuildTriangle's corners), written over the triangles
 // themselves, in order: record i (64, 16 or 40 bytes at that many times i) is written after
 // triangle i (100 bytes at 100 i) is read, and ends before triangle i + 1 begins, so nothing is overwritten before it
-// is read. The whole pages past the last record are handed back to the system (MADV_DONTNEED; a block that large is a
-// private mapping of its own). The result owns the triangles' block.
+// is read. The whole pages past the last record go back to the system (MADV_DONTNEED): those the
+// pass has read as it goes, so that what `make` builds (indexed records) never stands beside the
+// whole block (docs/measurements.md, "What is resident at each highest point"), the rest at the
+// end; none under the records, so none is touched twice. The result owns the triangles' block.
 template <typename Record, typename Make>
 SceneBytes records_in_place(std::vector<SceneTriangle>&& triangles, Make make) {
   static_assert(sizeof(Record) <= sizeof(SceneTriangle), "records must fit where the triangles were");
   static_assert(std::is_trivially_copyable_v<SceneTriangle> && std::is_trivially_copyable_v<Record>);
+  constexpr std::size_t kReleaseStep = std::size_t{1} << 16;     // triangles (6.4 MB) between hand-backs
+  constexpr std::uintptr_t kHugePage = std::uintptr_t{2} << 20;  // whole ones: none is split
   auto owner = std::make_shared<std::vector<SceneTriangle>>(std::move(triangles));
   const std::size_t n = owner->size();
   auto* bytes = reinterpret_cast<unsigned char*>(owner->data());
+  const std::size_t records_end = n * sizeof(Record), block_end = n * sizeof(SceneTriangle);
+  // Under 8 MiB, none go (release_tail); whole huge pages past the records up to `released` have.
+  const bool as_it_goes = block_end >= (std::size_t{8} << 20);
+  std::size_t released = records_end;
   for (std::size_t i = 0; i < n; ++i) {
     SceneTriangle t;
     std::memcpy(&t, bytes + i * sizeof(SceneTriangle), sizeof t);
     const Record s = make(t);
     std::memcpy(bytes + i * sizeof(Record), &s, sizeof s);
+    if (as_it_goes && (i + 1) % kReleaseStep == 0) {
+      const auto base = reinterpret_cast<std::uintptr_t>(bytes);
+      const std::uintptr_t begin = (base + released + kHugePage - 1) & ~(kHugePage - 1);
+      const std::uintptr_t end = (base + (i + 1) * sizeof(SceneTriangle)) & ~(kHugePage - 1);
+      if (end > begin) {
+        madvise(reinterpret_cast<void*>(begin), end - begin, MADV_DONTNEED);
+        released = end - base;
+      }
+    }
   }
-  release_tail(bytes, n * sizeof(Record), n * sizeof(SceneTriangle));
+  // The rest: from the records' end (the pages up to the first whole huge page past it too).
+  release_tail(bytes, records_end, block_end, as_it_goes ? 1 : std::size_t{8} << 20);
   return {bytes, n * sizeof(Record), sizeof(Record), owner};
 }
 
@@ -295,7 +313,9 @@ DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, FlatBvh bvh, st
 
 // The device-independent part of a static scene's layout (prepare_host).
 struct DeviceScene::HostPart {
-  std::vector<std::uint32_t> tri_flags;
+  // A static scene's triangle flags follow from their materials (triangle_flags): kept per
+  // material, not per triangle, and set on the leaf triangles by their material.
+  std::vector<std::uint32_t> material_flags;
   SceneTables tables;
   HostBytes shading;  // the records (and an indexed one's vertex table)
   ShadingRecords records = ShadingRecords::Full;
@@ -321,8 +341,8 @@ std::shared_ptr<DeviceScene::HostPart> DeviceScene::make_host_part(
   const auto start = std::chrono::steady_clock::now();
   auto host = std::make_shared<HostPart>();
   host->scene_triangles = scene.triangles.size();
-  host->tri_flags = triangle_flags(scene);
-  host->tables = make_tables(scene, host->tri_flags, false);
+  host->material_flags = material_triangle_flags(scene);
+  host->tables = make_tables(scene, {used_triangle_flags(scene, host->material_flags)}, false);
   std::vector<SceneTriangle> taken = take_triangles();  // scene.triangles are gone from here on
   const std::size_t n = taken.size();
   if (n != host->scene_triangles)
@@ -404,7 +424,7 @@ void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh
           " nodes of the scene's BVH failed validation: " + (check.errors.empty() ? "" : check.errors.front()));
   }
   if (store.before_tree_changes) store.before_tree_changes();
-  set_triangle_flags(bvh, host->tri_flags);
+  set_triangle_flags_by_material(bvh, host->material_flags);
   const std::size_t layout_nodes = layout == BvhLayout::Wide4         ? bvh.nodes4.size()
                                    : layout == BvhLayout::Wide8       ? bvh.nodes8.size()
                                    : layout == BvhLayout::Compressed8 ? bvh.cnodes.size()
@@ -457,7 +477,8 @@ void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh
   layout_start -= std::chrono::duration_cast<std::chrono::steady_clock::duration>(
       std::chrono::duration<double, std::milli>(host->ms));
   upload_all(devices, scene, std::move(node_bytes), std::move(triangle_bytes), std::move(host->shading),
-             instance_buffer_words(scene, {}, scene_triangles), std::move(host->tables), host->tri_flags, layout_start);
+             instance_buffer_words(scene, {}, scene_triangles), std::move(host->tables), /*tri_flags=*/{},
+             layout_start);
 }
 
 DeviceScene::DeviceScene(DeviceSet& devices, const Scene& scene, std::shared_ptr<const MappedDeviceLayout> mapped) {

@@ -150,13 +150,27 @@ std::vector<LightTriangle> make_light_table(const Scene& scene) {
   return out;
 }
 
-std::vector<std::uint32_t> triangle_flags(const Scene& scene) {
-  // By material first: a scene has few materials and may have 10M triangles.
+std::vector<std::uint32_t> material_triangle_flags(const Scene& scene) {
   std::vector<std::uint32_t> by_material(scene.materials.size());
   for (std::size_t k = 0; k < by_material.size(); ++k) {
     const Material& m = scene.materials[k];
     by_material[k] = (m.alpha_texture >= 0 ? PX_TRI_ALPHA_TESTED : 0u) | (m.is_emissive() ? PX_TRI_EMISSIVE : 0u);
   }
+  return by_material;
+}
+
+std::uint32_t used_triangle_flags(const Scene& scene, const std::vector<std::uint32_t>& flags_per_material) {
+  std::vector<char> used(flags_per_material.size(), 0);
+  for (const SceneTriangle& t : scene.triangles) used.at(t.material) = 1;
+  std::uint32_t flags = 0;
+  for (std::size_t k = 0; k < used.size(); ++k)
+    if (used[k]) flags |= flags_per_material[k];
+  return flags;
+}
+
+std::vector<std::uint32_t> triangle_flags(const Scene& scene) {
+  // By material first: a scene has few materials and may have 10M triangles.
+  const std::vector<std::uint32_t> by_material = material_triangle_flags(scene);
   std::vector<std::uint32_t> out(scene.triangles.size());
   for (std::size_t i = 0; i < out.size(); ++i) out[i] = by_material.at(scene.triangles[i].material);
   return out;

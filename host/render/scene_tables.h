@@ -26,6 +26,10 @@ std::vector<GpuMaterial> make_gpu_materials(const Scene& scene);
 std::vector<LightTriangle> make_light_table(const Scene& scene);
 // PX_TRI_* flags of every scene triangle, from its material (alpha-tested, emissive).
 std::vector<std::uint32_t> triangle_flags(const Scene& scene);
+// The same flags per material (a triangle's are its material's), and all that the scene's
+// triangles carry, or-ed: what a static scene keeps instead of a word per triangle.
+std::vector<std::uint32_t> material_triangle_flags(const Scene& scene);
+std::uint32_t used_triangle_flags(const Scene& scene, const std::vector<std::uint32_t>& flags_per_material);
 
 // How next-event estimation picks a light type, and the sun/sky constants, as FrameParams
 // fields (the per-launch fields are left for the caller).

@@ -2,6 +2,8 @@
 // a static scene's meshes placed as flat copies or instances.
 #include "scene/gltf_converter.h"
 
+#include "io/free_heap.h"
+
 #include "scene/primitives.h"
 #include "scene/punctual_light.h"
 #include "scene/sun_path.h"
@@ -305,15 +307,24 @@ void Converter::place_meshes() {
       if (flat(pl) || stored.insert(pl.mesh).second)
         for (const RigPrimitive& prim : mesh_primitives(pl.mesh)) expected += prim.triangles.size();
     scene_.triangles.reserve(expected);
+    // Every mesh a node draws is decoded now (the count above): the file's buffers are read no
+    // more, and go before the triangles are made, at the load's highest point (docs/measurements.md,
+    // glTF load memory); so does the heap the decoding freed (each accessor's floats were read
+    // into a temporary array first: io/free_heap.h).
+    if (release_buffers_) release_buffers_();
+    give_back_free_heap(expected);
   }
-  // Every mesh a node draws is decoded now (the count above): the file's buffers are read no
-  // more, and go before the triangles are made, at the load's highest point (docs/measurements.md,
-  // glTF load memory).
-  if (release_buffers_) release_buffers_();
   for (const Placement& pl : placements_) {
     if (!flat(pl)) continue;
-    for (const RigPrimitive& prim : mesh_primitives(pl.mesh))
-      emit_primitive(prim, pl.world, nullptr, nullptr, nullptr, scene_.triangles, scene_.stats, colours);
+    if (copies_left[pl.mesh] == 1 && !instanced[pl.mesh]) {
+      // Its last copy: the vertices turn to world space in their own arrays.
+      mesh_primitives(pl.mesh);
+      for (RigPrimitive& prim : static_meshes_.at(pl.mesh))
+        emit_last_copy(prim, pl.world, scene_.triangles, scene_.stats, colours);
+    } else {
+      for (const RigPrimitive& prim : mesh_primitives(pl.mesh))
+        emit_primitive(prim, pl.world, nullptr, nullptr, nullptr, scene_.triangles, scene_.stats, colours);
+    }
     if (--copies_left[pl.mesh] == 0 && !instanced[pl.mesh]) static_meshes_.erase(pl.mesh);
   }
   SceneInstancing in;

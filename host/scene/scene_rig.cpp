@@ -114,13 +114,24 @@ glm::dmat4 vertex_skin(const RigPrimitive& prim, std::size_t v, const std::vecto
 
 }  // namespace
 
-void emit_primitive(const RigPrimitive& prim, const glm::dmat4& world, const std::vector<glm::dmat4>* joint_matrices,
-                    const std::vector<std::uint32_t>* kept, std::vector<std::uint32_t>* record,
-                    std::vector<SceneTriangle>& out, SceneStats& stats,
-                    std::vector<std::array<glm::vec3, 3>>* colours) {
+// emit_primitive, and emit_last_copy with `in_place` (= &prim): the vertices' world positions,
+// normals and uvs are then written over prim's own (each read before it is written), not beside
+// them; the triangles are the same.
+static void emit_vertices_and_triangles(const RigPrimitive& prim, RigPrimitive* in_place, const glm::dmat4& world,
+                                        const std::vector<glm::dmat4>* joint_matrices,
+                                        const std::vector<std::uint32_t>* kept, std::vector<std::uint32_t>* record,
+                                        std::vector<SceneTriangle>& out, SceneStats& stats,
+                                        std::vector<std::array<glm::vec3, 3>>* colours) {
   const bool skinned = joint_matrices && !prim.joints.empty();
+  std::vector<glm::vec3> pos_beside, normal_beside;
+  std::vector<glm::vec2> uv_beside;
+  if (!in_place) {
+    pos_beside.resize(prim.positions.size());
+    normal_beside.resize(prim.normals.size());
+    uv_beside.resize(prim.uvs.size());
+  }
   // Positions (and for skins each vertex's normal matrix) once per vertex.
-  std::vector<glm::vec3> world_pos(prim.positions.size());
+  std::vector<glm::vec3>& world_pos = in_place ? in_place->positions : pos_beside;
   std::vector<glm::dmat3> vertex_normal_matrix;
   std::vector<char> vertex_flips;
   const glm::dmat3 linear(world);
@@ -144,7 +155,7 @@ void emit_primitive(const RigPrimitive& prim, const glm::dmat4& world, const std
   // Normals and uvs once per vertex as well, not once per corner (a heightfield's vertex is a
   // corner of six triangles). A normal that degenerates is marked invalid: its corners take the
   // triangle's geometric normal.
-  std::vector<glm::vec3> world_normal(prim.normals.size());
+  std::vector<glm::vec3>& world_normal = in_place ? in_place->normals : normal_beside;
   std::vector<char> normal_valid(prim.normals.size());
   for (std::size_t v = 0; v < prim.normals.size(); ++v) {
     const glm::dmat3& nm = skinned ? vertex_normal_matrix[v] : normal_matrix;
@@ -153,7 +164,7 @@ void emit_primitive(const RigPrimitive& prim, const glm::dmat4& world, const std
     normal_valid[v] = len > 0.0f && std::isfinite(len);
     if (normal_valid[v]) world_normal[v] = wn / len;
   }
-  std::vector<glm::vec2> uvs(prim.uvs.size());
+  std::vector<glm::vec2>& uvs = in_place ? in_place->uvs : uv_beside;
   for (std::size_t v = 0; v < prim.uvs.size(); ++v) {
     const glm::vec2& a = prim.uvs[v];
     // glTF's v runs down the image, the renderer's (OBJ's) up.
@@ -206,6 +217,18 @@ void emit_primitive(const RigPrimitive& prim, const glm::dmat4& world, const std
       colours->push_back(rgb);
     }
   }
+}
+
+void emit_primitive(const RigPrimitive& prim, const glm::dmat4& world, const std::vector<glm::dmat4>* joint_matrices,
+                    const std::vector<std::uint32_t>* kept, std::vector<std::uint32_t>* record,
+                    std::vector<SceneTriangle>& out, SceneStats& stats,
+                    std::vector<std::array<glm::vec3, 3>>* colours) {
+  emit_vertices_and_triangles(prim, nullptr, world, joint_matrices, kept, record, out, stats, colours);
+}
+
+void emit_last_copy(RigPrimitive& prim, const glm::dmat4& world, std::vector<SceneTriangle>& out, SceneStats& stats,
+                    std::vector<std::array<glm::vec3, 3>>* colours) {
+  emit_vertices_and_triangles(prim, &prim, world, nullptr, nullptr, nullptr, out, stats, colours);
 }
 
 namespace {

@@ -108,6 +108,12 @@ void emit_primitive(const RigPrimitive& prim, const glm::dmat4& world, const std
                     const std::vector<std::uint32_t>* kept, std::vector<std::uint32_t>* record,
                     std::vector<SceneTriangle>& out, SceneStats& stats,
                     std::vector<std::array<glm::vec3, 3>>* colours = nullptr);
+// emit_primitive (no skin, every triangle that is not dropped) for the last copy of a static
+// mesh's primitive, which nothing reads afterwards: its own positions, normals and uvs are turned
+// to world space in place instead of into arrays beside them, which stood at the load's highest
+// point (docs/measurements.md, "What is resident at each highest point"). The same triangles.
+void emit_last_copy(RigPrimitive& prim, const glm::dmat4& world, std::vector<SceneTriangle>& out, SceneStats& stats,
+                    std::vector<std::array<glm::vec3, 3>>* colours = nullptr);
 
 // The joint matrices of `skin` (joint world x inverse bind) from the world matrices.
 std::vector<glm::dmat4> skin_matrices(const RigSkin& skin, const std::vector<glm::dmat4>& world);
