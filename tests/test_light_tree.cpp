@@ -88,12 +88,22 @@ double host_pmf(const LightTree& tree, D3 p, D3 n, std::size_t light) {
         candidates.push_back(nodes[c].child[1]);
       }
     }
+    // Candidates alike in everything but power are weighed by power (their importances' ratio).
+    bool alike = true;
+    for (std::uint32_t c : candidates) {
+      const LightTreeNode &a = nodes[candidates[0]], &b = nodes[c];
+      for (int k = 0; k < 3; ++k)
+        alike =
+            alike && a.bounds_min[k] == b.bounds_min[k] && a.bounds_max[k] == b.bounds_max[k] && a.axis[k] == b.axis[k];
+      alike = alike && a.cos_theta_o == b.cos_theta_o && a.cos_theta_e == b.cos_theta_e;
+    }
+    const auto weight = [&](std::uint32_t c) { return alike ? double(nodes[c].phi) : host_importance(nodes[c], p, n); };
     double total = 0;
-    for (std::uint32_t c : candidates) total += host_importance(nodes[c], p, n);
+    for (std::uint32_t c : candidates) total += weight(c);
     if (!(total > 0)) return 0;
     const std::uint32_t child = nodes[at].child[(trail >> depth++) & 1u];
     const std::uint32_t next = is_leaf(child) ? child : nodes[child].child[(trail >> depth++) & 1u];
-    prob *= host_importance(nodes[next], p, n) / total;
+    prob *= weight(next) / total;
     at = next;
   }
   EXPECT_EQ(nodes[at].child[0] & ~PX_LIGHT_TREE_LEAF, light) << "the trail leads to another leaf";
@@ -281,6 +291,78 @@ void expect_pmf_sums_to_one(const std::vector<LightTriangle>& buffer, std::size_
     EXPECT_NEAR(sum + none, 1.0, 1e-4 + 64.0 / kSamples) << "point " << i;
     EXPECT_LE(sum, 1.0 + 1e-4) << "point " << i;
   }
+}
+
+// Quad lamps (two triangles with one box and one normal each) of varied power: the wide nodes
+// made of one quad's triangles weigh them by power (types.h, LightTreeWideNode::by_power); the
+// kernel's pmf is the host walk's, which applies the same rule from the binary tree, and the pmf
+// sums to 1 below the lamps, where every lamp faces the points. Breaking the rule on either side
+// (the flag ignored, or set on lanes of different shape) fails the comparison.
+TEST(LightTree, QuadLampsAreWeighedByPowerWithinTheQuad) {
+  Scene s;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-10.0f, 10.0f), w(0.1f, 1.0f);
+  for (int m = 0; m < 6; ++m) {
+    Material mat;
+    mat.emission = glm::vec3(0.5f + 3.0f * m, 1.0f + m, 2.0f);
+    s.materials.push_back(mat);
+  }
+  for (int i = 0; i < 40; ++i) {
+    const glm::vec3 c(u(rng), 8.0f + 0.05f * u(rng), u(rng));
+    const glm::vec3 dx(w(rng), 0, 0), dz(0, 0, w(rng));
+    const auto m = static_cast<std::uint32_t>(i % 6);
+    // Facing down (-y): (c + dx - c) x (c + dx + dz - c) = dx x dz points down.
+    append_triangle(s.triangles, c, c + dx, c + dx + dz, m);
+    append_triangle(s.triangles, c, c + dx + dz, c + dz, m);
+  }
+  const TreeSetup t(s);
+  const std::size_t count = t.lights.size();
+  ASSERT_EQ(count, 80u);
+  const std::vector<LightTreeWideNode> wide = wide_light_nodes(t.tree);
+  const auto by_power = std::count_if(wide.begin(), wide.end(), [](const LightTreeWideNode& n) { return n.by_power; });
+  EXPECT_GE(by_power, 10) << "of " << wide.size() << " wide nodes";
+  std::vector<cl_float4> p, n;
+  std::uniform_real_distribution<float> floor(-12.0f, 12.0f);
+  for (int i = 0; i < 24; ++i) {
+    p.push_back({{floor(rng), 0.5f * w(rng), floor(rng), 0.0f}});
+    n.push_back({{0.0f, 1.0f, 0.0f, 0.0f}});
+  }
+  const auto buffer = light_buffer(t.lights, t.tree);
+  const std::vector<float> pmf = kernel_pmfs(buffer, count, p, n);
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    double sum = 0;
+    for (std::size_t k = 0; k < count; ++k) {
+      const float got = pmf[i * count + k];
+      const double want = host_pmf(t.tree, d3(p[i]), d3(n[i]), k);
+      EXPECT_NEAR(got, want, 1e-3 * want + 1e-7) << "point " << i << " light " << k;
+      sum += got;
+    }
+    EXPECT_NEAR(sum, 1.0, 1e-4) << "point " << i;
+  }
+  expect_pmf_sums_to_one(buffer, count, pmf, p, n);
+  // One quad lamp of two powers (a root weighed by power): behind it as in front of it, the pmf is
+  // the powers' ratio, where importances would give 0 behind (no light; here a light that sends
+  // nothing, either way no contribution).
+  Scene one;
+  one.materials = {s.materials[0], s.materials[5]};
+  const glm::vec3 c(0.0f, 8.0f, 0.0f), dx(1.0f, 0, 0), dz(0, 0, 1.0f);
+  append_triangle(one.triangles, c, c + dx, c + dx + dz, 0);
+  append_triangle(one.triangles, c, c + dx + dz, c + dz, 1);
+  const TreeSetup q(one);
+  ASSERT_EQ(q.lights.size(), 2u);
+  ASSERT_EQ(wide_light_nodes(q.tree).at(0).by_power, 1u);
+  const std::vector<cl_float4> sides = {{{0.5f, 0.0f, 0.5f, 0.0f}}, {{0.5f, 12.0f, 0.5f, 0.0f}}};
+  const std::vector<cl_float4> up = {{{0.0f, 1.0f, 0.0f, 0.0f}}, {{0.0f, 1.0f, 0.0f, 0.0f}}};
+  const std::vector<float> quad_pmf = kernel_pmfs(light_buffer(q.lights, q.tree), 2, sides, up);
+  const double phi0 = q.tree.nodes()[q.tree.nodes()[0].child[0]].phi,
+               phi1 = q.tree.nodes()[q.tree.nodes()[0].child[1]].phi;
+  ASSERT_NE(phi0, phi1);
+  for (std::size_t i = 0; i < 2; ++i)
+    for (std::size_t k = 0; k < 2; ++k) {
+      EXPECT_NEAR(quad_pmf[i * 2 + k], host_pmf(q.tree, d3(sides[i]), d3(up[i]), k), 1e-6) << i << " " << k;
+      EXPECT_GT(quad_pmf[i * 2 + k], 0.0f) << i << " " << k;
+    }
+  EXPECT_NEAR(quad_pmf[0] + quad_pmf[1], 1.0, 1e-6);
 }
 
 TEST(LightTree, PmfSumsToOneAndMatchesTheHostWalk) {

@@ -84,7 +84,7 @@ static_assert(sizeof(LightTreeWideNode) == 4 * sizeof(LightTriangle) && offsetof
 static_assert(offsetof(LightTreeWideNode, axis) == 96 && offsetof(LightTreeWideNode, phi) == 144);
 static_assert(offsetof(LightTreeWideNode, cos_theta_o) == 160 && offsetof(LightTreeWideNode, sin_theta_o) == 176);
 static_assert(offsetof(LightTreeWideNode, cos_theta_e) == 192 && offsetof(LightTreeWideNode, radius) == 208);
-static_assert(offsetof(LightTreeWideNode, child) == 224);
+static_assert(offsetof(LightTreeWideNode, child) == 224 && offsetof(LightTreeWideNode, by_power) == 240);
 static_assert(sizeof(FrameParams) == 128);
 static_assert(offsetof(FrameParams, p_sun) == 28 && offsetof(FrameParams, light_count) == 76);
 static_assert(offsetof(FrameParams, frame) == 80 && offsetof(FrameParams, rr_start_bounce) == 104);

@@ -380,6 +380,20 @@ std::uint32_t collapse(const std::vector<LightTreeNode>& nodes, std::uint32_t bi
     w.cos_theta_e[k] = n.cos_theta_e;
     w.radius[k] = n.radius;
   }
+  // Lanes with the same box and cones differ only in power wherever the point is: weighing them by
+  // power is what the importance would do, without its cost (a Cornell box's one quad lamp).
+  LightTreeWideNode& w = wide[index];
+  const auto same_shape = [&](int a, int b) {
+    for (int c = 0; c < 3; ++c)
+      if (w.bounds_min[c][a] != w.bounds_min[c][b] || w.bounds_max[c][a] != w.bounds_max[c][b] ||
+          w.axis[c][a] != w.axis[c][b])
+        return false;
+    return w.cos_theta_o[a] == w.cos_theta_o[b] && w.cos_theta_e[a] == w.cos_theta_e[b];
+  };
+  bool by_power = true;
+  for (int k = 1; k < 4; ++k)
+    if (used[k]) by_power = by_power && same_shape(0, k);
+  w.by_power = by_power ? 1u : 0u;
   return index;
 }
 

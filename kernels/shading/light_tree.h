@@ -84,9 +84,11 @@ inline __attribute__((always_inline)) float4 px_light_wide_importance4(const glo
 #undef PX_LANES4
 }
 
-/* The importances at (p, n) of wide node w's lanes, 0 for the empty ones. */
+/* The importances at (p, n) of wide node w's lanes, 0 for the empty ones; their powers where the
+ * lanes differ in nothing else (LightTreeWideNode::by_power). */
 inline __attribute__((always_inline)) float4 px_light_tree_step(const global LightTreeWideNode* w, uint4 child,
                                                                 float3 p, float3 n) {
+  if (w->by_power) return select(vload4(0, w->phi), (float4)(0.0f), child == (uint4)(PX_LIGHT_TREE_EMPTY));
 #if defined(__x86_64__)
   const float4 i = px_light_wide_importance4(w, p, n);
 #else

@@ -499,7 +499,10 @@ typedef struct LightTreeNode {
  * aligned 16-byte load (kernels/shading/light_tree.h).
  *    0..47 bounds_min[3][4]   48..95 bounds_max[3][4]   96..143 axis[3][4]   144..159 phi[4]
  *  160..175 cos_theta_o[4]  176..191 sin_theta_o[4]  192..207 cos_theta_e[4]  208..223 radius[4]
- *  224..239 child[4] (wide node index, PX_LIGHT_TREE_LEAF | light, or PX_LIGHT_TREE_EMPTY)  240..255 pad
+ *  224..239 child[4] (wide node index, PX_LIGHT_TREE_LEAF | light, or PX_LIGHT_TREE_EMPTY)
+ *  240..243 by_power (1: the used lanes have the same box and cones, as a quad's two triangles do, so
+ *  their importances anywhere are in the ratio of their powers, and the walk weighs them by power
+ *  alone)  244..255 pad
  * The `lights` buffer holds LightTriangle x n (the table, by prim), uint trail x n padded to 64 bytes
  * (bit i: light k's path from the root of the binary tree takes child[1] at depth i), then the wide
  * nodes, root first, as 4 records each. */
@@ -514,7 +517,8 @@ typedef struct LightTreeWideNode {
   float cos_theta_e[4];
   float radius[4];
   uint child[4];
-  uint pad[4];
+  uint by_power;
+  uint pad[3];
 } LightTreeWideNode;
 
 /* Everything a path-tracing launch needs besides buffers, 128 bytes, passed by value.
