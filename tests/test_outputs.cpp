@@ -1,6 +1,7 @@
 // Output files and folders: atomic writes (a failed write is an error naming the file and
 // leaves no file, temporary or truncated), the --out claim (lock, stale files, folders a failed
 // run created), and the scene-file guards against hostile input.
+#include "app/guarded_main.h"
 #include "app/output_dir.h"
 #include "image/image_io.h"
 #include "io/atomic_file.h"
@@ -109,6 +110,22 @@ TEST(ImageCodecModule, OpenImageIOLoadsOnlyWhenAnImageIsNeeded) {
   ASSERT_EQ(back.width, 3);
   ASSERT_EQ(back.height, 2);
   EXPECT_EQ(back.rgb, image.rgb);
+}
+
+// An error after a Ctrl-C is the interruption's consequence (a kernel build whose compiler
+// removed its files on the signal): the run ends as interrupted, 130, naming the error; without
+// a signal the same error is exit 1. Each in a child process, whose interrupt state is its own
+// (started afresh: the earlier tests leave threads that a forked copy could wait on for ever).
+TEST(GuardedMain, AnErrorAfterAnInterruptEndsTheRunAsInterrupted) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
+  const auto failing = [] { return run_guarded([]() -> int { throw std::runtime_error("the build failed"); }); };
+  EXPECT_EXIT(std::exit(failing()), ::testing::ExitedWithCode(1), "error: the build failed");
+  EXPECT_EXIT(
+      {
+        simulate_interrupt_for_testing(SIGINT);
+        std::exit(failing());
+      },
+      ::testing::ExitedWithCode(130), "interrupted \\(SIGINT\\); then: the build failed");
 }
 
 TEST(AtomicFile, WritesTheWholeFileAndNoTemporary) {

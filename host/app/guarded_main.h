@@ -3,9 +3,11 @@
 #pragma once
 
 #include "cl/cl_error.h"
+#include "io/interrupt.h"
 
 #include <cstdio>
 #include <exception>
+#include <string>
 
 namespace px {
 
@@ -13,15 +15,29 @@ namespace px {
 // depend on the exit path. Under LeakSanitizer, its tracer now and then crashes at exit (while
 // stopping PoCL's threads), after the program finished and before stdio's buffers were flushed:
 // piped output was lost whole.
+//
+// An error raised after a SIGINT / SIGTERM is reported as the interruption it follows from (exit
+// 128 + signal, the error named after it): LLVM, which PoCL runs in-process to build kernels,
+// removes its temporary files when the signal arrives, so a Ctrl-C during a kernel build makes
+// that build fail; the user asked the run to stop, and it stopped.
 template <typename Body>
 int run_guarded(Body&& body) {
   int rc = 1;
+  std::string error;
   try {
     rc = body();
   } catch (const cl::Error& e) {
-    std::fprintf(stderr, "error: OpenCL: %s\n", describe(e).c_str());
+    error = "OpenCL: " + describe(e);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
+    error = e.what();
+  }
+  if (!error.empty()) {
+    if (interrupted()) {
+      std::fprintf(stderr, "interrupted (%s); then: %s\n", interrupt_signal_name(), error.c_str());
+      rc = interrupt_exit_code();
+    } else {
+      std::fprintf(stderr, "error: %s\n", error.c_str());
+    }
   }
   std::fflush(stdout);
   return rc;
