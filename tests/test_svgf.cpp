@@ -68,7 +68,9 @@ TEST_P(AtrousKernel, MatchesHostImplementation) {
     illum[i] = {{u(rng), u(rng), u(rng), 0.05f * u(rng)}};
     // A few unfiltered pixels, every other one a silhouette pixel that borrows a neighbour's
     // geometry (PX_SVGF_BORROWED).
-    moments[i] = {{0, 0, 4, (i % 17 == 0) ? ((i / 17) % 2 ? PX_SVGF_BORROWED : 0.0f) : 1.0f}};
+    // History lengths 1 .. 6 frames: tap pairs from their own weights to the lesser one.
+    moments[i] = {
+        {0, 0, static_cast<float>(1 + i % 6), (i % 17 == 0) ? ((i / 17) % 2 ? PX_SVGF_BORROWED : 0.0f) : 1.0f}};
     GBufferTexel t{};
     glm::vec3 nn = glm::normalize(glm::vec3(0.3f * std::sin(0.2f * x), 0.2f * std::cos(0.3f * y), 1.0f));
     if (x > 25) nn = glm::normalize(glm::vec3(1.0f, 0.0f, 0.3f));  // a crease
@@ -223,13 +225,25 @@ TEST_P(AtrousKernel, MatchesHostImplementation) {
           double ws = 0, vs = 0, cs[3] = {0, 0, 0};
           for (double exponent : {double(sigma_n), std::min(double(sigma_n), double(PX_SVGF_LOOSE_SIGMA_N))}) {
             ws = vs = cs[0] = cs[1] = cs[2] = 0;
+            // Every tap's normal weight and the rest of its weight first (normal weight -1 outside
+            // the image or the readable rows, 0 on an unfiltered pixel), then the sum with each
+            // normal weight moved towards the lesser of its own and its mirror image's through the
+            // centre where both lie inside, by the share the history length gives: none on a first
+            // frame, all from 1 + 4 frames.
+            const double share = std::clamp((moments[i].s[2] - 1.0) / 4.0, 0.0, 1.0);
+            double tap_n[5][5], tap_rest[5][5] = {};
+            for (auto& row : tap_n)
+              for (double& v : row) v = -1.0;
             for (int ky = -2; ky <= 2; ++ky)
               for (int kx = -2; kx <= 2; ++kx) {
                 const int tx = x + kx * step, ty = y + ky * step;
                 if (!readable(ty) || tx < 0 || tx >= static_cast<int>(w)) continue;
                 const std::size_t j = at(tx, ty);
+                double& wt = tap_rest[ky + 2][kx + 2];
+                tap_n[ky + 2][kx + 2] = 0.0;
                 if (!filtered(j) && (kx || ky)) continue;  // the centre is always a tap
-                double wt = hk[kx + 2] * hk[ky + 2];
+                tap_n[ky + 2][kx + 2] = 1.0;
+                wt = hk[kx + 2] * hk[ky + 2];
                 if (kx || ky) {
                   const glm::dvec3 n1(g[j].normal[0], g[j].normal[1], g[j].normal[2]);
                   const double wn = std::pow(std::max(0.0, glm::dot(n0, n1)), exponent);
@@ -240,8 +254,17 @@ TEST_P(AtrousKernel, MatchesHostImplementation) {
                   const double wl =
                       std::exp(-std::abs(luma_host[i] - luma_host[j]) /
                                (4.0 * std::sqrt(0.5 * (std::max(0.0, var) + std::max(0.0, var_host[j]))) + 1e-6));
-                  wt *= wn * wz * wl;
+                  tap_n[ky + 2][kx + 2] = wn;
+                  wt *= wz * wl;
                 }
+              }
+            for (int ky = -2; ky <= 2; ++ky)
+              for (int kx = -2; kx <= 2; ++kx) {
+                const double own = tap_n[ky + 2][kx + 2], mirror = tap_n[2 - ky][2 - kx];
+                const double normal = own >= 0.0 && mirror >= 0.0 ? own + share * (std::min(own, mirror) - own) : own;
+                const double wt = std::max(normal, 0.0) * tap_rest[ky + 2][kx + 2];
+                if (wt == 0.0) continue;
+                const std::size_t j = at(x + kx * static_cast<int>(step), y + ky * static_cast<int>(step));
                 ws += wt;
                 vs += wt * wt * illum[j].s[3];
                 for (int c = 0; c < 3; ++c) cs[c] += wt * illum[j].s[c];

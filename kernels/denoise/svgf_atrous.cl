@@ -102,37 +102,91 @@ __constant float px_atrous_h[5] = {1.0f / 16.0f, 1.0f / 4.0f, 3.0f / 8.0f, 1.0f 
  * grazing angles, silhouettes — gets no weight from anyone under the strict test and keeps its
  * lone sample, at 1 spp often black. Such an isolated pixel takes the loose weights, which still
  * stop at creases, depth steps and luminance edges; every other pixel is filtered exactly as
- * before. */
-#define PX_ATROUS_TAP_SUM(GUIDE_AT, ILLUM_AT, LUMA_AT)                                                   \
-  do {                                                                                                   \
-    const int step_ = (int)p.step;                                                                       \
-    float2 wsum = (float2)(0.0f, 0.0f), vsum = (float2)(0.0f, 0.0f);                                     \
-    float3 csum_strict = (float3)(0.0f, 0.0f, 0.0f), csum_loose = csum_strict;                           \
-    for (int ky = -2; ky <= 2; ++ky) {                                                                   \
-      const int ty = y + ky * step_;                                                                     \
-      if (ty < 0 || ty >= (int)p.height || !px_row_readable(ty, &p)) continue;                           \
-      for (int kx = -2; kx <= 2; ++kx) {                                                                 \
-        const int tx = x + kx * step_;                                                                   \
-        if (tx < 0 || tx >= (int)p.width) continue;                                                      \
-        const float4 g = GUIDE_AT(tx, ty);                                                               \
-        /* Unfiltered pixels are never taps; the centre always is (a borrowing one included). */         \
-        if (!px_guide_filtered(g) && (kx != 0 || ky != 0)) continue;                                     \
-        const float4 t = ILLUM_AT(tx, ty);                                                               \
-        float2 w = (float2)(px_atrous_h[kx + 2] * px_atrous_h[ky + 2]);                                  \
-        if (kx != 0 || ky != 0)                                                                          \
-          w *= px_geometry_weights(g, fc.n, fc.z, fc.grad, (float)(kx * step_), (float)(ky * step_), &p, \
-                                   px_luminance_term(fc.l, centre_var, LUMA_AT(tx, ty), &p));            \
-        wsum += w;                                                                                       \
-        vsum += w * w * t.w;                                                                             \
-        csum_strict += w.x * t.xyz;                                                                      \
-        csum_loose += w.y * t.xyz;                                                                       \
-      }                                                                                                  \
-    }                                                                                                    \
-    const float centre = px_atrous_h[2] * px_atrous_h[2];                                                \
-    if (wsum.x - centre < PX_SVGF_ISOLATED * centre)                                                     \
-      out_illum[i] = (float4)(csum_loose / wsum.y, vsum.y / (wsum.y * wsum.y));                          \
-    else                                                                                                 \
-      out_illum[i] = (float4)(csum_strict / wsum.x, vsum.x / (wsum.x * wsum.x));                         \
+ * before.
+ *
+ * The taps go in point-symmetric pairs, (kx, ky) with (-kx, -ky), and both take the lesser of
+ * the pair's normal weights (PX_ATROUS_PAIRS) once the pixel has a history
+ * (px_atrous_pair_share), where both lie inside the image and the readable rows. Where the kernel reaches a crease or a
+ * depth step on one side only, the paper's filter keeps the other side's taps: a one-sided average, which moves light
+ * along any gradient towards the edge. Every concave corner darkens towards its crease (the walls hide part of the sky
+ * of lamps from each other), so every corner came out brighter than the reference, a band a few pixels wide along each
+ * crease; on a many-lights scene that band was a third of the denoised error that remained (docs/measurements.md, SVGF
+ * symmetric taps). A point-symmetric kernel passes a linear gradient unchanged, however much of it the creases cut
+ * away. Only the normal weights pair: a crease rejects a tap outright, while the depth and luminance tests weigh taps
+ * partly, and a pair at the lesser of two partial weights would give the far side of a depth step as much weight as the
+ * near side (a blur). The image's own edges are not creases: a tap beyond them leaves its mirror as it is, so a pixel
+ * near the border keeps the paper's one-sided kernel. */
+/* How far a pixel's tap pairs go to the lesser weight, 0 (each tap its own weight, the paper's
+ * filter) to 1, from its history length in frames (moments.z): 0 on a pixel's first frame,
+ * full from 1 + PX_ATROUS_PAIR_FRAMES. The symmetric kernel trades noise for bias: near an edge
+ * it averages fewer taps. Where the history is short the noise is what shows, and the paper's
+ * wider one-sided kernel is the better choice; as the history grows the noise falls and the
+ * bias is what remains. */
+inline float px_atrous_pair_share(float history) {
+  return clamp((history - 1.0f) * (1.0f / PX_ATROUS_PAIR_FRAMES), 0.0f, 1.0f);
+}
+
+/* One tap (KX, KY) of the a-trous sum at pixel (x, y): its normal weights N (strict, loose), the
+ * rest of its weight R (the B3 spline's, the depth and the luminance tests'). The sum reads the
+ * texel only where the weight is above 0 (fewer live registers on GPUs).
+ * N is -1 outside the image or the readable rows (R 0 there): no tap, and none to pair with;
+ * N is 0 on an unfiltered pixel other than the centre. */
+#define PX_ATROUS_TAP(GUIDE_AT, LUMA_AT, KX, KY, N, R)                                                     \
+  do {                                                                                                     \
+    const int tx_ = x + (KX)*step_, ty_ = y + (KY)*step_;                                                  \
+    N = (float2)(-1.0f, -1.0f);                                                                            \
+    R = 0.0f;                                                                                              \
+    if (ty_ >= 0 && ty_ < (int)p.height && px_row_readable(ty_, &p) && tx_ >= 0 && tx_ < (int)p.width) {   \
+      const float4 g_ = GUIDE_AT(tx_, ty_);                                                                \
+      N = (float2)(1.0f, 1.0f);                                                                            \
+      R = px_atrous_h[(KX) + 2] * px_atrous_h[(KY) + 2];                                                   \
+      if ((KX) != 0 || (KY) != 0) {                                                                        \
+        if (px_guide_filtered(g_)) {                                                                       \
+          N = px_normal_weights(dot(fc.n, g_.xyz), p.sigma_n, fmin(p.sigma_n, PX_SVGF_LOOSE_SIGMA_N));     \
+          R *= px_exp(-(px_depth_term(g_.w, fc.z, fc.grad, (float)((KX)*step_), (float)((KY)*step_), &p) + \
+                        px_luminance_term(fc.l, centre_var, LUMA_AT(tx_, ty_), &p)));                      \
+        } else {                                                                                           \
+          N = (float2)(0.0f, 0.0f);                                                                        \
+        }                                                                                                  \
+      }                                                                                                    \
+    }                                                                                                      \
+  } while (0)
+
+#define PX_ATROUS_TAP_SUM(GUIDE_AT, ILLUM_AT, LUMA_AT)                                                 \
+  do {                                                                                                 \
+    const int step_ = (int)p.step;                                                                     \
+    const float share_ = px_atrous_pair_share(moments[i].z);                                           \
+    float2 wsum = (float2)(0.0f, 0.0f), vsum = (float2)(0.0f, 0.0f);                                   \
+    float3 csum_strict = (float3)(0.0f, 0.0f, 0.0f), csum_loose = csum_strict;                         \
+    for (int k = 0; k <= PX_ATROUS_PAIRS; ++k) {                                                       \
+      const int kx = k % 5 - 2, ky = k / 5 - 2;                                                        \
+      float2 n[2];                                                                                     \
+      float r[2];                                                                                      \
+      PX_ATROUS_TAP(GUIDE_AT, LUMA_AT, kx, ky, n[0], r[0]);                                            \
+      if (k < PX_ATROUS_PAIRS) {                                                                       \
+        PX_ATROUS_TAP(GUIDE_AT, LUMA_AT, -kx, -ky, n[1], r[1]);                                        \
+        if (n[0].x >= 0.0f && n[1].x >= 0.0f) {                                                        \
+          const float2 lesser = fmin(n[0], n[1]);                                                      \
+          n[0] += share_ * (lesser - n[0]);                                                            \
+          n[1] += share_ * (lesser - n[1]);                                                            \
+        }                                                                                              \
+      }                                                                                                \
+      for (int s = 0; s < (k < PX_ATROUS_PAIRS ? 2 : 1); ++s) {                                        \
+        const float2 w = fmax(n[s], 0.0f) * r[s];                                                      \
+        if (w.x > 0.0f || w.y > 0.0f) { /* a tap: inside, filtered or the centre */                    \
+          const float4 t = ILLUM_AT(x + (s == 0 ? kx : -kx) * step_, y + (s == 0 ? ky : -ky) * step_); \
+          wsum += w;                                                                                   \
+          vsum += w * w * t.w;                                                                         \
+          csum_strict += w.x * t.xyz;                                                                  \
+          csum_loose += w.y * t.xyz;                                                                   \
+        }                                                                                              \
+      }                                                                                                \
+    }                                                                                                  \
+    const float centre = px_atrous_h[2] * px_atrous_h[2];                                              \
+    if (wsum.x - centre < PX_SVGF_ISOLATED * centre)                                                   \
+      out_illum[i] = (float4)(csum_loose / wsum.y, vsum.y / (wsum.y * wsum.y));                        \
+    else                                                                                               \
+      out_illum[i] = (float4)(csum_strict / wsum.x, vsum.x / (wsum.x * wsum.x));                       \
   } while (0)
 
 #define PX_GLOBAL_GUIDE(tx, ty) guide[(uint)(ty)*p.width + (uint)(tx)]
@@ -241,6 +295,107 @@ inline void px_load8_planes(const global float4* first, float8* x, float8* y, fl
  * checks both against the host implementation); a GPU, where each work-item is already a SIMD
  * lane, runs svgf_atrous. Items: rows x ceil(width / 8). */
 #define PX_ATROUS_LANES 8
+/* The centre of svgf_atrous8's eight pixels, lane by lane, and one tap's weights and texels. */
+typedef struct Atrous8Centre {
+  float8 nx, ny, nz, z, gx, gy, lum, var;
+} Atrous8Centre;
+typedef struct Atrous8Weights {
+  float8 n1, n2, rest; /* normal weights (strict, loose; -1 outside), the rest of the weight */
+} Atrous8Weights;
+
+/* The weights of tap (kx, ky) of svgf_atrous8's eight pixels, as PX_ATROUS_TAP: normal weights
+ * (-1 where the tap lies outside the image or the readable rows, 0 on an unfiltered pixel) and the
+ * rest of the weight (0 in both cases). The texels are read by px_atrous8_texels once the pair's
+ * weights are known (fewer live registers). */
+__attribute__((always_inline)) inline Atrous8Weights px_atrous8_weights(const global float4* guide,
+                                                                        const global float2* luma, const SvgfParams* p,
+                                                                        const Atrous8Centre* ce, int x0, int y, int kx,
+                                                                        int ky, int step) {
+  Atrous8Weights out;
+  const int ty = y + ky * step;
+  if (ty < 0 || ty >= (int)p->height || !px_row_readable(ty, p)) {
+    out.rest = (float8)(0.0f);
+    out.n1 = out.n2 = (float8)(-1.0f);
+    return out;
+  }
+  const uint row = (uint)ty * p->width;
+  const int8 lane = (int8)(0, 1, 2, 3, 4, 5, 6, 7);
+  const int tx0 = x0 + kx * step;
+  const int8 tx = (int8)(tx0) + lane;
+  const int8 inside = tx >= 0 && tx < (int)p->width;
+  float8 tnx, tny, tnz, tw, tl, tlv;
+  if (tx0 >= 0 && tx0 + PX_ATROUS_LANES <= (int)p->width) {
+    px_load8_planes(guide + row + (uint)tx0, &tnx, &tny, &tnz, &tw);
+    const float8 l0 = vload8(0, (const global float*)(luma + row + (uint)tx0));
+    const float8 l1 = vload8(1, (const global float*)(luma + row + (uint)tx0));
+    tl = (float8)(l0.even, l1.even);
+    tlv = (float8)(l0.odd, l1.odd);
+  } else {
+    /* At the image's left and right edges: lane by lane, clamped (outside lanes weigh 0). */
+    float a[6][PX_ATROUS_LANES];
+    for (int l = 0; l < PX_ATROUS_LANES; ++l) {
+      const uint j = row + (uint)clamp(tx0 + l, 0, (int)p->width - 1);
+      const float4 g = guide[j];
+      a[0][l] = g.x;
+      a[1][l] = g.y;
+      a[2][l] = g.z;
+      a[3][l] = g.w;
+      const float2 lv = luma[j];
+      a[4][l] = lv.x;
+      a[5][l] = lv.y;
+    }
+    tnx = vload8(0, a[0]);
+    tny = vload8(0, a[1]);
+    tnz = vload8(0, a[2]);
+    tw = vload8(0, a[3]);
+    tl = vload8(0, a[4]);
+    tlv = vload8(0, a[5]);
+  }
+  const float h = px_atrous_h[kx + 2] * px_atrous_h[ky + 2];
+  float8 rest = (float8)(h), n1 = (float8)(1.0f), n2 = n1;
+  int8 use = inside;
+  if (kx != 0 || ky != 0) {
+    /* Unfiltered pixels are never taps (the centre always is). Same terms as PX_ATROUS_TAP, in
+     * the same order. */
+    use = use && tw > 0.0f;
+    const float8 extra = fabs(ce->lum - tl) / (p->sigma_l * sqrt(0.5f * (ce->var + fmax(tlv, 0.0f))) + 1e-6f);
+    const float dx = (float)(kx * step), dy = (float)(ky * step);
+    const float8 depth_term = fabs(ce->z - tw) / (p->sigma_z * fabs(ce->gx * dx + ce->gy * dy) + 1e-3f * ce->z + 1e-6f);
+    rest *= px_exp8(-(depth_term + extra));
+    px_normal_weights8(ce->nx * tnx + ce->ny * tny + ce->nz * tnz, p->sigma_n, fmin(p->sigma_n, PX_SVGF_LOOSE_SIGMA_N),
+                       &n1, &n2);
+  }
+  const float8 none = select((float8)(-1.0f), (float8)(0.0f), inside);
+  out.n1 = select(none, n1, use);
+  out.n2 = select(none, n2, use);
+  out.rest = select((float8)(0.0f), rest, use);
+  return out;
+}
+
+/* The illumination texels of tap (kx, ky) of svgf_atrous8's eight pixels, in a readable row (the
+ * caller's weights are 0 elsewhere), as four planes; lanes past the image's edges clamped. */
+__attribute__((always_inline)) inline void px_atrous8_texels(const global float4* illum, const SvgfParams* p, int x0,
+                                                             int ty, int tx0, float8* r, float8* g, float8* b,
+                                                             float8* v) {
+  const uint row = (uint)ty * p->width;
+  if (tx0 >= 0 && tx0 + PX_ATROUS_LANES <= (int)p->width) {
+    px_load8_planes(illum + row + (uint)tx0, r, g, b, v);
+    return;
+  }
+  float a[4][PX_ATROUS_LANES];
+  for (int l = 0; l < PX_ATROUS_LANES; ++l) {
+    const float4 t = illum[row + (uint)clamp(tx0 + l, 0, (int)p->width - 1)];
+    a[0][l] = t.x;
+    a[1][l] = t.y;
+    a[2][l] = t.z;
+    a[3][l] = t.w;
+  }
+  *r = vload8(0, a[0]);
+  *g = vload8(0, a[1]);
+  *b = vload8(0, a[2]);
+  *v = vload8(0, a[3]);
+}
+
 kernel void svgf_atrous8(global float4* out_illum, const global float4* illum, const global float4* guide,
                          const global float4* moments, const global float2* luma, SvgfParams p) {
   const uint per_row = (p.width + PX_ATROUS_LANES - 1u) / PX_ATROUS_LANES;
@@ -251,8 +406,9 @@ kernel void svgf_atrous8(global float4* out_illum, const global float4* illum, c
   /* The centres, lane by lane. A lane past the image's right edge or left unfiltered is off. */
   float cnx[PX_ATROUS_LANES], cny[PX_ATROUS_LANES], cnz[PX_ATROUS_LANES], cz[PX_ATROUS_LANES];
   float cgx[PX_ATROUS_LANES], cgy[PX_ATROUS_LANES], cl[PX_ATROUS_LANES], cvar[PX_ATROUS_LANES];
+  float cshare[PX_ATROUS_LANES];
   int on[PX_ATROUS_LANES];
-  int any = 0;
+  int any_on = 0;
   for (int l = 0; l < PX_ATROUS_LANES; ++l) {
     FilterCentre fc;
     float var = 0.0f;
@@ -266,92 +422,54 @@ kernel void svgf_atrous8(global float4* out_illum, const global float4* illum, c
     cgy[l] = fc.grad.y;
     cl[l] = fc.l;
     cvar[l] = var;
-    any |= on[l];
+    cshare[l] = on[l] ? px_atrous_pair_share(moments[(uint)y * p.width + (uint)(x0 + l)].z) : 0.0f;
+    any_on |= on[l];
   }
-  if (!any) return;
+  if (!any_on) return;
   const float8 nx = vload8(0, cnx), ny = vload8(0, cny), nz = vload8(0, cnz), z = vload8(0, cz);
   const float8 gx = vload8(0, cgx), gy = vload8(0, cgy), lum = vload8(0, cl), centre_var = vload8(0, cvar);
-  const int8 lane = (int8)(0, 1, 2, 3, 4, 5, 6, 7);
+  const Atrous8Centre ce = {nx, ny, nz, z, gx, gy, lum, centre_var};
+  const float8 share = vload8(0, cshare);
   const int step = (int)p.step;
-  const float loose = fmin(p.sigma_n, PX_SVGF_LOOSE_SIGMA_N);
-  /* As svgf_atrous: .x strict, .y loose normal weights (the isolated-pixel fallback). */
+  /* As svgf_atrous: .x strict, .y loose normal weights (the isolated-pixel fallback), and the
+   * taps in point-symmetric pairs, each pair at the lesser of its two weights (the centre last). */
   float8 wsum_x = (float8)(0.0f), wsum_y = wsum_x, vsum_x = wsum_x, vsum_y = wsum_x;
   float8 cs_r = wsum_x, cs_g = wsum_x, cs_b = wsum_x, cl_r = wsum_x, cl_g = wsum_x, cl_b = wsum_x;
-  for (int ky = -2; ky <= 2; ++ky) {
-    const int ty = y + ky * step;
-    if (ty < 0 || ty >= (int)p.height || !px_row_readable(ty, &p)) continue;
-    const uint row = (uint)ty * p.width;
-    for (int kx = -2; kx <= 2; ++kx) {
-      const int tx0 = x0 + kx * step;
-      const int8 tx = (int8)(tx0) + lane;
-      const int8 inside = tx >= 0 && tx < (int)p.width;
-      float8 tnx, tny, tnz, tw, tr, tg, tb, tv, tl, tlv;
-      if (tx0 >= 0 && tx0 + PX_ATROUS_LANES <= (int)p.width) {
-        px_load8_planes(guide + row + (uint)tx0, &tnx, &tny, &tnz, &tw);
-        px_load8_planes(illum + row + (uint)tx0, &tr, &tg, &tb, &tv);
-        const float8 l0 = vload8(0, (const global float*)(luma + row + (uint)tx0));
-        const float8 l1 = vload8(1, (const global float*)(luma + row + (uint)tx0));
-        tl = (float8)(l0.even, l1.even);
-        tlv = (float8)(l0.odd, l1.odd);
-      } else {
-        /* At the image's left and right edges: lane by lane, clamped (outside lanes weigh 0). */
-        float a[10][PX_ATROUS_LANES];
-        for (int l = 0; l < PX_ATROUS_LANES; ++l) {
-          const uint j = row + (uint)clamp(tx0 + l, 0, (int)p.width - 1);
-          const float4 g = guide[j], t = illum[j];
-          a[0][l] = g.x;
-          a[1][l] = g.y;
-          a[2][l] = g.z;
-          a[3][l] = g.w;
-          a[4][l] = t.x;
-          a[5][l] = t.y;
-          a[6][l] = t.z;
-          a[7][l] = t.w;
-          const float2 lv = luma[j];
-          a[8][l] = lv.x;
-          a[9][l] = lv.y;
-        }
-        tnx = vload8(0, a[0]);
-        tny = vload8(0, a[1]);
-        tnz = vload8(0, a[2]);
-        tw = vload8(0, a[3]);
-        tr = vload8(0, a[4]);
-        tg = vload8(0, a[5]);
-        tb = vload8(0, a[6]);
-        tv = vload8(0, a[7]);
-        tl = vload8(0, a[8]);
-        tlv = vload8(0, a[9]);
-      }
-      const float h = px_atrous_h[kx + 2] * px_atrous_h[ky + 2];
-      float8 w_x = (float8)(h), w_y = w_x;
-      int8 use = inside;
-      if (kx != 0 || ky != 0) {
-        /* Unfiltered pixels are never taps (the centre always is). Same terms as
-         * px_geometry_weights, in the same order. */
-        use = use && tw > 0.0f;
-        const float8 extra = fabs(lum - tl) / (p.sigma_l * sqrt(0.5f * (centre_var + fmax(tlv, 0.0f))) + 1e-6f);
-        const float dx = (float)(kx * step), dy = (float)(ky * step);
-        const float8 depth_term = fabs(z - tw) / (p.sigma_z * fabs(gx * dx + gy * dy) + 1e-3f * z + 1e-6f);
-        const float8 rest = px_exp8(-(depth_term + extra));
-        float8 n1, n2;
-        px_normal_weights8(nx * tnx + ny * tny + nz * tnz, p.sigma_n, loose, &n1, &n2);
-        w_x *= n1 * rest;
-        w_y *= n2 * rest;
-      }
-      w_x = select((float8)(0.0f), w_x, use);
-      w_y = select((float8)(0.0f), w_y, use);
-      wsum_x += w_x;
-      wsum_y += w_y;
-      vsum_x += w_x * w_x * tv;
-      vsum_y += w_y * w_y * tv;
-      cs_r += w_x * tr;
-      cs_g += w_x * tg;
-      cs_b += w_x * tb;
-      cl_r += w_y * tr;
-      cl_g += w_y * tg;
-      cl_b += w_y * tb;
-    }
+#define PX_ATROUS8_ADD(W, KX, KY)                                                          \
+  do {                                                                                     \
+    const float8 wx_ = fmax((W).n1, 0.0f) * (W).rest, wy_ = fmax((W).n2, 0.0f) * (W).rest; \
+    if (any(wx_ > 0.0f || wy_ > 0.0f)) {                                                   \
+      float8 r_, g_, b_, v_;                                                               \
+      px_atrous8_texels(illum, &p, x0, y + (KY)*step, x0 + (KX)*step, &r_, &g_, &b_, &v_); \
+      wsum_x += wx_;                                                                       \
+      wsum_y += wy_;                                                                       \
+      vsum_x += wx_ * wx_ * v_;                                                            \
+      vsum_y += wy_ * wy_ * v_;                                                            \
+      cs_r += wx_ * r_;                                                                    \
+      cs_g += wx_ * g_;                                                                    \
+      cs_b += wx_ * b_;                                                                    \
+      cl_r += wy_ * r_;                                                                    \
+      cl_g += wy_ * g_;                                                                    \
+      cl_b += wy_ * b_;                                                                    \
+    }                                                                                      \
+  } while (0)
+  for (int k = 0; k < PX_ATROUS_PAIRS; ++k) {
+    const int kx = k % 5 - 2, ky = k / 5 - 2;
+    Atrous8Weights ta = px_atrous8_weights(guide, luma, &p, &ce, x0, y, kx, ky, step);
+    Atrous8Weights tb = px_atrous8_weights(guide, luma, &p, &ce, x0, y, -kx, -ky, step);
+    /* Pairs whose taps both lie inside (PX_ATROUS_TAP_SUM). */
+    const float8 f = select((float8)(0.0f), share, ta.n1 >= 0.0f && tb.n1 >= 0.0f);
+    const float8 lesser1 = fmin(ta.n1, tb.n1), lesser2 = fmin(ta.n2, tb.n2);
+    ta.n1 += f * (lesser1 - ta.n1);
+    tb.n1 += f * (lesser1 - tb.n1);
+    ta.n2 += f * (lesser2 - ta.n2);
+    tb.n2 += f * (lesser2 - tb.n2);
+    PX_ATROUS8_ADD(ta, kx, ky);
+    PX_ATROUS8_ADD(tb, -kx, -ky);
   }
+  const Atrous8Weights tc = px_atrous8_weights(guide, luma, &p, &ce, x0, y, 0, 0, step);
+  PX_ATROUS8_ADD(tc, 0, 0);
+#undef PX_ATROUS8_ADD
   const float centre = px_atrous_h[2] * px_atrous_h[2];
   float ws[PX_ATROUS_LANES], wl[PX_ATROUS_LANES], vs[PX_ATROUS_LANES], vl[PX_ATROUS_LANES];
   float sr[PX_ATROUS_LANES], sg[PX_ATROUS_LANES], sb[PX_ATROUS_LANES];

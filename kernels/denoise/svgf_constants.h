@@ -9,6 +9,14 @@
  * for those, PX_LOCAL_SIZE items per tile). */
 #define PX_ATROUS_TILE 8
 #define PX_ATROUS_TILE_MAX_STEP 4
+/* The a-trous 5 x 5 taps less the centre, in point-symmetric pairs: pair k (0 .. 11) is tap
+ * (k % 5 - 2, k / 5 - 2) with its mirror image through the centre, and both take the lesser of
+ * their normal weights; k = 12 is the centre alone (kernels/denoise/svgf_atrous.cl,
+ * PX_ATROUS_TAP_SUM). */
+#define PX_ATROUS_PAIRS 12
+/* Frames of history over which a pixel's pairs go from their own weights to the lesser one
+ * (px_atrous_pair_share). */
+#define PX_ATROUS_PAIR_FRAMES 4.0f
 
 /* SVGF: a pixel is isolated when its neighbours' total weight under the normal exponent
  * sigma_n is below PX_SVGF_ISOLATED x its own; it is then filtered with the normal exponent
