@@ -86,11 +86,14 @@ void write_frame(const Writer& writer, const fs::path& dir, const std::array<px:
   const int w = eyes[0].width, h = eyes[0].height;
   for (int e = 0; e < 2; ++e) {
     const std::string name = (dir / (std::string(writer.name) + (e ? "_right" : "_left"))).string();
-    put(name + ".exr", [&] { return writer.exr(eyes[e], name + ".exr"); }, exr_ms);
-    put(name + ".png", [&] { return writer.png(w, h, png[e], name + ".png"); }, png_ms);
+    put(
+        name + ".exr", [&] { return writer.exr(eyes[e], name + ".exr"); }, exr_ms);
+    put(
+        name + ".png", [&] { return writer.png(w, h, png[e], name + ".png"); }, png_ms);
   }
   const std::string stereo_path = (dir / (std::string(writer.name) + "_stereo.png")).string();
-  put(stereo_path, [&] { return writer.png(2 * w, h, stereo, stereo_path); }, png_ms);
+  put(
+      stereo_path, [&] { return writer.png(2 * w, h, stereo, stereo_path); }, png_ms);
   times.frame.push_back(ms_since(frame0));
   times.exr.push_back(exr_ms);
   times.png.push_back(png_ms);
@@ -111,7 +114,9 @@ int main(int argc, char** argv) {
   app.add_option("--image", image_path, "an image to write (read with OpenImageIO); else a made-up one");
   app.add_option("--width", width, "of the made-up image")->check(CLI::Range(1, 16384))->capture_default_str();
   app.add_option("--height", height, "of the made-up image")->check(CLI::Range(1, 16384))->capture_default_str();
-  app.add_option("--repeats", repeats, "frames per writer, alternated")->check(CLI::Range(1, 1000))->capture_default_str();
+  app.add_option("--repeats", repeats, "frames per writer, alternated")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
   app.add_option("--dir", dir_option, "where the files go (default: a fresh folder under the temporary one)");
   CLI11_PARSE(app, argc, argv);
   return px::run_guarded([&]() -> int {
@@ -126,8 +131,9 @@ int main(int argc, char** argv) {
     const std::array<px::ImageRGB, 2> eyes{image, right};
     const std::array<std::vector<std::uint8_t>, 2> png{px::to_srgb8(eyes[0]), px::to_srgb8(eyes[1])};
     const std::vector<std::uint8_t> stereo = px::side_by_side(png[0], png[1], image.width, image.height);
-    const fs::path dir = dir_option.empty() ? fs::temp_directory_path() / ("bench_image_write." + std::to_string(getpid()))
-                                            : fs::path(dir_option);
+    const fs::path dir = dir_option.empty()
+                             ? fs::temp_directory_path() / ("bench_image_write." + std::to_string(getpid()))
+                             : fs::path(dir_option);
     fs::create_directories(dir);
 
     const std::array<Writer, 2> writers{
@@ -160,7 +166,8 @@ int main(int argc, char** argv) {
     // Same pixels from both writers' files, and their sizes.
     bool same = true;
     for (const char* eye : {"_left", "_right"}) {
-      const std::string a = (dir / (std::string("ours") + eye)).string(), b = (dir / (std::string("openimageio") + eye)).string();
+      const std::string a = (dir / (std::string("ours") + eye)).string(),
+                        b = (dir / (std::string("openimageio") + eye)).string();
       same = same && px::read_image_rgb(a + ".exr").rgb == px::read_image_rgb(b + ".exr").rgb;
       px::DecodedImage da, db;
       same = same && px::decode_image_file(a + ".png", da).empty() && px::decode_image_file(b + ".png", db).empty() &&
