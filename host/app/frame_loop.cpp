@@ -32,11 +32,8 @@ void write_render_frame(const RenderCommand& cmd, const OutputDir& dir, unsigned
                         VideoWriter* video) {
   const std::string prefix = frame_name(f, "");
   const int w = static_cast<int>(cmd.size.width), h = static_cast<int>(cmd.size.height);
-  // A build without an image codec renders for its report, timeline and video only (said once
-  // at the start).
-  const bool files = image_codec_available();
   try {
-    for (int e = 0; e < 2 && files; ++e) {
+    for (int e = 0; e < 2; ++e) {
       const std::string name = prefix + (e == 0 ? "left" : "right");
       if (!cmd.no_exr) write_exr(dir.file(name + ".exr"), eyes[e]);
       write_png(dir.file(name + ".png"), w, h, png[e]);
@@ -44,7 +41,7 @@ void write_render_frame(const RenderCommand& cmd, const OutputDir& dir, unsigned
       if (!pipeline.normal_aov()[e].rgb.empty()) write_exr(dir.file(name + "_normal.exr"), pipeline.normal_aov()[e]);
     }
     const auto stereo = side_by_side(png[0], png[1], w, h);
-    if (files) write_png(dir.file(prefix + "stereo.png"), 2 * w, h, stereo);
+    write_png(dir.file(prefix + "stereo.png"), 2 * w, h, stereo);
     if (video) video->write_frame(stereo);
   } catch (const ImageError& e) {
     // Say what is usable: the frames before this one are complete.
@@ -213,16 +210,6 @@ void RenderLoop::step(unsigned f) {
     eyes = pipeline.radiance();
     require_finite(eyes, "frame " + std::to_string(f));
   }
-  // Whether files can be written is asked at the first write: the codec's libraries have been
-  // loading on another core since the scene went to the devices (SceneOnDevices), beside the
-  // first frame rather than before it or beside the start's highest points.
-  if (!codec_checked_) {
-    codec_checked_ = true;
-    if (!image_codec_available())
-      std::fprintf(stderr,
-                   "render: this build has no image codec (configured with -DPX_OPENIMAGEIO=OFF): no image "
-                   "files are written; --report, --timeline and --video still are\n");
-  }
   write_render_frame(cmd_, *out_dir_, f, eyes, pipeline.rgba8(), pipeline, video_ ? &*video_ : nullptr);
   done_ = f + 1;
   stages_.add(st);
@@ -280,11 +267,8 @@ int RenderLoop::finish() {
         report_ ? "; the report covers those frames" : "");
     return interrupt_exit_code();
   }
-  if (image_codec_available())
-    std::printf("wrote %u frame(s) to %s (frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png); ", cmd_.frames,
-                cmd_.out.c_str(), eye_files);
-  else
-    std::printf("rendered %u frame(s), no image files (this build has no image codec); ", cmd_.frames);
+  std::printf("wrote %u frame(s) to %s (frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png); ", cmd_.frames,
+              cmd_.out.c_str(), eye_files);
   std::printf("%.1f Hz %s\n", hz,
               done_ > 1 ? "over the frames after the first (which includes kernel compilation)"
                         : "(one frame, including kernel compilation)");
@@ -352,17 +336,13 @@ void RenderLoop::print_summary() const {
     for (const RowRange& r : pipeline.strips()) std::printf(" %u", r.size());
     std::printf("\n");
   }
-  if (image_codec_available()) {
-    std::printf("files:\n  %s/frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png (NNNN = 0000-%04u)\n", cmd_.out.c_str(),
-                eye_files, done_ - 1);
-    if (opt.aovs.any())
-      std::printf("  %s/frame_NNNN_{left,right}_%s.exr (auxiliary images)\n", cmd_.out.c_str(),
-                  opt.aovs.albedo && opt.aovs.normal ? "{albedo,normal}"
-                  : opt.aovs.albedo                  ? "albedo"
-                                                     : "normal");
-  } else {
-    std::printf("files:\n  no images (this build has no image codec)\n");
-  }
+  std::printf("files:\n  %s/frame_NNNN_{left,right}.%s, frame_NNNN_stereo.png (NNNN = 0000-%04u)\n", cmd_.out.c_str(),
+              eye_files, done_ - 1);
+  if (opt.aovs.any())
+    std::printf("  %s/frame_NNNN_{left,right}_%s.exr (auxiliary images)\n", cmd_.out.c_str(),
+                opt.aovs.albedo && opt.aovs.normal ? "{albedo,normal}"
+                : opt.aovs.albedo                  ? "albedo"
+                                                   : "normal");
   if (report_) std::printf("  report:   %s\n", cmd_.report.c_str());
   if (timeline_) std::printf("  timeline: %s\n", cmd_.timeline.c_str());
   if (video_) std::printf("  video:    %s (left | right, %g fps)\n", cmd_.video.c_str(), double(cmd_.clock.fps));

@@ -67,7 +67,6 @@ class RenderLoop {
   Cluster& cluster_;
   const FrameClock clock_;
   const bool distributed_, root_, dynamic_strips_;
-  bool codec_checked_ = false;  // said whether image files can be written (the first frame's write)
 
   // Rank 0's outputs, in the order they are opened.
   std::optional<OutputDir> out_dir_;

@@ -196,7 +196,7 @@ std::function<std::vector<SceneTriangle>()> take_static_triangles(Scene& scene) 
 
 }  // namespace
 
-// load_and_build without the codec preload.
+// load_and_build without the image reader's preload.
 static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, const SceneLoadOptions& options,
                                        bool map_device_layout, std::optional<BvhLayout> requested_layout) {
   using clock = Clock;
@@ -308,12 +308,12 @@ static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, cons
 LoadedScene load_and_build(const std::string& spec, bool quiet, const SceneLoadOptions& options, bool map_device_layout,
                            std::optional<BvhLayout> bvh_layout) {
   LoadedScene out = load_and_build_tree(spec, quiet, options, map_device_layout, bvh_layout);
-  // The frames' files need the image codec: its libraries (about 85 MiB of mapped pages with
-  // their dependencies) load on another core after the start's highest points (the end of a
-  // large scene's BVH build, the making of its device layout), not beside them: here, or for
-  // SceneOnDevices once the scene is on the devices. A scene with textures has loaded them
-  // already, at its first texture.
-  if (!map_device_layout) preload_image_codec();
+  // The frames' files are written without the image reader (image_io.h), so a scene without
+  // textures never loads OpenImageIO's libraries and heap (docs/measurements.md, "Frames written
+  // without OpenImageIO"). A scene with textures has loaded the reader at its first
+  // texture; the preload only makes sure of it, after the start's highest points (here, or for
+  // SceneOnDevices once the scene is on the devices).
+  if (!map_device_layout && !out.scene.textures.empty()) preload_image_codec();
   return out;
 }
 
@@ -387,10 +387,10 @@ SceneOnDevices::SceneOnDevices(LoadedScene scene, const DeviceOptions& device_op
     std::vector<std::array<glm::vec3, 3>>().swap(loaded.scene.vertex_colours);
   }
   // What the device layout freed (its temporaries, the tree's binary nodes) goes back before the
-  // first frame's buffers, PoCL's work-group memory and the image codec's libraries come.
+  // first frame's buffers and PoCL's work-group memory come.
   give_back_free_heap(loaded.triangle_count);
   loaded.times.host_rss_after_start_mib = resident_mib();
-  preload_image_codec();  // see load_and_build
+  if (!loaded.scene.textures.empty()) preload_image_codec();  // see load_and_build
 }
 
 void SceneOnDevices::first_frame_on_its_way() {

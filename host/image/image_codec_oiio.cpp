@@ -1,5 +1,6 @@
-// The OpenImageIO codec module (libparallax_image_oiio.so): encodes and decodes image files for
-// the program, which loads it at run time (oiio_codec.h says why). It writes no file itself.
+// The OpenImageIO codec module (libparallax_image_oiio.so): decodes image files for the program,
+// which loads it at run time (oiio_codec.h says why), and encodes them for the comparisons of the
+// program's own writers (exr_writer.h, png_writer.h) with OpenImageIO's. It writes no file itself.
 #include "image/oiio_codec.h"
 
 #include <OpenImageIO/filesystem.h>

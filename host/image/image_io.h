@@ -1,11 +1,14 @@
 // Image files: linear float EXR (radiance, for references and error figures) and 8-bit PNG
-// (what a person looks at), and the decoding of texture images. Thin wrappers over OpenImageIO
-// (image_codec_oiio_front.cpp, the codec itself a module loaded at run time: oiio_codec.h) that
-// throw ImageError with the path on failure.
+// (what a person looks at), and the reading of images (textures, `compare`'s files).
 //
-// A build configured with -DPX_OPENIMAGEIO=OFF has no image codec (image_codec_none.cpp): it
-// still renders and measures (reports, timelines, in-memory error figures) but writes no image
-// file and loads no texture, and says so. It exists for machines without the Debian packages,
+// The frames' files are written by this program itself (exr_writer.h, png_writer.h: zlib and
+// libpng), in every build. Reading goes through OpenImageIO (image_codec_oiio_front.cpp, the codec
+// itself a module loaded at run time: oiio_codec.h), so a run whose scene has no texture never
+// loads its libraries. Every function throws ImageError with the path on failure.
+//
+// A build configured with -DPX_OPENIMAGEIO=OFF has no image reader (image_codec_none.cpp): it
+// renders, measures and writes its frames' files, but loads no texture and reads no image
+// (`compare`, references), and says so. It exists for machines without the Debian packages,
 // e.g. a GPU machine the project is carried to as a self-contained bundle.
 #pragma once
 
@@ -28,20 +31,23 @@ struct ImageRGB {
   std::vector<float> rgb;  // width * height * 3
 };
 
-// Starts loading the image codec on a thread of its own where the codec is loaded at run time
-// (OpenImageIO's module, oiio_codec.h), so that it is ready by the first image call; a no-op
-// where it is not, and when it is loaded or loading already. Never fails: a codec that cannot be
+// Starts loading the image reader on a thread of its own where it is loaded at run time
+// (OpenImageIO's module, oiio_codec.h), so that it is ready by the first image read; a no-op
+// where it is not, and when it is loaded or loading already. Never fails: a reader that cannot be
 // loaded says so at its first use.
 void preload_image_codec();
 
-// False in a build without an image codec: every function below then fails with a message that
-// says so (decode_image_* return it; the others throw ImageError).
-bool image_codec_available();
+// False in a build without an image reader: read_image_rgb and decode_image_* then fail with a
+// message that says so (decode_image_* return it, read_image_rgb throws ImageError). Writing
+// needs no reader.
+bool image_reading_available();
 
+// Written atomically (io/atomic_file.h): 32-bit float RGB, ZIP-compressed (exr_writer.h); NaN and
+// infinities are stored as they are.
 void write_exr(const std::string& path, const ImageRGB& image);
 ImageRGB read_image_rgb(const std::string& path);  // any format OIIO reads; alpha dropped
 
-// 8-bit RGBA, rows top to bottom.
+// 8-bit RGBA, rows top to bottom (png_writer.h), written atomically.
 void write_png(const std::string& path, int width, int height, const std::vector<std::uint8_t>& rgba);
 
 // The pixels of a decoded image, channel-interleaved float, rows top to bottom, as stored (no
