@@ -19,33 +19,33 @@ if ! "$clang_bin" --print-targets 2>/dev/null | grep -q nvptx64; then echo "skip
 variants=("2 0x1fff" "4 0x1fff" "8 0x1fff" "9 0x1fff" "8 0x000" "8 0x1555" "8 0x0aaa"
           "8 0x1fff -DPX_LEAF_REFS=1 -DPX_FLAT_SHADING=1" "9 0x000 -DPX_FLAT_SHADING=1"
           "8 0x1fff -DPX_LEAF_REFS=1 -DPX_INDEXED_SHADING=1" "2 0x000 -DPX_INDEXED_SHADING=1")
-# One compilation: FILE WIDTH FEATURES [EXTRA...]; prints a FAIL block or nothing. Each is a
-# single-threaded clang, so they run one per core (the CTest stage runs one test at a time).
+# One compilation: FILE (under kernels/) WIDTH FEATURES [EXTRA...]; prints a FAIL block or nothing.
+# Each is a single-threaded clang: they run one per core.
 compile_one() {
-  local file="$1" width="$2" features="$3" out
+  local rel="$1" width="$2" features="$3" out
   shift 3
   if ! out="$("$clang_bin" -x cl -cl-std=CL1.2 -target nvptx64-nvidia-nvcl -Xclang -finclude-default-header \
       -cl-single-precision-constant -O2 -DPX_BVH_WIDTH="$width" -DPX_FEATURES="$features" "$@" -I"$src/kernels" -S \
-      -o /dev/null "$file" 2>&1)" || grep -q "warning:" <<<"$out"; then
+      -o /dev/null "$src/kernels/$rel" 2>&1)" || grep -q "warning:" <<<"$out"; then
     # One write, so that the parallel compilations' reports do not interleave.
-    printf 'FAIL %s (PX_BVH_WIDTH=%s PX_FEATURES=%s %s):\n%s\n' "${file#"$src"/kernels/}" "$width" "$features" "$*" \
-      "$(head -20 <<<"$out")"
+    printf 'FAIL %s (PX_BVH_WIDTH=%s PX_FEATURES=%s%s):\n%s\n' "$rel" "$width" "$features" \
+      "${*:+ $*}" "$(head -20 <<<"$out")"
   fi
 }
 export -f compile_one
 export clang_bin src
 jobs="$(nproc 2>/dev/null || echo 2)"
 files=()
-while IFS= read -r -d '' file; do files+=("$file"); done < <(find "$src/kernels" -name '*.cl' -print0 | sort -z)
+while IFS= read -r -d '' file; do files+=("${file#"$src"/kernels/}"); done < <(find "$src/kernels" -name '*.cl' -print0 | sort -z)
 [ "${#files[@]}" -gt 0 ] || { echo "FAIL no kernel files under $src/kernels"; exit 1; }
-# One line per compilation (no kernel path has a space), its output kept in order of the list.
+# One line per compilation: the file's path under kernels/ (none has a space) and the variant.
 log="$(for file in "${files[@]}"; do for variant in "${variants[@]}"; do echo "$file $variant"; done; done |
   xargs -P "$jobs" -L 1 bash -c 'compile_one "$@"' _)"
 count=$((${#files[@]} * ${#variants[@]}))
 [ -n "$log" ] && echo "$log"
 fails="$(grep -c '^FAIL' <<<"$log")"
 for file in "${files[@]}"; do
-  grep -q "^FAIL ${file#"$src"/kernels/} " <<<"$log" || echo "ok   ${file#"$src"/kernels/}"
+  grep -qF "FAIL $file (" <<<"$log" || echo "ok   $file"
 done
 echo "kernels_ptx: $count compilations, $fails failure(s)"
 [ "$fails" -eq 0 ]
