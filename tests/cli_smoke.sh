@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # Behaviour of the command line as a user meets it: help, exit codes, clear errors, outputs.
-# Usage: cli_smoke.sh PATH/TO/parallax SOURCE_DIR
+# Usage: cli_smoke.sh PATH/TO/parallax SOURCE_DIR [PART: 1 or 2, default both]
 set -u
 bin="$1"
 src="$2"
+part="${3:-}"
 tmp="$(mktemp -d)"
 trap 'mountpoint -q "$tmp/tiny" 2>/dev/null && umount "$tmp/tiny"; rm -rf "$tmp"' EXIT
 fails=0
@@ -39,6 +40,12 @@ check() {  # check NAME EXPECTED_RC PATTERN -- command...
   echo "ok   $name"; passes=$((passes + 1))
 }
 
+ok() { passes=$((passes + 1)); echo "ok   $1"; }
+bad() { fails=$((fails + 1)); echo "FAIL $1"; }
+
+# Two halves, so that CTest runs them side by side (cli_smoke_part1, cli_smoke_part2): each is
+# self-contained (its own files under $tmp), and no argument runs both, as before.
+part_one() {
 check "help" 0 "devices|preview" -- "$bin" --help
 check "no subcommand is an error" 1 "subcommand" -- "$bin"
 check "devices lists a platform" 0 "platform 0" -- "$bin" devices --devices 2
@@ -136,8 +143,6 @@ check "unknown path tracer is refused" 1 "path-tracer" -- "$bin" render --path-t
 check "reference shows progress" 0 "reference_" -- "$bin" reference --scene cornell --width 16 --height 9 --spp 8 --pass-spp 4 --out "$tmp/ref"
 
 # --- nothing lost, nothing mixed ---
-ok() { passes=$((passes + 1)); echo "ok   $1"; }
-bad() { fails=$((fails + 1)); echo "FAIL $1"; }
 # wait_for FILE PID: until FILE exists or PID has exited (no time limit is asserted; ctest's
 # timeout bounds a hang).
 wait_for() { while [ ! -e "$1" ] && kill -0 "$2" 2>/dev/null; do sleep 0.1; done; [ -e "$1" ]; }
@@ -298,7 +303,9 @@ sed 's/"count": 3/"count": 30/' "$tmp/tri.gltf" >"$tmp/bad.gltf"
 check "a glTF accessor past its buffer is a clear error" 1 "bad\.gltf.*accessor 0" -- "$bin" preview --scene "$tmp/bad.gltf" \
   --out "$tmp/gltf_bad"
 check "an unknown --sky value is refused" 1 "sky" -- "$bin" preview --scene "$tmp/tri.gltf" --sky bright --out "$tmp/gltf_sky"
+}
 
+part_two() {
 # Kernels built for the scene's features: the Cornell box needs only emissive triangles, says so
 # on the console and in the report, and gives the general kernels' pixels.
 check "render says which features its kernels carry" 0 "compiled for the scene's features: emissive \(" -- "$bin" \
@@ -456,6 +463,14 @@ if python3 "$src/tests/support/write_animated_gltf.py" "$tmp/ring.gltf" --still 
   if awk -v p="${psnr:-0}" 'BEGIN {exit !(p > 40)}'; then ok "instances render the flat copies' image (PSNR $psnr dB)"
   else bad "instances against flat copies: PSNR ${psnr:-none} dB (want > 40)"; fi
 else bad "could not write the instanced glTF"; fi
+}
+
+case "$part" in
+  1) part_one ;;
+  2) part_two ;;
+  "") part_one; part_two ;;
+  *) echo "cli_smoke: unknown part $part (1, 2 or none)"; exit 2 ;;
+esac
 
 echo "$passes passed, $fails failed, ${#skipped[@]} skipped"
 for s in ${skipped[@]+"${skipped[@]}"}; do echo "  skipped: $s"; done
