@@ -63,7 +63,8 @@ double host_importance(const LightTreeNode& node, D3 p, D3 n) {
   const double theta_e = std::acos(std::clamp<double>(node.cos_theta_e, -1, 1));
   const double theta_p = std::max(0.0, theta_w - theta_o - theta_b);
   if (theta_p >= theta_e) return 0;
-  const double theta_i = std::acos(std::min(1.0, std::abs(dot(wi, n))));
+  // One-sided at p: wi points from the lights to p, so the light lies along -wi.
+  const double theta_i = std::acos(std::clamp(-dot(wi, n), -1.0, 1.0));
   return std::max(0.0, node.phi * std::cos(theta_p) / d2 * std::cos(std::max(0.0, theta_i - theta_b)));
 }
 
@@ -511,7 +512,7 @@ TEST(LightTree, ZeroOnlyWhereTheLightCannotReachThePoint) {
   std::vector<cl_float4> p, n;
   random_points(32, 17, p, n);
   const std::vector<float> pmf = kernel_pmfs(light_buffer(t.lights, t.tree), count, p, n);
-  std::size_t away = 0, facing = 0;
+  std::size_t away = 0, behind = 0, facing = 0;
   for (std::size_t i = 0; i < p.size(); ++i)
     for (std::size_t k = 0; k < count; ++k) {
       const LightTriangle& l = t.lights[k];
@@ -521,13 +522,19 @@ TEST(LightTree, ZeroOnlyWhereTheLightCannotReachThePoint) {
       const D3 to_p = d3(p[i]) - c;
       const double cos_side = dot(to_p, ng) / (norm(to_p) * norm(ng));
       const float got = pmf[i * count + k];
-      if (t.two_sided[k] || cos_side > 1e-3) {
+      // How far in front of the point's tangent plane the light's corners reach (cosines).
+      double in_front = -1;
+      for (const float* v : {l.v0, l.v1, l.v2}) {
+        const D3 to_v = d3(v) - d3(p[i]);
+        in_front = std::max(in_front, dot(to_v, d3(n[i])) / norm(to_v));
+      }
+      if ((t.two_sided[k] || cos_side > 1e-3) && in_front > 1e-3) {
         ++facing;
         EXPECT_GT(got, 0.0f) << "light " << k << " faces point " << i;
       }
       if (got == 0.0f) {
-        EXPECT_FALSE(t.two_sided[k]) << "a two-sided light " << k << " with pmf 0 at point " << i;
-        EXPECT_LE(dot(d3(p[i]) - v0, ng), 1e-6) << "light " << k << " with pmf 0 lights point " << i;
+        const bool behind_light = !t.two_sided[k] && dot(d3(p[i]) - v0, ng) <= 1e-6;
+        EXPECT_TRUE(behind_light || in_front <= 1e-6) << "light " << k << " with pmf 0 lights point " << i;
       }
       // Clearly behind a one-sided light: beyond the angle its box's bounding sphere subtends.
       D3 lo{1e30, 1e30, 1e30}, hi{-1e30, -1e30, -1e30};
@@ -543,8 +550,16 @@ TEST(LightTree, ZeroOnlyWhereTheLightCannotReachThePoint) {
         ++away;
         EXPECT_EQ(got, 0.0f) << "light " << k << " faces away from point " << i;
       }
+      // Clearly behind the point's tangent plane: no BSDF here reflects what it sends.
+      const double theta_i = std::acos(std::clamp(-dot(from_box, d3(n[i])) / d, -1.0, 1.0));
+      if (d > 2 * r && theta_i > M_PI / 2 + std::asin(r / d) + 0.05) {
+        ++behind;
+        EXPECT_EQ(got, 0.0f) << "light " << k << " lies behind point " << i;
+      }
     }
+  std::printf("[ cases ] behind the light %zu, behind the point %zu, facing %zu\n", away, behind, facing);
   EXPECT_GT(away, 100u);
+  EXPECT_GT(behind, 100u);
   EXPECT_GT(facing, 100u);
   // Every light faces away: nothing to sample.
   Scene ceiling;
@@ -563,7 +578,8 @@ TEST(LightTree, ZeroOnlyWhereTheLightCannotReachThePoint) {
     EXPECT_EQ(s.light[j], -1);
     EXPECT_EQ(s.pmf[j], 0.0f);
   }
-  const Samples b = kernel_samples(buffer, c.lights.size(), above, up, 64);
+  const cl_float4 down{{0.0f, -1.0f, 0.0f, 0.0f}};
+  const Samples b = kernel_samples(buffer, c.lights.size(), above, down, 64);
   for (std::size_t j = 0; j < 64; ++j) EXPECT_GE(b.light[j], 0);
 }
 

@@ -1,13 +1,12 @@
 /* The light tree's walk (host/render/light_tree.h builds it; types.h, LightTreeWideNode, lays it out
  * in the `lights` buffer after the LightTriangle table): next-event estimation picks an emissive
  * triangle by descending from the root (Conty Estevez and Kulla 2018; the importance is pbrt-v4's
- * LightBounds::Importance). The tree is binary, but the walk takes two levels a step: from an
- * interior node it weighs the up to four nodes two levels below (a child that is a leaf stands
- * for itself) by their importances at the shading point and picks one in proportion. Half as many
- * dependent steps as a level-by-level walk for about as many importances, and each node is
- * weighed against its cousins with its own tight bounds rather than through its parent's looser
- * ones. Each leaf is one light, so a light's probability is the product of the choices on its
- * path, which px_light_tree_pmf recomputes from the light's trail with the same arithmetic as
+ * LightBounds::Importance, one-sided at the shading point). The tree is binary, but the walk takes two levels a step:
+ * from an interior node it weighs the up to four nodes two levels below (a child that is a leaf stands for itself) by
+ * their importances at the shading point and picks one in proportion. Half as many dependent steps as a level-by-level
+ * walk for about as many importances, and each node is weighed against its cousins with its own tight bounds rather
+ * than through its parent's looser ones. Each leaf is one light, so a light's probability is the product of the choices
+ * on its path, which px_light_tree_pmf recomputes from the light's trail with the same arithmetic as
  * px_light_tree_sample: the two agree to the bit, as MIS needs. */
 #ifndef PARALLAX_LIGHT_TREE_H
 #define PARALLAX_LIGHT_TREE_H
@@ -33,10 +32,14 @@ inline const global LightTreeWideNode* px_light_tree_wide(const SceneView* s, ui
 /* An upper estimate of what the lights under a node send to a point p with normal n: power over
  * squared distance, times the cosine at the emitters (the angle from p to the cone of normals,
  * less the cone's own spread theta_o and the angle theta_b the node's bounding sphere subtends
- * from p; nothing beyond theta_e), times the |cosine| at p (less theta_b); 0 where no light under
- * the node can reach p. The body is written once for T = float (one node) and T = float4 (four
- * nodes, one a lane); LANES(field) is the field of the node or nodes, as a T. Each lane computes
- * what the one-node version does, to the bit. */
+ * from p; nothing beyond theta_e), times the cosine at p (less theta_b); 0 where no light under
+ * the node can reach p. The cosine at p is one-sided, unlike pbrt-v4's |cosine|: every BSDF that
+ * next-event estimation and ReSTIR evaluate here is zero below n (glass refracts only through its
+ * delta lobe, which neither samples), so a node wholly behind p's tangent plane can light nothing
+ * there. Where a wall stands between two rooms, the lamps of the room behind it are those.
+ * The body is written once for T = float (one node) and T = float4 (four nodes, one a lane);
+ * LANES(field) is the field of the node or nodes, as a T. Each lane computes what the one-node
+ * version does, to the bit. */
 #define PX_LIGHT_IMPORTANCE_BODY(T, LANES)                                                                            \
   const T tx = p.x - 0.5f * (LANES(bounds_min[0]) + LANES(bounds_max[0]));                                            \
   const T ty = p.y - 0.5f * (LANES(bounds_min[1]) + LANES(bounds_max[1]));                                            \
@@ -47,21 +50,25 @@ inline const global LightTreeWideNode* px_light_tree_wide(const SceneView* s, ui
    * not get unbounded importance. */                                                                                 \
   const T d2 = fmax(dist2, radius);                                                                                   \
   const T inv_dist = select((T)(0.0f), rsqrt(dist2), dist2 > 0.0f);                                                   \
-  /* The unit direction from the node's centre to p; +z when p is the centre. */                                      \
-  const T wx = tx * inv_dist, wy = ty * inv_dist;                                                                     \
-  const T wz = select((T)(1.0f), tz * inv_dist, dist2 > 0.0f);                                                        \
-  const T cos_w = LANES(axis[0]) * wx + LANES(axis[1]) * wy + LANES(axis[2]) * wz;                                    \
-  const T sin_w = sqrt(fmax(0.0f, 1.0f - cos_w * cos_w));                                                             \
+  /* The cosines below times the distance, and their sines from dist2 less their square: the square roots then hang   \
+   * on dist2 and a dot product only, and run beside rsqrt rather than after it (the chain's latency is the walk's    \
+   * time on a CPU). Where p is the centre (dist2 0) every angle is 0 here; it is then inside the sphere or d2 is 0,  \
+   * and neither result depends on the angles. */                                                                     \
+  const T at_axis = LANES(axis[0]) * tx + LANES(axis[1]) * ty + LANES(axis[2]) * tz;                                  \
+  /* At p, one-sided: t points away from the lights. */                                                               \
+  const T at_n = -(tx * n.x + ty * n.y + tz * n.z);                                                                   \
+  const T cos_w = at_axis * inv_dist;                                                                                 \
+  const T sin_w = sqrt(fmax(0.0f, dist2 - at_axis * at_axis)) * inv_dist;                                             \
   /* The directions from p into the bounding sphere: every direction from inside it. */                               \
   const T sin_b = select((T)(0.0f), fmin(radius * inv_dist, 1.0f), dist2 >= radius * radius);                         \
-  const T cos_b = select((T)(-1.0f), sqrt(fmax(0.0f, 1.0f - sin_b * sin_b)), dist2 >= radius * radius);               \
+  const T cos_b = select((T)(-1.0f), sqrt(fmax(0.0f, dist2 - radius * radius)) * inv_dist, dist2 >= radius * radius); \
   const T cos_o = LANES(cos_theta_o), sin_o = LANES(sin_theta_o);                                                     \
   const T cos_x = PX_COS_SUB_CLAMPED(T, sin_w, cos_w, sin_o, cos_o);                                                  \
   const T sin_x = PX_SIN_SUB_CLAMPED(T, sin_w, cos_w, sin_o, cos_o);                                                  \
   const T cos_p = PX_COS_SUB_CLAMPED(T, sin_x, cos_x, sin_b, cos_b);                                                  \
-  const T cos_i = fabs(wx * n.x + wy * n.y + wz * n.z);                                                               \
-  const T sin_i = sqrt(fmax(0.0f, 1.0f - cos_i * cos_i));                                                             \
-  const T cos_pi = PX_COS_SUB_CLAMPED(T, sin_i, cos_i, sin_b, cos_b);                                                 \
+  const T cos_i = at_n * inv_dist;                                                                                    \
+  const T sin_i = sqrt(fmax(0.0f, dist2 - at_n * at_n)) * inv_dist;                                                   \
+  const T cos_pi = fmax(PX_COS_SUB_CLAMPED(T, sin_i, cos_i, sin_b, cos_b), 0.0f);                                     \
   /* Power over distance first: its division then runs beside the square roots, not after them. fmax turns a NaN into \
    * 0; nothing beyond theta_e, nothing from a degenerate (zero) distance. */                                         \
   return select((T)(0.0f), fmax(LANES(phi) / d2 * cos_p * cos_pi, 0.0f), (cos_p > LANES(cos_theta_e)) & (d2 > 0.0f));
@@ -103,16 +110,26 @@ inline __attribute__((always_inline)) float4 px_light_tree_step(const global Lig
 /* The sum of a step's importances, in the one order both walks use. */
 inline float px_light_step_total(float4 i) { return ((i.x + i.y) + i.z) + i.w; }
 
-/* Lane j of v, by masks rather than an index: a vector indexed by a variable is spilled to the
- * stack on GPUs. The other lanes' products are exact zeros (importances are finite). */
+/* Lane j of v. On GPUs by masks rather than an index: a vector indexed by a variable is spilled
+ * to the stack there (the other lanes' products are exact zeros, importances being finite), and
+ * clang turns a chain of selects into that index. On CPUs by selects: the one-hot products were a
+ * chain of dependent FMAs on the walk's critical path. Both give the lane to the bit. */
 inline float px_lane4(float4 v, uint j) {
+#if defined(__x86_64__)
+  return j == 0u ? v.x : j == 1u ? v.y : j == 2u ? v.z : v.w;
+#else
   const float4 one_hot = (float4)(j == 0u, j == 1u, j == 2u, j == 3u);
   return ((v.x * one_hot.x + v.y * one_hot.y) + v.z * one_hot.z) + v.w * one_hot.w;
+#endif
 }
 
 inline uint px_lane4u(uint4 v, uint j) {
+#if defined(__x86_64__)
+  return j == 0u ? v.x : j == 1u ? v.y : j == 2u ? v.z : v.w;
+#else
   const uint4 mask = (uint4)(j == 0u, j == 1u, j == 2u, j == 3u) * 0xffffffffu;
   return (v.x & mask.x) | (v.y & mask.y) | (v.z & mask.z) | (v.w & mask.w);
+#endif
 }
 
 /* A light of the table of `count` lights for shading point p with normal n, chosen with u in
