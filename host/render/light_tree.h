@@ -2,8 +2,8 @@
 // estimation walks to pick a light in proportion to its estimated contribution at the shading
 // point (Conty Estevez and Kulla 2018, "Importance Sampling of Many Lights with Adaptive Tree
 // Splitting"; the importance and the split cost follow pbrt-v4's LightBounds and
-// BVHLightSampler, the importance's cosine at the shading point one-sided). The kernels' half is kernels/shading/light_tree.h; the buffer layout
-// (LightTreeNode, the trails) is documented in kernels/shared/types.h.
+// BVHLightSampler, the importance's cosine at the shading point one-sided). The kernels' half is
+// kernels/shading/light_tree.h; the buffer layout (LightTreeNode, the trails) is documented in kernels/shared/types.h.
 #pragma once
 
 #include "scene/scene.h"
