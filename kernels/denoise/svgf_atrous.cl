@@ -374,9 +374,8 @@ __attribute__((always_inline)) inline Atrous8Weights px_atrous8_weights(const gl
 
 /* The illumination texels of tap (kx, ky) of svgf_atrous8's eight pixels, in a readable row (the
  * caller's weights are 0 elsewhere), as four planes; lanes past the image's edges clamped. */
-__attribute__((always_inline)) inline void px_atrous8_texels(const global float4* illum, const SvgfParams* p, int x0,
-                                                             int ty, int tx0, float8* r, float8* g, float8* b,
-                                                             float8* v) {
+__attribute__((always_inline)) inline void px_atrous8_texels(const global float4* illum, const SvgfParams* p, int ty,
+                                                             int tx0, float8* r, float8* g, float8* b, float8* v) {
   const uint row = (uint)ty * p->width;
   if (tx0 >= 0 && tx0 + PX_ATROUS_LANES <= (int)p->width) {
     px_load8_planes(illum + row + (uint)tx0, r, g, b, v);
@@ -440,7 +439,7 @@ kernel void svgf_atrous8(global float4* out_illum, const global float4* illum, c
     const float8 wx_ = fmax((W).n1, 0.0f) * (W).rest, wy_ = fmax((W).n2, 0.0f) * (W).rest; \
     if (any(wx_ > 0.0f || wy_ > 0.0f)) {                                                   \
       float8 r_, g_, b_, v_;                                                               \
-      px_atrous8_texels(illum, &p, x0, y + (KY)*step, x0 + (KX)*step, &r_, &g_, &b_, &v_); \
+      px_atrous8_texels(illum, &p, y + (KY)*step, x0 + (KX)*step, &r_, &g_, &b_, &v_);     \
       wsum_x += wx_;                                                                       \
       wsum_y += wy_;                                                                       \
       vsum_x += wx_ * wx_ * v_;                                                            \
