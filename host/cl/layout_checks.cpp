@@ -89,7 +89,7 @@ static_assert(sizeof(FrameParams) == 128);
 static_assert(offsetof(FrameParams, p_sun) == 28 && offsetof(FrameParams, light_count) == 76);
 static_assert(offsetof(FrameParams, frame) == 80 && offsetof(FrameParams, rr_start_bounce) == 104);
 static_assert(offsetof(FrameParams, row0) == 108 && offsetof(FrameParams, rows) == 112);
-static_assert(offsetof(FrameParams, sample_offset) == 116 && offsetof(FrameParams, first_sample_on_gbuffer_ray) == 120);
+static_assert(offsetof(FrameParams, sample_offset) == 116 && offsetof(FrameParams, gbuffer_ray_samples) == 120);
 static_assert(offsetof(FrameParams, direct_light) == 124);
 static_assert(sizeof(RestirParams) == 64);
 static_assert(offsetof(RestirParams, candidates) == 24 && offsetof(RestirParams, max_history) == 40);

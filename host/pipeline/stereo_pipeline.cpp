@@ -31,6 +31,9 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
       env_{devices, layout_, device_scene, scene, width, height, images_, log_, transfer_, lanes_} {
   if (width == 0 || height == 0 || width > 65535 || height > 65535)
     throw std::invalid_argument("image size must be between 1 and 65535 per side");
+  // Set frame by frame (render).
+  options.trace.every_sample_on_gbuffer_ray = false;
+  options_.trace.every_sample_on_gbuffer_ray = false;
   if (options.aovs.any() && cluster_)
     throw std::invalid_argument("auxiliary images (--aov) are read in one process only, not across MPI ranks");
   for (int d = 0; d < layout_.count(); ++d)
@@ -131,9 +134,31 @@ class LaneScope {
 
 }  // namespace
 
+bool StereoPipeline::still_view(const Camera& centre) const {
+  if (!last_centre_ || last_centre_->up != centre.up || last_centre_->vfov_deg != centre.vfov_deg) return false;
+  // Unmoved within a millionth of the viewing distance (a camera path sampled microseconds apart
+  // is still): far below a pixel's angle at any image size.
+  const float reach = 1e-6f * glm::length(centre.target - centre.position);
+  if (glm::length(last_centre_->position - centre.position) > reach ||
+      glm::length(last_centre_->target - centre.target) > reach)
+    return false;
+  for (int d = 0; d < layout_.count(); ++d)
+    if (local(d) && env_.scene_on(d).motion()) return false;
+  return true;
+}
+
 FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
   using clock_type = std::chrono::steady_clock;
   const auto t0 = clock_type::now();
+  // Where the samples of a denoised frame go (PathTracer::Options::every_sample_on_gbuffer_ray). In a
+  // still view, every sample along the G-buffer's ray: the anti-aliasing covers the pixel over frames
+  // (the jitter moves), and samples spread within a frame mixed surfaces under one texel that the
+  // denoiser then darkened (a lamp's rim). Where the view or the scene moves, spread: the
+  // anti-aliasing keeps less history there, and the frame's own samples are what smooth an edge.
+  const bool every = options_.denoise.has_value() && options_.trace.first_sample_on_gbuffer_ray && still_view(centre);
+  options_.trace.every_sample_on_gbuffer_ray = every;
+  path_trace_->options().every_sample_on_gbuffer_ray = every;
+  last_centre_ = centre;
   log_.clear();
   transfer_.reset_bytes();
   if (cluster_) cluster_->reset_traffic();

@@ -217,6 +217,9 @@ class StereoPipeline {
   // `writes` stages write (the last scheduled such stage with that row wins).
   std::vector<int> row_owners(int eye, std::initializer_list<Stage> writes) const;
   bool local(int d) const { return layout_.is_local(d); }
+  // Whether this frame, at `centre`, shows what the last one did from where it did: the camera
+  // unmoved and no animation in the scene.
+  bool still_view(const Camera& centre) const;
   // Device d's main-lane queue (not the selected lane's: see QueueLanes::main).
   cl::CommandQueue& main_queue(int d) { return lanes_.main(layout_.local_index(d)); }
 
@@ -238,6 +241,9 @@ class StereoPipeline {
   std::map<Stage, StageUnit*> unit_of_;
   PathTraceStage* path_trace_ = nullptr;
   DenoiseStage* denoise_ = nullptr;
+  // The last frame's centre camera: a frame whose view has not moved since (and whose scene
+  // does not move) sends every sample along the G-buffer's ray (render, still_view).
+  std::optional<Camera> last_centre_;
   std::uint64_t nonfinite_total_ = 0;
   std::array<ImageRGB, 2> albedo_aov_, normal_aov_;
 };

@@ -22,13 +22,15 @@ FrameParams PathTracer::frame_params(const Scene& scene, std::size_t light_count
   fp.row0 = row0;
   fp.rows = rows;
   fp.sample_offset = sample_offset;
-  fp.first_sample_on_gbuffer_ray = options.first_sample_on_gbuffer_ray ? 1u : 0u;
+  fp.gbuffer_ray_samples = !options.first_sample_on_gbuffer_ray  ? PX_GBUFFER_RAY_NONE
+                           : options.every_sample_on_gbuffer_ray ? PX_GBUFFER_RAY_EVERY
+                                                                 : PX_GBUFFER_RAY_FIRST;
   return fp;
 }
 
 void PathTracer::check_gbuffer_target(const Targets& out, const FrameParams& params) {
   // Without sample 0 on the G-buffer's ray nothing would write the texels: a stale G-buffer, silently.
-  if (out.gbuffer && !(params.first_sample_on_gbuffer_ray && params.sample_offset == 0))
+  if (out.gbuffer && !(params.gbuffer_ray_samples != PX_GBUFFER_RAY_NONE && params.sample_offset == 0))
     throw std::logic_error("path tracer: a G-buffer target needs the frame's first sample on the G-buffer's ray");
 }
 

@@ -37,6 +37,12 @@ class PathTracer {
     // (Targets::gbuffer) and the denoiser's G-buffer describes the surface that sample saw. Off for references, which
     // integrate the whole pixel.
     bool first_sample_on_gbuffer_ray = true;
+    // With first_sample_on_gbuffer_ray: every sample along the G-buffer's ray (starting at its hit), not
+    // only the first. What a denoised frame at several spp wants (StereoPipeline sets it there): the
+    // G-buffer then describes the surface each sample saw, where samples spread over the pixel mixed a
+    // lamp into a ceiling texel and the filter darkened it. An undenoised frame keeps its samples
+    // spread, its only anti-aliasing.
+    bool every_sample_on_gbuffer_ray = false;
   };
 
   // Everything but buffers that a path_trace / path_trace_list launch needs.

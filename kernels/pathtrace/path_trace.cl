@@ -18,15 +18,16 @@
  * demodulation albedo (see px_trace_path). Every random number comes from the pixel's and the
  * sample's own stream, so a sample is the same whichever work-item traces it. If this sample is
  * the G-buffer's ray (through the camera's jitter position): `gbuffer_texel` (if not null) receives the pixel's
- * G-buffer texel, and `gbuffer_hit` (if not null) is that ray's hit, traced already. */
+ * G-buffer texel. If it goes along that ray (px_sample_along_gbuffer_ray), `gbuffer_hit` (if not null) is the
+ * ray's hit, traced already. */
 inline float3 px_render_sample(const SceneView* scene, const FrameParams* fp, const CameraParams* cam, uint x, uint y,
                                uint s, float4* albedo, global GBufferTexel* gbuffer_texel,
                                const global Hit* gbuffer_hit) {
   const SampleKey key = px_sample_key(x, y, fp->frame, fp->eye, fp->sample_offset + s, fp->seed);
   const float3 dir = px_sample_camera_dir(fp, cam, key, x, y, s);
-  const int on_gbuffer_ray = px_sample_on_gbuffer_ray(fp, s);
   return px_trace_path(scene, fp, px_camera_origin(cam), dir, key, px_restir_lights_first_vertex(fp, s), albedo,
-                       on_gbuffer_ray ? gbuffer_texel : 0, on_gbuffer_ray ? gbuffer_hit : 0);
+                       px_sample_on_gbuffer_ray(fp, s) ? gbuffer_texel : 0,
+                       px_sample_along_gbuffer_ray(fp, s) ? gbuffer_hit : 0);
 }
 
 /* Mean radiance of pixel (x, y): fp->spp paths; a path with non-finite radiance is dropped
@@ -58,7 +59,7 @@ inline float4 px_render_pixel(const SceneView* scene, const FrameParams* fp, con
 /* Stage 2 (and mono): every pixel of rows [fp.row0, fp.row0 + fp.rows) of eye fp.eye.
  * out, albedo_out: full-frame float4 images (width * height); only these rows are written.
  * gbuffer: null, or the eye's full-frame G-buffer, whose texels of these rows the first
- * sample writes (the G-buffer pass's, bit for bit; only with fp.first_sample_on_gbuffer_ray and
+ * sample writes (the G-buffer pass's, bit for bit; only with fp.gbuffer_ray_samples set and
  * fp.sample_offset 0, else nothing is written). */
 kernel void path_trace(global float4* out, global float4* albedo_out, volatile global uint* nonfinite,
                        global GBufferTexel* gbuffer, FrameParams fp, CameraParams cam, PX_SCENE_PARAMS) {

@@ -52,10 +52,16 @@ typedef struct ShadowRay {
 } ShadowRay;
 
 /* Whether sample s of a launch (the pixel's sample fp->sample_offset + s) is the frame's first
- * with fp->first_sample_on_gbuffer_ray set: that sample is the G-buffer's ray, through the
- * camera's jitter position of the frame (CameraParams::jitter). */
+ * with fp->gbuffer_ray_samples set: that sample is the G-buffer's own ray, through the camera's
+ * jitter position of the frame (CameraParams::jitter), and writes the pixel's texel. */
 inline int px_sample_on_gbuffer_ray(const FrameParams* fp, uint s) {
-  return fp->first_sample_on_gbuffer_ray && fp->sample_offset + s == 0u;
+  return fp->gbuffer_ray_samples != PX_GBUFFER_RAY_NONE && fp->sample_offset + s == 0u;
+}
+
+/* Whether sample s's camera ray is the G-buffer's ray: the first sample's, or with
+ * PX_GBUFFER_RAY_EVERY every sample's (which then start at the G-buffer's hit as well). */
+inline int px_sample_along_gbuffer_ray(const FrameParams* fp, uint s) {
+  return fp->gbuffer_ray_samples == PX_GBUFFER_RAY_EVERY || px_sample_on_gbuffer_ray(fp, s);
 }
 
 /* The camera ray's direction of sample s of pixel (x, y), whose stream is `key`: jittered over
@@ -66,10 +72,14 @@ inline int px_sample_on_gbuffer_ray(const FrameParams* fp, uint s) {
  * measured: docs/measurements.md, "Sample 0 along the G-buffer's ray"). Its position in the
  * pixel moves from frame to frame (CameraParams::jitter), so over frames it covers the pixel
  * too. The pipeline's references keep every sample jittered: a reference integrates the whole
- * pixel in one frame. */
+ * pixel in one frame. A denoised frame at several spp sends every sample along that ray
+ * (PX_GBUFFER_RAY_EVERY): samples spread over the pixel mix surfaces the G-buffer does not
+ * describe (a lamp's rim: lamp and ceiling under a ceiling texel), which the filter then spread
+ * and darkened, so the denoised error rose with spp (docs/measurements.md, "Every sample along
+ * the G-buffer's ray"); the jitter still covers the pixel over frames. */
 inline float3 px_sample_camera_dir(const FrameParams* fp, const CameraParams* cam, SampleKey key, uint x, uint y,
                                    uint s) {
-  if (px_sample_on_gbuffer_ray(fp, s)) return px_camera_dir(cam, x, y, cam->jitter[0], cam->jitter[1]);
+  if (px_sample_along_gbuffer_ray(fp, s)) return px_camera_dir(cam, x, y, cam->jitter[0], cam->jitter[1]);
   const float4 u = px_sample4(key, 0u);
   return px_camera_dir(cam, x, y, u.x, u.y);
 }

@@ -99,15 +99,15 @@ kernel void wf_generate_list(global float4* states, global uint* path_pixel, glo
 }
 
 /* The live paths' closest hits at vertex `bounce`. `gbuffer_hits`: null, or the G-buffer pass's
- * full-frame hits, which the first samples (the G-buffer's rays)' camera rays take instead of a trace (as
- * px_trace_path does). */
+ * full-frame hits, which the camera rays along the G-buffer's rays (px_sample_along_gbuffer_ray) take
+ * instead of a trace (as px_trace_path does). */
 kernel void wf_extend(const global float4* states, global Hit* hits, const global uint* queue,
                       const global uint* counts, uint bounce, const global uint* path_pixel,
                       const global Hit* gbuffer_hits, FrameParams fp, PX_SCENE_PARAMS) {
   const uint j = get_global_id(0);
   if (j >= counts[PX_WF_LIVE + bounce]) return;
   const uint i = queue[j];
-  if (bounce == 0u && gbuffer_hits && px_sample_on_gbuffer_ray(&fp, i % fp.spp)) {
+  if (bounce == 0u && gbuffer_hits && px_sample_along_gbuffer_ray(&fp, i % fp.spp)) {
     hits[i] = gbuffer_hits[path_pixel[i]];
     return;
   }

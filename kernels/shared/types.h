@@ -532,7 +532,15 @@ typedef struct LightTreeWideNode {
  *  96..99 seed   100..103 light_sampling (PX_LIGHTS_*)  104..107 rr_start_bounce
  * 108..111 row0 (first image row of this launch)  112..115 rows  124..127 direct_light (PX_DIRECT_*)
  * 116..119 sample_offset (index of this launch's first sample: progressive passes)
- * 120..123 first_sample_on_gbuffer_ray (1: sample 0 is the G-buffer's ray, through CameraParams::jitter) */
+ * 120..123 gbuffer_ray_samples (PX_GBUFFER_RAY_*: which samples go along the G-buffer's ray, through
+ *          CameraParams::jitter) */
+/* FrameParams::gbuffer_ray_samples. NONE: every sample jittered over the pixel (references).
+ * FIRST: sample 0 of the frame along the G-buffer's ray, the rest jittered. EVERY: every sample
+ * along it (a denoised frame at several spp: the denoiser's G-buffer then describes the surface
+ * every sample saw; path_vertex.h, px_sample_camera_dir). */
+#define PX_GBUFFER_RAY_NONE 0u
+#define PX_GBUFFER_RAY_FIRST 1u
+#define PX_GBUFFER_RAY_EVERY 2u
 typedef struct FrameParams {
   float sun_dir[3];
   float sun_cos_max;
@@ -554,7 +562,7 @@ typedef struct FrameParams {
   uint row0;
   uint rows;
   uint sample_offset;
-  uint first_sample_on_gbuffer_ray;
+  uint gbuffer_ray_samples;
   uint direct_light;
 } FrameParams;
 

@@ -212,6 +212,9 @@ void DenoiseStage::sample_motion_edges(int e, int d, RowRange rows, RowRange rea
   FrameParams fp = tracer_->frame_params(e, rows, in.frame);
   fp.sample_offset = fp.spp;
   fp.spp = options_.motion_edge_samples;
+  // Spread over the pixel whatever the frame's own samples do: these samples anti-alias a moving
+  // edge within the frame, where the anti-aliasing's history cannot follow it.
+  fp.gbuffer_ray_samples = PX_GBUFFER_RAY_FIRST;
   cl::Kernel more(env_.devices.program("pathtrace/path_trace.cl", env_.device_scene.kernel_options()),
                   "path_trace_list_more");
   more.setArg(0, f.radiance[e]);
