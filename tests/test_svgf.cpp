@@ -1241,6 +1241,50 @@ TEST(SvgfDistributed, StripsThatCannotMoveAreRefused) {
 // five steps come closer to a converged reference than one, by a wide margin (each step doubles
 // the filter's reach: one leaves blotches), and the images differ. A denoiser that ran one step
 // whatever was asked (or always five) gives the same error for both and fails.
+// A still view at several spp: every sample goes along the G-buffer's ray (PX_GBUFFER_RAY_EVERY),
+// so the denoised error falls with spp. With samples spread over the pixel, a pixel on the lamp's
+// rim held lamp samples under a ceiling texel, which the filter darkened: the error rose with spp
+// (docs/measurements.md, "Every sample along the G-buffer's ray"). Against render_reference,
+// independent of the pipeline.
+TEST(SvgfDistributed, AStillViewAtSeveralSppKeepsItsLightAndLosesError) {
+  const unsigned w = 96, h = 72, frames = 8;
+  static LoadedScene loaded = load_and_build("cornell", true);
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, "", std::nullopt});
+  DeviceScene ds(set, loaded.scene, loaded.bvh);
+  auto run = [&](unsigned spp) {
+    StereoPipeline::Options opt = pipeline_options(PipelineKind::Proposed);
+    opt.trace.spp = spp;
+    StereoPipeline p(set, ds, loaded.scene, w, h, opt);
+    for (unsigned f = 0; f + 1 < frames; ++f) p.render(f, 0.0f);  // the camera never moves
+    p.render(frames - 1, 0.0f);
+    return p.radiance();
+  };
+  const auto one = run(1), four = run(4), sixteen = run(16);
+  PathTracer tracer(set, ds, loaded.scene);
+  ReferenceOptions ref_opt;
+  ref_opt.spp = 1024;
+  ref_opt.bounces = 3;
+  const auto reference = render_reference(tracer, 0.0f, frames - 1, w, h, ref_opt);
+  for (int e = 0; e < 2; ++e) {
+    SCOPED_TRACE(e == 0 ? "left eye" : "right eye");
+    const double e1 = compare_images(one[e], reference[e]).rel_mse;
+    const double e4 = compare_images(four[e], reference[e]).rel_mse;
+    const double e16 = compare_images(sixteen[e], reference[e]).rel_mse;
+    const double l1 = mean_luminance(one[e]) / mean_luminance(reference[e]);
+    const double l4 = mean_luminance(four[e]) / mean_luminance(reference[e]);
+    const double l16 = mean_luminance(sixteen[e]) / mean_luminance(reference[e]);
+    std::printf("[ measure  ] eye %d: denoised relMSE 1 / 4 / 16 spp %.3g / %.3g / %.3g, light %.4f / %.4f / %.4f\n", e,
+                e1, e4, e16, l1, l4, l16);
+    // Spread samples measured 0.016 at 4 spp and 0.024 at 16 against 0.0047 at 1; now 0.0044 and
+    // 0.0043. What light the lamp's rim still loses (1% here) is the anti-aliasing's clip, which
+    // tightens as the frames get less noisy; the bound is issue 49's 2%.
+    EXPECT_LT(e4, 0.95 * e1) << "more samples, more error";
+    EXPECT_LT(e16, 1.05 * e4) << "more samples, more error";
+    EXPECT_NEAR(l4, 1.0, 0.02);
+    EXPECT_NEAR(l16, 1.0, 0.02);
+  }
+}
+
 TEST(SvgfDistributed, FiveAtrousStepsFilterMoreThanOne) {
   const unsigned w = 96, h = 72;
   auto run = [&](unsigned iterations) { return run_pipeline(cornell(), 1, SeamMode::Halo, 1, w, h, iterations); };
