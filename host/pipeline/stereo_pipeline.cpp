@@ -32,8 +32,8 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
   if (width == 0 || height == 0 || width > 65535 || height > 65535)
     throw std::invalid_argument("image size must be between 1 and 65535 per side");
   // Set frame by frame (render).
-  options.trace.every_sample_on_gbuffer_ray = false;
-  options_.trace.every_sample_on_gbuffer_ray = false;
+  options.trace.every_sample_on_gbuffer_ray = options.trace.same_kind_samples = false;
+  options_.trace.every_sample_on_gbuffer_ray = options_.trace.same_kind_samples = false;
   if (options.aovs.any() && cluster_)
     throw std::invalid_argument("auxiliary images (--aov) are read in one process only, not across MPI ranks");
   for (int d = 0; d < layout_.count(); ++d)
@@ -155,9 +155,13 @@ FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
   // (the jitter moves), and samples spread within a frame mixed surfaces under one texel that the
   // denoiser then darkened (a lamp's rim). Where the view or the scene moves, spread: the
   // anti-aliasing keeps less history there, and the frame's own samples are what smooth an edge.
-  const bool every = options_.denoise.has_value() && options_.trace.first_sample_on_gbuffer_ray && still_view(centre);
+  const bool denoised = options_.denoise.has_value() && options_.trace.first_sample_on_gbuffer_ray;
+  const bool every = denoised && still_view(centre);
   options_.trace.every_sample_on_gbuffer_ray = every;
   path_trace_->options().every_sample_on_gbuffer_ray = every;
+  // Spread, a pixel counts only the samples of its first one's kind (emitter or not).
+  options_.trace.same_kind_samples = denoised && !every;
+  path_trace_->options().same_kind_samples = denoised && !every;
   last_centre_ = centre;
   log_.clear();
   transfer_.reset_bytes();

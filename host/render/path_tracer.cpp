@@ -24,6 +24,7 @@ FrameParams PathTracer::frame_params(const Scene& scene, std::size_t light_count
   fp.sample_offset = sample_offset;
   fp.gbuffer_ray_samples = !options.first_sample_on_gbuffer_ray  ? PX_GBUFFER_RAY_NONE
                            : options.every_sample_on_gbuffer_ray ? PX_GBUFFER_RAY_EVERY
+                           : options.same_kind_samples           ? PX_GBUFFER_RAY_FIRST_KIND
                                                                  : PX_GBUFFER_RAY_FIRST;
   return fp;
 }

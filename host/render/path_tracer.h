@@ -43,6 +43,12 @@ class PathTracer {
     // lamp into a ceiling texel and the filter darkened it. An undenoised frame keeps its samples
     // spread, its only anti-aliasing.
     bool every_sample_on_gbuffer_ray = false;
+    // With first_sample_on_gbuffer_ray and the samples spread: a pixel counts only the samples
+    // whose first hit is of its first counted sample's kind, emitter or not
+    // (PX_GBUFFER_RAY_FIRST_KIND). What a denoised frame in a moving view wants (StereoPipeline sets
+    // it there): the spread samples still smooth edges, but a lamp's no longer falls under a
+    // ceiling's texel.
+    bool same_kind_samples = false;
   };
 
   // Everything but buffers that a path_trace / path_trace_list launch needs.

@@ -112,6 +112,7 @@ Commands trace_batches(const cl::Context& context, const cl::CommandQueue& queue
   resolve.setArg(4, s.path_pixel);
   resolve.setArg(5, s.counts);
   resolve.setArg(6, s.sums);
+  resolve.setArg(10, static_cast<cl_uint>(params.gbuffer_ray_samples == PX_GBUFFER_RAY_FIRST_KIND));
   for (unsigned first = 0; first < params.spp; first += batch_spp) {
     FrameParams batch = params;
     batch.spp = std::min(batch_spp, params.spp - first);

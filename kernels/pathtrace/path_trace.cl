@@ -43,12 +43,21 @@ inline float4 px_render_pixel(const SceneView* scene, const FrameParams* fp, con
   float3 sum = (float3)(0.0f, 0.0f, 0.0f);
   float4 albedo_sum = (float4)(0.0f, 0.0f, 0.0f, 0.0f);
   uint good = 0;
+  const int same_kind_only = fp->gbuffer_ray_samples == PX_GBUFFER_RAY_FIRST_KIND;
+  int first_kind = -1;
   for (uint s = 0; s < fp->spp; ++s) {
     float4 a;
     const float3 l = px_render_sample(scene, fp, cam, x, y, s, &a, gbuffer_texel, gbuffer_hit);
+    /* Non-finite first, whatever its kind, as path_trace_list_samples and wf_resolve count it. */
+    if (!px_finite3(l)) {
+      atomic_inc(nonfinite);
+      continue;
+    }
+    if (!px_same_kind(same_kind_only, first_kind, px_sample_kind(a))) continue;
     if (px_add_sample(&sum, l)) {
-      albedo_sum += a;
+      albedo_sum += px_albedo_counted(a);
       ++good;
+      if (first_kind < 0) first_kind = px_sample_kind(a);
     } else {
       atomic_inc(nonfinite);
     }
@@ -118,19 +127,23 @@ kernel void path_trace_list_samples(global float4* samples, volatile global uint
  * px_render_pixel sums them), then the same mean. */
 kernel void resolve_hole_samples(global float4* out, global float4* albedo_out, volatile global uint* nonfinite,
                                  const global float4* samples, const global uint* holes, const global uint* hole_count,
-                                 uint spp) {
+                                 uint spp, uint same_kind_only) {
   const uint hole = get_global_id(0);
   if (hole >= *hole_count) return;
   float3 sum = (float3)(0.0f, 0.0f, 0.0f);
   float4 albedo_sum = (float4)(0.0f, 0.0f, 0.0f, 0.0f);
   uint good = 0;
+  int first_kind = -1;
   for (uint s = 0; s < spp; ++s) {
     const uint i = hole * spp + s;
     const float4 l = samples[2u * i];
+    const float4 a = samples[2u * i + 1u];
     if (!(l.w > 0.0f)) continue; /* counted by path_trace_list_samples */
+    if (!px_same_kind((int)same_kind_only, first_kind, px_sample_kind(a))) continue;
     if (px_add_sample(&sum, l.xyz)) {
-      albedo_sum += samples[2u * i + 1u];
+      albedo_sum += px_albedo_counted(a);
       ++good;
+      if (first_kind < 0) first_kind = px_sample_kind(a);
     } else {
       atomic_inc(nonfinite);
     }

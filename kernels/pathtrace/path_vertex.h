@@ -40,7 +40,8 @@ typedef struct PathVertex {
   int restir;
   /* The demodulation albedo of the first vertex (px_demodulation_albedo; 1 where the ray
    * escapes or meets an emitter, whose radiance is its own "illumination") and, in w, 1 where
-   * that vertex is a surface the denoiser filters (not an emitter, not the environment), else 0. */
+   * that vertex is a surface the denoiser filters, 0 where the ray escapes and -1 where it meets
+   * an emitter (a pixel's sum counts both as 0: px_albedo_counted). */
   float4 primary_albedo;
 } PathVertex;
 
@@ -143,6 +144,7 @@ inline int px_path_vertex(const SceneView* scene, const FrameParams* fp, SampleK
   int outside;
   const int front_face = px_face_viewer(&surf, wo, &ng, &ns, &outside);
 
+  if (bounce == 0u && (mat->flags & PX_MAT_EMISSIVE)) v->primary_albedo.w = -1.0f;
   int two_sided = PX_HAS(PX_FEATURE_TWO_SIDED) && (mat->flags & PX_MAT_TWO_SIDED_EMITTER);
   if (PX_HAS(PX_FEATURE_EMISSIVE) && (mat->flags & PX_MAT_EMISSIVE) && (front_face || two_sided)) {
     float w = 1.0f;

@@ -16,6 +16,21 @@ inline int px_add_sample(float3* sum, float3 l) {
   return 1;
 }
 
+/* The primary albedo a sample adds to its pixel's sum: an emitter's first hit (w -1) counts as
+ * no coverage, as the environment's. */
+inline float4 px_albedo_counted(float4 a) { return (float4)(a.xyz, fmax(a.w, 0.0f)); }
+
+/* A sample's kind for PX_GBUFFER_RAY_FIRST_KIND: 1 if its first hit was an emitter, else 0. */
+inline int px_sample_kind(float4 a) { return a.w < 0.0f ? 1 : 0; }
+
+/* Whether a sample of kind `kind` counts in a pixel whose first counted sample was of kind
+ * `first_kind` (-1: none counted yet). With PX_GBUFFER_RAY_FIRST_KIND, a lamp's sample does not
+ * count in a pixel that started on the ceiling, nor the ceiling's in one that started on the lamp:
+ * the denoiser's texel describes one of them, and the filter darkened the mix. */
+inline int px_same_kind(int same_kind_only, int first_kind, int kind) {
+  return !same_kind_only || first_kind < 0 || kind == first_kind;
+}
+
 /* A pixel's mean from the sum of its `good` finite samples: (rgb, good), and in *albedo the mean
  * albedo (w: the coverage). No finite path: (1, 1, 1, 0). */
 inline float4 px_pixel_mean(float3 sum, float4 albedo_sum, uint good, float4* albedo) {

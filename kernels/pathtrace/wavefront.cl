@@ -186,30 +186,41 @@ kernel void wf_connect(global float4* states, const global float4* shadows, cons
  * one to the next, in the same order; `first` starts them, `last` writes the pixel. */
 kernel void wf_resolve(global float4* out, global float4* albedo_out, volatile global uint* nonfinite,
                        const global float4* states, const global uint* path_pixel, const global uint* counts,
-                       global float4* acc, uint spp, uint first, uint last) {
+                       global float4* acc, uint spp, uint first, uint last, uint same_kind_only) {
   const uint k = get_global_id(0);
   if (k >= counts[0]) return;
   float3 sum = (float3)(0.0f, 0.0f, 0.0f);
   float4 albedo_sum = (float4)(0.0f, 0.0f, 0.0f, 0.0f);
   uint good = 0;
+  int first_kind = -1;
   if (!first) {
+    /* The batches before: the sum and count, the count negative where the first counted sample
+     * was an emitter's (its kind, px_sample_kind). */
     const float4 a = acc[2u * k];
     sum = a.xyz;
-    good = (uint)a.w;
+    good = (uint)fabs(a.w);
+    first_kind = good > 0u ? (a.w < 0.0f ? 1 : 0) : -1;
     albedo_sum = acc[2u * k + 1u];
   }
   for (uint s = 0; s < spp; ++s) {
     const global float4* st = states + (size_t)(k * spp + s) * PX_PATH_STATE_FLOAT4S;
     const float3 l = st[3].xyz;
+    const float4 a = st[5];
+    if (!px_finite3(l)) {
+      atomic_inc(nonfinite);
+      continue;
+    }
+    if (!px_same_kind((int)same_kind_only, first_kind, px_sample_kind(a))) continue;
     if (px_add_sample(&sum, l)) {
-      albedo_sum += st[5];
+      albedo_sum += px_albedo_counted(a);
       ++good;
+      if (first_kind < 0) first_kind = px_sample_kind(a);
     } else {
       atomic_inc(nonfinite);
     }
   }
   if (!last) {
-    acc[2u * k] = (float4)(sum, (float)good);
+    acc[2u * k] = (float4)(sum, first_kind == 1 ? -(float)good : (float)good);
     acc[2u * k + 1u] = albedo_sum;
     return;
   }

@@ -541,6 +541,11 @@ typedef struct LightTreeWideNode {
 #define PX_GBUFFER_RAY_NONE 0u
 #define PX_GBUFFER_RAY_FIRST 1u
 #define PX_GBUFFER_RAY_EVERY 2u
+/* FIRST_KIND: as FIRST, but a pixel's mean counts only the samples whose first hit is of its first
+ * counted sample's kind, emitter or not (pixel_mean.h, px_same_kind): a denoised frame in a moving
+ * view, where the spread samples anti-alias edges but a lamp's must not fall under a ceiling's
+ * texel. */
+#define PX_GBUFFER_RAY_FIRST_KIND 3u
 typedef struct FrameParams {
   float sun_dir[3];
   float sun_cos_max;

@@ -79,6 +79,7 @@ void HoleFillStage::run(const std::vector<const Operation*>& ops, const FrameInp
     resolve.setArg(4, f.holes);
     resolve.setArg(5, f.hole_count);
     resolve.setArg(6, static_cast<cl_uint>(fp.spp));
+    resolve.setArg(7, static_cast<cl_uint>(fp.gbuffer_ray_samples == PX_GBUFFER_RAY_FIRST_KIND));
     env_.log.record(Stage::HoleFill, op->device, launch_1d(env_.queue(op->device), resolve, env_.pixels(op->rows)),
                     "resolve");
   }
