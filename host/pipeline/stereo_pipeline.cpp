@@ -31,9 +31,8 @@ StereoPipeline::StereoPipeline(DeviceSet& devices, const DeviceScene& device_sce
       env_{devices, layout_, device_scene, scene, width, height, images_, log_, transfer_, lanes_} {
   if (width == 0 || height == 0 || width > 65535 || height > 65535)
     throw std::invalid_argument("image size must be between 1 and 65535 per side");
-  // Set frame by frame (render).
+  // Set frame by frame on the path-tracing stage (render), never from the options given.
   options.trace.every_sample_on_gbuffer_ray = options.trace.same_kind_samples = false;
-  options_.trace.every_sample_on_gbuffer_ray = options_.trace.same_kind_samples = false;
   if (options.aovs.any() && cluster_)
     throw std::invalid_argument("auxiliary images (--aov) are read in one process only, not across MPI ranks");
   for (int d = 0; d < layout_.count(); ++d)
@@ -157,11 +156,8 @@ FrameStats StereoPipeline::render(unsigned frame, const Camera& centre) {
   // anti-aliasing keeps less history there, and the frame's own samples are what smooth an edge.
   const bool denoised = options_.denoise.has_value() && options_.trace.first_sample_on_gbuffer_ray;
   const bool every = denoised && still_view(centre);
-  options_.trace.every_sample_on_gbuffer_ray = every;
-  path_trace_->options().every_sample_on_gbuffer_ray = every;
   // Spread, a pixel counts only the samples of its first one's kind (emitter or not).
-  options_.trace.same_kind_samples = denoised && !every;
-  path_trace_->options().same_kind_samples = denoised && !every;
+  path_trace_->set_sample_placement(every, denoised && !every);
   last_centre_ = centre;
   log_.clear();
   transfer_.reset_bytes();

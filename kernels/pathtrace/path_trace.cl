@@ -53,14 +53,7 @@ inline float4 px_render_pixel(const SceneView* scene, const FrameParams* fp, con
       atomic_inc(nonfinite);
       continue;
     }
-    if (!px_same_kind(same_kind_only, first_kind, px_sample_kind(a))) continue;
-    if (px_add_sample(&sum, l)) {
-      albedo_sum += px_albedo_counted(a);
-      ++good;
-      if (first_kind < 0) first_kind = px_sample_kind(a);
-    } else {
-      atomic_inc(nonfinite);
-    }
+    if (!px_count_sample(&sum, &albedo_sum, &good, &first_kind, same_kind_only, l, a)) atomic_inc(nonfinite);
   }
   return px_pixel_mean(sum, albedo_sum, good, albedo);
 }
@@ -139,14 +132,7 @@ kernel void resolve_hole_samples(global float4* out, global float4* albedo_out, 
     const float4 l = samples[2u * i];
     const float4 a = samples[2u * i + 1u];
     if (!(l.w > 0.0f)) continue; /* counted by path_trace_list_samples */
-    if (!px_same_kind((int)same_kind_only, first_kind, px_sample_kind(a))) continue;
-    if (px_add_sample(&sum, l.xyz)) {
-      albedo_sum += px_albedo_counted(a);
-      ++good;
-      if (first_kind < 0) first_kind = px_sample_kind(a);
-    } else {
-      atomic_inc(nonfinite);
-    }
+    if (!px_count_sample(&sum, &albedo_sum, &good, &first_kind, (int)same_kind_only, l.xyz, a)) atomic_inc(nonfinite);
   }
   const uint p = holes[hole];
   float4 albedo;

@@ -210,14 +210,7 @@ kernel void wf_resolve(global float4* out, global float4* albedo_out, volatile g
       atomic_inc(nonfinite);
       continue;
     }
-    if (!px_same_kind((int)same_kind_only, first_kind, px_sample_kind(a))) continue;
-    if (px_add_sample(&sum, l)) {
-      albedo_sum += px_albedo_counted(a);
-      ++good;
-      if (first_kind < 0) first_kind = px_sample_kind(a);
-    } else {
-      atomic_inc(nonfinite);
-    }
+    if (!px_count_sample(&sum, &albedo_sum, &good, &first_kind, (int)same_kind_only, l, a)) atomic_inc(nonfinite);
   }
   if (!last) {
     acc[2u * k] = (float4)(sum, first_kind == 1 ? -(float)good : (float)good);

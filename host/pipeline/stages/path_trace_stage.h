@@ -22,6 +22,13 @@ class PathTraceStage : public StageUnit {
   Options& options() { return options_; }
   const Options& options() const { return options_; }
   PathTraceKernel kernel() const { return kernel_; }
+  // Where a denoised frame's samples go, decided per frame by the pipeline (a still view sends
+  // every sample along the G-buffer's ray; a moving one spreads them and counts one kind per
+  // pixel): PathTracer::Options::every_sample_on_gbuffer_ray and same_kind_samples.
+  void set_sample_placement(bool every_on_gbuffer_ray, bool same_kind) {
+    options_.every_sample_on_gbuffer_ray = every_on_gbuffer_ray;
+    options_.same_kind_samples = same_kind;
+  }
   // The launch constants of `rows` of `eye` in frame `frame`.
   FrameParams frame_params(int eye, RowRange rows, unsigned frame) const;
 
