@@ -31,6 +31,7 @@
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
+#include <cstring>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -61,7 +62,9 @@ struct Row {
   std::string scene, set, layout;
   std::size_t rays = 0;
   double kernel_mrays = 0, kernel_wall_mrays = 0, embree_mrays = 0, embree1_mrays = 0;
+  double single_mrays = 0;  // the kernel with one ray a work-item (trace_closest)
   int mismatches = 0;
+  int pair_diffs = 0;  // rays whose hit from the pair kernel differs in any bit from the single kernel's
 };
 
 // One tracer per BVH layout, all on the same rays; every repeat times each layout and Embree
@@ -70,17 +73,22 @@ std::vector<Row> measure(const std::string& scene_name, const std::string& set_n
                          std::vector<px::RayBatchTracer*>& tracers, const std::vector<px::BvhLayout>& layouts,
                          const px::EmbreeReference& embree, int repeats, int threads) {
   const std::size_t n = tracers.size();
-  std::vector<std::vector<double>> k_ms(n), kw_ms(n);
+  std::vector<std::vector<double>> k_ms(n), kw_ms(n), k1_ms(n);
   std::vector<double> e_ms, e1_ms;
-  std::vector<std::vector<px::Hit>> khits(n);
+  std::vector<std::vector<px::Hit>> khits(n), k1hits(n);
   std::vector<px::Hit> ehits;
-  for (std::size_t l = 0; l < n; ++l) khits[l] = tracers[l]->closest(rays);  // warm-up
+  for (std::size_t l = 0; l < n; ++l) {  // warm-up
+    khits[l] = tracers[l]->closest(rays);
+    k1hits[l] = tracers[l]->closest_one_per_item(rays);
+  }
   for (int i = 0; i < repeats; ++i) {
     for (std::size_t l = 0; l < n; ++l) {
       auto t0 = clock_type::now();
       khits[l] = tracers[l]->closest(rays);
       kw_ms[l].push_back(std::chrono::duration<double, std::milli>(clock_type::now() - t0).count());
       k_ms[l].push_back(tracers[l]->last_kernel_ms());
+      k1hits[l] = tracers[l]->closest_one_per_item(rays);
+      k1_ms[l].push_back(tracers[l]->last_kernel_ms());
     }
     auto t0 = clock_type::now();
     embree.intersect_all(rays, ehits, threads);
@@ -98,7 +106,10 @@ std::vector<Row> measure(const std::string& scene_name, const std::string& set_n
           (khits[l][i].prim != ehits[i].prim &&
            std::abs(khits[l][i].t - ehits[i].t) > 1e-4f * std::max(1.0f, ehits[i].t)))
         ++row.mismatches;
+    for (std::size_t i = 0; i < rays.size(); ++i)
+      if (std::memcmp(&khits[l][i], &k1hits[l][i], sizeof(px::Hit)) != 0) ++row.pair_diffs;
     row.kernel_mrays = mr / median(k_ms[l]);
+    row.single_mrays = mr / median(k1_ms[l]);
     row.kernel_wall_mrays = mr / median(kw_ms[l]);
     row.embree_mrays = mr / median(e_ms);
     row.embree1_mrays = mr / median(e1_ms);
@@ -202,26 +213,31 @@ int main(int argc, char** argv) {
         print_counters(name, "diffuse-bounce", px::to_string(layouts[l]), counting.closest(bounce));
       }
     }
-    std::printf("\n%-10s %-15s %-7s %9s %12s %12s %12s %12s %8s %6s\n", "scene", "rays", "layout", "count", "kernel",
-                "kernel+io", "embree", "embree-1t", "ratio", "diff");
-    std::printf("%-10s %-15s %-7s %9s %12s %12s %12s %12s %8s %6s\n", "", "", "", "", "Mrays/s", "Mrays/s",
-                ("Mrays/s " + std::to_string(threads) + "t").c_str(), "Mrays/s", "k/e", "");
+    std::printf("\n%-10s %-15s %-7s %9s %12s %12s %12s %12s %12s %8s %8s %6s %6s\n", "scene", "rays", "layout", "count",
+                "kernel", "kernel+io", "kernel-1", "embree", "embree-1t", "ratio", "ratio-1", "diff", "pair");
+    std::printf("%-10s %-15s %-7s %9s %12s %12s %12s %12s %12s %8s %8s %6s %6s\n", "", "", "", "", "Mrays/s", "Mrays/s",
+                "Mrays/s", ("Mrays/s " + std::to_string(threads) + "t").c_str(), "Mrays/s", "k/e", "k1/e", "", "diff");
     for (const auto& r : rows)
-      std::printf("%-10s %-15s %-7s %9zu %12.2f %12.2f %12.2f %12.2f %8.3f %6d\n", r.scene.c_str(), r.set.c_str(),
-                  r.layout.c_str(), r.rays, r.kernel_mrays, r.kernel_wall_mrays, r.embree_mrays, r.embree1_mrays,
-                  r.kernel_mrays / r.embree_mrays, r.mismatches);
+      std::printf("%-10s %-15s %-7s %9zu %12.2f %12.2f %12.2f %12.2f %12.2f %8.3f %8.3f %6d %6d\n", r.scene.c_str(),
+                  r.set.c_str(), r.layout.c_str(), r.rays, r.kernel_mrays, r.kernel_wall_mrays, r.single_mrays,
+                  r.embree_mrays, r.embree1_mrays, r.kernel_mrays / r.embree_mrays, r.single_mrays / r.embree_mrays,
+                  r.mismatches, r.pair_diffs);
     std::printf(
-        "\nmedians of %d runs; kernel = device time from profiling events, kernel+io = host wall time "
-        "including ray upload and hit download; ratio = kernel / embree (%d threads); diff = rays whose "
-        "closest hit differs from Embree's\n",
+        "\nmedians of %d runs; kernel = device time from profiling events (on CPUs trace_closest_pairs: two "
+        "rays a work-item, their walks in step), kernel+io = host wall time including ray upload and hit download, "
+        "kernel-1 = the same walk one ray a work-item (trace_closest); ratio = kernel / embree (%d threads), "
+        "ratio-1 = kernel-1 / embree; diff = rays whose closest hit differs from Embree's; pair diff = rays "
+        "whose hit from the two kernels differs in any bit (0: the pairing changes no hit)\n",
         repeats, threads);
     if (!csv.empty()) {
       std::ofstream out(csv);
-      out << "scene,rays,layout,count,kernel_mrays,kernel_io_mrays,embree_mrays,embree_1t_mrays,ratio,mismatches\n";
+      out << "scene,rays,layout,count,kernel_mrays,kernel_io_mrays,kernel_single_mrays,embree_mrays,embree_1t_mrays,"
+             "ratio,ratio_single,mismatches,pair_diffs\n";
       for (const auto& r : rows)
         out << r.scene << ',' << r.set << ',' << r.layout << ',' << r.rays << ',' << r.kernel_mrays << ','
-            << r.kernel_wall_mrays << ',' << r.embree_mrays << ',' << r.embree1_mrays << ','
-            << r.kernel_mrays / r.embree_mrays << ',' << r.mismatches << '\n';
+            << r.kernel_wall_mrays << ',' << r.single_mrays << ',' << r.embree_mrays << ',' << r.embree1_mrays << ','
+            << r.kernel_mrays / r.embree_mrays << ',' << r.single_mrays / r.embree_mrays << ',' << r.mismatches << ','
+            << r.pair_diffs << '\n';
     }
     return 0;
   });

@@ -565,6 +565,36 @@ TEST_P(TraceKernels, SameHitsWithOneTwoAndFourDevices) {
   }
 }
 
+// trace_closest_pairs walks two rays a work-item in step (RayBatchTracer::closest); each walk must
+// be the one-ray kernel's, so every hit is the same to the bit. The rays mix long and short
+// walks (inside the atrium, and from outside pointing away: a pair whose walks end far apart),
+// finite tmax, and an odd count (the last work-item has one ray).
+TEST_P(TraceKernels, TwoRaysAWorkItemGiveTheOneRayKernelsHits) {
+  for (bool splits : {false, true}) {
+    TraceFixture f(layout_device(), make_builtin_scene("atrium", {{"detail", 0.05}}), splits);
+    auto rays = random_rays(f.scene.triangles, 3001, 21);
+    const auto bb = bounds_of(f.scene.triangles);
+    for (std::size_t i = 0; i < rays.size(); i += 3) {
+      if (i % 2 == 0) {
+        rays[i].tmax = 0.05f * (1.0f + static_cast<float>(i % 7));
+      } else {  // from beyond the box, away from it: no node but the root is entered
+        const glm::vec3 far = bb.hi + glm::vec3(1.0f + static_cast<float>(i % 5));
+        rays[i] = make_ray(far, glm::normalize(glm::vec3(1.0f, 0.5f, 0.25f)));
+      }
+    }
+    const auto paired = f.tracer->closest(rays);
+    const auto single = f.tracer->closest_one_per_item(rays);
+    ASSERT_EQ(paired.size(), single.size());
+    int differ = 0, hits = 0;
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+      differ += std::memcmp(&paired[i], &single[i], sizeof(Hit)) != 0;
+      hits += single[i].prim != PX_NO_HIT;
+    }
+    EXPECT_EQ(differ, 0) << (splits ? "with" : "without") << " spatial splits";
+    EXPECT_GT(hits, static_cast<int>(rays.size()) / 4) << "too few hits to say anything";
+  }
+}
+
 TEST(BvhLayoutChoice, EachDeviceTypeHasItsDefaultUnlessALayoutIsRequested) {
   EXPECT_EQ(bvh_layout_for(false), BvhLayout::Wide8);
   EXPECT_EQ(bvh_layout_for(true), BvhLayout::Binary);

@@ -13,7 +13,7 @@ RayBatchTracer::RayBatchTracer(DeviceSet& devices, const DeviceScene& scene, std
       options_(extra_options.empty() ? scene.kernel_options() : scene.kernel_options() + " " + extra_options) {}
 
 template <typename Out>
-std::vector<Out> RayBatchTracer::run(const char* kernel_name, const std::vector<Ray>& rays) {
+std::vector<Out> RayBatchTracer::run(const char* kernel_name, const std::vector<Ray>& rays, bool pairs_on_cpus) {
   std::vector<Out> out(rays.size());
   last_kernel_ms_ = 0.0;
   if (rays.empty()) return out;
@@ -35,13 +35,16 @@ std::vector<Out> RayBatchTracer::run(const char* kernel_name, const std::vector<
     c.rays = cl::Buffer(devices_.context(), CL_MEM_READ_ONLY, c.count * sizeof(Ray));
     c.out = cl::Buffer(devices_.context(), CL_MEM_WRITE_ONLY, c.count * sizeof(Out));
     dev.queue.enqueueWriteBuffer(c.rays, CL_FALSE, 0, c.count * sizeof(Ray), rays.data() + c.first);
-    cl::Kernel k(program, kernel_name);
+    // CPUs take two rays a work-item (their loads in flight together); a GPU hides memory
+    // latency with other warps, and two walks a thread would halve its threads.
+    const bool pairs = pairs_on_cpus && !dev.is_gpu();
+    cl::Kernel k(program, pairs ? "trace_closest_pairs" : kernel_name);
     const auto& buffers = scene_.on(static_cast<int>(d));
     k.setArg(0, c.rays);
     k.setArg(1, c.out);
     k.setArg(2, static_cast<cl_uint>(c.count));
     buffers.bind(k, 3);
-    c.done = launch_1d(dev.queue, k, c.count);
+    c.done = launch_1d(dev.queue, k, pairs ? (c.count + 1) / 2 : c.count);
     dev.queue.enqueueReadBuffer(c.out, CL_FALSE, 0, c.count * sizeof(Out), out.data() + c.first);
   }
   for (std::size_t d = 0; d < n; ++d) {
@@ -52,10 +55,14 @@ std::vector<Out> RayBatchTracer::run(const char* kernel_name, const std::vector<
   return out;
 }
 
-std::vector<Hit> RayBatchTracer::closest(const std::vector<Ray>& rays) { return run<Hit>("trace_closest", rays); }
+std::vector<Hit> RayBatchTracer::closest(const std::vector<Ray>& rays) { return run<Hit>("trace_closest", rays, true); }
+
+std::vector<Hit> RayBatchTracer::closest_one_per_item(const std::vector<Ray>& rays) {
+  return run<Hit>("trace_closest", rays, false);
+}
 
 std::vector<std::uint32_t> RayBatchTracer::occluded(const std::vector<Ray>& rays) {
-  return run<std::uint32_t>("trace_any", rays);
+  return run<std::uint32_t>("trace_any", rays, false);
 }
 
 std::vector<glm::vec3> RayBatchTracer::offset_origins(const std::vector<glm::vec3>& points,

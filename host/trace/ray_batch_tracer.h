@@ -20,7 +20,11 @@ class RayBatchTracer {
   // -DPX_TRACE_COUNTERS=1).
   RayBatchTracer(DeviceSet& devices, const DeviceScene& scene, std::string extra_options = {});
 
+  // Closest hits: on CPU devices two rays a work-item, their walks in step (trace_closest_pairs),
+  // on GPUs one (trace_closest); closest_one_per_item takes one ray a work-item everywhere. The
+  // hits are the same to the bit either way.
   std::vector<Hit> closest(const std::vector<Ray>& rays);
+  std::vector<Hit> closest_one_per_item(const std::vector<Ray>& rays);
   std::vector<std::uint32_t> occluded(const std::vector<Ray>& rays);
 
   // The kernels' self-intersection-free origin offset applied to points along normals.
@@ -32,7 +36,9 @@ class RayBatchTracer {
 
  private:
   template <typename Out>
-  std::vector<Out> run(const char* kernel_name, const std::vector<Ray>& rays);
+  // `kernel_name` over the rays; with pairs_on_cpus, trace_closest_pairs over half as many
+  // work-items on the CPU devices.
+  std::vector<Out> run(const char* kernel_name, const std::vector<Ray>& rays, bool pairs_on_cpus);
 
   DeviceSet& devices_;
   const DeviceScene& scene_;

@@ -443,99 +443,154 @@ __attribute__((always_inline)) inline int px_intersect_block(const SceneView* sc
 #define PX_COUNT(counter, n)
 #endif
 
-/* Closest hit. Stack entries are nodes or leaves (a leaf as its block's offset in 16-byte
- * units | count << 29; DeviceScene keeps offsets below 2^29), each with its entry distance.
- * Of a node's hit children the nearest is visited next without touching the stack (a single
- * hit child, the common case deep in the tree, costs no stack traffic at all); the others are
- * pushed sorted so the nearest is on top, so leaves are intersected near-first as well and a
- * far entry is dropped once a nearer hit has cut best.t below its entry distance. Among equal
- * entry distances the higher child slot goes first, as a stable sort of all hit children
- * would pop them. The stack bound is that of PX_WBVH_STACK_SIZE: a node pops one entry and
- * pushes at most W - 1. */
-inline Hit px_tree_closest(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
-  const global float* nodes = (const global float*)scene->nodes;
+/* A closest-hit walk of one ray through one tree, as state that px_walk_step advances by one
+ * visit: px_tree_closest runs one walk to its end, px_tree_closest_pair two in step.
+ *
+ * Stack entries are nodes or leaves (a leaf as its block's offset in 16-byte units | count << 29;
+ * DeviceScene keeps offsets below 2^29), each with its entry distance. Of a node's hit children
+ * the nearest is visited next without touching the stack (a single hit child, the common case
+ * deep in the tree, costs no stack traffic at all); the others are pushed sorted so the nearest
+ * is on top, so leaves are intersected near-first as well and a far entry is dropped once a
+ * nearer hit has cut best.t below its entry distance. Among equal entry distances the higher
+ * child slot goes first, as a stable sort of all hit children would pop them. The stack bound
+ * is that of PX_WBVH_STACK_SIZE: a node pops one entry and pushes at most W - 1. */
+typedef struct PxClosestWalk {
   Hit best;
-  best.t = tmax;
-  best.u = 0.0f;
-  best.v = 0.0f;
-  best.prim = PX_NO_HIT;
-  best.inst = PX_NO_INSTANCE;
-  const RayShear shear = px_make_shear(org, dir);
-  const WideRay wray = px_make_wide_ray(org, px_safe_inverse(dir));
-
+  RayShear shear;
+  WideRay wray;
+  float tmin;
+  uint entry; /* the node or leaf visited next */
+  int sp;
+#if defined(PX_TRACE_COUNTERS) && PX_TRACE_COUNTERS
+  uint n_nodes, n_leaves, n_hits, n_pushes;
+#endif
   uint stack_node[PXW_STACK];
   float stack_t[PXW_STACK];
-  int sp = 0;
-  uint entry = 0;
+} PxClosestWalk;
+
+__attribute__((always_inline)) inline void px_walk_begin(PxClosestWalk* w, float3 org, float3 dir, float tmin,
+                                                         float tmax) {
+  w->best.t = tmax;
+  w->best.u = 0.0f;
+  w->best.v = 0.0f;
+  w->best.prim = PX_NO_HIT;
+  w->best.inst = PX_NO_INSTANCE;
+  w->shear = px_make_shear(org, dir);
+  w->wray = px_make_wide_ray(org, px_safe_inverse(dir));
+  w->tmin = tmin;
+  w->entry = 0u;
+  w->sp = 0;
 #if defined(PX_TRACE_COUNTERS) && PX_TRACE_COUNTERS
-  uint n_nodes = 0u, n_leaves = 0u, n_hits = 0u, n_pushes = 0u;
+  w->n_nodes = w->n_leaves = w->n_hits = w->n_pushes = 0u;
 #endif
-  for (;;) {
-    if (entry >> 29) {
-      PX_COUNT(n_leaves, 1);
-      px_intersect_block(scene, nodes + (size_t)(entry & 0x1fffffffu) * 4, entry >> 29, &shear, tmin, &best);
-    } else {
-      const global float* node = nodes + (size_t)entry * PXW_NODE_FLOATS;
-      pxw_prefetch_node_rest(node);
-      pxw_float enter_v;
-      uint mask = px_wide_boxes(node, &wray, tmin, best.t, &enter_v);
-      PX_COUNT(n_nodes, 1);
-      PX_COUNT(n_hits, popcount(mask));
-      if (mask != 0u) {
-        uint i = px_lowest_bit(mask);
+}
+
+/* Visits w->entry (a leaf block's triangles or a node's child boxes) and finds the entry to visit
+ * next; returns 0 when there is none, the walk's end (w->best is then the closest hit). */
+__attribute__((always_inline)) inline int px_walk_step(const SceneView* scene, PxClosestWalk* w) {
+  const global float* nodes = (const global float*)scene->nodes;
+  const uint entry = w->entry;
+  if (entry >> 29) {
+    PX_COUNT(w->n_leaves, 1);
+    px_intersect_block(scene, nodes + (size_t)(entry & 0x1fffffffu) * 4, entry >> 29, &w->shear, w->tmin, &w->best);
+  } else {
+    const global float* node = nodes + (size_t)entry * PXW_NODE_FLOATS;
+    pxw_prefetch_node_rest(node);
+    pxw_float enter_v;
+    uint mask = px_wide_boxes(node, &w->wray, w->tmin, w->best.t, &enter_v);
+    PX_COUNT(w->n_nodes, 1);
+    PX_COUNT(w->n_hits, popcount(mask));
+    if (mask != 0u) {
+      uint i = px_lowest_bit(mask);
+      mask &= mask - 1u;
+      uint near_e = pxw_child_entry(node, i);
+      if (mask == 0u) {
+        w->entry = near_e;
+        return 1;
+      }
+      float enter[PXW];
+      pxw_vstore(enter_v, 0, enter);
+      float near_t = enter[i];
+      const int base = w->sp;
+      int sp = w->sp;
+      while (mask != 0u) {
+        i = px_lowest_bit(mask);
         mask &= mask - 1u;
-        uint near_e = pxw_child_entry(node, i);
-        if (mask == 0u) {
-          entry = near_e;
-          continue;
+        const float ct = enter[i];
+        const uint ce = pxw_child_entry(node, i);
+        /* The new child becomes the nearest where it is not farther; the other is pushed.
+         * Selects, not a branch: which of two hit children is nearer is a coin toss. */
+        const int closer = ct <= near_t;
+        const float t = closer ? near_t : ct;
+        const uint e = closer ? near_e : ce;
+        near_t = closer ? ct : near_t;
+        near_e = closer ? ce : near_e;
+        px_prefetch_entry(nodes, e);
+        if (sp >= PXW_STACK) break; /* unreachable for validated trees */
+        PX_COUNT(w->n_pushes, 1);
+        int j = sp++;
+        while (j > base && w->stack_t[j - 1] < t) {
+          w->stack_t[j] = w->stack_t[j - 1];
+          w->stack_node[j] = w->stack_node[j - 1];
+          --j;
         }
-        float enter[PXW];
-        pxw_vstore(enter_v, 0, enter);
-        float near_t = enter[i];
-        const int base = sp;
-        while (mask != 0u) {
-          i = px_lowest_bit(mask);
-          mask &= mask - 1u;
-          const float ct = enter[i];
-          const uint ce = pxw_child_entry(node, i);
-          /* The new child becomes the nearest where it is not farther; the other is pushed.
-           * Selects, not a branch: which of two hit children is nearer is a coin toss. */
-          const int closer = ct <= near_t;
-          const float t = closer ? near_t : ct;
-          const uint e = closer ? near_e : ce;
-          near_t = closer ? ct : near_t;
-          near_e = closer ? ce : near_e;
-          px_prefetch_entry(nodes, e);
-          if (sp >= PXW_STACK) break; /* unreachable for validated trees */
-          PX_COUNT(n_pushes, 1);
-          int j = sp++;
-          while (j > base && stack_t[j - 1] < t) {
-            stack_t[j] = stack_t[j - 1];
-            stack_node[j] = stack_node[j - 1];
-            --j;
-          }
-          stack_t[j] = t;
-          stack_node[j] = e;
-        }
-        entry = near_e;
-        continue;
+        w->stack_t[j] = t;
+        w->stack_node[j] = e;
       }
+      w->sp = sp;
+      w->entry = near_e;
+      return 1;
     }
-    int found = 0;
-    while (sp > 0) {
-      --sp;
-      if (stack_t[sp] <= best.t) {
-        entry = stack_node[sp];
-        found = 1;
-        break;
-      }
-    }
-    if (!found) break;
   }
+  int sp = w->sp;
+  while (sp > 0) {
+    --sp;
+    if (w->stack_t[sp] <= w->best.t) {
+      w->entry = w->stack_node[sp];
+      w->sp = sp;
+      return 1;
+    }
+  }
+  w->sp = 0;
+  return 0;
+}
+
+/* The walk's closest hit; with counters (bench_trace --counters) its visits in hit.inst. */
+inline Hit px_walk_hit(const PxClosestWalk* w) {
+  Hit h = w->best;
 #if defined(PX_TRACE_COUNTERS) && PX_TRACE_COUNTERS
-  best.inst = n_nodes | n_leaves << 8 | n_hits << 16 | n_pushes << 24;
+  h.inst = w->n_nodes | w->n_leaves << 8 | w->n_hits << 16 | w->n_pushes << 24;
 #endif
-  return best;
+  return h;
+}
+
+/* Closest hit in one tree. */
+inline Hit px_tree_closest(const SceneView* scene, float3 org, float3 dir, float tmin, float tmax) {
+  PxClosestWalk w;
+  px_walk_begin(&w, org, dir, tmin, tmax);
+  while (px_walk_step(scene, &w)) {}
+  return px_walk_hit(&w);
+}
+
+/* Closest hits of two rays in one tree, their walks interleaved visit by visit. Each ray's walk
+ * is px_tree_closest's, in the same order, so each hit is the one px_tree_closest gives, to the
+ * bit. Why two: an incoherent ray's visits form one chain of dependent loads (which child is next
+ * depends on the node just read), mostly from memory beyond the cache; two independent chains
+ * let the core wait for both rays' lines at once. */
+inline void px_tree_closest_pair(const SceneView* scene, float3 org0, float3 dir0, float3 org1, float3 dir1,
+                                 float tmin0, float tmax0, float tmin1, float tmax1, Hit* hit0, Hit* hit1) {
+  PxClosestWalk a, b;
+  px_walk_begin(&a, org0, dir0, tmin0, tmax0);
+  px_walk_begin(&b, org1, dir1, tmin1, tmax1);
+  int more_a = 1, more_b = 1;
+  while (more_a & more_b) {
+    more_a = px_walk_step(scene, &a);
+    more_b = px_walk_step(scene, &b);
+  }
+  while (more_a) more_a = px_walk_step(scene, &a);
+  while (more_b) more_b = px_walk_step(scene, &b);
+  *hit0 = px_walk_hit(&a);
+  *hit1 = px_walk_hit(&b);
 }
 
 /* 1 when anything in one tree blocks the ray within (tmin, tmax) (shadow rays). */
@@ -691,6 +746,28 @@ inline Hit px_trace_closest(const SceneView* scene, float3 org, float3 dir, floa
   Hit h = px_trace_closest_leaf(scene, org, dir, tmin, tmax);
   if (h.prim != PX_NO_HIT) h.prim = scene->tris[h.prim].prim;
   return h;
+}
+
+/* px_trace_closest_leaf of two rays, the same hits to the bit: on wide trees without instances
+ * the two walks go in step (px_tree_closest_pair), elsewhere one after the other. */
+inline void px_trace_closest_leaf_pair(const SceneView* scene, float3 org0, float3 dir0, float tmin0, float tmax0,
+                                       float3 org1, float3 dir1, float tmin1, float tmax1, Hit* hit0, Hit* hit1) {
+#if PX_BVH_WIDTH != 2
+  if (!PX_HAS(PX_FEATURE_INSTANCES)) {
+    px_tree_closest_pair(scene, org0, dir0, org1, dir1, tmin0, tmax0, tmin1, tmax1, hit0, hit1);
+    return;
+  }
+#endif
+  *hit0 = px_trace_closest_leaf(scene, org0, dir0, tmin0, tmax0);
+  *hit1 = px_trace_closest_leaf(scene, org1, dir1, tmin1, tmax1);
+}
+
+/* px_trace_closest of two rays (px_trace_closest_leaf_pair, then the scene triangle indices). */
+inline void px_trace_closest_pair(const SceneView* scene, float3 org0, float3 dir0, float tmin0, float tmax0,
+                                  float3 org1, float3 dir1, float tmin1, float tmax1, Hit* hit0, Hit* hit1) {
+  px_trace_closest_leaf_pair(scene, org0, dir0, tmin0, tmax0, org1, dir1, tmin1, tmax1, hit0, hit1);
+  if (hit0->prim != PX_NO_HIT) hit0->prim = scene->tris[hit0->prim].prim;
+  if (hit1->prim != PX_NO_HIT) hit1->prim = scene->tris[hit1->prim].prim;
 }
 
 #endif

@@ -4,10 +4,17 @@
 
 namespace px {
 
+GBufferStage::GBufferStage(StageEnv& env) : StageUnit(env), pairs_(env.layout.count()) {
+  for (int d = 0; d < env.layout.count(); ++d)
+    pairs_[d] = env.local(d) && !env.devices.devices()[env.layout.local_index(d)].is_gpu();
+}
+
 void GBufferStage::run(const std::vector<const Operation*>& ops, const FrameInputs& in) {
   for (const Operation* op : ops) {
     if (!env_.local(op->device)) continue;
-    cl::Kernel k(env_.devices.program("pipeline/gbuffer.cl", env_.device_scene.kernel_options()), "gbuffer");
+    const bool pairs = pairs_[op->device];
+    cl::Kernel k(env_.devices.program("pipeline/gbuffer.cl", env_.device_scene.kernel_options()),
+                 pairs ? "gbuffer_pairs" : "gbuffer");
     const FrameImages& f = env_.images[op->device];
     k.setArg(0, f.gbuffer[op->eye]);
     set_optional_buffer(k, 1, op->shares_hits ? &f.right_hits : nullptr);
@@ -15,7 +22,9 @@ void GBufferStage::run(const std::vector<const Operation*>& ops, const FrameInpu
     k.setArg(3, static_cast<cl_uint>(op->rows.size()));
     k.setArg(4, in.cams[op->eye]);
     env_.scene_on(op->device).bind(k, 5);
-    env_.log.record(Stage::GBuffer, op->device, launch_1d(env_.queue(op->device), k, env_.pixels(op->rows)));
+    const std::size_t pixels = env_.pixels(op->rows);
+    env_.log.record(Stage::GBuffer, op->device,
+                    launch_1d(env_.queue(op->device), k, pairs ? (pixels + 1) / 2 : pixels));
   }
 }
 
