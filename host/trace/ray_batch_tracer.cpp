@@ -13,7 +13,8 @@ RayBatchTracer::RayBatchTracer(DeviceSet& devices, const DeviceScene& scene, std
       options_(extra_options.empty() ? scene.kernel_options() : scene.kernel_options() + " " + extra_options) {}
 
 template <typename Out>
-std::vector<Out> RayBatchTracer::run(const char* kernel_name, const std::vector<Ray>& rays, bool pairs_on_cpus) {
+std::vector<Out> RayBatchTracer::run(const char* kernel_name, const char* cpu_pair_kernel,
+                                     const std::vector<Ray>& rays) {
   std::vector<Out> out(rays.size());
   last_kernel_ms_ = 0.0;
   if (rays.empty()) return out;
@@ -37,8 +38,8 @@ std::vector<Out> RayBatchTracer::run(const char* kernel_name, const std::vector<
     dev.queue.enqueueWriteBuffer(c.rays, CL_FALSE, 0, c.count * sizeof(Ray), rays.data() + c.first);
     // CPUs take two rays a work-item (their loads in flight together); a GPU hides memory
     // latency with other warps, and two walks a thread would halve its threads.
-    const bool pairs = pairs_on_cpus && !dev.is_gpu();
-    cl::Kernel k(program, pairs ? "trace_closest_pairs" : kernel_name);
+    const bool pairs = cpu_pair_kernel && !dev.is_gpu();
+    cl::Kernel k(program, pairs ? cpu_pair_kernel : kernel_name);
     const auto& buffers = scene_.on(static_cast<int>(d));
     k.setArg(0, c.rays);
     k.setArg(1, c.out);
@@ -55,14 +56,16 @@ std::vector<Out> RayBatchTracer::run(const char* kernel_name, const std::vector<
   return out;
 }
 
-std::vector<Hit> RayBatchTracer::closest(const std::vector<Ray>& rays) { return run<Hit>("trace_closest", rays, true); }
+std::vector<Hit> RayBatchTracer::closest(const std::vector<Ray>& rays) {
+  return run<Hit>("trace_closest", "trace_closest_pairs", rays);
+}
 
 std::vector<Hit> RayBatchTracer::closest_one_per_item(const std::vector<Ray>& rays) {
-  return run<Hit>("trace_closest", rays, false);
+  return run<Hit>("trace_closest", nullptr, rays);
 }
 
 std::vector<std::uint32_t> RayBatchTracer::occluded(const std::vector<Ray>& rays) {
-  return run<std::uint32_t>("trace_any", rays, false);
+  return run<std::uint32_t>("trace_any", nullptr, rays);
 }
 
 std::vector<glm::vec3> RayBatchTracer::offset_origins(const std::vector<glm::vec3>& points,

@@ -36,9 +36,9 @@ class RayBatchTracer {
 
  private:
   template <typename Out>
-  // `kernel_name` over the rays; with pairs_on_cpus, trace_closest_pairs over half as many
-  // work-items on the CPU devices.
-  std::vector<Out> run(const char* kernel_name, const std::vector<Ray>& rays, bool pairs_on_cpus);
+  // `kernel_name` over the rays, one a work-item; on CPU devices `cpu_pair_kernel` instead (if not
+  // null: the same kernel two rays a work-item) over half as many work-items.
+  std::vector<Out> run(const char* kernel_name, const char* cpu_pair_kernel, const std::vector<Ray>& rays);
 
   DeviceSet& devices_;
   const DeviceScene& scene_;

@@ -48,11 +48,6 @@ inline float4 px_render_pixel(const SceneView* scene, const FrameParams* fp, con
   for (uint s = 0; s < fp->spp; ++s) {
     float4 a;
     const float3 l = px_render_sample(scene, fp, cam, x, y, s, &a, gbuffer_texel, gbuffer_hit);
-    /* Non-finite first, whatever its kind, as path_trace_list_samples and wf_resolve count it. */
-    if (!px_finite3(l)) {
-      atomic_inc(nonfinite);
-      continue;
-    }
     if (!px_count_sample(&sum, &albedo_sum, &good, &first_kind, same_kind_only, l, a)) atomic_inc(nonfinite);
   }
   return px_pixel_mean(sum, albedo_sum, good, albedo);

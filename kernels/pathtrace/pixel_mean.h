@@ -31,14 +31,16 @@ inline int px_same_kind(int same_kind_only, int first_kind, int kind) {
   return !same_kind_only || first_kind < 0 || kind == first_kind;
 }
 
-/* Counts a finite sample l, whose first hit's albedo is a, into its pixel's sums: the radiance
- * *sum, the counted albedo *albedo_sum, the count *good and the first counted sample's kind
- * *first_kind. A sample of the other kind (px_same_kind) is left out and not counted as lost.
- * Returns 0 only where adding l overflowed the sum: the caller counts that sample non-finite.
+/* Counts sample l, whose first hit's albedo is a, into its pixel's sums: the radiance *sum, the
+ * counted albedo *albedo_sum, the count *good and the first counted sample's kind *first_kind.
+ * Returns 0 where l is not finite (whatever its kind) or adding it overflowed the sum: the caller
+ * counts that sample non-finite. A sample of the other kind (px_same_kind) is left out and not
+ * counted as lost.
  * The megakernel, the hole filler and the wavefront all count through here, so that they agree
  * to the last bit. */
 inline int px_count_sample(float3* sum, float4* albedo_sum, uint* good, int* first_kind, int same_kind_only, float3 l,
                            float4 a) {
+  if (!px_finite3(l)) return 0;
   const int kind = px_sample_kind(a);
   if (!px_same_kind(same_kind_only, *first_kind, kind)) return 1;
   if (!px_add_sample(sum, l)) return 0;

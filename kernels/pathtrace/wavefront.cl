@@ -206,10 +206,6 @@ kernel void wf_resolve(global float4* out, global float4* albedo_out, volatile g
     const global float4* st = states + (size_t)(k * spp + s) * PX_PATH_STATE_FLOAT4S;
     const float3 l = st[3].xyz;
     const float4 a = st[5];
-    if (!px_finite3(l)) {
-      atomic_inc(nonfinite);
-      continue;
-    }
     if (!px_count_sample(&sum, &albedo_sum, &good, &first_kind, (int)same_kind_only, l, a)) atomic_inc(nonfinite);
   }
   if (!last) {

@@ -521,6 +521,19 @@ typedef struct LightTreeWideNode {
   uint pad[3];
 } LightTreeWideNode;
 
+/* FrameParams::gbuffer_ray_samples. NONE: every sample jittered over the pixel (references).
+ * FIRST: sample 0 of the frame along the G-buffer's ray, the rest jittered. EVERY: every sample
+ * along it (a denoised frame at several spp: the denoiser's G-buffer then describes the surface
+ * every sample saw; path_vertex.h, px_sample_camera_dir). */
+#define PX_GBUFFER_RAY_NONE 0u
+#define PX_GBUFFER_RAY_FIRST 1u
+#define PX_GBUFFER_RAY_EVERY 2u
+/* FIRST_KIND: as FIRST, but a pixel's mean counts only the samples whose first hit is of its first
+ * counted sample's kind, emitter or not (pixel_mean.h, px_same_kind): a denoised frame in a moving
+ * view, where the spread samples anti-alias edges but a lamp's must not fall under a ceiling's
+ * texel. */
+#define PX_GBUFFER_RAY_FIRST_KIND 3u
+
 /* Everything a path-tracing launch needs besides buffers, 128 bytes, passed by value.
  *
  *   0..11 sun_dir[3] (towards the sun)         12..15 sun_cos_max (cos of angular radius)
@@ -534,18 +547,6 @@ typedef struct LightTreeWideNode {
  * 116..119 sample_offset (index of this launch's first sample: progressive passes)
  * 120..123 gbuffer_ray_samples (PX_GBUFFER_RAY_*: which samples go along the G-buffer's ray, through
  *          CameraParams::jitter) */
-/* FrameParams::gbuffer_ray_samples. NONE: every sample jittered over the pixel (references).
- * FIRST: sample 0 of the frame along the G-buffer's ray, the rest jittered. EVERY: every sample
- * along it (a denoised frame at several spp: the denoiser's G-buffer then describes the surface
- * every sample saw; path_vertex.h, px_sample_camera_dir). */
-#define PX_GBUFFER_RAY_NONE 0u
-#define PX_GBUFFER_RAY_FIRST 1u
-#define PX_GBUFFER_RAY_EVERY 2u
-/* FIRST_KIND: as FIRST, but a pixel's mean counts only the samples whose first hit is of its first
- * counted sample's kind, emitter or not (pixel_mean.h, px_same_kind): a denoised frame in a moving
- * view, where the spread samples anti-alias edges but a lamp's must not fall under a ceiling's
- * texel. */
-#define PX_GBUFFER_RAY_FIRST_KIND 3u
 typedef struct FrameParams {
   float sun_dir[3];
   float sun_cos_max;
