@@ -306,8 +306,9 @@ void RenderLoop::print_summary() const {
     const StartTimes& t = on_devices_->loaded.times;
     const DeviceScene& ds = on_devices_->device_scene;
     std::printf(
-        "start: scene %.0f ms, BVH %.0f ms (%s), validation %.0f ms%s%s, device layout %.0f ms, upload %.0f ms "
-        "(%.1f MiB, one copy for the %d device(s) of the context%s); host memory after the start %.0f MiB\n",
+        "start: scene %.0f ms, BVH %.0f ms (%s), validation %.0f ms%s%s, OpenCL devices %.0f ms, device layout %.0f "
+        "ms%s, upload %.0f ms (%.1f MiB, one copy for the %d device(s) of the context%s); host memory after the start "
+        "%.0f MiB\n",
         t.load_ms, t.bvh_ms,
         t.device_layout_from_cache ? "its device layout mapped from the cache"
         : t.bvh_from_cache         ? "read from the cache"
@@ -321,7 +322,12 @@ void RenderLoop::print_summary() const {
                " ms in the background")
                   .c_str()
             : "",
-        ds.layout_ms(), ds.upload_ms(), static_cast<double>(ds.bytes_in_context()) / (1024.0 * 1024.0), devices.size(),
+        t.devices_ms, ds.layout_ms(),
+        ds.host_part_ms() > 0.0 ? (" (the shading records made before the BVH: " +
+                                   std::to_string(static_cast<long>(ds.host_part_ms())) + " ms of it)")
+                                      .c_str()
+                                : "",
+        ds.upload_ms(), static_cast<double>(ds.bytes_in_context()) / (1024.0 * 1024.0), devices.size(),
         ds.host_backed() ? ", the host's own arrays" : "", t.host_rss_after_start_mib);
   }
   if (animation_totals_.frames > 0)

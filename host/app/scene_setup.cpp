@@ -379,7 +379,13 @@ DeviceScene make_device_scene(DeviceSet& devices, LoadedScene& loaded,
 SceneOnDevices::SceneOnDevices(LoadedScene scene, const DeviceOptions& device_options, KernelChoice kernels)
     : loaded(std::move(scene)),
       host_part(prepare_host_part(loaded)),
-      devices(DeviceSet::create(device_options)),
+      devices([&] {
+        // `loaded` is made first (member order): its start times take the device set's too.
+        const auto t = Clock::now();
+        DeviceSet set = DeviceSet::create(device_options);
+        loaded.times.devices_ms = ms(t, Clock::now());
+        return set;
+      }()),
       device_scene(make_device_scene(devices, loaded, host_part)) {
   device_scene.set_kernel_choice(kernels);
   if (!loaded.scene.rig) {

@@ -23,6 +23,7 @@ struct StartTimes {
   double bvh_ms = 0.0;   // building the BVH, or reading it from the cache
   bool bvh_from_cache = false;
   double validate_ms = 0.0;  // the BVH validator
+  double devices_ms = 0.0;   // making the OpenCL device set (DeviceSet::create)
   // The tree came from the cache with its wide nodes validated when it was stored (bvh_cache.h):
   // not validated again.
   bool bvh_validated_when_cached = false;

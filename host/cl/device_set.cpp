@@ -180,6 +180,7 @@ DeviceSet DeviceSet::create(const DeviceOptions& options) {
     cd.device = chosen[i];
     cd.queue = cl::CommandQueue(set.context_, chosen[i], CL_QUEUE_PROFILING_ENABLE);
     cd.compute_units = static_cast<int>(chosen[i].getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>());
+    cd.type = chosen[i].getInfo<CL_DEVICE_TYPE>();
     cd.description =
         chosen[i].getInfo<CL_DEVICE_NAME>() + " (" + notes[i] + ", " + std::to_string(cd.compute_units) + " CU)";
     set.devices_.push_back(std::move(cd));

@@ -41,11 +41,12 @@ struct ComputeDevice {
   cl::CommandQueue queue;   // in-order, CL_QUEUE_PROFILING_ENABLE
   std::string description;  // for logs: "pthread-haswell (sub-device 1 of 2, 1 CU)"
   int compute_units = 0;
+  cl_device_type type = 0;  // CL_DEVICE_TYPE, read once when the set is made
 
   // What kind of device it is: stages pick their kernel variant by it (e.g. SVGF's a-trous pass,
-  // hole filling's work-items, the side queue).
-  bool is_gpu() const { return (device.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) != 0; }
-  bool is_cpu() const { return (device.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_CPU) != 0; }
+  // hole filling's work-items, the G-buffer pass's rays a work-item, the side queue).
+  bool is_gpu() const { return (type & CL_DEVICE_TYPE_GPU) != 0; }
+  bool is_cpu() const { return (type & CL_DEVICE_TYPE_CPU) != 0; }
 };
 
 class DeviceSet {

@@ -474,6 +474,7 @@ void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh
   scene_features_ = host->tables.features;
   shading_records_ = host->records;
   // The host part's time (made before the devices, when it was) is part of the layout's.
+  host_part_ms_ = host->ms;
   layout_start -= std::chrono::duration_cast<std::chrono::steady_clock::duration>(
       std::chrono::duration<double, std::milli>(host->ms));
   upload_all(devices, scene, std::move(node_bytes), std::move(triangle_bytes), std::move(host->shading),

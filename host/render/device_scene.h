@@ -154,6 +154,9 @@ class DeviceScene {
   // Host time to make the device layout before that (triangle flags, wide nodes and leaf blocks,
   // shading records, the light table, instances; prepare_host's part included), ms.
   double layout_ms() const { return layout_ms_; }
+  // Of layout_ms, the host part's (the shading records and tables a static scene makes before
+  // its tree is built: prepare_host_before_tree / prepare_host), ms; 0 without one.
+  double host_part_ms() const { return host_part_ms_; }
   // Whether the buffers are the host's own arrays (every device a CPU device: no second copy).
   bool host_backed() const { return host_backed_; }
   // Whether the layout came mapped from the device layout cache, and the time spent storing it
@@ -241,6 +244,7 @@ class DeviceScene {
   std::size_t bytes_in_context_ = 0;
   double upload_ms_ = 0.0;
   double layout_ms_ = 0.0;
+  double host_part_ms_ = 0.0;
   std::size_t light_count_ = 0;
   // update_geometry's light tree and the prims of the table it was built for (refit while they stay).
   LightTree light_tree_;

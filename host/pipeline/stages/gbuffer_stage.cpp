@@ -4,15 +4,14 @@
 
 namespace px {
 
-GBufferStage::GBufferStage(StageEnv& env) : StageUnit(env), pairs_(env.layout.count()) {
-  for (int d = 0; d < env.layout.count(); ++d)
-    pairs_[d] = env.local(d) && !env.devices.devices()[env.layout.local_index(d)].is_gpu();
-}
+GBufferStage::GBufferStage(StageEnv& env) : StageUnit(env) {}
 
 void GBufferStage::run(const std::vector<const Operation*>& ops, const FrameInputs& in) {
   for (const Operation* op : ops) {
     if (!env_.local(op->device)) continue;
-    const bool pairs = pairs_[op->device];
+    // Two pixels a work-item (gbuffer_pairs) on CPUs, one (gbuffer) on GPUs; the G-buffer is the
+    // same to the bit.
+    const bool pairs = !env_.is_gpu(op->device);
     cl::Kernel k(env_.devices.program("pipeline/gbuffer.cl", env_.device_scene.kernel_options()),
                  pairs ? "gbuffer_pairs" : "gbuffer");
     const FrameImages& f = env_.images[op->device];

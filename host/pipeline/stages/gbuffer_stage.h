@@ -13,11 +13,6 @@ class GBufferStage : public StageUnit {
  public:
   explicit GBufferStage(StageEnv& env);
   void run(const std::vector<const Operation*>& ops, const FrameInputs& in) override;
-
- private:
-  // Per device: two pixels a work-item (gbuffer_pairs) on CPUs, one (gbuffer) on GPUs; the
-  // G-buffer is the same to the bit.
-  std::vector<bool> pairs_;
 };
 
 }  // namespace px

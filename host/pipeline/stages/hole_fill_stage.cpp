@@ -5,10 +5,7 @@
 namespace px {
 
 HoleFillStage::HoleFillStage(StageEnv& env, PathTraceStage& tracer, const Options& options)
-    : StageUnit(env), tracer_(tracer), options_(options), scratch_(env.layout.count()), gpu_(env.layout.count()) {
-  for (int d = 0; d < env.layout.count(); ++d)
-    gpu_[d] = env.local(d) && env.devices.devices()[env.layout.local_index(d)].is_gpu();
-}
+    : StageUnit(env), tracer_(tracer), options_(options), scratch_(env.layout.count()) {}
 
 bool HoleFillStage::spreads(int d, unsigned spp) const {
   switch (options_.spread) {
@@ -16,7 +13,7 @@ bool HoleFillStage::spreads(int d, unsigned spp) const {
     case SampleSpread::Off: return false;
     case SampleSpread::Auto: break;
   }
-  return gpu_[d] && spp >= 2 && spp <= kMaxSpreadSpp;
+  return env_.is_gpu(d) && spp >= 2 && spp <= kMaxSpreadSpp;
 }
 
 void HoleFillStage::run(const std::vector<const Operation*>& ops, const FrameInputs& in) {

@@ -40,7 +40,6 @@ class HoleFillStage : public StageUnit {
   PathTraceStage& tracer_;  // its options, and its wavefront buffers
   Options options_;
   std::vector<Scratch> scratch_;  // per device, grown to the frame's pixels x spp on first use
-  std::vector<bool> gpu_;         // per device: a local GPU
 };
 
 }  // namespace px

@@ -38,6 +38,8 @@ struct StageEnv {
   cl::CommandQueue& queue(int d) const { return lanes.queue(layout.local_index(d)); }
   const DeviceSceneBuffers& scene_on(int d) const { return device_scene.on(layout.local_index(d)); }
   std::size_t pixels(RowRange rows) const { return static_cast<std::size_t>(rows.size()) * width; }
+  // Whether device d is one of this process's and a GPU (stages pick their kernel variant by it).
+  bool is_gpu(int d) const { return local(d) && devices.devices()[layout.local_index(d)].is_gpu(); }
 };
 
 // Per frame: its number (selects the sample stream) and both eyes' cameras (stage 1's output).
