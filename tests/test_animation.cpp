@@ -107,6 +107,90 @@ TEST(SceneRig, ALastCopyMadeInPlaceIsTheCopyMadeBesideIt) {
   }
 }
 
+// A primitive of 2^18 triangles or more is made on every core (each core its own range, the
+// room for them made first): the same triangles, drops, colours and order as the same primitive
+// made in pieces small enough to go one triangle at a time, for static copies (dropping), the
+// last copy made in place, and a pose's kept triangles (keeping every one).
+TEST(SceneRig, ALargePrimitiveMadeInPartsIsTheOneMadeInSmallPieces) {
+  RigPrimitive prim;
+  const int n = 370;  // 273,800 triangles
+  for (int z = 0; z <= n; ++z)
+    for (int x = 0; x <= n; ++x) {
+      prim.positions.push_back({0.01f * x, 0.05f * std::sin(0.3f * x) * std::cos(0.2f * z), 0.01f * z});
+      prim.normals.push_back(glm::normalize(glm::vec3(0.2f * std::cos(0.1f * x), 1.0f, -0.3f * std::sin(0.09f * z))));
+      prim.uvs.push_back({x / float(n), z / float(n)});
+      prim.colours.push_back({x / float(n), 0.5f, z / float(n)});
+    }
+  prim.normals[1000] = glm::vec3(0.0f);                               // its corners take the geometric normal
+  prim.positions[90000].y = std::numeric_limits<float>::quiet_NaN();  // its six triangles: non-finite
+  for (std::uint32_t z = 0; z < std::uint32_t(n); ++z)
+    for (std::uint32_t x = 0; x < std::uint32_t(n); ++x) {
+      const std::uint32_t a = z * (n + 1) + x, b = a + 1, c = a + n + 1, d = c + 1;
+      prim.triangles.push_back({a, c, b});
+      prim.triangles.push_back({b, c, d});
+    }
+  for (std::uint32_t k = 0; k < 40; ++k) prim.triangles[7 * k + 3] = {k, k, k + 1};  // degenerate
+  prim.material = 1;
+  ASSERT_GE(prim.triangles.size(), std::size_t{1} << 18);
+  // The same primitive in pieces of 50k triangles (made one by one), appended in order.
+  const auto in_pieces = [&](const RigPrimitive& whole, const glm::dmat4& world, const std::vector<std::uint32_t>* kept,
+                             std::vector<SceneTriangle>& out, SceneStats& stats,
+                             std::vector<std::array<glm::vec3, 3>>& colours) {
+    const std::size_t piece = 50000;
+    if (kept) {
+      for (std::size_t i = 0; i < kept->size(); i += piece) {
+        const std::vector<std::uint32_t> part(kept->begin() + std::ptrdiff_t(i),
+                                              kept->begin() + std::ptrdiff_t(std::min(kept->size(), i + piece)));
+        emit_primitive(whole, world, nullptr, &part, nullptr, out, stats, &colours);
+      }
+      return;
+    }
+    for (std::size_t i = 0; i < whole.triangles.size(); i += piece) {
+      RigPrimitive part = whole;
+      part.triangles.assign(whole.triangles.begin() + std::ptrdiff_t(i),
+                            whole.triangles.begin() + std::ptrdiff_t(std::min(whole.triangles.size(), i + piece)));
+      emit_primitive(part, world, nullptr, nullptr, nullptr, out, stats, &colours);
+    }
+  };
+  const auto same = [](const std::vector<SceneTriangle>& a, const std::vector<SceneTriangle>& b) {
+    return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(SceneTriangle)) == 0;
+  };
+  const glm::dmat4 mirrored =
+      glm::scale(glm::translate(glm::dmat4(1.0), glm::dvec3(0.4, -2.0, 3.5)), glm::dvec3(-1.5, 0.5, 2.0));
+  for (const glm::dmat4& world : {glm::dmat4(1.0), mirrored}) {
+    std::vector<SceneTriangle> whole, pieces, in_place;
+    std::vector<std::array<glm::vec3, 3>> whole_colours, piece_colours, in_place_colours;
+    SceneStats whole_stats, piece_stats, in_place_stats;
+    whole.push_back(SceneTriangle{});  // appended after what the array held
+    pieces.push_back(SceneTriangle{});
+    emit_primitive(prim, world, nullptr, nullptr, nullptr, whole, whole_stats, &whole_colours);
+    in_pieces(prim, world, nullptr, pieces, piece_stats, piece_colours);
+    EXPECT_EQ(whole.size(), 1 + prim.triangles.size() - 40 - 6);
+    EXPECT_TRUE(same(whole, pieces));
+    EXPECT_EQ(whole_colours, piece_colours);
+    EXPECT_EQ(whole_stats.dropped_degenerate, 40u);
+    EXPECT_EQ(whole_stats.dropped_nonfinite, 6u);
+    EXPECT_EQ(piece_stats.dropped_degenerate, 40u);
+    EXPECT_EQ(piece_stats.dropped_nonfinite, 6u);
+    RigPrimitive consumed = prim;
+    in_place.push_back(SceneTriangle{});
+    emit_last_copy(consumed, world, in_place, in_place_stats, &in_place_colours);
+    EXPECT_TRUE(same(in_place, pieces));
+    EXPECT_EQ(in_place_colours, piece_colours);
+    // A pose's kept triangles: every one, the non-finite and degenerate ones too.
+    std::vector<std::uint32_t> kept(prim.triangles.size());
+    for (std::size_t k = 0; k < kept.size(); ++k) kept[k] = std::uint32_t(kept.size() - 1 - k);
+    std::vector<SceneTriangle> posed, posed_pieces;
+    std::vector<std::array<glm::vec3, 3>> posed_colours, posed_piece_colours;
+    SceneStats posed_stats, posed_piece_stats;
+    emit_primitive(prim, world, nullptr, &kept, nullptr, posed, posed_stats, &posed_colours);
+    in_pieces(prim, world, &kept, posed_pieces, posed_piece_stats, posed_piece_colours);
+    EXPECT_EQ(posed.size(), kept.size());
+    EXPECT_TRUE(same(posed, posed_pieces));
+    EXPECT_EQ(posed_colours, posed_piece_colours);
+  }
+}
+
 TEST(KeyframeTrack, StepAndLinearMatchHandValues) {
   const KeyframeTrack step =
       track({1.0, 2.0, 4.0}, {{0, 0, 0, 0}, {10, 20, 30, 0}, {-4, 0, 4, 0}}, Interpolation::Step);

@@ -61,6 +61,13 @@ bool is_degenerate(const SceneTriangle& tri) {
   return c.x == 0.0 && c.y == 0.0 && c.z == 0.0;
 }
 
+bool normal_unless_degenerate(const SceneTriangle& tri, glm::vec3* normal) {
+  const glm::dvec3 c = double_cross(tri);
+  if (c.x == 0.0 && c.y == 0.0 && c.z == 0.0) return false;  // as is_degenerate
+  *normal = safe_normalize(c);
+  return true;
+}
+
 void append_triangle(std::vector<SceneTriangle>& tris, glm::vec3 p0, glm::vec3 p1, glm::vec3 p2,
                      std::uint32_t material) {
   const glm::vec3 n = safe_normalize(glm::cross(to_double(p1) - to_double(p0), to_double(p2) - to_double(p0)));

@@ -36,6 +36,9 @@ bool has_finite_positions(const SceneTriangle& tri);
 // True when the triangle has zero area (collinear or coincident vertices). Non-finite
 // triangles are not "degenerate" by this test; check has_finite_positions first.
 bool is_degenerate(const SceneTriangle& tri);
+// is_degenerate and geometric_normal from one cross product: true and *normal =
+// geometric_normal(tri) for a triangle that is not degenerate; false (normal untouched) else.
+bool normal_unless_degenerate(const SceneTriangle& tri, glm::vec3* normal);
 
 // One flat triangle; uvs (0,0), (1,0), (0,1).
 void append_triangle(std::vector<SceneTriangle>& tris, glm::vec3 p0, glm::vec3 p1, glm::vec3 p2,
