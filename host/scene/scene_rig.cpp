@@ -248,11 +248,12 @@ static void emit_vertices_and_triangles(const RigPrimitive& prim, RigPrimitive* 
     if (!normal_unless_degenerate(tri, ng)) return kDegenerate;
     return *ng == glm::vec3(0.0f) ? kNonFinite : kStays;
   };
-  // The geometric normal of a triangle that stays (corners' positions in `tri`).
+  // The geometric normal of a triangle that stays (corners' positions in `tri`): a kept one may
+  // be degenerate or collapsed, and then faces +z.
   const auto normal_of = [&](const SceneTriangle& tri) {
-    if (!kept) return geometric_normal(tri);
-    glm::vec3 ng = is_degenerate(tri) ? glm::vec3(0.0f) : geometric_normal(tri);
-    if (!finite3(ng) || ng == glm::vec3(0.0f)) ng = glm::vec3(0.0f, 0.0f, 1.0f);
+    glm::vec3 ng(0.0f);
+    normal_unless_degenerate(tri, &ng);
+    if (kept && (!finite3(ng) || ng == glm::vec3(0.0f))) ng = glm::vec3(0.0f, 0.0f, 1.0f);
     return ng;
   };
   // The rest of a triangle that stays: its corners' normals (the geometric normal where a vertex
@@ -333,6 +334,8 @@ static void emit_vertices_and_triangles(const RigPrimitive& prim, RigPrimitive* 
   if (colours) colours->reserve(colour_base + made);
   run_parts(parts, [&](unsigned part) {
     populate_for_writing(out.data() + base + first_out[part], first_out[part + 1] - first_out[part]);
+    if (colours)
+      populate_for_writing(colours->data() + colour_base + first_out[part], first_out[part + 1] - first_out[part]);
   });
   out.resize(base + made);
   if (colours) colours->resize(colour_base + made);

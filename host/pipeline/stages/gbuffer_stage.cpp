@@ -4,8 +4,6 @@
 
 namespace px {
 
-GBufferStage::GBufferStage(StageEnv& env) : StageUnit(env) {}
-
 void GBufferStage::run(const std::vector<const Operation*>& ops, const FrameInputs& in) {
   for (const Operation* op : ops) {
     if (!env_.local(op->device)) continue;

@@ -5,13 +5,11 @@
 
 #include "pipeline/stages/stage_unit.h"
 
-#include <vector>
-
 namespace px {
 
 class GBufferStage : public StageUnit {
  public:
-  explicit GBufferStage(StageEnv& env);
+  using StageUnit::StageUnit;
   void run(const std::vector<const Operation*>& ops, const FrameInputs& in) override;
 };
 
