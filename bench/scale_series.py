@@ -11,11 +11,13 @@ virtual environment under the build folder (made from /usr/bin/python3 with
 --system-site-packages); without network its columns read n/a.
 
 PoCL's kernel cache is primed first with a small mesh (the kernels are the same at every size),
-so that no run pays for compiling them.
+so that no cold run pays for compiling them. --first-run adds a run beside each cold one with an
+empty PoCL cache as well, which compiles the kernels for the scene's features as a user's very
+first run does, and a table of those runs.
 
 Usage: bench/scale_series.py [--sizes 0.25,1,4,10] [--build build] [--work build/scale-series]
                              [--width 320] [--height 180] [--devices 2] [--repeat 3] [--offline]
-                             [--smooth]
+                             [--smooth] [--first-run]
 --smooth writes per-vertex normals and texture coordinates as well (as scanned and modelled
 meshes come), which parallax keeps in indexed shading records (16 bytes a triangle beside each
 vertex's normal and uv once) instead of flat ones' 16 bytes.
@@ -29,6 +31,7 @@ import json
 import math
 import os
 import re
+import shutil
 import struct
 import subprocess
 import sys
@@ -218,6 +221,9 @@ def main():
     ap.add_argument("--smooth", action="store_true",
                     help="meshes with per-vertex NORMAL and TEXCOORD_0 (PLY: nx ny nz u v), as scanned and modelled "
                          "meshes come; without it the heightfields have positions only (flat triangles)")
+    ap.add_argument("--first-run", action="store_true",
+                    help="also time first runs: no BVH cache and an empty PoCL kernel cache (each one compiles "
+                         "the kernels for the scene's features, as a user's very first run does)")
     ap.add_argument("--repeat", type=int, default=3,
                     help="runs of each start (cold parallax and Mitsuba alternate); the table gives medians")
     a = ap.parse_args()
@@ -237,11 +243,14 @@ def main():
     mpy = mitsuba_python(a.build, a.offline)
     # PoCL compiles the kernels on a first run and caches them; that cost does not depend on the
     # scene's size (every heightfield has the same kernel features), so a small mesh primes the
-    # cache before anything is timed.
+    # cache before anything is timed. It has the series' vertex attributes: with --smooth the
+    # kernels read indexed shading records, which a flat mesh's build of them does not (a prime
+    # without normals and uvs left the first timed run compiling its kernels).
     prime_pos, prime_idx = heightfield(8)
-    prime = os.path.join(work, "prime")
-    write_glb(prime + ".glb", prime_pos, prime_idx)
-    write_scene_json(prime + ".json", "prime.glb")
+    prime_nrm, prime_uv = heightfield_normals_uvs(8) if a.smooth else (None, None)
+    prime = os.path.join(work, "prime-smooth" if a.smooth else "prime")
+    write_glb(prime + ".glb", prime_pos, prime_idx, prime_nrm, prime_uv)
+    write_scene_json(prime + ".json", os.path.basename(prime) + ".glb")
     print("[scale_series] priming the kernel cache", file=sys.stderr)
     timed([parallax, "render", "--scene", prime + ".json", "--frames", "1", "--devices", str(a.devices), "--width",
            str(a.width), "--height", str(a.height), "--no-denoise", "--overwrite", "--out",
@@ -273,7 +282,7 @@ def main():
         # Cold (no BVH cache at all) and Mitsuba alternate, run after run: on a virtual machine the
         # time to touch fresh memory varies from run to run (a 10M cold start: 8.6 to 16 s, with
         # 1.5 to 9 s of system time), and both then meet the machine in the same states.
-        runs = {"cold": [], "warm": [], "mitsuba": []}
+        runs = {"cold": [], "warm": [], "mitsuba": [], "first": []}
         for r in range(a.repeat):
             print(f"[scale_series] {tris} triangles: parallax cold ({r + 1}/{a.repeat})", file=sys.stderr)
             rc, wall, rss = timed([parallax] + common + out, dict(env, PARALLAX_BVH_CACHE="off"),
@@ -281,6 +290,18 @@ def main():
             if rc != 0:
                 die(f"parallax failed on {tris} triangles (cold): see {work}/logs/parallax-cold-{tag}-{r + 1}.txt")
             runs["cold"].append((wall, rss))
+            if a.first_run:
+                print(f"[scale_series] {tris} triangles: parallax first run ({r + 1}/{a.repeat})", file=sys.stderr)
+                kernels = os.path.join(work, "pocl-first-run")
+                shutil.rmtree(kernels, ignore_errors=True)
+                rc, wall, rss = timed([parallax] + common + out,
+                                      dict(env, PARALLAX_BVH_CACHE="off", POCL_CACHE_DIR=kernels),
+                                      os.path.join(work, "logs", f"parallax-first-{tag}-{r + 1}.txt"))
+                shutil.rmtree(kernels, ignore_errors=True)
+                if rc != 0:
+                    die(f"parallax failed on {tris} triangles (first run): see {work}/logs/"
+                        f"parallax-first-{tag}-{r + 1}.txt")
+                runs["first"].append((wall, rss))
             if mpy:
                 print(f"[scale_series] {tris} triangles: Mitsuba 3 ({r + 1}/{a.repeat})", file=sys.stderr)
                 rc, wall, rss = timed([mpy, script, ply, str(a.width), str(a.height)], None,
@@ -296,7 +317,7 @@ def main():
             if rc != 0:
                 die(f"parallax failed on {tris} triangles (warm): see {work}/logs/parallax-warm-{tag}-{r + 1}.txt")
             runs["warm"].append((wall, rss))
-        for kind, key in (("cold", "cold"), ("warm", "warm"), ("mitsuba", "mitsuba")):
+        for kind, key in (("cold", "cold"), ("warm", "warm"), ("mitsuba", "mitsuba"), ("first", "first")):
             if runs[kind]:
                 walls = sorted(w for w, _ in runs[kind])
                 row[f"{key}_s"] = float(np.median(walls))
@@ -304,7 +325,8 @@ def main():
                 row[f"{key}_mib"] = max(m for _, m in runs[kind])  # the highest peak of the runs
         rows.append(row)
     fields = ["triangles", "glb_mib", "runs", "cold_s", "cold_s_min", "cold_s_max", "cold_mib", "warm_s", "warm_s_min",
-              "warm_s_max", "warm_mib", "mitsuba_s", "mitsuba_s_min", "mitsuba_s_max", "mitsuba_mib"]
+              "warm_s_max", "warm_mib", "mitsuba_s", "mitsuba_s_min", "mitsuba_s_max", "mitsuba_mib", "first_s",
+              "first_s_min", "first_s_max", "first_mib"]
     with open(os.path.join(work, "results.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=fields)
         w.writeheader()
@@ -324,6 +346,16 @@ def main():
               f"{bpt(r['cold_mib'], t)} | {fmt(r['warm_s'])}{span(r, 'warm')} | {fmt(r['warm_mib'], 0)} | "
               f"{bpt(r['warm_mib'], t)} | {fmt(r.get('mitsuba_s'))}{span(r, 'mitsuba')} | "
               f"{fmt(r.get('mitsuba_mib'), 0)} | {bpt(r.get('mitsuba_mib'), t)} | {ratio(r)} |")
+    if a.first_run:
+        print()
+        print("First runs (no BVH cache, an empty PoCL kernel cache):")
+        print("| triangles | parallax first run s | peak MiB | B/triangle | first run / Mitsuba |")
+        print("|---|---|---|---|---|")
+        for r in rows:
+            t = r["triangles"]
+            first = "n/a" if not (r.get("mitsuba_s") and r.get("first_s")) else f"{r['first_s'] / r['mitsuba_s']:.2f}"
+            print(f"| {t / 1e6:.2f}M | {fmt(r.get('first_s'))}{span(r, 'first')} | {fmt(r.get('first_mib'), 0)} | "
+                  f"{bpt(r.get('first_mib'), t)} | {first} |")
     print(f"(results: {work}/results.csv; logs: {work}/logs)", file=sys.stderr)
 
 

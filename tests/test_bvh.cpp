@@ -358,6 +358,42 @@ TEST(Bvh, TrianglesCarryTheirSceneData) {
   EXPECT_TRUE(std::all_of(seen.begin(), seen.end(), [](int c) { return c == 1; }));
 }
 
+// From 2^18 triangles the build primitives and the leaf triangles are written by one part per
+// core: every leaf triangle is still its own scene triangle's (a part one place off would copy a
+// neighbour's corners, or leave one unwritten), each scene triangle once, and the boxes Embree
+// built from the primitives contain them (the validator).
+TEST(Bvh, ALargeScenesTrianglesMadeInPartsCarryTheirSceneData) {
+  std::vector<SceneTriangle> tris;
+  const int n = 363;  // 2 x 363 x 363 = 263,538 triangles
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const auto p = [n](int x, int z) {
+        return glm::vec3(float(x) / n, 0.05f * std::sin(0.3f * float(x)) * std::cos(0.2f * float(z)), float(z) / n);
+      };
+      tris.push_back(make_triangle(p(i, j), p(i, j + 1), p(i + 1, j), std::uint32_t(i % 5)));
+      tris.push_back(make_triangle(p(i + 1, j), p(i, j + 1), p(i + 1, j + 1), std::uint32_t(j % 7)));
+    }
+  ASSERT_GE(tris.size(), std::size_t{1} << 18);
+  const FlatBvh bvh = build_bvh(tris, with_splits(false));
+  expect_valid(bvh, tris);
+  ASSERT_EQ(bvh.triangles.size(), tris.size());
+  std::vector<std::uint8_t> seen(tris.size(), 0);
+  for (std::size_t i = 0; i < bvh.triangles.size(); ++i) {
+    const BvhTriangle& t = bvh.triangles[i];
+    ASSERT_LT(t.prim, tris.size()) << "leaf triangle " << i;
+    ++seen[t.prim];
+    const SceneTriangle& s = tris[t.prim];
+    for (int k = 0; k < 3; ++k) {
+      ASSERT_EQ(t.v0[k], s.p[0][k]) << "leaf triangle " << i;
+      ASSERT_EQ(t.v1[k], s.p[1][k]) << "leaf triangle " << i;
+      ASSERT_EQ(t.v2[k], s.p[2][k]) << "leaf triangle " << i;
+    }
+    ASSERT_EQ(t.material, s.material) << "leaf triangle " << i;
+    ASSERT_EQ(t.flags, 0u) << "leaf triangle " << i;
+  }
+  EXPECT_TRUE(std::all_of(seen.begin(), seen.end(), [](std::uint8_t c) { return c == 1; }));
+}
+
 TEST(Bvh, SetTriangleFlagsCopiesPerSceneTriangleFlags) {
   const auto tris = diagonal_strips(50);  // spatial splits duplicate some triangles
   FlatBvh bvh = build_bvh(tris, with_splits(true));

@@ -32,11 +32,11 @@ struct BvhBuildOptions {
   // 0: no trial, spatial_splits as asked.
   std::size_t split_trial_triangles = 200000;
   double split_min_gain = 0.02;
-  // At most this many triangles in the trial's sample: past 16 x this (4.2M triangles) the
-  // stride grows beyond 16. The sample's two builds cost in proportion to its size, and a sample
-  // of this size already decides as every-16th did (docs/measurements.md, spatial-split trial).
-  // 0: no cap.
-  std::size_t split_trial_max_sample = 262144;
+  // At most this many triangles in the trial's sample: past 16 x this (1M triangles) the stride
+  // grows beyond 16. The sample's two builds cost in proportion to its size, and a sample of this
+  // size decides as every-16th did (the 4M heightfield: 0.1% either way, the trial 210 -> 55 ms;
+  // docs/measurements.md, spatial-split trial and "A first run"). 0: no cap.
+  std::size_t split_trial_max_sample = 65536;
   // Scenes of at least this many triangles get leaves sized for the wide layouts' leaf blocks
   // (BvhLeafBlock: 4 triangles tested at once): the SAH counts a leaf's intersection cost per
   // started block of 4 triangles, not per triangle (Embree's sahBlockSize), so leaves fill up to

@@ -1,16 +1,12 @@
 #include "scene/scene_rig.h"
 
 #include "scene/primitives.h"
+#include "util/parallel_parts.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <system_error>
-#include <thread>
 #include <utility>
-
-#include <sys/mman.h>
-#include <unistd.h>
 
 namespace px {
 
@@ -120,51 +116,8 @@ glm::dmat4 vertex_skin(const RigPrimitive& prim, std::size_t v, const std::vecto
   return m;
 }
 
-}  // namespace
-
-namespace {
-
-// From this many triangles a primitive's triangles are made on every core (emit_parts).
+// From this many triangles a primitive's triangles are made on every core (parallel_parts).
 constexpr std::size_t kEmitInPartsFrom = std::size_t{1} << 18;
-
-// How many parts `count` triangles are made in: one below kEmitInPartsFrom, else one per core
-// (at most 8: the loop is bound by memory beyond that).
-unsigned emit_parts(std::size_t count) {
-  if (count < kEmitInPartsFrom) return 1u;
-  return std::clamp(std::thread::hardware_concurrency(), 1u, 8u);
-}
-
-// fn(part) for every part in [0, parts), part 0 on the calling thread, and any part a thread
-// could not be started for (the system out of threads) after it.
-template <typename Fn>
-void run_parts(unsigned parts, const Fn& fn) {
-  std::vector<std::thread> others;
-  others.reserve(parts - 1);
-  unsigned started = 1;
-  try {
-    for (; started < parts; ++started) others.emplace_back([&fn, part = started] { fn(part); });
-  } catch (const std::system_error&) {}
-  fn(0);
-  for (unsigned part = started; part < parts; ++part) fn(part);
-  for (std::thread& t : others) t.join();
-}
-
-// Faults in the whole pages of `n` elements' storage at `p` (allocated, not yet written) on the
-// calling thread, so that parts writing their own ranges clear fresh pages side by side instead
-// of one thread at a time. Contents are not touched; a kernel without MADV_POPULATE_WRITE
-// (before Linux 5.14) leaves the pages to the first write.
-template <typename T>
-void populate_for_writing(T* p, std::size_t n) {
-#ifdef MADV_POPULATE_WRITE
-  const auto page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
-  const auto begin = (reinterpret_cast<std::uintptr_t>(p) + page - 1) / page * page;
-  const auto end = reinterpret_cast<std::uintptr_t>(p + n) / page * page;
-  if (end > begin) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_POPULATE_WRITE);
-#else
-  (void)p;
-  (void)n;
-#endif
-}
 
 }  // namespace
 
@@ -283,7 +236,7 @@ static void emit_vertices_and_triangles(const RigPrimitive& prim, RigPrimitive* 
     if (fate == kNonFinite) ++stats.dropped_nonfinite;
     if (fate == kDegenerate) ++stats.dropped_degenerate;
   };
-  const unsigned parts = record ? 1u : emit_parts(count);
+  const unsigned parts = record ? 1u : parallel_parts(count, kEmitInPartsFrom);
   if (parts <= 1) {
     for (std::size_t k = 0; k < count; ++k) {
       SceneTriangle tri;
@@ -303,7 +256,8 @@ static void emit_vertices_and_triangles(const RigPrimitive& prim, RigPrimitive* 
   // second on one): the same triangles in the same order. First which stay, part by part; then
   // the room for them (its fresh pages faulted in by the parts); then each part writes its own.
   const auto range = [&](unsigned part) {
-    return std::pair<std::size_t, std::size_t>{count * part / parts, count * (part + 1) / parts};
+    const PartRange r = part_range(count, part, parts);
+    return std::pair<std::size_t, std::size_t>{r.begin, r.end};
   };
   std::vector<std::uint8_t> fates(kept ? 0 : count);
   std::vector<std::size_t> first_out(parts + 1, 0);
