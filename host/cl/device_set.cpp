@@ -202,7 +202,36 @@ DeviceSet DeviceSet::create(const DeviceOptions& options) {
 
 BvhLayout DeviceSet::bvh_layout() const { return requested_layout_.value_or(bvh_layout_for(all_gpus_)); }
 
-const cl::Program& DeviceSet::program(const std::string& path, const std::string& extra_options) {
+namespace {
+
+// The frame's kernel files come from two programs, each including its files once:
+// kernels/pathtrace/scene_kernels.cl, built for the scene's features (the path tracer, the
+// G-buffer pass, the temporal gradients' shading), and kernels/pipeline/frame_kernels.cl, the
+// files that take no scene options. PoCL builds a program (its front end, then a link with PoCL's
+// built-in library) under the lock it also holds to make each kernel's work-group function at
+// its first launch, so a first run waited on each of eleven such builds in turn
+// (docs/measurements.md, "A first run, and the BVH step's single-thread passes"). The kernels
+// are the same; a kernel file outside both is built on its own.
+const char* bundle_of(const std::string& path, const std::string& extra_options) {
+  static const char* const scene_files[] = {"pathtrace/path_trace.cl", "pipeline/gbuffer.cl",
+                                            "denoise/temporal_gradient.cl"};
+  static const char* const plain_files[] = {
+      "pipeline/reproject.cl",     "pipeline/tonemap.cl",        "pipeline/motion.cl",
+      "pipeline/motion_edges.cl",  "denoise/svgf_temporal.cl",   "denoise/svgf_atrous.cl",
+      "denoise/svgf_antialias.cl", "denoise/gradient_filter.cl", "denoise/seam_bilateral.cl"};
+  const auto in = [&](const auto& files) {
+    return std::any_of(std::begin(files), std::end(files), [&](const char* f) { return path == f; });
+  };
+  if (in(scene_files)) return "pathtrace/scene_kernels.cl";
+  if (extra_options.empty() && in(plain_files)) return "pipeline/frame_kernels.cl";
+  return nullptr;
+}
+
+}  // namespace
+
+const cl::Program& DeviceSet::program(const std::string& requested_path, const std::string& extra_options) {
+  const char* bundle = bundle_of(requested_path, extra_options);
+  const std::string path = bundle ? bundle : requested_path;
   // Every kernel is built for the BVH layout DeviceScene uploads (bvh_layout()), unless the
   // caller names one (DeviceScene::kernel_options()).
   const bool names_layout = extra_options.find("-DPX_BVH_WIDTH=") != std::string::npos;

@@ -67,7 +67,10 @@ class DeviceSet {
   bool bvh_layout_requested() const { return requested_layout_.has_value(); }
 
   // Builds kernels/<path> (with its includes) for every device in the set; cached per
-  // (path, options). A failed build throws ClFailure carrying each device's build log.
+  // (path, options). A failed build throws ClFailure carrying each device's build log. The
+  // frame's kernel files come from two programs that include them (the scene's kernels,
+  // kernels/pathtrace/scene_kernels.cl, and the rest, kernels/pipeline/frame_kernels.cl): the
+  // same kernels, built in two builds instead of eleven.
   const cl::Program& program(const std::string& path, const std::string& extra_options = "");
 
   // Finishes every queue.
