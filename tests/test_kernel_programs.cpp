@@ -38,8 +38,8 @@ void expect_bundle(DeviceSet& set, const std::vector<std::string>& files) {
       try {
         cl::Kernel kernel(program, name.c_str());
       } catch (const cl::Error& e) {
-        ADD_FAILURE() << "kernel " << name << " is not in the program served for " << file << " (" << e.what()
-                      << " " << e.err() << ")";
+        ADD_FAILURE() << "kernel " << name << " is not in the program served for " << file << " (" << e.what() << " "
+                      << e.err() << ")";
       }
     }
   }
