@@ -255,10 +255,6 @@ static void emit_vertices_and_triangles(const RigPrimitive& prim, RigPrimitive* 
   // A large primitive on every core (a paper-size mesh's 100-byte triangles took a third of a
   // second on one): the same triangles in the same order. First which stay, part by part; then
   // the room for them (its fresh pages faulted in by the parts); then each part writes its own.
-  const auto range = [&](unsigned part) {
-    const PartRange r = part_range(count, part, parts);
-    return std::pair<std::size_t, std::size_t>{r.begin, r.end};
-  };
   std::vector<std::uint8_t> fates(kept ? 0 : count);
   std::vector<std::size_t> first_out(parts + 1, 0);
   if (kept) {
@@ -266,7 +262,7 @@ static void emit_vertices_and_triangles(const RigPrimitive& prim, RigPrimitive* 
   } else {
     std::vector<std::array<std::size_t, 3>> tally(parts, {0, 0, 0});
     run_parts(parts, [&](unsigned part) {
-      const auto [begin, end] = range(part);
+      const auto [begin, end] = part_range(count, part, parts);
       std::array<std::size_t, 3> mine{0, 0, 0};  // counted here: parts' tallies share a cache line
       for (std::size_t k = begin; k < end; ++k) {
         SceneTriangle tri;
@@ -294,7 +290,7 @@ static void emit_vertices_and_triangles(const RigPrimitive& prim, RigPrimitive* 
   out.resize(base + made);
   if (colours) colours->resize(colour_base + made);
   run_parts(parts, [&](unsigned part) {
-    const auto [begin, end] = range(part);
+    const auto [begin, end] = part_range(count, part, parts);
     std::size_t at = first_out[part];
     for (std::size_t k = begin; k < end; ++k) {
       if (!kept && fates[k] != kStays) continue;
