@@ -959,6 +959,149 @@ TEST(WavefrontPathTracer, SamplesInBatchesGiveTheMegakernelsPixels) {
   }
 }
 
+// ---- one kernel for stages 2 and 5 on CPUs ----
+
+// CPUs launch path_trace_pixels for the left eye's strip and for the hole list, GPUs path_trace
+// and path_trace_list (one kernel compiles once on PoCL). Each way, explicitly on this device:
+// the strip's pixels, albedos, non-finite count and G-buffer texels, and the list's pixels with
+// and without the G-buffer pass's hits, the same to the bit.
+TEST(PathTracer, OneKernelForStripAndHolesGivesTheTwoKernelsPixels) {
+  Scene overflow = closed_emissive_sphere(0.9f, 3.0e38f);  // paths that overflow to Inf
+  for (Scene scene : {make_builtin_scene("cornell-glossy"), overflow}) {
+    RenderFixture f(one_device(), scene);
+    DeviceSet& set = one_device();
+    const cl::CommandQueue& queue = set.devices()[0].queue;
+    const cl::Program& program = set.program("pathtrace/path_trace.cl", f.device_scene->kernel_options());
+    const unsigned w = 24, h = 16, row0 = 3, rows = 10;
+    PathTracer::Options opt;
+    opt.spp = 3;
+    opt.bounces = 4;
+    const FrameParams fp = PathTracer::frame_params(scene, f.device_scene->light_count(), opt, 0, row0, rows, 2);
+    ASSERT_NE(fp.gbuffer_ray_samples, cl_uint{PX_GBUFFER_RAY_NONE});
+    const CameraParams cam = make_eye_camera(evaluate_camera(scene, 0.0f), Eye::Right, scene.ipd_units(), w, h);
+    const std::size_t n = std::size_t{w} * h, bytes = n * sizeof(cl_float4);
+    struct Out {
+      TracedBuffers traced;
+      std::vector<GBufferTexel> texels;
+    };
+    // Runs `bind` (which sets every argument from 3 on) for `items` work-items of `kernel`.
+    auto run = [&](const char* kernel, std::size_t items,
+                   const std::function<void(cl::Kernel&, const cl::Buffer&)>& bind) {
+      cl::Buffer radiance(set.context(), CL_MEM_READ_WRITE, bytes), albedo(set.context(), CL_MEM_READ_WRITE, bytes);
+      cl::Buffer nonfinite(set.context(), CL_MEM_READ_WRITE, sizeof(cl_uint));
+      cl::Buffer texels(set.context(), CL_MEM_READ_WRITE, n * sizeof(GBufferTexel));
+      queue.enqueueFillBuffer(radiance, cl_float{-1.0f}, 0, bytes);
+      queue.enqueueFillBuffer(albedo, cl_float{-1.0f}, 0, bytes);
+      queue.enqueueFillBuffer(nonfinite, cl_uint{0}, 0, sizeof(cl_uint));
+      queue.enqueueFillBuffer(texels, cl_uchar{0xAB}, 0, n * sizeof(GBufferTexel));
+      cl::Kernel k(program, kernel);
+      k.setArg(0, radiance);
+      k.setArg(1, albedo);
+      k.setArg(2, nonfinite);
+      bind(k, texels);
+      launch_1d(queue, k, items);
+      Out out;
+      out.traced.radiance.resize(n);
+      out.traced.albedo.resize(n);
+      out.texels.resize(n);
+      queue.enqueueReadBuffer(radiance, CL_TRUE, 0, bytes, out.traced.radiance.data());
+      queue.enqueueReadBuffer(albedo, CL_TRUE, 0, bytes, out.traced.albedo.data());
+      queue.enqueueReadBuffer(nonfinite, CL_TRUE, 0, sizeof(cl_uint), &out.traced.nonfinite);
+      queue.enqueueReadBuffer(texels, CL_TRUE, 0, n * sizeof(GBufferTexel), out.texels.data());
+      return out;
+    };
+    std::vector<cl_uint> all(n), strip;
+    for (cl_uint p = 0; p < n; ++p) all[p] = p;
+    for (cl_uint p = row0 * w; p < (row0 + rows) * w; ++p) strip.push_back(p);
+
+    const Out two = run("path_trace", strip.size(), [&](cl::Kernel& k, const cl::Buffer& texels) {
+      k.setArg(3, texels);
+      k.setArg(4, fp);
+      k.setArg(5, cam);
+      f.device_scene->on(0).bind(k, 6);
+    });
+    const Out one = run("path_trace_pixels", strip.size(), [&](cl::Kernel& k, const cl::Buffer& texels) {
+      k.setArg(3, texels);
+      k.setArg(4, cl::Buffer());
+      k.setArg(5, cl::Buffer());
+      k.setArg(6, cl::Buffer());
+      k.setArg(7, fp);
+      k.setArg(8, cam);
+      f.device_scene->on(0).bind(k, 9);
+    });
+    // Every pixel: the strip's the same, the rest untouched by both.
+    expect_same_pixels(two.traced, one.traced, all, scene.name + ": the strip");
+    EXPECT_EQ(std::memcmp(two.texels.data(), one.texels.data(), n * sizeof(GBufferTexel)), 0)
+        << scene.name << ": the strip's G-buffer texels";
+    EXPECT_NE(std::memcmp(&one.texels[strip[0]], &one.texels[0], sizeof(GBufferTexel)), 0)
+        << scene.name << ": the strip wrote its G-buffer texels";
+    for (cl_uint p = 0; p < row0 * w; ++p) ASSERT_EQ(one.traced.radiance[p].s[0], -1.0f) << "pixel " << p;
+
+    // The G-buffer pass's hits for the list's first samples.
+    cl::Buffer hits(set.context(), CL_MEM_READ_WRITE, n * sizeof(Hit));
+    cl::Buffer texels(set.context(), CL_MEM_READ_WRITE, n * sizeof(GBufferTexel));
+    {
+      cl::Kernel g(set.program("pipeline/gbuffer.cl", f.device_scene->kernel_options()), "gbuffer");
+      g.setArg(0, texels);
+      g.setArg(1, hits);
+      g.setArg(2, cl_uint{row0});
+      g.setArg(3, cl_uint{rows});
+      g.setArg(4, cam);
+      f.device_scene->on(0).bind(g, 5);
+      launch_1d(queue, g, strip.size());
+    }
+    std::vector<cl_uint> holes;
+    for (std::size_t i = 0; i < strip.size(); i += 3) holes.push_back(strip[strip.size() - 1 - i]);
+    const cl_uint count = static_cast<cl_uint>(holes.size());
+    cl::Buffer hole_buf(set.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, holes.size() * sizeof(cl_uint),
+                        holes.data());
+    cl::Buffer count_buf(set.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, sizeof(cl_uint),
+                         const_cast<cl_uint*>(&count));
+    const cl::Buffer* no_hits = nullptr;
+    for (const cl::Buffer* first_hits : {no_hits, static_cast<const cl::Buffer*>(&hits)}) {
+      const std::string what = scene.name + (first_hits ? ": the list from the G-buffer's hits" : ": the list");
+      const Out two_list = run("path_trace_list", strip.size(), [&](cl::Kernel& k, const cl::Buffer&) {
+        k.setArg(3, hole_buf);
+        k.setArg(4, count_buf);
+        set_optional_buffer(k, 5, first_hits);
+        k.setArg(6, fp);
+        k.setArg(7, cam);
+        f.device_scene->on(0).bind(k, 8);
+      });
+      const Out one_list = run("path_trace_pixels", strip.size(), [&](cl::Kernel& k, const cl::Buffer&) {
+        k.setArg(3, cl::Buffer());
+        k.setArg(4, hole_buf);
+        k.setArg(5, count_buf);
+        set_optional_buffer(k, 6, first_hits);
+        k.setArg(7, fp);
+        k.setArg(8, cam);
+        f.device_scene->on(0).bind(k, 9);
+      });
+      expect_same_pixels(two_list.traced, one_list.traced, all, what);
+      int listed = 0;
+      for (cl_uint p : holes) listed += one_list.traced.radiance[p].s[0] != -1.0f;
+      EXPECT_EQ(listed, static_cast<int>(holes.size())) << what << ": every listed pixel written";
+      // Only the listed pixels: the one before each listed pixel is not listed (every third).
+      EXPECT_EQ(one_list.traced.radiance[holes[0] - 1].s[0], -1.0f) << what;
+    }
+    // The pipeline's launches (PathTracer::launch / launch_list) pick the kernel by device type
+    // and give the same pixels either way.
+    cl::Buffer radiance(set.context(), CL_MEM_READ_WRITE, bytes), albedo(set.context(), CL_MEM_READ_WRITE, bytes);
+    cl::Buffer nonfinite(set.context(), CL_MEM_READ_WRITE, sizeof(cl_uint));
+    queue.enqueueFillBuffer(radiance, cl_float{-1.0f}, 0, bytes);
+    queue.enqueueFillBuffer(albedo, cl_float{-1.0f}, 0, bytes);
+    queue.enqueueFillBuffer(nonfinite, cl_uint{0}, 0, sizeof(cl_uint));
+    PathTracer::launch(queue, program, f.device_scene->on(0), {radiance, albedo, nonfinite, &texels}, fp, cam, w);
+    TracedBuffers staged;
+    staged.radiance.resize(n);
+    staged.albedo.resize(n);
+    queue.enqueueReadBuffer(radiance, CL_TRUE, 0, bytes, staged.radiance.data());
+    queue.enqueueReadBuffer(albedo, CL_TRUE, 0, bytes, staged.albedo.data());
+    queue.enqueueReadBuffer(nonfinite, CL_TRUE, 0, sizeof(cl_uint), &staged.nonfinite);
+    expect_same_pixels(two.traced, staged, all, scene.name + ": PathTracer::launch");
+  }
+}
+
 // ---- glass: a smooth dielectric ----
 
 // Unpolarised Fresnel reflectance in Fresnel's own angle form (Born & Wolf, sec. 1.5):

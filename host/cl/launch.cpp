@@ -22,4 +22,8 @@ cl::Event launch_1d(const cl::CommandQueue& queue, const cl::Kernel& kernel, std
   return done;
 }
 
+bool runs_on_cpu(const cl::CommandQueue& queue) {
+  return (queue.getInfo<CL_QUEUE_DEVICE>().getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_CPU) != 0;
+}
+
 }  // namespace px

@@ -23,6 +23,11 @@ inline std::size_t round_up(std::size_t n, std::size_t local = kLocalSize) { ret
 cl::Event launch_1d(const cl::CommandQueue& queue, const cl::Kernel& kernel, std::size_t items,
                     const std::vector<cl::Event>* waits = nullptr);
 
+// Whether `queue`'s device is a CPU. On CPUs the path tracing and hole filling stages launch one
+// kernel, path_trace_pixels, where GPUs launch path_trace and path_trace_list
+// (kernels/pathtrace/path_trace.cl says why).
+bool runs_on_cpu(const cl::CommandQueue& queue);
+
 // Sets kernel argument `index` to `*buffer`, or to a null buffer (the kernel sees a null
 // pointer: an optional input or output it skips) where `buffer` is null.
 inline void set_optional_buffer(cl::Kernel& kernel, cl_uint index, const cl::Buffer* buffer) {

@@ -38,16 +38,52 @@ void PathTracer::check_gbuffer_target(const Targets& out, const FrameParams& par
 cl::Event PathTracer::launch(const cl::CommandQueue& queue, const cl::Program& program, const DeviceSceneBuffers& scene,
                              const Targets& out, const FrameParams& params, const CameraParams& camera,
                              unsigned width) {
+  check_gbuffer_target(out, params);
+  const std::size_t items = static_cast<std::size_t>(params.rows) * width;
+  if (runs_on_cpu(queue)) {
+    cl::Kernel k(program, "path_trace_pixels");
+    k.setArg(0, out.radiance);
+    k.setArg(1, out.albedo);
+    k.setArg(2, out.nonfinite);
+    set_optional_buffer(k, 3, out.gbuffer);
+    k.setArg(4, cl::Buffer());  // no list: the strip's pixels
+    k.setArg(5, cl::Buffer());
+    k.setArg(6, cl::Buffer());
+    k.setArg(7, params);
+    k.setArg(8, camera);
+    scene.bind(k, 9);
+    return launch_1d(queue, k, items);
+  }
   cl::Kernel k(program, "path_trace");
   k.setArg(0, out.radiance);
   k.setArg(1, out.albedo);
   k.setArg(2, out.nonfinite);
-  check_gbuffer_target(out, params);
   set_optional_buffer(k, 3, out.gbuffer);
   k.setArg(4, params);
   k.setArg(5, camera);
   scene.bind(k, 6);
-  return launch_1d(queue, k, static_cast<std::size_t>(params.rows) * width);
+  return launch_1d(queue, k, items);
+}
+
+cl::Event PathTracer::launch_list(const cl::CommandQueue& queue, const cl::Program& program,
+                                  const DeviceSceneBuffers& scene, const Targets& out, const cl::Buffer& holes,
+                                  const cl::Buffer& hole_count, const cl::Buffer* gbuffer_hits,
+                                  const FrameParams& params, const CameraParams& camera, std::size_t max_items) {
+  if (out.gbuffer) throw std::logic_error("path tracer: a hole list writes no G-buffer texels");
+  const bool cpu = runs_on_cpu(queue);
+  cl::Kernel k(program, cpu ? "path_trace_pixels" : "path_trace_list");
+  k.setArg(0, out.radiance);
+  k.setArg(1, out.albedo);
+  k.setArg(2, out.nonfinite);
+  cl_uint arg = 3;
+  if (cpu) k.setArg(arg++, cl::Buffer());  // no G-buffer texels
+  k.setArg(arg++, holes);
+  k.setArg(arg++, hole_count);
+  set_optional_buffer(k, arg++, gbuffer_hits);
+  k.setArg(arg++, params);
+  k.setArg(arg++, camera);
+  scene.bind(k, arg);
+  return launch_1d(queue, k, max_items);
 }
 
 std::array<ImageRGB, 2> PathTracer::render_stereo(float time_s, std::uint32_t frame, unsigned width, unsigned height,

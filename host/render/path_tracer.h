@@ -55,13 +55,12 @@ class PathTracer {
   static FrameParams frame_params(const Scene& scene, std::size_t light_count, const Options& options, int eye,
                                   unsigned row0, unsigned rows, std::uint32_t frame, std::uint32_t sample_offset = 0);
 
-  // The one launch of the path_trace kernel, shared by render_stereo and the pipeline's path
-  // tracing stage: `rows` of eye `eye` into the full-frame float4 `radiance` and `albedo`
-  // buffers (absolute pixel indices; only those rows are written), dropped non-finite paths
-  // counted into `nonfinite` (uint). `gbuffer`, if not null: the eye's full-frame G-buffer
-  // (GBufferTexel), whose texels of `rows` the first sample (the G-buffer's ray) writes (the G-buffer
-  // pass's, bit for bit; needs first_sample_on_gbuffer_ray and sample offset 0). Returns the launch's
-  // event.
+  // The one launch of the path_trace kernel (path_trace_pixels on CPUs), shared by render_stereo and the pipeline's
+  // path tracing stage: `rows` of eye `eye` into the full-frame float4 `radiance` and `albedo` buffers (absolute pixel
+  // indices; only those rows are written), dropped non-finite paths counted into `nonfinite` (uint). `gbuffer`, if not
+  // null: the eye's full-frame G-buffer (GBufferTexel), whose texels of `rows` the first sample (the G-buffer's ray)
+  // writes (the G-buffer pass's, bit for bit; needs first_sample_on_gbuffer_ray and sample offset 0). Returns the
+  // launch's event.
   struct Targets {
     const cl::Buffer& radiance;
     const cl::Buffer& albedo;
@@ -73,6 +72,13 @@ class PathTracer {
   static void check_gbuffer_target(const Targets& out, const FrameParams& params);
   static cl::Event launch(const cl::CommandQueue& queue, const cl::Program& program, const DeviceSceneBuffers& scene,
                           const Targets& out, const FrameParams& params, const CameraParams& camera, unsigned width);
+  // The hole filling stage's launch: the `*hole_count` pixels listed in `holes` (absolute pixel
+  // indices, launched for `max_items` of them), their first samples started from `gbuffer_hits`
+  // (the eye's G-buffer pass's hits) if not null. out.gbuffer must be null.
+  static cl::Event launch_list(const cl::CommandQueue& queue, const cl::Program& program,
+                               const DeviceSceneBuffers& scene, const Targets& out, const cl::Buffer& holes,
+                               const cl::Buffer& hole_count, const cl::Buffer* gbuffer_hits, const FrameParams& params,
+                               const CameraParams& camera, std::size_t max_items);
 
   PathTracer(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene)
       : devices_(devices), device_scene_(device_scene), scene_(scene) {}

@@ -88,6 +88,27 @@ kernel void path_trace_list(global float4* out, global float4* albedo_out, volat
   albedo_out[p] = albedo;
 }
 
+/* Stages 2 and 5 in one kernel, for CPU devices: with `holes` null, path_trace (the strip's
+ * pixels, G-buffer texels to `gbuffer`); else path_trace_list (the listed pixels, their first
+ * samples from `gbuffer_hits`). The pixels are the same to the bit. PoCL makes a kernel's
+ * work-group function and native code at its first launch under one process-wide lock, so a first
+ * run waits for each kernel in turn (path_trace_list alone is 0.7 s of it); one kernel for both
+ * stages compiles once. GPUs keep the two kernels: each is specialised at build time, and one
+ * kernel for both would hold more registers (docs/measurements.md, "One kernel for the left eye
+ * and the holes on CPUs"). */
+kernel void path_trace_pixels(global float4* out, global float4* albedo_out, volatile global uint* nonfinite,
+                              global GBufferTexel* gbuffer, const global uint* holes, const global uint* hole_count,
+                              const global Hit* gbuffer_hits, FrameParams fp, CameraParams cam, PX_SCENE_PARAMS) {
+  const uint i = get_global_id(0);
+  if (i >= (holes ? *hole_count : fp.rows * cam.width)) return;
+  const SceneView scene = PX_SCENE_VIEW();
+  const uint p = holes ? holes[i] : fp.row0 * cam.width + i;
+  float4 albedo;
+  out[p] = px_render_pixel(&scene, &fp, &cam, p % cam.width, p / cam.width, nonfinite, &albedo,
+                           gbuffer ? gbuffer + p : 0, gbuffer_hits ? gbuffer_hits + p : 0);
+  albedo_out[p] = albedo;
+}
+
 /* Stage 5 with the samples spread: one work-item per (hole, sample) pair, so that a launch at
  * spp samples has spp times as many items as holes. At 1280x720 a frame's ~60k holes are too
  * few work-items to fill a large GPU; at 4 spp this gives it 240k. Each item writes its sample

@@ -36,17 +36,10 @@ void HoleFillStage::run(const std::vector<const Operation*>& ops, const FrameInp
     // Launches are sized for the worst case (every pixel a hole): the hole count lives on the
     // device, so no host round trip is needed between reprojection and hole filling.
     if (!spreads(op->device, fp.spp)) {
-      cl::Kernel k(program, "path_trace_list");
-      k.setArg(0, f.radiance[1]);
-      k.setArg(1, f.albedo[1]);
-      k.setArg(2, f.nonfinite_paths);
-      k.setArg(3, f.holes);
-      k.setArg(4, f.hole_count);
-      set_optional_buffer(k, 5, gbuffer_hits);
-      k.setArg(6, fp);
-      k.setArg(7, in.cams[1]);
-      env_.scene_on(op->device).bind(k, 8);
-      env_.log.record(Stage::HoleFill, op->device, launch_1d(env_.queue(op->device), k, env_.pixels(op->rows)));
+      const PathTracer::Targets out{f.radiance[1], f.albedo[1], f.nonfinite_paths};
+      env_.log.record(Stage::HoleFill, op->device,
+                      PathTracer::launch_list(env_.queue(op->device), program, env_.scene_on(op->device), out, f.holes,
+                                              f.hole_count, gbuffer_hits, fp, in.cams[1], env_.pixels(op->rows)));
       continue;
     }
     // A hole's index in the list is below the strip's pixel count, so its samples fit in
