@@ -65,42 +65,64 @@ struct Row {
   double single_mrays = 0;  // the kernel with one ray a work-item (trace_closest)
   int mismatches = 0;
   int pair_diffs = 0;  // rays whose hit from the pair kernel differs in any bit from the single kernel's
+  int passes = 1;      // times the set was traced back to back in each timed sample
 };
 
 // One tracer per BVH layout, all on the same rays; every repeat times each layout and Embree
-// back to back, so machine noise hits them alike.
+// back to back, so machine noise hits them alike. A sample traces the set `passes` times in a row
+// where one pass is shorter than `min_sample_ms` (every tracer and Embree the same number): a
+// launch of a few milliseconds measures mostly the waking of the device's and Embree's threads
+// (on a VM, of its virtual CPUs), which is not traversal (docs/measurements.md, "Short samples").
 std::vector<Row> measure(const std::string& scene_name, const std::string& set_name, const std::vector<px::Ray>& rays,
                          std::vector<px::RayBatchTracer*>& tracers, const std::vector<px::BvhLayout>& layouts,
-                         const px::EmbreeReference& embree, int repeats, int threads) {
+                         const px::EmbreeReference& embree, int repeats, int threads, double min_sample_ms) {
   const std::size_t n = tracers.size();
   std::vector<std::vector<double>> k_ms(n), kw_ms(n), k1_ms(n);
   std::vector<double> e_ms, e1_ms;
   std::vector<std::vector<px::Hit>> khits(n), k1hits(n);
   std::vector<px::Hit> ehits;
-  for (std::size_t l = 0; l < n; ++l) {  // warm-up
+  // Warm-up, and the shortest pass of any tracer, which sets the passes a sample.
+  double shortest_ms = 1e30;
+  for (std::size_t l = 0; l < n; ++l) {
     khits[l] = tracers[l]->closest(rays);
+    shortest_ms = std::min(shortest_ms, tracers[l]->last_kernel_ms());
     k1hits[l] = tracers[l]->closest_one_per_item(rays);
+    shortest_ms = std::min(shortest_ms, tracers[l]->last_kernel_ms());
   }
+  {
+    const auto t0 = clock_type::now();
+    embree.intersect_all(rays, ehits, threads);
+    shortest_ms = std::min(shortest_ms, std::chrono::duration<double, std::milli>(clock_type::now() - t0).count());
+  }
+  const int passes = static_cast<int>(std::clamp(std::ceil(min_sample_ms / std::max(shortest_ms, 1e-3)), 1.0, 64.0));
   for (int i = 0; i < repeats; ++i) {
     for (std::size_t l = 0; l < n; ++l) {
-      auto t0 = clock_type::now();
-      khits[l] = tracers[l]->closest(rays);
+      double kernel = 0.0, single = 0.0;
+      const auto t0 = clock_type::now();
+      for (int p = 0; p < passes; ++p) {
+        khits[l] = tracers[l]->closest(rays);
+        kernel += tracers[l]->last_kernel_ms();
+      }
       kw_ms[l].push_back(std::chrono::duration<double, std::milli>(clock_type::now() - t0).count());
-      k_ms[l].push_back(tracers[l]->last_kernel_ms());
-      k1hits[l] = tracers[l]->closest_one_per_item(rays);
-      k1_ms[l].push_back(tracers[l]->last_kernel_ms());
+      k_ms[l].push_back(kernel);
+      for (int p = 0; p < passes; ++p) {
+        k1hits[l] = tracers[l]->closest_one_per_item(rays);
+        single += tracers[l]->last_kernel_ms();
+      }
+      k1_ms[l].push_back(single);
     }
     auto t0 = clock_type::now();
-    embree.intersect_all(rays, ehits, threads);
+    for (int p = 0; p < passes; ++p) embree.intersect_all(rays, ehits, threads);
     e_ms.push_back(std::chrono::duration<double, std::milli>(clock_type::now() - t0).count());
     t0 = clock_type::now();
-    embree.intersect_all(rays, ehits, 1);
+    for (int p = 0; p < passes; ++p) embree.intersect_all(rays, ehits, 1);
     e1_ms.push_back(std::chrono::duration<double, std::milli>(clock_type::now() - t0).count());
   }
-  const double mr = static_cast<double>(rays.size()) * 1e-3;  // rays/ms -> Mrays/s
+  const double mr = static_cast<double>(rays.size()) * passes * 1e-3;  // rays/ms -> Mrays/s
   std::vector<Row> rows;
   for (std::size_t l = 0; l < n; ++l) {
     Row row{scene_name, set_name, px::to_string(layouts[l]), rays.size()};
+    row.passes = passes;
     for (std::size_t i = 0; i < rays.size(); ++i)
       if ((khits[l][i].prim == PX_NO_HIT) != (ehits[i].prim == PX_NO_HIT) ||
           (khits[l][i].prim != ehits[i].prim &&
@@ -148,6 +170,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--threads", threads, "Embree threads (std::thread chunks)")->capture_default_str();
   app.add_option("--csv", csv, "also write the table as CSV");
+  double min_sample_ms = 25.0;
+  app.add_option("--min-sample-ms", min_sample_ms,
+                 "a timed sample traces a ray set as many times in a row as it takes to last this long (0: once)")
+      ->check(CLI::Range(0.0, 10000.0))
+      ->capture_default_str();
   bool counters = false;
   app.add_flag("--counters", counters,
                "also print the wide layouts' mean nodes, leaf blocks, child hits and pushes per ray (a counting "
@@ -203,8 +230,9 @@ int main(int argc, char** argv) {
       auto primary = primary_rays(loaded.scene, width, height);
       auto phits = tracers[0]->closest(primary);
       auto bounce = bounce_rays(loaded.scene, primary, phits, *tracers[0]);
-      for (auto& r : measure(name, "primary", primary, tracers, layouts, embree, repeats, threads)) rows.push_back(r);
-      for (auto& r : measure(name, "diffuse-bounce", bounce, tracers, layouts, embree, repeats, threads))
+      for (auto& r : measure(name, "primary", primary, tracers, layouts, embree, repeats, threads, min_sample_ms))
+        rows.push_back(r);
+      for (auto& r : measure(name, "diffuse-bounce", bounce, tracers, layouts, embree, repeats, threads, min_sample_ms))
         rows.push_back(r);
       for (std::size_t l = 0; counters && l < layouts.size(); ++l) {
         if (layouts[l] == px::BvhLayout::Binary) continue;
@@ -213,31 +241,34 @@ int main(int argc, char** argv) {
         print_counters(name, "diffuse-bounce", px::to_string(layouts[l]), counting.closest(bounce));
       }
     }
-    std::printf("\n%-10s %-15s %-7s %9s %12s %12s %12s %12s %12s %8s %8s %6s %6s\n", "scene", "rays", "layout", "count",
-                "kernel", "kernel+io", "kernel-1", "embree", "embree-1t", "ratio", "ratio-1", "diff", "pair");
-    std::printf("%-10s %-15s %-7s %9s %12s %12s %12s %12s %12s %8s %8s %6s %6s\n", "", "", "", "", "Mrays/s", "Mrays/s",
-                "Mrays/s", ("Mrays/s " + std::to_string(threads) + "t").c_str(), "Mrays/s", "k/e", "k1/e", "", "diff");
+    std::printf("\n%-10s %-15s %-7s %9s %12s %12s %12s %12s %12s %8s %8s %6s %6s %6s\n", "scene", "rays", "layout",
+                "count", "kernel", "kernel+io", "kernel-1", "embree", "embree-1t", "ratio", "ratio-1", "diff", "pair",
+                "passes");
+    std::printf("%-10s %-15s %-7s %9s %12s %12s %12s %12s %12s %8s %8s %6s %6s %6s\n", "", "", "", "", "Mrays/s",
+                "Mrays/s", "Mrays/s", ("Mrays/s " + std::to_string(threads) + "t").c_str(), "Mrays/s", "k/e", "k1/e",
+                "", "diff", "");
     for (const auto& r : rows)
-      std::printf("%-10s %-15s %-7s %9zu %12.2f %12.2f %12.2f %12.2f %12.2f %8.3f %8.3f %6d %6d\n", r.scene.c_str(),
+      std::printf("%-10s %-15s %-7s %9zu %12.2f %12.2f %12.2f %12.2f %12.2f %8.3f %8.3f %6d %6d %6d\n", r.scene.c_str(),
                   r.set.c_str(), r.layout.c_str(), r.rays, r.kernel_mrays, r.kernel_wall_mrays, r.single_mrays,
                   r.embree_mrays, r.embree1_mrays, r.kernel_mrays / r.embree_mrays, r.single_mrays / r.embree_mrays,
-                  r.mismatches, r.pair_diffs);
+                  r.mismatches, r.pair_diffs, r.passes);
     std::printf(
         "\nmedians of %d runs; kernel = device time from profiling events (on CPUs trace_closest_pairs: two "
         "rays a work-item, their walks in step), kernel+io = host wall time including ray upload and hit download, "
         "kernel-1 = the same walk one ray a work-item (trace_closest); ratio = kernel / embree (%d threads), "
         "ratio-1 = kernel-1 / embree; diff = rays whose closest hit differs from Embree's; pair diff = rays "
-        "whose hit from the two kernels differs in any bit (0: the pairing changes no hit)\n",
-        repeats, threads);
+        "whose hit from the two kernels differs in any bit (0: the pairing changes no hit); passes = times each "
+        "sample traced the set in a row (a sample lasts at least --min-sample-ms = %g ms)\n",
+        repeats, threads, min_sample_ms);
     if (!csv.empty()) {
       std::ofstream out(csv);
       out << "scene,rays,layout,count,kernel_mrays,kernel_io_mrays,kernel_single_mrays,embree_mrays,embree_1t_mrays,"
-             "ratio,ratio_single,mismatches,pair_diffs\n";
+             "ratio,ratio_single,mismatches,pair_diffs,passes\n";
       for (const auto& r : rows)
         out << r.scene << ',' << r.set << ',' << r.layout << ',' << r.rays << ',' << r.kernel_mrays << ','
             << r.kernel_wall_mrays << ',' << r.single_mrays << ',' << r.embree_mrays << ',' << r.embree1_mrays << ','
             << r.kernel_mrays / r.embree_mrays << ',' << r.single_mrays / r.embree_mrays << ',' << r.mismatches << ','
-            << r.pair_diffs << '\n';
+            << r.pair_diffs << ',' << r.passes << '\n';
     }
     return 0;
   });
