@@ -9,10 +9,13 @@
 #include "cluster/cluster.h"
 #include "image/image_io.h"
 #include "io/interrupt.h"
+#include "io/progress_ticker.h"
 #include "pipeline/strip_schedule.h"
 
+#include <chrono>
 #include <cstdint>
 #include <cstdio>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -185,7 +188,16 @@ void RenderLoop::step(unsigned f) {
   if (animator_->moves()) animation_totals_.add(update);
   // The cache files the next start reads are written beside the first frame, not before it.
   if (f == 0) on_devices_->first_frame_on_its_way();
+  // Frame 0 compiles the kernels PoCL has not cached (seconds for a new feature set, with nothing
+  // written meanwhile): past two seconds, a line says what the wait is.
+  std::optional<ProgressTicker> first_frame;
+  if (f == 0 && root_)
+    first_frame.emplace(
+        "[render] still on frame 1, which compiles the kernels on a first run (PoCL caches them for "
+        "the next)",
+        ProgressTicker::Options{std::chrono::milliseconds(2000), std::chrono::milliseconds(5000)});
   const FrameStats st = pipeline.render(f, clock_.camera_time_s(f));
+  first_frame.reset();
   if (!root_) {  // rank 0 holds the frame, decides the next and writes everything
     done_ = f + 1;
     return;
