@@ -875,9 +875,40 @@ void expect_same_pixels(const TracedBuffers& a, const TracedBuffers& b, const st
   }
 }
 
+// Full-frame radiance and albedo buffers of `pixels` pixels filled with -1 (a pixel no launch
+// wrote reads -1) and a zeroed non-finite counter: the targets of a launch whose pixels a test
+// compares, and their contents once it has run.
+struct TraceTargets {
+  std::size_t pixels;
+  cl::Buffer radiance, albedo, nonfinite;
+  TraceTargets(DeviceSet& set, const cl::CommandQueue& queue, std::size_t n)
+      : pixels(n),
+        radiance(set.context(), CL_MEM_READ_WRITE, n * sizeof(cl_float4)),
+        albedo(set.context(), CL_MEM_READ_WRITE, n * sizeof(cl_float4)),
+        nonfinite(set.context(), CL_MEM_READ_WRITE, sizeof(cl_uint)) {
+    queue.enqueueFillBuffer(radiance, cl_float{-1.0f}, 0, n * sizeof(cl_float4));
+    queue.enqueueFillBuffer(albedo, cl_float{-1.0f}, 0, n * sizeof(cl_float4));
+    queue.enqueueFillBuffer(nonfinite, cl_uint{0}, 0, sizeof(cl_uint));
+  }
+  PathTracer::Targets targets() const { return {radiance, albedo, nonfinite}; }
+  TracedBuffers read(const cl::CommandQueue& queue) const {
+    TracedBuffers out;
+    out.radiance.resize(pixels);
+    out.albedo.resize(pixels);
+    queue.enqueueReadBuffer(radiance, CL_TRUE, 0, pixels * sizeof(cl_float4), out.radiance.data());
+    queue.enqueueReadBuffer(albedo, CL_TRUE, 0, pixels * sizeof(cl_float4), out.albedo.data());
+    queue.enqueueReadBuffer(nonfinite, CL_TRUE, 0, sizeof(cl_uint), &out.nonfinite);
+    return out;
+  }
+};
+
+// The scenes the tracers are compared on: glossy and diffuse surfaces, and paths that overflow to Inf.
+std::vector<Scene> tracer_comparison_scenes() {
+  return {make_builtin_scene("cornell-glossy"), closed_emissive_sphere(0.9f, 3.0e38f)};
+}
+
 TEST(WavefrontPathTracer, SamplesInBatchesGiveTheMegakernelsPixels) {
-  Scene overflow = closed_emissive_sphere(0.9f, 3.0e38f);  // paths that overflow to Inf
-  for (Scene scene : {make_builtin_scene("cornell-glossy"), overflow}) {
+  for (Scene scene : tracer_comparison_scenes()) {
     RenderFixture f(one_device(), scene);
     DeviceSet& set = one_device();
     const cl::CommandQueue& queue = set.devices()[0].queue;
@@ -887,21 +918,10 @@ TEST(WavefrontPathTracer, SamplesInBatchesGiveTheMegakernelsPixels) {
     opt.bounces = 4;
     const FrameParams fp = PathTracer::frame_params(scene, f.device_scene->light_count(), opt, 0, row0, rows, 3);
     const CameraParams cam = make_eye_camera(evaluate_camera(scene, 0.0f), Eye::Left, scene.ipd_units(), w, h);
-    const std::size_t bytes = std::size_t{w} * h * sizeof(cl_float4);
     auto run = [&](const std::function<void(const PathTracer::Targets&)>& trace) {
-      cl::Buffer radiance(set.context(), CL_MEM_READ_WRITE, bytes), albedo(set.context(), CL_MEM_READ_WRITE, bytes);
-      cl::Buffer nonfinite(set.context(), CL_MEM_READ_WRITE, sizeof(cl_uint));
-      queue.enqueueFillBuffer(radiance, cl_float{-1.0f}, 0, bytes);
-      queue.enqueueFillBuffer(albedo, cl_float{-1.0f}, 0, bytes);
-      queue.enqueueFillBuffer(nonfinite, cl_uint{0}, 0, sizeof(cl_uint));
-      trace({radiance, albedo, nonfinite});
-      TracedBuffers out;
-      out.radiance.resize(std::size_t{w} * h);
-      out.albedo.resize(out.radiance.size());
-      queue.enqueueReadBuffer(radiance, CL_TRUE, 0, bytes, out.radiance.data());
-      queue.enqueueReadBuffer(albedo, CL_TRUE, 0, bytes, out.albedo.data());
-      queue.enqueueReadBuffer(nonfinite, CL_TRUE, 0, sizeof(cl_uint), &out.nonfinite);
-      return out;
+      const TraceTargets t(set, queue, std::size_t{w} * h);
+      trace(t.targets());
+      return t.read(queue);
     };
     const TracedBuffers mega = run([&](const PathTracer::Targets& t) {
       PathTracer::launch(queue, set.program("pathtrace/path_trace.cl"), f.device_scene->on(0), t, fp, cam, w);
@@ -966,8 +986,7 @@ TEST(WavefrontPathTracer, SamplesInBatchesGiveTheMegakernelsPixels) {
 // the strip's pixels, albedos, non-finite count and G-buffer texels, and the list's pixels with
 // and without the G-buffer pass's hits, the same to the bit.
 TEST(PathTracer, OneKernelForStripAndHolesGivesTheTwoKernelsPixels) {
-  Scene overflow = closed_emissive_sphere(0.9f, 3.0e38f);  // paths that overflow to Inf
-  for (Scene scene : {make_builtin_scene("cornell-glossy"), overflow}) {
+  for (Scene scene : tracer_comparison_scenes()) {
     RenderFixture f(one_device(), scene);
     DeviceSet& set = one_device();
     const cl::CommandQueue& queue = set.devices()[0].queue;
@@ -979,7 +998,7 @@ TEST(PathTracer, OneKernelForStripAndHolesGivesTheTwoKernelsPixels) {
     const FrameParams fp = PathTracer::frame_params(scene, f.device_scene->light_count(), opt, 0, row0, rows, 2);
     ASSERT_NE(fp.gbuffer_ray_samples, cl_uint{PX_GBUFFER_RAY_NONE});
     const CameraParams cam = make_eye_camera(evaluate_camera(scene, 0.0f), Eye::Right, scene.ipd_units(), w, h);
-    const std::size_t n = std::size_t{w} * h, bytes = n * sizeof(cl_float4);
+    const std::size_t n = std::size_t{w} * h;
     struct Out {
       TracedBuffers traced;
       std::vector<GBufferTexel> texels;
@@ -987,26 +1006,18 @@ TEST(PathTracer, OneKernelForStripAndHolesGivesTheTwoKernelsPixels) {
     // Runs `bind` (which sets every argument from 3 on) for `items` work-items of `kernel`.
     auto run = [&](const char* kernel, std::size_t items,
                    const std::function<void(cl::Kernel&, const cl::Buffer&)>& bind) {
-      cl::Buffer radiance(set.context(), CL_MEM_READ_WRITE, bytes), albedo(set.context(), CL_MEM_READ_WRITE, bytes);
-      cl::Buffer nonfinite(set.context(), CL_MEM_READ_WRITE, sizeof(cl_uint));
+      const TraceTargets t(set, queue, n);
       cl::Buffer texels(set.context(), CL_MEM_READ_WRITE, n * sizeof(GBufferTexel));
-      queue.enqueueFillBuffer(radiance, cl_float{-1.0f}, 0, bytes);
-      queue.enqueueFillBuffer(albedo, cl_float{-1.0f}, 0, bytes);
-      queue.enqueueFillBuffer(nonfinite, cl_uint{0}, 0, sizeof(cl_uint));
       queue.enqueueFillBuffer(texels, cl_uchar{0xAB}, 0, n * sizeof(GBufferTexel));
       cl::Kernel k(program, kernel);
-      k.setArg(0, radiance);
-      k.setArg(1, albedo);
-      k.setArg(2, nonfinite);
+      k.setArg(0, t.radiance);
+      k.setArg(1, t.albedo);
+      k.setArg(2, t.nonfinite);
       bind(k, texels);
       launch_1d(queue, k, items);
       Out out;
-      out.traced.radiance.resize(n);
-      out.traced.albedo.resize(n);
+      out.traced = t.read(queue);
       out.texels.resize(n);
-      queue.enqueueReadBuffer(radiance, CL_TRUE, 0, bytes, out.traced.radiance.data());
-      queue.enqueueReadBuffer(albedo, CL_TRUE, 0, bytes, out.traced.albedo.data());
-      queue.enqueueReadBuffer(nonfinite, CL_TRUE, 0, sizeof(cl_uint), &out.traced.nonfinite);
       queue.enqueueReadBuffer(texels, CL_TRUE, 0, n * sizeof(GBufferTexel), out.texels.data());
       return out;
     };
@@ -1060,22 +1071,21 @@ TEST(PathTracer, OneKernelForStripAndHolesGivesTheTwoKernelsPixels) {
     const cl::Buffer* no_hits = nullptr;
     for (const cl::Buffer* first_hits : {no_hits, static_cast<const cl::Buffer*>(&hits)}) {
       const std::string what = scene.name + (first_hits ? ": the list from the G-buffer's hits" : ": the list");
-      const Out two_list = run("path_trace_list", strip.size(), [&](cl::Kernel& k, const cl::Buffer&) {
-        k.setArg(3, hole_buf);
-        k.setArg(4, count_buf);
-        set_optional_buffer(k, 5, first_hits);
-        k.setArg(6, fp);
-        k.setArg(7, cam);
-        f.device_scene->on(0).bind(k, 8);
-      });
+      // The list's arguments, from `first` on: the two kernels take the same ones (path_trace_pixels
+      // after its G-buffer target, null here).
+      const auto bind_list = [&](cl::Kernel& k, cl_uint first) {
+        k.setArg(first, hole_buf);
+        k.setArg(first + 1, count_buf);
+        set_optional_buffer(k, first + 2, first_hits);
+        k.setArg(first + 3, fp);
+        k.setArg(first + 4, cam);
+        f.device_scene->on(0).bind(k, first + 5);
+      };
+      const Out two_list =
+          run("path_trace_list", strip.size(), [&](cl::Kernel& k, const cl::Buffer&) { bind_list(k, 3); });
       const Out one_list = run("path_trace_pixels", strip.size(), [&](cl::Kernel& k, const cl::Buffer&) {
         k.setArg(3, cl::Buffer());
-        k.setArg(4, hole_buf);
-        k.setArg(5, count_buf);
-        set_optional_buffer(k, 6, first_hits);
-        k.setArg(7, fp);
-        k.setArg(8, cam);
-        f.device_scene->on(0).bind(k, 9);
+        bind_list(k, 4);
       });
       expect_same_pixels(two_list.traced, one_list.traced, all, what);
       int listed = 0;
@@ -1086,19 +1096,10 @@ TEST(PathTracer, OneKernelForStripAndHolesGivesTheTwoKernelsPixels) {
     }
     // The pipeline's launches (PathTracer::launch / launch_list) pick the kernel by device type
     // and give the same pixels either way.
-    cl::Buffer radiance(set.context(), CL_MEM_READ_WRITE, bytes), albedo(set.context(), CL_MEM_READ_WRITE, bytes);
-    cl::Buffer nonfinite(set.context(), CL_MEM_READ_WRITE, sizeof(cl_uint));
-    queue.enqueueFillBuffer(radiance, cl_float{-1.0f}, 0, bytes);
-    queue.enqueueFillBuffer(albedo, cl_float{-1.0f}, 0, bytes);
-    queue.enqueueFillBuffer(nonfinite, cl_uint{0}, 0, sizeof(cl_uint));
-    PathTracer::launch(queue, program, f.device_scene->on(0), {radiance, albedo, nonfinite, &texels}, fp, cam, w);
-    TracedBuffers staged;
-    staged.radiance.resize(n);
-    staged.albedo.resize(n);
-    queue.enqueueReadBuffer(radiance, CL_TRUE, 0, bytes, staged.radiance.data());
-    queue.enqueueReadBuffer(albedo, CL_TRUE, 0, bytes, staged.albedo.data());
-    queue.enqueueReadBuffer(nonfinite, CL_TRUE, 0, sizeof(cl_uint), &staged.nonfinite);
-    expect_same_pixels(two.traced, staged, all, scene.name + ": PathTracer::launch");
+    const TraceTargets staged(set, queue, n);
+    const PathTracer::Targets with_texels{staged.radiance, staged.albedo, staged.nonfinite, &texels};
+    PathTracer::launch(queue, program, f.device_scene->on(0), with_texels, fp, cam, w);
+    expect_same_pixels(two.traced, staged.read(queue), all, scene.name + ": PathTracer::launch");
   }
 }
 
