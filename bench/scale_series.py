@@ -317,12 +317,12 @@ def main():
             if rc != 0:
                 die(f"parallax failed on {tris} triangles (warm): see {work}/logs/parallax-warm-{tag}-{r + 1}.txt")
             runs["warm"].append((wall, rss))
-        for kind, key in (("cold", "cold"), ("warm", "warm"), ("mitsuba", "mitsuba"), ("first", "first")):
-            if runs[kind]:
-                walls = sorted(w for w, _ in runs[kind])
+        for key in ("cold", "warm", "mitsuba", "first"):
+            if runs[key]:
+                walls = sorted(w for w, _ in runs[key])
                 row[f"{key}_s"] = float(np.median(walls))
                 row[f"{key}_s_min"], row[f"{key}_s_max"] = walls[0], walls[-1]
-                row[f"{key}_mib"] = max(m for _, m in runs[kind])  # the highest peak of the runs
+                row[f"{key}_mib"] = max(m for _, m in runs[key])  # the highest peak of the runs
         rows.append(row)
     fields = ["triangles", "glb_mib", "runs", "cold_s", "cold_s_min", "cold_s_max", "cold_mib", "warm_s", "warm_s_min",
               "warm_s_max", "warm_mib", "mitsuba_s", "mitsuba_s_min", "mitsuba_s_max", "mitsuba_mib", "first_s",

@@ -6,11 +6,13 @@
 #include "io/environment.h"
 
 #include <algorithm>
+#include <iterator>
 #include <cstdlib>
 #include <map>
 #include <mutex>
 #include <sstream>
 #include <stdexcept>
+#include <vector>
 
 namespace px {
 
@@ -211,19 +213,20 @@ namespace {
 // built-in library) under the lock it also holds to make each kernel's work-group function at
 // its first launch, so a first run waited on each of eleven such builds in turn
 // (docs/measurements.md, "A first run, and the BVH step's single-thread passes"). The kernels
-// are the same; a kernel file outside both is built on its own.
+// are the same; a kernel file outside both is built on its own. A bundle's members are the files
+// its source includes.
 const char* bundle_of(const std::string& path, const std::string& extra_options) {
-  static const char* const scene_files[] = {"pathtrace/path_trace.cl", "pipeline/gbuffer.cl",
-                                            "denoise/temporal_gradient.cl"};
-  static const char* const plain_files[] = {
-      "pipeline/reproject.cl",     "pipeline/tonemap.cl",        "pipeline/motion.cl",
-      "pipeline/motion_edges.cl",  "denoise/svgf_temporal.cl",   "denoise/svgf_atrous.cl",
-      "denoise/svgf_antialias.cl", "denoise/gradient_filter.cl", "denoise/seam_bilateral.cl"};
-  const auto in = [&](const auto& files) {
-    return std::any_of(std::begin(files), std::end(files), [&](const char* f) { return path == f; });
+  struct Bundle {
+    const char* file;
+    bool takes_options;  // built with the caller's options; else only for a file asked without any
   };
-  if (in(scene_files)) return "pathtrace/scene_kernels.cl";
-  if (extra_options.empty() && in(plain_files)) return "pipeline/frame_kernels.cl";
+  static const Bundle bundles[] = {{"pathtrace/scene_kernels.cl", true}, {"pipeline/frame_kernels.cl", false}};
+  static const std::vector<std::string> members[] = {quoted_includes(bundles[0].file),
+                                                     quoted_includes(bundles[1].file)};
+  for (std::size_t b = 0; b < std::size(bundles); ++b) {
+    if (!bundles[b].takes_options && !extra_options.empty()) continue;
+    if (std::find(members[b].begin(), members[b].end(), path) != members[b].end()) return bundles[b].file;
+  }
   return nullptr;
 }
 

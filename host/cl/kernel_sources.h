@@ -4,6 +4,7 @@
 
 #include <map>
 #include <string>
+#include <vector>
 
 namespace px {
 
@@ -14,5 +15,9 @@ const std::map<std::string, std::string>& kernel_sources();
 // #line markers so compiler diagnostics name the original file and line.
 // Throws ClFailure when a file or include is not found.
 std::string resolve_kernel_source(const std::string& path);
+
+// The files `path` itself includes with `#include "path"`, in order (not their includes).
+// Throws ClFailure when the file is not found or an include is malformed.
+std::vector<std::string> quoted_includes(const std::string& path);
 
 }  // namespace px

@@ -39,30 +39,20 @@ cl::Event PathTracer::launch(const cl::CommandQueue& queue, const cl::Program& p
                              const Targets& out, const FrameParams& params, const CameraParams& camera,
                              unsigned width) {
   check_gbuffer_target(out, params);
-  const std::size_t items = static_cast<std::size_t>(params.rows) * width;
-  if (runs_on_cpu(queue)) {
-    cl::Kernel k(program, "path_trace_pixels");
-    k.setArg(0, out.radiance);
-    k.setArg(1, out.albedo);
-    k.setArg(2, out.nonfinite);
-    set_optional_buffer(k, 3, out.gbuffer);
-    k.setArg(4, cl::Buffer());  // no list: the strip's pixels
-    k.setArg(5, cl::Buffer());
-    k.setArg(6, cl::Buffer());
-    k.setArg(7, params);
-    k.setArg(8, camera);
-    scene.bind(k, 9);
-    return launch_1d(queue, k, items);
-  }
-  cl::Kernel k(program, "path_trace");
+  // CPUs: path_trace_pixels, path_trace with a pixel list, null here (the strip's pixels).
+  const bool cpu = runs_on_cpu(queue);
+  cl::Kernel k(program, cpu ? "path_trace_pixels" : "path_trace");
   k.setArg(0, out.radiance);
   k.setArg(1, out.albedo);
   k.setArg(2, out.nonfinite);
   set_optional_buffer(k, 3, out.gbuffer);
-  k.setArg(4, params);
-  k.setArg(5, camera);
-  scene.bind(k, 6);
-  return launch_1d(queue, k, items);
+  cl_uint arg = 4;
+  if (cpu)
+    for (int list_arg = 0; list_arg < 3; ++list_arg) k.setArg(arg++, cl::Buffer());  // holes, hole_count, hits
+  k.setArg(arg++, params);
+  k.setArg(arg++, camera);
+  scene.bind(k, arg);
+  return launch_1d(queue, k, static_cast<std::size_t>(params.rows) * width);
 }
 
 cl::Event PathTracer::launch_list(const cl::CommandQueue& queue, const cl::Program& program,
