@@ -15,6 +15,19 @@ passes=0
 skipped=()
 skip() { skipped+=("$1"); echo "SKIP $1"; }
 
+# A signalled run's exit status, with the tracer crash check() describes read as the status the
+# run set itself (that crash turns 130 or 143 into 1 after the program has finished; the checks
+# after each call still read what the run wrote). Usage: rc=$(signal_rc RC EXPECTED STDERR_FILE)
+signal_rc() {
+  if [ "$1" -eq 1 ] && grep -q "LeakSanitizer has encountered a fatal error" "$3" &&
+     ! grep -qE "detected memory leaks|ERROR: AddressSanitizer|runtime error:" "$3"; then
+    echo "note: LeakSanitizer's tracer crashed at exit of a signalled run (no finding); its exit status read as $2" >&2
+    echo "$2"
+  else
+    echo "$1"
+  fi
+}
+
 check() {  # check NAME EXPECTED_RC PATTERN -- command...
   local name="$1" want_rc="$2" pattern="$3"
   shift 4
@@ -189,6 +202,7 @@ if wait_for "$tmp/sig/frame_0001_stereo.png" "$pid"; then
     "$bin" preview --scene cornell-glossy --width 8 --height 8 --out "$tmp/sig" --overwrite
   kill -INT "$pid"
   wait "$pid"; rc=$?
+  rc=$(signal_rc "$rc" 130 "$tmp/sig.err")
   if [ "$rc" -eq 130 ]; then ok "SIGINT exits 130"; else bad "SIGINT exit $rc, expected 130"; tail -3 "$tmp/sig.err"; fi
   grep -q "interrupted by SIGINT after" "$tmp/sig.out" && ok "says what was written" || bad "no interruption summary"
   if all_readable "$tmp/sig"; then ok "every file of the interrupted render reads back"; else bad "interrupted render left a bad file"; fi
@@ -211,6 +225,7 @@ if wait_for "$tmp/sig2/frame_0000_stereo.png" "$pid"; then
   while ! grep -q "finishing the work in flight" "$tmp/sig2.err" && kill -0 "$pid" 2>/dev/null; do sleep 0.01; done
   kill -TERM "$pid" 2>/dev/null
   wait "$pid"; rc=$?
+  rc=$(signal_rc "$rc" 143 "$tmp/sig2.err")
   if [ "$rc" -eq 143 ]; then ok "SIGTERM exits 143"; else bad "SIGTERM: exit $rc, expected 143"; fi
   grep -q "stopped at once" "$tmp/sig2.err" && ok "a second signal stops at once" || bad "second signal did not stop at once"
   if all_readable "$tmp/sig2"; then ok "every file after a hard stop reads back"; else bad "hard stop left a bad file"; fi
@@ -224,6 +239,7 @@ fi
 pid=$!
 while ! grep -q "spp," "$tmp/refint.err" 2>/dev/null && kill -0 "$pid" 2>/dev/null; do sleep 0.1; done
 kill -INT "$pid"; wait "$pid"; rc=$?
+rc=$(signal_rc "$rc" 130 "$tmp/refint.err")
 if [ "$rc" -eq 130 ] && grep -q "interrupted by SIGINT after" "$tmp/refint.out" && all_readable "$tmp/refint" &&
    [ -e "$tmp/refint/reference_left.exr" ]; then
   ok "interrupted reference writes what is done"; else bad "interrupted reference: exit $rc"; cat "$tmp/refint.out"; fi
