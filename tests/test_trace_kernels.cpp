@@ -595,6 +595,54 @@ TEST_P(TraceKernels, TwoRaysAWorkItemGiveTheOneRayKernelsHits) {
   }
 }
 
+// An alpha-tested leaf is tested lane-wise, its geometric hits then tried nearest first through
+// their cut-outs; a build with PX_ALPHA_LEAVES_ONE_BY_ONE tests such leaves triangle by triangle
+// as before (px_intersect_leaf). Both must give every ray the same hit to the bit, closest and
+// any, on the atrium's foliage: clouds of alpha-masked cards, where a ray's nearest geometric
+// hit in a leaf is often cut away and the next one is not.
+TEST_P(TraceKernels, AlphaLeavesTestedByLaneGiveTheOneByOneHits) {
+  TraceFixture f(layout_device(), make_builtin_scene("atrium", {{"detail", 0.05}}), true, /*keep_alpha=*/true);
+  RayBatchTracer one_by_one(layout_device(), *f.device_scene, "-DPX_ALPHA_LEAVES_ONE_BY_ONE=1");
+  TraceFixture opaque(layout_device(), f.scene);  // the same cards with their cut-outs dropped
+  // Rays from points on the foliage cards into random directions (short ones too), and random
+  // rays through the whole scene.
+  std::vector<Ray> rays = random_rays(f.scene.triangles, 2001, 31);
+  std::mt19937 rng(32);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  std::vector<std::size_t> cards;
+  for (std::size_t i = 0; i < f.scene.triangles.size(); ++i)
+    if (f.scene.materials[f.scene.triangles[i].material].alpha_texture >= 0) cards.push_back(i);
+  ASSERT_GT(cards.size(), 100u) << "the scene has too few foliage cards to say anything";
+  for (int i = 0; i < 6000; ++i) {
+    const SceneTriangle& t = f.scene.triangles[cards[rng() % cards.size()]];
+    const float a = unit(rng), b = unit(rng) * (1.0f - a);
+    const glm::vec3 p = t.p[0] + a * (t.p[1] - t.p[0]) + b * (t.p[2] - t.p[0]);
+    Ray r = make_ray(p + 0.05f * test::random_unit(rng), test::random_unit(rng));
+    if (i % 3 == 0) r.tmax = 0.5f;
+    rays.push_back(r);
+  }
+  const auto lanes = f.tracer->closest(rays);
+  const auto reference = one_by_one.closest(rays);
+  const auto lanes_single = f.tracer->closest_one_per_item(rays);
+  const auto lanes_any = f.tracer->occluded(rays);
+  const auto reference_any = one_by_one.occluded(rays);
+  const auto without_cutouts = opaque.tracer->closest(rays);
+  int differ = 0, differ_single = 0, differ_any = 0, cut = 0, hits = 0;
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    differ += std::memcmp(&lanes[i], &reference[i], sizeof(Hit)) != 0;
+    differ_single += std::memcmp(&lanes_single[i], &reference[i], sizeof(Hit)) != 0;
+    differ_any += lanes_any[i] != reference_any[i];
+    cut += without_cutouts[i].prim != reference[i].prim;
+    hits += reference[i].prim != PX_NO_HIT;
+  }
+  EXPECT_EQ(differ, 0) << "closest hits (pairs on CPUs) of " << rays.size() << " rays";
+  EXPECT_EQ(differ_single, 0) << "closest hits, one ray a work-item, of " << rays.size() << " rays";
+  EXPECT_EQ(differ_any, 0) << "any hits of " << rays.size() << " rays";
+  // The cut-outs decide many of these rays' hits, so the comparison above is not vacuous.
+  EXPECT_GT(cut, static_cast<int>(rays.size()) / 10) << "rays whose hit a cut-out changed";
+  EXPECT_GT(hits, static_cast<int>(rays.size()) / 2);
+}
+
 TEST(BvhLayoutChoice, EachDeviceTypeHasItsDefaultUnlessALayoutIsRequested) {
   EXPECT_EQ(bvh_layout_for(false), BvhLayout::Wide8);
   EXPECT_EQ(bvh_layout_for(true), BvhLayout::Binary);

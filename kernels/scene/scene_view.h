@@ -168,9 +168,13 @@ inline float4 px_texture_bilinear(const SceneView* s, int index, float2 uv) {
   const float x0f = floor(fx), y0f = floor(fy);
   const float ax = fx - x0f, ay = fy - y0f;
   const int w = (int)ti.width, h = (int)ti.height;
-  int x0 = (int)x0f % w, y0 = (int)y0f % h;
-  if (x0 < 0) x0 += w;
-  if (y0 < 0) y0 += h;
+  /* The fractions above keep fx in [-0.5, w - 0.5] and fy in [-0.5, h - 0.5] for any finite uv,
+   * so x0f and y0f are -1 at the least and w - 1, h - 1 at the most: wrapping -1 is all a
+   * remainder would do, without its two integer divisions (the alpha cut-outs run this for
+   * every geometric hit on foliage). The clamp only keeps a non-finite uv's index in bounds. */
+  int x0 = (int)x0f, y0 = (int)y0f;
+  x0 = clamp(x0 < 0 ? x0 + w : x0, 0, w - 1);
+  y0 = clamp(y0 < 0 ? y0 + h : y0, 0, h - 1);
   const int x1 = x0 + 1 == w ? 0 : x0 + 1, y1 = y0 + 1 == h ? 0 : y0 + 1;
   const global float4* t = s->texels + ti.offset;
   const float4 top = mix(t[y0 * w + x0], t[y0 * w + x1], ax);

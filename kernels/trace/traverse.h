@@ -378,8 +378,9 @@ inline uint px_lowest_bit(uint m) { return 31u - clz(m & (0u - m)); }
  * px_intersect_triangle_strided on all four lanes at once, the same operations in the same order,
  * so each lane computes exactly what the one-triangle test would. Where any lane's edge
  * function is exactly zero (a ray through an edge or vertex, decided in double precision
- * there), and for alpha-tested leaves, the leaf is intersected triangle by triangle instead.
- * Among hit lanes the nearest wins (the lowest lane on equal t). `count` is the leaf's triangle
+ * there), the leaf is intersected triangle by triangle instead. Among hit lanes the nearest wins
+ * (the lowest lane on equal t); in an alpha-tested leaf, the nearest that its cut-out keeps.
+ * `count` is the leaf's triangle
  * count, which the caller has from the node (the block's own count field holds the same).
  * Returns 1 on any hit. Forced inline, with the one-by-one fallback and its triangle test: a call
  * from the traversal loop makes the loop save its ymm ray constants around it (every vector
@@ -389,8 +390,12 @@ __attribute__((always_inline)) inline int px_intersect_block(const SceneView* sc
                                                              uint count, const RayShear* s, float tmin, Hit* best) {
   const global uint* header = (const global uint*)(block + 36);
   const uint first = header[0];
+#if defined(PX_ALPHA_LEAVES_ONE_BY_ONE) && PX_ALPHA_LEAVES_ONE_BY_ONE
+  /* The earlier way, an alpha-tested leaf triangle by triangle: kept as the second code path the
+   * lane-wise cut-outs below are checked against (test_trace_kernels); no renderer builds it. */
   if (PX_HAS(PX_FEATURE_ALPHA_TEST) && (header[2] & PX_TRI_ALPHA_TESTED))
     return px_intersect_leaf(scene, block, first, count, s, tmin, best);
+#endif
   const float ox = s->ox, oy = s->oy, oz = s->oz;
   const int kx = 4 * s->kx, ky = 4 * s->ky, kz = 4 * s->kz;
   const float4 az = vload4(0, block + kz) - oz;
@@ -418,19 +423,34 @@ __attribute__((always_inline)) inline int px_intersect_block(const SceneView* sc
   ew = select(ew, -ew, flip);
   ok &= (tt > tmin * det) & (tt < best->t * det);
   ok &= (int4)(0, 1, 2, 3) < (int4)((int)count);
-  if (px_mask4(ok) == 0u) return 0;
+  uint live = px_mask4(ok);
+  if (live == 0u) return 0;
   const float4 inv = 1.0f / det;
   /* The nearest hit lane, the lowest on equal t: the lowest set bit of the lanes at the minimum
    * (no branch per lane, which mispredicts wherever the hit lane varies). */
-  const float4 t4 = select((float4)(INFINITY), tt * inv, ok);
-  const float tm = fmin(fmin(t4.x, t4.y), fmin(t4.z, t4.w));
-  const uint lane = px_lowest_bit(px_mask4(t4 == tm));
-  const uint4 pick = (uint4)(lane);
-  best->t = tm;
-  best->u = shuffle(ev * inv, pick).x;
-  best->v = shuffle(ew * inv, pick).x;
-  best->prim = first + lane;
-  return 1;
+  float4 t4 = select((float4)(INFINITY), tt * inv, ok);
+  const float4 u4 = ev * inv, v4 = ew * inv;
+  for (;;) {
+    const float tm = fmin(fmin(t4.x, t4.y), fmin(t4.z, t4.w));
+    const uint lane = px_lowest_bit(px_mask4(t4 == tm) & live);
+    const uint4 pick = (uint4)(lane);
+    const float u = shuffle(u4, pick).x, v = shuffle(v4, pick).x;
+    /* An alpha-tested leaf (foliage cards, mostly cut away): the lanes' geometric hits are
+     * tried nearest first, each through its cut-out, until one stays. That is the one-by-one
+     * test's answer (the nearest hit that stays, the lowest lane on equal t) with one texture
+     * lookup per hit nearer than the best so far, as there, and no scalar triangle tests. */
+    if (!(PX_HAS(PX_FEATURE_ALPHA_TEST) && (header[2] & PX_TRI_ALPHA_TESTED) &&
+          px_cut_out(scene, scene->tris + first + lane, u, v))) {
+      best->t = tm;
+      best->u = u;
+      best->v = v;
+      best->prim = first + lane;
+      return 1;
+    }
+    live &= ~(1u << lane);
+    if (live == 0u) return 0;
+    t4 = select(t4, (float4)(INFINITY), (int4)(lane) == (int4)(0, 1, 2, 3));
+  }
 }
 
 /* Traversal counters for bench_trace --counters (a build with -DPX_TRACE_COUNTERS=1; never in
