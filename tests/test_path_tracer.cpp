@@ -981,11 +981,12 @@ TEST(WavefrontPathTracer, SamplesInBatchesGiveTheMegakernelsPixels) {
 
 // ---- one kernel for stages 2 and 5 on CPUs ----
 
-// CPUs launch path_trace_pixels for the left eye's strip and for the hole list, GPUs path_trace
-// and path_trace_list (one kernel compiles once on PoCL). Each way, explicitly on this device:
-// the strip's pixels, albedos, non-finite count and G-buffer texels, and the list's pixels with
-// and without the G-buffer pass's hits, the same to the bit.
-TEST(PathTracer, OneKernelForStripAndHolesGivesTheTwoKernelsPixels) {
+// CPUs launch path_trace_pixels for the left eye's strip, for the hole list and for the G-buffer
+// pass, GPUs path_trace, path_trace_list and gbuffer (one kernel compiles once on PoCL). Each way,
+// explicitly on this device: the strip's pixels, albedos, non-finite count and G-buffer texels,
+// the list's pixels with and without the G-buffer pass's hits, and the G-buffer pass's texels and
+// hits, the same to the bit.
+TEST(PathTracer, OneKernelForStripHolesAndGBufferGivesTheOtherKernelsResults) {
   for (Scene scene : tracer_comparison_scenes()) {
     RenderFixture f(one_device(), scene);
     DeviceSet& set = one_device();
@@ -1033,12 +1034,11 @@ TEST(PathTracer, OneKernelForStripAndHolesGivesTheTwoKernelsPixels) {
     });
     const Out one = run("path_trace_pixels", strip.size(), [&](cl::Kernel& k, const cl::Buffer& texels) {
       k.setArg(3, texels);
-      k.setArg(4, cl::Buffer());
-      k.setArg(5, cl::Buffer());
-      k.setArg(6, cl::Buffer());
-      k.setArg(7, fp);
-      k.setArg(8, cam);
-      f.device_scene->on(0).bind(k, 9);
+      for (cl_uint a = 4; a < 8; ++a) k.setArg(a, cl::Buffer());  // holes, count, hits in, hits out
+      k.setArg(8, cl_uint{0});
+      k.setArg(9, fp);
+      k.setArg(10, cam);
+      f.device_scene->on(0).bind(k, 11);
     });
     // Every pixel: the strip's the same, the rest untouched by both.
     expect_same_pixels(two.traced, one.traced, all, scene.name + ": the strip");
@@ -1051,6 +1051,8 @@ TEST(PathTracer, OneKernelForStripAndHolesGivesTheTwoKernelsPixels) {
     // The G-buffer pass's hits for the list's first samples.
     cl::Buffer hits(set.context(), CL_MEM_READ_WRITE, n * sizeof(Hit));
     cl::Buffer texels(set.context(), CL_MEM_READ_WRITE, n * sizeof(GBufferTexel));
+    queue.enqueueFillBuffer(hits, cl_uchar{0xAB}, 0, n * sizeof(Hit));
+    queue.enqueueFillBuffer(texels, cl_uchar{0xAB}, 0, n * sizeof(GBufferTexel));
     {
       cl::Kernel g(set.program("pipeline/gbuffer.cl", f.device_scene->kernel_options()), "gbuffer");
       g.setArg(0, texels);
@@ -1085,7 +1087,14 @@ TEST(PathTracer, OneKernelForStripAndHolesGivesTheTwoKernelsPixels) {
           run("path_trace_list", strip.size(), [&](cl::Kernel& k, const cl::Buffer&) { bind_list(k, 3); });
       const Out one_list = run("path_trace_pixels", strip.size(), [&](cl::Kernel& k, const cl::Buffer&) {
         k.setArg(3, cl::Buffer());
-        bind_list(k, 4);
+        k.setArg(4, hole_buf);
+        k.setArg(5, count_buf);
+        set_optional_buffer(k, 6, first_hits);
+        k.setArg(7, cl::Buffer());  // no hits written
+        k.setArg(8, cl_uint{0});
+        k.setArg(9, fp);
+        k.setArg(10, cam);
+        f.device_scene->on(0).bind(k, 11);
       });
       expect_same_pixels(two_list.traced, one_list.traced, all, what);
       int listed = 0;
@@ -1093,6 +1102,32 @@ TEST(PathTracer, OneKernelForStripAndHolesGivesTheTwoKernelsPixels) {
       EXPECT_EQ(listed, static_cast<int>(holes.size())) << what << ": every listed pixel written";
       // Only the listed pixels: the one before each listed pixel is not listed (every third).
       EXPECT_EQ(one_list.traced.radiance[holes[0] - 1].s[0], -1.0f) << what;
+    }
+    // The G-buffer pass in path_trace_pixels (PathTracer::launch_gbuffer, CPUs): gbuffer's texels
+    // and hits to the bit, on the strip's rows and nowhere else.
+    if (!set.devices()[0].is_gpu()) {
+      cl::Buffer pass_hits(set.context(), CL_MEM_READ_WRITE, n * sizeof(Hit));
+      cl::Buffer pass_texels(set.context(), CL_MEM_READ_WRITE, n * sizeof(GBufferTexel));
+      queue.enqueueFillBuffer(pass_hits, cl_uchar{0xAB}, 0, n * sizeof(Hit));
+      queue.enqueueFillBuffer(pass_texels, cl_uchar{0xAB}, 0, n * sizeof(GBufferTexel));
+      PathTracer::launch_gbuffer(queue, program, f.device_scene->on(0), pass_texels, &pass_hits,
+                                 PathTracer::gbuffer_params(1, row0, rows, 2), cam, w);
+      std::vector<Hit> want_hits(n), got_hits(n);
+      std::vector<GBufferTexel> want_texels(n), got_texels(n);
+      queue.enqueueReadBuffer(hits, CL_TRUE, 0, n * sizeof(Hit), want_hits.data());
+      queue.enqueueReadBuffer(pass_hits, CL_TRUE, 0, n * sizeof(Hit), got_hits.data());
+      queue.enqueueReadBuffer(texels, CL_TRUE, 0, n * sizeof(GBufferTexel), want_texels.data());
+      queue.enqueueReadBuffer(pass_texels, CL_TRUE, 0, n * sizeof(GBufferTexel), got_texels.data());
+      EXPECT_EQ(std::memcmp(want_hits.data(), got_hits.data(), n * sizeof(Hit)), 0)
+          << scene.name << ": the G-buffer pass's hits";
+      EXPECT_EQ(std::memcmp(want_texels.data(), got_texels.data(), n * sizeof(GBufferTexel)), 0)
+          << scene.name << ": the G-buffer pass's texels";
+      int hit_texels = 0;
+      for (cl_uint p : strip) hit_texels += got_hits[p].prim != PX_NO_HIT;
+      EXPECT_GT(hit_texels, static_cast<int>(strip.size()) / 2) << scene.name << ": the pass hit something";
+      EXPECT_THROW(PathTracer::launch_gbuffer(queue, program, f.device_scene->on(0), pass_texels, nullptr, fp, cam, w),
+                   std::logic_error)
+          << "the path's own params (3 spp) are not the G-buffer pass's";
     }
     // The pipeline's launches (PathTracer::launch / launch_list) pick the kernel by device type
     // and give the same pixels either way.

@@ -47,8 +47,10 @@ cl::Event PathTracer::launch(const cl::CommandQueue& queue, const cl::Program& p
   k.setArg(2, out.nonfinite);
   set_optional_buffer(k, 3, out.gbuffer);
   cl_uint arg = 4;
-  if (cpu)
-    for (int list_arg = 0; list_arg < 3; ++list_arg) k.setArg(arg++, cl::Buffer());  // holes, hole_count, hits
+  if (cpu) {
+    for (int list_arg = 0; list_arg < 4; ++list_arg) k.setArg(arg++, cl::Buffer());  // holes, count, hits in, out
+    k.setArg(arg++, cl_uint{0});                                                     // not the G-buffer pass
+  }
   k.setArg(arg++, params);
   k.setArg(arg++, camera);
   scene.bind(k, arg);
@@ -70,10 +72,49 @@ cl::Event PathTracer::launch_list(const cl::CommandQueue& queue, const cl::Progr
   k.setArg(arg++, holes);
   k.setArg(arg++, hole_count);
   set_optional_buffer(k, arg++, gbuffer_hits);
+  if (cpu) {
+    k.setArg(arg++, cl::Buffer());  // no first hits written
+    k.setArg(arg++, cl_uint{0});    // not the G-buffer pass
+  }
   k.setArg(arg++, params);
   k.setArg(arg++, camera);
   scene.bind(k, arg);
   return launch_1d(queue, k, max_items);
+}
+
+FrameParams PathTracer::gbuffer_params(int eye, unsigned row0, unsigned rows, std::uint32_t frame) {
+  FrameParams fp{};
+  fp.frame = frame;
+  fp.eye = static_cast<cl_uint>(eye);
+  fp.spp = 1;
+  fp.row0 = row0;
+  fp.rows = rows;
+  fp.sample_offset = 0;
+  fp.gbuffer_ray_samples = PX_GBUFFER_RAY_FIRST;
+  return fp;
+}
+
+cl::Event PathTracer::launch_gbuffer(const cl::CommandQueue& queue, const cl::Program& program,
+                                     const DeviceSceneBuffers& scene, const cl::Buffer& gbuffer,
+                                     const cl::Buffer* first_hits, const FrameParams& params,
+                                     const CameraParams& camera, unsigned width) {
+  if (!runs_on_cpu(queue))
+    throw std::logic_error("path tracer: the G-buffer pass runs in path_trace_pixels on CPUs only");
+  if (params.spp != 1 || params.sample_offset != 0 || params.gbuffer_ray_samples == PX_GBUFFER_RAY_NONE)
+    throw std::logic_error("path tracer: the G-buffer pass needs gbuffer_params (one sample, on the G-buffer's ray)");
+  cl::Kernel k(program, "path_trace_pixels");
+  // Radiance, albedo and the non-finite counter: untouched in this mode (a path of no vertex has
+  // radiance 0, always finite), so none.
+  for (cl_uint unused = 0; unused < 3; ++unused) k.setArg(unused, cl::Buffer());
+  k.setArg(3, gbuffer);
+  cl_uint arg = 4;
+  for (int list_arg = 0; list_arg < 3; ++list_arg) k.setArg(arg++, cl::Buffer());  // holes, count, hits in
+  set_optional_buffer(k, arg++, first_hits);
+  k.setArg(arg++, cl_uint{1});  // the G-buffer pass
+  k.setArg(arg++, params);
+  k.setArg(arg++, camera);
+  scene.bind(k, arg);
+  return launch_1d(queue, k, static_cast<std::size_t>(params.rows) * width);
 }
 
 std::array<ImageRGB, 2> PathTracer::render_stereo(float time_s, std::uint32_t frame, unsigned width, unsigned height,

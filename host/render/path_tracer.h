@@ -80,6 +80,17 @@ class PathTracer {
                                const cl::Buffer& hole_count, const cl::Buffer* gbuffer_hits, const FrameParams& params,
                                const CameraParams& camera, std::size_t max_items);
 
+  // Stage 3 on a CPU device, the G-buffer pass in the path tracer's kernel (path_trace_pixels):
+  // texels of `params.rows` rows from `params.row0` into the eye's full-frame `gbuffer`, each ray's
+  // hit into the full-frame `first_hits` if not null; the texels and hits of gbuffer.cl's kernels
+  // to the bit. `params` from gbuffer_params. Throws std::logic_error on a GPU queue or for other
+  // params.
+  static FrameParams gbuffer_params(int eye, unsigned row0, unsigned rows, std::uint32_t frame);
+  static cl::Event launch_gbuffer(const cl::CommandQueue& queue, const cl::Program& program,
+                                  const DeviceSceneBuffers& scene, const cl::Buffer& gbuffer,
+                                  const cl::Buffer* first_hits, const FrameParams& params, const CameraParams& camera,
+                                  unsigned width);
+
   PathTracer(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene)
       : devices_(devices), device_scene_(device_scene), scene_(scene) {}
 

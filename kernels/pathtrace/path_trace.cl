@@ -88,21 +88,32 @@ kernel void path_trace_list(global float4* out, global float4* albedo_out, volat
   albedo_out[p] = albedo;
 }
 
-/* Stages 2 and 5 in one kernel, for CPU devices: with `holes` null, path_trace (the strip's
- * pixels, G-buffer texels to `gbuffer`); else path_trace_list (the listed pixels, their first
- * samples from `gbuffer_hits`). The pixels are the same to the bit. PoCL makes a kernel's
- * work-group function and native code at its first launch under one process-wide lock, so a first
- * run waits for each kernel in turn (path_trace_list alone is 0.7 s of it); one kernel for both
- * stages compiles once. GPUs keep the two kernels: each is specialised at build time, and one
- * kernel for both would hold more registers (docs/measurements.md, "One kernel for the left eye
- * and the holes on CPUs"). */
+/* Stages 2, 3 and 5 in one kernel, for CPU devices. With `holes` null, path_trace (the strip's
+ * pixels fp.row0.., G-buffer texels to `gbuffer`); else path_trace_list (the listed pixels, their
+ * first samples from `gbuffer_hits`). With `gbuffer_only`, the G-buffer pass (gbuffer.cl's
+ * `gbuffer`) over the rows fp.row0..: each pixel's G-buffer ray, its texel to `gbuffer`, its hit
+ * to `first_hits` (if not null), no radiance or albedo. The pixels, texels and hits are the other
+ * kernels' to the bit. PoCL makes a kernel's work-group function and native code at its first
+ * launch under one process-wide lock, so a first run waits for each kernel in turn
+ * (path_trace_list alone was 0.7 s of it, gbuffer_pairs 0.67 s); one kernel for the three stages
+ * compiles once. GPUs keep their kernels: each is specialised at build time, and one kernel for
+ * all would hold more registers (docs/measurements.md, "One kernel for the left eye and the holes
+ * on CPUs", "The G-buffer pass in the path tracer's kernel on CPUs"). */
 kernel void path_trace_pixels(global float4* out, global float4* albedo_out, volatile global uint* nonfinite,
                               global GBufferTexel* gbuffer, const global uint* holes, const global uint* hole_count,
-                              const global Hit* gbuffer_hits, FrameParams fp, CameraParams cam, PX_SCENE_PARAMS) {
+                              const global Hit* gbuffer_hits, global Hit* first_hits, uint gbuffer_only, FrameParams fp,
+                              CameraParams cam, PX_SCENE_PARAMS) {
   const uint i = get_global_id(0);
   if (i >= (holes ? *hole_count : fp.rows * cam.width)) return;
   const SceneView scene = PX_SCENE_VIEW();
   const uint p = holes ? holes[i] : fp.row0 * cam.width + i;
+  if (gbuffer_only) {
+    const float3 dir = px_camera_dir(&cam, p % cam.width, p / cam.width, cam.jitter[0], cam.jitter[1]);
+    const Hit hit = px_trace_closest_leaf(&scene, px_camera_origin(&cam), dir, 0.0f, INFINITY);
+    gbuffer[p] = px_gbuffer_texel(&scene, dir, hit);
+    if (first_hits) first_hits[p] = hit;
+    return;
+  }
   float4 albedo;
   out[p] = px_render_pixel(&scene, &fp, &cam, p % cam.width, p / cam.width, nonfinite, &albedo,
                            gbuffer ? gbuffer + p : 0, gbuffer_hits ? gbuffer_hits + p : 0);
