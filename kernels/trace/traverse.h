@@ -430,9 +430,12 @@ __attribute__((always_inline)) inline int px_intersect_block(const SceneView* sc
    * (no branch per lane, which mispredicts wherever the hit lane varies). */
   float4 t4 = select((float4)(INFINITY), tt * inv, ok);
   const float4 u4 = ev * inv, v4 = ew * inv;
-  for (;;) {
+  /* At most four tries, one per lane: bounded even if a lane's t compared as no number. */
+  for (int tries = 0; tries < 4; ++tries) {
     const float tm = fmin(fmin(t4.x, t4.y), fmin(t4.z, t4.w));
-    const uint lane = px_lowest_bit(px_mask4(t4 == tm) & live);
+    const uint at_min = px_mask4(t4 == tm) & live;
+    if (at_min == 0u) return 0;
+    const uint lane = px_lowest_bit(at_min);
     const uint4 pick = (uint4)(lane);
     const float u = shuffle(u4, pick).x, v = shuffle(v4, pick).x;
     /* An alpha-tested leaf (foliage cards, mostly cut away): the lanes' geometric hits are
@@ -451,6 +454,7 @@ __attribute__((always_inline)) inline int px_intersect_block(const SceneView* sc
     if (live == 0u) return 0;
     t4 = select(t4, (float4)(INFINITY), (int4)(lane) == (int4)(0, 1, 2, 3));
   }
+  return 0;
 }
 
 /* Traversal counters for bench_trace --counters (a build with -DPX_TRACE_COUNTERS=1; never in
