@@ -430,26 +430,28 @@ __attribute__((always_inline)) inline int px_intersect_block(const SceneView* sc
    * (no branch per lane, which mispredicts wherever the hit lane varies). */
   float4 t4 = select((float4)(INFINITY), tt * inv, ok);
   const float4 u4 = ev * inv, v4 = ew * inv;
-  /* At most four tries, one per lane: bounded even if a lane's t compared as no number. */
+  /* An alpha-tested leaf (foliage cards, mostly cut away): the lanes' geometric hits are tried
+   * nearest first, each through its cut-out, until one stays. That is the one-by-one test's
+   * answer (the nearest hit that stays, the lowest lane on equal t) with one texture lookup per
+   * hit nearer than the best so far, as there, and no scalar triangle tests. An opaque leaf takes
+   * the first try's lane, with no test more than before (kernels without the ALPHA_TEST feature
+   * compile the loop away). At most four tries, one per lane, and none without a lane at the
+   * minimum: bounded, and no lookup out of the leaf, whatever the floats. */
+  const int opaque = !(PX_HAS(PX_FEATURE_ALPHA_TEST) && (header[2] & PX_TRI_ALPHA_TESTED));
   for (int tries = 0; tries < 4; ++tries) {
     const float tm = fmin(fmin(t4.x, t4.y), fmin(t4.z, t4.w));
     const uint at_min = px_mask4(t4 == tm) & live;
-    if (at_min == 0u) return 0;
     const uint lane = px_lowest_bit(at_min);
     const uint4 pick = (uint4)(lane);
     const float u = shuffle(u4, pick).x, v = shuffle(v4, pick).x;
-    /* An alpha-tested leaf (foliage cards, mostly cut away): the lanes' geometric hits are
-     * tried nearest first, each through its cut-out, until one stays. That is the one-by-one
-     * test's answer (the nearest hit that stays, the lowest lane on equal t) with one texture
-     * lookup per hit nearer than the best so far, as there, and no scalar triangle tests. */
-    if (!(PX_HAS(PX_FEATURE_ALPHA_TEST) && (header[2] & PX_TRI_ALPHA_TESTED) &&
-          px_cut_out(scene, scene->tris + first + lane, u, v))) {
+    if (opaque || (at_min != 0u && !px_cut_out(scene, scene->tris + first + lane, u, v))) {
       best->t = tm;
       best->u = u;
       best->v = v;
       best->prim = first + lane;
       return 1;
     }
+    if (at_min == 0u) return 0;
     live &= ~(1u << lane);
     if (live == 0u) return 0;
     t4 = select(t4, (float4)(INFINITY), (int4)(lane) == (int4)(0, 1, 2, 3));
