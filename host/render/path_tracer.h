@@ -82,7 +82,7 @@ class PathTracer {
 
   // Stage 3 on a CPU device, the G-buffer pass in the path tracer's kernel (path_trace_pixels):
   // texels of `params.rows` rows from `params.row0` into the eye's full-frame `gbuffer`, each ray's
-  // hit into the full-frame `first_hits` if not null; the texels and hits of gbuffer.cl's kernels
+  // hit into the full-frame `first_hits` if not null; the texels and hits of gbuffer.cl's `gbuffer`
   // to the bit. `params` from gbuffer_params. Throws std::logic_error on a GPU queue or for other
   // params.
   static FrameParams gbuffer_params(int eye, unsigned row0, unsigned rows, std::uint32_t frame);

@@ -11,10 +11,10 @@ void GBufferStage::run(const std::vector<const Operation*>& ops, const FrameInpu
     const FrameImages& f = env_.images[op->device];
     const cl::Buffer* hits = op->shares_hits ? &f.right_hits : nullptr;
     if (!env_.is_gpu(op->device)) {
-      // CPUs: the path tracer's kernel, which a frame compiles anyway, in its G-buffer mode; a
-      // kernel of its own would cost a first run 0.67 s of PoCL's compile for 16-20% of this
-      // stage's time in later frames (docs/measurements.md, "The G-buffer pass in the path
-      // tracer's kernel on CPUs"). The same texels and hits to the bit.
+      // CPUs: the path tracer's kernel, which a frame compiles anyway, in its G-buffer mode. A
+      // kernel of its own (two pixels a work-item) made this stage 14-17% faster in later frames
+      // but cost every first run 0.67 s of PoCL's compile (docs/measurements.md, "The G-buffer
+      // pass in the path tracer's kernel on CPUs"). The same texels and hits to the bit.
       env_.log.record(Stage::GBuffer, op->device,
                       PathTracer::launch_gbuffer(
                           env_.queue(op->device),
