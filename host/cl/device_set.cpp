@@ -6,6 +6,7 @@
 #include "io/environment.h"
 
 #include <algorithm>
+#include <array>
 #include <iterator>
 #include <cstdlib>
 #include <map>
@@ -221,8 +222,11 @@ const char* bundle_of(const std::string& path, const std::string& extra_options)
     bool takes_options;  // built with the caller's options; else only for a file asked without any
   };
   static const Bundle bundles[] = {{"pathtrace/scene_kernels.cl", true}, {"pipeline/frame_kernels.cl", false}};
-  static const std::vector<std::string> members[] = {quoted_includes(bundles[0].file),
-                                                     quoted_includes(bundles[1].file)};
+  static const auto members = [] {
+    std::array<std::vector<std::string>, std::size(bundles)> files;
+    for (std::size_t b = 0; b < files.size(); ++b) files[b] = quoted_includes(bundles[b].file);
+    return files;
+  }();
   for (std::size_t b = 0; b < std::size(bundles); ++b) {
     if (!bundles[b].takes_options && !extra_options.empty()) continue;
     if (std::find(members[b].begin(), members[b].end(), path) != members[b].end()) return bundles[b].file;

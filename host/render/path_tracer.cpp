@@ -6,6 +6,22 @@
 #include <stdexcept>
 
 namespace px {
+namespace {
+
+// path_trace_pixels' arguments from the pixel list on (kernels/pathtrace/path_trace.cl), the one
+// kernel CPUs launch for stages 2, 3 and 5: the list and its count (null: the strip's pixels), the
+// G-buffer pass's hits a list starts from, the hits the G-buffer mode writes, and that mode.
+// Leaves `arg` at FrameParams.
+void bind_pixel_selection(cl::Kernel& k, cl_uint& arg, const cl::Buffer* holes, const cl::Buffer* hole_count,
+                          const cl::Buffer* hits_in, const cl::Buffer* hits_out, bool gbuffer_only) {
+  set_optional_buffer(k, arg++, holes);
+  set_optional_buffer(k, arg++, hole_count);
+  set_optional_buffer(k, arg++, hits_in);
+  set_optional_buffer(k, arg++, hits_out);
+  k.setArg(arg++, cl_uint{gbuffer_only ? 1u : 0u});
+}
+
+}  // namespace
 
 FrameParams PathTracer::frame_params(const Scene& scene, std::size_t light_count, const Options& options, int eye,
                                      unsigned row0, unsigned rows, std::uint32_t frame, std::uint32_t sample_offset) {
@@ -47,10 +63,7 @@ cl::Event PathTracer::launch(const cl::CommandQueue& queue, const cl::Program& p
   k.setArg(2, out.nonfinite);
   set_optional_buffer(k, 3, out.gbuffer);
   cl_uint arg = 4;
-  if (cpu) {
-    for (int list_arg = 0; list_arg < 4; ++list_arg) k.setArg(arg++, cl::Buffer());  // holes, count, hits in, out
-    k.setArg(arg++, cl_uint{0});                                                     // not the G-buffer pass
-  }
+  if (cpu) bind_pixel_selection(k, arg, nullptr, nullptr, nullptr, nullptr, false);
   k.setArg(arg++, params);
   k.setArg(arg++, camera);
   scene.bind(k, arg);
@@ -68,13 +81,13 @@ cl::Event PathTracer::launch_list(const cl::CommandQueue& queue, const cl::Progr
   k.setArg(1, out.albedo);
   k.setArg(2, out.nonfinite);
   cl_uint arg = 3;
-  if (cpu) k.setArg(arg++, cl::Buffer());  // no G-buffer texels
-  k.setArg(arg++, holes);
-  k.setArg(arg++, hole_count);
-  set_optional_buffer(k, arg++, gbuffer_hits);
   if (cpu) {
-    k.setArg(arg++, cl::Buffer());  // no first hits written
-    k.setArg(arg++, cl_uint{0});    // not the G-buffer pass
+    k.setArg(arg++, cl::Buffer());  // no G-buffer texels
+    bind_pixel_selection(k, arg, &holes, &hole_count, gbuffer_hits, nullptr, false);
+  } else {
+    k.setArg(arg++, holes);
+    k.setArg(arg++, hole_count);
+    set_optional_buffer(k, arg++, gbuffer_hits);
   }
   k.setArg(arg++, params);
   k.setArg(arg++, camera);
@@ -108,9 +121,7 @@ cl::Event PathTracer::launch_gbuffer(const cl::CommandQueue& queue, const cl::Pr
   for (cl_uint unused = 0; unused < 3; ++unused) k.setArg(unused, cl::Buffer());
   k.setArg(3, gbuffer);
   cl_uint arg = 4;
-  for (int list_arg = 0; list_arg < 3; ++list_arg) k.setArg(arg++, cl::Buffer());  // holes, count, hits in
-  set_optional_buffer(k, arg++, first_hits);
-  k.setArg(arg++, cl_uint{1});  // the G-buffer pass
+  bind_pixel_selection(k, arg, nullptr, nullptr, nullptr, first_hits, true);
   k.setArg(arg++, params);
   k.setArg(arg++, camera);
   scene.bind(k, arg);

@@ -10,6 +10,7 @@
 #include "pathtrace/path_vertex.h"
 #include "pathtrace/pixel_mean.h"
 #include "pathtrace/trace_path.h"
+#include "pipeline/gbuffer_pixel.h"
 #include "pipeline/gbuffer_texel.h"
 #include "render/camera.h"
 #include "trace/traverse.h"
@@ -108,10 +109,7 @@ kernel void path_trace_pixels(global float4* out, global float4* albedo_out, vol
   const SceneView scene = PX_SCENE_VIEW();
   const uint p = holes ? holes[i] : fp.row0 * cam.width + i;
   if (gbuffer_only) {
-    const float3 dir = px_camera_dir(&cam, p % cam.width, p / cam.width, cam.jitter[0], cam.jitter[1]);
-    const Hit hit = px_trace_closest_leaf(&scene, px_camera_origin(&cam), dir, 0.0f, INFINITY);
-    gbuffer[p] = px_gbuffer_texel(&scene, dir, hit);
-    if (first_hits) first_hits[p] = hit;
+    px_gbuffer_pixel(&scene, &cam, p, gbuffer, first_hits);
     return;
   }
   float4 albedo;

@@ -6,20 +6,12 @@
  * `hits`: null, or a full-frame Hit buffer that receives each ray's hit, where hole filling
  * (stage 5) starts its pixels' first sample (the G-buffer's ray) instead of tracing the same ray again. */
 #include "shared/types.h"
-#include "pipeline/gbuffer_texel.h"
-#include "render/camera.h"
-#include "scene/scene_view.h"
-#include "trace/traverse.h"
+#include "pipeline/gbuffer_pixel.h"
 
 kernel void gbuffer(global GBufferTexel* out, global Hit* hits, uint row0, uint rows, CameraParams cam,
                     PX_SCENE_PARAMS) {
   const uint gid = get_global_id(0);
   if (gid >= rows * cam.width) return;
   const SceneView scene = PX_SCENE_VIEW();
-  const uint i = row0 * cam.width + gid; /* out is a full-frame buffer */
-  const uint x = i % cam.width, y = i / cam.width;
-  const float3 dir = px_camera_dir(&cam, x, y, cam.jitter[0], cam.jitter[1]);
-  const Hit hit = px_trace_closest_leaf(&scene, px_camera_origin(&cam), dir, 0.0f, INFINITY);
-  out[i] = px_gbuffer_texel(&scene, dir, hit);
-  if (hits) hits[i] = hit;
+  px_gbuffer_pixel(&scene, &cam, row0 * cam.width + gid, out, hits); /* full-frame buffers */
 }
