@@ -4,6 +4,7 @@
 #include "bvh/flat_bvh.h"
 #include "cl/device_set.h"
 #include "cl/launch.h"
+#include "denoise/svgf_constants.h"
 #include "render/device_scene.h"
 #include "render/path_tracer.h"
 #include "render/stereo_camera.h"
@@ -981,12 +982,20 @@ TEST(WavefrontPathTracer, SamplesInBatchesGiveTheMegakernelsPixels) {
 
 // ---- one kernel for stages 2 and 5 on CPUs ----
 
-// CPUs launch path_trace_pixels for the left eye's strip, for the hole list and for the G-buffer
-// pass, GPUs path_trace, path_trace_list and gbuffer (one kernel compiles once on PoCL). Each way,
-// explicitly on this device: the strip's pixels, albedos, non-finite count and G-buffer texels,
-// the list's pixels with and without the G-buffer pass's hits, and the G-buffer pass's texels and
-// hits, the same to the bit.
-TEST(PathTracer, OneKernelForStripHolesAndGBufferGivesTheOtherKernelsResults) {
+// path_trace_pixels' gradient inputs (arguments first .. first + 3) where its mode is not the
+// gradient one: null buffers and zero parameters.
+void bind_no_gradient(cl::Kernel& k, cl_uint first) {
+  for (cl_uint a = first; a < first + 3; ++a) k.setArg(a, cl::Buffer());
+  k.setArg(first + 3, GradientParams{});
+}
+
+// CPUs launch path_trace_pixels for the left eye's strip, for the hole list, for the G-buffer
+// pass and for the temporal gradients' shading, GPUs path_trace, path_trace_list, gbuffer and
+// gradient_shade (one kernel compiles once on PoCL). Each way, explicitly on this device: the
+// strip's pixels, albedos, non-finite count and G-buffer texels, the list's pixels with and
+// without the G-buffer pass's hits, the G-buffer pass's texels and hits, and the gradients'
+// strata and shades, the same to the bit.
+TEST(PathTracer, OneKernelForStripHolesGBufferAndGradientsGivesTheOtherKernelsResults) {
   for (Scene scene : tracer_comparison_scenes()) {
     RenderFixture f(one_device(), scene);
     DeviceSet& set = one_device();
@@ -1035,10 +1044,11 @@ TEST(PathTracer, OneKernelForStripHolesAndGBufferGivesTheOtherKernelsResults) {
     const Out one = run("path_trace_pixels", strip.size(), [&](cl::Kernel& k, const cl::Buffer& texels) {
       k.setArg(3, texels);
       for (cl_uint a = 4; a < 8; ++a) k.setArg(a, cl::Buffer());  // holes, count, hits in, hits out
-      k.setArg(8, cl_uint{0});
-      k.setArg(9, fp);
-      k.setArg(10, cam);
-      f.device_scene->on(0).bind(k, 11);
+      k.setArg(8, cl_uint{PX_PIXELS_PATHS});
+      bind_no_gradient(k, 9);
+      k.setArg(13, fp);
+      k.setArg(14, cam);
+      f.device_scene->on(0).bind(k, 15);
     });
     // Every pixel: the strip's the same, the rest untouched by both.
     expect_same_pixels(two.traced, one.traced, all, scene.name + ": the strip");
@@ -1091,10 +1101,11 @@ TEST(PathTracer, OneKernelForStripHolesAndGBufferGivesTheOtherKernelsResults) {
         k.setArg(5, count_buf);
         set_optional_buffer(k, 6, first_hits);
         k.setArg(7, cl::Buffer());  // no hits written
-        k.setArg(8, cl_uint{0});
-        k.setArg(9, fp);
-        k.setArg(10, cam);
-        f.device_scene->on(0).bind(k, 11);
+        k.setArg(8, cl_uint{PX_PIXELS_PATHS});
+        bind_no_gradient(k, 9);
+        k.setArg(13, fp);
+        k.setArg(14, cam);
+        f.device_scene->on(0).bind(k, 15);
       });
       expect_same_pixels(two_list.traced, one_list.traced, all, what);
       int listed = 0;
@@ -1128,6 +1139,87 @@ TEST(PathTracer, OneKernelForStripHolesAndGBufferGivesTheOtherKernelsResults) {
       EXPECT_THROW(PathTracer::launch_gbuffer(queue, program, f.device_scene->on(0), pass_texels, nullptr, fp, cam, w),
                    std::logic_error)
           << "the path's own params (3 spp) are not the G-buffer pass's";
+
+      // The temporal gradients' shading in path_trace_pixels (PathTracer::launch_gradient, CPUs):
+      // gradient_shade's strata and shades to the bit, over two frames, so that the second compares
+      // its shades with the first's (the history), with the same non-finite count.
+      const cl_uint sw = (w + PX_GRADIENT_STRATUM - 1) / PX_GRADIENT_STRATUM;
+      const cl_uint sh = (h + PX_GRADIENT_STRATUM - 1) / PX_GRADIENT_STRATUM;
+      const cl_uint s_lo = (row0 + PX_GRADIENT_STRATUM - 1) / PX_GRADIENT_STRATUM;
+      const cl_uint s_hi = (row0 + rows) / PX_GRADIENT_STRATUM;
+      ASSERT_GT(s_hi, s_lo + 1);
+      struct GradientRun {
+        std::vector<cl_float4> raw, ref[2];
+        cl_uint nonfinite = 0;
+      };
+      const auto gradients = [&](bool in_path_tracer) {
+        const cl_float4 zero{{0, 0, 0, 0}};
+        cl::Buffer raw(set.context(), CL_MEM_READ_WRITE, std::size_t{sw} * sh * sizeof(cl_float4));
+        cl::Buffer ref[2] = {cl::Buffer(set.context(), CL_MEM_READ_WRITE, n * sizeof(cl_float4)),
+                             cl::Buffer(set.context(), CL_MEM_READ_WRITE, n * sizeof(cl_float4))};
+        cl::Buffer nonfinite(set.context(), CL_MEM_READ_WRITE, sizeof(cl_uint));
+        queue.enqueueFillBuffer(raw, zero, 0, std::size_t{sw} * sh * sizeof(cl_float4));
+        for (const cl::Buffer& b : ref) queue.enqueueFillBuffer(b, zero, 0, n * sizeof(cl_float4));
+        queue.enqueueFillBuffer(nonfinite, cl_uint{0}, 0, sizeof(cl_uint));
+        FrameParams shade_fp = fp;
+        shade_fp.max_bounces = std::min<cl_uint>(fp.max_bounces, PX_GRADIENT_MAX_BOUNCES);
+        for (cl_uint frame = 4; frame < 6; ++frame) {
+          GradientParams gp{};
+          gp.width = w;
+          gp.height = h;
+          gp.strata_w = sw;
+          gp.strata_h = sh;
+          gp.s_row0 = gp.s_lo = s_lo;
+          gp.s_rows = s_hi - s_lo;
+          gp.s_hi = s_hi;
+          gp.lo_row = row0;
+          gp.hi_row = row0 + rows;
+          gp.frame = frame;
+          gp.eye = 1;
+          gp.seed = fp.seed;
+          gp.have_history = frame > 4 ? 1u : 0u;
+          const cl::Buffer& now = ref[frame % 2];
+          const cl::Buffer& before = ref[1 - frame % 2];
+          // Last frame's G-buffer is this frame's: nothing moved.
+          if (in_path_tracer) {
+            const PathTracer::GradientInputs in{raw, now, before, texels, texels, nonfinite, nullptr, gp};
+            PathTracer::launch_gradient(queue, program, f.device_scene->on(0), in, shade_fp, cam);
+          } else {
+            cl::Kernel k(program, "gradient_shade");
+            cl_uint a = 0;
+            for (const cl::Buffer* b :
+                 std::initializer_list<const cl::Buffer*>{&raw, &now, &before, &texels, &texels, &nonfinite})
+              k.setArg(a++, *b);
+            k.setArg(a++, cl::Buffer());  // no motion
+            k.setArg(a++, shade_fp);
+            k.setArg(a++, cam);
+            k.setArg(a++, gp);
+            f.device_scene->on(0).bind(k, a);
+            launch_1d(queue, k, std::size_t{gp.s_rows} * sw);
+          }
+        }
+        GradientRun out;
+        out.raw.resize(std::size_t{sw} * sh);
+        queue.enqueueReadBuffer(raw, CL_TRUE, 0, out.raw.size() * sizeof(cl_float4), out.raw.data());
+        for (int k = 0; k < 2; ++k) {
+          out.ref[k].resize(n);
+          queue.enqueueReadBuffer(ref[k], CL_TRUE, 0, n * sizeof(cl_float4), out.ref[k].data());
+        }
+        queue.enqueueReadBuffer(nonfinite, CL_TRUE, 0, sizeof(cl_uint), &out.nonfinite);
+        return out;
+      };
+      const GradientRun want = gradients(false), got = gradients(true);
+      EXPECT_EQ(std::memcmp(want.raw.data(), got.raw.data(), want.raw.size() * sizeof(cl_float4)), 0)
+          << scene.name << ": the strata's gradients";
+      for (int k = 0; k < 2; ++k)
+        EXPECT_EQ(std::memcmp(want.ref[k].data(), got.ref[k].data(), n * sizeof(cl_float4)), 0)
+            << scene.name << ": the shades of frame " << 4 + k;
+      EXPECT_EQ(want.nonfinite, got.nonfinite) << scene.name << ": non-finite shades";
+      // Not vacuous: strata with a gradient (a valid shade now and last frame), or shades dropped as
+      // non-finite (the overflowing scene).
+      int with_gradient = 0;
+      for (const cl_float4& r : got.raw) with_gradient += r.s[1] > 0.0f;
+      EXPECT_TRUE(with_gradient > 0 || got.nonfinite > 0) << scene.name << ": no stratum was shaded";
     }
     // The pipeline's launches (PathTracer::launch / launch_list) pick the kernel by device type
     // and give the same pixels either way.

@@ -9,16 +9,22 @@ namespace px {
 namespace {
 
 // path_trace_pixels' arguments from the pixel list on (kernels/pathtrace/path_trace.cl), the one
-// kernel CPUs launch for stages 2, 3 and 5: the list and its count (null: the strip's pixels), the
-// G-buffer pass's hits a list starts from, the hits the G-buffer mode writes, and that mode.
+// kernel CPUs launch for stages 2, 3 and 5 and the temporal gradients' shading: the list and its
+// count (null: the strip's pixels), the G-buffer pass's hits a list starts from, the hits the
+// G-buffer mode writes, the mode, and the gradient mode's inputs (null and zero in the others).
 // Leaves `arg` at FrameParams.
 void bind_pixel_selection(cl::Kernel& k, cl_uint& arg, const cl::Buffer* holes, const cl::Buffer* hole_count,
-                          const cl::Buffer* hits_in, const cl::Buffer* hits_out, bool gbuffer_only) {
+                          const cl::Buffer* hits_in, const cl::Buffer* hits_out, cl_uint mode,
+                          const PathTracer::GradientInputs* gradient = nullptr) {
   set_optional_buffer(k, arg++, holes);
   set_optional_buffer(k, arg++, hole_count);
   set_optional_buffer(k, arg++, hits_in);
   set_optional_buffer(k, arg++, hits_out);
-  k.setArg(arg++, cl_uint{gbuffer_only ? 1u : 0u});
+  k.setArg(arg++, mode);
+  set_optional_buffer(k, arg++, gradient ? &gradient->prev_ref : nullptr);
+  set_optional_buffer(k, arg++, gradient ? &gradient->prev_gbuffer : nullptr);
+  set_optional_buffer(k, arg++, gradient ? gradient->tri_motion : nullptr);
+  k.setArg(arg++, gradient ? gradient->params : GradientParams{});
 }
 
 }  // namespace
@@ -63,7 +69,7 @@ cl::Event PathTracer::launch(const cl::CommandQueue& queue, const cl::Program& p
   k.setArg(2, out.nonfinite);
   set_optional_buffer(k, 3, out.gbuffer);
   cl_uint arg = 4;
-  if (cpu) bind_pixel_selection(k, arg, nullptr, nullptr, nullptr, nullptr, false);
+  if (cpu) bind_pixel_selection(k, arg, nullptr, nullptr, nullptr, nullptr, PX_PIXELS_PATHS);
   k.setArg(arg++, params);
   k.setArg(arg++, camera);
   scene.bind(k, arg);
@@ -83,7 +89,7 @@ cl::Event PathTracer::launch_list(const cl::CommandQueue& queue, const cl::Progr
   cl_uint arg = 3;
   if (cpu) {
     k.setArg(arg++, cl::Buffer());  // no G-buffer texels
-    bind_pixel_selection(k, arg, &holes, &hole_count, gbuffer_hits, nullptr, false);
+    bind_pixel_selection(k, arg, &holes, &hole_count, gbuffer_hits, nullptr, PX_PIXELS_PATHS);
   } else {
     k.setArg(arg++, holes);
     k.setArg(arg++, hole_count);
@@ -121,11 +127,31 @@ cl::Event PathTracer::launch_gbuffer(const cl::CommandQueue& queue, const cl::Pr
   for (cl_uint unused = 0; unused < 3; ++unused) k.setArg(unused, cl::Buffer());
   k.setArg(3, gbuffer);
   cl_uint arg = 4;
-  bind_pixel_selection(k, arg, nullptr, nullptr, nullptr, first_hits, true);
+  bind_pixel_selection(k, arg, nullptr, nullptr, nullptr, first_hits, PX_PIXELS_GBUFFER);
   k.setArg(arg++, params);
   k.setArg(arg++, camera);
   scene.bind(k, arg);
   return launch_1d(queue, k, static_cast<std::size_t>(params.rows) * width);
+}
+
+cl::Event PathTracer::launch_gradient(const cl::CommandQueue& queue, const cl::Program& program,
+                                      const DeviceSceneBuffers& scene, const GradientInputs& in,
+                                      const FrameParams& params, const CameraParams& camera) {
+  if (!runs_on_cpu(queue))
+    throw std::logic_error("path tracer: the temporal gradients' shading runs in path_trace_pixels on CPUs only");
+  cl::Kernel k(program, "path_trace_pixels");
+  k.setArg(0, in.raw);
+  k.setArg(1, in.ref);
+  k.setArg(2, in.nonfinite);
+  k.setArg(3, in.gbuffer);
+  cl_uint arg = 4;
+  bind_pixel_selection(k, arg, nullptr, nullptr, nullptr, nullptr, PX_PIXELS_GRADIENT, &in);
+  k.setArg(arg++, params);
+  k.setArg(arg++, camera);
+  scene.bind(k, arg);
+  // The launch's local size is the other modes' (launch_1d's): PoCL makes one work-group function
+  // for the kernel, not one per mode.
+  return launch_1d(queue, k, static_cast<std::size_t>(in.params.s_rows) * in.params.strata_w);
 }
 
 std::array<ImageRGB, 2> PathTracer::render_stereo(float time_s, std::uint32_t frame, unsigned width, unsigned height,

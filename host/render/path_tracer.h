@@ -91,6 +91,27 @@ class PathTracer {
                                   const cl::Buffer* first_hits, const FrameParams& params, const CameraParams& camera,
                                   unsigned width);
 
+  // The temporal gradients' shading on a CPU device, in the path tracer's kernel
+  // (path_trace_pixels): temporal_gradient.cl's gradient_shade over `params.s_rows` strata rows from
+  // `params.s_row0`, to the bit. The buffers are gradient_shade's (TemporalGradients owns them):
+  // `raw` per stratum, this frame's and last frame's shades per pixel (`ref`, `prev_ref`), this and
+  // last frame's G-buffers, the non-finite counter, the triangles' motion (null for a still scene).
+  // `frame` is the shading's FrameParams (its bounces capped). Throws std::logic_error on a GPU
+  // queue.
+  struct GradientInputs {
+    const cl::Buffer& raw;
+    const cl::Buffer& ref;
+    const cl::Buffer& prev_ref;
+    const cl::Buffer& gbuffer;
+    const cl::Buffer& prev_gbuffer;
+    const cl::Buffer& nonfinite;
+    const cl::Buffer* tri_motion = nullptr;
+    GradientParams params{};
+  };
+  static cl::Event launch_gradient(const cl::CommandQueue& queue, const cl::Program& program,
+                                   const DeviceSceneBuffers& scene, const GradientInputs& in, const FrameParams& frame,
+                                   const CameraParams& camera);
+
   PathTracer(DeviceSet& devices, const DeviceScene& device_scene, const Scene& scene)
       : devices_(devices), device_scene_(device_scene), scene_(scene) {}
 

@@ -7,6 +7,7 @@
  * A path whose radiance is not finite is dropped (left out of the pixel's mean) and counted
  * in `nonfinite`: no NaN or Inf ever reaches the output. */
 #include "shared/types.h"
+#include "denoise/gradient_stratum.h"
 #include "pathtrace/path_vertex.h"
 #include "pathtrace/pixel_mean.h"
 #include "pathtrace/trace_path.h"
@@ -89,26 +90,40 @@ kernel void path_trace_list(global float4* out, global float4* albedo_out, volat
   albedo_out[p] = albedo;
 }
 
-/* Stages 2, 3 and 5 in one kernel, for CPU devices. With `holes` null, path_trace (the strip's
- * pixels fp.row0.., G-buffer texels to `gbuffer`); else path_trace_list (the listed pixels, their
- * first samples from `gbuffer_hits`). With `gbuffer_only`, the G-buffer pass (gbuffer.cl's
- * `gbuffer`) over the rows fp.row0..: each pixel's G-buffer ray, its texel to `gbuffer`, its hit
- * to `first_hits` (if not null), no radiance or albedo. The pixels, texels and hits are the other
- * kernels' to the bit. PoCL makes a kernel's work-group function and native code at its first
- * launch under one process-wide lock, so a first run waits for each kernel in turn
- * (path_trace_list alone was 0.7 s of it, gbuffer_pairs 0.67 s); one kernel for the three stages
- * compiles once. GPUs keep their kernels: each is specialised at build time, and one kernel for
- * all would hold more registers (docs/measurements.md, "One kernel for the left eye and the holes
- * on CPUs", "The G-buffer pass in the path tracer's kernel on CPUs"). */
+/* Stages 2, 3 and 5 and the temporal gradients' shading in one kernel, for CPU devices; `mode`
+ * says which (PX_PIXELS_*).
+ *   PATHS: with `holes` null, path_trace (the strip's pixels fp.row0.., G-buffer texels to
+ *     `gbuffer`); else path_trace_list (the listed pixels, their first samples from `gbuffer_hits`).
+ *   GBUFFER: the G-buffer pass (gbuffer.cl's `gbuffer`) over the rows fp.row0..: each pixel's
+ *     G-buffer ray, its texel to `gbuffer`, its hit to `first_hits` (if not null), no radiance or
+ *     albedo.
+ *   GRADIENT: temporal_gradient.cl's `gradient_shade` over gp's strata rows: `out` is its `raw`,
+ *     `albedo_out` its `ref`, `gbuffer` its `gbuf` (read only), and prev_ref, prev_gbuf,
+ *     tri_motion and gp its own (unused, null or zero, in the other modes).
+ * The pixels, texels, hits and shades are the other kernels' to the bit. PoCL makes a kernel's
+ * work-group function and native code at its first launch under one process-wide lock, so a first
+ * run waits for each kernel in turn (path_trace_list alone was 0.7 s of it, gbuffer_pairs 0.67 s,
+ * gradient_shade 0.6 s); one kernel for the four compiles the path code once. GPUs keep their
+ * kernels: each is specialised at build time, and one kernel for all would hold more registers
+ * (docs/measurements.md, "One kernel for the left eye and the holes on CPUs", "The G-buffer pass in
+ * the path tracer's kernel on CPUs", "The temporal gradients in the path tracer's kernel on CPUs"). */
 kernel void path_trace_pixels(global float4* out, global float4* albedo_out, volatile global uint* nonfinite,
                               global GBufferTexel* gbuffer, const global uint* holes, const global uint* hole_count,
-                              const global Hit* gbuffer_hits, global Hit* first_hits, uint gbuffer_only, FrameParams fp,
-                              CameraParams cam, PX_SCENE_PARAMS) {
+                              const global Hit* gbuffer_hits, global Hit* first_hits, uint mode,
+                              const global float4* prev_ref, const global GBufferTexel* prev_gbuf,
+                              const global float4* tri_motion, GradientParams gp, FrameParams fp, CameraParams cam,
+                              PX_SCENE_PARAMS) {
   const uint i = get_global_id(0);
-  if (i >= (holes ? *hole_count : fp.rows * cam.width)) return;
   const SceneView scene = PX_SCENE_VIEW();
+  if (mode == PX_PIXELS_GRADIENT) {
+    if (i < gp.s_rows * gp.strata_w)
+      px_gradient_stratum(&scene, i, out, albedo_out, prev_ref, gbuffer, prev_gbuf, nonfinite, tri_motion, &fp, &cam,
+                          &gp);
+    return;
+  }
+  if (i >= (holes ? *hole_count : fp.rows * cam.width)) return;
   const uint p = holes ? holes[i] : fp.row0 * cam.width + i;
-  if (gbuffer_only) {
+  if (mode == PX_PIXELS_GBUFFER) {
     px_gbuffer_pixel(&scene, &cam, p, gbuffer, first_hits);
     return;
   }

@@ -534,6 +534,12 @@ typedef struct LightTreeWideNode {
  * texel. */
 #define PX_GBUFFER_RAY_FIRST_KIND 3u
 
+/* path_trace_pixels' modes (pathtrace/path_trace.cl; CPU devices): the path tracer over a strip or
+ * a pixel list (stages 2 and 5), the G-buffer pass (stage 3), the temporal gradients' shading. */
+#define PX_PIXELS_PATHS 0u
+#define PX_PIXELS_GBUFFER 1u
+#define PX_PIXELS_GRADIENT 2u
+
 /* Everything a path-tracing launch needs besides buffers, 128 bytes, passed by value.
  *
  *   0..11 sun_dir[3] (towards the sun)         12..15 sun_cos_max (cos of angular radius)

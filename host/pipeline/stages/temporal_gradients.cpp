@@ -2,6 +2,7 @@
 
 #include "cl/launch.h"
 #include "denoise/svgf_constants.h"
+#include "render/path_tracer.h"
 
 #include <algorithm>
 
@@ -69,24 +70,33 @@ void TemporalGradients::run(const cl::Program& shading, const DeviceSceneBuffers
   const RowRange held{gbuffer_rows.begin / PX_GRADIENT_STRATUM, strata_count(gbuffer_rows.end)};
   const RowRange shaded{std::max(wanted.begin, held.begin), std::min(wanted.end, held.end)};
   if (shaded.size() == 0) return;
-  cl::Kernel k(shading, "gradient_shade");
-  cl_uint a = 0;
-  k.setArg(a++, raw_);
-  k.setArg(a++, shades_[parity_]);
-  k.setArg(a++, shades_[1 - parity_]);
-  k.setArg(a++, gbuf);
-  k.setArg(a++, prev_gbuf);
-  k.setArg(a++, nonfinite);
-  set_optional_buffer(k, a++, scene.motion() ? &scene.motion : nullptr);
   // The re-shaded paths stop after PX_GRADIENT_MAX_BOUNCES bounces: the change of the light a
   // surface sees is measured by its first bounces, at a fraction of the image's paths' cost.
   FrameParams shade_fp = fp;
   shade_fp.max_bounces = std::min<cl_uint>(fp.max_bounces, PX_GRADIENT_MAX_BOUNCES);
-  k.setArg(a++, shade_fp);
-  k.setArg(a++, cam);
-  k.setArg(a++, params(shaded, shaded, gbuffer_rows, 0, fp));
-  scene.bind(k, a);
-  events_.push_back({launch_1d(queue(), k, static_cast<std::size_t>(shaded.size()) * strata_w_), "gradient shade"});
+  const GradientParams shade_params = params(shaded, shaded, gbuffer_rows, 0, fp);
+  const cl::Buffer* motion = scene.motion() ? &scene.motion : nullptr;
+  if (runs_on_cpu(queue())) {
+    // CPUs: in the path tracer's kernel, which a first run compiles once for all its stages.
+    const PathTracer::GradientInputs in{raw_,      shades_[parity_], shades_[1 - parity_], gbuf, prev_gbuf,
+                                        nonfinite, motion,           shade_params};
+    events_.push_back({PathTracer::launch_gradient(queue(), shading, scene, in, shade_fp, cam), "gradient shade"});
+  } else {
+    cl::Kernel k(shading, "gradient_shade");
+    cl_uint a = 0;
+    k.setArg(a++, raw_);
+    k.setArg(a++, shades_[parity_]);
+    k.setArg(a++, shades_[1 - parity_]);
+    k.setArg(a++, gbuf);
+    k.setArg(a++, prev_gbuf);
+    k.setArg(a++, nonfinite);
+    set_optional_buffer(k, a++, motion);
+    k.setArg(a++, shade_fp);
+    k.setArg(a++, cam);
+    k.setArg(a++, shade_params);
+    scene.bind(k, a);
+    events_.push_back({launch_1d(queue(), k, static_cast<std::size_t>(shaded.size()) * strata_w_), "gradient shade"});
+  }
 
   // The a-trous steps: step i reads 2^i strata each way, so its output is needed that much less
   // far beyond the strip than its input was; the last covers the strip's strata alone.
