@@ -498,6 +498,35 @@ TEST(DeviceScene, ALargeScenesTrianglesGoBackAsTheyAreReadAndItsCornersAndRecord
   }
 }
 
+// SceneOnDevices has the scene's kernels built while it lays the scene out (DeviceSet::prebuild),
+// with the options DeviceScene::kernel_options_for reads from the host part before the device
+// scene exists. Those must be the device scene's own kernel_options(), or the start builds the
+// kernels twice: for flat and smooth scenes (flat and indexed records), in every node layout, for
+// both kernel choices; and SceneOnDevices' devices hold that build when the start ends.
+TEST(DeviceScene, TheKernelOptionsKnownFromTheHostPartAreTheDeviceScenesOwn) {
+  for (const BvhLayout layout : {BvhLayout::Binary, BvhLayout::Wide4, BvhLayout::Wide8, BvhLayout::Compressed8}) {
+    DeviceSet set = DeviceSet::create(test::options_in_layout(layout, 2));
+    for (const Scene& scene : {flat_cornell_with_slivers(), spheres()})
+      for (const KernelChoice choice : {KernelChoice::Scene, KernelChoice::General}) {
+        SCOPED_TRACE(std::string(to_string(layout)) + ", " + scene.name +
+                     (choice == KernelChoice::General ? ", general" : ""));
+        Scene handed = scene;
+        DeviceScene::BuildCorners corners;
+        const auto host = DeviceScene::prepare_host_before_tree(
+            handed, [&handed] { return std::exchange(handed.triangles, {}); }, corners);
+        ASSERT_TRUE(host);
+        const std::string predicted = DeviceScene::kernel_options_for(*host, set.bvh_layout(), choice);
+        DeviceScene device_scene(set, host, handed, build_bvh(corners.source(), {}, /*layout=*/std::nullopt));
+        device_scene.set_kernel_choice(choice);
+        EXPECT_EQ(predicted, device_scene.kernel_options());
+      }
+  }
+  const SceneOnDevices start("cornell", {2, DeviceMode::Auto, "", std::nullopt}, /*quiet=*/true);
+  ASSERT_TRUE(start.device_scene.flat_shading() || start.device_scene.indexed_shading());
+  EXPECT_TRUE(start.devices.has_program("pathtrace/path_trace.cl", start.device_scene.kernel_options()))
+      << "the start built (or is building) the scene's kernels";
+}
+
 // A flat static scene that goes to the devices makes its records before its tree
 // (prepare_host_before_tree): the tree is then built, validated and keyed in the cache from the corners
 // packed where the triangles were, and comes out the same tree, under the same cache key, as

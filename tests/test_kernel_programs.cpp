@@ -58,5 +58,36 @@ TEST(KernelPrograms, EveryMemberFilesKernelsComeFromItsBundle) {
   EXPECT_NE(own, set.program("pipeline/tonemap.cl")());
 }
 
+// DeviceSet::prebuild builds a program on a thread of its own (SceneOnDevices: the scene's kernels
+// while the scene is laid out); program() then serves that build, not a second one, and a build
+// that failed throws there, with its log, as a build in program() does.
+TEST(KernelPrograms, APrebuiltProgramIsTheOneServedAndItsFailureIsThrownThere) {
+  DeviceSet set = DeviceSet::create({2, DeviceMode::Auto, "", std::nullopt});
+  const std::string options = "-DPX_FEATURES=0x040";
+  EXPECT_FALSE(set.has_program("pathtrace/path_trace.cl", options));
+  set.prebuild("pathtrace/path_trace.cl", options);
+  EXPECT_TRUE(set.has_program("pathtrace/path_trace.cl", options)) << "being built";
+  EXPECT_TRUE(set.has_program("pipeline/gbuffer.cl", options)) << "the same bundle, the same program";
+  EXPECT_FALSE(set.has_program("pathtrace/path_trace.cl", "-DPX_FEATURES=0x041"));
+  const cl::Program& program = set.program("pathtrace/path_trace.cl", options);
+  EXPECT_NO_THROW(cl::Kernel(program, "path_trace_pixels"));
+  EXPECT_EQ(set.program("denoise/temporal_gradient.cl", options)(), program()) << "served once built";
+  set.prebuild("pathtrace/path_trace.cl", options);  // built already: nothing started
+  EXPECT_EQ(set.program("pathtrace/path_trace.cl", options)(), program());
+
+  // A build that fails (an option the source cannot take): nothing is thrown at prebuild; the
+  // failure, with the build log, comes from program(), as from a build started there.
+  const std::string broken = "-DPX_FEATURES=0x040+";
+  set.prebuild("pathtrace/path_trace.cl", broken);
+  try {
+    set.program("pathtrace/path_trace.cl", broken);
+    ADD_FAILURE() << "a broken build was served";
+  } catch (const ClFailure& e) {
+    EXPECT_NE(std::string(e.what()).find("build log"), std::string::npos) << e.what();
+  }
+  // Asked again, it is built again in program() and fails the same way.
+  EXPECT_THROW(set.program("pathtrace/path_trace.cl", broken), ClFailure);
+}
+
 }  // namespace
 }  // namespace px

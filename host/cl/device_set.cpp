@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <map>
 #include <mutex>
+#include <future>
 #include <sstream>
 #include <stdexcept>
 #include <vector>
@@ -236,38 +237,80 @@ const char* bundle_of(const std::string& path, const std::string& extra_options)
 
 }  // namespace
 
-const cl::Program& DeviceSet::program(const std::string& requested_path, const std::string& extra_options) {
-  const char* bundle = bundle_of(requested_path, extra_options);
-  const std::string path = bundle ? bundle : requested_path;
-  // Every kernel is built for the BVH layout DeviceScene uploads (bvh_layout()), unless the
-  // caller names one (DeviceScene::kernel_options()).
-  const bool names_layout = extra_options.find("-DPX_BVH_WIDTH=") != std::string::npos;
-  const std::string layout_define =
-      names_layout ? "" : "-DPX_BVH_WIDTH=" + std::to_string(bvh_layout_width(bvh_layout()));
-  const std::string key = path + "|" + layout_define + "|" + extra_options;
-  auto it = programs_.find(key);
-  if (it != programs_.end()) return it->second;
+namespace {
 
+// kernels/<path> built for `devices` with `opts`; a failed build throws ClFailure carrying each
+// device's build log.
+cl::Program build_program(const cl::Context& context, const std::vector<cl::Device>& devices, const std::string& path,
+                          const std::string& opts) {
   const std::string source = resolve_kernel_source(path);
-  cl::Program program(context_, source);
-  // No fast-relaxed-math: the box test relies on IEEE infinities and the watertight triangle
-  // test on exact signs. Single-precision constants guard against a stray unsuffixed literal.
-  const std::string opts = "-cl-std=CL1.2 -cl-single-precision-constant " + layout_define + " " + extra_options;
+  cl::Program program(context, source);
   try {
-    program.build(unique_devices_, opts.c_str());
+    program.build(devices, opts.c_str());
   } catch (const cl::Error& e) {
     std::ostringstream msg;
     msg << "OpenCL build of kernels/" << path << " failed (" << cl_status_name(e.err()) << ")";
-    for (auto& d : unique_devices_) {
+    for (auto& d : devices) {
       auto log = program.getBuildInfo<CL_PROGRAM_BUILD_LOG>(d);
       msg << "\n--- build log, " << d.getInfo<CL_DEVICE_NAME>() << " ---\n" << log;
     }
     throw ClFailure(msg.str());
   }
+  return program;
+}
+
+}  // namespace
+
+DeviceSet::ProgramRequest DeviceSet::program_request(const std::string& requested_path,
+                                                     const std::string& extra_options) const {
+  const char* bundle = bundle_of(requested_path, extra_options);
+  ProgramRequest r;
+  r.path = bundle ? bundle : requested_path;
+  // Every kernel is built for the BVH layout DeviceScene uploads (bvh_layout()), unless the
+  // caller names one (DeviceScene::kernel_options()).
+  const bool names_layout = extra_options.find("-DPX_BVH_WIDTH=") != std::string::npos;
+  const std::string layout_define =
+      names_layout ? "" : "-DPX_BVH_WIDTH=" + std::to_string(bvh_layout_width(bvh_layout()));
+  r.key = r.path + "|" + layout_define + "|" + extra_options;
+  // No fast-relaxed-math: the box test relies on IEEE infinities and the watertight triangle
+  // test on exact signs. Single-precision constants guard against a stray unsuffixed literal.
+  r.options = "-cl-std=CL1.2 -cl-single-precision-constant " + layout_define + " " + extra_options;
+  return r;
+}
+
+void DeviceSet::prebuild(const std::string& path, const std::string& extra_options) {
+  ProgramRequest r = program_request(path, extra_options);
+  if (programs_.count(r.key) || prebuilds_.count(r.key)) return;
+  // The task holds copies of the context and devices (reference counted), not the set, which
+  // may move before it ends; a failure is kept in the future for program() to throw.
+  prebuilds_.emplace(r.key, std::async(std::launch::async, [context = context_, devices = unique_devices_,
+                                                            path = r.path, options = r.options] {
+                              return build_program(context, devices, path, options);
+                            }).share());
+}
+
+bool DeviceSet::has_program(const std::string& path, const std::string& extra_options) const {
+  const ProgramRequest r = program_request(path, extra_options);
+  return programs_.count(r.key) != 0 || prebuilds_.count(r.key) != 0;
+}
+
+const cl::Program& DeviceSet::program(const std::string& requested_path, const std::string& extra_options) {
+  const ProgramRequest r = program_request(requested_path, extra_options);
+  auto it = programs_.find(r.key);
+  if (it != programs_.end()) return it->second;
+  cl::Program program;
+  auto pending = prebuilds_.find(r.key);
+  if (pending != prebuilds_.end()) {
+    const std::shared_future<cl::Program> build = pending->second;
+    prebuilds_.erase(pending);
+    program = build.get();  // waits for the build; rethrows its failure
+  } else {
+    program = build_program(context_, unique_devices_, r.path, r.options);
+  }
   // PoCL's build hash covers the source (named by its path) and the build options exactly (in
   // one process all PoCL CPU devices are the same host CPU).
-  if (launch_guard_) PoclLaunchGuard::register_program(context_(), program(), path + "|" + opts);
-  return programs_.emplace(key, std::move(program)).first->second;
+  if (launch_guard_) PoclLaunchGuard::register_program(context_(), program(), r.path + "|" + r.options);
+  return programs_.emplace(r.key, std::move(program)).first->second;
 }
 
 DeviceSet::LaunchGuardRegistration::~LaunchGuardRegistration() { PoclLaunchGuard::forget_context(context); }

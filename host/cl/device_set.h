@@ -9,6 +9,7 @@
 
 #include <CL/opencl.hpp>
 
+#include <future>
 #include <map>
 #include <memory>
 #include <optional>
@@ -72,6 +73,14 @@ class DeviceSet {
   // kernels/pathtrace/scene_kernels.cl, and the rest, kernels/pipeline/frame_kernels.cl): the
   // same kernels, built in two builds instead of eleven.
   const cl::Program& program(const std::string& path, const std::string& extra_options = "");
+  // Starts building what program(path, extra_options) returns on a thread of its own, so that a
+  // start builds its kernels beside other work (the scene's tree); program() then waits for that
+  // build, or throws its failure. Does nothing for a program built or started already. A build
+  // nothing asks for is waited for when the set goes.
+  void prebuild(const std::string& path, const std::string& extra_options = "");
+  // Whether program(path, extra_options) is built or being built (prebuild): asking for it
+  // starts no build.
+  bool has_program(const std::string& path, const std::string& extra_options = "") const;
 
   // Finishes every queue.
   void finish_all();
@@ -89,6 +98,14 @@ class DeviceSet {
   bool all_gpus_ = false;  // every device a GPU
   std::optional<BvhLayout> requested_layout_;
   std::map<std::string, cl::Program> programs_;
+  // Builds prebuild() started, by program key, until program() takes them.
+  std::map<std::string, std::shared_future<cl::Program>> prebuilds_;
+  struct ProgramRequest {
+    std::string path;     // the file built: the bundle holding the one asked for, or that one
+    std::string key;      // programs_' key
+    std::string options;  // the build options
+  };
+  ProgramRequest program_request(const std::string& path, const std::string& extra_options) const;
   // Registers the set's programs with PoclLaunchGuard and forgets them (and the events it
   // keeps of the set's queues) when the set goes. Declared last: destroyed first, while the
   // context, queues and programs still exist. Null where the set needs no guard.

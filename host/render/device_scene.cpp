@@ -118,12 +118,21 @@ void require_static_scene(const Scene& scene, const std::function<std::vector<Sc
 
 }  // namespace
 
+namespace {
+
+// The kernels' build options for a scene on a set of devices (DeviceScene::kernel_options).
+std::string format_kernel_options(BvhLayout layout, std::uint32_t features, bool leaf_refs, ShadingRecords records) {
+  char text[16];
+  std::snprintf(text, sizeof text, "0x%03x", features);
+  return "-DPX_BVH_WIDTH=" + std::to_string(bvh_layout_width(layout)) + " -DPX_FEATURES=" + text +
+         (leaf_refs ? " -DPX_LEAF_REFS=1" : "") + (records == ShadingRecords::Flat ? " -DPX_FLAT_SHADING=1" : "") +
+         (records == ShadingRecords::Indexed ? " -DPX_INDEXED_SHADING=1" : "");
+}
+
+}  // namespace
+
 std::string DeviceScene::kernel_options() const {
-  char features[16];
-  std::snprintf(features, sizeof features, "0x%03x", kernel_features());
-  return "-DPX_BVH_WIDTH=" + std::to_string(bvh_layout_width(layout_)) + " -DPX_FEATURES=" + features +
-         (leaf_refs_ ? " -DPX_LEAF_REFS=1" : "") + (flat_shading() ? " -DPX_FLAT_SHADING=1" : "") +
-         (indexed_shading() ? " -DPX_INDEXED_SHADING=1" : "");
+  return format_kernel_options(layout_, kernel_features(), leaf_refs_, shading_records_);
 }
 
 namespace {
@@ -322,6 +331,14 @@ struct DeviceScene::HostPart {
   std::size_t scene_triangles = 0;
   double ms = 0.0;  // the time it took, counted in layout_ms()
 };
+
+std::string DeviceScene::kernel_options_for(const HostPart& host, BvhLayout layout, KernelChoice choice) {
+  // What the constructor from the host part sets (lay_out_static): leaf references in the wide
+  // layouts, the part's features and records.
+  const bool leaf_refs = layout == BvhLayout::Wide4 || layout == BvhLayout::Wide8;
+  const std::uint32_t features = choice == KernelChoice::General ? PX_FEATURES_ALL : host.tables.features;
+  return format_kernel_options(layout, features, leaf_refs, host.records);
+}
 
 std::shared_ptr<DeviceScene::HostPart> DeviceScene::prepare_host(
     const Scene& scene, const std::function<std::vector<SceneTriangle>()>& take_triangles) {

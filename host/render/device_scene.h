@@ -190,6 +190,10 @@ class DeviceScene {
   // The build options of the scene-dependent kernels (path tracers, G-buffer, trace, preview):
   // the node layout and the PX_FEATURES the kernels carry (kernel_features.h).
   std::string kernel_options() const;
+  // The kernel_options() of the scene that DeviceScene(devices, host, ...) will make on a set in
+  // `layout` with kernels of `choice`, known before its tree is built: a start builds the scene's
+  // kernels while it builds the tree (DeviceSet::prebuild).
+  static std::string kernel_options_for(const HostPart& host, BvhLayout layout, KernelChoice choice);
 
   // The features the scene uses, and those its kernels are built with: the scene's (the
   // default) or every feature (KernelChoice::General). Choose before any stage builds a kernel.
