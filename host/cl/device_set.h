@@ -74,9 +74,10 @@ class DeviceSet {
   // same kernels, built in two builds instead of eleven.
   const cl::Program& program(const std::string& path, const std::string& extra_options = "");
   // Starts building what program(path, extra_options) returns on a thread of its own, so that a
-  // start builds its kernels beside other work (the scene's tree); program() then waits for that
-  // build, or throws its failure. Does nothing for a program built or started already. A build
-  // nothing asks for is waited for when the set goes.
+  // start builds its kernels beside other work (SceneOnDevices: the scene's layout); program()
+  // then waits for that build, or throws its failure. Does nothing for a program built or started
+  // already. A build nothing asks for is waited for when the set goes. Call from the thread that
+  // calls program().
   void prebuild(const std::string& path, const std::string& extra_options = "");
   // Whether program(path, extra_options) is built or being built (prebuild): asking for it
   // starts no build.
