@@ -116,9 +116,9 @@ void require_static_scene(const Scene& scene, const std::function<std::vector<Sc
     throw std::logic_error("DeviceScene::prepare_host: a static scene without instances, its triangles handed over");
 }
 
-}  // namespace
-
-namespace {
+// Whether a static scene's leaf triangles go to the devices as BvhLeafRef records in `layout`:
+// the wide layouts', whose leaf blocks hold the vertices (lay_out_static).
+bool leaf_refs_in(BvhLayout layout) { return layout == BvhLayout::Wide4 || layout == BvhLayout::Wide8; }
 
 // The kernels' build options for a scene on a set of devices (DeviceScene::kernel_options).
 std::string format_kernel_options(BvhLayout layout, std::uint32_t features, bool leaf_refs, ShadingRecords records) {
@@ -333,11 +333,10 @@ struct DeviceScene::HostPart {
 };
 
 std::string DeviceScene::kernel_options_for(const HostPart& host, BvhLayout layout, KernelChoice choice) {
-  // What the constructor from the host part sets (lay_out_static): leaf references in the wide
-  // layouts, the part's features and records.
-  const bool leaf_refs = layout == BvhLayout::Wide4 || layout == BvhLayout::Wide8;
+  // What the constructor from the host part sets (lay_out_static): leaf references by the
+  // layout, the part's features and records.
   const std::uint32_t features = choice == KernelChoice::General ? PX_FEATURES_ALL : host.tables.features;
-  return format_kernel_options(layout, features, leaf_refs, host.records);
+  return format_kernel_options(layout, features, leaf_refs_in(layout), host.records);
 }
 
 std::shared_ptr<DeviceScene::HostPart> DeviceScene::prepare_host(
@@ -451,7 +450,7 @@ void DeviceScene::lay_out_static(DeviceSet& devices, const Scene& scene, FlatBvh
   release_nodes(bvh, layout);
   // Wide4 / Wide8: the leaf triangles go as BvhLeafRef records (the blocks hold the vertices),
   // made as the blocks are written. Binary nodes are uploaded as they are.
-  leaf_refs_ = layout == BvhLayout::Wide4 || layout == BvhLayout::Wide8;
+  leaf_refs_ = leaf_refs_in(layout);
   LeafRefs refs;
   HostBytes node_bytes;
   if (leaf_refs_) {

@@ -136,7 +136,7 @@ cl::Event PathTracer::launch_gbuffer(const cl::CommandQueue& queue, const cl::Pr
 
 cl::Event PathTracer::launch_gradient(const cl::CommandQueue& queue, const cl::Program& program,
                                       const DeviceSceneBuffers& scene, const GradientInputs& in,
-                                      const FrameParams& params, const CameraParams& camera) {
+                                      const FrameParams& frame, const CameraParams& camera) {
   if (!runs_on_cpu(queue))
     throw std::logic_error("path tracer: the temporal gradients' shading runs in path_trace_pixels on CPUs only");
   cl::Kernel k(program, "path_trace_pixels");
@@ -146,7 +146,7 @@ cl::Event PathTracer::launch_gradient(const cl::CommandQueue& queue, const cl::P
   k.setArg(3, in.gbuffer);
   cl_uint arg = 4;
   bind_pixel_selection(k, arg, nullptr, nullptr, nullptr, nullptr, PX_PIXELS_GRADIENT, &in);
-  k.setArg(arg++, params);
+  k.setArg(arg++, frame);
   k.setArg(arg++, camera);
   scene.bind(k, arg);
   // The launch's local size is the other modes' (launch_1d's): PoCL makes one work-group function

@@ -380,8 +380,8 @@ inline uint px_lowest_bit(uint m) { return 31u - clz(m & (0u - m)); }
  * function is exactly zero (a ray through an edge or vertex, decided in double precision
  * there), the leaf is intersected triangle by triangle instead. Among hit lanes the nearest wins
  * (the lowest lane on equal t); in an alpha-tested leaf, the nearest that its cut-out keeps.
- * `count` is the leaf's triangle
- * count, which the caller has from the node (the block's own count field holds the same).
+ * `count` is the leaf's triangle count, which the caller has from the node (the block's own
+ * count field holds the same).
  * Returns 1 on any hit. Forced inline, with the one-by-one fallback and its triangle test: a call
  * from the traversal loop makes the loop save its ymm ray constants around it (every vector
  * register is caller-saved), and with a call left on the rare fallback path alone LLVM placed

@@ -10,7 +10,7 @@ void GBufferStage::run(const std::vector<const Operation*>& ops, const FrameInpu
     if (!env_.local(op->device)) continue;
     const FrameImages& f = env_.images[op->device];
     const cl::Buffer* hits = op->shares_hits ? &f.right_hits : nullptr;
-    if (!env_.is_gpu(op->device)) {
+    if (env_.is_cpu(op->device)) {
       // CPUs: the path tracer's kernel, which a frame compiles anyway, in its G-buffer mode. A
       // kernel of its own (two pixels a work-item) made this stage 14-17% faster in later frames
       // but cost every first run 0.67 s of PoCL's compile (docs/measurements.md, "The G-buffer

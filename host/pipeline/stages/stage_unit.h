@@ -40,6 +40,9 @@ struct StageEnv {
   std::size_t pixels(RowRange rows) const { return static_cast<std::size_t>(rows.size()) * width; }
   // Whether device d is one of this process's and a GPU (stages pick their kernel variant by it).
   bool is_gpu(int d) const { return local(d) && devices.devices()[layout.local_index(d)].is_gpu(); }
+  // Whether device d is one of this process's and a CPU: where PathTracer runs every mode of
+  // path_trace_pixels (its launches test the queue's device type the same way).
+  bool is_cpu(int d) const { return local(d) && devices.devices()[layout.local_index(d)].is_cpu(); }
 };
 
 // Per frame: its number (selects the sample stream) and both eyes' cameras (stage 1's output).
