@@ -174,6 +174,56 @@ TEST(GltfLoader, EmbeddedBinAndGlbLoadTheTrianglesOfTheirObjTwin) {
   }
 }
 
+TEST(GltfLoader, InterleavedFloatAttributesAndNormalizedIntegerUvsReadAsTheirValues) {
+  // Positions and normals interleaved in one buffer view (byteStride 24), uvs as normalized
+  // unsigned shorts: each corner must carry its vertex's values as glTF defines them (a uv's
+  // v turned to the renderer's convention, 1 - v), whatever reader the loader uses for them.
+  const std::vector<float> normals = {0.6f, 0.0f, 0.8f, 0.0f, 0.6f, 0.8f, 0.0f, 0.0f, 1.0f, -0.6f, 0.0f, 0.8f};
+  const std::vector<float> pos = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+  const std::vector<std::uint16_t> uv16 = {0, 65535, 65535, 32768, 1000, 0, 12345, 54321};
+  const std::vector<std::uint16_t> idx = {0, 1, 2, 0, 2, 3};
+  Gltf g;
+  std::string interleaved;
+  for (std::size_t v = 0; v < 4; ++v) {
+    interleaved.append(reinterpret_cast<const char*>(&pos[3 * v]), 12);
+    interleaved.append(reinterpret_cast<const char*>(&normals[3 * v]), 12);
+  }
+  while (g.bin.size() % 4) g.bin.push_back('\0');
+  const std::size_t offset = g.bin.size();
+  g.bin += interleaved;
+  const int view = g.add(
+      "bufferViews", {{"buffer", 0}, {"byteOffset", offset}, {"byteLength", interleaved.size()}, {"byteStride", 24}});
+  const int position = g.add(
+      "accessors", {{"bufferView", view}, {"byteOffset", 0}, {"componentType", 5126}, {"count", 4}, {"type", "VEC3"}});
+  const int normal = g.add(
+      "accessors", {{"bufferView", view}, {"byteOffset", 12}, {"componentType", 5126}, {"count", 4}, {"type", "VEC3"}});
+  const int uv = g.uint16s(uv16, "VEC2", 4);
+  g.doc["accessors"][uv]["normalized"] = true;
+  json prim = {{"attributes", {{"POSITION", position}, {"NORMAL", normal}, {"TEXCOORD_0", uv}}},
+               {"indices", g.uint16s(idx, "SCALAR", idx.size())}};
+  g.doc["scene"] = 0;
+  g.doc["scenes"] = json::array({{{"nodes", json::array({0})}}});
+  g.doc["nodes"] = json::array({{{"mesh", 0}}});
+  g.doc["meshes"] = json::array({{{"primitives", json::array({prim})}}});
+  g.doc["buffers"] = json::array({{{"byteLength", 0}}});
+  TempDir dir;
+  for (const fs::path& f : {write_embedded(dir, "interleaved.gltf", g), write_glb(dir, "interleaved.glb", g)}) {
+    const Scene s = load_gltf(f.string());
+    ASSERT_EQ(s.triangles.size(), 2u) << f;
+    for (std::size_t t = 0; t < 2; ++t)
+      for (int c = 0; c < 3; ++c) {
+        const std::size_t v = idx[3 * t + std::size_t(c)];
+        const SceneTriangle& tri = s.triangles[t];
+        for (int k = 0; k < 3; ++k) {
+          EXPECT_EQ(tri.p[c][k], pos[3 * v + std::size_t(k)]) << f << " triangle " << t << " corner " << c;
+          EXPECT_NEAR(tri.n[c][k], normals[3 * v + std::size_t(k)], 1e-6f) << f << " triangle " << t;
+        }
+        EXPECT_FLOAT_EQ(tri.uv[c].x, uv16[2 * v] / 65535.0f) << f << " triangle " << t << " corner " << c;
+        EXPECT_FLOAT_EQ(tri.uv[c].y, 1.0f - uv16[2 * v + 1] / 65535.0f) << f << " triangle " << t << " corner " << c;
+      }
+  }
+}
+
 TEST(GltfLoader, NonIndexedMatrixNodeAndMirroringKeepTheFrontFace) {
   TempDir dir;
   // Non-indexed: the same three triangles spelled out vertex by vertex.

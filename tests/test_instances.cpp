@@ -195,6 +195,55 @@ TEST(Instancing, FlattenedTrianglesAreTheMeshPlacedByEachMatrix) {
   }
 }
 
+TEST(Instancing, DrawnBoundsInPartsAreTheBoundsOfEveryDrawnTriangle) {
+  // The one-by-one pass over for_each_drawn_triangle is the reference: the bounds (NaN passed
+  // over), whether every coordinate is in range, and whether anything is drawn.
+  const auto one_by_one = [](const Scene& s) {
+    DrawnBounds b;
+    for_each_drawn_triangle(s, [&](const glm::vec3* p, std::size_t) {
+      b.any = true;
+      for (int c = 0; c < 3; ++c) {
+        for (int a = 0; a < 3; ++a) b.in_range &= std::abs(p[c][a]) <= kMaxSceneCoordinate;
+        b.lo = glm::min(b.lo, p[c]);
+        b.hi = glm::max(b.hi, p[c]);
+      }
+    });
+    return b;
+  };
+  const auto expect_same = [](const DrawnBounds& got, const DrawnBounds& want, const char* label) {
+    EXPECT_EQ(got.any, want.any) << label;
+    EXPECT_EQ(got.in_range, want.in_range) << label;
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_EQ(got.lo[a], want.lo[a]) << label << " axis " << a;
+      EXPECT_EQ(got.hi[a], want.hi[a]) << label << " axis " << a;
+    }
+  };
+  // Instances placed by their matrices (one part: a small world).
+  const Scene instanced = instanced_scene(5, true, 3);
+  expect_same(drawn_bounds(instanced), one_by_one(instanced), "instanced");
+  // A world large enough to be read in parts, with its extremes in the last part.
+  Scene big;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-5.0f, 5.0f);
+  big.triangles.resize((std::size_t{1} << 20) + 4097);
+  for (SceneTriangle& t : big.triangles)
+    for (glm::vec3& p : t.p) p = {u(rng), u(rng), u(rng)};
+  big.triangles.back().p[1] = {-7.0f, 9.0f, 6.5f};
+  expect_same(drawn_bounds(big), one_by_one(big), "large world");
+  EXPECT_EQ(drawn_bounds(big).lo.x, -7.0f);
+  EXPECT_EQ(drawn_bounds(big).hi.y, 9.0f);
+  // A coordinate beyond the range in the last part, a NaN in the first.
+  big.triangles[big.triangles.size() - 10].p[2].z = 3e11f;
+  big.triangles[3].p[0].y = std::nanf("");
+  const DrawnBounds out = drawn_bounds(big);
+  expect_same(out, one_by_one(big), "out of range and NaN");
+  EXPECT_FALSE(out.in_range);
+  EXPECT_EQ(out.hi.z, 3e11f);
+  // Nothing drawn.
+  expect_same(drawn_bounds(Scene{}), one_by_one(Scene{}), "empty");
+  EXPECT_FALSE(drawn_bounds(Scene{}).any);
+}
+
 TEST(Instancing, BadInstancingIsRefused) {
   Scene s = instanced_scene(2, true, 1);
   s.instancing.instances[1].object_to_world = glm::scale(glm::mat4(1.0f), glm::vec3(-1.0f, 1.0f, 1.0f));

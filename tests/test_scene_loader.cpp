@@ -1,6 +1,7 @@
 // OBJ loading (corpus of historically troublesome files, repairs, refusals, MTL mapping,
 // textures) and scene files (JSON format, overrides, error messages).
 #include "scene/primitives.h"
+#include "scene/scene_file_bytes.h"
 #include "scene/scene_loader.h"
 #include "support/test_support.h"
 
@@ -8,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -488,6 +490,32 @@ TEST(ObjLoader, CornellMappingBackWallHasItsTexturesAndTheSphereIsGlass) {
 
 // ---------------------------------------------------------------------------------------------
 // Scene files
+
+TEST(SceneFile, AMappedSceneFileHoldsTheFilesBytesUntilReleased) {
+  TempDir dir;
+  std::string bytes(300001, '\0');  // more than a page, not a whole number of them
+  for (std::size_t i = 0; i < bytes.size(); ++i) bytes[i] = char((i * 131 + 7) & 0xff);
+  const fs::path path = dir.write("bytes.glb", bytes);
+  MappedSceneFile file(path.string(), "glTF");
+  EXPECT_TRUE(file.mapped());
+  ASSERT_EQ(file.size(), bytes.size());
+  EXPECT_EQ(std::memcmp(file.data(), bytes.data(), bytes.size()), 0);
+  file.release();
+  EXPECT_EQ(file.data(), nullptr);
+  EXPECT_EQ(file.size(), 0u);
+  // An empty file cannot be mapped: it is read, as empty.
+  const MappedSceneFile empty(dir.write("empty.glb", "").string(), "glTF");
+  EXPECT_FALSE(empty.mapped());
+  EXPECT_EQ(empty.size(), 0u);
+  // The errors of a read, naming the file; an empty glTF is refused, not a crash.
+  const std::string missing = error_of([&] { MappedSceneFile((dir.path() / "none.glb").string(), "glTF"); });
+  EXPECT_NE(missing.find("none.glb"), std::string::npos) << missing;
+  EXPECT_NE(missing.find("no such file"), std::string::npos) << missing;
+  const std::string folder = error_of([&] { MappedSceneFile(dir.path().string(), "glTF"); });
+  EXPECT_NE(folder.find("not a regular file"), std::string::npos) << folder;
+  const std::string refused = error_of([&] { load_scene((dir.path() / "empty.glb").string()); });
+  EXPECT_NE(refused.find("empty.glb"), std::string::npos) << refused;
+}
 
 TEST(SceneFile, ProjectScenesLoad) {
   for (const char* name : {"cornell.json", "cornell-glossy.json"}) {

@@ -216,15 +216,11 @@ static LoadedScene load_and_build_tree(const std::string& spec, bool quiet, cons
   const auto& st = out.scene.stats;
   out.triangle_count = drawn_triangle_count(out.scene);
   if (!out.scene.triangles.empty()) {
-    bool first = true;
-    for_each_drawn_triangle(out.scene, [&](const glm::vec3* p, std::size_t) {
-      if (first) out.bounds_lo = out.bounds_hi = p[0];
-      first = false;
-      for (int c = 0; c < 3; ++c) {
-        out.bounds_lo = glm::min(out.bounds_lo, p[c]);
-        out.bounds_hi = glm::max(out.bounds_hi, p[c]);
-      }
-    });
+    const DrawnBounds bounds = drawn_bounds(out.scene);
+    if (bounds.any) {
+      out.bounds_lo = bounds.lo;
+      out.bounds_hi = bounds.hi;
+    }
   }
   auto t1 = clock::now();
   out.times.load_ms = ms(t0, t1);

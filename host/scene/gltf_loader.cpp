@@ -41,6 +41,7 @@
 // triangles do not). SceneLoadOptions::instancing = false draws copies instead.
 #include "scene/gltf_converter.h"
 #include "scene/gltf_reader.h"
+#include "scene/scene_file_bytes.h"
 #include "scene/scene_loader.h"
 
 #include <tiny_gltf.h>
@@ -51,6 +52,7 @@
 namespace px {
 
 namespace fs = std::filesystem;
+using gltf::check_gltf_file_size;
 using gltf::Converter;
 using gltf::ImageLoadLog;
 using gltf::kGlbJsonChunk;
@@ -58,23 +60,31 @@ using gltf::kGlbMagic;
 using gltf::load_image_lenient;
 using gltf::one_line;
 using gltf::prescan_json;
-using gltf::read_binary_file;
 using gltf::read_u32;
 
 Scene load_gltf(const std::string& path, const SceneLoadOptions& options, bool* has_camera) {
   if (has_camera) *has_camera = false;
-  std::string bytes = read_binary_file(path);
-  const bool binary = bytes.size() >= 4 && read_u32(bytes, 0) == kGlbMagic;
+  // Mapped, not read: tinygltf copies the buffers it needs out of the file's bytes, which are
+  // parsed where they lie in the page cache (scene_file_bytes.h).
+  // A file too large for tinygltf is refused before it is mapped (and read in whole).
+  if (std::error_code ec; fs::is_regular_file(path, ec)) {
+    const std::uintmax_t size = fs::file_size(path, ec);
+    if (!ec) check_gltf_file_size(path, static_cast<std::size_t>(size));
+  }
+  MappedSceneFile file(path, "glTF");
+  check_gltf_file_size(path, file.size());
+  const unsigned char* bytes = file.data();
+  const bool binary = file.size() >= 4 && read_u32(bytes, 0) == kGlbMagic;
   std::string json_text;
   if (binary) {
-    if (bytes.size() < 20) throw SceneError(path + ": truncated GLB file (" + std::to_string(bytes.size()) + " bytes)");
+    if (file.size() < 20) throw SceneError(path + ": truncated GLB file (" + std::to_string(file.size()) + " bytes)");
     const std::uint32_t chunk_length = read_u32(bytes, 12), chunk_type = read_u32(bytes, 16);
     if (chunk_type != kGlbJsonChunk) throw SceneError(path + ": invalid GLB: the first chunk is not JSON");
-    if (chunk_length > bytes.size() - 20)
+    if (chunk_length > file.size() - 20)
       throw SceneError(path + ": invalid GLB: the JSON chunk reaches past the end of the file");
-    json_text = bytes.substr(20, chunk_length);
+    json_text.assign(reinterpret_cast<const char*>(bytes) + 20, chunk_length);
   } else {
-    json_text = bytes;
+    json_text.assign(reinterpret_cast<const char*>(bytes), file.size());
   }
   prescan_json(json_text, path);
 
@@ -85,11 +95,11 @@ Scene load_gltf(const std::string& path, const SceneLoadOptions& options, bool* 
   std::string err, warn;
   const std::string base_dir = fs::absolute(fs::path(path)).parent_path().string();
   const bool ok =
-      binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(bytes.data()),
-                                           unsigned(bytes.size()), base_dir)
-             : loader.LoadASCIIFromString(&model, &err, &warn, bytes.data(), unsigned(bytes.size()), base_dir);
+      binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, bytes, unsigned(file.size()), base_dir)
+             : loader.LoadASCIIFromString(&model, &err, &warn, json_text.c_str(), unsigned(json_text.size()), base_dir);
   // The model holds copies of the buffers: the file's bytes go before the triangles are made.
-  std::string().swap(bytes);
+  file.release();
+  std::string().swap(json_text);
   if (!ok) {
     const std::string why = one_line(err);
     throw SceneError(path + ": cannot load glTF: " + (why.empty() ? "unknown error" : why));

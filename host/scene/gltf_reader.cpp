@@ -92,17 +92,14 @@ std::string decode_image(tinygltf::Image* image, const unsigned char* bytes, int
 
 }  // namespace
 
-std::uint32_t read_u32(const std::string& bytes, std::size_t at) {
+std::uint32_t read_u32(const unsigned char* bytes, std::size_t at) {
   std::uint32_t v = 0;
-  for (int i = 3; i >= 0; --i) v = (v << 8) | std::uint8_t(bytes[at + std::size_t(i)]);
+  for (int i = 3; i >= 0; --i) v = (v << 8) | bytes[at + std::size_t(i)];
   return v;
 }
 
-std::string read_binary_file(const std::string& path) {
-  std::string bytes = read_scene_file_bytes(path, "glTF");
-  // tinygltf takes the length as an unsigned int.
-  if (bytes.size() >= (std::size_t(1) << 31)) throw SceneError(path + ": glTF file larger than 2 GiB");
-  return bytes;
+void check_gltf_file_size(const std::string& path, std::size_t bytes) {
+  if (bytes >= (std::size_t(1) << 31)) throw SceneError(path + ": glTF file larger than 2 GiB");
 }
 
 void prescan_json(const std::string& text, const std::string& path) {
@@ -184,6 +181,31 @@ std::vector<glm::vec4> Reader::floats(int index, std::initializer_list<int> type
   for_each_element(a, index, what, [&](std::size_t i, const unsigned char* p) {
     for (int c = 0; c < nc && c < 4; ++c) out[i][c] = component(a, p, c);
   });
+  return out;
+}
+
+std::vector<glm::vec3> Reader::vec3s(int index, const std::string& what) const {
+  const tinygltf::Accessor& a = accessor(index, what);
+  if (a.type != TINYGLTF_TYPE_VEC3)
+    fail(what + " (accessor " + std::to_string(index) + ") has an unexpected element type");
+  if (a.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT)
+    fail(what + " (accessor " + std::to_string(index) + ") must hold floats");
+  std::vector<glm::vec3> out(a.count, glm::vec3(0.0f));
+  for_each_element(a, index, what, [&](std::size_t i, const unsigned char* p) { std::memcpy(&out[i], p, 12); });
+  return out;
+}
+
+std::vector<glm::vec2> Reader::vec2s(int index, const std::string& what) const {
+  const tinygltf::Accessor& a = accessor(index, what);
+  if (a.type != TINYGLTF_TYPE_VEC2)
+    fail(what + " (accessor " + std::to_string(index) + ") has an unexpected element type");
+  std::vector<glm::vec2> out(a.count, glm::vec2(0.0f));
+  if (a.componentType == TINYGLTF_COMPONENT_TYPE_FLOAT)
+    for_each_element(a, index, what, [&](std::size_t i, const unsigned char* p) { std::memcpy(&out[i], p, 8); });
+  else
+    for_each_element(a, index, what, [&](std::size_t i, const unsigned char* p) {
+      out[i] = glm::vec2(component(a, p, 0), component(a, p, 1));
+    });
   return out;
 }
 

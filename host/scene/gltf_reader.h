@@ -22,10 +22,11 @@ inline constexpr std::uint32_t kGlbMagic = 0x46546C67;      // "glTF"
 inline constexpr std::uint32_t kGlbJsonChunk = 0x4E4F534A;  // "JSON"
 
 // The little-endian 32-bit word at byte `at` of `bytes`.
-std::uint32_t read_u32(const std::string& bytes, std::size_t at);
+std::uint32_t read_u32(const unsigned char* bytes, std::size_t at);
 
-// The file's bytes (SceneError when it cannot be read or is larger than tinygltf takes).
-std::string read_binary_file(const std::string& path);
+// SceneError when the file's bytes are more than tinygltf takes (it takes the length as an
+// unsigned int).
+void check_gltf_file_size(const std::string& path, std::size_t bytes);
 
 // The checks tinygltf does not make before it reads through the document's numbers.
 // SceneError naming `path` and what is wrong.
@@ -60,6 +61,12 @@ class Reader {
   // accepted TINYGLTF_TYPE_*; `what` names the accessor in errors.
   std::vector<glm::vec4> floats(int index, std::initializer_list<int> types, const std::string& what,
                                 bool allow_integer) const;
+  // A VEC3 float accessor (POSITION, NORMAL) and a VEC2 accessor (TEXCOORD_0, integer
+  // components converted as floats() converts them), read into their own element types: what
+  // floats() reads, without a 16-byte element and a copy each (a large mesh's load touches that
+  // much less fresh memory).
+  std::vector<glm::vec3> vec3s(int index, const std::string& what) const;
+  std::vector<glm::vec2> vec2s(int index, const std::string& what) const;
 
   // Elements of a MAT4 float accessor (column-major, as glTF stores them).
   std::vector<glm::dmat4> matrices(int index, const std::string& what) const;

@@ -368,24 +368,15 @@ std::optional<RigPrimitive> Converter::primitive(int index, std::size_t pi) {
   RigPrimitive out;
   const auto pos_it = prim.attributes.find("POSITION");
   if (pos_it == prim.attributes.end()) read_.fail(what + " has no POSITION attribute");
-  {
-    const std::vector<glm::vec4> positions =
-        read_.floats(pos_it->second, {TINYGLTF_TYPE_VEC3}, what + " POSITION", false);
-    out.positions.resize(positions.size());
-    for (std::size_t v = 0; v < positions.size(); ++v) out.positions[v] = glm::vec3(positions[v]);
-  }
+  out.positions = read_.vec3s(pos_it->second, what + " POSITION");
   const std::size_t nv = out.positions.size();
   if (auto it = prim.attributes.find("NORMAL"); it != prim.attributes.end()) {
-    const auto normals = read_.floats(it->second, {TINYGLTF_TYPE_VEC3}, what + " NORMAL", false);
-    if (normals.size() != nv) read_.fail(what + ": NORMAL and POSITION counts differ");
-    out.normals.resize(nv);
-    for (std::size_t v = 0; v < nv; ++v) out.normals[v] = glm::vec3(normals[v]);
+    out.normals = read_.vec3s(it->second, what + " NORMAL");
+    if (out.normals.size() != nv) read_.fail(what + ": NORMAL and POSITION counts differ");
   }
   if (auto it = prim.attributes.find("TEXCOORD_0"); it != prim.attributes.end()) {
-    const auto uvs = read_.floats(it->second, {TINYGLTF_TYPE_VEC2}, what + " TEXCOORD_0", true);
-    if (uvs.size() != nv) read_.fail(what + ": TEXCOORD_0 and POSITION counts differ");
-    out.uvs.resize(nv);
-    for (std::size_t v = 0; v < nv; ++v) out.uvs[v] = glm::vec2(uvs[v]);
+    out.uvs = read_.vec2s(it->second, what + " TEXCOORD_0");
+    if (out.uvs.size() != nv) read_.fail(what + ": TEXCOORD_0 and POSITION counts differ");
   }
   const auto joints_it = prim.attributes.find("JOINTS_0"), weights_it = prim.attributes.find("WEIGHTS_0");
   if (rig_ && joints_it != prim.attributes.end() && weights_it != prim.attributes.end()) {
@@ -426,6 +417,9 @@ std::optional<RigPrimitive> Converter::primitive(int index, std::size_t pi) {
     for (std::size_t i = 0; i < idx.size(); ++i) idx[i] = std::uint32_t(i);
   }
   auto& tris = out.triangles;
+  // At its final size from the start: grown by doubling, a large mesh's list was made about
+  // twice over in fresh memory.
+  tris.reserve(mode == TINYGLTF_MODE_TRIANGLES ? idx.size() / 3 : idx.size() > 2 ? idx.size() - 2 : 0);
   if (mode == TINYGLTF_MODE_TRIANGLES) {
     for (std::size_t i = 0; i + 2 < idx.size(); i += 3) tris.push_back({idx[i], idx[i + 1], idx[i + 2]});
   } else if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {

@@ -1,5 +1,8 @@
 #include "scene/instancing.h"
 
+#include "scene/scene_loader.h"
+#include "util/parallel_parts.h"
+
 #include <glm/gtc/matrix_inverse.hpp>
 
 #include <cmath>
@@ -76,6 +79,46 @@ void check_instancing(const Scene& scene) {
     if (!affine || !(det > 0.0f) || !std::isfinite(det))
       fail("instance " + std::to_string(i) + "'s matrix is not affine with a positive determinant");
   }
+}
+
+namespace {
+void add_to_bounds(DrawnBounds& b, const glm::vec3* ps) {
+  b.any = true;
+  for (int c = 0; c < 3; ++c) {
+    const glm::vec3& p = ps[c];
+    b.in_range &= std::abs(p.x) <= kMaxSceneCoordinate && std::abs(p.y) <= kMaxSceneCoordinate &&
+                  std::abs(p.z) <= kMaxSceneCoordinate;
+    b.lo = glm::min(b.lo, p);
+    b.hi = glm::max(b.hi, p);
+  }
+}
+}  // namespace
+
+DrawnBounds drawn_bounds(const Scene& scene) {
+  const SceneInstancing& in = scene.instancing;
+  const std::size_t world = in.empty() ? scene.triangles.size() : in.world_triangles;
+  const unsigned parts = parallel_parts(world, std::size_t{1} << 20);
+  std::vector<DrawnBounds> part_bounds(parts);
+  run_parts(parts, [&](unsigned part) {
+    const PartRange r = part_range(world, part, parts);
+    for (std::size_t i = r.begin; i < r.end; ++i) add_to_bounds(part_bounds[part], scene.triangles[i].p);
+  });
+  DrawnBounds out;
+  for (const DrawnBounds& b : part_bounds) {
+    out.in_range &= b.in_range;
+    out.any |= b.any;
+    out.lo = glm::min(out.lo, b.lo);
+    out.hi = glm::max(out.hi, b.hi);
+  }
+  for (const MeshInstance& inst : in.instances) {  // as for_each_drawn_triangle places them
+    const InstancedMesh& m = in.meshes[inst.mesh];
+    for (std::size_t i = m.first; i < m.first + m.count; ++i) {
+      glm::vec3 p[3];
+      for (int c = 0; c < 3; ++c) p[c] = glm::vec3(inst.object_to_world * glm::vec4(scene.triangles[i].p[c], 1.0f));
+      add_to_bounds(out, p);
+    }
+  }
+  return out;
 }
 
 }  // namespace px

@@ -6,6 +6,7 @@
 #include "scene/scene.h"
 
 #include <cstddef>
+#include <limits>
 
 namespace px {
 
@@ -38,6 +39,18 @@ void for_each_drawn_triangle(const Scene& scene, Fn&& fn) {
     }
   }
 }
+
+// The drawn triangles' bounding box (NaN coordinates passed over) and whether every coordinate
+// lies within +-kMaxSceneCoordinate (NaN does not). A large scene's world triangles are read in
+// parts side by side: a start asks for this several times (the loader's range check, load_scene's,
+// the start's bounds) and 4M triangles are 400 MB to read. Where a bound is zero, its sign may
+// differ from a one-by-one pass's (the parts are joined by min and max).
+struct DrawnBounds {
+  glm::vec3 lo{std::numeric_limits<float>::max()}, hi{-std::numeric_limits<float>::max()};
+  bool in_range = true;  // every coordinate within +-kMaxSceneCoordinate
+  bool any = false;      // a triangle is drawn
+};
+DrawnBounds drawn_bounds(const Scene& scene);
 
 // Throws std::logic_error when the instancing does not describe the triangles (meshes out of
 // range or overlapping the world part, instances naming no mesh, a matrix that is not affine

@@ -531,29 +531,20 @@ void check_coordinate_range(Scene& scene, const std::string& source, bool warn) 
           std::abs(p.z) <= kMaxSceneCoordinate))
       check(p, "triangle " + std::to_string(triangle));
   };
-  glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
-  float far = 0.0f;
   // Instances are checked where they place their meshes (a mesh's own coordinates may be small
   // and its instances far).
   // One pass for the bounds and whether every coordinate is in range (NaN is not); only when one
-  // is not are the triangles searched again, to name the first such.
-  bool in_range = true, any = false;
-  for_each_drawn_triangle(scene, [&](const glm::vec3* ps, std::size_t) {
-    any = true;
-    for (int c = 0; c < 3; ++c) {
-      const glm::vec3& p = ps[c];
-      in_range &= std::abs(p.x) <= kMaxSceneCoordinate && std::abs(p.y) <= kMaxSceneCoordinate &&
-                  std::abs(p.z) <= kMaxSceneCoordinate;
-      lo = glm::min(lo, p);
-      hi = glm::max(hi, p);
-    }
-  });
-  if (!in_range)
+  // is not are the triangles searched again, to name the first such. Only the bounds' extent and
+  // farthest coordinate are used below, which a zero bound's sign does not change.
+  const DrawnBounds bounds = drawn_bounds(scene);
+  const glm::vec3 lo = bounds.lo, hi = bounds.hi;
+  float far = 0.0f;
+  if (!bounds.in_range)
     for_each_drawn_triangle(scene, [&](const glm::vec3* ps, std::size_t i) {
       for (int c = 0; c < 3; ++c) check_vertex(ps[c], i);
     });
   // Every vertex is within [lo, hi], so the farthest coordinate is a corner's.
-  if (any)
+  if (bounds.any)
     far = std::max({std::abs(lo.x), std::abs(lo.y), std::abs(lo.z), std::abs(hi.x), std::abs(hi.y), std::abs(hi.z)});
   check(scene.camera.position, "the camera position");
   check(scene.camera.target, "the camera target");
