@@ -525,6 +525,14 @@ TEST(DeviceScene, TheKernelOptionsKnownFromTheHostPartAreTheDeviceScenesOwn) {
   ASSERT_TRUE(start.device_scene.flat_shading() || start.device_scene.indexed_shading());
   EXPECT_TRUE(start.devices.has_program("pathtrace/path_trace.cl", start.device_scene.kernel_options()))
       << "the start built (or is building) the scene's kernels";
+  EXPECT_FALSE(start.devices.has_program("pipeline/reproject.cl")) << "no frame kernels asked for";
+  // A start that renders frames builds the frame's kernels too (the program the stages ask for).
+  SceneOnDevices frames("cornell", {2, DeviceMode::Auto, "", std::nullopt}, /*quiet=*/true, {}, KernelChoice::Scene,
+                        StartBuilds::Frames);
+  EXPECT_TRUE(frames.devices.has_program("pathtrace/path_trace.cl", frames.device_scene.kernel_options()));
+  EXPECT_TRUE(frames.devices.has_program("pipeline/reproject.cl"));
+  EXPECT_TRUE(frames.devices.has_program("pipeline/tonemap.cl"));
+  EXPECT_NO_THROW(cl::Kernel(frames.devices.program("pipeline/tonemap.cl"), "tonemap"));
 }
 
 // A flat static scene that goes to the devices makes its records before its tree

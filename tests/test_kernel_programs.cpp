@@ -87,6 +87,17 @@ TEST(KernelPrograms, APrebuiltProgramIsTheOneServedAndItsFailureIsThrownThere) {
   }
   // Asked again, it is built again in program() and fails the same way.
   EXPECT_THROW(set.program("pathtrace/path_trace.cl", broken), ClFailure);
+
+  // Prebuilds run in turn: one that fails does not stop the one asked for after it, and each is
+  // served (or thrown) by its own program().
+  const std::string after = "-DPX_FEATURES=0x041";
+  set.prebuild("pathtrace/path_trace.cl", broken);
+  set.prebuild("pathtrace/path_trace.cl", after);
+  set.prebuild("pipeline/frame_kernels.cl");
+  EXPECT_TRUE(set.has_program("pipeline/reproject.cl")) << "the frame's bundle, asked by its own name";
+  EXPECT_NO_THROW(cl::Kernel(set.program("pipeline/tonemap.cl"), "tonemap"));
+  EXPECT_NO_THROW(cl::Kernel(set.program("pathtrace/path_trace.cl", after), "path_trace_pixels"));
+  EXPECT_THROW(set.program("pathtrace/path_trace.cl", broken), ClFailure);
 }
 
 }  // namespace

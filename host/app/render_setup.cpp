@@ -86,7 +86,8 @@ void print_kernel_features(const DeviceScene& scene) {
 }
 
 RenderSession::RenderSession(const RenderCommand& cmd, const StereoPipeline::Options& options)
-    : SceneOnDevices(cmd.scene.name, cmd.devices.options(), false, cmd.scene.load_options(), cmd.scene.kernels),
+    : SceneOnDevices(cmd.scene.name, cmd.devices.options(), false, cmd.scene.load_options(), cmd.scene.kernels,
+                     StartBuilds::Frames),
       pipeline(devices, device_scene, loaded.scene, cmd.size.width, cmd.size.height, options) {
   print_device_set(devices);
   print_scene_upload(device_scene, devices.size());

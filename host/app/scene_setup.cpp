@@ -314,9 +314,9 @@ LoadedScene load_and_build(const std::string& spec, bool quiet, const SceneLoadO
 }
 
 SceneOnDevices::SceneOnDevices(const std::string& spec, const DeviceOptions& device_options, bool quiet,
-                               const SceneLoadOptions& options, KernelChoice kernels)
+                               const SceneLoadOptions& options, KernelChoice kernels, StartBuilds builds)
     : SceneOnDevices(load_and_build(spec, quiet, options, /*map_device_layout=*/true, device_options.bvh_layout),
-                     device_options, kernels) {}
+                     device_options, kernels, builds) {}
 
 namespace {
 
@@ -372,7 +372,8 @@ DeviceScene make_device_scene(DeviceSet& devices, LoadedScene& loaded,
 
 }  // namespace
 
-SceneOnDevices::SceneOnDevices(LoadedScene scene, const DeviceOptions& device_options, KernelChoice kernels)
+SceneOnDevices::SceneOnDevices(LoadedScene scene, const DeviceOptions& device_options, KernelChoice kernels,
+                               StartBuilds builds)
     : loaded(std::move(scene)),
       host_part(prepare_host_part(loaded)),
       devices([&] {
@@ -386,9 +387,15 @@ SceneOnDevices::SceneOnDevices(LoadedScene scene, const DeviceOptions& device_op
         // first launch. Not beside the tree's build: that uses every core, and the compiler's
         // memory would stand beside the build's arrays (docs/measurements.md, "The scene's
         // kernels built while the scene is laid out").
-        if (host_part)
+        if (host_part) {
           set.prebuild("pathtrace/path_trace.cl",
                        DeviceScene::kernel_options_for(*host_part, set.bvh_layout(), kernels));
+          // The frame's other kernels after them (prebuilds run in turn): a large scene's layout
+          // outlasts the scene's build (1.5 s at 10M triangles against about 1 s), and they were
+          // built at the first frame (docs/measurements.md, "The frame's kernels built during
+          // the layout too").
+          if (builds == StartBuilds::Frames) set.prebuild("pipeline/frame_kernels.cl");
+        }
         return set;
       }()),
       device_scene(make_device_scene(devices, loaded, host_part)) {

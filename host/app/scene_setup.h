@@ -90,11 +90,18 @@ LoadedScene load_and_build(const std::string& spec, bool quiet = false, const Sc
 // the host's triangles of a static scene (about 100 bytes each: 1 GB at 10M triangles), which
 // nothing reads once the devices have them; `loaded.triangle_count` and the bounds stay. An
 // animated scene (Scene::rig) keeps them: they are posed anew every frame.
+//
+// A static scene's start builds its kernels while the scene is laid out (DeviceSet::prebuild):
+// the scene's, and, for a start that renders frames (`render`, `view`: StartBuilds::Frames), the
+// frame's other kernels after them, which are otherwise built at the first frame.
+enum class StartBuilds { SceneKernels, Frames };
 struct SceneOnDevices {
   SceneOnDevices(const std::string& spec, const DeviceOptions& device_options, bool quiet = false,
-                 const SceneLoadOptions& options = {}, KernelChoice kernels = KernelChoice::Scene);
+                 const SceneLoadOptions& options = {}, KernelChoice kernels = KernelChoice::Scene,
+                 StartBuilds builds = StartBuilds::SceneKernels);
   // A scene loaded before: a bench that runs one scene on several device sets loads it once.
-  SceneOnDevices(LoadedScene scene, const DeviceOptions& device_options, KernelChoice kernels = KernelChoice::Scene);
+  SceneOnDevices(LoadedScene scene, const DeviceOptions& device_options, KernelChoice kernels = KernelChoice::Scene,
+                 StartBuilds builds = StartBuilds::SceneKernels);
   SceneOnDevices(const SceneOnDevices&) = delete;
   SceneOnDevices& operator=(const SceneOnDevices&) = delete;
 

@@ -283,10 +283,14 @@ void DeviceSet::prebuild(const std::string& path, const std::string& extra_optio
   if (programs_.count(r.key) || prebuilds_.count(r.key)) return;
   // The task holds copies of the context and devices (reference counted), not the set, which
   // may move before it ends; a failure is kept in the future for program() to throw.
-  prebuilds_.emplace(r.key, std::async(std::launch::async, [context = context_, devices = unique_devices_,
-                                                            path = r.path, options = r.options] {
-                              return build_program(context, devices, path, options);
-                            }).share());
+  std::shared_future<cl::Program> build =
+      std::async(std::launch::async, [context = context_, devices = unique_devices_, path = r.path, options = r.options,
+                                      before = last_prebuild_] {
+        if (before.valid()) before.wait();  // its failure is its own program()'s to throw
+        return build_program(context, devices, path, options);
+      }).share();
+  prebuilds_.emplace(r.key, build);
+  last_prebuild_ = std::move(build);
 }
 
 bool DeviceSet::has_program(const std::string& path, const std::string& extra_options) const {

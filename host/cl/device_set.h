@@ -76,8 +76,10 @@ class DeviceSet {
   // Starts building what program(path, extra_options) returns on a thread of its own, so that a
   // start builds its kernels beside other work (SceneOnDevices: the scene's layout); program()
   // then waits for that build, or throws its failure. Does nothing for a program built or started
-  // already. A build nothing asks for is waited for when the set goes. Call from the thread that
-  // calls program().
+  // already. Prebuilds run one after another in the order asked (PoCL builds one program at a
+  // time in a process, so two at once would only race for its lock): the program asked for first
+  // is ready first; a failed one does not stop the next. A build nothing asks for is waited for
+  // when the set goes. Call from the thread that calls program().
   void prebuild(const std::string& path, const std::string& extra_options = "");
   // Whether program(path, extra_options) is built or being built (prebuild): asking for it
   // starts no build.
@@ -101,6 +103,7 @@ class DeviceSet {
   std::map<std::string, cl::Program> programs_;
   // Builds prebuild() started, by program key, until program() takes them.
   std::map<std::string, std::shared_future<cl::Program>> prebuilds_;
+  std::shared_future<cl::Program> last_prebuild_;  // the next prebuild starts once it has ended
   struct ProgramRequest {
     std::string path;     // the file built: the bundle holding the one asked for, or that one
     std::string key;      // programs_' key
