@@ -64,13 +64,13 @@ using gltf::read_u32;
 
 Scene load_gltf(const std::string& path, const SceneLoadOptions& options, bool* has_camera) {
   if (has_camera) *has_camera = false;
-  // Mapped, not read: tinygltf copies the buffers it needs out of the file's bytes, which are
-  // parsed where they lie in the page cache (scene_file_bytes.h).
   // A file too large for tinygltf is refused before it is mapped (and read in whole).
   if (std::error_code ec; fs::is_regular_file(path, ec)) {
     const std::uintmax_t size = fs::file_size(path, ec);
     if (!ec) check_gltf_file_size(path, static_cast<std::size_t>(size));
   }
+  // Mapped, not read: tinygltf copies the buffers it needs out of the file's bytes, which are
+  // parsed where they lie in the page cache (scene_file_bytes.h).
   MappedSceneFile file(path, "glTF");
   check_gltf_file_size(path, file.size());
   const unsigned char* bytes = file.data();
