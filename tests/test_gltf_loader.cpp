@@ -49,6 +49,16 @@ int count_warnings_containing(const Scene& s, const std::string& needle) {
 // has no uri yet (each writer below sets it).
 using Gltf = test::GltfBuilder;
 
+// The document's one scene: one node drawing one mesh of primitive `prim` (buffer 0's uri and
+// length are the writers' below).
+void one_primitive_scene(Gltf& g, const json& prim) {
+  g.doc["scene"] = 0;
+  g.doc["scenes"] = json::array({{{"nodes", json::array({0})}}});
+  g.doc["nodes"] = json::array({{{"mesh", 0}}});
+  g.doc["meshes"] = json::array({{{"primitives", json::array({prim})}}});
+  g.doc["buffers"] = json::array({{{"byteLength", 0}}});
+}
+
 // positions (xyz per vertex), optional normals and uvs, uint16 indices (empty = non-indexed).
 Gltf make_mesh(const std::vector<float>& pos, const std::vector<std::uint16_t>& idx,
                const std::vector<float>& normals = {}, const std::vector<float>& uvs = {}) {
@@ -60,11 +70,7 @@ Gltf make_mesh(const std::vector<float>& pos, const std::vector<std::uint16_t>& 
   if (!uvs.empty()) attributes["TEXCOORD_0"] = g.floats(uvs, "VEC2", nv);
   json prim = {{"attributes", attributes}};
   if (!idx.empty()) prim["indices"] = g.uint16s(idx, "SCALAR", idx.size());
-  g.doc["scene"] = 0;
-  g.doc["scenes"] = json::array({{{"nodes", json::array({0})}}});
-  g.doc["nodes"] = json::array({{{"mesh", 0}}});
-  g.doc["meshes"] = json::array({{{"primitives", json::array({prim})}}});
-  g.doc["buffers"] = json::array({{{"byteLength", 0}}});
+  one_primitive_scene(g, prim);
   return g;
 }
 
@@ -201,11 +207,7 @@ TEST(GltfLoader, InterleavedFloatAttributesAndNormalizedIntegerUvsReadAsTheirVal
   g.doc["accessors"][uv]["normalized"] = true;
   json prim = {{"attributes", {{"POSITION", position}, {"NORMAL", normal}, {"TEXCOORD_0", uv}}},
                {"indices", g.uint16s(idx, "SCALAR", idx.size())}};
-  g.doc["scene"] = 0;
-  g.doc["scenes"] = json::array({{{"nodes", json::array({0})}}});
-  g.doc["nodes"] = json::array({{{"mesh", 0}}});
-  g.doc["meshes"] = json::array({{{"primitives", json::array({prim})}}});
-  g.doc["buffers"] = json::array({{{"byteLength", 0}}});
+  one_primitive_scene(g, prim);
   TempDir dir;
   for (const fs::path& f : {write_embedded(dir, "interleaved.gltf", g), write_glb(dir, "interleaved.glb", g)}) {
     const Scene s = load_gltf(f.string());

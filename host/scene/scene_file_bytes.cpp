@@ -14,15 +14,26 @@
 #include <unistd.h>
 
 namespace px {
+namespace {
 
-std::string read_scene_file_bytes(const std::string& path, const char* kind) {
+// "<kind> file '<path>'" for the errors, once the path is known to name a regular file: a
+// folder or a device would "open" and read as empty or block, so anything else is refused.
+std::string regular_file_named(const std::string& path, const char* kind) {
   namespace fs = std::filesystem;
   const std::string what = std::string(kind) + " file '" + path + "'";
   std::error_code ec;
   const fs::file_status st = fs::status(path, ec);
-  // A folder or a device would "open" and read as empty or block: refuse anything else.
   if (ec || !fs::exists(st)) throw SceneError("cannot open " + what + ": no such file");
   if (!fs::is_regular_file(st)) throw SceneError("cannot open " + what + ": not a regular file");
+  return what;
+}
+
+}  // namespace
+
+std::string read_scene_file_bytes(const std::string& path, const char* kind) {
+  namespace fs = std::filesystem;
+  const std::string what = regular_file_named(path, kind);
+  std::error_code ec;
   std::ifstream in(path, std::ios::binary);
   if (!in) throw SceneError("cannot open " + what + ": " + std::strerror(errno));
   // Read at its size in one piece: a stream copy into a growing buffer wrote a 180 MB .glb
@@ -45,12 +56,7 @@ std::string read_scene_file_bytes(const std::string& path, const char* kind) {
 }
 
 MappedSceneFile::MappedSceneFile(const std::string& path, const char* kind) {
-  namespace fs = std::filesystem;
-  const std::string what = std::string(kind) + " file '" + path + "'";
-  std::error_code ec;
-  const fs::file_status st = fs::status(path, ec);
-  if (ec || !fs::exists(st)) throw SceneError("cannot open " + what + ": no such file");
-  if (!fs::is_regular_file(st)) throw SceneError("cannot open " + what + ": not a regular file");
+  const std::string what = regular_file_named(path, kind);
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) throw SceneError("cannot open " + what + ": " + std::strerror(errno));
   struct stat info {};
