@@ -394,7 +394,7 @@ SceneOnDevices::SceneOnDevices(LoadedScene scene, const DeviceOptions& device_op
           // outlasts the scene's build (1.5 s at 10M triangles against about 1 s), and they were
           // built at the first frame (docs/measurements.md, "The frame's kernels built during
           // the layout too").
-          if (builds == StartBuilds::Frames) set.prebuild("pipeline/frame_kernels.cl");
+          if (builds == StartBuilds::Frames) set.prebuild(DeviceSet::kFrameKernels);
         }
         return set;
       }()),

@@ -9,9 +9,9 @@
 #include <array>
 #include <iterator>
 #include <cstdlib>
+#include <future>
 #include <map>
 #include <mutex>
-#include <future>
 #include <sstream>
 #include <stdexcept>
 #include <vector>
@@ -222,7 +222,7 @@ const char* bundle_of(const std::string& path, const std::string& extra_options)
     const char* file;
     bool takes_options;  // built with the caller's options; else only for a file asked without any
   };
-  static const Bundle bundles[] = {{"pathtrace/scene_kernels.cl", true}, {"pipeline/frame_kernels.cl", false}};
+  static const Bundle bundles[] = {{DeviceSet::kSceneKernels, true}, {DeviceSet::kFrameKernels, false}};
   static const auto members = [] {
     std::array<std::vector<std::string>, std::size(bundles)> files;
     for (std::size_t b = 0; b < files.size(); ++b) files[b] = quoted_includes(bundles[b].file);

@@ -67,11 +67,14 @@ class DeviceSet {
   // Whether that layout was requested rather than the device type's default.
   bool bvh_layout_requested() const { return requested_layout_.has_value(); }
 
+  // The two programs that include the frame's kernel files (program()): the scene's kernels,
+  // built with the scene's options, and the rest.
+  static constexpr const char* kSceneKernels = "pathtrace/scene_kernels.cl";
+  static constexpr const char* kFrameKernels = "pipeline/frame_kernels.cl";
   // Builds kernels/<path> (with its includes) for every device in the set; cached per
   // (path, options). A failed build throws ClFailure carrying each device's build log. The
-  // frame's kernel files come from two programs that include them (the scene's kernels,
-  // kernels/pathtrace/scene_kernels.cl, and the rest, kernels/pipeline/frame_kernels.cl): the
-  // same kernels, built in two builds instead of eleven.
+  // frame's kernel files come from kSceneKernels and kFrameKernels, which include them: the same
+  // kernels, built in two builds instead of eleven.
   const cl::Program& program(const std::string& path, const std::string& extra_options = "");
   // Starts building what program(path, extra_options) returns on a thread of its own, so that a
   // start builds its kernels beside other work (SceneOnDevices: the scene's layout); program()
