@@ -9,7 +9,9 @@ start-up, kernel builds and the first frame cancel), over F. Runs alternate betw
       -- --scene rooms --width 320 --height 180 --devices 2 --no-denoise
 
 A --cmd may carry flags of its own ("build/parallax --direct-light tree"); the flags after -- go to
-every render. Each render writes into a temporary folder that is removed afterwards.
+every render. Each render writes into a temporary folder that is removed afterwards. A binary that
+has --kernel-build gets `--kernel-build optimized`, unless the flags name one: `auto` could build the
+short run's kernels quickly and the long run's optimised, and the subtraction would then mix the two.
 """
 import argparse
 import os
@@ -21,9 +23,18 @@ import sys
 import tempfile
 
 
+def build_flags(binary, flags):
+    """`--kernel-build optimized` where `binary` takes it and `flags` name no build."""
+    if any(f.startswith("--kernel-build") for f in flags):
+        return []
+    help_text = subprocess.run([binary, "render", "--help"], capture_output=True, text=True).stdout
+    return ["--kernel-build", "optimized"] if "--kernel-build" in help_text else []
+
+
 def cpu_seconds(cmd, flags, frames, out):
     shutil.rmtree(out, ignore_errors=True)
     args = shlex.split(cmd)
+    flags = flags + build_flags(args[0], args[1:] + flags)
     p = subprocess.Popen([args[0], "render"] + args[1:] + flags + ["--frames", str(frames), "--out", out],
                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     _, status, usage = os.wait4(p.pid, 0)

@@ -336,6 +336,24 @@ for f in frame_0001_left frame_0001_right; do
     "$tmp/k_scene/$f.exr" "$tmp/k_general/$f.exr"
 done
 check "an unknown --kernels value is refused" 1 "kernels" -- "$bin" render --kernels fastest --out "$tmp/k_bad"
+# --kernel-build: the short runs above built their kernels quickly (auto); optimised kernels
+# render the same pixels, and a run that measures speed gets them whatever its length.
+check "a short run builds its kernels quickly" 0 "quick build, the compiler's optimisation off.*--kernel-build auto" \
+  -- "$bin" render --scene cornell --width 24 --height 16 --frames 2 --out "$tmp/k_auto"
+check "--kernel-build optimized renders" 0 "wrote 2 frame" -- "$bin" render --scene cornell --width 24 --height 16 \
+  --frames 2 --kernel-build optimized --out "$tmp/k_optimized"
+for f in frame_0001_left frame_0001_right; do
+  check "quick and optimised kernels give identical pixels ($f)" 0 "^identical$" -- "$bin" compare --exact \
+    "$tmp/k_auto/$f.exr" "$tmp/k_optimized/$f.exr"
+done
+if grep -q "quick build" <<<"$("$bin" render --scene cornell --width 24 --height 16 --frames 2 --kernel-build optimized \
+  --overwrite --out "$tmp/k_optimized" 2>&1)"; then bad "--kernel-build optimized built quickly"; else ok "--kernel-build optimized builds optimised"; fi
+if /usr/bin/python3 -c 'import json, sys; sys.exit(json.load(open(sys.argv[1]))["kernel_build"] != "optimized")' "$tmp/k_scene.json"; then
+  ok "a run with --report builds optimised kernels, and the report says so"
+else bad "the --report run's kernel_build: $(grep -o '"kernel_build[^,]*' "$tmp/k_scene.json")"; fi
+check "--kernel-build quick says it was asked" 0 "as --kernel-build quick asks" -- "$bin" preview --scene cornell \
+  --width 24 --height 16 --kernel-build quick --out "$tmp/k_preview"
+check "an unknown --kernel-build value is refused" 1 "kernel-build" -- "$bin" render --kernel-build fast --out "$tmp/k_bad"
 
 # A scene buffer larger than one allocation may hold is refused naming it (the device's limit
 # lowered with PARALLAX_MAX_ALLOC_BYTES), and leaves no --out folder behind.

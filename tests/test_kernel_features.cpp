@@ -2,7 +2,9 @@
 // gets, and that the scene's kernels render every image bit for bit as the general kernels do
 // (every feature compiled in) on the built-in scenes, a synthetic scene with every feature, and
 // the shared real scenes. A feature missing from the derivation (one the scene uses) makes the
-// images differ: a build without GGX renders cornell-glossy's glossy box as diffuse.
+// images differ: a build without GGX renders cornell-glossy's glossy box as diffuse. And that a
+// quick build (cl/kernel_build.h: the optimiser off) renders every image bit for bit as the
+// optimised build does.
 #include "app/scene_setup.h"
 #include "bvh/scene_bvhs.h"
 #include "bvh/wide_bvh.h"
@@ -183,12 +185,16 @@ struct Images {
 // the preview, with the given kernels.
 // `hand_over`: the device scene takes the triangles of a copy of the scene (SceneOnDevices' way:
 // leaf triangles as BvhLeafRef records in the wide layouts), which the renderers then get.
-// `layout`: the set's BVH node layout (nullopt: its device type's default).
+// `layout`: the set's BVH node layout (nullopt: its device type's default). `build`: optimised
+// or quick kernels.
 Images render_with(const LoadedScene& loaded, KernelChoice kernels, PathTraceKernel path_kernel, unsigned w, unsigned h,
-                   bool hand_over = false, std::optional<BvhLayout> layout = std::nullopt) {
+                   bool hand_over = false, std::optional<BvhLayout> layout = std::nullopt,
+                   KernelBuild build = KernelBuild::Optimized) {
   DeviceOptions options{2, DeviceMode::Auto, "", std::nullopt};
   options.bvh_layout = layout;
+  options.kernel_build = build;
   DeviceSet set = DeviceSet::create(options);
+  EXPECT_EQ(set.kernel_build().quick, build == KernelBuild::Quick);
   Scene copy = loaded.scene;
   DeviceScene ds =
       hand_over ? DeviceScene(set, copy, loaded.bvh, {}, {}, [&copy] { return std::exchange(copy.triangles, {}); })
@@ -299,6 +305,35 @@ TEST(KernelFeatures, LeafRefsRenderTheImagesOfFullLeafTriangles) {
       for (int e = 0; e < 2; ++e) {
         EXPECT_TRUE(same_bits(full.reference[e], refs.reference[e])) << "reference, eye " << e;
         EXPECT_TRUE(same_bits(full.preview[e], refs.preview[e])) << "preview, eye " << e;
+      }
+    }
+  }
+}
+
+// The compiler's optimiser may not change a floating-point result without fast-math options, so
+// a quick build (optimisation off) computes what the optimised build does: every pipeline stage,
+// the reference pass and the preview, on the built-in scenes and with every feature, both path
+// tracers. What would break it: a kernel reading memory it never wrote or overflowing a shift
+// (undefined behaviour the two levels resolve differently), a fast-math option, or a compiler
+// that contracts a*b+c at one level and not the other.
+TEST(KernelFeatures, AQuickBuildRendersTheOptimisedBuildsImages) {
+  std::vector<LoadedScene> scenes;
+  scenes.push_back(every_feature_scene());
+  for (const char* name : {"cornell", "atrium"}) scenes.push_back(load_and_build(name, true));
+  for (const LoadedScene& loaded : scenes) {
+    for (const PathTraceKernel path_kernel : {PathTraceKernel::Megakernel, PathTraceKernel::Wavefront}) {
+      if (path_kernel == PathTraceKernel::Wavefront && loaded.scene.name != "every feature") continue;
+      SCOPED_TRACE(loaded.scene.name + (path_kernel == PathTraceKernel::Wavefront ? ", wavefront" : ""));
+      const auto optimised =
+          render_with(loaded, KernelChoice::Scene, path_kernel, 40, 28, false, std::nullopt, KernelBuild::Optimized);
+      const auto quick =
+          render_with(loaded, KernelChoice::Scene, path_kernel, 40, 28, false, std::nullopt, KernelBuild::Quick);
+      for (std::size_t f = 0; f < optimised.frames.size(); ++f)
+        for (int e = 0; e < 2; ++e)
+          EXPECT_TRUE(same_bits(optimised.frames[f][e], quick.frames[f][e])) << "frame " << f << ", eye " << e;
+      for (int e = 0; e < 2; ++e) {
+        EXPECT_TRUE(same_bits(optimised.reference[e], quick.reference[e])) << "reference, eye " << e;
+        EXPECT_TRUE(same_bits(optimised.preview[e], quick.preview[e])) << "preview, eye " << e;
       }
     }
   }

@@ -67,6 +67,12 @@ const WordTable<KernelChoice>& kernel_words() {
   return words;
 }
 
+const WordTable<KernelBuild>& kernel_build_words() {
+  static const WordTable<KernelBuild> words{
+      {"auto", KernelBuild::Auto}, {"quick", KernelBuild::Quick}, {"optimized", KernelBuild::Optimized}};
+  return words;
+}
+
 const WordTable<PixelJitter>& jitter_words() {
   static const WordTable<PixelJitter> words{{"halton", PixelJitter::Halton}, {"centre", PixelJitter::Centre}};
   return words;
@@ -110,6 +116,7 @@ const std::string& cli_word(StripBalance value) { return word_of(balance_words()
 const std::string& cli_word(PathTraceKernel value) { return word_of(path_tracer_words(), value); }
 const std::string& cli_word(SkyMode value) { return word_of(sky_words(), value); }
 const std::string& cli_word(KernelChoice value) { return word_of(kernel_words(), value); }
+const std::string& cli_word(KernelBuild value) { return word_of(kernel_build_words(), value); }
 const std::string& cli_word(PixelJitter value) { return word_of(jitter_words(), value); }
 const std::string& cli_word(std::optional<BvhLayout> value) { return word_of(bvh_layout_words(), value); }
 

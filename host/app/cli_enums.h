@@ -33,6 +33,7 @@ const WordTable<StripBalance>& balance_words();                 // static, dynam
 const WordTable<SkyMode>& sky_words();                          // auto, on, off
 const WordTable<PathTraceKernel>& path_tracer_words();          // megakernel, wavefront
 const WordTable<KernelChoice>& kernel_words();                  // scene, general
+const WordTable<KernelBuild>& kernel_build_words();             // auto, quick, optimized
 const WordTable<PixelJitter>& jitter_words();                   // halton, centre
 const WordTable<std::optional<BvhLayout>>& bvh_layout_words();  // auto (nullopt), binary, wide4, wide8, cwbvh
 
@@ -47,6 +48,7 @@ const std::string& cli_word(StripBalance value);
 const std::string& cli_word(SkyMode value);
 const std::string& cli_word(PathTraceKernel value);
 const std::string& cli_word(KernelChoice value);
+const std::string& cli_word(KernelBuild value);
 const std::string& cli_word(PixelJitter value);
 const std::string& cli_word(std::optional<BvhLayout> value);
 

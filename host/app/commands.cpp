@@ -45,7 +45,29 @@ void write_stereo(const OutputDir& dir, const std::string& prefix, const std::ar
 
 }  // namespace
 
-DeviceOptions DeviceChoice::options() const { return {count, mode, platform, bvh_layout}; }
+DeviceOptions DeviceChoice::options(std::optional<KernelWork> work) const {
+  return {count, mode, platform, bvh_layout, kernel_build, work};
+}
+
+std::optional<KernelWork> render_kernel_work(const RenderCommand& cmd, int ranks) {
+  if (!cmd.report.empty() || !cmd.timeline.empty() || !cmd.target_ms.empty()) return std::nullopt;
+  const double pixels = 2.0 * cmd.frames * cmd.size.width * cmd.size.height / std::max(ranks, 1);
+  KernelWork w;
+  w.pixel_samples = pixels * cmd.pipeline.trace.spp;
+  w.denoised_pixels = cmd.pipeline.denoise ? pixels : 0.0;
+  return w;
+}
+
+namespace {
+
+// A still image of both eyes at `spp` samples a pixel, undenoised (`preview`, `reference`).
+KernelWork still_kernel_work(const ImageSize& size, unsigned spp) {
+  KernelWork w;
+  w.pixel_samples = 2.0 * size.width * size.height * spp;
+  return w;
+}
+
+}  // namespace
 
 int run_devices(const DeviceChoice& choice) {
   std::printf("%s", describe_platforms().c_str());
@@ -58,10 +80,12 @@ int run_devices(const DeviceChoice& choice) {
 int run_preview(const PreviewCommand& cmd) {
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite);
-  SceneOnDevices on_devices(cmd.scene.name, cmd.devices.options(), false, cmd.scene.load_options(), cmd.scene.kernels);
+  SceneOnDevices on_devices(cmd.scene.name, cmd.devices.options(still_kernel_work(cmd.size, 1)), false,
+                            cmd.scene.load_options(), cmd.scene.kernels);
   print_device_set(on_devices.devices);
   print_scene_upload(on_devices.device_scene, on_devices.devices.size());
   print_kernel_features(on_devices.device_scene);
+  print_kernel_build(on_devices.devices);
   SceneAnimator animator(on_devices.loaded.scene, cmd.scene.animation);
   if (animator.moves()) {
     std::fprintf(stderr, "[preview] animation: %s\n", animator.describe().c_str());
@@ -139,10 +163,12 @@ int run_render(const RenderCommand& cmd) {
 int run_reference(const ReferenceCommand& cmd) {
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite);
-  SceneOnDevices on_devices(cmd.scene.name, cmd.devices.options(), false, cmd.scene.load_options(), cmd.scene.kernels);
+  SceneOnDevices on_devices(cmd.scene.name, cmd.devices.options(still_kernel_work(cmd.size, cmd.spp)), false,
+                            cmd.scene.load_options(), cmd.scene.kernels);
   print_device_set(on_devices.devices);
   print_scene_upload(on_devices.device_scene, on_devices.devices.size());
   print_kernel_features(on_devices.device_scene);
+  print_kernel_build(on_devices.devices);
   const Scene& scene = on_devices.loaded.scene;
   // The scene and camera at the frame's time, on `render`'s clock: the reference of frame f is
   // the image `render` converges to at frame f.

@@ -19,8 +19,11 @@ struct DeviceChoice {
   int count = 1;
   DeviceMode mode = DeviceMode::Auto;
   std::string platform;
-  std::optional<BvhLayout> bvh_layout;  // --bvh-layout (auto: nullopt, the device type's default)
-  DeviceOptions options() const;
+  std::optional<BvhLayout> bvh_layout;           // --bvh-layout (auto: nullopt, the device type's default)
+  KernelBuild kernel_build = KernelBuild::Auto;  // --kernel-build
+  // `work`: what the command will render, which --kernel-build auto decides by (none, as for
+  // `view`, whose length is open: optimised kernels).
+  DeviceOptions options(std::optional<KernelWork> work = std::nullopt) const;
 };
 
 // What every command that renders a scene reads it with: --scene, --sky, --instancing,
@@ -100,6 +103,11 @@ struct RenderCommand {
   unsigned balance_step = 8;  // dynamic balance: most rows a boundary moves per frame
   DeviceChoice devices;
 };
+
+// What `render` will trace and denoise in this process, for --kernel-build auto (cl/kernel_build.h):
+// its frames' share of `ranks` processes. None where the run measures speed (--report,
+// --timeline) or holds a frame time (--target-ms): those need the optimised kernels.
+std::optional<KernelWork> render_kernel_work(const RenderCommand& cmd, int ranks);
 
 // The live viewer: `render`'s scene, pipeline, quality, devices and control loop (its
 // frames / out / report / timeline are unused), shown in a window as frames finish.

@@ -76,11 +76,13 @@ std::optional<int> RenderLoop::start() {
       if (!cmd_.video.empty()) video_.emplace(cmd_.video, 2 * cmd_.size.width, cmd_.size.height, cmd_.clock.fps);
     }
     // Every rank loads the scene itself (the scene is replicated, not sent).
-    on_devices_.emplace(cmd_.scene.name, cmd_.devices.options(), !root_, cmd_.scene.load_options(), cmd_.scene.kernels);
+    on_devices_.emplace(cmd_.scene.name, cmd_.devices.options(render_kernel_work(cmd_, cluster_.size())), !root_,
+                        cmd_.scene.load_options(), cmd_.scene.kernels);
     const DeviceSet& set = on_devices_->devices;
     if (root_) print_device_set(set);
     if (root_) print_scene_upload(on_devices_->device_scene, set.size());
     if (root_) print_kernel_features(on_devices_->device_scene);
+    if (root_) print_kernel_build(set);
     // Queues sharing one device run on the same compute units: dynamic strips still move, but
     // by times that say more about the order the queues run in than about speed.
     if (root_ && dynamic_strips_ && set.mode() == DeviceMode::SharedQueues && set.size() > 1)
@@ -257,7 +259,8 @@ int RenderLoop::finish() {
   const bool stopped = done_ < cmd_.frames;
   if (report_) {
     report_->finish(totals_, all_devices_, devices.mode(), devices.bvh_layout(), on_devices_->device_scene,
-                    on_devices_->loaded.times, pipeline.nonfinite_paths(), on_devices_->loaded.bvh.stats);
+                    on_devices_->loaded.times, pipeline.nonfinite_paths(), on_devices_->loaded.bvh.stats,
+                    devices.kernel_build().quick);
     std::fprintf(stderr, "[render] report written to %s\n", cmd_.report.c_str());
   }
   if (video_) {

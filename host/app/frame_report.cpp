@@ -78,7 +78,7 @@ void RenderReport::add_frame(unsigned frame, const FrameStats& st, const std::ve
 
 void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode device_mode, BvhLayout bvh_layout,
                           const DeviceScene& scene, const StartTimes& start, std::uint64_t nonfinite_paths,
-                          const BvhBuildStats& bvh) {
+                          const BvhBuildStats& bvh, bool quick_kernels) {
   // How the tree was built: spatial splits as asked, stopped at their budget, or put on trial
   // (large scenes: BvhBuildOptions::split_trial_triangles) and taken or not. A tree from a cache
   // keeps its stats but not its trial.
@@ -113,6 +113,7 @@ void RenderReport::finish(const RenderTotals& totals, int devices, DeviceMode de
                      : nlohmann::json(nullptr)},
       {"bvh_layout", to_string(bvh_layout)},
       {"kernels", cli_word(cmd_.scene.kernels)},
+      {"kernel_build", quick_kernels ? "quick" : "optimized"},
       {"kernel_features", kernel_feature_list(scene.kernel_features())},
       {"bvh",
        {{"nodes", bvh.nodes},

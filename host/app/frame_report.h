@@ -62,9 +62,10 @@ class RenderReport {
                  const FrameQuality& quality, std::optional<double> predicted_ms,
                  const SceneAnimator::Update* update = nullptr);
   // The summary, then the file appears under its name.
+  // `quick_kernels`: the kernels were built with the optimiser off (cl/kernel_build.h).
   void finish(const RenderTotals& totals, int devices, DeviceMode device_mode, BvhLayout bvh_layout,
               const DeviceScene& scene, const StartTimes& start, std::uint64_t nonfinite_paths,
-              const BvhBuildStats& bvh);
+              const BvhBuildStats& bvh, bool quick_kernels);
 
  private:
   const RenderCommand& cmd_;

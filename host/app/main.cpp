@@ -28,7 +28,8 @@ CLI::Option* add_word_option(CLI::App* cmd, const std::string& name, Enum& value
       ->default_str(px::cli_word(value));
 }
 
-void add_device_flags(CLI::App* cmd, px::DeviceChoice& d) {
+// `builds_kernels`: the command compiles kernels (all but `devices`), so --kernel-build applies.
+void add_device_flags(CLI::App* cmd, px::DeviceChoice& d, bool builds_kernels = true) {
   cmd->add_option("--devices", d.count, "number of OpenCL devices the frame is split across")
       ->check(CLI::Range(1, 64))
       ->capture_default_str();
@@ -49,6 +50,13 @@ void add_device_flags(CLI::App* cmd, px::DeviceChoice& d) {
          "(every one renders the same image)")
       ->check(CLI::IsMember(px::bvh_layout_words()))
       ->default_str(px::cli_word(d.bvh_layout));
+  if (builds_kernels)
+    add_word_option(cmd, "--kernel-build", d.kernel_build, px::kernel_build_words(),
+                    "how the kernels are compiled: optimized (the fastest kernels), quick (the compiler's "
+                    "optimisation off: built in about half the time, about 2-4x slower to run, the same images "
+                    "bit for bit) or auto (quick on CPU devices when the run is short enough that the build "
+                    "time saved outweighs the slower frames; optimized for open-ended runs (view) and for runs "
+                    "that measure speed: --report, --timeline, --target-ms)");
 }
 
 void add_size_flags(CLI::App* cmd, px::ImageSize& size) {
@@ -201,7 +209,7 @@ int main(int argc, char** argv) {
 
   px::DeviceChoice devices_choice;
   auto* devices_cmd = app.add_subcommand("devices", "list OpenCL platforms and devices, and the set --devices N makes");
-  add_device_flags(devices_cmd, devices_choice);
+  add_device_flags(devices_cmd, devices_choice, false);
 
   px::PreviewCommand preview;
   auto* preview_cmd =

@@ -85,6 +85,12 @@ void print_kernel_features(const DeviceScene& scene) {
                  describe_kernel_features(scene.kernel_features()).c_str());
 }
 
+void print_kernel_build(const DeviceSet& set) {
+  const KernelBuildDecision& b = set.kernel_build();
+  if (!b.quick) return;
+  std::fprintf(stderr, "[kernels] quick build, the compiler's optimisation off (the same images): %s\n", b.why.c_str());
+}
+
 RenderSession::RenderSession(const RenderCommand& cmd, const StereoPipeline::Options& options)
     : SceneOnDevices(cmd.scene.name, cmd.devices.options(), false, cmd.scene.load_options(), cmd.scene.kernels,
                      StartBuilds::Frames),
@@ -92,6 +98,7 @@ RenderSession::RenderSession(const RenderCommand& cmd, const StereoPipeline::Opt
   print_device_set(devices);
   print_scene_upload(device_scene, devices.size());
   print_kernel_features(device_scene);
+  print_kernel_build(devices);
 }
 
 std::map<Stage, double> slowest_device_ms(const FrameStats& stats) {

@@ -30,6 +30,8 @@ PipelineConfig make_pipeline_config(const RenderCommand& cmd);
 void print_device_set(const DeviceSet& set);
 // One line: the features the scene-dependent kernels are compiled with (--kernels).
 void print_kernel_features(const DeviceScene& scene);
+// The log line of a quick kernel build (cl/kernel_build.h); nothing for an optimised one.
+void print_kernel_build(const DeviceSet& set);
 // One line: the scene's bytes on the devices (one copy per context) and the upload time.
 void print_scene_upload(const DeviceScene& scene, int devices);
 

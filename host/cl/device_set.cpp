@@ -191,6 +191,13 @@ DeviceSet DeviceSet::create(const DeviceOptions& options) {
   }
   set.all_gpus_ =
       std::all_of(set.devices_.begin(), set.devices_.end(), [](const ComputeDevice& d) { return d.is_gpu(); });
+  const bool all_cpus =
+      std::all_of(set.devices_.begin(), set.devices_.end(), [](const ComputeDevice& d) { return d.is_cpu(); });
+  // Queues that share one device share its units: count each device once.
+  int compute_units = 0;
+  for (const cl::Device& d : set.unique_devices_)
+    compute_units += static_cast<int>(d.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>());
+  set.kernel_build_ = decide_kernel_build(options.kernel_build, options.work, all_cpus, compute_units);
   // PoCL's CPU drivers share one work-group-function cache per process, which miscounts when
   // launches of one kernel at different global sizes overlap on several queues (any mode:
   // queues, sub-devices, POCL_DEVICES entries); the guard orders such launches.
@@ -274,7 +281,10 @@ DeviceSet::ProgramRequest DeviceSet::program_request(const std::string& requeste
   r.key = r.path + "|" + layout_define + "|" + extra_options;
   // No fast-relaxed-math: the box test relies on IEEE infinities and the watertight triangle
   // test on exact signs. Single-precision constants guard against a stray unsuffixed literal.
-  r.options = "-cl-std=CL1.2 -cl-single-precision-constant " + layout_define + " " + extra_options;
+  // A quick build (kernel_build.h) is the same source with the optimiser off: its own PoCL
+  // cache entry, the same images.
+  r.options = "-cl-std=CL1.2 -cl-single-precision-constant " + layout_define + " " + extra_options +
+              (kernel_build_.quick ? " -cl-opt-disable" : "");
   return r;
 }
 

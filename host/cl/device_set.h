@@ -6,6 +6,7 @@
 #pragma once
 
 #include "cl/cl_error.h"
+#include "cl/kernel_build.h"
 
 #include <CL/opencl.hpp>
 
@@ -34,6 +35,10 @@ struct DeviceOptions {
   // The BVH node layout the set's kernels traverse; nullopt: the default for its device type
   // (bvh_layout.h: bvh_layout_for).
   std::optional<BvhLayout> bvh_layout;
+  // Optimised or quick builds of every program of the set (cl/kernel_build.h); Auto decides by
+  // `work`, what the command will render (none: optimised).
+  KernelBuild kernel_build = KernelBuild::Optimized;
+  std::optional<KernelWork> work = std::nullopt;
 };
 
 struct ComputeDevice {
@@ -66,6 +71,8 @@ class DeviceSet {
   BvhLayout bvh_layout() const;
   // Whether that layout was requested rather than the device type's default.
   bool bvh_layout_requested() const { return requested_layout_.has_value(); }
+  // Whether the set's programs are built with optimisation off, and why (cl/kernel_build.h).
+  const KernelBuildDecision& kernel_build() const { return kernel_build_; }
 
   // The two programs that include the frame's kernel files (program()): the scene's kernels,
   // built with the scene's options, and the rest.
@@ -103,6 +110,7 @@ class DeviceSet {
   std::string platform_name_;
   bool all_gpus_ = false;  // every device a GPU
   std::optional<BvhLayout> requested_layout_;
+  KernelBuildDecision kernel_build_;
   std::map<std::string, cl::Program> programs_;
   // Builds prebuild() started, by program key, until program() takes them.
   std::map<std::string, std::shared_future<cl::Program>> prebuilds_;
