@@ -77,7 +77,7 @@ std::optional<int> RenderLoop::start() {
     }
     // Every rank loads the scene itself (the scene is replicated, not sent).
     on_devices_.emplace(cmd_.scene.name, cmd_.devices.options(render_kernel_work(cmd_, cluster_.size())), !root_,
-                        cmd_.scene.load_options(), cmd_.scene.kernels);
+                        cmd_.scene.load_options(), cmd_.scene.kernels, StartBuilds::Frames);
     const DeviceSet& set = on_devices_->devices;
     if (root_) print_device_set(set);
     if (root_) print_scene_upload(on_devices_->device_scene, set.size());
