@@ -224,18 +224,22 @@ Images render_with(const LoadedScene& loaded, KernelChoice kernels, PathTraceKer
   return out;
 }
 
+// Every image of `a` (pipeline frames, reference, preview) is the same image of `b` to the bit.
+void expect_same_bits(const Images& a, const Images& b, const std::string& what = "") {
+  for (std::size_t f = 0; f < a.frames.size(); ++f)
+    for (int e = 0; e < 2; ++e)
+      EXPECT_TRUE(same_bits(a.frames[f][e], b.frames[f][e])) << what << "frame " << f << ", eye " << e;
+  for (int e = 0; e < 2; ++e) {
+    EXPECT_TRUE(same_bits(a.reference[e], b.reference[e])) << what << "reference, eye " << e;
+    EXPECT_TRUE(same_bits(a.preview[e], b.preview[e])) << what << "preview, eye " << e;
+  }
+}
+
 void expect_same_images(const LoadedScene& loaded, PathTraceKernel path_kernel = PathTraceKernel::Megakernel,
                         unsigned w = 40, unsigned h = 28) {
   const auto scene = render_with(loaded, KernelChoice::Scene, path_kernel, w, h);
   const auto general = render_with(loaded, KernelChoice::General, path_kernel, w, h);
-  const std::string name = loaded.scene.name;
-  for (std::size_t f = 0; f < scene.frames.size(); ++f)
-    for (int e = 0; e < 2; ++e)
-      EXPECT_TRUE(same_bits(scene.frames[f][e], general.frames[f][e])) << name << ": frame " << f << ", eye " << e;
-  for (int e = 0; e < 2; ++e) {
-    EXPECT_TRUE(same_bits(scene.reference[e], general.reference[e])) << name << ": reference, eye " << e;
-    EXPECT_TRUE(same_bits(scene.preview[e], general.preview[e])) << name << ": preview, eye " << e;
-  }
+  expect_same_bits(scene, general, loaded.scene.name + ": ");
 }
 
 TEST(KernelFeatures, SceneKernelsGiveTheGeneralKernelsImagesOnTheBuiltInScenes) {
@@ -299,13 +303,7 @@ TEST(KernelFeatures, LeafRefsRenderTheImagesOfFullLeafTriangles) {
       LoadedScene in_layout{loaded.scene, tree, {}};
       const auto full = render_with(in_layout, KernelChoice::Scene, PathTraceKernel::Megakernel, 40, 28, false, layout);
       const auto refs = render_with(in_layout, KernelChoice::Scene, PathTraceKernel::Megakernel, 40, 28, true, layout);
-      for (std::size_t f = 0; f < full.frames.size(); ++f)
-        for (int e = 0; e < 2; ++e)
-          EXPECT_TRUE(same_bits(full.frames[f][e], refs.frames[f][e])) << "frame " << f << ", eye " << e;
-      for (int e = 0; e < 2; ++e) {
-        EXPECT_TRUE(same_bits(full.reference[e], refs.reference[e])) << "reference, eye " << e;
-        EXPECT_TRUE(same_bits(full.preview[e], refs.preview[e])) << "preview, eye " << e;
-      }
+      expect_same_bits(full, refs);
     }
   }
 }
@@ -328,13 +326,7 @@ TEST(KernelFeatures, AQuickBuildRendersTheOptimisedBuildsImages) {
           render_with(loaded, KernelChoice::Scene, path_kernel, 40, 28, false, std::nullopt, KernelBuild::Optimized);
       const auto quick =
           render_with(loaded, KernelChoice::Scene, path_kernel, 40, 28, false, std::nullopt, KernelBuild::Quick);
-      for (std::size_t f = 0; f < optimised.frames.size(); ++f)
-        for (int e = 0; e < 2; ++e)
-          EXPECT_TRUE(same_bits(optimised.frames[f][e], quick.frames[f][e])) << "frame " << f << ", eye " << e;
-      for (int e = 0; e < 2; ++e) {
-        EXPECT_TRUE(same_bits(optimised.reference[e], quick.reference[e])) << "reference, eye " << e;
-        EXPECT_TRUE(same_bits(optimised.preview[e], quick.preview[e])) << "preview, eye " << e;
-      }
+      expect_same_bits(optimised, quick);
     }
   }
 }
