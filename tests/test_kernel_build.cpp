@@ -8,10 +8,10 @@
 namespace px {
 namespace {
 
-// A run of `frames` stereo frames of width x height at `spp`, denoised or not.
-KernelWork run_of(unsigned frames, unsigned width, unsigned height, unsigned spp, bool denoised) {
+// A run of `frames` stereo frames of width x height at `spp` and `bounces`, denoised or not.
+KernelWork run_of(unsigned frames, unsigned width, unsigned height, unsigned spp, bool denoised, unsigned bounces = 6) {
   const double pixels = 2.0 * frames * width * height;
-  return {pixels * spp, denoised ? pixels : 0.0};
+  return {pixels * spp, denoised ? pixels : 0.0, bounces};
 }
 
 TEST(KernelBuild, AnAskedForBuildIsTheOneMade) {
@@ -33,10 +33,11 @@ TEST(KernelBuild, AutoBuildsOptimisedWithoutAnEstimateAndOnGpus) {
 }
 
 // The rule, written out again: the quick build's extra running time (2.6 compute-unit
-// microseconds a pixel sample, 5.5 a denoised pixel) against the build time it saves (1 s, 2 s
-// with the denoiser).
+// microseconds a pixel sample of paths up to 6 bounces, in proportion for longer ones; 5.5 a
+// denoised pixel) against the build time it saves (1 s, 2 s with the denoiser).
 bool quick_by_hand(const KernelWork& w, int units) {
-  const double extra = (2.6 * w.pixel_samples + 5.5 * w.denoised_pixels) * 1e-6 / units;
+  const double longer = w.bounces > 6 ? (w.bounces + 1) / 7.0 : 1.0;
+  const double extra = (2.6 * w.pixel_samples * longer + 5.5 * w.denoised_pixels) * 1e-6 / units;
   return extra < (w.denoised_pixels > 0 ? 2.0 : 1.0);
 }
 
@@ -54,6 +55,9 @@ TEST(KernelBuild, AutoBuildsQuicklyForShortRunsOnCpus) {
       {run_of(1, 640, 360, 256, false), 2, false, "a 256-spp reference"},
       {run_of(20, 320, 180, 1, false), 2, false, "20 raw frames on 2 units: 3 s more"},
       {run_of(20, 320, 180, 1, false), 16, true, "the same on 16 units: 0.37 s more"},
+      {run_of(4, 320, 180, 1, false), 2, true, "four raw frames at 6 bounces: 0.6 s more"},
+      {run_of(4, 320, 180, 1, false, 20), 2, false, "the same at 20 bounces: 1.8 s more"},
+      {run_of(4, 320, 180, 1, false, 1), 2, true, "at 1 bounce: counted as 6"},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.what);

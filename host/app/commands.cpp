@@ -55,15 +55,18 @@ std::optional<KernelWork> render_kernel_work(const RenderCommand& cmd, int ranks
   KernelWork w;
   w.pixel_samples = pixels * cmd.pipeline.trace.spp;
   w.denoised_pixels = cmd.pipeline.denoise ? pixels : 0.0;
+  w.bounces = cmd.pipeline.trace.bounces;
   return w;
 }
 
 namespace {
 
-// A still image of both eyes at `spp` samples a pixel, undenoised (`preview`, `reference`).
-KernelWork still_kernel_work(const ImageSize& size, unsigned spp) {
+// A still image of both eyes at `spp` samples a pixel of paths up to `bounces` long, undenoised
+// (`preview`: one primary sample; `reference`).
+KernelWork still_kernel_work(const ImageSize& size, unsigned spp, unsigned bounces) {
   KernelWork w;
   w.pixel_samples = 2.0 * size.width * size.height * spp;
+  w.bounces = bounces;
   return w;
 }
 
@@ -80,7 +83,7 @@ int run_devices(const DeviceChoice& choice) {
 int run_preview(const PreviewCommand& cmd) {
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite);
-  SceneOnDevices on_devices(cmd.scene.name, cmd.devices.options(still_kernel_work(cmd.size, 1)), false,
+  SceneOnDevices on_devices(cmd.scene.name, cmd.devices.options(still_kernel_work(cmd.size, 1, 0)), false,
                             cmd.scene.load_options(), cmd.scene.kernels);
   print_device_set(on_devices.devices);
   print_scene_upload(on_devices.device_scene, on_devices.devices.size());
@@ -163,8 +166,8 @@ int run_render(const RenderCommand& cmd) {
 int run_reference(const ReferenceCommand& cmd) {
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite);
-  SceneOnDevices on_devices(cmd.scene.name, cmd.devices.options(still_kernel_work(cmd.size, cmd.spp)), false,
-                            cmd.scene.load_options(), cmd.scene.kernels);
+  SceneOnDevices on_devices(cmd.scene.name, cmd.devices.options(still_kernel_work(cmd.size, cmd.spp, cmd.bounces)),
+                            false, cmd.scene.load_options(), cmd.scene.kernels);
   print_device_set(on_devices.devices);
   print_scene_upload(on_devices.device_scene, on_devices.devices.size());
   print_kernel_features(on_devices.device_scene);

@@ -1,5 +1,6 @@
 #include "cl/kernel_build.h"
 
+#include <algorithm>
 #include <cstdio>
 
 namespace px {
@@ -13,6 +14,7 @@ namespace {
 // 1 spp, no denoiser) ran 151 ms a 320x180 stereo frame slower (285 against 134 ms); the other
 // scenes measured less (cornell 39 ms, the bunny 26 ms), so auto errs toward the optimised build.
 constexpr double kQuickPathUs = 2.6;
+constexpr double kMeasuredBounces = 6.0;
 // ... and per denoised pixel (SVGF's passes, a frame's temporal and a-trous work): atrium 316 ms
 // a frame more beside the path tracing's (cornell 191 ms, the bunny 124 ms).
 constexpr double kQuickDenoiseUs = 5.5;
@@ -35,7 +37,11 @@ KernelBuildDecision decide_kernel_build(KernelBuild build, const std::optional<K
   }
   if (!work || !all_cpus) return d;
   const double units = compute_units > 0 ? compute_units : 1;
-  d.extra_run_s = (work->pixel_samples * kQuickPathUs + work->denoised_pixels * kQuickDenoiseUs) * 1e-6 / units;
+  // Longer paths than the measured ones cost more in proportion to their vertices (Russian
+  // roulette makes it less: an upper bound); shorter ones are not counted cheaper.
+  const double longer = std::max(1.0, (work->bounces + 1.0) / (kMeasuredBounces + 1.0));
+  d.extra_run_s =
+      (work->pixel_samples * kQuickPathUs * longer + work->denoised_pixels * kQuickDenoiseUs) * 1e-6 / units;
   d.build_saved_s = kQuickSavesS + (work->denoised_pixels > 0.0 ? kQuickSavesDenoiserS : 0.0);
   d.quick = d.extra_run_s < d.build_saved_s;
   if (d.quick) {

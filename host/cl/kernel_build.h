@@ -33,6 +33,7 @@ enum class KernelBuild {
 struct KernelWork {
   double pixel_samples = 0.0;    // frames x 2 eyes x width x height x spp
   double denoised_pixels = 0.0;  // frames x 2 eyes x width x height when the denoiser runs, else 0
+  unsigned bounces = 6;          // the paths' longest (the costs were measured at 6)
 };
 
 struct KernelBuildDecision {
