@@ -13,7 +13,9 @@ virtual environment under the build folder (made from /usr/bin/python3 with
 PoCL's kernel cache is primed first with a small mesh (the kernels are the same at every size),
 so that no cold run pays for compiling them. --first-run adds a run beside each cold one with an
 empty PoCL cache as well, which compiles the kernels for the scene's features as a user's very
-first run does, and a table of those runs.
+first run does, and a table of those runs. Every run is one raw frame, which `--kernel-build auto`
+builds quickly (the optimiser off: the same images, slower kernels; docs/measurements.md, "Quick
+kernel builds for short runs"), as it does for a user.
 
 Usage: bench/scale_series.py [--sizes 0.25,1,4,10] [--build build] [--work build/scale-series]
                              [--width 320] [--height 180] [--devices 2] [--repeat 3] [--offline]
