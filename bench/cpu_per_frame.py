@@ -14,6 +14,7 @@ has --kernel-build gets `--kernel-build optimized`, unless the flags name one: `
 short run's kernels quickly and the long run's optimised, and the subtraction would then mix the two.
 """
 import argparse
+import functools
 import os
 import shlex
 import shutil
@@ -23,12 +24,18 @@ import sys
 import tempfile
 
 
+@functools.lru_cache(maxsize=None)
+def takes_kernel_build(binary):
+    """Whether `binary render` has --kernel-build (asked once per binary, not per run)."""
+    help_text = subprocess.run([binary, "render", "--help"], capture_output=True, text=True).stdout
+    return "--kernel-build" in help_text
+
+
 def build_flags(binary, flags):
     """`--kernel-build optimized` where `binary` takes it and `flags` name no build."""
     if any(f.startswith("--kernel-build") for f in flags):
         return []
-    help_text = subprocess.run([binary, "render", "--help"], capture_output=True, text=True).stdout
-    return ["--kernel-build", "optimized"] if "--kernel-build" in help_text else []
+    return ["--kernel-build", "optimized"] if takes_kernel_build(binary) else []
 
 
 def cpu_seconds(cmd, flags, frames, out):

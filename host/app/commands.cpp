@@ -49,28 +49,26 @@ DeviceOptions DeviceChoice::options(std::optional<KernelWork> work) const {
   return {count, mode, platform, bvh_layout, kernel_build, work};
 }
 
-std::optional<KernelWork> render_kernel_work(const RenderCommand& cmd, int ranks) {
-  if (!cmd.report.empty() || !cmd.timeline.empty() || !cmd.target_ms.empty()) return std::nullopt;
-  const double pixels = 2.0 * cmd.frames * cmd.size.width * cmd.size.height / std::max(ranks, 1);
-  KernelWork w;
-  w.pixel_samples = pixels * cmd.pipeline.trace.spp;
-  w.denoised_pixels = cmd.pipeline.denoise ? pixels : 0.0;
-  w.bounces = cmd.pipeline.trace.bounces;
-  return w;
-}
-
 namespace {
 
-// A still image of both eyes at `spp` samples a pixel of paths up to `bounces` long, undenoised
-// (`preview`: one primary sample; `reference`).
-KernelWork still_kernel_work(const ImageSize& size, unsigned spp, unsigned bounces) {
+// `frames` stereo frames of `size` at `spp` samples a pixel of paths up to `bounces` long, for
+// --kernel-build auto; `denoised`: the denoiser runs on every frame.
+KernelWork stereo_kernel_work(double frames, const ImageSize& size, unsigned spp, unsigned bounces, bool denoised) {
+  const double pixels = 2.0 * frames * size.width * size.height;
   KernelWork w;
-  w.pixel_samples = 2.0 * size.width * size.height * spp;
+  w.pixel_samples = pixels * spp;
+  w.denoised_pixels = denoised ? pixels : 0.0;
   w.bounces = bounces;
   return w;
 }
 
 }  // namespace
+
+std::optional<KernelWork> render_kernel_work(const RenderCommand& cmd, int ranks) {
+  if (!cmd.report.empty() || !cmd.timeline.empty() || !cmd.target_ms.empty()) return std::nullopt;
+  return stereo_kernel_work(static_cast<double>(cmd.frames) / std::max(ranks, 1), cmd.size, cmd.pipeline.trace.spp,
+                            cmd.pipeline.trace.bounces, cmd.pipeline.denoise.has_value());
+}
 
 int run_devices(const DeviceChoice& choice) {
   std::printf("%s", describe_platforms().c_str());
@@ -83,7 +81,7 @@ int run_devices(const DeviceChoice& choice) {
 int run_preview(const PreviewCommand& cmd) {
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite);
-  SceneOnDevices on_devices(cmd.scene.name, cmd.devices.options(still_kernel_work(cmd.size, 1, 0)), false,
+  SceneOnDevices on_devices(cmd.scene.name, cmd.devices.options(stereo_kernel_work(1, cmd.size, 1, 0, false)), false,
                             cmd.scene.load_options(), cmd.scene.kernels);
   print_device_set(on_devices.devices);
   print_scene_upload(on_devices.device_scene, on_devices.devices.size());
@@ -166,8 +164,9 @@ int run_render(const RenderCommand& cmd) {
 int run_reference(const ReferenceCommand& cmd) {
   install_interrupt_handlers();
   const OutputDir out_dir(cmd.out, cmd.overwrite);
-  SceneOnDevices on_devices(cmd.scene.name, cmd.devices.options(still_kernel_work(cmd.size, cmd.spp, cmd.bounces)),
-                            false, cmd.scene.load_options(), cmd.scene.kernels);
+  SceneOnDevices on_devices(cmd.scene.name,
+                            cmd.devices.options(stereo_kernel_work(1, cmd.size, cmd.spp, cmd.bounces, false)), false,
+                            cmd.scene.load_options(), cmd.scene.kernels);
   print_device_set(on_devices.devices);
   print_scene_upload(on_devices.device_scene, on_devices.devices.size());
   print_kernel_features(on_devices.device_scene);
